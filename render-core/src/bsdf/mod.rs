@@ -1,0 +1,195 @@
+//! Scattering functions in the local shading frame.
+//!
+//! Every lobe has the same shape: `eval(wo, wi)` (f without the cosine), `sample(wo, u_lobe,
+//! u)` and `pdf(wo, wi)` (solid angle), plus `albedo(wo)`, an estimate used to choose among
+//! lobes. Directions point away from the surface; +Z is the shading normal.
+//!
+//! [`Bsdf`] holds only the lobes a material instance needs (a material with no
+//! transmission carries no transmission lobe) and picks one to sample in proportion to its
+//! albedo weight, as Cycles does with `sample_weight`; evaluation and pdf are the weighted
+//! sums over all lobes, so MIS sees the one-sample mixture density.
+
+mod lambert;
+
+pub use lambert::Lambert;
+
+use glam::{Vec2, Vec3};
+
+/// Properties of a lobe that the integrator must know.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LobeFlags {
+    /// Scatters into the hemisphere of `wo`.
+    pub reflection: bool,
+    /// Scatters into the opposite hemisphere.
+    pub transmission: bool,
+    /// A Dirac delta: cannot be evaluated, only sampled.
+    pub delta: bool,
+}
+
+/// A sampled direction.
+#[derive(Clone, Copy, Debug)]
+pub struct LobeSample {
+    /// Sampled incident direction (local frame).
+    pub wi: Vec3,
+    /// f(wo, wi)·|cos θi| / pdf, the path throughput factor.
+    pub weight: Vec3,
+    /// Density of `wi` in solid angle (meaningless for delta lobes, where it is 1).
+    pub pdf: f32,
+    /// Flags of the lobe that produced the sample.
+    pub flags: LobeFlags,
+}
+
+/// One scattering lobe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lobe {
+    /// Ideal diffuse reflection.
+    Lambert(Lambert),
+}
+
+impl Lobe {
+    /// f(wo, wi), without the cosine.
+    #[inline]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        match self {
+            Lobe::Lambert(l) => l.eval(wo, wi),
+        }
+    }
+
+    /// Samples an incident direction.
+    #[inline]
+    pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<LobeSample> {
+        match self {
+            Lobe::Lambert(l) => l.sample(wo, u),
+        }
+    }
+
+    /// Density of [`Lobe::sample`] choosing `wi`.
+    #[inline]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match self {
+            Lobe::Lambert(l) => l.pdf(wo, wi),
+        }
+    }
+
+    /// Directional albedo estimate, used for lobe selection and the albedo AOV.
+    #[inline]
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        match self {
+            Lobe::Lambert(l) => l.albedo(wo),
+        }
+    }
+
+    /// The lobe's flags.
+    #[inline]
+    pub fn flags(&self) -> LobeFlags {
+        match self {
+            Lobe::Lambert(_) => Lambert::FLAGS,
+        }
+    }
+}
+
+/// Most lobes one material instance may hold.
+pub const MAX_LOBES: usize = 8;
+
+/// The lobes of one shading point, with selection probabilities.
+#[derive(Clone, Debug, Default)]
+pub struct Bsdf {
+    lobes: [Option<Lobe>; MAX_LOBES],
+    select: [f32; MAX_LOBES],
+    count: usize,
+}
+
+impl Bsdf {
+    /// Adds a lobe; lobes past [`MAX_LOBES`] are ignored (a material never builds that many).
+    pub fn push(&mut self, lobe: Lobe) {
+        if self.count < MAX_LOBES {
+            self.lobes[self.count] = Some(lobe);
+            self.count += 1;
+        }
+    }
+
+    /// True when nothing scatters.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    fn lobes(&self) -> impl Iterator<Item = (usize, &Lobe)> {
+        self.lobes[..self.count]
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| l.as_ref().map(|l| (i, l)))
+    }
+
+    /// Sets lobe selection probabilities from albedo estimates at `wo`. Call once per
+    /// shading point before sampling.
+    pub fn prepare(&mut self, wo: Vec3) {
+        let mut total = 0.0;
+        for i in 0..self.count {
+            let w = self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
+            self.select[i] = w;
+            total += w;
+        }
+        for i in 0..self.count {
+            self.select[i] = if total > 0.0 {
+                self.select[i] / total
+            } else {
+                1.0 / self.count as f32
+            };
+        }
+    }
+
+    /// Sum of the lobes' f(wo, wi).
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.lobes().map(|(_, l)| l.eval(wo, wi)).sum()
+    }
+
+    /// The mixture density of [`Bsdf::sample`].
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.lobes()
+            .map(|(i, l)| self.select[i] * l.pdf(wo, wi))
+            .sum()
+    }
+
+    /// Sum of the lobes' albedo estimates.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        self.lobes().map(|(_, l)| l.albedo(wo)).sum()
+    }
+
+    /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS
+    /// estimate of the whole BSDF (f and pdf summed over all non-delta lobes).
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<LobeSample> {
+        let mut acc = 0.0;
+        let mut chosen = None;
+        for (i, _) in self.lobes() {
+            acc += self.select[i];
+            if u_lobe < acc || i + 1 == self.count {
+                chosen = Some(i);
+                break;
+            }
+        }
+        let i = chosen?;
+        let lobe = self.lobes[i]?;
+        let s = lobe.sample(wo, u)?;
+        if s.flags.delta {
+            let p = self.select[i];
+            return (p > 0.0).then(|| LobeSample {
+                weight: s.weight / p,
+                pdf: p,
+                ..s
+            });
+        }
+        let pdf = self.pdf(wo, s.wi);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        let f = self.eval(wo, s.wi);
+        Some(LobeSample {
+            weight: f * s.wi.z.abs() / pdf,
+            pdf,
+            ..s
+        })
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod testing;

@@ -1,0 +1,315 @@
+//! The statistical test battery every lobe runs: white furnace, reciprocity, chi-square
+//! goodness of fit of `sample` against `pdf` (the method of pbrt-v4's `bsdfs_test.cpp` and
+//! Mitsuba 3's `chi2.py`: equal-area bins in (cos θ, φ), cells with expected count below 5
+//! pooled, a Šidák-corrected significance level), and sample weights equal to f·cos/pdf.
+
+use std::f64::consts::PI;
+
+use glam::{Vec2, Vec3};
+
+use super::Lobe;
+use crate::sampling::Pcg32;
+
+/// Directions `wo` the battery probes, down to grazing (cos θ = 1e-4).
+pub fn probe_directions() -> Vec<Vec3> {
+    [1.0f32, 0.8, 0.5, 0.2, 0.05, 1e-2, 1e-4]
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| {
+            let s = (1.0 - c * c).max(0.0).sqrt();
+            let phi = 0.7 + i as f32;
+            Vec3::new(s * phi.cos(), s * phi.sin(), c)
+        })
+        .collect()
+}
+
+/// Monte Carlo estimate of the directional albedo ∫ f·|cos| dωi via the lobe's own sampling.
+pub fn albedo_estimate(lobe: &Lobe, wo: Vec3, n: u32) -> Vec3 {
+    let mut rng = Pcg32::new(17, 23);
+    let mut acc = glam::DVec3::ZERO;
+    for _ in 0..n {
+        if let Some(s) = lobe.sample(wo, rng.next_2d()) {
+            assert!(
+                crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0,
+                "bad weight {:?}",
+                s.weight
+            );
+            acc += s.weight.as_dvec3();
+        }
+    }
+    (acc / n as f64).as_vec3()
+}
+
+/// White furnace: albedo ≤ 1 + 1e-3 (plus Monte Carlo slack) at every probe direction.
+pub fn assert_albedo_at_most_one(lobe: &Lobe) {
+    for wo in probe_directions() {
+        let a = albedo_estimate(lobe, wo, 50_000);
+        assert!(
+            a.max_element() <= 1.0 + 1e-3 + 0.01,
+            "albedo {a:?} > 1 at wo={wo:?} for {lobe:?}"
+        );
+    }
+}
+
+/// f(wo, wi) = f(wi, wo) to 1e-4 relative for random direction pairs.
+pub fn assert_reciprocal(lobe: &Lobe) {
+    let mut rng = Pcg32::new(5, 9);
+    for _ in 0..1000 {
+        let a = crate::sampling::uniform_sphere(rng.next_2d());
+        let b = crate::sampling::uniform_sphere(rng.next_2d());
+        let f1 = lobe.eval(a, b);
+        let f2 = lobe.eval(b, a);
+        let scale = f1.abs().max(f2.abs()).max_element().max(1e-6);
+        assert!(
+            (f1 - f2).abs().max_element() <= 1e-4 * scale,
+            "f({a:?},{b:?})={f1:?} but reversed {f2:?}"
+        );
+    }
+}
+
+/// For sampled directions, the returned weight equals eval·|cos θi|/pdf and pdf matches
+/// `Lobe::pdf`.
+pub fn assert_weights_consistent(lobe: &Lobe) {
+    let mut rng = Pcg32::new(77, 1);
+    for wo in probe_directions() {
+        for _ in 0..2000 {
+            let Some(s) = lobe.sample(wo, rng.next_2d()) else {
+                continue;
+            };
+            if s.flags.delta {
+                continue;
+            }
+            let pdf = lobe.pdf(wo, s.wi);
+            assert!(
+                (pdf - s.pdf).abs() <= 1e-3 * pdf.max(1e-3),
+                "pdf {pdf} vs sampled {}",
+                s.pdf
+            );
+            let w = lobe.eval(wo, s.wi) * s.wi.z.abs() / pdf;
+            assert!(
+                (w - s.weight).abs().max_element() <= 1e-3 * w.max_element().max(1e-3),
+                "weight {:?} vs {:?}",
+                s.weight,
+                w
+            );
+        }
+    }
+}
+
+const THETA_BINS: usize = 20;
+const PHI_BINS: usize = 40;
+const SAMPLES: u32 = 400_000;
+/// Overall significance level; divided among the tests of one lobe by Šidák's correction.
+const ALPHA: f64 = 0.01;
+
+fn bin_of(w: Vec3) -> usize {
+    let c = ((w.z as f64 + 1.0) * 0.5 * THETA_BINS as f64)
+        .floor()
+        .clamp(0.0, THETA_BINS as f64 - 1.0) as usize;
+    let phi = (w.y as f64).atan2(w.x as f64).rem_euclid(2.0 * PI);
+    let p = (phi / (2.0 * PI) * PHI_BINS as f64)
+        .floor()
+        .clamp(0.0, PHI_BINS as f64 - 1.0) as usize;
+    c * PHI_BINS + p
+}
+
+/// Chi-square test of `sample` against `pdf` at every probe direction.
+pub fn assert_chi2(lobe: &Lobe, seed: u64) {
+    let dirs = probe_directions();
+    let alpha = 1.0 - (1.0 - ALPHA).powf(1.0 / dirs.len() as f64);
+    for (k, wo) in dirs.into_iter().enumerate() {
+        let mut rng = Pcg32::new(seed, k as u64);
+        let mut observed = vec![0.0f64; THETA_BINS * PHI_BINS];
+        for _ in 0..SAMPLES {
+            if let Some(s) = lobe.sample(wo, rng.next_2d()) {
+                if s.flags.delta {
+                    return;
+                }
+                observed[bin_of(s.wi.normalize())] += 1.0;
+            }
+        }
+        // Expected counts: integrate the pdf over each bin with a midpoint rule.
+        const SUB: usize = 8;
+        let mut expected = vec![0.0f64; THETA_BINS * PHI_BINS];
+        let cell = (2.0 / THETA_BINS as f64) * (2.0 * PI / PHI_BINS as f64) / (SUB * SUB) as f64;
+        for ci in 0..THETA_BINS {
+            for pi in 0..PHI_BINS {
+                let mut acc = 0.0;
+                for a in 0..SUB {
+                    for b in 0..SUB {
+                        let z = -1.0
+                            + (ci as f64 + (a as f64 + 0.5) / SUB as f64) * 2.0 / THETA_BINS as f64;
+                        let phi = (pi as f64 + (b as f64 + 0.5) / SUB as f64) * 2.0 * PI
+                            / PHI_BINS as f64;
+                        let r = (1.0 - z * z).max(0.0).sqrt();
+                        let wi =
+                            Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                        acc += lobe.pdf(wo, wi) as f64 * cell;
+                    }
+                }
+                expected[ci * PHI_BINS + pi] = acc * SAMPLES as f64;
+            }
+        }
+        let (stat, dof) = chi2_statistic(&observed, &expected);
+        if dof == 0 {
+            continue;
+        }
+        let p = chi2_survival(stat, dof as f64);
+        assert!(
+            p > alpha,
+            "chi-square rejects sampling of {lobe:?} at wo={wo:?}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}"
+        );
+    }
+}
+
+/// Pearson's statistic with cells of expected count < 5 pooled (pbrt's approach).
+fn chi2_statistic(observed: &[f64], expected: &[f64]) -> (f64, usize) {
+    let mut idx: Vec<usize> = (0..observed.len()).collect();
+    idx.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let (mut pooled_o, mut pooled_e, mut stat, mut dof) = (0.0, 0.0, 0.0, 0usize);
+    for &i in &idx {
+        if expected[i] == 0.0 {
+            assert!(
+                observed[i] == 0.0,
+                "samples landed in a bin of zero density ({} of them)",
+                observed[i]
+            );
+            continue;
+        }
+        if expected[i] < 5.0 {
+            pooled_o += observed[i];
+            pooled_e += expected[i];
+        } else {
+            let d = observed[i] - expected[i];
+            stat += d * d / expected[i];
+            dof += 1;
+        }
+    }
+    if pooled_e > 0.0 {
+        let d = pooled_o - pooled_e;
+        stat += d * d / pooled_e;
+        dof += 1;
+    }
+    (stat, dof.saturating_sub(1))
+}
+
+/// P[X ≥ x] for X ~ χ²(k): the regularised upper incomplete gamma Q(k/2, x/2).
+pub fn chi2_survival(x: f64, k: f64) -> f64 {
+    gamma_q(k / 2.0, x / 2.0)
+}
+
+fn ln_gamma(x: f64) -> f64 {
+    // Lanczos approximation (g = 7, n = 9).
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        return (PI / (PI * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    if x < a + 1.0 {
+        // Series for P, then Q = 1 - P.
+        let (mut sum, mut del, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..1000 {
+            ap += 1.0;
+            del *= x / ap;
+            sum += del;
+            if del.abs() < sum.abs() * 1e-15 {
+                break;
+            }
+        }
+        1.0 - sum * (-x + a * x.ln() - ln_gamma(a)).exp()
+    } else {
+        // Continued fraction (Lentz).
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..1000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        (-x + a * x.ln() - ln_gamma(a)).exp() * h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chi2_survival_matches_tables() {
+        // Critical values from standard χ² tables.
+        assert!((chi2_survival(3.841, 1.0) - 0.05).abs() < 1e-3);
+        assert!((chi2_survival(18.307, 10.0) - 0.05).abs() < 1e-3);
+        assert!((chi2_survival(124.342, 100.0) - 0.05).abs() < 1e-3);
+    }
+
+    #[test]
+    fn chi2_catches_a_sampler_that_disagrees_with_its_pdf() {
+        // A Lambert lobe sampled uniformly over the hemisphere but claiming a cosine pdf.
+        let observed_uniform = {
+            let mut rng = Pcg32::new(1, 1);
+            let mut o = vec![0.0f64; THETA_BINS * PHI_BINS];
+            for _ in 0..SAMPLES {
+                let u: Vec2 = rng.next_2d();
+                let w = crate::sampling::uniform_sphere(u);
+                let w = Vec3::new(w.x, w.y, w.z.abs());
+                o[bin_of(w)] += 1.0;
+            }
+            o
+        };
+        let lobe = Lobe::Lambert(super::super::Lambert { r: Vec3::ONE });
+        let wo = Vec3::Z;
+        let mut e = vec![0.0f64; THETA_BINS * PHI_BINS];
+        for ci in 0..THETA_BINS {
+            for pi in 0..PHI_BINS {
+                let z = -1.0 + (ci as f64 + 0.5) * 2.0 / THETA_BINS as f64;
+                let phi = (pi as f64 + 0.5) * 2.0 * PI / PHI_BINS as f64;
+                let r = (1.0 - z * z).sqrt();
+                let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                e[ci * PHI_BINS + pi] = lobe.pdf(wo, wi) as f64
+                    * (2.0 / THETA_BINS as f64)
+                    * (2.0 * PI / PHI_BINS as f64)
+                    * SAMPLES as f64;
+            }
+        }
+        let (stat, dof) = chi2_statistic(&observed_uniform, &e);
+        assert!(chi2_survival(stat, dof as f64) < 1e-6);
+    }
+}

@@ -1,0 +1,195 @@
+//! Rays, triangle meshes, instances and robust ray origins.
+
+use glam::{Affine3A, Mat3, Vec2, Vec3};
+
+/// A ray with a maximum parametric distance.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    /// Origin.
+    pub origin: Vec3,
+    /// Direction; not necessarily unit length in object space.
+    pub dir: Vec3,
+    /// Maximum t.
+    pub tmax: f32,
+}
+
+impl Ray {
+    /// A ray of unbounded length.
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Ray {
+            origin,
+            dir,
+            tmax: f32::INFINITY,
+        }
+    }
+
+    /// The point at parameter `t`.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// Offsets a surface point along its geometric normal so that a ray leaving it does not
+/// re-hit the same surface: Wächter & Binder, "A Fast and Robust Method for Avoiding
+/// Self-Intersection", Ray Tracing Gems (2019), chapter 6. The offset scales with the
+/// magnitude of the coordinates, so it holds at 1e-4 and at 1e5 scene units alike.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, ng: Vec3) -> Vec3 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let of_i = [
+        (INT_SCALE * ng.x) as i32,
+        (INT_SCALE * ng.y) as i32,
+        (INT_SCALE * ng.z) as i32,
+    ];
+    let bump = |c: f32, o: i32| -> f32 {
+        let bits = c.to_bits() as i32;
+        f32::from_bits((bits + if c < 0.0 { -o } else { o }) as u32)
+    };
+    let p_i = Vec3::new(bump(p.x, of_i[0]), bump(p.y, of_i[1]), bump(p.z, of_i[2]));
+    Vec3::new(
+        if p.x.abs() < ORIGIN {
+            p.x + FLOAT_SCALE * ng.x
+        } else {
+            p_i.x
+        },
+        if p.y.abs() < ORIGIN {
+            p.y + FLOAT_SCALE * ng.y
+        } else {
+            p_i.y
+        },
+        if p.z.abs() < ORIGIN {
+            p.z + FLOAT_SCALE * ng.z
+        } else {
+            p_i.z
+        },
+    )
+}
+
+/// How a mesh's shading normals are stored.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Normals {
+    /// Flat shading from the geometric normal.
+    #[default]
+    None,
+    /// One normal per vertex.
+    Vertex(Vec<Vec3>),
+    /// One normal per triangle corner (3 per triangle).
+    FaceVarying(Vec<Vec3>),
+}
+
+/// A triangle mesh in object space.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Vertex indices, three per triangle.
+    pub indices: Vec<[u32; 3]>,
+    /// Shading normals.
+    pub normals: Normals,
+}
+
+impl Mesh {
+    /// Object-space vertices of triangle `tri`.
+    #[inline]
+    pub fn triangle(&self, tri: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.indices[tri];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Interpolated, unnormalised shading normal at barycentrics (`b1`, `b2`), or `None`
+    /// for flat meshes.
+    #[inline]
+    pub fn shading_normal(&self, tri: usize, bary: Vec2) -> Option<Vec3> {
+        let w = [1.0 - bary.x - bary.y, bary.x, bary.y];
+        match &self.normals {
+            Normals::None => None,
+            Normals::Vertex(n) => {
+                let [a, b, c] = self.indices[tri];
+                Some(n[a as usize] * w[0] + n[b as usize] * w[1] + n[c as usize] * w[2])
+            }
+            Normals::FaceVarying(n) => {
+                Some(n[3 * tri] * w[0] + n[3 * tri + 1] * w[1] + n[3 * tri + 2] * w[2])
+            }
+        }
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+}
+
+/// An object-to-world transform with the matrices a renderer needs precomputed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// Object to world.
+    pub to_world: Affine3A,
+    /// World to object.
+    pub to_object: Affine3A,
+    /// Inverse transpose of the linear part: transforms normals to world space.
+    pub normal_matrix: Mat3,
+}
+
+impl Transform {
+    /// Builds from an object-to-world affine map. Returns `None` when it is singular or
+    /// not finite.
+    pub fn new(to_world: Affine3A) -> Option<Self> {
+        let det = to_world.matrix3.determinant();
+        if !det.is_finite() || det.abs() < 1e-30 || !to_world.translation.is_finite() {
+            return None;
+        }
+        let to_object = to_world.inverse();
+        let normal_matrix = Mat3::from(to_world.matrix3).inverse().transpose();
+        Some(Transform {
+            to_world,
+            to_object,
+            normal_matrix,
+        })
+    }
+
+    /// The identity.
+    pub fn identity() -> Self {
+        Self::new(Affine3A::IDENTITY).expect("identity is invertible")
+    }
+
+    /// True when the transform flips handedness.
+    pub fn flips_handedness(&self) -> bool {
+        self.to_world.matrix3.determinant() < 0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_moves_off_the_surface_at_every_scale() {
+        for scale in [1e-4f32, 1.0, 1e5] {
+            let p = Vec3::new(0.3, -0.7, 0.2) * scale;
+            let n = Vec3::new(0.0, 0.0, 1.0);
+            let q = offset_ray_origin(p, n);
+            assert!(q.z > p.z, "scale {scale}: {q:?}");
+            let q = offset_ray_origin(p, -n);
+            assert!(q.z < p.z, "scale {scale}: {q:?}");
+            // The offset is tiny relative to the coordinate.
+            assert!((q - p).length() <= 1e-3 * scale.max(1.0));
+        }
+    }
+
+    #[test]
+    fn singular_transforms_are_rejected() {
+        assert!(Transform::new(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))).is_none());
+        assert!(
+            Transform::new(Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0))).is_none()
+        );
+        let t = Transform::new(Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))).unwrap();
+        assert!(t.flips_handedness());
+    }
+}

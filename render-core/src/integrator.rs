@@ -1,0 +1,212 @@
+//! Unidirectional path tracing with next-event estimation and multiple importance sampling
+//! (Veach 1997, power heuristic), and Russian roulette.
+//!
+//! Depth counts scattering events (pbrt's convention): `max_depth = 1` is direct lighting
+//! only. Mitsuba's `max_depth` counts path vertices including the emitter, so its
+//! `max_depth = 8` equals our 7.
+
+use glam::Vec3;
+
+use crate::film::PixelSample;
+use crate::geometry::{Ray, offset_ray_origin};
+use crate::light::ShadingContext;
+use crate::math::{Frame, is_finite};
+use crate::sampling::{Pcg32, power_heuristic};
+use crate::scene::CommittedScene;
+
+/// Path-tracing settings.
+#[derive(Clone, Copy, Debug)]
+pub struct IntegratorSettings {
+    /// Maximum number of scattering events.
+    pub max_depth: u32,
+    /// Bounce after which Russian roulette may end paths.
+    pub rr_start: u32,
+}
+
+impl Default for IntegratorSettings {
+    fn default() -> Self {
+        IntegratorSettings {
+            max_depth: 8,
+            rr_start: 3,
+        }
+    }
+}
+
+/// Counters of one path.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathCounters {
+    /// Rays traced (camera, bounce and shadow).
+    pub rays: u64,
+    /// Samples whose radiance was not finite (dropped; a bug indicator).
+    pub non_finite: u64,
+}
+
+/// Where the previous vertex sampled its outgoing direction from, for MIS.
+#[derive(Clone, Copy)]
+struct PrevVertex {
+    ctx: ShadingContext,
+    bsdf_pdf: f32,
+    delta: bool,
+}
+
+/// Radiance and first-hit AOVs along a camera ray.
+pub fn trace_path(
+    scene: &CommittedScene,
+    camera_ray: Ray,
+    depth_of: impl Fn(f32) -> f32,
+    background_depth: f32,
+    rng: &mut Pcg32,
+    settings: &IntegratorSettings,
+    counters: &mut PathCounters,
+) -> PixelSample {
+    let mut out = PixelSample {
+        depth: background_depth,
+        ..Default::default()
+    };
+    let mut l = Vec3::ZERO;
+    let mut beta = Vec3::ONE;
+    let mut ray = camera_ray;
+    let mut prev: Option<PrevVertex> = None;
+    let lights = &scene.lights;
+
+    // MIS weight of a light found by BSDF sampling: 1 from the camera or after a delta lobe.
+    let weight = |prev: &Option<PrevVertex>, light: u32, pdf_light: f32| -> f32 {
+        match prev {
+            None => 1.0,
+            Some(p) if p.delta => 1.0,
+            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(light as usize) * pdf_light),
+        }
+    };
+
+    let mut depth = 0u32;
+    loop {
+        counters.rays += 1;
+        let hit = scene.intersect(&ray);
+        let t_hit = hit.map_or(ray.tmax, |h| h.t);
+
+        // Area lights crossed before the surface (they do not occlude).
+        for &i in &scene.crossable_lights {
+            let light = &lights.lights[i as usize];
+            if prev.is_none() && !light.visible_to_camera {
+                continue;
+            }
+            if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
+                let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
+                l += beta * lh.le * weight(&prev, i, pdf);
+            }
+        }
+
+        let Some(hit) = hit else {
+            for &i in &scene.infinite_lights {
+                let light = &lights.lights[i as usize];
+                if prev.is_none() && !light.visible_to_camera {
+                    continue;
+                }
+                let le = light.shape.escaped(ray.dir);
+                if le != Vec3::ZERO {
+                    let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, f32::INFINITY));
+                    l += beta * le * weight(&prev, i, pdf);
+                }
+            }
+            break;
+        };
+
+        let s = scene.surface(&hit);
+        let wo = -ray.dir;
+        let ng = if s.ng.dot(wo) < 0.0 { -s.ng } else { s.ng };
+        let ns = if s.ns.dot(ng) < 0.0 { -s.ns } else { s.ns };
+        let material = &scene.materials[s.material as usize];
+
+        if let Some(li) = s.light {
+            let light = &lights.lights[li as usize];
+            let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, hit.t));
+            l += beta * light.shape.radiance() * weight(&prev, li, pdf);
+        }
+
+        let mut bsdf = material.bsdf();
+        let frame = Frame::from_normal(ns);
+        let wo_local = frame.to_local(wo);
+        if depth == 0 {
+            out.alpha = 1.0;
+            out.normal = ns;
+            out.depth = depth_of(hit.t);
+            out.albedo = bsdf.albedo(wo_local.with_z(wo_local.z.abs()));
+        }
+        if depth >= settings.max_depth || bsdf.is_empty() {
+            break;
+        }
+        bsdf.prepare(wo_local);
+        let ctx = ShadingContext { p: s.p, n: ng };
+
+        // Next-event estimation.
+        if !lights.is_empty() {
+            let u_sel = rng.next_f32();
+            let u_light = rng.next_2d();
+            if let Some(ls) = lights.sample(&ctx, u_sel, u_light) {
+                if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
+                    let wi_local = frame.to_local(ls.wi);
+                    let f = bsdf.eval(wo_local, wi_local);
+                    if f != Vec3::ZERO {
+                        let origin =
+                            offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng });
+                        let tmax = if ls.dist.is_finite() {
+                            ls.dist * (1.0 - 1e-4)
+                        } else {
+                            f32::INFINITY
+                        };
+                        counters.rays += 1;
+                        if !scene.occluded(&Ray::new(origin, ls.wi), tmax) {
+                            let w = if ls.delta {
+                                1.0
+                            } else {
+                                power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local))
+                            };
+                            l += beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf);
+                        }
+                    }
+                }
+            }
+        } else {
+            // Keep the random stream aligned whether or not the scene has lights.
+            rng.next_f32();
+            rng.next_2d();
+        }
+
+        // Continue the path by sampling the BSDF.
+        let u_lobe = rng.next_f32();
+        let u = rng.next_2d();
+        let Some(bs) = bsdf.sample(wo_local, u_lobe, u) else {
+            break;
+        };
+        let wi = frame.to_world(bs.wi).normalize();
+        beta *= bs.weight;
+        if beta == Vec3::ZERO || !is_finite(beta) {
+            break;
+        }
+        prev = Some(PrevVertex {
+            ctx,
+            bsdf_pdf: bs.pdf,
+            delta: bs.flags.delta,
+        });
+        ray = Ray::new(
+            offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }),
+            wi,
+        );
+        depth += 1;
+
+        if depth >= settings.rr_start {
+            let q = (1.0 - beta.max_element()).max(0.05);
+            if rng.next_f32() < q {
+                break;
+            }
+            beta /= 1.0 - q;
+        }
+    }
+
+    if !is_finite(l) {
+        counters.non_finite += 1;
+        l = Vec3::ZERO;
+    }
+    out.radiance = l;
+    out
+}

@@ -1,0 +1,700 @@
+//! Geometry of each light: sampling from a shading point, ray intersection, emitted
+//! radiance and power.
+
+use std::f32::consts::PI;
+
+use glam::{Affine3A, Vec2, Vec3};
+
+use super::{LightKind, ShadingContext};
+use crate::math::Frame;
+use crate::sampling::{concentric_disk, cosine_hemisphere, uniform_sphere};
+
+/// A sample on a light, seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (infinite for distant and dome lights).
+    pub dist: f32,
+    /// Incident radiance (or, for a delta light, irradiance facing it).
+    pub li: Vec3,
+    /// Density in solid angle, including light selection (1 for delta lights).
+    pub pdf: f32,
+    /// A Dirac delta in direction: BSDF sampling cannot find it.
+    pub delta: bool,
+}
+
+/// A ray meeting a light.
+#[derive(Clone, Copy, Debug)]
+pub struct LightHit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// Radiance towards the ray origin.
+    pub le: Vec3,
+}
+
+/// World-space light geometry with its emitted radiance.
+#[derive(Clone, Debug)]
+pub enum Shape {
+    /// Sphere emitting outward.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius (world space).
+        radius: f32,
+        /// Radiance.
+        l: Vec3,
+    },
+    /// Parallelogram `center ± u ± v`, emitting towards `n`.
+    Rect {
+        /// Centre.
+        center: Vec3,
+        /// Half-extent along local X, in world space.
+        u: Vec3,
+        /// Half-extent along local Y, in world space.
+        v: Vec3,
+        /// Unit emitting direction (local −Z).
+        n: Vec3,
+        /// World-space area.
+        area: f32,
+        /// Radiance.
+        l: Vec3,
+    },
+    /// Ellipse `center + r cosφ·u + r sinφ·v`, emitting towards `n`.
+    Disk {
+        /// Centre.
+        center: Vec3,
+        /// World image of local X times the radius.
+        u: Vec3,
+        /// World image of local Y times the radius.
+        v: Vec3,
+        /// Unit emitting direction (local −Z).
+        n: Vec3,
+        /// World-space area.
+        area: f32,
+        /// Radiance.
+        l: Vec3,
+    },
+    /// Directional light from a cone of directions around `dir` (towards the light).
+    Distant {
+        /// Unit direction towards the light.
+        dir: Vec3,
+        /// Frame around `dir`.
+        frame: Frame,
+        /// cos of the half-angle; 1 for a delta light.
+        cos_half: f32,
+        /// 1 − cos of the half-angle, kept separately for precision at small angles.
+        one_minus_cos_half: f32,
+        /// Radiance inside the cone, or irradiance for a delta light.
+        l: Vec3,
+    },
+    /// Constant environment.
+    Dome {
+        /// Radiance.
+        l: Vec3,
+    },
+    /// One emissive triangle of a mesh (emits from both faces).
+    Triangle {
+        /// World-space vertices.
+        p: [Vec3; 3],
+        /// Unit geometric normal.
+        n: Vec3,
+        /// World-space area.
+        area: f32,
+        /// Radiance.
+        l: Vec3,
+    },
+}
+
+impl Shape {
+    /// Builds a UsdLux light in world space; `None` when it cannot emit.
+    pub fn new(kind: LightKind, xf: &Affine3A, l: Vec3, normalize: bool) -> Option<Shape> {
+        let center = xf.translation.into();
+        let shape = match kind {
+            LightKind::Sphere { radius } => {
+                // A non-uniform scale makes an ellipsoid; we keep a sphere of equal volume.
+                let r = radius.abs() * xf.matrix3.determinant().abs().cbrt();
+                if !(r > 0.0) {
+                    return None;
+                }
+                let area = 4.0 * PI * r * r;
+                Shape::Sphere {
+                    center,
+                    radius: r,
+                    l: if normalize { l / area } else { l },
+                }
+            }
+            LightKind::Rect { width, height } => {
+                let u = Vec3::from(xf.matrix3.x_axis) * (0.5 * width);
+                let v = Vec3::from(xf.matrix3.y_axis) * (0.5 * height);
+                let cross = u.cross(v);
+                let area = 4.0 * cross.length();
+                if !(area > 0.0) {
+                    return None;
+                }
+                // The light faces local −Z; with a mirroring transform −(u×v) still is the image of −Z's side.
+                let n = -Vec3::from(xf.matrix3.z_axis).normalize_or_zero();
+                let n = if n.dot(cross) <= 0.0 {
+                    -cross.normalize()
+                } else {
+                    cross.normalize()
+                };
+                Shape::Rect {
+                    center,
+                    u,
+                    v,
+                    n,
+                    area,
+                    l: if normalize { l / area } else { l },
+                }
+            }
+            LightKind::Disk { radius } => {
+                let u = Vec3::from(xf.matrix3.x_axis) * radius;
+                let v = Vec3::from(xf.matrix3.y_axis) * radius;
+                let cross = u.cross(v);
+                let area = PI * cross.length();
+                if !(area > 0.0) {
+                    return None;
+                }
+                let n = -Vec3::from(xf.matrix3.z_axis).normalize_or_zero();
+                let n = if n.dot(cross) <= 0.0 {
+                    -cross.normalize()
+                } else {
+                    cross.normalize()
+                };
+                Shape::Disk {
+                    center,
+                    u,
+                    v,
+                    n,
+                    area,
+                    l: if normalize { l / area } else { l },
+                }
+            }
+            LightKind::Distant { angle_degrees } => {
+                // The light travels along local −Z, so it lies towards +Z.
+                let dir = Vec3::from(xf.matrix3.z_axis).normalize_or_zero();
+                if dir == Vec3::ZERO {
+                    return None;
+                }
+                let half = (0.5 * angle_degrees.abs().min(360.0)).to_radians();
+                let (s, c) = half.sin_cos();
+                if s * s <= 1e-12 {
+                    // A zero angle is a delta light whose intensity is the illuminance.
+                    Shape::Distant {
+                        dir,
+                        frame: Frame::from_normal(dir),
+                        cos_half: 1.0,
+                        one_minus_cos_half: 0.0,
+                        l,
+                    }
+                } else {
+                    let one_minus = if half < 0.5 * PI {
+                        s * s / (1.0 + c)
+                    } else {
+                        1.0 - c
+                    };
+                    let l = if normalize { l / (PI * s * s) } else { l };
+                    Shape::Distant {
+                        dir,
+                        frame: Frame::from_normal(dir),
+                        cos_half: c,
+                        one_minus_cos_half: one_minus,
+                        l,
+                    }
+                }
+            }
+            LightKind::Dome => Shape::Dome { l },
+        };
+        Some(shape)
+    }
+
+    /// A two-sided emissive triangle; `None` when degenerate.
+    pub fn triangle(p: [Vec3; 3], l: Vec3) -> Option<Shape> {
+        let c = (p[1] - p[0]).cross(p[2] - p[0]);
+        let area = 0.5 * c.length();
+        (area > 0.0 && area.is_finite()).then(|| Shape::Triangle {
+            p,
+            n: c.normalize(),
+            area,
+            l,
+        })
+    }
+
+    /// Emitted power, with infinite lights sized by the scene's bounding radius.
+    pub fn power(&self, scene_radius: f32) -> Vec3 {
+        let disk = PI * scene_radius * scene_radius;
+        match self {
+            Shape::Sphere { radius, l, .. } => *l * (4.0 * PI * radius * radius * PI),
+            Shape::Rect { area, l, .. } | Shape::Disk { area, l, .. } => *l * (area * PI),
+            Shape::Triangle { area, l, .. } => *l * (2.0 * area * PI),
+            Shape::Distant {
+                one_minus_cos_half,
+                l,
+                ..
+            } => {
+                let e = if *one_minus_cos_half == 0.0 {
+                    *l
+                } else {
+                    *l * PI * one_minus_cos_half * (2.0 - one_minus_cos_half)
+                };
+                e * disk
+            }
+            Shape::Dome { l } => *l * (4.0 * PI * disk),
+        }
+    }
+
+    /// True for lights at infinity.
+    pub fn is_infinite(&self) -> bool {
+        matches!(self, Shape::Distant { .. } | Shape::Dome { .. })
+    }
+
+    /// Samples a direction towards the light from `ctx` (pdf excludes light selection).
+    pub fn sample(&self, ctx: &ShadingContext, u: Vec2) -> Option<LightSample> {
+        match self {
+            Shape::Sphere { center, radius, l } => sample_sphere(ctx.p, *center, *radius, *l, u),
+            Shape::Rect {
+                center,
+                u: a,
+                v: b,
+                n,
+                area,
+                l,
+            } => {
+                let q = *center + (2.0 * u.x - 1.0) * *a + (2.0 * u.y - 1.0) * *b;
+                area_sample(ctx.p, q, *n, *area, *l, false)
+            }
+            Shape::Disk {
+                center,
+                u: a,
+                v: b,
+                n,
+                area,
+                l,
+            } => {
+                let d = concentric_disk(u);
+                area_sample(ctx.p, *center + d.x * *a + d.y * *b, *n, *area, *l, false)
+            }
+            Shape::Triangle { p, n, area, l } => {
+                let b = crate::sampling::uniform_triangle(u);
+                let q = p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
+                area_sample(ctx.p, q, *n, *area, *l, true)
+            }
+            Shape::Distant {
+                frame,
+                one_minus_cos_half,
+                l,
+                dir,
+                ..
+            } => {
+                if *one_minus_cos_half == 0.0 {
+                    return Some(LightSample {
+                        wi: *dir,
+                        dist: f32::INFINITY,
+                        li: *l,
+                        pdf: 1.0,
+                        delta: true,
+                    });
+                }
+                let wi = frame
+                    .to_world(cone_direction(u, *one_minus_cos_half))
+                    .normalize();
+                Some(LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    li: *l,
+                    pdf: cone_pdf(*one_minus_cos_half),
+                    delta: false,
+                })
+            }
+            Shape::Dome { l } => {
+                // Cosine-weighted around the normal: exact importance for diffuse under a
+                // constant dome. Directions below get pdf 0 and are left to BSDF sampling.
+                let wi = Frame::from_normal(ctx.n)
+                    .to_world(cosine_hemisphere(u))
+                    .normalize();
+                let pdf = wi.dot(ctx.n).max(0.0) / PI;
+                (pdf > 0.0).then_some(LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    li: *l,
+                    pdf,
+                    delta: false,
+                })
+            }
+        }
+    }
+
+    /// Density (solid angle, excluding selection) of sampling direction `wi` from `ctx`,
+    /// given that the ray along `wi` meets this light at distance `t`.
+    pub fn pdf(&self, ctx: &ShadingContext, wi: Vec3, t: f32) -> f32 {
+        match self {
+            Shape::Sphere { center, radius, .. } => {
+                let d2 = (*center - ctx.p).length_squared();
+                let r2 = radius * radius;
+                if d2 <= r2 {
+                    // Inside: uniform area sampling, converted to solid angle.
+                    let q = ctx.p + wi * t;
+                    let cos = ((q - *center) / *radius).dot(-wi).abs();
+                    return if cos > 0.0 {
+                        t * t / (cos * 4.0 * PI * r2)
+                    } else {
+                        0.0
+                    };
+                }
+                let sin2 = r2 / d2;
+                cone_pdf(sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt()))
+            }
+            Shape::Rect { n, area, .. } | Shape::Disk { n, area, .. } => {
+                let cos = n.dot(-wi);
+                if cos > 0.0 { t * t / (cos * area) } else { 0.0 }
+            }
+            Shape::Triangle { n, area, .. } => {
+                let cos = n.dot(-wi).abs();
+                if cos > 0.0 { t * t / (cos * area) } else { 0.0 }
+            }
+            Shape::Distant {
+                one_minus_cos_half, ..
+            } => {
+                if *one_minus_cos_half == 0.0 {
+                    0.0
+                } else {
+                    cone_pdf(*one_minus_cos_half)
+                }
+            }
+            Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
+        }
+    }
+
+    /// Where a ray (unit direction) meets a finite light before `tmax`, with the radiance
+    /// it sees.
+    pub fn intersect(&self, o: Vec3, d: Vec3, tmax: f32) -> Option<LightHit> {
+        match self {
+            Shape::Sphere { center, radius, l } => {
+                let oc = o - *center;
+                let b = oc.dot(d);
+                let c = oc.length_squared() - radius * radius;
+                // Numerically stable discriminant (Haines et al., Ray Tracing Gems ch. 7).
+                let f = oc - b * d;
+                let disc = radius * radius - f.length_squared();
+                if disc < 0.0 {
+                    return None;
+                }
+                let q = -b - b.signum() * disc.sqrt();
+                let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
+                let t0 = t0.min(t1);
+                // Emits outward only: the ray must arrive from outside (the near root).
+                let t = if t0 > 0.0 { t0 } else { return None };
+                (t < tmax).then_some(LightHit { t, le: *l })
+            }
+            Shape::Rect {
+                center, u, v, n, l, ..
+            } => {
+                let t = plane_hit(o, d, *center, *n)?;
+                let q = o + d * t - *center;
+                let a = q.dot(*u) / u.length_squared();
+                let b = q.dot(*v) / v.length_squared();
+                (t < tmax && a.abs() <= 1.0 && b.abs() <= 1.0 && d.dot(*n) < 0.0)
+                    .then_some(LightHit { t, le: *l })
+            }
+            Shape::Disk {
+                center, u, v, n, l, ..
+            } => {
+                let t = plane_hit(o, d, *center, *n)?;
+                let q = o + d * t - *center;
+                // Coordinates in the (u, v) basis, which may be skewed by the transform.
+                let (uu, uv, vv) = (u.dot(*u), u.dot(*v), v.dot(*v));
+                let (qu, qv) = (q.dot(*u), q.dot(*v));
+                let det = uu * vv - uv * uv;
+                let a = (qu * vv - qv * uv) / det;
+                let b = (qv * uu - qu * uv) / det;
+                (t < tmax && a * a + b * b <= 1.0 && d.dot(*n) < 0.0)
+                    .then_some(LightHit { t, le: *l })
+            }
+            _ => None,
+        }
+    }
+
+    /// Radiance arriving along a ray that escapes to infinity in direction `d`.
+    pub fn escaped(&self, d: Vec3) -> Vec3 {
+        match self {
+            Shape::Dome { l } => *l,
+            Shape::Distant {
+                dir,
+                cos_half,
+                one_minus_cos_half,
+                l,
+                ..
+            } if *one_minus_cos_half > 0.0 => {
+                let c = d.dot(*dir);
+                // Compare 1 − cos for precision at the sun's 0.53° angle.
+                let one_minus = if c > 0.0 {
+                    (d - *dir).length_squared() * 0.5
+                } else {
+                    1.0 - c
+                };
+                if c >= *cos_half || one_minus <= *one_minus_cos_half {
+                    *l
+                } else {
+                    Vec3::ZERO
+                }
+            }
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// Emitted radiance of a triangle light (constant on both faces).
+    pub fn radiance(&self) -> Vec3 {
+        match self {
+            Shape::Sphere { l, .. }
+            | Shape::Rect { l, .. }
+            | Shape::Disk { l, .. }
+            | Shape::Distant { l, .. }
+            | Shape::Dome { l }
+            | Shape::Triangle { l, .. } => *l,
+        }
+    }
+}
+
+fn plane_hit(o: Vec3, d: Vec3, c: Vec3, n: Vec3) -> Option<f32> {
+    let denom = d.dot(n);
+    if denom == 0.0 {
+        return None;
+    }
+    let t = (c - o).dot(n) / denom;
+    (t > 0.0).then_some(t)
+}
+
+fn area_sample(
+    p: Vec3,
+    q: Vec3,
+    n: Vec3,
+    area: f32,
+    l: Vec3,
+    two_sided: bool,
+) -> Option<LightSample> {
+    let to = q - p;
+    let d2 = to.length_squared();
+    if !(d2 > 0.0) {
+        return None;
+    }
+    let dist = d2.sqrt();
+    let wi = to / dist;
+    let cos = if two_sided {
+        n.dot(-wi).abs()
+    } else {
+        n.dot(-wi)
+    };
+    if cos <= 0.0 {
+        return None;
+    }
+    let pdf = d2 / (cos * area);
+    pdf.is_finite().then_some(LightSample {
+        wi,
+        dist,
+        li: l,
+        pdf,
+        delta: false,
+    })
+}
+
+/// Direction in a cone around +Z, parameterised by 1 − cos θmax for precision.
+fn cone_direction(u: Vec2, one_minus_cos_max: f32) -> Vec3 {
+    let one_minus_cos = u.x * one_minus_cos_max;
+    let cos_t = 1.0 - one_minus_cos;
+    let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+fn cone_pdf(one_minus_cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * one_minus_cos_max)
+}
+
+fn sample_sphere(p: Vec3, center: Vec3, radius: f32, l: Vec3, u: Vec2) -> Option<LightSample> {
+    let to_c = center - p;
+    let d2 = to_c.length_squared();
+    let r2 = radius * radius;
+    if d2 <= r2 {
+        // Inside the sphere: sample its surface uniformly by area.
+        let q = center + radius * uniform_sphere(u);
+        let nq = (q - center) / radius;
+        let to = q - p;
+        let dist2 = to.length_squared();
+        let dist = dist2.sqrt();
+        if !(dist > 0.0) {
+            return None;
+        }
+        let wi = to / dist;
+        let cos = nq.dot(-wi).abs();
+        if cos <= 0.0 {
+            return None;
+        }
+        // Inside, the surface emits outward, away from p: nothing reaches p.
+        return Some(LightSample {
+            wi,
+            dist,
+            li: Vec3::ZERO,
+            pdf: dist2 / (cos * 4.0 * PI * r2),
+            delta: false,
+        });
+    }
+    // Outside: sample the cone of directions the sphere subtends.
+    let dc = d2.sqrt();
+    let sin2 = r2 / d2;
+    let one_minus = sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt());
+    let w = cone_direction(u, one_minus);
+    let frame = Frame::from_normal(to_c / dc);
+    let wi = frame.to_world(w).normalize();
+    // Distance to the near intersection along wi.
+    let b = to_c.dot(wi);
+    let h2 = (d2 - b * b).max(0.0);
+    let dist = (b - (r2 - h2).max(0.0).sqrt()).max(0.0);
+    Some(LightSample {
+        wi,
+        dist,
+        li: l,
+        pdf: cone_pdf(one_minus),
+        delta: false,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Pcg32;
+
+    fn ctx(p: Vec3, n: Vec3) -> ShadingContext {
+        ShadingContext { p, n }
+    }
+
+    /// Irradiance at `c` by NEE alone, estimated with the light's own sampling.
+    fn irradiance(shape: &Shape, c: ShadingContext, n: u32) -> f64 {
+        let mut rng = Pcg32::new(3, 3);
+        let mut acc = 0.0f64;
+        for _ in 0..n {
+            if let Some(s) = shape.sample(&c, rng.next_2d()) {
+                let cos = s.wi.dot(c.n).max(0.0);
+                acc += (s.li.x * cos / s.pdf) as f64;
+            }
+        }
+        acc / n as f64
+    }
+
+    #[test]
+    fn small_sphere_light_gives_inverse_square_irradiance() {
+        // Unnormalised sphere of radiance L and radius r at distance d: E = L π r²/d² (far field).
+        let s = Shape::new(
+            LightKind::Sphere { radius: 0.01 },
+            &Affine3A::from_translation(Vec3::new(0.0, 0.0, 2.0)),
+            Vec3::ONE,
+            false,
+        )
+        .unwrap();
+        let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 20_000);
+        let expected = PI as f64 * 1e-4 / 4.0;
+        assert!((e / expected - 1.0).abs() < 0.01, "{e} vs {expected}");
+    }
+
+    #[test]
+    fn tiny_sphere_light_stays_finite() {
+        let s = Shape::new(
+            LightKind::Sphere { radius: 1e-6 },
+            &Affine3A::from_translation(Vec3::new(0.0, 0.0, 1.0)),
+            Vec3::splat(1e6),
+            false,
+        )
+        .unwrap();
+        let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 1000);
+        assert!(e.is_finite() && e > 0.0);
+    }
+
+    #[test]
+    fn rect_normalize_divides_by_world_area() {
+        let xf = Affine3A::from_scale(Vec3::new(2.0, 3.0, 1.0));
+        let Shape::Rect { l, area, .. } = Shape::new(
+            LightKind::Rect {
+                width: 1.0,
+                height: 1.0,
+            },
+            &xf,
+            Vec3::ONE,
+            true,
+        )
+        .unwrap() else {
+            panic!()
+        };
+        assert!((area - 6.0).abs() < 1e-5);
+        assert!((l.x - 1.0 / 6.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn normalized_distant_light_gives_its_intensity_as_illuminance() {
+        for angle in [0.0f32, 0.53, 10.0, 60.0] {
+            let s = Shape::new(
+                LightKind::Distant {
+                    angle_degrees: angle,
+                },
+                &Affine3A::IDENTITY,
+                Vec3::splat(3.0),
+                true,
+            )
+            .unwrap();
+            let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 20_000);
+            assert!((e - 3.0).abs() < 0.01, "angle {angle}: {e}");
+        }
+    }
+
+    #[test]
+    fn rect_faces_minus_z_and_its_pdf_matches_sampling() {
+        let s = Shape::new(
+            LightKind::Rect {
+                width: 2.0,
+                height: 1.0,
+            },
+            &Affine3A::from_translation(Vec3::new(0.0, 0.0, 3.0)),
+            Vec3::ONE,
+            false,
+        )
+        .unwrap();
+        let c = ctx(Vec3::new(0.2, 0.1, 0.0), Vec3::Z);
+        let mut rng = Pcg32::new(1, 2);
+        for _ in 0..100 {
+            let smp = s.sample(&c, rng.next_2d()).unwrap();
+            let hit = s
+                .intersect(c.p, smp.wi, f32::INFINITY)
+                .expect("the sampled direction hits the light");
+            assert!((hit.t - smp.dist).abs() < 1e-4);
+            assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-3);
+        }
+        // From above (behind the emitting face) nothing is seen.
+        assert!(
+            s.intersect(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, f32::INFINITY)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn sphere_cone_pdf_matches_intersection() {
+        let s = Shape::new(
+            LightKind::Sphere { radius: 0.5 },
+            &Affine3A::from_translation(Vec3::new(1.0, 0.0, 2.0)),
+            Vec3::ONE,
+            false,
+        )
+        .unwrap();
+        let c = ctx(Vec3::ZERO, Vec3::Z);
+        let mut rng = Pcg32::new(4, 2);
+        for _ in 0..100 {
+            let smp = s.sample(&c, rng.next_2d()).unwrap();
+            let hit = s.intersect(c.p, smp.wi, f32::INFINITY).expect("hit");
+            assert!(
+                (hit.t - smp.dist).abs() < 1e-3 * smp.dist.max(1.0),
+                "{} vs {}",
+                hit.t,
+                smp.dist
+            );
+            assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-3);
+        }
+    }
+}

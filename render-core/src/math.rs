@@ -1,0 +1,78 @@
+//! Small vector helpers: orthonormal frames and colour utilities.
+
+use glam::Vec3;
+
+/// An orthonormal frame; `n` is the local +Z axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// Local +X (tangent).
+    pub t: Vec3,
+    /// Local +Y (bitangent).
+    pub b: Vec3,
+    /// Local +Z (normal).
+    pub n: Vec3,
+}
+
+impl Frame {
+    /// A frame around a unit normal, branchless and continuous except at one pole:
+    /// Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 2017.
+    pub fn from_normal(n: Vec3) -> Self {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let bt = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { t, b: bt, n }
+    }
+
+    /// World direction to local coordinates.
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+
+    /// Local direction to world coordinates.
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+}
+
+/// Rec.709 relative luminance of a linear RGB colour.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// True when every component is finite.
+#[inline]
+pub fn is_finite(v: Vec3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_is_orthonormal_for_awkward_normals() {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(1e-7, 0.0, -1.0).normalize(),
+            Vec3::new(0.3, -0.4, 0.866).normalize(),
+        ] {
+            let f = Frame::from_normal(n);
+            assert!((f.t.length() - 1.0).abs() < 1e-5);
+            assert!((f.b.length() - 1.0).abs() < 1e-5);
+            assert!(
+                f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5
+            );
+            let v = Vec3::new(0.2, -0.5, 0.7);
+            assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
+            // right-handed: t x b = n
+            assert!((f.t.cross(f.b) - n).length() < 1e-4);
+        }
+    }
+}

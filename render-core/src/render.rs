@@ -1,0 +1,313 @@
+//! Progressive rendering: passes over tiles ordered from the centre out, each tile owned by
+//! one worker at a time, every pixel's samples drawn from (seed, pixel, sample index).
+
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::time::Instant;
+
+use crate::camera::Camera;
+use crate::film::{Aov, TileFilm, tiles_centre_out};
+use crate::integrator::{IntegratorSettings, PathCounters, trace_path};
+use crate::sampling::PixelSampler;
+use crate::scene::CommittedScene;
+
+/// What one render does.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel in total.
+    pub spp: u32,
+    /// Seed of every pixel's random stream.
+    pub seed: u64,
+    /// Tile edge in pixels.
+    pub tile_size: u32,
+    /// Path tracing settings.
+    pub integrator: IntegratorSettings,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 256,
+            height: 256,
+            spp: 64,
+            seed: 0,
+            tile_size: 32,
+            integrator: IntegratorSettings::default(),
+        }
+    }
+}
+
+/// Samples per pass: 1, 1, 2, 4, 8, ... so the first image arrives fast and each pass
+/// doubles the total, trimmed so the passes add up to `spp`.
+pub fn pass_schedule(spp: u32) -> Vec<u32> {
+    let mut passes = Vec::new();
+    let mut total = 0u32;
+    let mut next = 1u32;
+    while total < spp {
+        let n = next.min(spp - total);
+        passes.push(n);
+        total += n;
+        if passes.len() > 1 {
+            next = next.saturating_mul(2);
+        }
+    }
+    passes
+}
+
+/// Why a render stopped before its last pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// The client cancelled or went away.
+    Cancelled,
+    /// The scene changed; the caller recommits and restarts.
+    SceneChanged,
+}
+
+/// A finished pass's figures.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassStats {
+    /// Pass index.
+    pub pass: u32,
+    /// Samples per pixel accumulated so far.
+    pub spp: u32,
+    /// Seconds since the render started.
+    pub elapsed: f64,
+    /// Rays traced so far.
+    pub rays: u64,
+    /// Relative standard error of the image's mean luminance (RMS over pixels).
+    pub noise: f32,
+}
+
+/// Where a render sends its results. Called from worker threads.
+pub trait RenderSink: Sync {
+    /// A tile finished a pass.
+    fn tile(&self, tile: &TileFilm, pass: u32);
+    /// A pass finished.
+    fn pass_done(&self, stats: &PassStats);
+    /// Polled before every tile: `Some` stops the render.
+    fn should_stop(&self) -> Option<StopReason>;
+}
+
+/// How a render ended.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderOutcome {
+    /// Last completed pass's figures.
+    pub stats: PassStats,
+    /// Camera samples taken.
+    pub paths: u64,
+    /// Samples dropped for non-finite radiance.
+    pub non_finite: u64,
+    /// `Some` when the render stopped early.
+    pub stopped: Option<StopReason>,
+}
+
+/// Renders `scene` through `camera` progressively on the current rayon pool.
+pub fn render(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    sink: &dyn RenderSink,
+) -> RenderOutcome {
+    let start = Instant::now();
+    let tiles: Vec<Mutex<TileFilm>> =
+        tiles_centre_out(settings.width, settings.height, settings.tile_size)
+            .into_iter()
+            .map(|r| Mutex::new(TileFilm::new(r)))
+            .collect();
+    let rays = AtomicU64::new(0);
+    let non_finite = AtomicU64::new(0);
+    let paths = AtomicU64::new(0);
+    let mut spp_done = 0u32;
+    let mut last = PassStats::default();
+    let workers = rayon::current_num_threads().max(1);
+
+    for (pass, &pass_spp) in pass_schedule(settings.spp).iter().enumerate() {
+        let _span = tracing::debug_span!("pass", pass, spp = pass_spp).entered();
+        let next = AtomicUsize::new(0);
+        let stopped: Mutex<Option<StopReason>> = Mutex::new(None);
+        rayon::scope(|s| {
+            for _ in 0..workers {
+                s.spawn(|_| {
+                    loop {
+                        if let Some(reason) = sink.should_stop() {
+                            *stopped.lock().unwrap() = Some(reason);
+                            return;
+                        }
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(tile) = tiles.get(i) else { return };
+                        let mut tile = tile.lock().unwrap();
+                        let mut counters = PathCounters::default();
+                        render_tile(
+                            scene,
+                            camera,
+                            settings,
+                            &mut tile,
+                            spp_done,
+                            pass_spp,
+                            &mut counters,
+                        );
+                        rays.fetch_add(counters.rays, Ordering::Relaxed);
+                        non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
+                        paths.fetch_add(
+                            (tile.rect.width * tile.rect.height * pass_spp) as u64,
+                            Ordering::Relaxed,
+                        );
+                        sink.tile(&tile, pass as u32);
+                    }
+                });
+            }
+        });
+        if let Some(reason) = *stopped.lock().unwrap() {
+            return RenderOutcome {
+                stats: last,
+                paths: paths.into_inner(),
+                non_finite: non_finite.into_inner(),
+                stopped: Some(reason),
+            };
+        }
+        spp_done += pass_spp;
+        let (mut var, mut mean) = (0.0, 0.0);
+        for t in &tiles {
+            let (v, m) = t.lock().unwrap().noise_terms();
+            var += v;
+            mean += m;
+        }
+        let pixels = (settings.width * settings.height).max(1) as f64;
+        let noise = if mean > 0.0 {
+            ((var / pixels).sqrt() / (mean / pixels)) as f32
+        } else {
+            0.0
+        };
+        last = PassStats {
+            pass: pass as u32,
+            spp: spp_done,
+            elapsed: start.elapsed().as_secs_f64(),
+            rays: rays.load(Ordering::Relaxed),
+            noise,
+        };
+        sink.pass_done(&last);
+    }
+    RenderOutcome {
+        stats: last,
+        paths: paths.into_inner(),
+        non_finite: non_finite.into_inner(),
+        stopped: None,
+    }
+}
+
+fn render_tile(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    tile: &mut TileFilm,
+    first_sample: u32,
+    count: u32,
+    counters: &mut PathCounters,
+) {
+    let r = tile.rect;
+    for py in 0..r.height {
+        for px in 0..r.width {
+            let (x, y) = (r.x + px, r.y + py);
+            let i = (py * r.width + px) as usize;
+            for k in first_sample..first_sample + count {
+                let mut rng = PixelSampler::for_sample(settings.seed, x, y, k);
+                let jitter = rng.next_2d();
+                let (ray, cos) = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
+                let sample = trace_path(
+                    scene,
+                    ray,
+                    |t| camera.depth(t, cos),
+                    camera.background_depth(),
+                    &mut rng,
+                    &settings.integrator,
+                    counters,
+                );
+                tile.add(i, &sample);
+            }
+        }
+    }
+    tile.samples = first_sample + count;
+}
+
+/// A whole-image framebuffer, for callers that render in-process (tests, benchmarks).
+pub struct Framebuffer {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Pixels per AOV, row-major, channels interleaved.
+    pub layers: std::collections::BTreeMap<Aov, Vec<f32>>,
+}
+
+impl Framebuffer {
+    /// An empty framebuffer with every AOV.
+    pub fn new(width: u32, height: u32) -> Self {
+        let layers = Aov::ALL
+            .iter()
+            .map(|&a| (a, vec![0.0; (width * height) as usize * a.channels()]))
+            .collect();
+        Framebuffer {
+            width,
+            height,
+            layers,
+        }
+    }
+
+    /// Copies a tile's current means into the framebuffer.
+    pub fn write_tile(&mut self, tile: &TileFilm) {
+        for (&aov, layer) in self.layers.iter_mut() {
+            let c = aov.channels();
+            let data = tile.resolve(aov);
+            let r = tile.rect;
+            for row in 0..r.height {
+                let src = (row * r.width) as usize * c;
+                let dst = (((r.y + row) * self.width + r.x) as usize) * c;
+                layer[dst..dst + r.width as usize * c]
+                    .copy_from_slice(&data[src..src + r.width as usize * c]);
+            }
+        }
+    }
+}
+
+/// Renders to a framebuffer in-process, with no streaming.
+pub fn render_to_framebuffer(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> (Framebuffer, RenderOutcome) {
+    struct Collect(Mutex<Framebuffer>);
+    impl RenderSink for Collect {
+        fn tile(&self, tile: &TileFilm, _pass: u32) {
+            self.0.lock().unwrap().write_tile(tile);
+        }
+        fn pass_done(&self, _: &PassStats) {}
+        fn should_stop(&self) -> Option<StopReason> {
+            None
+        }
+    }
+    let sink = Collect(Mutex::new(Framebuffer::new(
+        settings.width,
+        settings.height,
+    )));
+    let outcome = render(scene, camera, settings, &sink);
+    (sink.0.into_inner().unwrap(), outcome)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pass_schedule_adds_up() {
+        assert_eq!(pass_schedule(64), vec![1, 1, 2, 4, 8, 16, 32]);
+        assert_eq!(pass_schedule(5), vec![1, 1, 2, 1]);
+        assert_eq!(pass_schedule(1), vec![1]);
+        for spp in 1..300 {
+            assert_eq!(pass_schedule(spp).iter().sum::<u32>(), spp);
+        }
+    }
+}

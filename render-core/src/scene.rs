@@ -1,0 +1,619 @@
+//! The scene description a session edits (keyed by USD path), and its commit into the
+//! structures the renderer traces against.
+//!
+//! [`commit`] rebuilds only what changed: a mesh whose geometry `Arc` is unchanged keeps
+//! its BLAS through [`BlasCache`], so moving an object or a light costs a TLAS rebuild and
+//! nothing more.
+
+use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
+
+use glam::{Affine3A, Vec2, Vec3};
+
+use crate::bvh::{Blas, BuildQuality, Hit, Tlas, TlasInstance};
+use crate::camera::CameraDesc;
+use crate::geometry::{Mesh, Normals, Ray, Transform};
+use crate::light::{Light, LightDesc, LightSet, ShadingContext};
+use crate::material::{Material, MaterialNetwork};
+use crate::plan::RenderPlan;
+
+/// A mesh prim.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshDesc {
+    /// Geometry, shared so unchanged meshes keep their BLAS across commits.
+    pub mesh: Arc<Mesh>,
+    /// Object to world.
+    pub transform: Affine3A,
+    /// Bound material path; empty for none.
+    pub material: String,
+    /// Rendered at all (false for invisible meshes and instancer prototypes).
+    pub visible: bool,
+}
+
+/// A point instancer: world transforms of instances of one prototype mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InstancerDesc {
+    /// Path of the prototype mesh in [`SceneDesc::meshes`].
+    pub prototype: String,
+    /// Object-to-world transform of each instance.
+    pub transforms: Vec<Affine3A>,
+}
+
+/// Everything a session has synced, keyed by USD path.
+#[derive(Clone, Debug, Default)]
+pub struct SceneDesc {
+    /// Meshes.
+    pub meshes: BTreeMap<String, MeshDesc>,
+    /// Instancers.
+    pub instancers: BTreeMap<String, InstancerDesc>,
+    /// Material networks.
+    pub materials: BTreeMap<String, MaterialNetwork>,
+    /// Lights.
+    pub lights: BTreeMap<String, LightDesc>,
+    /// Cameras.
+    pub cameras: BTreeMap<String, CameraDesc>,
+}
+
+/// A scene that cannot be committed, naming the prim and field at fault.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SceneError {
+    /// Invalid data on a prim.
+    #[error("{prim}: {field}: {problem}")]
+    Invalid {
+        /// Prim path.
+        prim: String,
+        /// Attribute or field.
+        field: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A reference to a prim that does not exist.
+    #[error("{prim}: {field} refers to {target}, which is not in the scene")]
+    Dangling {
+        /// Prim path.
+        prim: String,
+        /// Field holding the reference.
+        field: String,
+        /// Missing path.
+        target: String,
+    },
+}
+
+/// Checks a mesh for what would break the renderer: non-finite positions, indices out of
+/// range, normal arrays of the wrong length. Bad normals are not an error; they are
+/// repaired at shading time (the geometric normal is used).
+pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
+    let invalid = |field: &str, problem: String| SceneError::Invalid {
+        prim: path.to_string(),
+        field: field.to_string(),
+        problem,
+    };
+    if let Some((i, p)) = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.is_finite())
+    {
+        return Err(invalid("points", format!("point {i} is {p} (NaN or Inf)")));
+    }
+    let n = mesh.positions.len() as u64;
+    for (t, tri) in mesh.indices.iter().enumerate() {
+        for (k, &v) in tri.iter().enumerate() {
+            if v as u64 >= n {
+                return Err(invalid(
+                    "faceVertexIndices",
+                    format!("triangle {t} corner {k} has index {v}, out of range for {n} points"),
+                ));
+            }
+        }
+    }
+    let expected = match &mesh.normals {
+        Normals::None => None,
+        Normals::Vertex(v) => Some((v.len(), mesh.positions.len(), "vertex")),
+        Normals::FaceVarying(v) => Some((v.len(), 3 * mesh.indices.len(), "faceVarying")),
+    };
+    if let Some((got, want, interp)) = expected {
+        if got != want {
+            return Err(invalid(
+                "normals",
+                format!("{got} {interp} normals for {want} expected"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// BLASes kept between commits, keyed by mesh path and geometry identity.
+#[derive(Default)]
+pub struct BlasCache {
+    entries: HashMap<String, (Arc<Mesh>, Arc<Blas>)>,
+    /// BLAS builds done by the last commit (for tests and logs).
+    pub last_builds: usize,
+}
+
+/// Per-instance data the integrator needs at a hit.
+#[derive(Clone, Debug)]
+pub struct InstanceData {
+    /// Index into [`CommittedScene::meshes`].
+    pub mesh: usize,
+    /// Placement.
+    pub transform: Transform,
+    /// Index into [`CommittedScene::materials`].
+    pub material: u32,
+    /// Index of the first triangle light of this instance, if its material emits.
+    pub emitter_base: Option<u32>,
+    /// Index into [`CommittedScene::prim_paths`].
+    pub prim: u32,
+}
+
+/// The renderable scene: acceleration structures, materials, lights and the plan.
+pub struct CommittedScene {
+    /// Geometry per distinct mesh.
+    pub meshes: Vec<Arc<Mesh>>,
+    blases: Vec<Arc<Blas>>,
+    /// Instances in the TLAS.
+    pub instances: Vec<InstanceData>,
+    tlas: Tlas,
+    /// Resolved materials; index 0 is the default material.
+    pub materials: Vec<Material>,
+    /// Lights and their selection distribution.
+    pub lights: LightSet,
+    /// Indices of the finite lights a ray may cross (area lights; not triangle emitters,
+    /// which are found through the BVH).
+    pub crossable_lights: Vec<u32>,
+    /// Indices of the lights at infinity.
+    pub infinite_lights: Vec<u32>,
+    /// Prim path of each instance's source.
+    pub prim_paths: Vec<String>,
+    /// Cameras, copied from the description.
+    pub cameras: BTreeMap<String, CameraDesc>,
+    /// World bounds of the geometry (min, max); empty scenes have min > max.
+    pub bounds: (Vec3, Vec3),
+    /// What the renderer simulates for this scene.
+    pub plan: RenderPlan,
+    /// What commit could not honour, by prim.
+    pub warnings: Vec<String>,
+}
+
+/// Surface data at a ray hit, in world space.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    /// Position.
+    pub p: Vec3,
+    /// Unit geometric normal (not face-forwarded).
+    pub ng: Vec3,
+    /// Unit shading normal (not face-forwarded).
+    pub ns: Vec3,
+    /// Material index.
+    pub material: u32,
+    /// Triangle-light index when the surface emits.
+    pub light: Option<u32>,
+}
+
+/// Builds the renderable scene from its description, reusing cached BLASes.
+pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene, SceneError> {
+    let _span = tracing::info_span!(
+        "commit",
+        meshes = desc.meshes.len(),
+        lights = desc.lights.len()
+    )
+    .entered();
+    let mut warnings = Vec::new();
+    let mut plan = RenderPlan::default();
+
+    // Materials: index 0 is the fallback for unbound meshes.
+    let mut materials = vec![Material::default()];
+    let mut material_index: HashMap<&str, u32> = HashMap::new();
+    for (path, network) in &desc.materials {
+        let (m, report) = network.resolve(path);
+        warnings.extend(report.warnings);
+        material_index.insert(path.as_str(), materials.len() as u32);
+        materials.push(m);
+    }
+
+    // Geometry: one BLAS per distinct mesh prim that has triangles.
+    let mut meshes = Vec::new();
+    let mut blases = Vec::new();
+    let mut mesh_slot: HashMap<&str, usize> = HashMap::new();
+    let mut builds = 0;
+    let mut fresh = HashMap::new();
+    let used_as_prototype: std::collections::HashSet<&str> = desc
+        .instancers
+        .values()
+        .map(|i| i.prototype.as_str())
+        .collect();
+    for (path, m) in &desc.meshes {
+        validate_mesh(path, &m.mesh)?;
+        if m.mesh.indices.is_empty() || !(m.visible || used_as_prototype.contains(path.as_str())) {
+            if m.mesh.indices.is_empty() {
+                warnings.push(format!("{path}: mesh has no triangles and is skipped"));
+            }
+            continue;
+        }
+        let blas = match cache.entries.get(path) {
+            Some((geom, blas)) if Arc::ptr_eq(geom, &m.mesh) => blas.clone(),
+            _ => {
+                builds += 1;
+                Arc::new(Blas::build(&m.mesh, BuildQuality::Medium))
+            }
+        };
+        fresh.insert(path.clone(), (m.mesh.clone(), blas.clone()));
+        mesh_slot.insert(path.as_str(), meshes.len());
+        meshes.push(m.mesh.clone());
+        blases.push(blas);
+    }
+    cache.entries = fresh;
+    cache.last_builds = builds;
+
+    let material_of = |prim: &str, path: &str| -> u32 {
+        if path.is_empty() {
+            return 0;
+        }
+        match material_index.get(path) {
+            Some(&i) => i,
+            None => {
+                tracing::warn!(
+                    prim,
+                    material = path,
+                    "bound material is not in the scene; using the default"
+                );
+                0
+            }
+        }
+    };
+
+    // Instances: visible meshes, then instancer instances.
+    let mut instances = Vec::new();
+    let mut prim_paths = Vec::new();
+    let push_instance = |prim_paths: &mut Vec<String>,
+                         instances: &mut Vec<InstanceData>,
+                         path: &str,
+                         mesh: usize,
+                         xf: &Affine3A,
+                         material: u32|
+     -> Result<(), SceneError> {
+        let transform = Transform::new(*xf).ok_or_else(|| SceneError::Invalid {
+            prim: path.to_string(),
+            field: "transform".into(),
+            problem: "singular or not finite".into(),
+        })?;
+        let prim = match prim_paths.last() {
+            Some(p) if p == path => prim_paths.len() as u32 - 1,
+            _ => {
+                prim_paths.push(path.to_string());
+                prim_paths.len() as u32 - 1
+            }
+        };
+        instances.push(InstanceData {
+            mesh,
+            transform,
+            material,
+            emitter_base: None,
+            prim,
+        });
+        Ok(())
+    };
+    for (path, m) in &desc.meshes {
+        if !m.visible {
+            continue;
+        }
+        if let Some(&slot) = mesh_slot.get(path.as_str()) {
+            push_instance(
+                &mut prim_paths,
+                &mut instances,
+                path,
+                slot,
+                &m.transform,
+                material_of(path, &m.material),
+            )?;
+        }
+    }
+    for (path, inst) in &desc.instancers {
+        let Some(&slot) = mesh_slot.get(inst.prototype.as_str()) else {
+            if desc.meshes.contains_key(&inst.prototype) {
+                continue; // an empty prototype was already reported
+            }
+            return Err(SceneError::Dangling {
+                prim: path.clone(),
+                field: "prototype".into(),
+                target: inst.prototype.clone(),
+            });
+        };
+        let proto = &desc.meshes[&inst.prototype];
+        let material = material_of(path, &proto.material);
+        for xf in &inst.transforms {
+            push_instance(&mut prim_paths, &mut instances, path, slot, xf, material)?;
+        }
+    }
+
+    let tlas_instances: Vec<TlasInstance> = instances
+        .iter()
+        .map(|i| TlasInstance {
+            blas: i.mesh,
+            transform: i.transform,
+        })
+        .collect();
+    let tlas = Tlas::build(&blases, &tlas_instances);
+
+    // Bounds, for sizing infinite lights and the default camera.
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for inst in &instances {
+        let (a, b) = blases[inst.mesh].bounds();
+        for i in 0..8 {
+            let c = Vec3::new(
+                if i & 1 == 0 { a.x } else { b.x },
+                if i & 2 == 0 { a.y } else { b.y },
+                if i & 4 == 0 { a.z } else { b.z },
+            );
+            let w = inst.transform.to_world.transform_point3(c);
+            lo = lo.min(w);
+            hi = hi.max(w);
+        }
+    }
+    let scene_radius = if lo.x <= hi.x {
+        0.5 * (hi - lo).length().max(1e-3)
+    } else {
+        1.0
+    };
+
+    // Lights: UsdLux lights, then one per emissive triangle.
+    let mut lights: Vec<Light> = Vec::new();
+    let mut light_prims = Vec::new();
+    for (path, l) in &desc.lights {
+        match l.commit() {
+            Some(light) => {
+                lights.push(light);
+                light_prims.push(path.clone());
+            }
+            None => warnings.push(format!("{path}: light emits nothing (zero size, zero intensity or a singular transform) and is skipped")),
+        }
+    }
+    let mut emissive_prims = Vec::new();
+    let mut emissive_triangles = 0usize;
+    for inst in &mut instances {
+        let m = &materials[inst.material as usize];
+        if !m.is_emissive() {
+            continue;
+        }
+        inst.emitter_base = Some(lights.len() as u32);
+        let mesh = &meshes[inst.mesh];
+        for t in 0..mesh.triangle_count() {
+            let p = mesh
+                .triangle(t)
+                .map(|v| inst.transform.to_world.transform_point3(v));
+            // Degenerate triangles keep their slot (indices must line up) but emit nothing.
+            let shape = crate::light::Shape::triangle(p, m.emission).unwrap_or(
+                crate::light::Shape::Triangle {
+                    p,
+                    n: Vec3::Z,
+                    area: 0.0,
+                    l: Vec3::ZERO,
+                },
+            );
+            lights.push(Light {
+                shape,
+                visible_to_camera: true,
+            });
+        }
+        emissive_triangles += mesh.triangle_count();
+        emissive_prims.push(prim_paths[inst.prim as usize].clone());
+    }
+    let crossable_lights = (0..light_prims.len() as u32)
+        .filter(|&i| !lights[i as usize].shape.is_infinite())
+        .collect();
+    let infinite_lights = (0..light_prims.len() as u32)
+        .filter(|&i| lights[i as usize].shape.is_infinite())
+        .collect();
+
+    // The plan: what this scene calls for.
+    if !light_prims.is_empty() {
+        plan.enable(
+            "lights",
+            format!(
+                "{} UsdLux light(s), sampled by power with MIS (power heuristic)",
+                light_prims.len()
+            ),
+            light_prims.clone(),
+        );
+    }
+    if emissive_triangles > 0 {
+        emissive_prims.dedup();
+        plan.enable(
+            "emissive-meshes",
+            format!("{emissive_triangles} emissive triangle(s) sampled by area with MIS"),
+            emissive_prims,
+        );
+    }
+    if lights.is_empty() {
+        warnings.push(
+            "the scene has no lights and no emissive surfaces: the image will be black".into(),
+        );
+    }
+    let diffuse_users: Vec<String> = desc
+        .materials
+        .keys()
+        .filter(|p| {
+            materials[material_index[p.as_str()] as usize]
+                .diffuse
+                .max_element()
+                > 0.0
+        })
+        .cloned()
+        .collect();
+    plan.enable(
+        "diffuse",
+        "Lambert reflection (UsdPreviewSurface diffuseColor)",
+        diffuse_users,
+    );
+    if !desc.instancers.is_empty() {
+        plan.enable(
+            "instancing",
+            "instances share one BLAS per prototype under a TLAS",
+            desc.instancers.keys().cloned(),
+        );
+    }
+    plan.skipped = [
+        "specular",
+        "transmission",
+        "subsurface",
+        "textures",
+        "depth-of-field",
+    ]
+    .iter()
+    .map(|s| format!("{s}: no prim calls for it (not supported yet in this build)"))
+    .collect();
+
+    let light_set = LightSet::new(lights, scene_radius);
+    tracing::info!(
+        instances = instances.len(),
+        blas_builds = builds,
+        lights = light_set.lights.len(),
+        "scene committed"
+    );
+    Ok(CommittedScene {
+        meshes,
+        blases,
+        instances,
+        tlas,
+        materials,
+        lights: light_set,
+        crossable_lights,
+        infinite_lights,
+        prim_paths,
+        cameras: desc.cameras.clone(),
+        bounds: (lo, hi),
+        plan,
+        warnings,
+    })
+}
+
+impl CommittedScene {
+    /// Closest surface hit along `ray`.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.tlas.intersect(&self.blases, ray)
+    }
+
+    /// True when a surface blocks the ray before `tmax`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
+        self.tlas.occluded(&self.blases, ray, tmax)
+    }
+
+    /// World-space surface data at `hit`.
+    pub fn surface(&self, hit: &Hit) -> SurfaceHit {
+        let inst = &self.instances[hit.instance as usize];
+        let mesh = &self.meshes[inst.mesh];
+        let tri = hit.triangle as usize;
+        let [a, b, c] = mesh.triangle(tri);
+        let w = Vec2::new(hit.bary.x, hit.bary.y);
+        let p_obj = a * (1.0 - w.x - w.y) + b * w.x + c * w.y;
+        let p = inst.transform.to_world.transform_point3(p_obj);
+        let ng = (inst.transform.normal_matrix * (b - a).cross(c - a)).normalize_or_zero();
+        let ng = if ng == Vec3::ZERO { Vec3::Z } else { ng };
+        let ns = mesh
+            .shading_normal(tri, w)
+            .map(|n| (inst.transform.normal_matrix * n).normalize_or_zero())
+            .filter(|n| *n != Vec3::ZERO && n.is_finite())
+            .unwrap_or(ng);
+        SurfaceHit {
+            p,
+            ng,
+            ns,
+            material: inst.material,
+            light: inst.emitter_base.map(|b| b + hit.triangle),
+        }
+    }
+
+    /// The scene's camera at `path`, the first camera when `path` is empty, or a default
+    /// camera framing the scene's bounds when it has none.
+    pub fn camera(&self, path: &str) -> Result<CameraDesc, SceneError> {
+        if !path.is_empty() {
+            return self
+                .cameras
+                .get(path)
+                .cloned()
+                .ok_or_else(|| SceneError::Dangling {
+                    prim: "render settings".into(),
+                    field: "camera".into(),
+                    target: path.into(),
+                });
+        }
+        if let Some(c) = self.cameras.values().next() {
+            return Ok(c.clone());
+        }
+        let (lo, hi) = self.bounds;
+        let (center, radius) = if lo.x <= hi.x {
+            (0.5 * (lo + hi), 0.5 * (hi - lo).length().max(1e-3))
+        } else {
+            (Vec3::ZERO, 1.0)
+        };
+        let d = CameraDesc::default();
+        // Back off along +Z until the bounding sphere fits the vertical field of view.
+        let half = (0.5 * d.vertical_aperture / d.focal_length).atan();
+        let dist = radius / half.sin();
+        Ok(CameraDesc {
+            transform: Affine3A::from_translation(center + Vec3::Z * dist),
+            near: (dist - radius).max(1e-3) * 0.5,
+            ..d
+        })
+    }
+
+    /// MIS context of a shading point.
+    pub fn shading_context(p: Vec3, n: Vec3) -> ShadingContext {
+        ShadingContext { p, n }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri_mesh() -> Arc<Mesh> {
+        Arc::new(Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            normals: Normals::None,
+        })
+    }
+
+    #[test]
+    fn validation_names_prim_and_field() {
+        let mut m = (*tri_mesh()).clone();
+        m.indices[0][2] = 7;
+        let e = validate_mesh("/World/Tri", &m).unwrap_err().to_string();
+        assert!(
+            e.contains("/World/Tri") && e.contains("faceVertexIndices") && e.contains("index 7"),
+            "{e}"
+        );
+        let mut m = (*tri_mesh()).clone();
+        m.positions[1].y = f32::NAN;
+        let e = validate_mesh("/World/Tri", &m).unwrap_err().to_string();
+        assert!(e.contains("points") && e.contains("point 1"), "{e}");
+    }
+
+    #[test]
+    fn moving_a_mesh_reuses_its_blas() {
+        let mut desc = SceneDesc::default();
+        desc.meshes.insert(
+            "/A".into(),
+            MeshDesc {
+                mesh: tri_mesh(),
+                transform: Affine3A::IDENTITY,
+                material: String::new(),
+                visible: true,
+            },
+        );
+        let mut cache = BlasCache::default();
+        commit(&desc, &mut cache).unwrap();
+        assert_eq!(cache.last_builds, 1);
+        desc.meshes.get_mut("/A").unwrap().transform = Affine3A::from_translation(Vec3::X);
+        let scene = commit(&desc, &mut cache).unwrap();
+        assert_eq!(cache.last_builds, 0);
+        let hit = scene
+            .intersect(&Ray::new(Vec3::new(1.2, 0.2, 1.0), -Vec3::Z))
+            .expect("moved triangle is hit");
+        assert!((hit.t - 1.0).abs() < 1e-6);
+    }
+}
