@@ -1,1 +1,5 @@
+//! Tessera's client library: reads USD, syncs it to a render server over gRPC, assembles
+//! the streamed tiles and writes EXR and PNG. The CLI (`tessera`) is a thin layer over it,
+//! and a DCC plugin embeds the same library.
 
+pub mod usd;

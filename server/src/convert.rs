@@ -1,0 +1,235 @@
+//! Conversions between wire messages and render-core types, with validation that names the
+//! prim and field at fault. This is the one place protocol errors become `Status`es.
+
+use glam::{Affine3A, DMat4, Mat4, Vec3};
+use render_core::camera::CameraDesc;
+use render_core::film::{Aov, TileFilm};
+use render_core::light::{LightDesc, LightKind};
+use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+use tessera_proto::v1 as pb;
+use tonic::Status;
+
+/// An invalid-argument status naming a prim and a field.
+pub fn invalid(prim: &str, field: &str, problem: impl std::fmt::Display) -> Status {
+    Status::invalid_argument(format!("{prim}: {field}: {problem}"))
+}
+
+/// A wire matrix (USD row-vector order) to an affine map.
+pub fn affine(prim: &str, field: &str, m: &Option<pb::Matrix4>) -> Result<Affine3A, Status> {
+    let Some(m) = m else { return Ok(Affine3A::IDENTITY) };
+    if m.m.len() != 16 {
+        return Err(invalid(prim, field, format!("a matrix needs 16 values, got {}", m.m.len())));
+    }
+    if m.m.iter().any(|x| !x.is_finite()) {
+        return Err(invalid(prim, field, "matrix has NaN or Inf"));
+    }
+    let d = DMat4::from_cols_array(&<[f64; 16]>::try_from(m.m.as_slice()).expect("length checked"));
+    Ok(Affine3A::from_mat4(Mat4::from_cols_array(&d.to_cols_array().map(|x| x as f32))))
+}
+
+/// An affine map to a wire matrix.
+pub fn matrix(a: &Affine3A) -> pb::Matrix4 {
+    pb::Matrix4 { m: Mat4::from(*a).to_cols_array().iter().map(|&x| x as f64).collect() }
+}
+
+fn float3(v: Vec3) -> pb::Float3 {
+    pb::Float3 { x: v.x, y: v.y, z: v.z }
+}
+
+fn vec3(v: &Option<pb::Float3>, default: Vec3) -> Vec3 {
+    v.as_ref().map_or(default, |c| Vec3::new(c.x, c.y, c.z))
+}
+
+/// Wire light to render-core.
+pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Status> {
+    let kind = match pb::LightType::try_from(l.light_type).unwrap_or(pb::LightType::Unspecified) {
+        pb::LightType::Sphere => LightKind::Sphere { radius: l.radius },
+        pb::LightType::Rect => LightKind::Rect { width: l.width, height: l.height },
+        pb::LightType::Disk => LightKind::Disk { radius: l.radius },
+        pb::LightType::Distant => LightKind::Distant { angle_degrees: l.angle },
+        pb::LightType::Dome => LightKind::Dome,
+        pb::LightType::Unspecified => return Err(invalid(prim, "light_type", "unspecified")),
+    };
+    for (name, v) in [("intensity", l.intensity), ("exposure", l.exposure), ("radius", l.radius), ("width", l.width), ("height", l.height), ("angle", l.angle)] {
+        if !v.is_finite() {
+            return Err(invalid(prim, name, format!("{v} is not finite")));
+        }
+    }
+    Ok(LightDesc {
+        kind,
+        transform: affine(prim, "transform", &l.transform)?,
+        intensity: l.intensity,
+        exposure: l.exposure,
+        color: vec3(&l.color, Vec3::ONE),
+        normalize: l.normalize,
+        visible_to_camera: l.visible,
+    })
+}
+
+/// render-core light to wire.
+pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
+    let mut w = pb::LightPrim {
+        transform: Some(matrix(&l.transform)),
+        intensity: l.intensity,
+        exposure: l.exposure,
+        color: Some(float3(l.color)),
+        normalize: l.normalize,
+        visible: l.visible_to_camera,
+        ..Default::default()
+    };
+    match l.kind {
+        LightKind::Sphere { radius } => (w.light_type, w.radius) = (pb::LightType::Sphere as i32, radius),
+        LightKind::Rect { width, height } => (w.light_type, w.width, w.height) = (pb::LightType::Rect as i32, width, height),
+        LightKind::Disk { radius } => (w.light_type, w.radius) = (pb::LightType::Disk as i32, radius),
+        LightKind::Distant { angle_degrees } => (w.light_type, w.angle) = (pb::LightType::Distant as i32, angle_degrees),
+        LightKind::Dome => w.light_type = pb::LightType::Dome as i32,
+    }
+    w
+}
+
+/// Wire camera to render-core.
+pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, Status> {
+    for (name, v) in [("focal_length", c.focal_length), ("horizontal_aperture", c.horizontal_aperture), ("vertical_aperture", c.vertical_aperture)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(invalid(prim, name, format!("{v} must be positive")));
+        }
+    }
+    Ok(CameraDesc {
+        transform: affine(prim, "transform", &c.transform)?,
+        focal_length: c.focal_length,
+        horizontal_aperture: c.horizontal_aperture,
+        vertical_aperture: c.vertical_aperture,
+        horizontal_aperture_offset: c.horizontal_aperture_offset,
+        vertical_aperture_offset: c.vertical_aperture_offset,
+        near: c.near_clip,
+        far: c.far_clip,
+    })
+}
+
+/// render-core camera to wire.
+pub fn camera_to_wire(c: &CameraDesc) -> pb::CameraPrim {
+    pb::CameraPrim {
+        transform: Some(matrix(&c.transform)),
+        focal_length: c.focal_length,
+        horizontal_aperture: c.horizontal_aperture,
+        vertical_aperture: c.vertical_aperture,
+        horizontal_aperture_offset: c.horizontal_aperture_offset,
+        vertical_aperture_offset: c.vertical_aperture_offset,
+        near_clip: c.near,
+        far_clip: c.far,
+    }
+}
+
+/// Wire material network to render-core.
+pub fn material_from_wire(m: &pb::MaterialNetwork) -> MaterialNetwork {
+    MaterialNetwork {
+        nodes: m
+            .nodes
+            .iter()
+            .map(|n| MaterialNode {
+                path: n.path.clone(),
+                node_type_id: n.node_type_id.clone(),
+                parameters: n.parameters.iter().filter_map(|(k, v)| param_from_wire(v).map(|p| (k.clone(), p))).collect(),
+            })
+            .collect(),
+        connections: m
+            .connections
+            .iter()
+            .map(|c| MaterialConnection {
+                downstream_node: c.downstream_node.clone(),
+                downstream_input: c.downstream_input.clone(),
+                upstream_node: c.upstream_node.clone(),
+                upstream_output: c.upstream_output.clone(),
+            })
+            .collect(),
+        surface_node: m.surface_node.clone(),
+    }
+}
+
+fn param_from_wire(v: &pb::ParamValue) -> Option<ParamValue> {
+    use pb::param_value::Value as V;
+    Some(match v.value.as_ref()? {
+        V::FloatValue(f) => ParamValue::Float(*f),
+        V::Float3Value(c) => ParamValue::Float3(Vec3::new(c.x, c.y, c.z)),
+        V::IntValue(i) => ParamValue::Int(*i),
+        V::BoolValue(b) => ParamValue::Bool(*b),
+        V::StringValue(s) => ParamValue::String(s.clone()),
+        V::AssetValue(s) => ParamValue::Asset(s.clone()),
+    })
+}
+
+/// render-core material network to wire.
+pub fn material_to_wire(m: &MaterialNetwork) -> pb::MaterialNetwork {
+    use pb::param_value::Value as V;
+    pb::MaterialNetwork {
+        nodes: m
+            .nodes
+            .iter()
+            .map(|n| pb::MaterialNode {
+                path: n.path.clone(),
+                node_type_id: n.node_type_id.clone(),
+                parameters: n
+                    .parameters
+                    .iter()
+                    .map(|(k, p)| {
+                        let value = match p {
+                            ParamValue::Float(f) => V::FloatValue(*f),
+                            ParamValue::Float3(c) => V::Float3Value(float3(*c)),
+                            ParamValue::Int(i) => V::IntValue(*i),
+                            ParamValue::Bool(b) => V::BoolValue(*b),
+                            ParamValue::String(s) => V::StringValue(s.clone()),
+                            ParamValue::Asset(s) => V::AssetValue(s.clone()),
+                        };
+                        (k.clone(), pb::ParamValue { value: Some(value) })
+                    })
+                    .collect(),
+            })
+            .collect(),
+        connections: m
+            .connections
+            .iter()
+            .map(|c| pb::MaterialConnection {
+                downstream_node: c.downstream_node.clone(),
+                downstream_input: c.downstream_input.clone(),
+                upstream_node: c.upstream_node.clone(),
+                upstream_output: c.upstream_output.clone(),
+            })
+            .collect(),
+        surface_node: m.surface_node.clone(),
+    }
+}
+
+/// A tile of one AOV as a wire message.
+pub fn tile_to_wire(tile: &TileFilm, aov: Aov, pass: u32, format: pb::PixelFormat) -> pb::Tile {
+    let data = tile.resolve(aov);
+    let pixels = match format {
+        pb::PixelFormat::F32 => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        pb::PixelFormat::F16 => data.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()).collect(),
+    };
+    pb::Tile {
+        aov: aov.name().into(),
+        x: tile.rect.x,
+        y: tile.rect.y,
+        width: tile.rect.width,
+        height: tile.rect.height,
+        channels: aov.channels() as u32,
+        pass_index: pass,
+        samples: tile.samples,
+        format: format as i32,
+        pixels,
+    }
+}
+
+/// Decodes a wire tile's pixels to f32.
+pub fn tile_pixels(t: &pb::Tile) -> Result<Vec<f32>, Status> {
+    let expected = (t.width * t.height * t.channels) as usize;
+    let out: Vec<f32> = match pb::PixelFormat::try_from(t.format) {
+        Ok(pb::PixelFormat::F32) => t.pixels.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        Ok(pb::PixelFormat::F16) => t.pixels.chunks_exact(2).map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32()).collect(),
+        Err(_) => return Err(Status::invalid_argument(format!("tile: unknown pixel format {}", t.format))),
+    };
+    if out.len() != expected {
+        return Err(Status::invalid_argument(format!("tile: {} values, {expected} expected", out.len())));
+    }
+    Ok(out)
+}

@@ -1,0 +1,52 @@
+//! Every size a client controls has a limit, reported by `GetCapabilities` and enforced
+//! with a clear status.
+
+use tessera_proto::v1 as pb;
+
+/// Server limits.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Triangles in one mesh.
+    pub max_triangles_per_mesh: u64,
+    /// Triangles in one scene.
+    pub max_total_triangles: u64,
+    /// Image width or height.
+    pub max_resolution: u32,
+    /// Samples per pixel.
+    pub max_spp: u32,
+    /// Concurrent sessions.
+    pub max_sessions: u32,
+    /// Scalar elements in one array chunk.
+    pub max_array_chunk_elements: u64,
+    /// Instances in one instancer.
+    pub max_instances: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_triangles_per_mesh: 50_000_000,
+            max_total_triangles: 200_000_000,
+            max_resolution: 16_384,
+            max_spp: 1 << 20,
+            max_sessions: 64,
+            // 1 Mi floats = 4 MiB would hit gRPC's default limit; stay well under it.
+            max_array_chunk_elements: 256 * 1024,
+            max_instances: 10_000_000,
+        }
+    }
+}
+
+impl Limits {
+    /// As a wire message.
+    pub fn to_wire(&self) -> pb::Limits {
+        pb::Limits {
+            max_triangles_per_mesh: self.max_triangles_per_mesh,
+            max_total_triangles: self.max_total_triangles,
+            max_resolution: self.max_resolution,
+            max_spp: self.max_spp,
+            max_sessions: self.max_sessions,
+            max_array_chunk_elements: self.max_array_chunk_elements,
+        }
+    }
+}

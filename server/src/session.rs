@@ -1,0 +1,248 @@
+//! One session: the scene a client has synced, its committed form and version, and the
+//! render running on it. A `Sync` stream is a transaction: deltas are staged against a copy
+//! of the description and committed together, or not at all.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+use render_core::geometry::{Mesh, Normals};
+use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
+use tessera_proto::v1 as pb;
+use tonic::Status;
+
+use crate::convert::{self, invalid};
+use crate::limits::Limits;
+
+/// A session's committed state.
+pub struct Committed {
+    /// The description the scene was built from.
+    pub desc: SceneDesc,
+    /// The renderable scene.
+    pub scene: Arc<CommittedScene>,
+    /// Bumped by every successful sync.
+    pub version: u64,
+}
+
+/// A client's session.
+pub struct Session {
+    /// Session id.
+    pub id: String,
+    state: Mutex<Option<Committed>>,
+    cache: Mutex<BlasCache>,
+    version: AtomicU64,
+    /// Cancel flag of the render in progress, if any.
+    pub render_cancel: Mutex<Option<Arc<AtomicBool>>>,
+}
+
+/// Arrays of one mesh arriving in chunks.
+#[derive(Default)]
+struct StagedMesh {
+    prim: pb::MeshPrim,
+    points: Vec<f32>,
+    indices: Vec<u32>,
+    normals: Vec<f32>,
+    filled: [u64; 3],
+}
+
+/// Deltas of one `Sync` stream, applied to a copy of the scene description.
+pub struct Transaction {
+    desc: SceneDesc,
+    meshes: HashMap<String, StagedMesh>,
+    instancers: HashMap<String, (String, Vec<f64>, u64)>,
+    /// Prims applied.
+    pub applied: u32,
+    limits: Limits,
+}
+
+impl Session {
+    /// A new, empty session.
+    pub fn new(id: String) -> Self {
+        Session { id, state: Mutex::new(None), cache: Mutex::new(BlasCache::default()), version: AtomicU64::new(0), render_cancel: Mutex::new(None) }
+    }
+
+    /// The current scene version (0 before the first sync).
+    pub fn version(&self) -> u64 {
+        self.version.load(Ordering::Acquire)
+    }
+
+    /// The committed scene and its version.
+    pub fn current(&self) -> Option<(Arc<CommittedScene>, u64)> {
+        self.state.lock().unwrap().as_ref().map(|c| (c.scene.clone(), c.version))
+    }
+
+    /// Starts a transaction on a copy of the current description.
+    pub fn begin(&self, limits: Limits) -> Transaction {
+        let desc = self.state.lock().unwrap().as_ref().map(|c| c.desc.clone()).unwrap_or_default();
+        Transaction { desc, meshes: HashMap::new(), instancers: HashMap::new(), applied: 0, limits }
+    }
+
+    /// Commits a transaction: validates, builds what changed, and swaps it in. Blocking
+    /// (BVH builds): call from a blocking thread.
+    pub fn commit(&self, tx: Transaction) -> Result<(u64, Vec<String>), Status> {
+        let desc = tx.finish()?;
+        let scene = {
+            let mut cache = self.cache.lock().unwrap();
+            commit(&desc, &mut cache).map_err(|e| Status::invalid_argument(e.to_string()))?
+        };
+        let warnings = scene.warnings.clone();
+        let mut state = self.state.lock().unwrap();
+        let version = self.version.load(Ordering::Acquire) + 1;
+        *state = Some(Committed { desc, scene: Arc::new(scene), version });
+        self.version.store(version, Ordering::Release);
+        Ok((version, warnings))
+    }
+
+    /// Flags the render in progress to stop; returns whether there was one.
+    pub fn cancel_render(&self) -> bool {
+        match self.render_cancel.lock().unwrap().as_ref() {
+            Some(flag) => {
+                flag.store(true, Ordering::Release);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+fn fill<T: Copy + Default>(prim: &str, field: &str, dst: &mut Vec<T>, declared: u64, offset: u64, src: &[T], filled: &mut u64) -> Result<(), Status> {
+    let end = offset.checked_add(src.len() as u64).ok_or_else(|| invalid(prim, field, "chunk offset overflows"))?;
+    if end > declared {
+        return Err(invalid(prim, field, format!("chunk [{offset}, {end}) runs past the declared length {declared}")));
+    }
+    if dst.len() as u64 != declared {
+        dst.resize(declared as usize, T::default());
+    }
+    dst[offset as usize..end as usize].copy_from_slice(src);
+    *filled += src.len() as u64;
+    Ok(())
+}
+
+impl Transaction {
+    /// Applies one message of the stream.
+    pub fn apply(&mut self, item: pb::sync_request::Item) -> Result<(), Status> {
+        match item {
+            pb::sync_request::Item::Prim(delta) => self.apply_prim(delta),
+            pb::sync_request::Item::Chunk(chunk) => self.apply_chunk(chunk),
+        }
+    }
+
+    fn apply_prim(&mut self, d: pb::PrimDelta) -> Result<(), Status> {
+        let path = d.path.clone();
+        if !path.starts_with('/') {
+            return Err(Status::invalid_argument(format!("prim path '{path}' is not an absolute USD path")));
+        }
+        self.applied += 1;
+        let kind = pb::PrimKind::try_from(d.kind).unwrap_or(pb::PrimKind::Unspecified);
+        use pb::prim_delta::Payload;
+        match (kind, d.payload) {
+            (pb::PrimKind::Remove, _) => {
+                self.desc.meshes.remove(&path);
+                self.desc.lights.remove(&path);
+                self.desc.cameras.remove(&path);
+                self.desc.materials.remove(&path);
+                self.desc.instancers.remove(&path);
+                self.meshes.remove(&path);
+            }
+            (pb::PrimKind::Mesh, Some(Payload::Mesh(m))) => {
+                let geometry_dirty = d.dirty & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32) != 0;
+                if geometry_dirty {
+                    let tris = m.triangle_indices_len / 3;
+                    if tris > self.limits.max_triangles_per_mesh {
+                        return Err(Status::resource_exhausted(format!("{path}: {tris} triangles exceed the limit of {} per mesh", self.limits.max_triangles_per_mesh)));
+                    }
+                    let cap = 9 * self.limits.max_triangles_per_mesh;
+                    if m.points_len > cap || m.normals_len > cap {
+                        return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+                    }
+                    if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
+                        return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
+                    }
+                    self.meshes.insert(path, StagedMesh { prim: m, ..Default::default() });
+                } else {
+                    // Transform, material or visibility only: keep the geometry.
+                    let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY"))?;
+                    existing.transform = convert::affine(&path, "transform", &m.transform)?;
+                    existing.material = m.material_path;
+                    existing.visible = m.visible;
+                }
+            }
+            (pb::PrimKind::Instancer, Some(Payload::Instancer(i))) => {
+                if i.transforms_len > 16 * self.limits.max_instances {
+                    return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
+                }
+                if i.transforms_len % 16 != 0 {
+                    return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
+                }
+                self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
+            }
+            (pb::PrimKind::Material, Some(Payload::Material(m))) => {
+                self.desc.materials.insert(path, convert::material_from_wire(&m));
+            }
+            (pb::PrimKind::Light, Some(Payload::Light(l))) => {
+                let l = convert::light_from_wire(&path, &l)?;
+                self.desc.lights.insert(path, l);
+            }
+            (pb::PrimKind::Camera, Some(Payload::Camera(c))) => {
+                let c = convert::camera_from_wire(&path, &c)?;
+                self.desc.cameras.insert(path, c);
+            }
+            (kind, payload) => {
+                return Err(invalid(&path, "payload", format!("kind {kind:?} with payload {:?} is not a valid delta", payload.map(|_| "of another kind"))));
+            }
+        }
+        Ok(())
+    }
+
+    fn apply_chunk(&mut self, c: pb::ArrayChunk) -> Result<(), Status> {
+        let field = pb::ArrayField::try_from(c.field).unwrap_or(pb::ArrayField::Unspecified);
+        if field == pb::ArrayField::InstanceTransforms {
+            let (_, data, declared) = self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
+            let mut filled = 0;
+            return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
+        }
+        let staged = self.meshes.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no mesh delta with dirty geometry precedes this chunk"))?;
+        match field {
+            pb::ArrayField::Points => fill(&c.path, "points", &mut staged.points, staged.prim.points_len, c.offset, &c.floats, &mut staged.filled[0]),
+            pb::ArrayField::TriangleIndices => fill(&c.path, "triangle_indices", &mut staged.indices, staged.prim.triangle_indices_len, c.offset, &c.uints, &mut staged.filled[1]),
+            pb::ArrayField::Normals => fill(&c.path, "normals", &mut staged.normals, staged.prim.normals_len, c.offset, &c.floats, &mut staged.filled[2]),
+            _ => Err(invalid(&c.path, "chunk.field", format!("unknown array field {}", c.field))),
+        }
+    }
+
+    /// Assembles staged arrays into the final description.
+    fn finish(mut self) -> Result<SceneDesc, Status> {
+        for (path, s) in self.meshes {
+            let p = &s.prim;
+            for (name, got, want) in [("points", s.filled[0], p.points_len), ("triangle_indices", s.filled[1], p.triangle_indices_len), ("normals", s.filled[2], p.normals_len)] {
+                if got != want {
+                    return Err(invalid(&path, name, format!("received {got} of {want} declared values")));
+                }
+            }
+            let positions = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            let indices = s.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+            let nrm: Vec<glam::Vec3> = s.normals.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            let normals = match pb::NormalInterpolation::try_from(p.normal_interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
+                pb::NormalInterpolation::NormalsNone => Normals::None,
+                pb::NormalInterpolation::NormalsVertex => Normals::Vertex(nrm),
+                pb::NormalInterpolation::NormalsFaceVarying => Normals::FaceVarying(nrm),
+            };
+            let mesh = Mesh { positions, indices, normals };
+            render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
+            let transform = convert::affine(&path, "transform", &p.transform)?;
+            self.desc.meshes.insert(path, MeshDesc { mesh: Arc::new(mesh), transform, material: p.material_path.clone(), visible: p.visible });
+        }
+        for (path, (prototype, data, _)) in self.instancers {
+            let transforms = data
+                .chunks_exact(16)
+                .map(|m| convert::affine(&path, "transforms", &Some(pb::Matrix4 { m: m.to_vec() })))
+                .collect::<Result<Vec<_>, _>>()?;
+            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms });
+        }
+        let total: u64 = self.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
+        if total > self.limits.max_total_triangles {
+            return Err(Status::resource_exhausted(format!("the scene has {total} triangles, over the limit of {}", self.limits.max_total_triangles)));
+        }
+        Ok(self.desc)
+    }
+}
