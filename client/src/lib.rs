@@ -2,4 +2,8 @@
 //! the streamed tiles and writes EXR and PNG. The CLI (`tessera`) is a thin layer over it,
 //! and a DCC plugin embeds the same library.
 
+pub mod commands;
+pub mod output;
+pub mod remote;
+pub mod sync;
 pub mod usd;

@@ -1,0 +1,178 @@
+//! `tessera render`: USD in, multi-layer EXR and PNG preview out, through a render server
+//! (an embedded one when no `--server` is given).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use tessera_proto::v1 as pb;
+
+use crate::output;
+use crate::remote::{Connection, RenderOptions, RenderReport};
+
+/// Inputs of one `tessera render`.
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    /// Scene file.
+    pub scene: PathBuf,
+    /// Output EXR.
+    pub output: PathBuf,
+    /// Render options.
+    pub options: RenderOptions,
+    /// Server URL; `None` starts an embedded server.
+    pub server: Option<String>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// Reads the scene, renders it and writes the outputs. Returns the report for callers
+/// (tests) that want the numbers.
+pub async fn run(job: &RenderJob) -> Result<RenderReport> {
+    let t0 = Instant::now();
+    let scene = job.scene.clone();
+    let translation = tokio::task::spawn_blocking(move || crate::usd::load(&scene)).await??;
+    for w in &translation.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !translation.skipped.is_empty() {
+        eprintln!(
+            "warning: {} prim(s) not rendered: {}",
+            translation.skipped.len(),
+            translation.skipped.join(", ")
+        );
+    }
+
+    let embedded = match &job.server {
+        Some(_) => None,
+        None => Some(tessera_server::EmbeddedServer::start().await?),
+    };
+    let url = job
+        .server
+        .clone()
+        .unwrap_or_else(|| embedded.as_ref().expect("started above").url());
+    let mut conn = Connection::connect(&url, "tessera-cli").await?;
+    let sync = conn
+        .sync(crate::sync::full_sync(&translation))
+        .await
+        .with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
+    for w in &sync.warnings {
+        eprintln!("warning: {w}");
+    }
+    let load_secs = t0.elapsed().as_secs_f64();
+
+    let bar = if job.progress {
+        ProgressBar::new(job.options.spp as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} spp  {msg}  ETA {eta}",
+        )
+        .expect("valid template"),
+    );
+    let mut tiles_this_pass = 0u32;
+    let report = conn
+        .render(&job.options, |e| match e {
+            pb::render_event::Event::Started(s) => {
+                if !s.plan.is_empty() {
+                    bar.println("render plan:");
+                    for p in &s.plan {
+                        bar.println(format!("  + {:<16} {}", p.effect, p.reason));
+                    }
+                }
+                for w in &s.warnings {
+                    bar.println(format!("warning: {w}"));
+                }
+            }
+            pb::render_event::Event::Tile(t) if t.aov == "beauty" => {
+                tiles_this_pass += 1;
+                bar.set_message(format!("pass {} tiles {tiles_this_pass}", t.pass_index));
+            }
+            pb::render_event::Event::Progress(p) => {
+                tiles_this_pass = 0;
+                bar.set_position(p.spp as u64);
+                bar.set_message(format!(
+                    "{:.1} Mrays/s  noise {:.2}%",
+                    p.rays_per_second / 1e6,
+                    100.0 * p.estimated_noise
+                ));
+            }
+            pb::render_event::Event::Restarted(r) => bar.println(format!(
+                "scene changed (version {}): restarting",
+                r.scene_version
+            )),
+            _ => {}
+        })
+        .await?;
+    bar.finish_and_clear();
+    conn.close().await.ok();
+    if let Some(server) = embedded {
+        server.stop().await?;
+    }
+
+    let f = &report.finished;
+    let metadata = vec![
+        ("scene".to_string(), job.scene.display().to_string()),
+        ("spp".to_string(), f.spp.to_string()),
+        ("seconds".to_string(), format!("{:.3}", f.seconds)),
+        (
+            "estimated_noise".to_string(),
+            format!("{:.5}", f.estimated_noise),
+        ),
+        (
+            "settings".to_string(),
+            format!(
+                "{}x{} spp={} max_depth={} seed={}",
+                job.options.width,
+                job.options.height,
+                job.options.spp,
+                job.options.max_depth,
+                job.options.seed
+            ),
+        ),
+        (
+            "plan".to_string(),
+            report
+                .started
+                .plan
+                .iter()
+                .map(|p| p.effect.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
+    ];
+    write_outputs(&job.output, &report, &metadata)?;
+    println!(
+        "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
+        job.scene.file_name().map_or_else(
+            || job.scene.display().to_string(),
+            |n| n.to_string_lossy().to_string()
+        ),
+        job.options.width,
+        job.options.height,
+        f.spp,
+        f.seconds,
+        load_secs,
+        f.rays_per_second / 1e6,
+        f.paths_per_second / 1e6,
+        100.0 * f.estimated_noise,
+        job.output.display(),
+        output::preview_path(&job.output).display()
+    );
+    Ok(report)
+}
+
+/// Writes the EXR and its PNG preview.
+pub fn write_outputs(
+    exr: &Path,
+    report: &RenderReport,
+    metadata: &[(String, String)],
+) -> Result<()> {
+    if let Some(dir) = exr.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    output::write_exr(exr, &report.image, metadata)?;
+    output::write_png(&output::preview_path(exr), &report.image)
+}

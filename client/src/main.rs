@@ -1,0 +1,120 @@
+//! `tessera`: the command-line client.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::{Parser, Subcommand};
+use tessera::commands::render::{RenderJob, run};
+use tessera::remote::RenderOptions;
+
+#[derive(Parser)]
+#[command(
+    version,
+    about = "Tessera: render USD scenes on a Tessera render server"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a USD file (.usda, .usdc, .usdz) to a multi-layer EXR and a PNG preview.
+    Render {
+        /// The scene.
+        scene: PathBuf,
+        /// Output EXR path; a PNG preview is written beside it.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Samples per pixel.
+        #[arg(long, default_value_t = 64)]
+        spp: u32,
+        /// Resolution as WIDTHxHEIGHT.
+        #[arg(long, default_value = "512x512")]
+        res: String,
+        /// Camera prim path (default: the scene's first camera).
+        #[arg(long, default_value = "")]
+        camera: String,
+        /// Maximum scattering events per path (1 = direct lighting only).
+        #[arg(long, default_value_t = 8)]
+        max_depth: u32,
+        /// Sampling seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Extra AOVs, comma-separated: albedo, normal, depth.
+        #[arg(long, value_delimiter = ',')]
+        aov: Vec<String>,
+        /// Render server URL (e.g. http://127.0.0.1:50051). Without it an embedded server
+        /// starts in-process.
+        #[arg(long)]
+        server: Option<String>,
+        /// Render threads on the server (0 = all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: u32,
+    },
+}
+
+fn parse_res(s: &str) -> Result<(u32, u32)> {
+    let Some((w, h)) = s.split_once(['x', 'X']) else {
+        bail!("--res must look like 640x480, got '{s}'")
+    };
+    let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
+    if w == 0 || h == 0 {
+        bail!("--res must be at least 1x1");
+    }
+    Ok((w, h))
+}
+
+#[tokio::main]
+async fn main() {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .init();
+    if let Err(e) = real_main().await {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+async fn real_main() -> Result<()> {
+    match Cli::parse().command {
+        Command::Render {
+            scene,
+            output,
+            spp,
+            res,
+            camera,
+            max_depth,
+            seed,
+            aov,
+            server,
+            threads,
+        } => {
+            let (width, height) = parse_res(&res)?;
+            let options = RenderOptions {
+                width,
+                height,
+                spp,
+                max_depth,
+                seed,
+                camera,
+                aovs: aov,
+                threads,
+                progressive_f16: true,
+            };
+            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            run(&RenderJob {
+                scene,
+                output,
+                options,
+                server,
+                progress,
+            })
+            .await?;
+        }
+    }
+    Ok(())
+}

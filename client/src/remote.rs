@@ -1,0 +1,204 @@
+//! A connection to a render server: one session, synced scene, progressive renders.
+
+use anyhow::{Context, Result};
+use tessera_proto::v1 as pb;
+use tessera_proto::v1::render_client::RenderClient;
+use tonic::transport::Channel;
+
+use crate::output::Image;
+
+/// What to render.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum scattering events.
+    pub max_depth: u32,
+    /// Sampling seed.
+    pub seed: u64,
+    /// Camera prim path; empty for the scene's first camera.
+    pub camera: String,
+    /// AOVs besides beauty.
+    pub aovs: Vec<String>,
+    /// Render threads on the server; 0 for all.
+    pub threads: u32,
+    /// Stream intermediate passes as f16.
+    pub progressive_f16: bool,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: 256,
+            height: 256,
+            spp: 64,
+            max_depth: 8,
+            seed: 0,
+            camera: String::new(),
+            aovs: Vec::new(),
+            threads: 0,
+            progressive_f16: true,
+        }
+    }
+}
+
+/// Everything a render produced.
+#[derive(Clone, Debug, Default)]
+pub struct RenderReport {
+    /// The final image.
+    pub image: Image,
+    /// The `Started` event.
+    pub started: pb::Started,
+    /// The `Finished` event.
+    pub finished: pb::Finished,
+    /// Scene versions of every `Restarted` event.
+    pub restarts: Vec<u64>,
+    /// Every `Progress` event, in order.
+    pub progress: Vec<pb::Progress>,
+    /// Tile events received.
+    pub tiles: u64,
+}
+
+/// Turns a gRPC status into an error a person can read.
+pub fn status_error(s: tonic::Status) -> anyhow::Error {
+    anyhow::anyhow!("server: {}", s.message())
+}
+
+/// A session on a render server.
+pub struct Connection {
+    client: RenderClient<Channel>,
+    /// The session id.
+    pub session: String,
+}
+
+impl Connection {
+    /// Connects and opens a session.
+    pub async fn connect(url: &str, client_name: &str) -> Result<Self> {
+        let channel = Channel::from_shared(url.to_string())?
+            .connect()
+            .await
+            .with_context(|| format!("cannot connect to {url}"))?;
+        let mut client = RenderClient::new(channel).max_decoding_message_size(64 << 20);
+        let session = client
+            .create_session(pb::CreateSessionRequest {
+                client_name: client_name.into(),
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner()
+            .session_id;
+        Ok(Connection { client, session })
+    }
+
+    /// The server's capabilities.
+    pub async fn capabilities(&mut self) -> Result<pb::Capabilities> {
+        Ok(self
+            .client
+            .get_capabilities(pb::GetCapabilitiesRequest {})
+            .await
+            .map_err(status_error)?
+            .into_inner())
+    }
+
+    /// Sends one transaction of deltas.
+    pub async fn sync(&mut self, items: Vec<pb::sync_request::Item>) -> Result<pb::SyncResponse> {
+        let reqs = crate::sync::requests(&self.session, items);
+        Ok(self
+            .client
+            .sync(tokio_stream::iter(reqs))
+            .await
+            .map_err(status_error)?
+            .into_inner())
+    }
+
+    /// Asks the server to stop this session's render.
+    pub async fn cancel(&mut self) -> Result<bool> {
+        Ok(self
+            .client
+            .cancel(pb::CancelRequest {
+                session_id: self.session.clone(),
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner()
+            .was_rendering)
+    }
+
+    /// Renders, calling `on_event` for every event, and assembles the final image.
+    pub async fn render(
+        &mut self,
+        opts: &RenderOptions,
+        mut on_event: impl FnMut(&pb::render_event::Event),
+    ) -> Result<RenderReport> {
+        let settings = pb::RenderSettings {
+            width: opts.width,
+            height: opts.height,
+            spp: opts.spp,
+            max_depth: opts.max_depth,
+            seed: opts.seed,
+            camera_path: opts.camera.clone(),
+            aovs: opts.aovs.clone(),
+            tile_size: 0,
+            progressive_format: if opts.progressive_f16 {
+                pb::PixelFormat::F16
+            } else {
+                pb::PixelFormat::F32
+            } as i32,
+            threads: opts.threads,
+        };
+        let mut stream = self
+            .client
+            .render(pb::RenderRequest {
+                session_id: self.session.clone(),
+                settings: Some(settings),
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        let mut report = RenderReport::default();
+        while let Some(event) = stream.message().await.map_err(status_error)? {
+            let Some(event) = event.event else { continue };
+            on_event(&event);
+            use pb::render_event::Event;
+            match event {
+                Event::Started(s) => {
+                    report.image = Image {
+                        width: s.width,
+                        height: s.height,
+                        ..Default::default()
+                    };
+                    report.started = s;
+                }
+                Event::Tile(t) => {
+                    let data = tessera_server::convert::tile_pixels(&t).map_err(status_error)?;
+                    report
+                        .image
+                        .write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
+                    report.tiles += 1;
+                }
+                Event::Progress(p) => report.progress.push(p),
+                Event::Restarted(r) => report.restarts.push(r.scene_version),
+                Event::Finished(f) => {
+                    report.finished = f;
+                    return Ok(report);
+                }
+            }
+        }
+        anyhow::bail!("the server closed the render stream before it finished")
+    }
+
+    /// Closes the session.
+    pub async fn close(mut self) -> Result<()> {
+        self.client
+            .close_session(pb::CloseSessionRequest {
+                session_id: self.session.clone(),
+            })
+            .await
+            .map_err(status_error)?;
+        Ok(())
+    }
+}

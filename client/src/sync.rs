@@ -1,0 +1,131 @@
+//! Translation to Hydra-style wire deltas. Large arrays travel as chunks so that no message
+//! comes near gRPC's 4 MiB default limit, whatever the mesh size.
+
+use render_core::geometry::Normals;
+use tessera_proto::v1 as pb;
+use tessera_server::convert;
+
+use crate::usd::Translation;
+
+/// Scalar elements per chunk: 1 MiB of floats.
+pub const CHUNK_ELEMENTS: usize = 256 * 1024;
+
+fn chunks<T: Copy>(
+    path: &str,
+    field: pb::ArrayField,
+    data: &[T],
+    wrap: impl Fn(&mut pb::ArrayChunk, Vec<T>),
+) -> Vec<pb::sync_request::Item> {
+    data.chunks(CHUNK_ELEMENTS)
+        .enumerate()
+        .map(|(i, c)| {
+            let mut chunk = pb::ArrayChunk {
+                path: path.to_string(),
+                field: field as i32,
+                offset: (i * CHUNK_ELEMENTS) as u64,
+                ..Default::default()
+            };
+            wrap(&mut chunk, c.to_vec());
+            pb::sync_request::Item::Chunk(chunk)
+        })
+        .collect()
+}
+
+/// Every prim of a translation as a full (all-dirty) delta, arrays chunked.
+pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
+    let mut items = Vec::new();
+    for (path, m) in &t.materials {
+        items.push(delta(
+            path,
+            pb::PrimKind::Material,
+            pb::prim_delta::Payload::Material(convert::material_to_wire(m)),
+        ));
+    }
+    for (path, l) in &t.lights {
+        items.push(delta(
+            path,
+            pb::PrimKind::Light,
+            pb::prim_delta::Payload::Light(convert::light_to_wire(l)),
+        ));
+    }
+    for (path, c) in &t.cameras {
+        items.push(delta(
+            path,
+            pb::PrimKind::Camera,
+            pb::prim_delta::Payload::Camera(convert::camera_to_wire(c)),
+        ));
+    }
+    for (path, m) in &t.meshes {
+        let points: Vec<f32> = m.mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        let indices: Vec<u32> = m.mesh.indices.iter().flatten().copied().collect();
+        let (normals, interp): (Vec<f32>, _) = match &m.mesh.normals {
+            Normals::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
+            Normals::Vertex(n) => (
+                n.iter().flat_map(|v| v.to_array()).collect(),
+                pb::NormalInterpolation::NormalsVertex,
+            ),
+            Normals::FaceVarying(n) => (
+                n.iter().flat_map(|v| v.to_array()).collect(),
+                pb::NormalInterpolation::NormalsFaceVarying,
+            ),
+        };
+        let prim = pb::MeshPrim {
+            transform: Some(convert::matrix(&m.transform)),
+            points_len: points.len() as u64,
+            triangle_indices_len: indices.len() as u64,
+            normals_len: normals.len() as u64,
+            normal_interpolation: interp as i32,
+            material_path: m.material.clone(),
+            double_sided: true,
+            visible: m.visible,
+        };
+        items.push(delta(
+            path,
+            pb::PrimKind::Mesh,
+            pb::prim_delta::Payload::Mesh(prim),
+        ));
+        items.extend(chunks(path, pb::ArrayField::Points, &points, |c, v| {
+            c.floats = v
+        }));
+        items.extend(chunks(
+            path,
+            pb::ArrayField::TriangleIndices,
+            &indices,
+            |c, v| c.uints = v,
+        ));
+        items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| {
+            c.floats = v
+        }));
+    }
+    items
+}
+
+/// A delta with every dirty bit set.
+pub fn delta(
+    path: &str,
+    kind: pb::PrimKind,
+    payload: pb::prim_delta::Payload,
+) -> pb::sync_request::Item {
+    pb::sync_request::Item::Prim(pb::PrimDelta {
+        path: path.to_string(),
+        kind: kind as i32,
+        dirty: pb::DirtyBits::DirtyAll as u32,
+        payload: Some(payload),
+    })
+}
+
+/// Wraps items into a stream of requests; the first carries the session id.
+pub fn requests(session_id: &str, items: Vec<pb::sync_request::Item>) -> Vec<pb::SyncRequest> {
+    items
+        .into_iter()
+        .enumerate()
+        .map(|(i, item)| pb::SyncRequest {
+            session_id: if i == 0 {
+                session_id.to_string()
+            } else {
+                String::new()
+            },
+            item: Some(item),
+        })
+        .collect()
+}
