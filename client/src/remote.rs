@@ -94,6 +94,18 @@ impl Connection {
         Ok(Connection { client, session })
     }
 
+    /// Joins an existing session (a second connection, e.g. to edit while rendering).
+    pub async fn attach(url: &str, session: &str) -> Result<Self> {
+        let channel = Channel::from_shared(url.to_string())?
+            .connect()
+            .await
+            .with_context(|| format!("cannot connect to {url}"))?;
+        Ok(Connection {
+            client: RenderClient::new(channel).max_decoding_message_size(64 << 20),
+            session: session.to_string(),
+        })
+    }
+
     /// The server's capabilities.
     pub async fn capabilities(&mut self) -> Result<pb::Capabilities> {
         Ok(self

@@ -36,8 +36,8 @@ pub async fn serve(
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .add_service(
+            // Incoming messages keep gRPC's 4 MiB default: clients chunk large arrays.
             pb::render_server::RenderServer::new(RenderService::default())
-                .max_decoding_message_size(8 << 20)
                 .max_encoding_message_size(64 << 20),
         )
         .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown)

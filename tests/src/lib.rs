@@ -1,1 +1,82 @@
+//! Helpers for the end-to-end tests: fixtures, an embedded server per test, image statistics.
 
+use std::path::PathBuf;
+
+use tessera::output::Image;
+use tessera::remote::{Connection, RenderOptions, RenderReport};
+use tessera::usd::Translation;
+use tessera_server::EmbeddedServer;
+
+/// Path of a file under `fixtures/`.
+pub fn fixture(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures")
+        .join(rel)
+}
+
+/// Reads a fixture with the client's USD reader.
+pub fn load(rel: &str) -> Translation {
+    tessera::usd::load(&fixture(rel)).unwrap_or_else(|e| panic!("{rel}: {e:#}"))
+}
+
+/// A server on loopback and a session on it with `translation` synced.
+pub async fn session_with(translation: &Translation) -> (EmbeddedServer, Connection) {
+    let server = EmbeddedServer::start()
+        .await
+        .expect("embedded server starts");
+    let mut conn = Connection::connect(&server.url(), "e2e")
+        .await
+        .expect("connects");
+    conn.sync(tessera::sync::full_sync(translation))
+        .await
+        .expect("scene syncs");
+    (server, conn)
+}
+
+/// Renders a fixture over loopback.
+pub async fn render_fixture(rel: &str, opts: &RenderOptions) -> RenderReport {
+    let (server, mut conn) = session_with(&load(rel)).await;
+    let report = conn.render(opts, |_| {}).await.expect("renders");
+    server.stop().await.expect("server stops");
+    report
+}
+
+/// Options for a small, quick render.
+pub fn small(width: u32, height: u32, spp: u32) -> RenderOptions {
+    RenderOptions {
+        width,
+        height,
+        spp,
+        progressive_f16: false,
+        ..Default::default()
+    }
+}
+
+/// Asserts every value of every layer is finite.
+pub fn assert_all_finite(image: &Image) {
+    for (name, (_, data)) in &image.layers {
+        if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+            panic!("AOV {name}: value {i} is {}", data[i]);
+        }
+    }
+}
+
+/// Mean of channel `c` of `aov` over the pixels where `keep` holds.
+pub fn mean_where(
+    image: &Image,
+    aov: &str,
+    c: usize,
+    keep: impl Fn(u32, u32) -> bool,
+) -> (f64, usize) {
+    let mut sum = 0.0;
+    let mut n = 0;
+    for y in 0..image.height {
+        for x in 0..image.width {
+            if keep(x, y) {
+                sum += image.pixel(aov, x, y)[c] as f64;
+                n += 1;
+            }
+        }
+    }
+    (sum / n.max(1) as f64, n)
+}

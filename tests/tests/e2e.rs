@@ -1,0 +1,8 @@
+//! End-to-end tests: the real server on loopback, the real client, committed fixtures.
+//! One binary (as ripgrep does) so the workspace links it once.
+
+mod errors;
+mod furnace;
+mod grpc;
+mod images;
+mod light_units;
