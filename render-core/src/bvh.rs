@@ -129,7 +129,7 @@ impl Blas {
 
     /// Closest hit in object space: (t, original triangle index, barycentrics).
     #[inline]
-    fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, u32, Vec2)> {
+    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, u32, Vec2)> {
         let ray = bvh_ray(o, d, tmax);
         let mut hit = RayHit::none();
         let mut bary = Vec2::ZERO;
@@ -147,7 +147,7 @@ impl Blas {
 
     /// True when anything lies on the segment (0, tmax).
     #[inline]
-    fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
+    pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
         let ray = bvh_ray(o, d, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| {
             self.tris[id]

@@ -51,6 +51,7 @@ async fn check_plane(
         }
     }
     let rel = got / want - 1.0;
+    eprintln!("{fixture_name}: {:+.4}%", 100.0 * rel);
     assert!(
         rel.abs() < tolerance,
         "{fixture_name}: mean radiance {} vs closed form {} ({:+.3}%)",
@@ -82,7 +83,7 @@ fn rect_corners() -> Vec<DVec3> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rect_light_radiance_is_its_intensity() {
-    check_plane("lights/rect_plane.usda", 256, 0.01, |p| {
+    check_plane("lights/rect_plane.usda", 4096, 0.01, |p| {
         polygon_irradiance(p, &rect_corners(), 2.0)
     })
     .await;
