@@ -10,6 +10,8 @@
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
 mod lambert;
+pub mod fresnel;
+pub mod microfacet;
 
 pub use lambert::Lambert;
 
