@@ -9,10 +9,13 @@
 //! albedo weight, as Cycles does with `sample_weight`; evaluation and pdf are the weighted
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
-mod lambert;
+mod conductor;
+pub mod energy;
 pub mod fresnel;
+mod lambert;
 pub mod microfacet;
 
+pub use conductor::{Conductor, ConductorFresnel};
 pub use lambert::Lambert;
 
 use glam::{Vec2, Vec3};
@@ -46,6 +49,8 @@ pub struct LobeSample {
 pub enum Lobe {
     /// Ideal diffuse reflection.
     Lambert(Lambert),
+    /// Rough or smooth conductor with optional energy compensation.
+    Conductor(Conductor),
 }
 
 impl Lobe {
@@ -54,6 +59,7 @@ impl Lobe {
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         match self {
             Lobe::Lambert(l) => l.eval(wo, wi),
+            Lobe::Conductor(l) => l.eval(wo, wi),
         }
     }
 
@@ -62,6 +68,7 @@ impl Lobe {
     pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<LobeSample> {
         match self {
             Lobe::Lambert(l) => l.sample(wo, u),
+            Lobe::Conductor(l) => l.sample(wo, u),
         }
     }
 
@@ -70,6 +77,7 @@ impl Lobe {
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Lobe::Lambert(l) => l.pdf(wo, wi),
+            Lobe::Conductor(l) => l.pdf(wo, wi),
         }
     }
 
@@ -78,6 +86,7 @@ impl Lobe {
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
         match self {
             Lobe::Lambert(l) => l.albedo(wo),
+            Lobe::Conductor(l) => l.albedo(wo),
         }
     }
 
@@ -86,6 +95,7 @@ impl Lobe {
     pub fn flags(&self) -> LobeFlags {
         match self {
             Lobe::Lambert(_) => Lambert::FLAGS,
+            Lobe::Conductor(c) => c.flags(),
         }
     }
 }
@@ -195,3 +205,69 @@ impl Bsdf {
 
 #[cfg(test)]
 pub(crate) mod testing;
+
+#[cfg(test)]
+mod finite_everywhere {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn dir() -> impl Strategy<Value = Vec3> {
+        // Any direction, including below the horizon, exactly grazing and unnormalised.
+        (
+            -1.0f32..1.0,
+            -1.0f32..1.0,
+            prop_oneof![Just(0.0f32), Just(1e-6f32), Just(-1e-6f32), -1.0f32..1.0],
+        )
+            .prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    fn lobe() -> impl Strategy<Value = Lobe> {
+        let r = prop_oneof![
+            Just(0.0f32),
+            Just(1e-7f32),
+            Just(1e-4f32),
+            Just(1.0f32),
+            0.0f32..1.0
+        ];
+        let a = prop_oneof![Just(-1.0f32), Just(0.0f32), Just(1.0f32), -1.0f32..1.0];
+        let c = (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0).prop_map(|(x, y, z)| Vec3::new(x, y, z));
+        prop_oneof![
+            c.clone().prop_map(|r| Lobe::Lambert(Lambert { r })),
+            (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(
+                |(r, a, f, g, comp)| Lobe::Conductor(Conductor::new(
+                    r,
+                    a,
+                    ConductorFresnel::Gulbrandsen { r: f, g },
+                    comp
+                ))
+            ),
+            (r, a, c.clone(), c, 0.01f32..10.0, any::<bool>()).prop_map(|(r, a, f, g, p, comp)| {
+                Lobe::Conductor(Conductor::new(
+                    r,
+                    a,
+                    ConductorFresnel::Artistic { r: f, g, p },
+                    comp,
+                ))
+            }),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        #[test]
+        fn eval_pdf_and_sample_are_finite_and_non_negative(l in lobe(), wo in dir(), wi in dir(), u in (0.0f32..1.0, 0.0f32..1.0)) {
+            let (wo_n, wi_n) = (wo.normalize_or_zero(), wi.normalize_or_zero());
+            for (a, b) in [(wo, wi), (wo_n, wi_n)] {
+                let f = l.eval(a, b);
+                prop_assert!(crate::math::is_finite(f) && f.min_element() >= 0.0, "eval {f:?}");
+                let p = l.pdf(a, b);
+                prop_assert!(p.is_finite() && p >= 0.0, "pdf {p}");
+            }
+            if let Some(s) = l.sample(wo_n, Vec2::new(u.0, u.1)) {
+                prop_assert!(crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0, "weight {:?}", s.weight);
+                prop_assert!(s.pdf.is_finite() && s.pdf > 0.0, "pdf {}", s.pdf);
+                prop_assert!(crate::math::is_finite(s.wi));
+            }
+        }
+    }
+}

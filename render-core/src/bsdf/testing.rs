@@ -103,7 +103,8 @@ const SAMPLES: u32 = 400_000;
 const ALPHA: f64 = 0.01;
 
 fn bin_of(w: Vec3) -> usize {
-    let c = ((w.z as f64 + 1.0) * 0.5 * THETA_BINS as f64)
+    let theta = (w.z as f64).clamp(-1.0, 1.0).acos();
+    let c = (theta / PI * THETA_BINS as f64)
         .floor()
         .clamp(0.0, THETA_BINS as f64 - 1.0) as usize;
     let phi = (w.y as f64).atan2(w.x as f64).rem_euclid(2.0 * PI);
@@ -128,28 +129,7 @@ pub fn assert_chi2(lobe: &Lobe, seed: u64) {
                 observed[bin_of(s.wi.normalize())] += 1.0;
             }
         }
-        // Expected counts: integrate the pdf over each bin with a midpoint rule.
-        const SUB: usize = 8;
-        let mut expected = vec![0.0f64; THETA_BINS * PHI_BINS];
-        let cell = (2.0 / THETA_BINS as f64) * (2.0 * PI / PHI_BINS as f64) / (SUB * SUB) as f64;
-        for ci in 0..THETA_BINS {
-            for pi in 0..PHI_BINS {
-                let mut acc = 0.0;
-                for a in 0..SUB {
-                    for b in 0..SUB {
-                        let z = -1.0
-                            + (ci as f64 + (a as f64 + 0.5) / SUB as f64) * 2.0 / THETA_BINS as f64;
-                        let phi = (pi as f64 + (b as f64 + 0.5) / SUB as f64) * 2.0 * PI
-                            / PHI_BINS as f64;
-                        let r = (1.0 - z * z).max(0.0).sqrt();
-                        let wi =
-                            Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-                        acc += lobe.pdf(wo, wi) as f64 * cell;
-                    }
-                }
-                expected[ci * PHI_BINS + pi] = acc * SAMPLES as f64;
-            }
-        }
+        let expected = expected_counts(|wi| lobe.pdf(wo, wi));
         let (stat, dof) = chi2_statistic(&observed, &expected);
         if dof == 0 {
             continue;
@@ -160,6 +140,42 @@ pub fn assert_chi2(lobe: &Lobe, seed: u64) {
             "chi-square rejects sampling of {lobe:?} at wo={wo:?}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}"
         );
     }
+}
+
+/// Expected counts per bin: the pdf integrated over each (θ, φ) cell (with the sin θ
+/// Jacobian), times the sample count. Each cell uses a midpoint rule refined until two
+/// successive resolutions agree: grazing microfacet lobes are a degree or two wide.
+fn expected_counts(pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
+    let (dt, dp) = (PI / THETA_BINS as f64, 2.0 * PI / PHI_BINS as f64);
+    let cell = |ci: usize, pi: usize, sub: usize| -> f64 {
+        let mut acc = 0.0;
+        for a in 0..sub {
+            let theta = (ci as f64 + (a as f64 + 0.5) / sub as f64) * dt;
+            let (st, ct) = theta.sin_cos();
+            for b in 0..sub {
+                let phi = (pi as f64 + (b as f64 + 0.5) / sub as f64) * dp;
+                let wi = Vec3::new((st * phi.cos()) as f32, (st * phi.sin()) as f32, ct as f32);
+                acc += pdf(wi) as f64 * st;
+            }
+        }
+        acc * dt * dp / (sub * sub) as f64 * SAMPLES as f64
+    };
+    let mut expected = vec![0.0f64; THETA_BINS * PHI_BINS];
+    for ci in 0..THETA_BINS {
+        for pi in 0..PHI_BINS {
+            let (mut sub, mut coarse) = (8, cell(ci, pi, 8));
+            loop {
+                let fine = cell(ci, pi, 2 * sub);
+                sub *= 2;
+                if (fine - coarse).abs() <= 1e-3 * fine.max(1.0) || sub >= 256 {
+                    expected[ci * PHI_BINS + pi] = fine;
+                    break;
+                }
+                coarse = fine;
+            }
+        }
+    }
+    expected
 }
 
 /// Pearson's statistic with cells of expected count < 5 pooled (pbrt's approach).
@@ -295,20 +311,7 @@ mod tests {
             o
         };
         let lobe = Lobe::Lambert(super::super::Lambert { r: Vec3::ONE });
-        let wo = Vec3::Z;
-        let mut e = vec![0.0f64; THETA_BINS * PHI_BINS];
-        for ci in 0..THETA_BINS {
-            for pi in 0..PHI_BINS {
-                let z = -1.0 + (ci as f64 + 0.5) * 2.0 / THETA_BINS as f64;
-                let phi = (pi as f64 + 0.5) * 2.0 * PI / PHI_BINS as f64;
-                let r = (1.0 - z * z).sqrt();
-                let wi = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
-                e[ci * PHI_BINS + pi] = lobe.pdf(wo, wi) as f64
-                    * (2.0 / THETA_BINS as f64)
-                    * (2.0 * PI / PHI_BINS as f64)
-                    * SAMPLES as f64;
-            }
-        }
+        let e = expected_counts(|wi| lobe.pdf(Vec3::Z, wi));
         let (stat, dof) = chi2_statistic(&observed_uniform, &e);
         assert!(chi2_survival(stat, dof as f64) < 1e-6);
     }
