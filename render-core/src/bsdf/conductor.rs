@@ -196,9 +196,10 @@ impl Conductor {
         if pdf.is_finite() { pdf } else { 0.0 }
     }
 
-    /// Samples the specular lobe by visible normals or the compensation lobe by cosine.
+    /// Samples the specular lobe by visible normals or, with probability from `uc`, the
+    /// compensation lobe by cosine.
     #[inline]
-    pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<LobeSample> {
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
         if wo.z <= 0.0 {
             return None;
         }
@@ -209,13 +210,12 @@ impl Conductor {
                 weight: self.fresnel.eval(wo.z),
                 pdf: 1.0,
                 flags: self.flags(),
+                eta: 1.0,
             });
         }
-        let p = self.p_ms(wo);
-        let wi = if u.x < p {
-            cosine_hemisphere(Vec2::new(u.x / p, u.y))
+        let wi = if uc < self.p_ms(wo) {
+            cosine_hemisphere(u)
         } else {
-            let u = Vec2::new(((u.x - p) / (1.0 - p)).min(1.0 - f32::EPSILON), u.y);
             reflect(wo, self.ggx.regularized().sample_visible(wo, u))
         };
         if wi.z <= 0.0 {
@@ -231,6 +231,7 @@ impl Conductor {
             weight,
             pdf,
             flags: self.flags(),
+            eta: 1.0,
         })
     }
 
@@ -367,7 +368,7 @@ mod tests {
     fn smooth_conductor_is_a_mirror_weighted_by_fresnel() {
         let wo = Vec3::new(0.6, 0.0, 0.8);
         for r in [0.0, 1e-4, 1e-7] {
-            let s = gold(r, 0.0).sample(wo, Vec2::new(0.3, 0.7)).unwrap();
+            let s = gold(r, 0.0).sample(wo, 0.5, Vec2::new(0.3, 0.7)).unwrap();
             assert!(s.flags.delta);
             assert!((s.wi - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6);
             assert!(s.weight.max_element() <= 1.0 && s.weight.min_element() > 0.3);

@@ -33,7 +33,7 @@ impl Lambert {
 
     /// Cosine-weighted sampling: the weight is exactly R.
     #[inline]
-    pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<LobeSample> {
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
         if wo.z <= 0.0 {
             return None;
         }
@@ -46,6 +46,7 @@ impl Lambert {
             weight: self.r,
             pdf: cosine_hemisphere_pdf(wi.z),
             flags: Self::FLAGS,
+            eta: 1.0,
         })
     }
 

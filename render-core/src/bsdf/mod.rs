@@ -1,7 +1,8 @@
 //! Scattering functions in the local shading frame.
 //!
-//! Every lobe has the same shape: `eval(wo, wi)` (f without the cosine), `sample(wo, u_lobe,
-//! u)` and `pdf(wo, wi)` (solid angle), plus `albedo(wo)`, an estimate used to choose among
+//! Every lobe has the same shape: `eval(wo, wi)` (f without the cosine), `sample(wo, uc, u)`
+//! (pbrt's shape: `uc` chooses among a lobe's discrete options, `u` warps) and `pdf(wo, wi)`
+//! (solid angle), plus `albedo(wo)`, an estimate used to choose among
 //! lobes. Directions point away from the surface; +Z is the shading normal.
 //!
 //! [`Bsdf`] holds only the lobes a material instance needs (a material with no
@@ -10,12 +11,14 @@
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
 mod conductor;
+mod dielectric;
 pub mod energy;
 pub mod fresnel;
 mod lambert;
 pub mod microfacet;
 
 pub use conductor::{Conductor, ConductorFresnel};
+pub use dielectric::Dielectric;
 pub use lambert::Lambert;
 
 use glam::{Vec2, Vec3};
@@ -42,6 +45,9 @@ pub struct LobeSample {
     pub pdf: f32,
     /// Flags of the lobe that produced the sample.
     pub flags: LobeFlags,
+    /// Relative IOR η' crossed by a transmitted sample (1 for reflection): radiance weights
+    /// carry 1/η'², energy does not.
+    pub eta: f32,
 }
 
 /// One scattering lobe.
@@ -51,6 +57,8 @@ pub enum Lobe {
     Lambert(Lambert),
     /// Rough or smooth conductor with optional energy compensation.
     Conductor(Conductor),
+    /// Rough or smooth dielectric interface: reflection and refraction.
+    Dielectric(Dielectric),
 }
 
 impl Lobe {
@@ -60,15 +68,17 @@ impl Lobe {
         match self {
             Lobe::Lambert(l) => l.eval(wo, wi),
             Lobe::Conductor(l) => l.eval(wo, wi),
+            Lobe::Dielectric(l) => l.eval(wo, wi),
         }
     }
 
     /// Samples an incident direction.
     #[inline]
-    pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<LobeSample> {
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
         match self {
-            Lobe::Lambert(l) => l.sample(wo, u),
-            Lobe::Conductor(l) => l.sample(wo, u),
+            Lobe::Lambert(l) => l.sample(wo, uc, u),
+            Lobe::Conductor(l) => l.sample(wo, uc, u),
+            Lobe::Dielectric(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -78,6 +88,7 @@ impl Lobe {
         match self {
             Lobe::Lambert(l) => l.pdf(wo, wi),
             Lobe::Conductor(l) => l.pdf(wo, wi),
+            Lobe::Dielectric(l) => l.pdf(wo, wi),
         }
     }
 
@@ -87,6 +98,7 @@ impl Lobe {
         match self {
             Lobe::Lambert(l) => l.albedo(wo),
             Lobe::Conductor(l) => l.albedo(wo),
+            Lobe::Dielectric(l) => l.albedo(wo),
         }
     }
 
@@ -96,6 +108,7 @@ impl Lobe {
         match self {
             Lobe::Lambert(_) => Lambert::FLAGS,
             Lobe::Conductor(c) => c.flags(),
+            Lobe::Dielectric(d) => d.flags(),
         }
     }
 }
@@ -168,20 +181,28 @@ impl Bsdf {
     }
 
     /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS
-    /// estimate of the whole BSDF (f and pdf summed over all non-delta lobes).
+    /// estimate of the whole BSDF (f and pdf summed over all non-delta lobes). Reflection and
+    /// transmission lobes are evaluated on their own side: the cosine is |cos θi|.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<LobeSample> {
         let mut acc = 0.0;
         let mut chosen = None;
         for (i, _) in self.lobes() {
-            acc += self.select[i];
-            if u_lobe < acc || i + 1 == self.count {
-                chosen = Some(i);
+            if u_lobe < acc + self.select[i] || i + 1 == self.count {
+                chosen = Some((i, acc));
                 break;
             }
+            acc += self.select[i];
         }
-        let i = chosen?;
+        let (i, lo) = chosen?;
         let lobe = self.lobes[i]?;
-        let s = lobe.sample(wo, u)?;
+        // Reuse the selection number inside the lobe, rescaled (Cycles' trick, which keeps
+        // its stratification).
+        let uc = if self.select[i] > 0.0 {
+            ((u_lobe - lo) / self.select[i]).clamp(0.0, 1.0 - f32::EPSILON)
+        } else {
+            0.5
+        };
+        let s = lobe.sample(wo, uc, u)?;
         if s.flags.delta {
             let p = self.select[i];
             return (p > 0.0).then(|| LobeSample {
@@ -263,7 +284,7 @@ mod finite_everywhere {
                 let p = l.pdf(a, b);
                 prop_assert!(p.is_finite() && p >= 0.0, "pdf {p}");
             }
-            if let Some(s) = l.sample(wo_n, Vec2::new(u.0, u.1)) {
+            if let Some(s) = l.sample(wo_n, u.0, Vec2::new(u.1, u.0)) {
                 prop_assert!(crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0, "weight {:?}", s.weight);
                 prop_assert!(s.pdf.is_finite() && s.pdf > 0.0, "pdf {}", s.pdf);
                 prop_assert!(crate::math::is_finite(s.wi));

