@@ -12,6 +12,7 @@
 
 mod conductor;
 mod dielectric;
+mod disney;
 pub mod energy;
 pub mod fresnel;
 mod lambert;
@@ -19,6 +20,7 @@ pub mod microfacet;
 
 pub use conductor::{Conductor, ConductorFresnel};
 pub use dielectric::Dielectric;
+pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use lambert::Lambert;
 
 use glam::{Vec2, Vec3};
@@ -59,6 +61,14 @@ pub enum Lobe {
     Conductor(Conductor),
     /// Rough or smooth dielectric interface: reflection and refraction.
     Dielectric(Dielectric),
+    /// Disney diffuse with retro-reflection (and the thin-surface blend).
+    DisneyDiffuse(DisneyDiffuse),
+    /// Lambertian transmission.
+    DiffuseTransmission(DiffuseTransmission),
+    /// Disney sheen.
+    Sheen(Sheen),
+    /// Disney clearcoat.
+    Clearcoat(Clearcoat),
 }
 
 impl Lobe {
@@ -69,6 +79,10 @@ impl Lobe {
             Lobe::Lambert(l) => l.eval(wo, wi),
             Lobe::Conductor(l) => l.eval(wo, wi),
             Lobe::Dielectric(l) => l.eval(wo, wi),
+            Lobe::DisneyDiffuse(l) => l.eval(wo, wi),
+            Lobe::DiffuseTransmission(l) => l.eval(wo, wi),
+            Lobe::Sheen(l) => l.eval(wo, wi),
+            Lobe::Clearcoat(l) => l.eval(wo, wi),
         }
     }
 
@@ -79,6 +93,10 @@ impl Lobe {
             Lobe::Lambert(l) => l.sample(wo, uc, u),
             Lobe::Conductor(l) => l.sample(wo, uc, u),
             Lobe::Dielectric(l) => l.sample(wo, uc, u),
+            Lobe::DisneyDiffuse(l) => l.sample(wo, uc, u),
+            Lobe::DiffuseTransmission(l) => l.sample(wo, uc, u),
+            Lobe::Sheen(l) => l.sample(wo, uc, u),
+            Lobe::Clearcoat(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -89,6 +107,10 @@ impl Lobe {
             Lobe::Lambert(l) => l.pdf(wo, wi),
             Lobe::Conductor(l) => l.pdf(wo, wi),
             Lobe::Dielectric(l) => l.pdf(wo, wi),
+            Lobe::DisneyDiffuse(l) => l.pdf(wo, wi),
+            Lobe::DiffuseTransmission(l) => l.pdf(wo, wi),
+            Lobe::Sheen(l) => l.pdf(wo, wi),
+            Lobe::Clearcoat(l) => l.pdf(wo, wi),
         }
     }
 
@@ -99,6 +121,10 @@ impl Lobe {
             Lobe::Lambert(l) => l.albedo(wo),
             Lobe::Conductor(l) => l.albedo(wo),
             Lobe::Dielectric(l) => l.albedo(wo),
+            Lobe::DisneyDiffuse(l) => l.albedo(wo),
+            Lobe::DiffuseTransmission(l) => l.albedo(wo),
+            Lobe::Sheen(l) => l.albedo(wo),
+            Lobe::Clearcoat(l) => l.albedo(wo),
         }
     }
 
@@ -109,6 +135,10 @@ impl Lobe {
             Lobe::Lambert(_) => Lambert::FLAGS,
             Lobe::Conductor(c) => c.flags(),
             Lobe::Dielectric(d) => d.flags(),
+            Lobe::DisneyDiffuse(_) => DisneyDiffuse::FLAGS,
+            Lobe::DiffuseTransmission(_) => DiffuseTransmission::FLAGS,
+            Lobe::Sheen(_) => Sheen::FLAGS,
+            Lobe::Clearcoat(_) => Clearcoat::FLAGS,
         }
     }
 }

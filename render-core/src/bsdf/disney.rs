@@ -1,0 +1,457 @@
+//! The Disney lobes besides the specular ones: diffuse with the Fresnel shadow and
+//! retro-reflection (Burley 2012 `001_...` section 5.3, split as in 2015 and as Schutte 2018
+//! `002_...` "Diffuse" implements it, with the thin-surface Hanrahan-Krueger blend by
+//! `flatness`), diffuse transmission (`diffTrans`), sheen, and the clearcoat (GTR1,
+//! fixed-roughness G with α = 0.25, F0 = 0.04, `clearcoatGloss` mapping α = lerp(0.1, 0.001)).
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+use super::microfacet::{Ggx, gtr1_d, reflect};
+use super::{LobeFlags, LobeSample};
+use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
+
+/// Schlick's weight (1 − cos)⁵.
+#[inline]
+fn schlick_weight(cos: f32) -> f32 {
+    (1.0 - cos.abs().min(1.0)).powi(5)
+}
+
+/// Cosine sampling of the hemisphere of `wo` (reflection) — shared by the diffuse-like lobes.
+#[inline]
+fn cosine_same_side(wo: Vec3, u: Vec2) -> Vec3 {
+    let w = cosine_hemisphere(u);
+    if wo.z < 0.0 { -w } else { w }
+}
+
+/// Disney diffuse: f = c/π·[s·(1 − F_L/2)(1 − F_V/2)·lerp(1, HK, flatness) + k·R_R(F_L + F_V + F_L F_V (R_R − 1))],
+/// R_R = 2·roughness·cos²θd. Reflection only, on either side of a two-sided surface.
+///
+/// Burley's lobe (s = k = 1) is not energy conserving: a white one reflects up to 1.54 of the
+/// incident energy at grazing angles for roughness 1, and 1.76 with `flatness` 1 (measured by
+/// [`diffuse_energy_scales`]'s quadrature). To honour energy conservation while keeping the
+/// look at normal incidence, the retro-reflection is scaled by the largest k ≤ 1 that keeps
+/// every directional albedo ≤ 1, and the base by s < 1 only where it alone exceeds 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisneyDiffuse {
+    /// Base colour.
+    pub color: Vec3,
+    /// Roughness.
+    pub roughness: f32,
+    /// Thin-surface flatness: blend from Lambert to Hanrahan-Krueger (0 for solids).
+    pub flatness: f32,
+}
+
+impl DisneyDiffuse {
+    /// Reflection, not delta.
+    pub const FLAGS: LobeFlags = LobeFlags {
+        reflection: true,
+        transmission: false,
+        delta: false,
+    };
+
+    /// f without the cosine.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z * wi.z <= 0.0 || (wo + wi).length_squared() == 0.0 {
+            return Vec3::ZERO;
+        }
+        let (base, retro) = Self::parts(self.roughness, self.flatness, wo, wi);
+        let (s, k) = diffuse_energy_scales(self.roughness, self.flatness);
+        self.color * (s * base + k * retro).max(0.0)
+    }
+
+    /// The two parts of f (base, retro-reflection) for a white lobe, without the scales.
+    fn parts(roughness: f32, flatness: f32, wo: Vec3, wi: Vec3) -> (f32, f32) {
+        let (no, ni) = (wo.z.abs(), wi.z.abs());
+        let h = (wo + wi).normalize_or_zero();
+        let cos_d = h.dot(wi);
+        let (fl, fv) = (schlick_weight(ni), schlick_weight(no));
+        let rr = 2.0 * roughness * cos_d * cos_d;
+        let retro = rr * (fl + fv + fl * fv * (rr - 1.0));
+        // Hanrahan-Krueger-inspired single scattering (Schutte's `EvaluateDisneyDiffuse`).
+        let hk = if flatness > 0.0 {
+            let fss90 = cos_d * cos_d * roughness * roughness;
+            let fss = (1.0 + (fss90 - 1.0) * fl) * (1.0 + (fss90 - 1.0) * fv);
+            1.25 * (fss * (1.0 / (ni + no) - 0.5) + 0.5)
+        } else {
+            0.0
+        };
+        (
+            FRAC_1_PI * (1.0 + (hk - 1.0) * flatness) * (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv),
+            FRAC_1_PI * retro,
+        )
+    }
+
+    /// Cosine-weighted on `wo`'s side.
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let wi = cosine_same_side(wo, u);
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| LobeSample {
+            wi,
+            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
+            pdf,
+            flags: Self::FLAGS,
+            eta: 1.0,
+        })
+    }
+
+    /// |cos θi|/π on `wo`'s side.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z * wi.z > 0.0 {
+            cosine_hemisphere_pdf(wi.z.abs())
+        } else {
+            0.0
+        }
+    }
+
+    /// The base colour.
+    pub fn albedo(&self, _wo: Vec3) -> Vec3 {
+        self.color
+    }
+}
+
+const TABLE_N: usize = 16;
+
+/// The energy scales (s, k) of the Disney diffuse for `roughness` and `flatness`, from a
+/// 16×16 table computed on first use: for each node, directional albedos of the base and
+/// retro-reflection parts at 32 cosines (dense near grazing) by 64×64 cosine-weighted
+/// quadrature; s = min(1, 1/max E_base), k = the largest value in [0, 1] with
+/// s·E_base + k·E_retro ≤ 1 everywhere. A lookup takes the smallest (s, k) of the four
+/// surrounding nodes: both fall as roughness and flatness grow, so that is conservative.
+pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
+    static TABLE: std::sync::OnceLock<Vec<(f32, f32)>> = std::sync::OnceLock::new();
+    let t = TABLE.get_or_init(|| {
+        let mut t = Vec::with_capacity(TABLE_N * TABLE_N);
+        for j in 0..TABLE_N {
+            for i in 0..TABLE_N {
+                let (r, fl) = (
+                    j as f32 / (TABLE_N - 1) as f32,
+                    i as f32 / (TABLE_N - 1) as f32,
+                );
+                let mut eb_max: f32 = 0.0;
+                let mut pairs = Vec::with_capacity(32);
+                for m in 0..32 {
+                    let mu = ((m as f32 / 31.0).powi(2)).max(1e-4);
+                    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                    let (mut eb, mut er) = (0.0f64, 0.0f64);
+                    const Q: usize = 64;
+                    for a in 0..Q {
+                        for b in 0..Q {
+                            let wi = cosine_hemisphere(Vec2::new(
+                                (a as f32 + 0.5) / Q as f32,
+                                (b as f32 + 0.5) / Q as f32,
+                            ));
+                            let (fb, fr) = DisneyDiffuse::parts(r, fl, wo, wi);
+                            eb += (fb * PI) as f64;
+                            er += (fr * PI) as f64;
+                        }
+                    }
+                    let (eb, er) = ((eb / (Q * Q) as f64) as f32, (er / (Q * Q) as f64) as f32);
+                    eb_max = eb_max.max(eb);
+                    pairs.push((eb, er));
+                }
+                // 0.5% margin for the quadrature and for cosines between the nodes.
+                let s = (0.995 / eb_max).min(1.0);
+                let k = pairs
+                    .iter()
+                    .filter(|(_, er)| *er > 0.0)
+                    .map(|(eb, er)| ((0.995 - s * eb) / er).clamp(0.0, 1.0))
+                    .fold(1.0f32, f32::min);
+                t.push((s, k));
+            }
+        }
+        t
+    });
+    let idx = |x: f32| -> (usize, usize) {
+        let f = x.clamp(0.0, 1.0) * (TABLE_N - 1) as f32;
+        let lo = (f.floor() as usize).min(TABLE_N - 1);
+        (lo, (lo + 1).min(TABLE_N - 1))
+    };
+    let ((j0, j1), (i0, i1)) = (idx(roughness), idx(flatness));
+    [(j0, i0), (j0, i1), (j1, i0), (j1, i1)]
+        .iter()
+        .map(|&(j, i)| t[j * TABLE_N + i])
+        .fold((1.0f32, 1.0f32), |(s, k), (a, b)| (s.min(a), k.min(b)))
+}
+
+/// Lambertian transmission (Disney's `diffTrans` lobe): f = c/π into the opposite hemisphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseTransmission {
+    /// Transmitted colour.
+    pub color: Vec3,
+}
+
+impl DiffuseTransmission {
+    /// Transmission, not delta.
+    pub const FLAGS: LobeFlags = LobeFlags {
+        reflection: false,
+        transmission: true,
+        delta: false,
+    };
+
+    /// c/π for opposite sides.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z * wi.z < 0.0 {
+            self.color * FRAC_1_PI
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// Cosine-weighted on the far side.
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let wi = -cosine_same_side(wo, u);
+        (wi.z != 0.0).then(|| LobeSample {
+            wi,
+            weight: self.color,
+            pdf: cosine_hemisphere_pdf(wi.z.abs()),
+            flags: Self::FLAGS,
+            eta: 1.0,
+        })
+    }
+
+    /// |cos θi|/π on the far side.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z * wi.z < 0.0 {
+            cosine_hemisphere_pdf(wi.z.abs())
+        } else {
+            0.0
+        }
+    }
+
+    /// The colour.
+    pub fn albedo(&self, _wo: Vec3) -> Vec3 {
+        self.color
+    }
+}
+
+/// Disney sheen: f = sheen·lerp(1, tint, sheenTint)·(1 − cos θd)⁵, cosine-sampled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sheen {
+    /// sheen · lerp(white, tint, sheenTint).
+    pub color: Vec3,
+}
+
+impl Sheen {
+    /// Reflection, not delta.
+    pub const FLAGS: LobeFlags = LobeFlags {
+        reflection: true,
+        transmission: false,
+        delta: false,
+    };
+
+    /// The Disney sheen colour from `baseColor`'s hue (the BRDF Explorer's tint).
+    pub fn tint(base: Vec3) -> Vec3 {
+        let l = base.dot(Vec3::new(0.3, 0.6, 0.1));
+        if l > 0.0 { base / l } else { Vec3::ONE }
+    }
+
+    /// f without the cosine.
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z * wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let h = (wo + wi).normalize_or_zero();
+        self.color * schlick_weight(h.dot(wi))
+    }
+
+    /// Cosine-weighted on `wo`'s side.
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let wi = cosine_same_side(wo, u);
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| LobeSample {
+            wi,
+            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
+            pdf,
+            flags: Self::FLAGS,
+            eta: 1.0,
+        })
+    }
+
+    /// |cos θi|/π on `wo`'s side.
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z * wi.z > 0.0 {
+            cosine_hemisphere_pdf(wi.z.abs())
+        } else {
+            0.0
+        }
+    }
+
+    /// Directional albedo estimate: the sheen peaks at grazing; (1 − μ)⁵-weighted average.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        self.color * (0.1 + 0.5 * schlick_weight(wo.z))
+    }
+}
+
+/// The Disney clearcoat: GTR1 distribution, Schlick Fresnel with F0 = 0.04, Smith GGX
+/// masking with fixed α = 0.25, scaled by 0.25·clearcoat (Burley: the coat carries a quarter
+/// of the specular's energy).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clearcoat {
+    /// 0.25 · clearcoat.
+    pub weight: f32,
+    /// GTR1 α = lerp(0.1, 0.001, clearcoatGloss).
+    pub alpha: f32,
+}
+
+impl Clearcoat {
+    /// Reflection, not delta.
+    pub const FLAGS: LobeFlags = LobeFlags {
+        reflection: true,
+        transmission: false,
+        delta: false,
+    };
+    const G_ALPHA: Ggx = Ggx { ax: 0.25, ay: 0.25 };
+
+    /// From Disney's `clearcoat` and `clearcoatGloss`.
+    pub fn new(clearcoat: f32, gloss: f32) -> Self {
+        let g = gloss.clamp(0.0, 1.0);
+        Clearcoat {
+            weight: 0.25 * clearcoat.clamp(0.0, 1.0),
+            alpha: 0.1 + (0.001 - 0.1) * g,
+        }
+    }
+
+    /// f without the cosine (reflection on either side).
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z * wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
+        let h = (wo + wi).normalize();
+        let f = 0.04 + 0.96 * schlick_weight(h.dot(wi));
+        let g = Self::G_ALPHA.g1(wo) * Self::G_ALPHA.g1(wi);
+        Vec3::splat(self.weight * gtr1_d(h.z, self.alpha) * f * g / (4.0 * wo.z * wi.z))
+    }
+
+    /// Samples GTR1 half vectors (Burley 2012 addendum): cos²θh = (1 − α^(2(1−ξ)))/(1 − α²).
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let a2 = self.alpha * self.alpha;
+        let cos2 = ((1.0 - a2.powf(1.0 - u.x)) / (1.0 - a2)).clamp(0.0, 1.0);
+        let (cos_h, sin_h) = (cos2.sqrt(), (1.0 - cos2).sqrt());
+        let phi = 2.0 * PI * u.y;
+        let mut h = Vec3::new(sin_h * phi.cos(), sin_h * phi.sin(), cos_h);
+        if wo.z < 0.0 {
+            h = -h;
+        }
+        let wi = reflect(wo, h);
+        if wi.z * wo.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| LobeSample {
+            wi,
+            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
+            pdf,
+            flags: Self::FLAGS,
+            eta: 1.0,
+        })
+    }
+
+    /// D(h)·cos θh / (4|wo·h|).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z * wi.z <= 0.0 {
+            return 0.0;
+        }
+        let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
+        let h = (wo + wi).normalize();
+        gtr1_d(h.z, self.alpha) * h.z / (4.0 * wo.dot(h).abs().max(1e-8))
+    }
+
+    /// F-weighted estimate of the coat's reflectance.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        Vec3::splat(self.weight * (0.04 + 0.96 * schlick_weight(wo.z)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::{Lobe, testing};
+
+    fn lobes() -> Vec<Lobe> {
+        let mut v = Vec::new();
+        for r in [0.0, 0.5, 1.0] {
+            for flatness in [0.0, 0.5, 1.0] {
+                v.push(Lobe::DisneyDiffuse(DisneyDiffuse {
+                    color: Vec3::ONE,
+                    roughness: r,
+                    flatness,
+                }));
+            }
+        }
+        v.push(Lobe::DiffuseTransmission(DiffuseTransmission {
+            color: Vec3::ONE,
+        }));
+        v.push(Lobe::Sheen(Sheen { color: Vec3::ONE }));
+        for gloss in [0.0, 0.5, 1.0] {
+            v.push(Lobe::Clearcoat(Clearcoat::new(1.0, gloss)));
+        }
+        v
+    }
+
+    #[test]
+    fn rough_burley_diffuse_gains_energy_and_the_scales_remove_it() {
+        // Unscaled, roughness 1 reflects more than it receives at grazing angles...
+        let wo = Vec3::new((1.0f32 - 0.01f32 * 0.01).sqrt(), 0.0, 0.01);
+        let mut acc = 0.0f64;
+        let mut rng = crate::sampling::Pcg32::new(4, 4);
+        for _ in 0..200_000 {
+            let wi = cosine_hemisphere(rng.next_2d());
+            let (b, r) = DisneyDiffuse::parts(1.0, 0.0, wo, wi);
+            acc += ((b + r) * PI) as f64;
+        }
+        assert!(acc / 200_000.0 > 1.4, "{}", acc / 200_000.0);
+        // ...so its retro-reflection is scaled down, and smooth diffuse is left alone.
+        let (s, k) = diffuse_energy_scales(1.0, 0.0);
+        assert!(s == 1.0 && k < 0.5, "s {s}, k {k}");
+        assert_eq!(diffuse_energy_scales(0.0, 0.0), (1.0, 1.0));
+    }
+
+    #[test]
+    fn white_furnace() {
+        for lobe in lobes() {
+            testing::assert_albedo_at_most_one(&lobe);
+        }
+    }
+
+    #[test]
+    fn reciprocity() {
+        for lobe in lobes() {
+            testing::assert_reciprocal(&lobe);
+        }
+    }
+
+    /// The clearcoat at gloss 1 (α = 0.001) is a peak a few hundredths of a degree wide,
+    /// beyond what the binned test resolves; its sampling weights are still checked below.
+    #[test]
+    fn chi_square() {
+        let lobes = lobes();
+        for (k, lobe) in lobes
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| (k % 3 == 0 || *k >= 9) && *k != lobes.len() - 1)
+        {
+            testing::assert_chi2(lobe, 400 + k as u64);
+        }
+    }
+
+    #[test]
+    fn sample_weight_matches_eval_over_pdf() {
+        for lobe in lobes() {
+            testing::assert_weights_consistent(&lobe);
+        }
+    }
+}
