@@ -26,33 +26,20 @@ fn render_rgb(scene: &CommittedScene, threads: usize, spp: u32, seed: u64) -> (V
         spp,
         seed,
         tile_size: 32,
-        integrator: IntegratorSettings {
-            max_depth: MITSUBA_MAX_DEPTH - 1,
-            ..Default::default()
-        },
+        integrator: IntegratorSettings { max_depth: MITSUBA_MAX_DEPTH - 1, ..Default::default() },
     };
     let cam = Camera::new(&scene.camera("").unwrap(), W, H);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     let t = Instant::now();
     let (fb, _) = pool.install(|| render_to_framebuffer(scene, &cam, &settings));
     let secs = t.elapsed().as_secs_f64();
-    let rgb = fb.layers[&Aov::Beauty]
-        .chunks(4)
-        .flat_map(|p| [p[0], p[1], p[2]])
-        .collect();
+    let rgb = fb.layers[&Aov::Beauty].chunks(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
     (rgb, secs)
 }
 
 /// Relative MSE (Rousselle et al.'s ε = 0.01 in the denominator), and mean per channel.
 fn rel_mse(img: &[f32], reference: &[f32]) -> f64 {
-    img.iter()
-        .zip(reference)
-        .map(|(&a, &r)| ((a - r) as f64).powi(2) / ((r as f64).powi(2) + 0.01))
-        .sum::<f64>()
-        / img.len() as f64
+    img.iter().zip(reference).map(|(&a, &r)| ((a - r) as f64).powi(2) / ((r as f64).powi(2) + 0.01)).sum::<f64>() / img.len() as f64
 }
 
 fn mean(img: &[f32]) -> [f64; 3] {
@@ -67,12 +54,7 @@ fn mean(img: &[f32]) -> [f64; 3] {
 
 fn read_f32(path: &Path) -> Option<Vec<f32>> {
     let bytes = std::fs::read(path).ok()?;
-    Some(
-        bytes
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect(),
-    )
+    Some(bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
 }
 
 fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32) -> Option<(f64, f64)> {
@@ -87,60 +69,31 @@ fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32) -> Option<(f64, 
         out.to_str()?,
         variant,
     ];
-    let o = std::process::Command::new("python3")
-        .arg(script)
-        .arg("cornell")
-        .args(args)
-        .output()
-        .ok()?;
+    let o = std::process::Command::new("python3").arg(script).arg("cornell").args(args).output().ok()?;
     if !o.status.success() {
         eprintln!(
             "Mitsuba ({variant}) anchor failed (pip install mitsuba usd-core; apt install libllvm19): {}",
-            String::from_utf8_lossy(&o.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
+            String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")
         );
         return None;
     }
-    let line = String::from_utf8_lossy(&o.stdout)
-        .lines()
-        .last()?
-        .to_string();
-    let num = |k: &str| -> Option<f64> {
-        line.split(&format!("\"{k}\": "))
-            .nth(1)?
-            .split([',', '}'])
-            .next()?
-            .parse()
-            .ok()
-    };
+    let line = String::from_utf8_lossy(&o.stdout).lines().last()?.to_string();
+    let num = |k: &str| -> Option<f64> { line.split(&format!("\"{k}\": ")).nth(1)?.split([',', '}']).next()?.parse().ok() };
     Some((num("seconds")?, num("paths_per_s")?))
 }
 
 fn main() {
-    let ref_spp: u32 = std::env::var("REF_SPP")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1024);
-    let usd = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/cornell_box.usda")
-        .canonicalize()
-        .unwrap();
+    let ref_spp: u32 = std::env::var("REF_SPP").ok().and_then(|s| s.parse().ok()).unwrap_or(1024);
+    let usd = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/cornell_box.usda").canonicalize().unwrap();
     let translation = tessera::usd::load(&usd).unwrap();
     let scene = commit(&translation.to_scene_desc(), &mut BlasCache::default()).unwrap();
     let paths = (W * H * SPP) as f64;
 
-    println!(
-        "cornell: {W}x{H}, {SPP} spp, max depth {} bounces (Mitsuba max_depth {MITSUBA_MAX_DEPTH})",
-        MITSUBA_MAX_DEPTH - 1
-    );
+    println!("cornell: {W}x{H}, {SPP} spp, max depth {} bounces (Mitsuba max_depth {MITSUBA_MAX_DEPTH})", MITSUBA_MAX_DEPTH - 1);
     render_rgb(&scene, 2, 1, 99); // warm caches
     let mut ours = Vec::new();
     for threads in [1, 2] {
-        let best = (0..3)
-            .map(|s| render_rgb(&scene, threads, SPP, s).1)
-            .fold(f64::INFINITY, f64::min);
+        let best = (0..3).map(|s| render_rgb(&scene, threads, SPP, s).1).fold(f64::INFINITY, f64::min);
         ours.push((threads, best));
     }
     let out = std::env::temp_dir().join("tessera-bench-cornell");
@@ -148,13 +101,8 @@ fn main() {
     let scalar = mitsuba(&usd, &out, "scalar_rgb", 0);
     let llvm = mitsuba(&usd, &out, "llvm_ad_rgb", ref_spp);
 
-    println!(
-        "{:<30} {:>9} {:>13} {:>15} {:>15}",
-        "renderer", "seconds", "Mpaths/s", "vs mitsuba llvm", "vs mitsuba scalar"
-    );
-    let ratio = |a: Option<(f64, f64)>, ours: f64| {
-        a.map_or("-".to_string(), |(_, p)| format!("{:.2}x", ours / p))
-    };
+    println!("{:<30} {:>9} {:>13} {:>15} {:>15}", "renderer", "seconds", "Mpaths/s", "vs mitsuba llvm", "vs mitsuba scalar");
+    let ratio = |a: Option<(f64, f64)>, ours: f64| a.map_or("-".to_string(), |(_, p)| format!("{:.2}x", ours / p));
     for &(threads, secs) in &ours {
         let pps = paths / secs;
         println!(
@@ -166,20 +114,14 @@ fn main() {
             ratio(scalar, pps)
         );
     }
-    for (name, r) in [
-        ("mitsuba llvm_ad_rgb (2 thr)", llvm),
-        ("mitsuba scalar_rgb (2 thr)", scalar),
-    ] {
+    for (name, r) in [("mitsuba llvm_ad_rgb (2 thr)", llvm), ("mitsuba scalar_rgb (2 thr)", scalar)] {
         if let Some((s, p)) = r {
             println!("{:<30} {:>9.3} {:>13.3}", name, s, p / 1e6);
         }
     }
 
     // Equal-spp error against Mitsuba's high-spp reference of the same scene.
-    if let (Some(reference), Some(mits)) = (
-        read_f32(&out.join("mitsuba_ref.bin")),
-        read_f32(&out.join("mitsuba.bin")),
-    ) {
+    if let (Some(reference), Some(mits)) = (read_f32(&out.join("mitsuba_ref.bin")), read_f32(&out.join("mitsuba.bin"))) {
         if ref_spp > 0 && reference.len() == (W * H * 3) as usize {
             let (img, _) = render_rgb(&scene, 2, SPP, 7);
             let (our_ref, ref_secs) = render_rgb(&scene, 2, ref_spp, 11);

@@ -8,10 +8,7 @@ use tessera::commands::render::{RenderJob, run};
 use tessera::remote::RenderOptions;
 
 #[derive(Parser)]
-#[command(
-    version,
-    about = "Tessera: render USD scenes on a Tessera render server"
-)]
+#[command(version, about = "Tessera: render USD scenes on a Tessera render server")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -55,9 +52,7 @@ enum Command {
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32)> {
-    let Some((w, h)) = s.split_once(['x', 'X']) else {
-        bail!("--res must look like 640x480, got '{s}'")
-    };
+    let Some((w, h)) = s.split_once(['x', 'X']) else { bail!("--res must look like 640x480, got '{s}'") };
     let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
     if w == 0 || h == 0 {
         bail!("--res must be at least 1x1");
@@ -69,9 +64,7 @@ fn parse_res(s: &str) -> Result<(u32, u32)> {
 async fn main() {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
         .init();
     if let Err(e) = real_main().await {
         eprintln!("error: {e:#}");
@@ -81,39 +74,11 @@ async fn main() {
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
-        Command::Render {
-            scene,
-            output,
-            spp,
-            res,
-            camera,
-            max_depth,
-            seed,
-            aov,
-            server,
-            threads,
-        } => {
+        Command::Render { scene, output, spp, res, camera, max_depth, seed, aov, server, threads } => {
             let (width, height) = parse_res(&res)?;
-            let options = RenderOptions {
-                width,
-                height,
-                spp,
-                max_depth,
-                seed,
-                camera,
-                aovs: aov,
-                threads,
-                progressive_f16: true,
-            };
+            let options = RenderOptions { width, height, spp, max_depth, seed, camera, aovs: aov, threads, progressive_f16: true };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-            run(&RenderJob {
-                scene,
-                output,
-                options,
-                server,
-                progress,
-            })
-            .await?;
+            run(&RenderJob { scene, output, options, server, progress }).await?;
         }
     }
     Ok(())

@@ -20,21 +20,9 @@ pub struct Image {
 
 impl Image {
     /// Copies a tile in.
-    pub fn write_tile(
-        &mut self,
-        aov: &str,
-        x: u32,
-        y: u32,
-        w: u32,
-        h: u32,
-        channels: u32,
-        data: &[f32],
-    ) {
+    pub fn write_tile(&mut self, aov: &str, x: u32, y: u32, w: u32, h: u32, channels: u32, data: &[f32]) {
         let (width, height) = (self.width, self.height);
-        let (c, layer) = self
-            .layers
-            .entry(aov.to_string())
-            .or_insert_with(|| (channels, vec![0.0; (width * height * channels) as usize]));
+        let (c, layer) = self.layers.entry(aov.to_string()).or_insert_with(|| (channels, vec![0.0; (width * height * channels) as usize]));
         let c = *c as usize;
         for row in 0..h.min(height.saturating_sub(y)) {
             let cols = w.min(width.saturating_sub(x)) as usize;
@@ -60,10 +48,7 @@ fn channel_names(aov: &str, channels: u32) -> Vec<String> {
         (_, 1) => &["Y"],
         _ => &["R", "G", "B", "A"],
     };
-    base.iter()
-        .take(channels as usize)
-        .map(|c| format!("{aov}.{c}"))
-        .collect()
+    base.iter().take(channels as usize).map(|c| format!("{aov}.{c}")).collect()
 }
 
 /// Writes every layer into one EXR part: beauty as `R G B A`, other AOVs as `aov.channel`
@@ -80,27 +65,14 @@ pub fn write_exr(path: &Path, image: &Image, metadata: &[(String, String)]) -> R
     }
     let mut attributes = LayerAttributes::named("");
     for (k, v) in metadata {
-        let ascii: String = v
-            .chars()
-            .map(|ch| if ch.is_ascii() { ch } else { '?' })
-            .collect();
-        if let (Some(key), Some(val)) = (
-            Text::new_or_none(format!("tessera/{k}")),
-            Text::new_or_none(ascii),
-        ) {
+        let ascii: String = v.chars().map(|ch| if ch.is_ascii() { ch } else { '?' }).collect();
+        if let (Some(key), Some(val)) = (Text::new_or_none(format!("tessera/{k}")), Text::new_or_none(ascii)) {
             attributes.other.insert(key, AttributeValue::Text(val));
         }
     }
-    let layer = Layer::new(
-        (image.width as usize, image.height as usize),
-        attributes,
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(channels.into()),
-    );
-    exr::image::Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    let layer =
+        Layer::new((image.width as usize, image.height as usize), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
+    exr::image::Image::from_layer(layer).write().to_file(path).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
 }
 
@@ -111,41 +83,20 @@ pub fn preview_path(exr: &Path) -> PathBuf {
 
 /// Writes the beauty layer as an 8-bit sRGB PNG (clamped, no tone curve beyond sRGB).
 pub fn write_png(path: &Path, image: &Image) -> Result<()> {
-    let (c, data) = image
-        .layers
-        .get("beauty")
-        .context("no beauty layer to preview")?;
+    let (c, data) = image.layers.get("beauty").context("no beauty layer to preview")?;
     let encode = |v: f32| -> u8 {
-        let v = if v.is_finite() {
-            v.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let s = if v <= 0.003_130_8 {
-            12.92 * v
-        } else {
-            1.055 * v.powf(1.0 / 2.4) - 0.055
-        };
+        let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
         (s * 255.0 + 0.5) as u8
     };
-    let rgb: Vec<u8> = data
-        .chunks(*c as usize)
-        .flat_map(|p| [encode(p[0]), encode(p[1]), encode(p[2])])
-        .collect();
-    image::save_buffer(
-        path,
-        &rgb,
-        image.width,
-        image.height,
-        image::ExtendedColorType::Rgb8,
-    )
-    .with_context(|| format!("cannot write {}", path.display()))
+    let rgb: Vec<u8> = data.chunks(*c as usize).flat_map(|p| [encode(p[0]), encode(p[1]), encode(p[2])]).collect();
+    image::save_buffer(path, &rgb, image.width, image.height, image::ExtendedColorType::Rgb8)
+        .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// Reads back an EXR written by [`write_exr`] (for tests and tools).
 pub fn read_exr(path: &Path) -> Result<Image> {
-    let img = read_all_flat_layers_from_file(path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
+    let img = read_all_flat_layers_from_file(path).with_context(|| format!("cannot read {}", path.display()))?;
     let layer = img.layer_data.first().context("EXR has no layers")?;
     let (w, h) = (layer.size.width() as u32, layer.size.height() as u32);
     let mut groups: BTreeMap<String, Vec<(String, Vec<f32>)>> = BTreeMap::new();
@@ -155,17 +106,10 @@ pub fn read_exr(path: &Path) -> Result<Image> {
             Some((a, c)) => (a.to_string(), c.to_string()),
             None => ("beauty".to_string(), name.clone()),
         };
-        groups
-            .entry(aov)
-            .or_default()
-            .push((chan, ch.sample_data.values_as_f32().collect()));
+        groups.entry(aov).or_default().push((chan, ch.sample_data.values_as_f32().collect()));
     }
     let order = ["R", "G", "B", "A", "X", "Y", "Z"];
-    let mut out = Image {
-        width: w,
-        height: h,
-        layers: BTreeMap::new(),
-    };
+    let mut out = Image { width: w, height: h, layers: BTreeMap::new() };
     for (aov, mut chans) in groups {
         chans.sort_by_key(|(c, _)| order.iter().position(|o| o == c).unwrap_or(99));
         let c = chans.len();

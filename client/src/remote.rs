@@ -78,15 +78,10 @@ pub struct Connection {
 impl Connection {
     /// Connects and opens a session.
     pub async fn connect(url: &str, client_name: &str) -> Result<Self> {
-        let channel = Channel::from_shared(url.to_string())?
-            .connect()
-            .await
-            .with_context(|| format!("cannot connect to {url}"))?;
+        let channel = Channel::from_shared(url.to_string())?.connect().await.with_context(|| format!("cannot connect to {url}"))?;
         let mut client = RenderClient::new(channel).max_decoding_message_size(64 << 20);
         let session = client
-            .create_session(pb::CreateSessionRequest {
-                client_name: client_name.into(),
-            })
+            .create_session(pb::CreateSessionRequest { client_name: client_name.into() })
             .await
             .map_err(status_error)?
             .into_inner()
@@ -96,44 +91,26 @@ impl Connection {
 
     /// Joins an existing session (a second connection, e.g. to edit while rendering).
     pub async fn attach(url: &str, session: &str) -> Result<Self> {
-        let channel = Channel::from_shared(url.to_string())?
-            .connect()
-            .await
-            .with_context(|| format!("cannot connect to {url}"))?;
-        Ok(Connection {
-            client: RenderClient::new(channel).max_decoding_message_size(64 << 20),
-            session: session.to_string(),
-        })
+        let channel = Channel::from_shared(url.to_string())?.connect().await.with_context(|| format!("cannot connect to {url}"))?;
+        Ok(Connection { client: RenderClient::new(channel).max_decoding_message_size(64 << 20), session: session.to_string() })
     }
 
     /// The server's capabilities.
     pub async fn capabilities(&mut self) -> Result<pb::Capabilities> {
-        Ok(self
-            .client
-            .get_capabilities(pb::GetCapabilitiesRequest {})
-            .await
-            .map_err(status_error)?
-            .into_inner())
+        Ok(self.client.get_capabilities(pb::GetCapabilitiesRequest {}).await.map_err(status_error)?.into_inner())
     }
 
     /// Sends one transaction of deltas.
     pub async fn sync(&mut self, items: Vec<pb::sync_request::Item>) -> Result<pb::SyncResponse> {
         let reqs = crate::sync::requests(&self.session, items);
-        Ok(self
-            .client
-            .sync(tokio_stream::iter(reqs))
-            .await
-            .map_err(status_error)?
-            .into_inner())
+        Ok(self.client.sync(tokio_stream::iter(reqs)).await.map_err(status_error)?.into_inner())
     }
 
     /// Asks the server to stop this session's render.
     pub async fn cancel(&mut self) -> Result<bool> {
         Ok(self
             .client
-            .cancel(pb::CancelRequest {
-                session_id: self.session.clone(),
-            })
+            .cancel(pb::CancelRequest { session_id: self.session.clone() })
             .await
             .map_err(status_error)?
             .into_inner()
@@ -141,11 +118,7 @@ impl Connection {
     }
 
     /// Renders, calling `on_event` for every event, and assembles the final image.
-    pub async fn render(
-        &mut self,
-        opts: &RenderOptions,
-        mut on_event: impl FnMut(&pb::render_event::Event),
-    ) -> Result<RenderReport> {
+    pub async fn render(&mut self, opts: &RenderOptions, mut on_event: impl FnMut(&pb::render_event::Event)) -> Result<RenderReport> {
         let settings = pb::RenderSettings {
             width: opts.width,
             height: opts.height,
@@ -155,19 +128,12 @@ impl Connection {
             camera_path: opts.camera.clone(),
             aovs: opts.aovs.clone(),
             tile_size: 0,
-            progressive_format: if opts.progressive_f16 {
-                pb::PixelFormat::F16
-            } else {
-                pb::PixelFormat::F32
-            } as i32,
+            progressive_format: if opts.progressive_f16 { pb::PixelFormat::F16 } else { pb::PixelFormat::F32 } as i32,
             threads: opts.threads,
         };
         let mut stream = self
             .client
-            .render(pb::RenderRequest {
-                session_id: self.session.clone(),
-                settings: Some(settings),
-            })
+            .render(pb::RenderRequest { session_id: self.session.clone(), settings: Some(settings) })
             .await
             .map_err(status_error)?
             .into_inner();
@@ -178,18 +144,12 @@ impl Connection {
             use pb::render_event::Event;
             match event {
                 Event::Started(s) => {
-                    report.image = Image {
-                        width: s.width,
-                        height: s.height,
-                        ..Default::default()
-                    };
+                    report.image = Image { width: s.width, height: s.height, ..Default::default() };
                     report.started = s;
                 }
                 Event::Tile(t) => {
                     let data = tessera_server::convert::tile_pixels(&t).map_err(status_error)?;
-                    report
-                        .image
-                        .write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
+                    report.image.write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
                     report.tiles += 1;
                 }
                 Event::Progress(p) => report.progress.push(p),
@@ -205,12 +165,7 @@ impl Connection {
 
     /// Closes the session.
     pub async fn close(mut self) -> Result<()> {
-        self.client
-            .close_session(pb::CloseSessionRequest {
-                session_id: self.session.clone(),
-            })
-            .await
-            .map_err(status_error)?;
+        self.client.close_session(pb::CloseSessionRequest { session_id: self.session.clone() }).await.map_err(status_error)?;
         Ok(())
     }
 }

@@ -19,12 +19,8 @@ fn chunks<T: Copy>(
     data.chunks(CHUNK_ELEMENTS)
         .enumerate()
         .map(|(i, c)| {
-            let mut chunk = pb::ArrayChunk {
-                path: path.to_string(),
-                field: field as i32,
-                offset: (i * CHUNK_ELEMENTS) as u64,
-                ..Default::default()
-            };
+            let mut chunk =
+                pb::ArrayChunk { path: path.to_string(), field: field as i32, offset: (i * CHUNK_ELEMENTS) as u64, ..Default::default() };
             wrap(&mut chunk, c.to_vec());
             pb::sync_request::Item::Chunk(chunk)
         })
@@ -35,39 +31,21 @@ fn chunks<T: Copy>(
 pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
     let mut items = Vec::new();
     for (path, m) in &t.materials {
-        items.push(delta(
-            path,
-            pb::PrimKind::Material,
-            pb::prim_delta::Payload::Material(convert::material_to_wire(m)),
-        ));
+        items.push(delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(convert::material_to_wire(m))));
     }
     for (path, l) in &t.lights {
-        items.push(delta(
-            path,
-            pb::PrimKind::Light,
-            pb::prim_delta::Payload::Light(convert::light_to_wire(l)),
-        ));
+        items.push(delta(path, pb::PrimKind::Light, pb::prim_delta::Payload::Light(convert::light_to_wire(l))));
     }
     for (path, c) in &t.cameras {
-        items.push(delta(
-            path,
-            pb::PrimKind::Camera,
-            pb::prim_delta::Payload::Camera(convert::camera_to_wire(c)),
-        ));
+        items.push(delta(path, pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(convert::camera_to_wire(c))));
     }
     for (path, m) in &t.meshes {
         let points: Vec<f32> = m.mesh.positions.iter().flat_map(|p| p.to_array()).collect();
         let indices: Vec<u32> = m.mesh.indices.iter().flatten().copied().collect();
         let (normals, interp): (Vec<f32>, _) = match &m.mesh.normals {
             Normals::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
-            Normals::Vertex(n) => (
-                n.iter().flat_map(|v| v.to_array()).collect(),
-                pb::NormalInterpolation::NormalsVertex,
-            ),
-            Normals::FaceVarying(n) => (
-                n.iter().flat_map(|v| v.to_array()).collect(),
-                pb::NormalInterpolation::NormalsFaceVarying,
-            ),
+            Normals::Vertex(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsVertex),
+            Normals::FaceVarying(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsFaceVarying),
         };
         let prim = pb::MeshPrim {
             transform: Some(convert::matrix(&m.transform)),
@@ -79,33 +57,16 @@ pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
             double_sided: true,
             visible: m.visible,
         };
-        items.push(delta(
-            path,
-            pb::PrimKind::Mesh,
-            pb::prim_delta::Payload::Mesh(prim),
-        ));
-        items.extend(chunks(path, pb::ArrayField::Points, &points, |c, v| {
-            c.floats = v
-        }));
-        items.extend(chunks(
-            path,
-            pb::ArrayField::TriangleIndices,
-            &indices,
-            |c, v| c.uints = v,
-        ));
-        items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| {
-            c.floats = v
-        }));
+        items.push(delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim)));
+        items.extend(chunks(path, pb::ArrayField::Points, &points, |c, v| c.floats = v));
+        items.extend(chunks(path, pb::ArrayField::TriangleIndices, &indices, |c, v| c.uints = v));
+        items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| c.floats = v));
     }
     items
 }
 
 /// A delta with every dirty bit set.
-pub fn delta(
-    path: &str,
-    kind: pb::PrimKind,
-    payload: pb::prim_delta::Payload,
-) -> pb::sync_request::Item {
+pub fn delta(path: &str, kind: pb::PrimKind, payload: pb::prim_delta::Payload) -> pb::sync_request::Item {
     pb::sync_request::Item::Prim(pb::PrimDelta {
         path: path.to_string(),
         kind: kind as i32,
@@ -119,13 +80,6 @@ pub fn requests(session_id: &str, items: Vec<pb::sync_request::Item>) -> Vec<pb:
     items
         .into_iter()
         .enumerate()
-        .map(|(i, item)| pb::SyncRequest {
-            session_id: if i == 0 {
-                session_id.to_string()
-            } else {
-                String::new()
-            },
-            item: Some(item),
-        })
+        .map(|(i, item)| pb::SyncRequest { session_id: if i == 0 { session_id.to_string() } else { String::new() }, item: Some(item) })
         .collect()
 }

@@ -17,11 +17,7 @@ fn sphere(rings: u32, segments: u32) -> Mesh {
         let theta = std::f32::consts::PI * r as f32 / rings as f32;
         for s in 0..segments {
             let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            positions.push(Vec3::new(
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            ));
+            positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
         }
     }
     let mut indices = Vec::new();
@@ -35,11 +31,7 @@ fn sphere(rings: u32, segments: u32) -> Mesh {
             indices.push([a, c, d]);
         }
     }
-    Mesh {
-        positions,
-        indices,
-        ..Default::default()
-    }
+    Mesh { positions, indices, ..Default::default() }
 }
 
 struct TestRay {
@@ -49,9 +41,7 @@ struct TestRay {
 }
 
 fn write<T: Copy>(path: &std::path::Path, data: &[T]) {
-    let bytes = unsafe {
-        std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data))
-    };
+    let bytes = unsafe { std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data)) };
     std::fs::write(path, bytes).expect("write bench data");
 }
 
@@ -62,14 +52,9 @@ fn main() {
     // Incoherent: origins anywhere in a cube around the sphere, directions uniform.
     let rays: Vec<TestRay> = (0..n_rays)
         .map(|_| {
-            let o =
-                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - Vec3::splat(1.5);
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - Vec3::splat(1.5);
             let d = uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
-            TestRay {
-                o,
-                d,
-                tmax: 0.1 + 3.0 * rng.next_f32(),
-            }
+            TestRay { o, d, tmax: 0.1 + 3.0 * rng.next_f32() }
         })
         .collect();
 
@@ -79,87 +64,39 @@ fn main() {
 
     let mut results = Vec::new();
     for threads in [1, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         let (mut best_c, mut best_o, mut hits_c, mut hits_o) = (f64::INFINITY, f64::INFINITY, 0, 0);
         for _ in 0..3 {
             let t = Instant::now();
             hits_c = pool.install(|| {
                 rays.par_chunks(4096)
-                    .map(|c| {
-                        c.iter()
-                            .filter(|r| {
-                                blas.intersect(r.o.into(), r.d.into(), f32::INFINITY)
-                                    .is_some()
-                            })
-                            .count()
-                    })
+                    .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY).is_some()).count())
                     .sum::<usize>()
             });
             best_c = best_c.min(t.elapsed().as_secs_f64());
             let t = Instant::now();
             hits_o = pool.install(|| {
-                rays.par_chunks(4096)
-                    .map(|c| {
-                        c.iter()
-                            .filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax))
-                            .count()
-                    })
-                    .sum::<usize>()
+                rays.par_chunks(4096).map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax)).count()).sum::<usize>()
             });
             best_o = best_o.min(t.elapsed().as_secs_f64());
         }
-        results.push((
-            threads,
-            n_rays as f64 / best_c / 1e6,
-            n_rays as f64 / best_o / 1e6,
-            hits_c,
-            hits_o,
-        ));
+        results.push((threads, n_rays as f64 / best_c / 1e6, n_rays as f64 / best_o / 1e6, hits_c, hits_o));
     }
 
     // The same mesh and rays for Embree.
     let dir = std::env::temp_dir().join("tessera-bench-rays");
     std::fs::create_dir_all(&dir).unwrap();
-    write(
-        &dir.join("vertices.bin"),
-        &mesh
-            .positions
-            .iter()
-            .flat_map(|p| p.to_array())
-            .collect::<Vec<f32>>(),
-    );
-    write(
-        &dir.join("indices.bin"),
-        &mesh.indices.iter().flatten().copied().collect::<Vec<u32>>(),
-    );
-    write(
-        &dir.join("rays.bin"),
-        &rays
-            .iter()
-            .flat_map(|r| [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, r.tmax])
-            .collect::<Vec<f32>>(),
-    );
+    write(&dir.join("vertices.bin"), &mesh.positions.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>());
+    write(&dir.join("indices.bin"), &mesh.indices.iter().flatten().copied().collect::<Vec<u32>>());
+    write(&dir.join("rays.bin"), &rays.iter().flat_map(|r| [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, r.tmax]).collect::<Vec<f32>>());
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/anchors.py");
-    let anchor = std::process::Command::new("python3")
-        .arg(&script)
-        .arg("rays")
-        .arg(&dir)
-        .output();
+    let anchor = std::process::Command::new("python3").arg(&script).arg("rays").arg(&dir).output();
     let embree: Option<std::collections::HashMap<String, f64>> = match anchor {
-        Ok(out) if out.status.success() => String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .last()
-            .and_then(parse_json_numbers),
+        Ok(out) if out.status.success() => String::from_utf8_lossy(&out.stdout).lines().last().and_then(parse_json_numbers),
         Ok(out) => {
             eprintln!(
                 "Embree anchor failed (pip install embreex numpy): {}",
-                String::from_utf8_lossy(&out.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or("")
+                String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
             );
             None
         }
@@ -169,15 +106,9 @@ fn main() {
         }
     };
 
-    println!(
-        "rays: {} triangles, {n_rays} incoherent rays (origins in [-1.5, 1.5]^3, uniform directions)",
-        mesh.indices.len()
-    );
+    println!("rays: {} triangles, {n_rays} incoherent rays (origins in [-1.5, 1.5]^3, uniform directions)", mesh.indices.len());
     let e = |k: &str| embree.as_ref().and_then(|m| m.get(k).copied());
-    println!(
-        "{:<34} {:>12} {:>14} {:>10}",
-        "measure", "tessera", "embree (1 thr)", "ratio"
-    );
+    println!("{:<34} {:>12} {:>14} {:>10}", "measure", "tessera", "embree (1 thr)", "ratio");
     let row = |name: &str, ours: f64, theirs: Option<f64>, higher_is_better: bool| {
         let ratio = theirs.map(|t| if higher_is_better { ours / t } else { t / ours });
         println!(
@@ -190,22 +121,10 @@ fn main() {
     };
     row("BVH build (s)  [ratio: speed]", build, e("build_s"), false);
     for &(threads, c, o, hc, ho) in &results {
-        row(
-            &format!("closest-hit Mrays/s, {threads} thread(s)"),
-            c,
-            e("closest_mrays"),
-            true,
-        );
-        row(
-            &format!("occlusion Mrays/s, {threads} thread(s)"),
-            o,
-            e("occluded_mrays"),
-            true,
-        );
+        row(&format!("closest-hit Mrays/s, {threads} thread(s)"), c, e("closest_mrays"), true);
+        row(&format!("occlusion Mrays/s, {threads} thread(s)"), o, e("occluded_mrays"), true);
         if let (Some(ec), Some(eo)) = (e("closest_hits"), e("occluded_hits")) {
-            println!(
-                "  agreement ({threads} thr): closest hits {hc} vs embree {ec}, occluded {ho} vs embree {eo}"
-            );
+            println!("  agreement ({threads} thr): closest hits {hc} vs embree {ec}, occluded {ho} vs embree {eo}");
         }
     }
 }
@@ -217,10 +136,7 @@ fn parse_json_numbers(line: &str) -> Option<std::collections::HashMap<String, f6
         body.split(',')
             .filter_map(|kv| {
                 let (k, v) = kv.split_once(':')?;
-                Some((
-                    k.trim().trim_matches('"').to_string(),
-                    v.trim().trim_matches('"').parse().ok()?,
-                ))
+                Some((k.trim().trim_matches('"').to_string(), v.trim().trim_matches('"').parse().ok()?))
             })
             .collect(),
     )

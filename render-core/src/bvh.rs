@@ -97,11 +97,7 @@ impl Blas {
         let tris: Vec<Triangle> = (0..mesh.triangle_count())
             .map(|i| {
                 let [a, b, c] = mesh.triangle(i);
-                Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
-                }
+                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
         let bvh = build_cwbvh_from_tris(&tris, quality.params(), &mut Duration::default());
@@ -110,21 +106,12 @@ impl Blas {
             .iter()
             .map(|&i| {
                 let t = &tris[i as usize];
-                RtTriangle {
-                    v0: t.v0,
-                    e1: t.v1 - t.v0,
-                    e2: t.v2 - t.v0,
-                }
+                RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
             })
             .collect();
         let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        Blas {
-            bvh,
-            tris: rt,
-            tri_ids,
-            bounds,
-        }
+        Blas { bvh, tris: rt, tri_ids, bounds }
     }
 
     /// Closest hit in object space: (t, original triangle index, barycentrics).
@@ -133,14 +120,12 @@ impl Blas {
         let ray = bvh_ray(o, d, tmax);
         let mut hit = RayHit::none();
         let mut bary = Vec2::ZERO;
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| {
-            match self.tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
-                Some((t, u, v)) => {
-                    bary = Vec2::new(u, v);
-                    t
-                }
-                None => f32::INFINITY,
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| match self.tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
+            Some((t, u, v)) => {
+                bary = Vec2::new(u, v);
+                t
             }
+            None => f32::INFINITY,
         });
         found.then(|| (hit.t, self.tri_ids[hit.primitive_id as usize], bary))
     }
@@ -149,11 +134,9 @@ impl Blas {
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
         let ray = bvh_ray(o, d, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, id| {
-            self.tris[id]
-                .intersect(r.origin, r.direction, r.tmin, r.tmax)
-                .map_or(f32::INFINITY, |h| h.0)
-        })
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
     }
 
     /// Object-space bounds.
@@ -202,10 +185,7 @@ impl Tlas {
     /// Builds over `instances`, whose `blas` indices refer into `blases`.
     pub fn build(blases: &[std::sync::Arc<Blas>], instances: &[TlasInstance]) -> Self {
         if instances.is_empty() {
-            return Tlas {
-                bvh: None,
-                ordered: Vec::new(),
-            };
+            return Tlas { bvh: None, ordered: Vec::new() };
         }
         let bounds: Vec<InstanceBounds> = instances
             .iter()
@@ -223,26 +203,9 @@ impl Tlas {
                 InstanceBounds(aabb)
             })
             .collect();
-        let bvh = build_cwbvh(
-            &bounds,
-            BuildQuality::Medium.params(),
-            &mut Duration::default(),
-        );
-        let ordered = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                (
-                    i,
-                    instances[i as usize].blas,
-                    instances[i as usize].transform,
-                )
-            })
-            .collect();
-        Tlas {
-            bvh: Some(bvh),
-            ordered,
-        }
+        let bvh = build_cwbvh(&bounds, BuildQuality::Medium.params(), &mut Duration::default());
+        let ordered = bvh.primitive_indices.iter().map(|&i| (i, instances[i as usize].blas, instances[i as usize].transform)).collect();
+        Tlas { bvh: Some(bvh), ordered }
     }
 
     /// Closest hit along `ray` before `ray.tmax`.
@@ -257,12 +220,7 @@ impl Tlas {
             let d = xf.to_object.transform_vector3a(r.direction);
             match blases[*blas].intersect(o, d, r.tmax) {
                 Some((t, tri, bary)) => {
-                    best = Some(Hit {
-                        t,
-                        instance: *inst,
-                        triangle: tri,
-                        bary,
-                    });
+                    best = Some(Hit { t, instance: *inst, triangle: tri, bary });
                     t
                 }
                 None => f32::INFINITY,
@@ -281,11 +239,7 @@ impl Tlas {
             let (_, blas, xf) = &self.ordered[id];
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
-            if blases[*blas].occluded(o, d, r.tmax) {
-                0.5 * r.tmax
-            } else {
-                f32::INFINITY
-            }
+            if blases[*blas].occluded(o, d, r.tmax) { 0.5 * r.tmax } else { f32::INFINITY }
         })
     }
 }
@@ -298,12 +252,7 @@ mod tests {
 
     fn quad() -> Mesh {
         Mesh {
-            positions: vec![
-                Vec3::new(-1.0, -1.0, 0.0),
-                Vec3::new(1.0, -1.0, 0.0),
-                Vec3::new(1.0, 1.0, 0.0),
-                Vec3::new(-1.0, 1.0, 0.0),
-            ],
+            positions: vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)],
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         }
@@ -311,48 +260,24 @@ mod tests {
 
     #[test]
     fn a_lone_triangle_and_a_lone_instance_are_found() {
-        let m = Mesh {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            indices: vec![[0, 1, 2]],
-            ..Default::default()
-        };
+        let m = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]], ..Default::default() };
         let blas = vec![Arc::new(Blas::build(&m, BuildQuality::Medium))];
-        let tlas = Tlas::build(
-            &blas,
-            &[TlasInstance {
-                blas: 0,
-                transform: Transform::identity(),
-            }],
-        );
-        let hit = tlas
-            .intersect(&blas, &Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z))
-            .expect("hit");
+        let tlas = Tlas::build(&blas, &[TlasInstance { blas: 0, transform: Transform::identity() }]);
+        let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).expect("hit");
         assert_eq!((hit.instance, hit.triangle), (0, 0));
     }
 
     #[test]
     fn instanced_hits_report_world_distance_and_barycentrics() {
         let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
-        let xf = Transform::new(Affine3A::from_scale_rotation_translation(
-            Vec3::splat(2.0),
-            glam::Quat::IDENTITY,
-            Vec3::new(0.0, 0.0, -5.0),
-        ))
-        .unwrap();
+        let xf =
+            Transform::new(Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::IDENTITY, Vec3::new(0.0, 0.0, -5.0)))
+                .unwrap();
         let tlas = Tlas::build(
             &blas,
             &[
-                TlasInstance {
-                    blas: 0,
-                    transform: xf,
-                },
-                TlasInstance {
-                    blas: 0,
-                    transform: Transform::new(Affine3A::from_translation(Vec3::new(
-                        0.0, 0.0, -10.0,
-                    )))
-                    .unwrap(),
-                },
+                TlasInstance { blas: 0, transform: xf },
+                TlasInstance { blas: 0, transform: Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0))).unwrap() },
             ],
         );
         let ray = Ray::new(Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.0, 0.0, -1.0));

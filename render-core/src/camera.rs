@@ -62,11 +62,7 @@ impl Camera {
     /// with UsdRender's default policy, `expandAperture`: the aperture grows in one
     /// dimension so the image shows at least what the aperture frames.
     pub fn new(desc: &CameraDesc, width: u32, height: u32) -> Self {
-        let f = if desc.focal_length > 0.0 {
-            desc.focal_length
-        } else {
-            50.0
-        };
+        let f = if desc.focal_length > 0.0 { desc.focal_length } else { 50.0 };
         let (mut ha, mut va) = (desc.horizontal_aperture.abs(), desc.vertical_aperture.abs());
         if !(ha > 0.0) {
             ha = 20.955;
@@ -80,10 +76,7 @@ impl Camera {
         } else {
             va = ha / image_aspect;
         }
-        let center = Vec2::new(
-            desc.horizontal_aperture_offset,
-            desc.vertical_aperture_offset,
-        ) / f;
+        let center = Vec2::new(desc.horizontal_aperture_offset, desc.vertical_aperture_offset) / f;
         let size = Vec2::new(ha, va) / f;
         let window_min = Vec2::new(center.x - 0.5 * size.x, center.y + 0.5 * size.y);
         let forward = (-Vec3::from(desc.transform.matrix3.z_axis)).normalize_or(-Vec3::Z);
@@ -96,11 +89,7 @@ impl Camera {
             width,
             height,
             near: desc.near.max(0.0),
-            far: if desc.far > desc.near {
-                desc.far
-            } else {
-                f32::INFINITY
-            },
+            far: if desc.far > desc.near { desc.far } else { f32::INFINITY },
         }
     }
 
@@ -110,11 +99,7 @@ impl Camera {
     pub fn ray(&self, x: f32, y: f32) -> (Ray, f32) {
         let sx = x / self.width as f32;
         let sy = y / self.height as f32;
-        let local = Vec3::new(
-            self.window_min.x + sx * self.window_size.x,
-            self.window_min.y - sy * self.window_size.y,
-            -1.0,
-        );
+        let local = Vec3::new(self.window_min.x + sx * self.window_size.x, self.window_min.y - sy * self.window_size.y, -1.0);
         let dir = self.to_world.transform_vector3(local).normalize();
         let cos = dir.dot(self.forward).max(1e-6);
         let t0 = self.near / cos;
@@ -141,13 +126,7 @@ mod tests {
 
     #[test]
     fn centre_ray_looks_down_minus_z_and_fov_follows_aperture() {
-        let desc = CameraDesc {
-            focal_length: 10.0,
-            horizontal_aperture: 20.0,
-            vertical_aperture: 20.0,
-            near: 0.0,
-            ..Default::default()
-        };
+        let desc = CameraDesc { focal_length: 10.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, near: 0.0, ..Default::default() };
         let cam = Camera::new(&desc, 100, 100);
         let (r, cos) = cam.ray(50.0, 50.0);
         assert!((r.dir - -Vec3::Z).length() < 1e-6 && (cos - 1.0).abs() < 1e-6);
@@ -161,13 +140,7 @@ mod tests {
 
     #[test]
     fn expand_aperture_keeps_the_framed_region() {
-        let desc = CameraDesc {
-            focal_length: 10.0,
-            horizontal_aperture: 20.0,
-            vertical_aperture: 20.0,
-            near: 0.0,
-            ..Default::default()
-        };
+        let desc = CameraDesc { focal_length: 10.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, near: 0.0, ..Default::default() };
         // A wide image expands horizontally; the vertical extent stays 45°.
         let cam = Camera::new(&desc, 200, 100);
         let (r, _) = cam.ray(100.0, 0.0);

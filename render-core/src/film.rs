@@ -101,12 +101,7 @@ impl TileFilm {
     /// An empty tile.
     pub fn new(rect: Rect) -> Self {
         let n = (rect.width * rect.height) as usize;
-        TileFilm {
-            rect,
-            sums: vec![[0.0; VALUES]; n],
-            lum_sq: vec![0.0; n],
-            samples: 0,
-        }
+        TileFilm { rect, sums: vec![[0.0; VALUES]; n], lum_sq: vec![0.0; n], samples: 0 }
     }
 
     /// Adds one sample to local pixel `i` (row-major within the tile). Non-finite
@@ -142,8 +137,7 @@ impl TileFilm {
         for s in &self.sums {
             if aov == Aov::Normal {
                 // Average normals are renormalised so the AOV holds unit vectors.
-                let v =
-                    Vec3::new(s[o] as f32, s[o + 1] as f32, s[o + 2] as f32).normalize_or_zero();
+                let v = Vec3::new(s[o] as f32, s[o + 1] as f32, s[o + 2] as f32).normalize_or_zero();
                 out.extend_from_slice(&[v.x, v.y, v.z]);
             } else {
                 out.extend((0..c).map(|k| (s[o + k] / n) as f32));
@@ -177,12 +171,7 @@ pub fn tiles_centre_out(width: u32, height: u32, size: u32) -> Vec<Rect> {
     let mut tiles = Vec::new();
     for y in (0..height).step_by(size as usize) {
         for x in (0..width).step_by(size as usize) {
-            tiles.push(Rect {
-                x,
-                y,
-                width: size.min(width - x),
-                height: size.min(height - y),
-            });
+            tiles.push(Rect { x, y, width: size.min(width - x), height: size.min(height - y) });
         }
     }
     let (cx, cy) = (width as f32 / 2.0, height as f32 / 2.0);
@@ -212,42 +201,14 @@ mod tests {
         }
         assert!(covered.iter().all(|&c| c == 1));
         let first = tiles[0];
-        assert!(
-            first.x <= 50
-                && 50 <= first.x + first.width
-                && first.y <= 35
-                && 35 <= first.y + first.height
-        );
+        assert!(first.x <= 50 && 50 <= first.x + first.width && first.y <= 35 && 35 <= first.y + first.height);
     }
 
     #[test]
     fn resolve_averages_and_renormalises_normals() {
-        let mut f = TileFilm::new(Rect {
-            x: 0,
-            y: 0,
-            width: 1,
-            height: 1,
-        });
-        f.add(
-            0,
-            &PixelSample {
-                radiance: Vec3::ONE,
-                alpha: 1.0,
-                albedo: Vec3::ONE,
-                normal: Vec3::Z,
-                depth: 2.0,
-            },
-        );
-        f.add(
-            0,
-            &PixelSample {
-                radiance: Vec3::ZERO,
-                alpha: 0.0,
-                albedo: Vec3::ZERO,
-                normal: Vec3::Z,
-                depth: 4.0,
-            },
-        );
+        let mut f = TileFilm::new(Rect { x: 0, y: 0, width: 1, height: 1 });
+        f.add(0, &PixelSample { radiance: Vec3::ONE, alpha: 1.0, albedo: Vec3::ONE, normal: Vec3::Z, depth: 2.0 });
+        f.add(0, &PixelSample { radiance: Vec3::ZERO, alpha: 0.0, albedo: Vec3::ZERO, normal: Vec3::Z, depth: 4.0 });
         f.samples = 2;
         assert_eq!(f.resolve(Aov::Beauty), vec![0.5, 0.5, 0.5, 0.5]);
         assert_eq!(f.resolve(Aov::Normal), vec![0.0, 0.0, 1.0]);

@@ -16,11 +16,7 @@ pub struct Ray {
 impl Ray {
     /// A ray of unbounded length.
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        Ray {
-            origin,
-            dir,
-            tmax: f32::INFINITY,
-        }
+        Ray { origin, dir, tmax: f32::INFINITY }
     }
 
     /// The point at parameter `t`.
@@ -39,32 +35,16 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3) -> Vec3 {
     const ORIGIN: f32 = 1.0 / 32.0;
     const FLOAT_SCALE: f32 = 1.0 / 65536.0;
     const INT_SCALE: f32 = 256.0;
-    let of_i = [
-        (INT_SCALE * ng.x) as i32,
-        (INT_SCALE * ng.y) as i32,
-        (INT_SCALE * ng.z) as i32,
-    ];
+    let of_i = [(INT_SCALE * ng.x) as i32, (INT_SCALE * ng.y) as i32, (INT_SCALE * ng.z) as i32];
     let bump = |c: f32, o: i32| -> f32 {
         let bits = c.to_bits() as i32;
         f32::from_bits((bits + if c < 0.0 { -o } else { o }) as u32)
     };
     let p_i = Vec3::new(bump(p.x, of_i[0]), bump(p.y, of_i[1]), bump(p.z, of_i[2]));
     Vec3::new(
-        if p.x.abs() < ORIGIN {
-            p.x + FLOAT_SCALE * ng.x
-        } else {
-            p_i.x
-        },
-        if p.y.abs() < ORIGIN {
-            p.y + FLOAT_SCALE * ng.y
-        } else {
-            p_i.y
-        },
-        if p.z.abs() < ORIGIN {
-            p.z + FLOAT_SCALE * ng.z
-        } else {
-            p_i.z
-        },
+        if p.x.abs() < ORIGIN { p.x + FLOAT_SCALE * ng.x } else { p_i.x },
+        if p.y.abs() < ORIGIN { p.y + FLOAT_SCALE * ng.y } else { p_i.y },
+        if p.z.abs() < ORIGIN { p.z + FLOAT_SCALE * ng.z } else { p_i.z },
     )
 }
 
@@ -96,11 +76,7 @@ impl Mesh {
     #[inline]
     pub fn triangle(&self, tri: usize) -> [Vec3; 3] {
         let [a, b, c] = self.indices[tri];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     /// Interpolated, unnormalised shading normal at barycentrics (`b1`, `b2`), or `None`
@@ -114,9 +90,7 @@ impl Mesh {
                 let [a, b, c] = self.indices[tri];
                 Some(n[a as usize] * w[0] + n[b as usize] * w[1] + n[c as usize] * w[2])
             }
-            Normals::FaceVarying(n) => {
-                Some(n[3 * tri] * w[0] + n[3 * tri + 1] * w[1] + n[3 * tri + 2] * w[2])
-            }
+            Normals::FaceVarying(n) => Some(n[3 * tri] * w[0] + n[3 * tri + 1] * w[1] + n[3 * tri + 2] * w[2]),
         }
     }
 
@@ -147,11 +121,7 @@ impl Transform {
         }
         let to_object = to_world.inverse();
         let normal_matrix = Mat3::from(to_world.matrix3).inverse().transpose();
-        Some(Transform {
-            to_world,
-            to_object,
-            normal_matrix,
-        })
+        Some(Transform { to_world, to_object, normal_matrix })
     }
 
     /// The identity.
@@ -186,9 +156,7 @@ mod tests {
     #[test]
     fn singular_transforms_are_rejected() {
         assert!(Transform::new(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))).is_none());
-        assert!(
-            Transform::new(Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0))).is_none()
-        );
+        assert!(Transform::new(Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0))).is_none());
         let t = Transform::new(Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0))).unwrap();
         assert!(t.flips_handedness());
     }

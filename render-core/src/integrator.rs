@@ -26,10 +26,7 @@ pub struct IntegratorSettings {
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings {
-            max_depth: 8,
-            rr_start: 5,
-        }
+        IntegratorSettings { max_depth: 8, rr_start: 5 }
     }
 }
 
@@ -60,10 +57,7 @@ pub fn trace_path(
     settings: &IntegratorSettings,
     counters: &mut PathCounters,
 ) -> PixelSample {
-    let mut out = PixelSample {
-        depth: background_depth,
-        ..Default::default()
-    };
+    let mut out = PixelSample { depth: background_depth, ..Default::default() };
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut ray = camera_ray;
@@ -148,20 +142,11 @@ pub fn trace_path(
                     let wi_local = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo_local, wi_local);
                     if f != Vec3::ZERO {
-                        let origin =
-                            offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng });
-                        let tmax = if ls.dist.is_finite() {
-                            ls.dist * (1.0 - 1e-4)
-                        } else {
-                            f32::INFINITY
-                        };
+                        let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng });
+                        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
                         counters.rays += 1;
                         if !scene.occluded(&Ray::new(origin, ls.wi), tmax) {
-                            let w = if ls.delta {
-                                1.0
-                            } else {
-                                power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local))
-                            };
+                            let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)) };
                             l += beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf);
                         }
                     }
@@ -184,15 +169,8 @@ pub fn trace_path(
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
         }
-        prev = Some(PrevVertex {
-            ctx,
-            bsdf_pdf: bs.pdf,
-            delta: bs.flags.delta,
-        });
-        ray = Ray::new(
-            offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }),
-            wi,
-        );
+        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta });
+        ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }), wi);
         depth += 1;
 
         if depth >= settings.rr_start {

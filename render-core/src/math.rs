@@ -56,19 +56,11 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal_for_awkward_normals() {
-        for n in [
-            Vec3::Z,
-            -Vec3::Z,
-            Vec3::X,
-            Vec3::new(1e-7, 0.0, -1.0).normalize(),
-            Vec3::new(0.3, -0.4, 0.866).normalize(),
-        ] {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(1e-7, 0.0, -1.0).normalize(), Vec3::new(0.3, -0.4, 0.866).normalize()] {
             let f = Frame::from_normal(n);
             assert!((f.t.length() - 1.0).abs() < 1e-5);
             assert!((f.b.length() - 1.0).abs() < 1e-5);
-            assert!(
-                f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5
-            );
+            assert!(f.t.dot(f.b).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5 && f.b.dot(n).abs() < 1e-5);
             let v = Vec3::new(0.2, -0.5, 0.7);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
             // right-handed: t x b = n

@@ -22,23 +22,14 @@ pub struct RenderPlan {
 
 impl RenderPlan {
     /// Adds an effect, listing at most a handful of prims.
-    pub fn enable(
-        &mut self,
-        effect: &str,
-        reason: impl Into<String>,
-        prims: impl IntoIterator<Item = String>,
-    ) {
+    pub fn enable(&mut self, effect: &str, reason: impl Into<String>, prims: impl IntoIterator<Item = String>) {
         const SHOWN: usize = 8;
         let all: Vec<String> = prims.into_iter().collect();
         let mut shown: Vec<String> = all.iter().take(SHOWN).cloned().collect();
         if all.len() > SHOWN {
             shown.push(format!("... and {} more", all.len() - SHOWN));
         }
-        self.entries.push(PlanEntry {
-            effect: effect.into(),
-            reason: reason.into(),
-            prims: shown,
-        });
+        self.entries.push(PlanEntry { effect: effect.into(), reason: reason.into(), prims: shown });
     }
 
     /// True when `effect` is enabled.

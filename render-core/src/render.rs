@@ -30,14 +30,7 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings {
-            width: 256,
-            height: 256,
-            spp: 64,
-            seed: 0,
-            tile_size: 32,
-            integrator: IntegratorSettings::default(),
-        }
+        RenderSettings { width: 256, height: 256, spp: 64, seed: 0, tile_size: 32, integrator: IntegratorSettings::default() }
     }
 }
 
@@ -106,18 +99,10 @@ pub struct RenderOutcome {
 }
 
 /// Renders `scene` through `camera` progressively on the current rayon pool.
-pub fn render(
-    scene: &CommittedScene,
-    camera: &Camera,
-    settings: &RenderSettings,
-    sink: &dyn RenderSink,
-) -> RenderOutcome {
+pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
     let tiles: Vec<Mutex<TileFilm>> =
-        tiles_centre_out(settings.width, settings.height, settings.tile_size)
-            .into_iter()
-            .map(|r| Mutex::new(TileFilm::new(r)))
-            .collect();
+        tiles_centre_out(settings.width, settings.height, settings.tile_size).into_iter().map(|r| Mutex::new(TileFilm::new(r))).collect();
     let rays = AtomicU64::new(0);
     let non_finite = AtomicU64::new(0);
     let paths = AtomicU64::new(0);
@@ -141,33 +126,17 @@ pub fn render(
                         let Some(tile) = tiles.get(i) else { return };
                         let mut tile = tile.lock().unwrap();
                         let mut counters = PathCounters::default();
-                        render_tile(
-                            scene,
-                            camera,
-                            settings,
-                            &mut tile,
-                            spp_done,
-                            pass_spp,
-                            &mut counters,
-                        );
+                        render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters);
                         rays.fetch_add(counters.rays, Ordering::Relaxed);
                         non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
-                        paths.fetch_add(
-                            (tile.rect.width * tile.rect.height * pass_spp) as u64,
-                            Ordering::Relaxed,
-                        );
+                        paths.fetch_add((tile.rect.width * tile.rect.height * pass_spp) as u64, Ordering::Relaxed);
                         sink.tile(&tile, pass as u32);
                     }
                 });
             }
         });
         if let Some(reason) = *stopped.lock().unwrap() {
-            return RenderOutcome {
-                stats: last,
-                paths: paths.into_inner(),
-                non_finite: non_finite.into_inner(),
-                stopped: Some(reason),
-            };
+            return RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: Some(reason) };
         }
         spp_done += pass_spp;
         let (mut var, mut mean) = (0.0, 0.0);
@@ -177,11 +146,7 @@ pub fn render(
             mean += m;
         }
         let pixels = (settings.width * settings.height).max(1) as f64;
-        let noise = if mean > 0.0 {
-            ((var / pixels).sqrt() / (mean / pixels)) as f32
-        } else {
-            0.0
-        };
+        let noise = if mean > 0.0 { ((var / pixels).sqrt() / (mean / pixels)) as f32 } else { 0.0 };
         last = PassStats {
             pass: pass as u32,
             spp: spp_done,
@@ -191,12 +156,7 @@ pub fn render(
         };
         sink.pass_done(&last);
     }
-    RenderOutcome {
-        stats: last,
-        paths: paths.into_inner(),
-        non_finite: non_finite.into_inner(),
-        stopped: None,
-    }
+    RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None }
 }
 
 fn render_tile(
@@ -217,15 +177,8 @@ fn render_tile(
                 let mut rng = PixelSampler::for_sample(settings.seed, x, y, k);
                 let jitter = rng.next_2d();
                 let (ray, cos) = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
-                let sample = trace_path(
-                    scene,
-                    ray,
-                    |t| camera.depth(t, cos),
-                    camera.background_depth(),
-                    &mut rng,
-                    &settings.integrator,
-                    counters,
-                );
+                let sample =
+                    trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &settings.integrator, counters);
                 tile.add(i, &sample);
             }
         }
@@ -246,15 +199,8 @@ pub struct Framebuffer {
 impl Framebuffer {
     /// An empty framebuffer with every AOV.
     pub fn new(width: u32, height: u32) -> Self {
-        let layers = Aov::ALL
-            .iter()
-            .map(|&a| (a, vec![0.0; (width * height) as usize * a.channels()]))
-            .collect();
-        Framebuffer {
-            width,
-            height,
-            layers,
-        }
+        let layers = Aov::ALL.iter().map(|&a| (a, vec![0.0; (width * height) as usize * a.channels()])).collect();
+        Framebuffer { width, height, layers }
     }
 
     /// Copies a tile's current means into the framebuffer.
@@ -266,19 +212,14 @@ impl Framebuffer {
             for row in 0..r.height {
                 let src = (row * r.width) as usize * c;
                 let dst = (((r.y + row) * self.width + r.x) as usize) * c;
-                layer[dst..dst + r.width as usize * c]
-                    .copy_from_slice(&data[src..src + r.width as usize * c]);
+                layer[dst..dst + r.width as usize * c].copy_from_slice(&data[src..src + r.width as usize * c]);
             }
         }
     }
 }
 
 /// Renders to a framebuffer in-process, with no streaming.
-pub fn render_to_framebuffer(
-    scene: &CommittedScene,
-    camera: &Camera,
-    settings: &RenderSettings,
-) -> (Framebuffer, RenderOutcome) {
+pub fn render_to_framebuffer(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings) -> (Framebuffer, RenderOutcome) {
     struct Collect(Mutex<Framebuffer>);
     impl RenderSink for Collect {
         fn tile(&self, tile: &TileFilm, _pass: u32) {
@@ -289,10 +230,7 @@ pub fn render_to_framebuffer(
             None
         }
     }
-    let sink = Collect(Mutex::new(Framebuffer::new(
-        settings.width,
-        settings.height,
-    )));
+    let sink = Collect(Mutex::new(Framebuffer::new(settings.width, settings.height)));
     let outcome = render(scene, camera, settings, &sink);
     (sink.0.into_inner().unwrap(), outcome)
 }

@@ -27,10 +27,7 @@ impl Pcg32 {
 
     /// A generator on stream `stream` starting from `seed`.
     pub fn new(seed: u64, stream: u64) -> Self {
-        let mut rng = Pcg32 {
-            state: 0,
-            inc: (stream << 1) | 1,
-        };
+        let mut rng = Pcg32 { state: 0, inc: (stream << 1) | 1 };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(seed);
         rng.next_u32();
@@ -94,11 +91,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
-    };
+    let (r, theta) = if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
@@ -170,23 +163,10 @@ impl Distribution1D {
     /// Builds from weights; non-finite or negative weights count as zero. When every weight
     /// is zero the distribution is uniform.
     pub fn new(weights: &[f32]) -> Self {
-        let w: Vec<f64> = weights
-            .iter()
-            .map(|&w| {
-                if w.is_finite() && w > 0.0 {
-                    w as f64
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let w: Vec<f64> = weights.iter().map(|&w| if w.is_finite() && w > 0.0 { w as f64 } else { 0.0 }).collect();
         let total: f64 = w.iter().sum();
         let n = w.len();
-        let pmf: Vec<f32> = if total > 0.0 {
-            w.iter().map(|&x| (x / total) as f32).collect()
-        } else {
-            vec![1.0 / n.max(1) as f32; n]
-        };
+        let pmf: Vec<f32> = if total > 0.0 { w.iter().map(|&x| (x / total) as f32).collect() } else { vec![1.0 / n.max(1) as f32; n] };
         let mut cdf = Vec::with_capacity(n);
         let mut acc = 0.0f64;
         for (i, &p) in pmf.iter().enumerate() {
@@ -215,14 +195,9 @@ impl Distribution1D {
     /// An item index drawn with `u` in [0, 1), and its probability.
     #[inline]
     pub fn sample(&self, u: f32) -> (usize, f32) {
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .min(self.pmf.len() - 1);
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.pmf.len() - 1);
         // Skip zero-probability items that a boundary value could land on.
-        let i = (i..self.pmf.len())
-            .find(|&j| self.pmf[j] > 0.0)
-            .unwrap_or(i);
+        let i = (i..self.pmf.len()).find(|&j| self.pmf[j] > 0.0).unwrap_or(i);
         (i, self.pmf[i])
     }
 }
@@ -233,24 +208,9 @@ mod tests {
 
     #[test]
     fn pixel_streams_are_deterministic_and_distinct() {
-        let a: Vec<u32> = (0..4)
-            .map(|_| 0)
-            .scan(PixelSampler::for_sample(7, 3, 4, 5), |r, _| {
-                Some(r.next_u32())
-            })
-            .collect();
-        let b: Vec<u32> = (0..4)
-            .map(|_| 0)
-            .scan(PixelSampler::for_sample(7, 3, 4, 5), |r, _| {
-                Some(r.next_u32())
-            })
-            .collect();
-        let c: Vec<u32> = (0..4)
-            .map(|_| 0)
-            .scan(PixelSampler::for_sample(7, 3, 4, 6), |r, _| {
-                Some(r.next_u32())
-            })
-            .collect();
+        let a: Vec<u32> = (0..4).map(|_| 0).scan(PixelSampler::for_sample(7, 3, 4, 5), |r, _| Some(r.next_u32())).collect();
+        let b: Vec<u32> = (0..4).map(|_| 0).scan(PixelSampler::for_sample(7, 3, 4, 5), |r, _| Some(r.next_u32())).collect();
+        let c: Vec<u32> = (0..4).map(|_| 0).scan(PixelSampler::for_sample(7, 3, 4, 6), |r, _| Some(r.next_u32())).collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
     }

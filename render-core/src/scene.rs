@@ -83,27 +83,15 @@ pub enum SceneError {
 /// range, normal arrays of the wrong length. Bad normals are not an error; they are
 /// repaired at shading time (the geometric normal is used).
 pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
-    let invalid = |field: &str, problem: String| SceneError::Invalid {
-        prim: path.to_string(),
-        field: field.to_string(),
-        problem,
-    };
-    if let Some((i, p)) = mesh
-        .positions
-        .iter()
-        .enumerate()
-        .find(|(_, p)| !p.is_finite())
-    {
+    let invalid = |field: &str, problem: String| SceneError::Invalid { prim: path.to_string(), field: field.to_string(), problem };
+    if let Some((i, p)) = mesh.positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
         return Err(invalid("points", format!("point {i} is {p} (NaN or Inf)")));
     }
     let n = mesh.positions.len() as u64;
     for (t, tri) in mesh.indices.iter().enumerate() {
         for (k, &v) in tri.iter().enumerate() {
             if v as u64 >= n {
-                return Err(invalid(
-                    "faceVertexIndices",
-                    format!("triangle {t} corner {k} has index {v}, out of range for {n} points"),
-                ));
+                return Err(invalid("faceVertexIndices", format!("triangle {t} corner {k} has index {v}, out of range for {n} points")));
             }
         }
     }
@@ -114,10 +102,7 @@ pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
     };
     if let Some((got, want, interp)) = expected {
         if got != want {
-            return Err(invalid(
-                "normals",
-                format!("{got} {interp} normals for {want} expected"),
-            ));
+            return Err(invalid("normals", format!("{got} {interp} normals for {want} expected")));
         }
     }
     Ok(())
@@ -192,12 +177,7 @@ pub struct SurfaceHit {
 
 /// Builds the renderable scene from its description, reusing cached BLASes.
 pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene, SceneError> {
-    let _span = tracing::info_span!(
-        "commit",
-        meshes = desc.meshes.len(),
-        lights = desc.lights.len()
-    )
-    .entered();
+    let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
     let mut warnings = Vec::new();
     let mut plan = RenderPlan::default();
 
@@ -217,11 +197,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let mut mesh_slot: HashMap<&str, usize> = HashMap::new();
     let mut builds = 0;
     let mut fresh = HashMap::new();
-    let used_as_prototype: std::collections::HashSet<&str> = desc
-        .instancers
-        .values()
-        .map(|i| i.prototype.as_str())
-        .collect();
+    let used_as_prototype: std::collections::HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
     for (path, m) in &desc.meshes {
         validate_mesh(path, &m.mesh)?;
         if m.mesh.indices.is_empty() || !(m.visible || used_as_prototype.contains(path.as_str())) {
@@ -252,11 +228,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         match material_index.get(path) {
             Some(&i) => i,
             None => {
-                tracing::warn!(
-                    prim,
-                    material = path,
-                    "bound material is not in the scene; using the default"
-                );
+                tracing::warn!(prim, material = path, "bound material is not in the scene; using the default");
                 0
             }
         }
@@ -284,13 +256,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
                 prim_paths.len() as u32 - 1
             }
         };
-        instances.push(InstanceData {
-            mesh,
-            transform,
-            material,
-            emitter_base: None,
-            prim,
-        });
+        instances.push(InstanceData { mesh, transform, material, emitter_base: None, prim });
         Ok(())
     };
     for (path, m) in &desc.meshes {
@@ -298,14 +264,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             continue;
         }
         if let Some(&slot) = mesh_slot.get(path.as_str()) {
-            push_instance(
-                &mut prim_paths,
-                &mut instances,
-                path,
-                slot,
-                &m.transform,
-                material_of(path, &m.material),
-            )?;
+            push_instance(&mut prim_paths, &mut instances, path, slot, &m.transform, material_of(path, &m.material))?;
         }
     }
     for (path, inst) in &desc.instancers {
@@ -313,11 +272,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             if desc.meshes.contains_key(&inst.prototype) {
                 continue; // an empty prototype was already reported
             }
-            return Err(SceneError::Dangling {
-                prim: path.clone(),
-                field: "prototype".into(),
-                target: inst.prototype.clone(),
-            });
+            return Err(SceneError::Dangling { prim: path.clone(), field: "prototype".into(), target: inst.prototype.clone() });
         };
         let proto = &desc.meshes[&inst.prototype];
         let material = material_of(path, &proto.material);
@@ -326,13 +281,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         }
     }
 
-    let tlas_instances: Vec<TlasInstance> = instances
-        .iter()
-        .map(|i| TlasInstance {
-            blas: i.mesh,
-            transform: i.transform,
-        })
-        .collect();
+    let tlas_instances: Vec<TlasInstance> = instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform }).collect();
     let tlas = Tlas::build(&blases, &tlas_instances);
 
     // Bounds, for sizing infinite lights and the default camera.
@@ -341,21 +290,13 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     for inst in &instances {
         let (a, b) = blases[inst.mesh].bounds();
         for i in 0..8 {
-            let c = Vec3::new(
-                if i & 1 == 0 { a.x } else { b.x },
-                if i & 2 == 0 { a.y } else { b.y },
-                if i & 4 == 0 { a.z } else { b.z },
-            );
+            let c = Vec3::new(if i & 1 == 0 { a.x } else { b.x }, if i & 2 == 0 { a.y } else { b.y }, if i & 4 == 0 { a.z } else { b.z });
             let w = inst.transform.to_world.transform_point3(c);
             lo = lo.min(w);
             hi = hi.max(w);
         }
     }
-    let scene_radius = if lo.x <= hi.x {
-        0.5 * (hi - lo).length().max(1e-3)
-    } else {
-        1.0
-    };
+    let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
 
     // Lights: UsdLux lights, then one per emissive triangle.
     let mut lights: Vec<Light> = Vec::new();
@@ -366,7 +307,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
                 lights.push(light);
                 light_prims.push(path.clone());
             }
-            None => warnings.push(format!("{path}: light emits nothing (zero size, zero intensity or a singular transform) and is skipped")),
+            None => {
+                warnings.push(format!("{path}: light emits nothing (zero size, zero intensity or a singular transform) and is skipped"))
+            }
         }
     }
     let mut emissive_prims = Vec::new();
@@ -379,98 +322,50 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         inst.emitter_base = Some(lights.len() as u32);
         let mesh = &meshes[inst.mesh];
         for t in 0..mesh.triangle_count() {
-            let p = mesh
-                .triangle(t)
-                .map(|v| inst.transform.to_world.transform_point3(v));
+            let p = mesh.triangle(t).map(|v| inst.transform.to_world.transform_point3(v));
             // Degenerate triangles keep their slot (indices must line up) but emit nothing.
-            let shape = crate::light::Shape::triangle(p, m.emission).unwrap_or(
-                crate::light::Shape::Triangle {
-                    p,
-                    n: Vec3::Z,
-                    area: 0.0,
-                    l: Vec3::ZERO,
-                },
-            );
-            lights.push(Light {
-                shape,
-                visible_to_camera: true,
+            let shape = crate::light::Shape::triangle(p, m.emission).unwrap_or(crate::light::Shape::Triangle {
+                p,
+                n: Vec3::Z,
+                area: 0.0,
+                l: Vec3::ZERO,
             });
+            lights.push(Light { shape, visible_to_camera: true });
         }
         emissive_triangles += mesh.triangle_count();
         emissive_prims.push(prim_paths[inst.prim as usize].clone());
     }
-    let crossable_lights = (0..light_prims.len() as u32)
-        .filter(|&i| !lights[i as usize].shape.is_infinite())
-        .collect();
-    let infinite_lights = (0..light_prims.len() as u32)
-        .filter(|&i| lights[i as usize].shape.is_infinite())
-        .collect();
+    let crossable_lights = (0..light_prims.len() as u32).filter(|&i| !lights[i as usize].shape.is_infinite()).collect();
+    let infinite_lights = (0..light_prims.len() as u32).filter(|&i| lights[i as usize].shape.is_infinite()).collect();
 
     // The plan: what this scene calls for.
     if !light_prims.is_empty() {
         plan.enable(
             "lights",
-            format!(
-                "{} UsdLux light(s), sampled by power with MIS (power heuristic)",
-                light_prims.len()
-            ),
+            format!("{} UsdLux light(s), sampled by power with MIS (power heuristic)", light_prims.len()),
             light_prims.clone(),
         );
     }
     if emissive_triangles > 0 {
         emissive_prims.dedup();
-        plan.enable(
-            "emissive-meshes",
-            format!("{emissive_triangles} emissive triangle(s) sampled by area with MIS"),
-            emissive_prims,
-        );
+        plan.enable("emissive-meshes", format!("{emissive_triangles} emissive triangle(s) sampled by area with MIS"), emissive_prims);
     }
     if lights.is_empty() {
-        warnings.push(
-            "the scene has no lights and no emissive surfaces: the image will be black".into(),
-        );
+        warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
-    let diffuse_users: Vec<String> = desc
-        .materials
-        .keys()
-        .filter(|p| {
-            materials[material_index[p.as_str()] as usize]
-                .diffuse
-                .max_element()
-                > 0.0
-        })
-        .cloned()
-        .collect();
-    plan.enable(
-        "diffuse",
-        "Lambert reflection (UsdPreviewSurface diffuseColor)",
-        diffuse_users,
-    );
+    let diffuse_users: Vec<String> =
+        desc.materials.keys().filter(|p| materials[material_index[p.as_str()] as usize].diffuse.max_element() > 0.0).cloned().collect();
+    plan.enable("diffuse", "Lambert reflection (UsdPreviewSurface diffuseColor)", diffuse_users);
     if !desc.instancers.is_empty() {
-        plan.enable(
-            "instancing",
-            "instances share one BLAS per prototype under a TLAS",
-            desc.instancers.keys().cloned(),
-        );
+        plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
-    plan.skipped = [
-        "specular",
-        "transmission",
-        "subsurface",
-        "textures",
-        "depth-of-field",
-    ]
-    .iter()
-    .map(|s| format!("{s}: no prim calls for it (not supported yet in this build)"))
-    .collect();
+    plan.skipped = ["specular", "transmission", "subsurface", "textures", "depth-of-field"]
+        .iter()
+        .map(|s| format!("{s}: no prim calls for it (not supported yet in this build)"))
+        .collect();
 
     let light_set = LightSet::new(lights, scene_radius);
-    tracing::info!(
-        instances = instances.len(),
-        blas_builds = builds,
-        lights = light_set.lights.len(),
-        "scene committed"
-    );
+    tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {
         meshes,
         blases,
@@ -517,47 +412,29 @@ impl CommittedScene {
             .map(|n| (inst.transform.normal_matrix * n).normalize_or_zero())
             .filter(|n| *n != Vec3::ZERO && n.is_finite())
             .unwrap_or(ng);
-        SurfaceHit {
-            p,
-            ng,
-            ns,
-            material: inst.material,
-            light: inst.emitter_base.map(|b| b + hit.triangle),
-        }
+        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle) }
     }
 
     /// The scene's camera at `path`, the first camera when `path` is empty, or a default
     /// camera framing the scene's bounds when it has none.
     pub fn camera(&self, path: &str) -> Result<CameraDesc, SceneError> {
         if !path.is_empty() {
-            return self
-                .cameras
-                .get(path)
-                .cloned()
-                .ok_or_else(|| SceneError::Dangling {
-                    prim: "render settings".into(),
-                    field: "camera".into(),
-                    target: path.into(),
-                });
+            return self.cameras.get(path).cloned().ok_or_else(|| SceneError::Dangling {
+                prim: "render settings".into(),
+                field: "camera".into(),
+                target: path.into(),
+            });
         }
         if let Some(c) = self.cameras.values().next() {
             return Ok(c.clone());
         }
         let (lo, hi) = self.bounds;
-        let (center, radius) = if lo.x <= hi.x {
-            (0.5 * (lo + hi), 0.5 * (hi - lo).length().max(1e-3))
-        } else {
-            (Vec3::ZERO, 1.0)
-        };
+        let (center, radius) = if lo.x <= hi.x { (0.5 * (lo + hi), 0.5 * (hi - lo).length().max(1e-3)) } else { (Vec3::ZERO, 1.0) };
         let d = CameraDesc::default();
         // Back off along +Z until the bounding sphere fits the vertical field of view.
         let half = (0.5 * d.vertical_aperture / d.focal_length).atan();
         let dist = radius / half.sin();
-        Ok(CameraDesc {
-            transform: Affine3A::from_translation(center + Vec3::Z * dist),
-            near: (dist - radius).max(1e-3) * 0.5,
-            ..d
-        })
+        Ok(CameraDesc { transform: Affine3A::from_translation(center + Vec3::Z * dist), near: (dist - radius).max(1e-3) * 0.5, ..d })
     }
 
     /// MIS context of a shading point.
@@ -571,11 +448,7 @@ mod tests {
     use super::*;
 
     fn tri_mesh() -> Arc<Mesh> {
-        Arc::new(Mesh {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            indices: vec![[0, 1, 2]],
-            normals: Normals::None,
-        })
+        Arc::new(Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]], normals: Normals::None })
     }
 
     #[test]
@@ -583,10 +456,7 @@ mod tests {
         let mut m = (*tri_mesh()).clone();
         m.indices[0][2] = 7;
         let e = validate_mesh("/World/Tri", &m).unwrap_err().to_string();
-        assert!(
-            e.contains("/World/Tri") && e.contains("faceVertexIndices") && e.contains("index 7"),
-            "{e}"
-        );
+        assert!(e.contains("/World/Tri") && e.contains("faceVertexIndices") && e.contains("index 7"), "{e}");
         let mut m = (*tri_mesh()).clone();
         m.positions[1].y = f32::NAN;
         let e = validate_mesh("/World/Tri", &m).unwrap_err().to_string();
@@ -596,24 +466,15 @@ mod tests {
     #[test]
     fn moving_a_mesh_reuses_its_blas() {
         let mut desc = SceneDesc::default();
-        desc.meshes.insert(
-            "/A".into(),
-            MeshDesc {
-                mesh: tri_mesh(),
-                transform: Affine3A::IDENTITY,
-                material: String::new(),
-                visible: true,
-            },
-        );
+        desc.meshes
+            .insert("/A".into(), MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, material: String::new(), visible: true });
         let mut cache = BlasCache::default();
         commit(&desc, &mut cache).unwrap();
         assert_eq!(cache.last_builds, 1);
         desc.meshes.get_mut("/A").unwrap().transform = Affine3A::from_translation(Vec3::X);
         let scene = commit(&desc, &mut cache).unwrap();
         assert_eq!(cache.last_builds, 0);
-        let hit = scene
-            .intersect(&Ray::new(Vec3::new(1.2, 0.2, 1.0), -Vec3::Z))
-            .expect("moved triangle is hit");
+        let hit = scene.intersect(&Ray::new(Vec3::new(1.2, 0.2, 1.0), -Vec3::Z)).expect("moved triangle is hit");
         assert!((hit.t - 1.0).abs() < 1e-6);
     }
 }

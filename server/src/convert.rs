@@ -20,38 +20,22 @@ pub fn affine(prim: &str, field: &str, m: &Option<pb::Matrix4>) -> Result<Affine
         return Ok(Affine3A::IDENTITY);
     };
     if m.m.len() != 16 {
-        return Err(invalid(
-            prim,
-            field,
-            format!("a matrix needs 16 values, got {}", m.m.len()),
-        ));
+        return Err(invalid(prim, field, format!("a matrix needs 16 values, got {}", m.m.len())));
     }
     if m.m.iter().any(|x| !x.is_finite()) {
         return Err(invalid(prim, field, "matrix has NaN or Inf"));
     }
     let d = DMat4::from_cols_array(&<[f64; 16]>::try_from(m.m.as_slice()).expect("length checked"));
-    Ok(Affine3A::from_mat4(Mat4::from_cols_array(
-        &d.to_cols_array().map(|x| x as f32),
-    )))
+    Ok(Affine3A::from_mat4(Mat4::from_cols_array(&d.to_cols_array().map(|x| x as f32))))
 }
 
 /// An affine map to a wire matrix.
 pub fn matrix(a: &Affine3A) -> pb::Matrix4 {
-    pb::Matrix4 {
-        m: Mat4::from(*a)
-            .to_cols_array()
-            .iter()
-            .map(|&x| x as f64)
-            .collect(),
-    }
+    pb::Matrix4 { m: Mat4::from(*a).to_cols_array().iter().map(|&x| x as f64).collect() }
 }
 
 fn float3(v: Vec3) -> pb::Float3 {
-    pb::Float3 {
-        x: v.x,
-        y: v.y,
-        z: v.z,
-    }
+    pb::Float3 { x: v.x, y: v.y, z: v.z }
 }
 
 fn vec3(v: &Option<pb::Float3>, default: Vec3) -> Vec3 {
@@ -62,14 +46,9 @@ fn vec3(v: &Option<pb::Float3>, default: Vec3) -> Vec3 {
 pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Status> {
     let kind = match pb::LightType::try_from(l.light_type).unwrap_or(pb::LightType::Unspecified) {
         pb::LightType::Sphere => LightKind::Sphere { radius: l.radius },
-        pb::LightType::Rect => LightKind::Rect {
-            width: l.width,
-            height: l.height,
-        },
+        pb::LightType::Rect => LightKind::Rect { width: l.width, height: l.height },
         pb::LightType::Disk => LightKind::Disk { radius: l.radius },
-        pb::LightType::Distant => LightKind::Distant {
-            angle_degrees: l.angle,
-        },
+        pb::LightType::Distant => LightKind::Distant { angle_degrees: l.angle },
         pb::LightType::Dome => LightKind::Dome,
         pb::LightType::Unspecified => return Err(invalid(prim, "light_type", "unspecified")),
     };
@@ -108,18 +87,10 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         ..Default::default()
     };
     match l.kind {
-        LightKind::Sphere { radius } => {
-            (w.light_type, w.radius) = (pb::LightType::Sphere as i32, radius)
-        }
-        LightKind::Rect { width, height } => {
-            (w.light_type, w.width, w.height) = (pb::LightType::Rect as i32, width, height)
-        }
-        LightKind::Disk { radius } => {
-            (w.light_type, w.radius) = (pb::LightType::Disk as i32, radius)
-        }
-        LightKind::Distant { angle_degrees } => {
-            (w.light_type, w.angle) = (pb::LightType::Distant as i32, angle_degrees)
-        }
+        LightKind::Sphere { radius } => (w.light_type, w.radius) = (pb::LightType::Sphere as i32, radius),
+        LightKind::Rect { width, height } => (w.light_type, w.width, w.height) = (pb::LightType::Rect as i32, width, height),
+        LightKind::Disk { radius } => (w.light_type, w.radius) = (pb::LightType::Disk as i32, radius),
+        LightKind::Distant { angle_degrees } => (w.light_type, w.angle) = (pb::LightType::Distant as i32, angle_degrees),
         LightKind::Dome => w.light_type = pb::LightType::Dome as i32,
     }
     w
@@ -127,11 +98,9 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
 
 /// Wire camera to render-core.
 pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, Status> {
-    for (name, v) in [
-        ("focal_length", c.focal_length),
-        ("horizontal_aperture", c.horizontal_aperture),
-        ("vertical_aperture", c.vertical_aperture),
-    ] {
+    for (name, v) in
+        [("focal_length", c.focal_length), ("horizontal_aperture", c.horizontal_aperture), ("vertical_aperture", c.vertical_aperture)]
+    {
         if !(v.is_finite() && v > 0.0) {
             return Err(invalid(prim, name, format!("{v} must be positive")));
         }
@@ -171,11 +140,7 @@ pub fn material_from_wire(m: &pb::MaterialNetwork) -> MaterialNetwork {
             .map(|n| MaterialNode {
                 path: n.path.clone(),
                 node_type_id: n.node_type_id.clone(),
-                parameters: n
-                    .parameters
-                    .iter()
-                    .filter_map(|(k, v)| param_from_wire(v).map(|p| (k.clone(), p)))
-                    .collect(),
+                parameters: n.parameters.iter().filter_map(|(k, v)| param_from_wire(v).map(|p| (k.clone(), p))).collect(),
             })
             .collect(),
         connections: m
@@ -250,10 +215,7 @@ pub fn tile_to_wire(tile: &TileFilm, aov: Aov, pass: u32, format: pb::PixelForma
     let data = tile.resolve(aov);
     let pixels = match format {
         pb::PixelFormat::F32 => data.iter().flat_map(|v| v.to_le_bytes()).collect(),
-        pb::PixelFormat::F16 => data
-            .iter()
-            .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
-            .collect(),
+        pb::PixelFormat::F16 => data.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()).collect(),
     };
     pb::Tile {
         aov: aov.name().into(),
@@ -273,28 +235,14 @@ pub fn tile_to_wire(tile: &TileFilm, aov: Aov, pass: u32, format: pb::PixelForma
 pub fn tile_pixels(t: &pb::Tile) -> Result<Vec<f32>, Status> {
     let expected = (t.width * t.height * t.channels) as usize;
     let out: Vec<f32> = match pb::PixelFormat::try_from(t.format) {
-        Ok(pb::PixelFormat::F32) => t
-            .pixels
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect(),
-        Ok(pb::PixelFormat::F16) => t
-            .pixels
-            .chunks_exact(2)
-            .map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32())
-            .collect(),
+        Ok(pb::PixelFormat::F32) => t.pixels.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        Ok(pb::PixelFormat::F16) => t.pixels.chunks_exact(2).map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32()).collect(),
         Err(_) => {
-            return Err(Status::invalid_argument(format!(
-                "tile: unknown pixel format {}",
-                t.format
-            )));
+            return Err(Status::invalid_argument(format!("tile: unknown pixel format {}", t.format)));
         }
     };
     if out.len() != expected {
-        return Err(Status::invalid_argument(format!(
-            "tile: {} values, {expected} expected",
-            out.len()
-        )));
+        return Err(Status::invalid_argument(format!("tile: {} values, {expected} expected", out.len())));
     }
     Ok(out)
 }

@@ -17,28 +17,20 @@ pub use service::RenderService;
 
 /// Serves the render service, gRPC health and reflection (v1 and v1alpha) on `listener`
 /// until `shutdown` resolves.
-pub async fn serve(
-    listener: TcpListener,
-    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
-) -> anyhow::Result<()> {
+pub async fn serve(listener: TcpListener, shutdown: impl std::future::Future<Output = ()> + Send + 'static) -> anyhow::Result<()> {
     let (health, health_service) = tonic_health::server::health_reporter();
-    health
-        .set_serving::<pb::render_server::RenderServer<RenderService>>()
-        .await;
-    let reflection_v1 = tonic_reflection::server::Builder::configure()
-        .register_encoded_file_descriptor_set(pb::FILE_DESCRIPTOR_SET)
-        .build_v1()?;
-    let reflection_v1alpha = tonic_reflection::server::Builder::configure()
-        .register_encoded_file_descriptor_set(pb::FILE_DESCRIPTOR_SET)
-        .build_v1alpha()?;
+    health.set_serving::<pb::render_server::RenderServer<RenderService>>().await;
+    let reflection_v1 =
+        tonic_reflection::server::Builder::configure().register_encoded_file_descriptor_set(pb::FILE_DESCRIPTOR_SET).build_v1()?;
+    let reflection_v1alpha =
+        tonic_reflection::server::Builder::configure().register_encoded_file_descriptor_set(pb::FILE_DESCRIPTOR_SET).build_v1alpha()?;
     tonic::transport::Server::builder()
         .add_service(health_service)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .add_service(
             // Incoming messages keep gRPC's 4 MiB default: clients chunk large arrays.
-            pb::render_server::RenderServer::new(RenderService::default())
-                .max_encoding_message_size(64 << 20),
+            pb::render_server::RenderServer::new(RenderService::default()).max_encoding_message_size(64 << 20),
         )
         .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown)
         .await?;
@@ -62,11 +54,7 @@ impl EmbeddedServer {
         let task = tokio::spawn(serve(listener, async move {
             let _ = rx.await;
         }));
-        Ok(EmbeddedServer {
-            addr,
-            shutdown: Some(tx),
-            task: Some(task),
-        })
+        Ok(EmbeddedServer { addr, shutdown: Some(tx), task: Some(task) })
     }
 
     /// The URL clients connect to.

@@ -9,9 +9,7 @@ use std::sync::{Arc, Mutex};
 use render_core::camera::Camera;
 use render_core::film::{Aov, TileFilm};
 use render_core::integrator::IntegratorSettings;
-use render_core::render::{
-    PassStats, RenderSettings, RenderSink, StopReason, pass_schedule, render,
-};
+use render_core::render::{PassStats, RenderSettings, RenderSink, StopReason, pass_schedule, render};
 use tessera_proto::v1 as pb;
 use tokio::sync::mpsc;
 use tokio_stream::{Stream, StreamExt, wrappers::ReceiverStream};
@@ -38,11 +36,7 @@ impl Default for RenderService {
 impl RenderService {
     /// A service with the given limits.
     pub fn new(limits: Limits) -> Self {
-        RenderService {
-            sessions: Arc::default(),
-            limits,
-            next_id: Arc::new(std::sync::atomic::AtomicU64::new(1)),
-        }
+        RenderService { sessions: Arc::default(), limits, next_id: Arc::new(std::sync::atomic::AtomicU64::new(1)) }
     }
 
     fn session(&self, id: &str) -> Result<Arc<Session>, Status> {
@@ -51,11 +45,7 @@ impl RenderService {
             .unwrap()
             .get(id)
             .cloned()
-            .ok_or_else(|| {
-                Status::not_found(format!(
-                    "session '{id}' does not exist (closed, or never created)"
-                ))
-            })
+            .ok_or_else(|| Status::not_found(format!("session '{id}' does not exist (closed, or never created)")))
     }
 }
 
@@ -63,9 +53,7 @@ impl RenderService {
 pub fn capabilities(limits: &Limits) -> pb::Capabilities {
     pb::Capabilities {
         version: env!("CARGO_PKG_VERSION").into(),
-        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "remove"]
-            .map(String::from)
-            .to_vec(),
+        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "remove"].map(String::from).to_vec(),
         node_types: vec!["UsdPreviewSurface".into()],
         aovs: Aov::ALL.iter().map(|a| a.name().to_string()).collect(),
         limits: Some(limits.to_wire()),
@@ -76,23 +64,14 @@ type EventStream = Pin<Box<dyn Stream<Item = Result<pb::RenderEvent, Status>> + 
 
 #[tonic::async_trait]
 impl pb::render_server::Render for RenderService {
-    async fn get_capabilities(
-        &self,
-        _: Request<pb::GetCapabilitiesRequest>,
-    ) -> Result<Response<pb::Capabilities>, Status> {
+    async fn get_capabilities(&self, _: Request<pb::GetCapabilitiesRequest>) -> Result<Response<pb::Capabilities>, Status> {
         Ok(Response::new(capabilities(&self.limits)))
     }
 
-    async fn create_session(
-        &self,
-        req: Request<pb::CreateSessionRequest>,
-    ) -> Result<Response<pb::CreateSessionResponse>, Status> {
+    async fn create_session(&self, req: Request<pb::CreateSessionRequest>) -> Result<Response<pb::CreateSessionResponse>, Status> {
         let mut sessions = self.sessions.lock().unwrap();
         if sessions.len() >= self.limits.max_sessions as usize {
-            return Err(Status::resource_exhausted(format!(
-                "{} sessions are open, the limit",
-                sessions.len()
-            )));
+            return Err(Status::resource_exhausted(format!("{} sessions are open, the limit", sessions.len())));
         }
         let id = format!("s{}", self.next_id.fetch_add(1, Ordering::Relaxed));
         tracing::info!(session = %id, client = %req.get_ref().client_name, "session created");
@@ -100,26 +79,16 @@ impl pb::render_server::Render for RenderService {
         Ok(Response::new(pb::CreateSessionResponse { session_id: id }))
     }
 
-    async fn close_session(
-        &self,
-        req: Request<pb::CloseSessionRequest>,
-    ) -> Result<Response<pb::CloseSessionResponse>, Status> {
+    async fn close_session(&self, req: Request<pb::CloseSessionRequest>) -> Result<Response<pb::CloseSessionResponse>, Status> {
         let id = &req.get_ref().session_id;
-        let session = self
-            .sessions
-            .lock()
-            .unwrap()
-            .remove(id)
-            .ok_or_else(|| Status::not_found(format!("session '{id}' does not exist")))?;
+        let session =
+            self.sessions.lock().unwrap().remove(id).ok_or_else(|| Status::not_found(format!("session '{id}' does not exist")))?;
         session.cancel_render();
         tracing::info!(session = %id, "session closed");
         Ok(Response::new(pb::CloseSessionResponse {}))
     }
 
-    async fn sync(
-        &self,
-        req: Request<Streaming<pb::SyncRequest>>,
-    ) -> Result<Response<pb::SyncResponse>, Status> {
+    async fn sync(&self, req: Request<Streaming<pb::SyncRequest>>) -> Result<Response<pb::SyncResponse>, Status> {
         let mut stream = req.into_inner();
         let mut session: Option<Arc<Session>> = None;
         let mut tx = None;
@@ -134,9 +103,7 @@ impl pb::render_server::Render for RenderService {
             tx.as_mut().expect("begun with the session").apply(item)?;
         }
         let (Some(session), Some(tx)) = (session, tx) else {
-            return Err(Status::invalid_argument(
-                "empty Sync stream: the first message must carry session_id",
-            ));
+            return Err(Status::invalid_argument("empty Sync stream: the first message must carry session_id"));
         };
         let applied = tx.applied;
         let span = tracing::info_span!("sync", session = %session.id, prims = applied);
@@ -146,40 +113,26 @@ impl pb::render_server::Render for RenderService {
         })
         .await
         .map_err(|e| Status::internal(format!("commit task failed: {e}")))??;
-        Ok(Response::new(pb::SyncResponse {
-            scene_version: version,
-            prims_applied: applied,
-            warnings,
-        }))
+        Ok(Response::new(pb::SyncResponse { scene_version: version, prims_applied: applied, warnings }))
     }
 
     type RenderStream = EventStream;
 
-    async fn render(
-        &self,
-        req: Request<pb::RenderRequest>,
-    ) -> Result<Response<Self::RenderStream>, Status> {
+    async fn render(&self, req: Request<pb::RenderRequest>) -> Result<Response<Self::RenderStream>, Status> {
         let req = req.into_inner();
         let session = self.session(&req.session_id)?;
         let job = RenderJob::new(&req.settings.unwrap_or_default(), &self.limits)?;
         if session.current().is_none() {
-            return Err(Status::failed_precondition(format!(
-                "session '{}' has no scene yet: Sync before Render",
-                session.id
-            )));
+            return Err(Status::failed_precondition(format!("session '{}' has no scene yet: Sync before Render", session.id)));
         }
         let cancel = Arc::new(AtomicBool::new(false));
-        if let Some(previous) = session
-            .render_cancel
-            .lock()
-            .unwrap()
-            .replace(cancel.clone())
-        {
+        if let Some(previous) = session.render_cancel.lock().unwrap().replace(cancel.clone()) {
             // One render per session: a new request supersedes the old one.
             previous.store(true, Ordering::Release);
         }
         let (tx, rx) = mpsc::channel(256);
-        let span = tracing::info_span!("render", session = %session.id, w = job.settings.width, h = job.settings.height, spp = job.settings.spp);
+        let span =
+            tracing::info_span!("render", session = %session.id, w = job.settings.width, h = job.settings.height, spp = job.settings.spp);
         std::thread::Builder::new()
             .name(format!("render-{}", session.id))
             .spawn(move || {
@@ -194,14 +147,9 @@ impl pb::render_server::Render for RenderService {
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
 
-    async fn cancel(
-        &self,
-        req: Request<pb::CancelRequest>,
-    ) -> Result<Response<pb::CancelResponse>, Status> {
+    async fn cancel(&self, req: Request<pb::CancelRequest>) -> Result<Response<pb::CancelResponse>, Status> {
         let session = self.session(&req.get_ref().session_id)?;
-        Ok(Response::new(pb::CancelResponse {
-            was_rendering: session.cancel_render(),
-        }))
+        Ok(Response::new(pb::CancelResponse { was_rendering: session.cancel_render() }))
     }
 }
 
@@ -216,18 +164,10 @@ struct RenderJob {
 
 impl RenderJob {
     fn new(s: &pb::RenderSettings, limits: &Limits) -> Result<Self, Status> {
-        let bad = |field: &str, why: String| {
-            Status::invalid_argument(format!("render settings: {field}: {why}"))
-        };
-        let (w, h) = (
-            if s.width == 0 { 256 } else { s.width },
-            if s.height == 0 { 256 } else { s.height },
-        );
+        let bad = |field: &str, why: String| Status::invalid_argument(format!("render settings: {field}: {why}"));
+        let (w, h) = (if s.width == 0 { 256 } else { s.width }, if s.height == 0 { 256 } else { s.height });
         if w > limits.max_resolution || h > limits.max_resolution {
-            return Err(bad(
-                "resolution",
-                format!("{w}x{h} exceeds {}", limits.max_resolution),
-            ));
+            return Err(bad("resolution", format!("{w}x{h} exceeds {}", limits.max_resolution)));
         }
         let spp = if s.spp == 0 { 64 } else { s.spp };
         if spp > limits.max_spp {
@@ -242,12 +182,8 @@ impl RenderJob {
         }
         let mut aovs = vec![Aov::Beauty];
         for name in &s.aovs {
-            let aov = Aov::from_name(name).ok_or_else(|| {
-                bad(
-                    "aovs",
-                    format!("unknown AOV '{name}' (known: beauty, albedo, normal, depth)"),
-                )
-            })?;
+            let aov =
+                Aov::from_name(name).ok_or_else(|| bad("aovs", format!("unknown AOV '{name}' (known: beauty, albedo, normal, depth)")))?;
             if !aovs.contains(&aov) {
                 aovs.push(aov);
             }
@@ -263,31 +199,19 @@ impl RenderJob {
                 spp,
                 seed: s.seed,
                 tile_size: tile,
-                integrator: IntegratorSettings {
-                    max_depth: if s.max_depth == 0 { 8 } else { s.max_depth },
-                    ..Default::default()
-                },
+                integrator: IntegratorSettings { max_depth: if s.max_depth == 0 { 8 } else { s.max_depth }, ..Default::default() },
             },
             aovs,
             camera_path: s.camera_path.clone(),
-            progressive_format: pb::PixelFormat::try_from(s.progressive_format)
-                .unwrap_or(pb::PixelFormat::F32),
+            progressive_format: pb::PixelFormat::try_from(s.progressive_format).unwrap_or(pb::PixelFormat::F32),
             threads,
         })
     }
 
     /// Renders until done, cancelled or disconnected, restarting on scene edits.
-    fn run(
-        &self,
-        session: &Session,
-        cancel: &AtomicBool,
-        tx: &mpsc::Sender<Result<pb::RenderEvent, Status>>,
-    ) {
+    fn run(&self, session: &Session, cancel: &AtomicBool, tx: &mpsc::Sender<Result<pb::RenderEvent, Status>>) {
         let send = |e: pb::render_event::Event| {
-            if tx
-                .blocking_send(Ok(pb::RenderEvent { event: Some(e) }))
-                .is_err()
-            {
+            if tx.blocking_send(Ok(pb::RenderEvent { event: Some(e) })).is_err() {
                 cancel.store(true, Ordering::Release);
             }
         };
@@ -296,9 +220,7 @@ impl RenderJob {
             n => match rayon::ThreadPoolBuilder::new().num_threads(n).build() {
                 Ok(p) => Some(p),
                 Err(e) => {
-                    let _ = tx.blocking_send(Err(Status::internal(format!(
-                        "cannot build a {n}-thread pool: {e}"
-                    ))));
+                    let _ = tx.blocking_send(Err(Status::internal(format!("cannot build a {n}-thread pool: {e}"))));
                     return;
                 }
             },
@@ -325,11 +247,7 @@ impl RenderJob {
                         .plan
                         .entries
                         .iter()
-                        .map(|e| pb::PlanEntry {
-                            effect: e.effect.clone(),
-                            reason: e.reason.clone(),
-                            prims: e.prims.clone(),
-                        })
+                        .map(|e| pb::PlanEntry { effect: e.effect.clone(), reason: e.reason.clone(), prims: e.prims.clone() })
                         .collect(),
                     aovs: self.aovs.iter().map(|a| a.name().to_string()).collect(),
                     scene_version: version,
@@ -337,40 +255,22 @@ impl RenderJob {
                 }));
                 first = false;
             } else {
-                send(pb::render_event::Event::Restarted(pb::Restarted {
-                    scene_version: version,
-                }));
+                send(pb::render_event::Event::Restarted(pb::Restarted { scene_version: version }));
             }
-            let sink = StreamSink {
-                job: self,
-                tx,
-                cancel,
-                session,
-                version,
-                passes: pass_schedule(self.settings.spp).len() as u32,
-            };
+            let sink = StreamSink { job: self, tx, cancel, session, version, passes: pass_schedule(self.settings.spp).len() as u32 };
             let outcome = match &pool {
                 Some(p) => p.install(|| render(&scene, &camera, &self.settings, &sink)),
                 None => render(&scene, &camera, &self.settings, &sink),
             };
             if outcome.non_finite > 0 {
-                tracing::warn!(
-                    samples = outcome.non_finite,
-                    "non-finite radiance samples were dropped"
-                );
+                tracing::warn!(samples = outcome.non_finite, "non-finite radiance samples were dropped");
             }
             match outcome.stopped {
                 Some(StopReason::SceneChanged) => continue,
                 stopped => {
                     let secs = start.elapsed().as_secs_f64().max(1e-9);
                     let s = outcome.stats;
-                    tracing::info!(
-                        seconds = secs,
-                        spp = s.spp,
-                        rays = s.rays,
-                        cancelled = stopped.is_some(),
-                        "render finished"
-                    );
+                    tracing::info!(seconds = secs, spp = s.spp, rays = s.rays, cancelled = stopped.is_some(), "render finished");
                     send(pb::render_event::Event::Finished(pb::Finished {
                         seconds: secs,
                         spp: s.spp,
@@ -400,20 +300,10 @@ struct StreamSink<'a> {
 
 impl RenderSink for StreamSink<'_> {
     fn tile(&self, tile: &TileFilm, pass: u32) {
-        let format = if pass + 1 == self.passes {
-            pb::PixelFormat::F32
-        } else {
-            self.job.progressive_format
-        };
+        let format = if pass + 1 == self.passes { pb::PixelFormat::F32 } else { self.job.progressive_format };
         for &aov in &self.job.aovs {
             let t = convert::tile_to_wire(tile, aov, pass, format);
-            if self
-                .tx
-                .blocking_send(Ok(pb::RenderEvent {
-                    event: Some(pb::render_event::Event::Tile(t)),
-                }))
-                .is_err()
-            {
+            if self.tx.blocking_send(Ok(pb::RenderEvent { event: Some(pb::render_event::Event::Tile(t)) })).is_err() {
                 self.cancel.store(true, Ordering::Release);
                 return;
             }
@@ -430,13 +320,7 @@ impl RenderSink for StreamSink<'_> {
             estimated_noise: s.noise,
             elapsed_seconds: s.elapsed,
         };
-        if self
-            .tx
-            .blocking_send(Ok(pb::RenderEvent {
-                event: Some(pb::render_event::Event::Progress(progress)),
-            }))
-            .is_err()
-        {
+        if self.tx.blocking_send(Ok(pb::RenderEvent { event: Some(pb::render_event::Event::Progress(progress)) })).is_err() {
             self.cancel.store(true, Ordering::Release);
         }
     }

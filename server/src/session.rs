@@ -74,29 +74,13 @@ impl Session {
 
     /// The committed scene and its version.
     pub fn current(&self) -> Option<(Arc<CommittedScene>, u64)> {
-        self.state
-            .lock()
-            .unwrap()
-            .as_ref()
-            .map(|c| (c.scene.clone(), c.version))
+        self.state.lock().unwrap().as_ref().map(|c| (c.scene.clone(), c.version))
     }
 
     /// Starts a transaction on a copy of the current description.
     pub fn begin(&self, limits: Limits) -> Transaction {
-        let desc = self
-            .state
-            .lock()
-            .unwrap()
-            .as_ref()
-            .map(|c| c.desc.clone())
-            .unwrap_or_default();
-        Transaction {
-            desc,
-            meshes: HashMap::new(),
-            instancers: HashMap::new(),
-            applied: 0,
-            limits,
-        }
+        let desc = self.state.lock().unwrap().as_ref().map(|c| c.desc.clone()).unwrap_or_default();
+        Transaction { desc, meshes: HashMap::new(), instancers: HashMap::new(), applied: 0, limits }
     }
 
     /// Commits a transaction: validates, builds what changed, and swaps it in. Blocking
@@ -110,11 +94,7 @@ impl Session {
         let warnings = scene.warnings.clone();
         let mut state = self.state.lock().unwrap();
         let version = self.version.load(Ordering::Acquire) + 1;
-        *state = Some(Committed {
-            desc,
-            scene: Arc::new(scene),
-            version,
-        });
+        *state = Some(Committed { desc, scene: Arc::new(scene), version });
         self.version.store(version, Ordering::Release);
         Ok((version, warnings))
     }
@@ -140,15 +120,9 @@ fn fill<T: Copy + Default>(
     src: &[T],
     filled: &mut u64,
 ) -> Result<(), Status> {
-    let end = offset
-        .checked_add(src.len() as u64)
-        .ok_or_else(|| invalid(prim, field, "chunk offset overflows"))?;
+    let end = offset.checked_add(src.len() as u64).ok_or_else(|| invalid(prim, field, "chunk offset overflows"))?;
     if end > declared {
-        return Err(invalid(
-            prim,
-            field,
-            format!("chunk [{offset}, {end}) runs past the declared length {declared}"),
-        ));
+        return Err(invalid(prim, field, format!("chunk [{offset}, {end}) runs past the declared length {declared}")));
     }
     if dst.len() as u64 != declared {
         dst.resize(declared as usize, T::default());
@@ -170,9 +144,7 @@ impl Transaction {
     fn apply_prim(&mut self, d: pb::PrimDelta) -> Result<(), Status> {
         let path = d.path.clone();
         if !path.starts_with('/') {
-            return Err(Status::invalid_argument(format!(
-                "prim path '{path}' is not an absolute USD path"
-            )));
+            return Err(Status::invalid_argument(format!("prim path '{path}' is not an absolute USD path")));
         }
         self.applied += 1;
         let kind = pb::PrimKind::try_from(d.kind).unwrap_or(pb::PrimKind::Unspecified);
@@ -188,9 +160,7 @@ impl Transaction {
             }
             (pb::PrimKind::Mesh, Some(Payload::Mesh(m))) => {
                 let geometry_dirty = d.dirty
-                    & (pb::DirtyBits::DirtyPoints as u32
-                        | pb::DirtyBits::DirtyTopology as u32
-                        | pb::DirtyBits::DirtyNormals as u32)
+                    & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32)
                     != 0;
                 if geometry_dirty {
                     let tris = m.triangle_indices_len / 3;
@@ -202,30 +172,17 @@ impl Transaction {
                     }
                     let cap = 9 * self.limits.max_triangles_per_mesh;
                     if m.points_len > cap || m.normals_len > cap {
-                        return Err(Status::resource_exhausted(format!(
-                            "{path}: declared array lengths exceed the per-mesh limit"
-                        )));
+                        return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
                     }
-                    if m.points_len % 3 != 0
-                        || m.triangle_indices_len % 3 != 0
-                        || m.normals_len % 3 != 0
-                    {
-                        return Err(invalid(
-                            &path,
-                            "mesh",
-                            "array lengths must be multiples of 3",
-                        ));
+                    if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
+                        return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
                     }
-                    self.meshes.insert(
-                        path,
-                        StagedMesh {
-                            prim: m,
-                            ..Default::default()
-                        },
-                    );
+                    self.meshes.insert(path, StagedMesh { prim: m, ..Default::default() });
                 } else {
                     // Transform, material or visibility only: keep the geometry.
-                    let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY"))?;
+                    let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| {
+                        invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY")
+                    })?;
                     existing.transform = convert::affine(&path, "transform", &m.transform)?;
                     existing.material = m.material_path;
                     existing.visible = m.visible;
@@ -233,25 +190,15 @@ impl Transaction {
             }
             (pb::PrimKind::Instancer, Some(Payload::Instancer(i))) => {
                 if i.transforms_len > 16 * self.limits.max_instances {
-                    return Err(Status::resource_exhausted(format!(
-                        "{path}: more than {} instances",
-                        self.limits.max_instances
-                    )));
+                    return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
                 }
                 if i.transforms_len % 16 != 0 {
-                    return Err(invalid(
-                        &path,
-                        "transforms",
-                        "length must be a multiple of 16",
-                    ));
+                    return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
                 }
-                self.instancers
-                    .insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
+                self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
             }
             (pb::PrimKind::Material, Some(Payload::Material(m))) => {
-                self.desc
-                    .materials
-                    .insert(path, convert::material_from_wire(&m));
+                self.desc.materials.insert(path, convert::material_from_wire(&m));
             }
             (pb::PrimKind::Light, Some(Payload::Light(l))) => {
                 let l = convert::light_from_wire(&path, &l)?;
@@ -265,10 +212,7 @@ impl Transaction {
                 return Err(invalid(
                     &path,
                     "payload",
-                    format!(
-                        "kind {kind:?} with payload {:?} is not a valid delta",
-                        payload.map(|_| "of another kind")
-                    ),
+                    format!("kind {kind:?} with payload {:?} is not a valid delta", payload.map(|_| "of another kind")),
                 ));
             }
         }
@@ -278,37 +222,19 @@ impl Transaction {
     fn apply_chunk(&mut self, c: pb::ArrayChunk) -> Result<(), Status> {
         let field = pb::ArrayField::try_from(c.field).unwrap_or(pb::ArrayField::Unspecified);
         if field == pb::ArrayField::InstanceTransforms {
-            let (_, data, declared) = self.instancers.get_mut(&c.path).ok_or_else(|| {
-                invalid(&c.path, "chunk", "no instancer delta precedes this chunk")
-            })?;
+            let (_, data, declared) =
+                self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
             let mut filled = 0;
-            return fill(
-                &c.path,
-                "transforms",
-                data,
-                *declared,
-                c.offset,
-                &c.doubles,
-                &mut filled,
-            );
+            return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
         }
-        let staged = self.meshes.get_mut(&c.path).ok_or_else(|| {
-            invalid(
-                &c.path,
-                "chunk",
-                "no mesh delta with dirty geometry precedes this chunk",
-            )
-        })?;
+        let staged = self
+            .meshes
+            .get_mut(&c.path)
+            .ok_or_else(|| invalid(&c.path, "chunk", "no mesh delta with dirty geometry precedes this chunk"))?;
         match field {
-            pb::ArrayField::Points => fill(
-                &c.path,
-                "points",
-                &mut staged.points,
-                staged.prim.points_len,
-                c.offset,
-                &c.floats,
-                &mut staged.filled[0],
-            ),
+            pb::ArrayField::Points => {
+                fill(&c.path, "points", &mut staged.points, staged.prim.points_len, c.offset, &c.floats, &mut staged.filled[0])
+            }
             pb::ArrayField::TriangleIndices => fill(
                 &c.path,
                 "triangle_indices",
@@ -318,20 +244,10 @@ impl Transaction {
                 &c.uints,
                 &mut staged.filled[1],
             ),
-            pb::ArrayField::Normals => fill(
-                &c.path,
-                "normals",
-                &mut staged.normals,
-                staged.prim.normals_len,
-                c.offset,
-                &c.floats,
-                &mut staged.filled[2],
-            ),
-            _ => Err(invalid(
-                &c.path,
-                "chunk.field",
-                format!("unknown array field {}", c.field),
-            )),
+            pb::ArrayField::Normals => {
+                fill(&c.path, "normals", &mut staged.normals, staged.prim.normals_len, c.offset, &c.floats, &mut staged.filled[2])
+            }
+            _ => Err(invalid(&c.path, "chunk.field", format!("unknown array field {}", c.field))),
         }
     }
 
@@ -345,72 +261,32 @@ impl Transaction {
                 ("normals", s.filled[2], p.normals_len),
             ] {
                 if got != want {
-                    return Err(invalid(
-                        &path,
-                        name,
-                        format!("received {got} of {want} declared values"),
-                    ));
+                    return Err(invalid(&path, name, format!("received {got} of {want} declared values")));
                 }
             }
-            let positions = s
-                .points
-                .chunks_exact(3)
-                .map(|v| glam::Vec3::new(v[0], v[1], v[2]))
-                .collect();
-            let indices = s
-                .indices
-                .chunks_exact(3)
-                .map(|t| [t[0], t[1], t[2]])
-                .collect();
-            let nrm: Vec<glam::Vec3> = s
-                .normals
-                .chunks_exact(3)
-                .map(|v| glam::Vec3::new(v[0], v[1], v[2]))
-                .collect();
-            let normals = match pb::NormalInterpolation::try_from(p.normal_interpolation)
-                .unwrap_or(pb::NormalInterpolation::NormalsNone)
-            {
+            let positions = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            let indices = s.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+            let nrm: Vec<glam::Vec3> = s.normals.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            let normals = match pb::NormalInterpolation::try_from(p.normal_interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
                 pb::NormalInterpolation::NormalsNone => Normals::None,
                 pb::NormalInterpolation::NormalsVertex => Normals::Vertex(nrm),
                 pb::NormalInterpolation::NormalsFaceVarying => Normals::FaceVarying(nrm),
             };
-            let mesh = Mesh {
-                positions,
-                indices,
-                normals,
-            };
-            render_core::scene::validate_mesh(&path, &mesh)
-                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+            let mesh = Mesh { positions, indices, normals };
+            render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
-            self.desc.meshes.insert(
-                path,
-                MeshDesc {
-                    mesh: Arc::new(mesh),
-                    transform,
-                    material: p.material_path.clone(),
-                    visible: p.visible,
-                },
-            );
+            self.desc
+                .meshes
+                .insert(path, MeshDesc { mesh: Arc::new(mesh), transform, material: p.material_path.clone(), visible: p.visible });
         }
         for (path, (prototype, data, _)) in self.instancers {
             let transforms = data
                 .chunks_exact(16)
                 .map(|m| convert::affine(&path, "transforms", &Some(pb::Matrix4 { m: m.to_vec() })))
                 .collect::<Result<Vec<_>, _>>()?;
-            self.desc.instancers.insert(
-                path,
-                InstancerDesc {
-                    prototype,
-                    transforms,
-                },
-            );
+            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms });
         }
-        let total: u64 = self
-            .desc
-            .meshes
-            .values()
-            .map(|m| m.mesh.indices.len() as u64)
-            .sum();
+        let total: u64 = self.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
         if total > self.limits.max_total_triangles {
             return Err(Status::resource_exhausted(format!(
                 "the scene has {total} triangles, over the limit of {}",

@@ -9,9 +9,7 @@ use tessera_server::EmbeddedServer;
 
 /// Path of a file under `fixtures/`.
 pub fn fixture(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures")
-        .join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures").join(rel)
 }
 
 /// Reads a fixture with the client's USD reader.
@@ -21,15 +19,9 @@ pub fn load(rel: &str) -> Translation {
 
 /// A server on loopback and a session on it with `translation` synced.
 pub async fn session_with(translation: &Translation) -> (EmbeddedServer, Connection) {
-    let server = EmbeddedServer::start()
-        .await
-        .expect("embedded server starts");
-    let mut conn = Connection::connect(&server.url(), "e2e")
-        .await
-        .expect("connects");
-    conn.sync(tessera::sync::full_sync(translation))
-        .await
-        .expect("scene syncs");
+    let server = EmbeddedServer::start().await.expect("embedded server starts");
+    let mut conn = Connection::connect(&server.url(), "e2e").await.expect("connects");
+    conn.sync(tessera::sync::full_sync(translation)).await.expect("scene syncs");
     (server, conn)
 }
 
@@ -43,13 +35,7 @@ pub async fn render_fixture(rel: &str, opts: &RenderOptions) -> RenderReport {
 
 /// Options for a small, quick render.
 pub fn small(width: u32, height: u32, spp: u32) -> RenderOptions {
-    RenderOptions {
-        width,
-        height,
-        spp,
-        progressive_f16: false,
-        ..Default::default()
-    }
+    RenderOptions { width, height, spp, progressive_f16: false, ..Default::default() }
 }
 
 /// Asserts every value of every layer is finite.
@@ -62,12 +48,7 @@ pub fn assert_all_finite(image: &Image) {
 }
 
 /// Mean of channel `c` of `aov` over the pixels where `keep` holds.
-pub fn mean_where(
-    image: &Image,
-    aov: &str,
-    c: usize,
-    keep: impl Fn(u32, u32) -> bool,
-) -> (f64, usize) {
+pub fn mean_where(image: &Image, aov: &str, c: usize, keep: impl Fn(u32, u32) -> bool) -> (f64, usize) {
     let mut sum = 0.0;
     let mut n = 0;
     for y in 0..image.height {

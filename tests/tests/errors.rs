@@ -7,49 +7,25 @@ use tessera_tests::*;
 
 #[test]
 fn malformed_usd_is_an_error_naming_the_file() {
-    let e = tessera::usd::load(&fixture("bad/malformed.usda"))
-        .unwrap_err()
-        .to_string();
+    let e = tessera::usd::load(&fixture("bad/malformed.usda")).unwrap_err().to_string();
     assert!(e.contains("malformed.usda"), "{e}");
-    let e = tessera::usd::load(&fixture("bad/does_not_exist.usda"))
-        .unwrap_err()
-        .to_string();
+    let e = tessera::usd::load(&fixture("bad/does_not_exist.usda")).unwrap_err().to_string();
     assert!(e.contains("no such file"), "{e}");
 }
 
 #[test]
 fn bad_meshes_in_usd_name_the_prim_and_attribute() {
-    let e = format!(
-        "{:#}",
-        tessera::usd::load(&fixture("bad/index_out_of_range.usda")).unwrap_err()
-    );
-    assert!(
-        e.contains("/World/Broken") && e.contains("faceVertexIndices[2] = 7"),
-        "{e}"
-    );
-    let e = format!(
-        "{:#}",
-        tessera::usd::load(&fixture("bad/nan_points.usda")).unwrap_err()
-    );
-    assert!(
-        e.contains("/World/Broken") && e.contains("points") && e.contains("point 1"),
-        "{e}"
-    );
+    let e = format!("{:#}", tessera::usd::load(&fixture("bad/index_out_of_range.usda")).unwrap_err());
+    assert!(e.contains("/World/Broken") && e.contains("faceVertexIndices[2] = 7"), "{e}");
+    let e = format!("{:#}", tessera::usd::load(&fixture("bad/nan_points.usda")).unwrap_err());
+    assert!(e.contains("/World/Broken") && e.contains("points") && e.contains("point 1"), "{e}");
 }
 
 fn raw_mesh(path: &str, points: Vec<f32>, indices: Vec<u32>) -> Vec<pb::sync_request::Item> {
-    let prim = pb::MeshPrim {
-        points_len: points.len() as u64,
-        triangle_indices_len: indices.len() as u64,
-        visible: true,
-        ..Default::default()
-    };
+    let prim =
+        pb::MeshPrim { points_len: points.len() as u64, triangle_indices_len: indices.len() as u64, visible: true, ..Default::default() };
     vec![
-        tessera::sync::delta(
-            path,
-            pb::PrimKind::Mesh,
-            pb::prim_delta::Payload::Mesh(prim),
-        ),
+        tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim)),
         pb::sync_request::Item::Chunk(pb::ArrayChunk {
             path: path.into(),
             field: pb::ArrayField::Points as i32,
@@ -71,67 +47,30 @@ fn raw_mesh(path: &str, points: Vec<f32>, indices: Vec<u32>) -> Vec<pb::sync_req
 async fn the_server_rejects_bad_deltas_by_name_and_keeps_serving_others() {
     let server = EmbeddedServer::start().await.unwrap();
     let mut good = Connection::connect(&server.url(), "good").await.unwrap();
-    good.sync(tessera::sync::full_sync(&load("cornell_box.usda")))
-        .await
-        .unwrap();
+    good.sync(tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
 
     let mut bad = Connection::connect(&server.url(), "bad").await.unwrap();
     let tri = vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
-    let e = bad
-        .sync(raw_mesh("/Evil/OutOfRange", tri.clone(), vec![0, 1, 9]))
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("/Evil/OutOfRange") && e.contains("faceVertexIndices") && e.contains("index 9"),
-        "{e}"
-    );
+    let e = bad.sync(raw_mesh("/Evil/OutOfRange", tri.clone(), vec![0, 1, 9])).await.unwrap_err().to_string();
+    assert!(e.contains("/Evil/OutOfRange") && e.contains("faceVertexIndices") && e.contains("index 9"), "{e}");
     let mut nan = tri.clone();
     nan[4] = f32::NAN;
-    let e = bad
-        .sync(raw_mesh("/Evil/Nan", nan, vec![0, 1, 2]))
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("/Evil/Nan") && e.contains("points") && e.contains("point 1"),
-        "{e}"
-    );
+    let e = bad.sync(raw_mesh("/Evil/Nan", nan, vec![0, 1, 2])).await.unwrap_err().to_string();
+    assert!(e.contains("/Evil/Nan") && e.contains("points") && e.contains("point 1"), "{e}");
     let mut short = raw_mesh("/Evil/Short", tri.clone(), vec![0, 1, 2]);
     short.truncate(2);
     let e = bad.sync(short).await.unwrap_err().to_string();
-    assert!(
-        e.contains("/Evil/Short")
-            && e.contains("triangle_indices")
-            && e.contains("received 0 of 3"),
-        "{e}"
-    );
+    assert!(e.contains("/Evil/Short") && e.contains("triangle_indices") && e.contains("received 0 of 3"), "{e}");
     let mut past_end = raw_mesh("/Evil/PastEnd", tri, vec![0, 1, 2]);
     if let pb::sync_request::Item::Chunk(c) = &mut past_end[1] {
         c.offset = 3;
     }
     let e = bad.sync(past_end).await.unwrap_err().to_string();
-    assert!(
-        e.contains("/Evil/PastEnd") && e.contains("runs past the declared length"),
-        "{e}"
-    );
-    let e = bad
-        .render(&small(8, 8, 1), |_| {})
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("no scene yet"),
-        "a failed sync commits nothing: {e}"
-    );
+    assert!(e.contains("/Evil/PastEnd") && e.contains("runs past the declared length"), "{e}");
+    let e = bad.render(&small(8, 8, 1), |_| {}).await.unwrap_err().to_string();
+    assert!(e.contains("no scene yet"), "a failed sync commits nothing: {e}");
     let e = good
-        .render(
-            &tessera::remote::RenderOptions {
-                aovs: vec!["bogus".into()],
-                ..small(8, 8, 1)
-            },
-            |_| {},
-        )
+        .render(&tessera::remote::RenderOptions { aovs: vec!["bogus".into()], ..small(8, 8, 1) }, |_| {})
         .await
         .unwrap_err()
         .to_string();

@@ -16,10 +16,7 @@ async fn white_diffuse_sphere_in_a_unit_dome_is_one_everywhere() {
     assert!((sphere - 1.0).abs() < 0.01, "sphere mean {sphere}");
     // Camera rays that miss see the dome itself: exactly 1.
     let (bg, m) = mean_where(img, "beauty", 0, |x, y| alpha(x, y) == 0.0);
-    assert!(
-        m > 500 && (bg - 1.0).abs() < 1e-6,
-        "background mean {bg} over {m}"
-    );
+    assert!(m > 500 && (bg - 1.0).abs() < 1e-6, "background mean {bg} over {m}");
     // The albedo AOV reports the white material; depth is the camera distance (3 at the front).
     let (albedo, _) = mean_where(img, "albedo", 1, |x, y| alpha(x, y) == 1.0);
     assert!((albedo - 1.0).abs() < 1e-4, "albedo {albedo}");

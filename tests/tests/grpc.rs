@@ -16,29 +16,13 @@ use tessera_tests::*;
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn health_and_capabilities_answer() {
     let server = EmbeddedServer::start().await.unwrap();
-    let channel = tonic::transport::Channel::from_shared(server.url())
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
+    let channel = tonic::transport::Channel::from_shared(server.url()).unwrap().connect().await.unwrap();
     let mut health = tonic_health::pb::health_client::HealthClient::new(channel);
-    let status = health
-        .check(tonic_health::pb::HealthCheckRequest {
-            service: "tessera.v1.Render".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
-    assert_eq!(
-        status.status,
-        tonic_health::pb::health_check_response::ServingStatus::Serving as i32
-    );
+    let status = health.check(tonic_health::pb::HealthCheckRequest { service: "tessera.v1.Render".into() }).await.unwrap().into_inner();
+    assert_eq!(status.status, tonic_health::pb::health_check_response::ServingStatus::Serving as i32);
     let mut conn = Connection::connect(&server.url(), "caps").await.unwrap();
     let caps = conn.capabilities().await.unwrap();
-    assert!(
-        caps.aovs.contains(&"depth".to_string())
-            && caps.node_types.contains(&"UsdPreviewSurface".to_string())
-    );
+    assert!(caps.aovs.contains(&"depth".to_string()) && caps.node_types.contains(&"UsdPreviewSurface".to_string()));
     assert!(caps.limits.unwrap().max_array_chunk_elements * 4 < 4 << 20);
 }
 
@@ -47,11 +31,7 @@ fn grid(n: u32) -> Mesh {
     let mut positions = Vec::new();
     for j in 0..=n {
         for i in 0..=n {
-            positions.push(Vec3::new(
-                i as f32 / n as f32 - 0.5,
-                j as f32 / n as f32 - 0.5,
-                0.0,
-            ));
+            positions.push(Vec3::new(i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5, 0.0));
         }
     }
     let mut indices = Vec::new();
@@ -63,11 +43,7 @@ fn grid(n: u32) -> Mesh {
         }
     }
     let normals = Normals::Vertex(vec![Vec3::Z; positions.len()]);
-    Mesh {
-        positions,
-        indices,
-        normals,
-    }
+    Mesh { positions, indices, normals }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -79,12 +55,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
     assert!(mesh.indices.len() * 12 + mesh.positions.len() * 24 > 4 << 20);
     t.meshes.push((
         "/Grid".into(),
-        MeshDesc {
-            mesh: Arc::new(mesh),
-            transform: glam::Affine3A::IDENTITY,
-            material: String::new(),
-            visible: true,
-        },
+        MeshDesc { mesh: Arc::new(mesh), transform: glam::Affine3A::IDENTITY, material: String::new(), visible: true },
     ));
     t.lights.push((
         "/Dome".into(),
@@ -111,9 +82,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
 async fn an_edit_during_a_render_restarts_it_and_the_image_shows_the_edit() {
     let translation = load("cornell_box.usda");
     let (server, mut conn) = session_with(&translation).await;
-    let mut editor = Connection::attach(&server.url(), &conn.session)
-        .await
-        .unwrap();
+    let mut editor = Connection::attach(&server.url(), &conn.session).await.unwrap();
     let (light_path, light) = translation.lights[0].clone();
     let (first_tile_tx, first_tile_rx) = tokio::sync::oneshot::channel::<()>();
     let render = tokio::spawn(async move {
@@ -129,10 +98,7 @@ async fn an_edit_during_a_render_restarts_it_and_the_image_shows_the_edit() {
     });
     first_tile_rx.await.expect("a first tile arrives");
     // Make the only light pure blue.
-    let blue = LightDesc {
-        color: Vec3::new(0.0, 0.0, 1.0),
-        ..light
-    };
+    let blue = LightDesc { color: Vec3::new(0.0, 0.0, 1.0), ..light };
     let item = tessera::sync::delta(
         &light_path,
         pb::PrimKind::Light,
@@ -141,11 +107,7 @@ async fn an_edit_during_a_render_restarts_it_and_the_image_shows_the_edit() {
     let resp = editor.sync(vec![item]).await.unwrap();
     assert_eq!(resp.scene_version, 2);
     let report = render.await.unwrap().unwrap();
-    assert_eq!(
-        report.restarts,
-        vec![2],
-        "exactly one restart, at version 2"
-    );
+    assert_eq!(report.restarts, vec![2], "exactly one restart, at version 2");
     let (red, _) = mean_where(&report.image, "beauty", 0, |_, _| true);
     let (b, _) = mean_where(&report.image, "beauty", 2, |_, _| true);
     assert_eq!(red, 0.0, "no red light remains after the edit");
@@ -157,17 +119,11 @@ async fn an_edit_during_a_render_restarts_it_and_the_image_shows_the_edit() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancel_stops_a_long_render_promptly() {
     let (server, mut conn) = session_with(&load("cornell_box.usda")).await;
-    let mut other = Connection::attach(&server.url(), &conn.session)
-        .await
-        .unwrap();
+    let mut other = Connection::attach(&server.url(), &conn.session).await.unwrap();
     let render = tokio::spawn(async move { conn.render(&small(128, 128, 1 << 16), |_| {}).await });
     tokio::time::sleep(Duration::from_millis(300)).await;
     assert!(other.cancel().await.unwrap(), "a render was running");
-    let report = tokio::time::timeout(Duration::from_secs(20), render)
-        .await
-        .expect("stops within a tile's time")
-        .unwrap()
-        .unwrap();
+    let report = tokio::time::timeout(Duration::from_secs(20), render).await.expect("stops within a tile's time").unwrap().unwrap();
     assert!(report.finished.cancelled);
     assert!(report.finished.spp < 1 << 16);
     server.stop().await.unwrap();

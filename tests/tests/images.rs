@@ -4,12 +4,7 @@ use tessera::commands::render::{RenderJob, run};
 use tessera_tests::*;
 
 fn bits(report: &tessera::remote::RenderReport) -> Vec<u32> {
-    report
-        .image
-        .layers
-        .values()
-        .flat_map(|(_, d)| d.iter().map(|v| v.to_bits()))
-        .collect()
+    report.image.layers.values().flat_map(|(_, d)| d.iter().map(|v| v.to_bits())).collect()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -48,15 +43,9 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
     let out = dir.join("cornell.exr");
     let mut options = small(40, 30, 4);
     options.aovs = vec!["albedo".into(), "normal".into(), "depth".into()];
-    let report = run(&RenderJob {
-        scene: fixture("cornell_box.usda"),
-        output: out.clone(),
-        options,
-        server: None,
-        progress: false,
-    })
-    .await
-    .expect("renders");
+    let report = run(&RenderJob { scene: fixture("cornell_box.usda"), output: out.clone(), options, server: None, progress: false })
+        .await
+        .expect("renders");
     let back = tessera::output::read_exr(&out).expect("reads back");
     assert_eq!((back.width, back.height), (40, 30));
     for aov in ["beauty", "albedo", "normal", "depth"] {

@@ -28,12 +28,7 @@ fn polygon_irradiance(p: DVec3, corners: &[DVec3], l: f64) -> f64 {
 
 /// Renders a lit-plane fixture and compares every pixel's mean over a block against the
 /// closed form evaluated at the point the pixel sees.
-async fn check_plane(
-    fixture_name: &str,
-    spp: u32,
-    tolerance: f64,
-    irradiance: impl Fn(DVec3) -> f64,
-) {
+async fn check_plane(fixture_name: &str, spp: u32, tolerance: f64, irradiance: impl Fn(DVec3) -> f64) {
     let (w, h) = (32, 32);
     let translation = load(fixture_name);
     let report = render_fixture(fixture_name, &small(w, h, spp)).await;
@@ -63,38 +58,24 @@ async fn check_plane(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn normalized_distant_light_intensity_is_illuminance() {
     // Intensity 3, normalized, 30 degrees from the plane's normal.
-    check_plane("lights/distant_plane.usda", 16, 0.002, |_| {
-        3.0 * 30f64.to_radians().cos()
-    })
-    .await;
+    check_plane("lights/distant_plane.usda", 16, 0.002, |_| 3.0 * 30f64.to_radians().cos()).await;
 }
 
 fn rect_corners() -> Vec<DVec3> {
     // 0.8 x 0.6 scaled by (2, 1, 1), centred 0.5 above the origin, facing down.
     let (hx, hz) = (0.8, 0.3);
-    vec![
-        DVec3::new(-hx, 0.5, -hz),
-        DVec3::new(hx, 0.5, -hz),
-        DVec3::new(hx, 0.5, hz),
-        DVec3::new(-hx, 0.5, hz),
-    ]
+    vec![DVec3::new(-hx, 0.5, -hz), DVec3::new(hx, 0.5, -hz), DVec3::new(hx, 0.5, hz), DVec3::new(-hx, 0.5, hz)]
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rect_light_radiance_is_its_intensity() {
-    check_plane("lights/rect_plane.usda", 1024, 0.005, |p| {
-        polygon_irradiance(p, &rect_corners(), 2.0)
-    })
-    .await;
+    check_plane("lights/rect_plane.usda", 1024, 0.005, |p| polygon_irradiance(p, &rect_corners(), 2.0)).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn normalized_rect_light_divides_by_world_area() {
     // World-space area 1.6 x 0.6 = 0.96, transform scale included.
-    check_plane("lights/rect_plane_normalized.usda", 1024, 0.005, |p| {
-        polygon_irradiance(p, &rect_corners(), 2.0 / 0.96)
-    })
-    .await;
+    check_plane("lights/rect_plane_normalized.usda", 1024, 0.005, |p| polygon_irradiance(p, &rect_corners(), 2.0 / 0.96)).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -112,14 +93,6 @@ async fn a_unit_light_seen_head_on_is_pixel_value_one() {
 async fn an_emissive_mesh_lights_like_an_area_light_of_its_radiance() {
     // A 0.8 x 0.6 emissive quad of radiance 1.5, 0.5 above the plane, found through the BVH.
     let (hx, hz) = (0.4, 0.3);
-    let corners = vec![
-        DVec3::new(-hx, 0.5, -hz),
-        DVec3::new(hx, 0.5, -hz),
-        DVec3::new(hx, 0.5, hz),
-        DVec3::new(-hx, 0.5, hz),
-    ];
-    check_plane("lights/emissive_plane.usda", 1024, 0.005, |p| {
-        polygon_irradiance(p, &corners, 1.5)
-    })
-    .await;
+    let corners = vec![DVec3::new(-hx, 0.5, -hz), DVec3::new(hx, 0.5, -hz), DVec3::new(hx, 0.5, hz), DVec3::new(-hx, 0.5, hz)];
+    check_plane("lights/emissive_plane.usda", 1024, 0.005, |p| polygon_irradiance(p, &corners, 1.5)).await;
 }

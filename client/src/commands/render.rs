@@ -36,21 +36,14 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         eprintln!("warning: {w}");
     }
     if !translation.skipped.is_empty() {
-        eprintln!(
-            "warning: {} prim(s) not rendered: {}",
-            translation.skipped.len(),
-            translation.skipped.join(", ")
-        );
+        eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
     }
 
     let embedded = match &job.server {
         Some(_) => None,
         None => Some(tessera_server::EmbeddedServer::start().await?),
     };
-    let url = job
-        .server
-        .clone()
-        .unwrap_or_else(|| embedded.as_ref().expect("started above").url());
+    let url = job.server.clone().unwrap_or_else(|| embedded.as_ref().expect("started above").url());
     let mut conn = Connection::connect(&url, "tessera-cli").await?;
     let sync = conn
         .sync(crate::sync::full_sync(&translation))
@@ -61,16 +54,9 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     }
     let load_secs = t0.elapsed().as_secs_f64();
 
-    let bar = if job.progress {
-        ProgressBar::new(job.options.spp as u64)
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = if job.progress { ProgressBar::new(job.options.spp as u64) } else { ProgressBar::hidden() };
     bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} spp  {msg}  ETA {eta}",
-        )
-        .expect("valid template"),
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} spp  {msg}  ETA {eta}").expect("valid template"),
     );
     let mut tiles_this_pass = 0u32;
     let report = conn
@@ -93,16 +79,9 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
             pb::render_event::Event::Progress(p) => {
                 tiles_this_pass = 0;
                 bar.set_position(p.spp as u64);
-                bar.set_message(format!(
-                    "{:.1} Mrays/s  noise {:.2}%",
-                    p.rays_per_second / 1e6,
-                    100.0 * p.estimated_noise
-                ));
+                bar.set_message(format!("{:.1} Mrays/s  noise {:.2}%", p.rays_per_second / 1e6, 100.0 * p.estimated_noise));
             }
-            pb::render_event::Event::Restarted(r) => bar.println(format!(
-                "scene changed (version {}): restarting",
-                r.scene_version
-            )),
+            pb::render_event::Event::Restarted(r) => bar.println(format!("scene changed (version {}): restarting", r.scene_version)),
             _ => {}
         })
         .await?;
@@ -117,39 +96,20 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         ("scene".to_string(), job.scene.display().to_string()),
         ("spp".to_string(), f.spp.to_string()),
         ("seconds".to_string(), format!("{:.3}", f.seconds)),
-        (
-            "estimated_noise".to_string(),
-            format!("{:.5}", f.estimated_noise),
-        ),
+        ("estimated_noise".to_string(), format!("{:.5}", f.estimated_noise)),
         (
             "settings".to_string(),
             format!(
                 "{}x{} spp={} max_depth={} seed={}",
-                job.options.width,
-                job.options.height,
-                job.options.spp,
-                job.options.max_depth,
-                job.options.seed
+                job.options.width, job.options.height, job.options.spp, job.options.max_depth, job.options.seed
             ),
         ),
-        (
-            "plan".to_string(),
-            report
-                .started
-                .plan
-                .iter()
-                .map(|p| p.effect.as_str())
-                .collect::<Vec<_>>()
-                .join(","),
-        ),
+        ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
     ];
     write_outputs(&job.output, &report, &metadata)?;
     println!(
         "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
-        job.scene.file_name().map_or_else(
-            || job.scene.display().to_string(),
-            |n| n.to_string_lossy().to_string()
-        ),
+        job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
         job.options.width,
         job.options.height,
         f.spp,
@@ -165,11 +125,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
 }
 
 /// Writes the EXR and its PNG preview.
-pub fn write_outputs(
-    exr: &Path,
-    report: &RenderReport,
-    metadata: &[(String, String)],
-) -> Result<()> {
+pub fn write_outputs(exr: &Path, report: &RenderReport, metadata: &[(String, String)]) -> Result<()> {
     if let Some(dir) = exr.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }

@@ -24,21 +24,11 @@ pub struct MeshSource {
 pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mesh, String> {
     let total: i64 = src.counts.iter().sum();
     if src.counts.iter().any(|&c| c < 0) || total != src.indices.len() as i64 {
-        return Err(format!(
-            "faceVertexCounts add up to {total} but faceVertexIndices has {} entries",
-            src.indices.len()
-        ));
+        return Err(format!("faceVertexCounts add up to {total} but faceVertexIndices has {} entries", src.indices.len()));
     }
     let n = src.points.len() as i64;
-    if let Some((i, &v)) = src
-        .indices
-        .iter()
-        .enumerate()
-        .find(|&(_, &v)| v < 0 || v >= n)
-    {
-        return Err(format!(
-            "faceVertexIndices[{i}] = {v} is out of range for {n} points"
-        ));
+    if let Some((i, &v)) = src.indices.iter().enumerate().find(|&(_, &v)| v < 0 || v >= n) {
+        return Err(format!("faceVertexIndices[{i}] = {v} is out of range for {n} points"));
     }
     // Fan triangulation; (face, corner) of each triangle corner for face-varying data.
     let mut tris: Vec<[u32; 3]> = Vec::with_capacity(src.indices.len());
@@ -52,11 +42,7 @@ pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mes
             degenerate_faces += 1;
         }
         for k in 1..count.saturating_sub(1) {
-            let c = if src.left_handed {
-                [base, base + k + 1, base + k]
-            } else {
-                [base, base + k, base + k + 1]
-            };
+            let c = if src.left_handed { [base, base + k + 1, base + k] } else { [base, base + k, base + k + 1] };
             tris.push(c.map(|i| src.indices[i] as u32));
             corners.push(c);
             uniform_of.push(face);
@@ -64,9 +50,7 @@ pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mes
         base += count;
     }
     if degenerate_faces > 0 {
-        warn(format!(
-            "{degenerate_faces} face(s) with fewer than 3 vertices skipped"
-        ));
+        warn(format!("{degenerate_faces} face(s) with fewer than 3 vertices skipped"));
     }
 
     let normals = match &src.normals {
@@ -77,27 +61,18 @@ pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mes
                 if n.len() == want {
                     true
                 } else {
-                    warn(format!(
-                        "normals: {} values for {interp} interpolation, {want} expected; ignoring them",
-                        n.len()
-                    ));
+                    warn(format!("normals: {} values for {interp} interpolation, {want} expected; ignoring them", n.len()));
                     false
                 }
             };
             match interp.as_str() {
                 "vertex" | "varying" if expect(src.points.len()) => Normals::Vertex(n.clone()),
-                "faceVarying" if expect(src.indices.len()) => {
-                    Normals::FaceVarying(corners.iter().flat_map(|c| c.map(|i| n[i])).collect())
-                }
-                "uniform" if expect(src.counts.len()) => {
-                    Normals::FaceVarying(uniform_of.iter().flat_map(|&f| [n[f]; 3]).collect())
-                }
+                "faceVarying" if expect(src.indices.len()) => Normals::FaceVarying(corners.iter().flat_map(|c| c.map(|i| n[i])).collect()),
+                "uniform" if expect(src.counts.len()) => Normals::FaceVarying(uniform_of.iter().flat_map(|&f| [n[f]; 3]).collect()),
                 "constant" if expect(1) => Normals::FaceVarying(vec![n[0]; 3 * tris.len()]),
                 "vertex" | "varying" | "faceVarying" | "uniform" | "constant" => Normals::None,
                 other => {
-                    warn(format!(
-                        "normals: unknown interpolation '{other}'; ignoring them"
-                    ));
+                    warn(format!("normals: unknown interpolation '{other}'; ignoring them"));
                     Normals::None
                 }
             }
@@ -106,23 +81,13 @@ pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mes
     let normals = match normals {
         // Bad normals (zero length, NaN) are repaired to the geometric normal at shading
         // time; say so once.
-        Normals::Vertex(ref v) | Normals::FaceVarying(ref v)
-            if v.iter()
-                .any(|n| !n.is_finite() || n.length_squared() == 0.0) =>
-        {
-            warn(
-                "normals: some are zero-length or not finite; the geometric normal is used there"
-                    .into(),
-            );
+        Normals::Vertex(ref v) | Normals::FaceVarying(ref v) if v.iter().any(|n| !n.is_finite() || n.length_squared() == 0.0) => {
+            warn("normals: some are zero-length or not finite; the geometric normal is used there".into());
             normals
         }
         other => other,
     };
-    Ok(Mesh {
-        positions: src.points.clone(),
-        indices: tris,
-        normals,
-    })
+    Ok(Mesh { positions: src.points.clone(), indices: tris, normals })
 }
 
 /// Area-weighted vertex normals.
@@ -164,20 +129,9 @@ mod tests {
     #[test]
     fn face_varying_and_uniform_normals_follow_the_fan() {
         let fv: Vec<Vec3> = (0..4).map(|i| Vec3::new(i as f32, 0.0, 1.0)).collect();
-        let m = triangulate(
-            &quad(false, Some((fv.clone(), "faceVarying".into()))),
-            |_| {},
-        )
-        .unwrap();
-        assert_eq!(
-            m.normals,
-            Normals::FaceVarying(vec![fv[0], fv[1], fv[2], fv[0], fv[2], fv[3]])
-        );
-        let m = triangulate(
-            &quad(false, Some((vec![Vec3::Z], "uniform".into()))),
-            |_| {},
-        )
-        .unwrap();
+        let m = triangulate(&quad(false, Some((fv.clone(), "faceVarying".into()))), |_| {}).unwrap();
+        assert_eq!(m.normals, Normals::FaceVarying(vec![fv[0], fv[1], fv[2], fv[0], fv[2], fv[3]]));
+        let m = triangulate(&quad(false, Some((vec![Vec3::Z], "uniform".into()))), |_| {}).unwrap();
         assert_eq!(m.normals, Normals::FaceVarying(vec![Vec3::Z; 6]));
     }
 
@@ -185,28 +139,16 @@ mod tests {
     fn bad_indices_and_counts_are_errors_naming_the_attribute() {
         let mut q = quad(false, None);
         q.indices[2] = 9;
-        assert!(
-            triangulate(&q, |_| {})
-                .unwrap_err()
-                .contains("faceVertexIndices[2] = 9")
-        );
+        assert!(triangulate(&q, |_| {}).unwrap_err().contains("faceVertexIndices[2] = 9"));
         let mut q = quad(false, None);
         q.counts = vec![5];
-        assert!(
-            triangulate(&q, |_| {})
-                .unwrap_err()
-                .contains("faceVertexCounts")
-        );
+        assert!(triangulate(&q, |_| {}).unwrap_err().contains("faceVertexCounts"));
     }
 
     #[test]
     fn wrong_normal_count_is_ignored_with_a_warning() {
         let mut warnings = Vec::new();
-        let m = triangulate(
-            &quad(false, Some((vec![Vec3::Z; 3], "vertex".into()))),
-            |w| warnings.push(w),
-        )
-        .unwrap();
+        let m = triangulate(&quad(false, Some((vec![Vec3::Z; 3], "vertex".into()))), |w| warnings.push(w)).unwrap();
         assert_eq!(m.normals, Normals::None);
         assert!(warnings[0].contains("3 values for vertex"));
     }

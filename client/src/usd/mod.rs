@@ -67,22 +67,8 @@ impl Imageable for AnyXformable {}
 impl Xformable for AnyXformable {}
 
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
-const STRUCTURAL: &[&str] = &[
-    "",
-    "Xform",
-    "Scope",
-    "Material",
-    "Shader",
-    "NodeGraph",
-    "GeomSubset",
-];
-const LIGHTS: &[&str] = &[
-    "SphereLight",
-    "RectLight",
-    "DiskLight",
-    "DistantLight",
-    "DomeLight",
-];
+const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
+const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "DistantLight", "DomeLight"];
 
 /// Reads and translates the stage at `path`.
 pub fn load(path: &std::path::Path) -> Result<Translation> {
@@ -91,20 +77,9 @@ pub fn load(path: &std::path::Path) -> Result<Translation> {
     if !path.exists() {
         anyhow::bail!("{}: no such file", path.display());
     }
-    let stage = Stage::open(path_str)
-        .map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
-    let time = openusd::usd::TimeCode::new(if stage.has_authored_time_code_range() {
-        stage.start_time_code()
-    } else {
-        0.0
-    });
-    let mut reader = Reader {
-        stage: &stage,
-        time,
-        world: HashMap::new(),
-        out: Translation::default(),
-        materials_seen: HashMap::new(),
-    };
+    let stage = Stage::open(path_str).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
+    let time = openusd::usd::TimeCode::new(if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 });
+    let mut reader = Reader { stage: &stage, time, world: HashMap::new(), out: Translation::default(), materials_seen: HashMap::new() };
     for e in stage.composition_errors() {
         reader.out.warnings.push(format!("composition: {e}"));
     }
@@ -113,9 +88,7 @@ pub fn load(path: &std::path::Path) -> Result<Translation> {
         .traverse(PrimPredicate::DEFAULT_PROXIES, |p| paths.push(p.clone()))
         .map_err(|e| anyhow::anyhow!("{}: traversal failed: {e:#}", path.display()))?;
     for p in paths {
-        reader
-            .visit(&p)
-            .with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
+        reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
     }
     Ok(reader.out)
 }
@@ -130,18 +103,13 @@ struct Reader<'s> {
 }
 
 fn get(prim: &Prim, name: &str) -> Result<Option<Value>> {
-    prim.attribute(name)
-        .get::<Value>()
-        .map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
+    prim.attribute(name).get::<Value>().map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
 }
 
 impl Reader<'_> {
     fn visit(&mut self, path: &sdf::Path) -> Result<()> {
         let prim = self.stage.prim(path.clone());
-        let type_name = prim
-            .type_name()?
-            .map(|t| t.as_str().to_string())
-            .unwrap_or_default();
+        let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
         let p = path.as_str().to_string();
         if STRUCTURAL.contains(&type_name.as_str()) {
             return Ok(());
@@ -157,9 +125,7 @@ impl Reader<'_> {
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
             other => {
-                self.out.warnings.push(format!(
-                    "{p}: prim type '{other}' is not supported yet and is not rendered"
-                ));
+                self.out.warnings.push(format!("{p}: prim type '{other}' is not supported yet and is not rendered"));
                 self.out.skipped.push(p);
                 Ok(())
             }
@@ -174,11 +140,7 @@ impl Reader<'_> {
         let view = AnyXformable(self.stage.prim(path.clone()));
         let local = values::matrix(&view.local_to_parent_transform(self.time)?);
         let parent = match path.parent() {
-            Some(parent)
-                if !view.resets_xform_stack()?
-                    && parent.as_str() != "/"
-                    && !parent.as_str().is_empty() =>
-            {
+            Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => {
                 self.world_transform(&parent)?
             }
             _ => DMat4::IDENTITY,
@@ -199,61 +161,31 @@ impl Reader<'_> {
     }
 
     fn mesh(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
-        let req = |name: &str| -> Result<Value> {
-            get(prim, name)?.with_context(|| format!("{p}: attribute '{name}' is missing"))
-        };
+        let req = |name: &str| -> Result<Value> { get(prim, name)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
         let points = req("points")?;
-        let points = values::vec3_array(&points).with_context(|| {
-            format!(
-                "{p}: attribute 'points' has type {}, expected point3f[]",
-                values::type_of(&points)
-            )
-        })?;
+        let points = values::vec3_array(&points)
+            .with_context(|| format!("{p}: attribute 'points' has type {}, expected point3f[]", values::type_of(&points)))?;
         if let Some((i, v)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             anyhow::bail!("{p}: attribute 'points': point {i} is {v} (NaN or Inf)");
         }
         let counts = req("faceVertexCounts")?;
-        let counts = values::int_array(&counts)
-            .with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
+        let counts = values::int_array(&counts).with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
         let indices = req("faceVertexIndices")?;
-        let indices = values::int_array(&indices)
-            .with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
+        let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
         let normals = self.normals(prim, p)?;
-        let left_handed = get(prim, "orientation")?
-            .as_ref()
-            .and_then(values::token)
-            .is_some_and(|t| t == "leftHanded");
+        let left_handed = get(prim, "orientation")?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
         // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
-        let smooth = get(prim, "subdivisionScheme")?
-            .as_ref()
-            .and_then(values::token)
-            .is_none_or(|s| s != "none");
-        let src = MeshSource {
-            points,
-            counts,
-            indices,
-            normals,
-            left_handed,
-            smooth,
-        };
+        let smooth = get(prim, "subdivisionScheme")?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let src = MeshSource { points, counts, indices, normals, left_handed, smooth };
         let mut warnings = Vec::new();
-        let mesh = triangulate(&src, |w| warnings.push(format!("{p}: {w}")))
-            .map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        let mesh = triangulate(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         self.out.warnings.extend(warnings);
         let transform = self.affine(prim, p)?;
         let material = self.bound_material(prim)?.unwrap_or_default();
         if !material.is_empty() {
             self.material(&material)?;
         }
-        self.out.meshes.push((
-            p.to_string(),
-            MeshDesc {
-                mesh: Arc::new(mesh),
-                transform,
-                material,
-                visible,
-            },
-        ));
+        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, material, visible }));
         Ok(())
     }
 
@@ -267,24 +199,16 @@ impl Reader<'_> {
                 .unwrap_or_else(|| default.to_string())
         };
         if let Some(v) = get(prim, "primvars:normals")? {
-            let n = values::vec3_array(&v)
-                .with_context(|| format!("{p}: primvars:normals is not a normal3f[]"))?;
-            let n = match get(prim, "primvars:normals:indices")?
-                .as_ref()
-                .and_then(values::int_array)
-            {
-                Some(idx) => idx
-                    .iter()
-                    .map(|&i| n.get(i as usize).copied().unwrap_or(Vec3::ZERO))
-                    .collect(),
+            let n = values::vec3_array(&v).with_context(|| format!("{p}: primvars:normals is not a normal3f[]"))?;
+            let n = match get(prim, "primvars:normals:indices")?.as_ref().and_then(values::int_array) {
+                Some(idx) => idx.iter().map(|&i| n.get(i as usize).copied().unwrap_or(Vec3::ZERO)).collect(),
                 None => n,
             };
             return Ok(Some((n, interp("primvars:normals", "constant"))));
         }
         match get(prim, "normals")? {
             Some(v) => Ok(Some((
-                values::vec3_array(&v)
-                    .with_context(|| format!("{p}: normals is not a normal3f[]"))?,
+                values::vec3_array(&v).with_context(|| format!("{p}: normals is not a normal3f[]"))?,
                 interp("normals", "vertex"),
             ))),
             None => Ok(None),
@@ -317,15 +241,11 @@ impl Reader<'_> {
         self.materials_seen.insert(path.to_string(), ());
         let mut network = MaterialNetwork::default();
         let Some(material) = Material::get(self.stage, sdf::path(path)?)? else {
-            self.out.warnings.push(format!(
-                "{path}: bound material is not a Material prim; the default material is used"
-            ));
+            self.out.warnings.push(format!("{path}: bound material is not a Material prim; the default material is used"));
             return Ok(());
         };
         let Some(surface) = material.compute_surface_source()? else {
-            self.out.warnings.push(format!(
-                "{path}: material has no surface shader; the default material is used"
-            ));
+            self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
             self.out.materials.push((path.to_string(), network));
             return Ok(());
         };
@@ -337,28 +257,15 @@ impl Reader<'_> {
                 continue;
             }
             let prim = self.stage.prim(node_path.clone());
-            let id = get(&prim, "info:id")?
-                .as_ref()
-                .and_then(values::token)
-                .unwrap_or_default();
-            let mut node = MaterialNode {
-                path: node_path.as_str().to_string(),
-                node_type_id: id,
-                ..Default::default()
-            };
+            let id = get(&prim, "info:id")?.as_ref().and_then(values::token).unwrap_or_default();
+            let mut node = MaterialNode { path: node_path.as_str().to_string(), node_type_id: id, ..Default::default() };
             for name in prim.property_names()? {
                 let Some(input) = name.strip_prefix("inputs:") else {
                     continue;
                 };
                 let attr = prim.attribute(name.as_str());
                 for src in attr.connections()? {
-                    let (up_prim, up_output) = (
-                        src.prim_path(),
-                        src.name()
-                            .unwrap_or_default()
-                            .trim_start_matches("outputs:")
-                            .to_string(),
-                    );
+                    let (up_prim, up_output) = (src.prim_path(), src.name().unwrap_or_default().trim_start_matches("outputs:").to_string());
                     network.connections.push(MaterialConnection {
                         downstream_node: node.path.clone(),
                         downstream_input: input.to_string(),
@@ -372,11 +279,9 @@ impl Reader<'_> {
                         Some(pv) => {
                             node.parameters.insert(input.to_string(), pv);
                         }
-                        None => self.out.warnings.push(format!(
-                            "{}: input '{input}' has unsupported type {}",
-                            node.path,
-                            values::type_of(&v)
-                        )),
+                        None => {
+                            self.out.warnings.push(format!("{}: input '{input}' has unsupported type {}", node.path, values::type_of(&v)))
+                        }
                     }
                 }
             }
@@ -394,26 +299,13 @@ impl Reader<'_> {
                 None => get(prim, name),
             }
         };
-        let float = |name: &str, default: f32| -> Result<f32> {
-            Ok(input(name)?
-                .as_ref()
-                .and_then(values::scalar)
-                .map_or(default, |v| v as f32))
-        };
+        let float =
+            |name: &str, default: f32| -> Result<f32> { Ok(input(name)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32)) };
         let kind = match type_name {
-            "SphereLight" => LightKind::Sphere {
-                radius: float("radius", 0.5)?,
-            },
-            "RectLight" => LightKind::Rect {
-                width: float("width", 1.0)?,
-                height: float("height", 1.0)?,
-            },
-            "DiskLight" => LightKind::Disk {
-                radius: float("radius", 0.5)?,
-            },
-            "DistantLight" => LightKind::Distant {
-                angle_degrees: float("angle", 0.53)?,
-            },
+            "SphereLight" => LightKind::Sphere { radius: float("radius", 0.5)? },
+            "RectLight" => LightKind::Rect { width: float("width", 1.0)?, height: float("height", 1.0)? },
+            "DiskLight" => LightKind::Disk { radius: float("radius", 0.5)? },
+            "DistantLight" => LightKind::Distant { angle_degrees: float("angle", 0.53)? },
             _ => LightKind::Dome,
         };
         if type_name == "RectLight" || type_name == "DomeLight" {
@@ -421,38 +313,17 @@ impl Reader<'_> {
                 self.out.warnings.push(format!("{p}: inputs:texture:file is not supported yet; the light's constant colour is used"));
             }
         }
-        if input("enableColorTemperature")?
-            .as_ref()
-            .and_then(values::scalar)
-            .unwrap_or(0.0)
-            != 0.0
-        {
-            self.out.warnings.push(format!(
-                "{p}: colour temperature is not supported yet and is ignored"
-            ));
+        if input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0 {
+            self.out.warnings.push(format!("{p}: colour temperature is not supported yet and is ignored"));
         }
         let desc = LightDesc {
             kind,
             transform: self.affine(prim, p)?,
             // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
-            intensity: float(
-                "intensity",
-                if type_name == "DistantLight" {
-                    50000.0
-                } else {
-                    1.0
-                },
-            )?,
+            intensity: float("intensity", if type_name == "DistantLight" { 50000.0 } else { 1.0 })?,
             exposure: float("exposure", 0.0)?,
-            color: input("color")?
-                .as_ref()
-                .and_then(values::vec3)
-                .unwrap_or(Vec3::ONE),
-            normalize: input("normalize")?
-                .as_ref()
-                .and_then(values::scalar)
-                .unwrap_or(0.0)
-                != 0.0,
+            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE),
+            normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
             visible_to_camera: visible,
         };
         if !visible {
@@ -465,24 +336,12 @@ impl Reader<'_> {
     fn camera(&mut self, prim: &Prim, p: &str) -> Result<()> {
         let d = CameraDesc::default();
         let float = |name: &str, default: f32| -> Result<f32> {
-            Ok(get(prim, name)?
-                .as_ref()
-                .and_then(values::scalar)
-                .map_or(default, |v| v as f32))
+            Ok(get(prim, name)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
         };
-        if get(prim, "projection")?
-            .as_ref()
-            .and_then(values::token)
-            .is_some_and(|t| t == "orthographic")
-        {
-            self.out.warnings.push(format!(
-                "{p}: orthographic projection is not supported yet; rendering as perspective"
-            ));
+        if get(prim, "projection")?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic") {
+            self.out.warnings.push(format!("{p}: orthographic projection is not supported yet; rendering as perspective"));
         }
-        let clip = get(prim, "clippingRange")?
-            .as_ref()
-            .and_then(values::vec2)
-            .unwrap_or([d.near as f64, d.far as f64]);
+        let clip = get(prim, "clippingRange")?.as_ref().and_then(values::vec2).unwrap_or([d.near as f64, d.far as f64]);
         let desc = CameraDesc {
             transform: self.affine(prim, p)?,
             focal_length: float("focalLength", d.focal_length)?,
@@ -500,9 +359,7 @@ impl Reader<'_> {
 
 fn param(v: &Value) -> Option<ParamValue> {
     Some(match v {
-        Value::Float(_) | Value::Double(_) | Value::Half(_) => {
-            ParamValue::Float(values::scalar(v)? as f32)
-        }
+        Value::Float(_) | Value::Double(_) | Value::Half(_) => ParamValue::Float(values::scalar(v)? as f32),
         Value::Int(i) => ParamValue::Int(*i),
         Value::Bool(b) => ParamValue::Bool(*b),
         Value::Token(_) | Value::String(_) => ParamValue::String(values::token(v)?),

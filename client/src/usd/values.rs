@@ -8,14 +8,8 @@ use openusd::sdf::Value;
 pub fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
     Some(match v {
         Value::Vec3fVec(a) => a.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect(),
-        Value::Vec3dVec(a) => a
-            .iter()
-            .map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32))
-            .collect(),
-        Value::Vec3hVec(a) => a
-            .iter()
-            .map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32()))
-            .collect(),
+        Value::Vec3dVec(a) => a.iter().map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32)).collect(),
+        Value::Vec3hVec(a) => a.iter().map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32())).collect(),
         _ => return None,
     })
 }
@@ -83,8 +77,5 @@ pub fn matrix(m: &openusd::gf::Matrix4d) -> DMat4 {
 /// A short description of a value's type, for error messages.
 pub fn type_of(v: &Value) -> String {
     let s = format!("{v:?}");
-    s.split(['(', ' ', '{'])
-        .next()
-        .unwrap_or("value")
-        .to_string()
+    s.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
 }

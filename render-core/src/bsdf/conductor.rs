@@ -86,24 +86,10 @@ pub struct Conductor {
 
 impl Conductor {
     /// A conductor of `roughness` and `anisotropic` (Disney mapping).
-    pub fn new(
-        roughness: f32,
-        anisotropic: f32,
-        fresnel: ConductorFresnel,
-        compensate: bool,
-    ) -> Self {
-        let roughness = if roughness.is_finite() {
-            roughness.clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
+    pub fn new(roughness: f32, anisotropic: f32, fresnel: ConductorFresnel, compensate: bool) -> Self {
+        let roughness = if roughness.is_finite() { roughness.clamp(0.0, 1.0) } else { 1.0 };
         let ggx = Ggx::from_roughness(roughness, anisotropic);
-        Conductor {
-            ggx,
-            roughness: ggx.ax.min(ggx.ay).sqrt().min(1.0),
-            fresnel,
-            compensate,
-        }
+        Conductor { ggx, roughness: ggx.ax.min(ggx.ay).sqrt().min(1.0), fresnel, compensate }
     }
 
     fn smooth(&self) -> bool {
@@ -112,11 +98,7 @@ impl Conductor {
 
     /// Flags: reflection, delta when smooth.
     pub fn flags(&self) -> LobeFlags {
-        LobeFlags {
-            reflection: true,
-            transmission: false,
-            delta: self.smooth(),
-        }
+        LobeFlags { reflection: true, transmission: false, delta: self.smooth() }
     }
 
     /// (E(μo), E_avg, F_ms) when compensating; None otherwise.
@@ -129,10 +111,7 @@ impl Conductor {
         if e_avg >= 1.0 {
             return None;
         }
-        Some((
-            e_avg,
-            energy::multiple_scattering_fresnel(self.fresnel.average(), e_avg),
-        ))
+        Some((e_avg, energy::multiple_scattering_fresnel(self.fresnel.average(), e_avg)))
     }
 
     #[inline]
@@ -140,10 +119,7 @@ impl Conductor {
         match self.ms_terms() {
             Some((e_avg, fms)) => {
                 let t = energy::ggx();
-                fms * ((1.0 - t.e(wo.z, self.roughness))
-                    * (1.0 - t.e(wi.z, self.roughness))
-                    * FRAC_1_PI
-                    / (1.0 - e_avg))
+                fms * ((1.0 - t.e(wo.z, self.roughness)) * (1.0 - t.e(wi.z, self.roughness)) * FRAC_1_PI / (1.0 - e_avg))
             }
             None => Vec3::ZERO,
         }
@@ -157,11 +133,7 @@ impl Conductor {
                 let e = energy::ggx().e(wo.z, self.roughness);
                 let w_ms = (1.0 - e) * luminance(fms);
                 let w_spec = e * luminance(self.fresnel.average()).max(1e-4);
-                if w_ms + w_spec > 0.0 {
-                    w_ms / (w_ms + w_spec)
-                } else {
-                    0.0
-                }
+                if w_ms + w_spec > 0.0 { w_ms / (w_ms + w_spec) } else { 0.0 }
             }
             None => 0.0,
         }
@@ -205,19 +177,9 @@ impl Conductor {
         }
         if self.smooth() {
             let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-            return Some(LobeSample {
-                wi,
-                weight: self.fresnel.eval(wo.z),
-                pdf: 1.0,
-                flags: self.flags(),
-                eta: 1.0,
-            });
+            return Some(LobeSample { wi, weight: self.fresnel.eval(wo.z), pdf: 1.0, flags: self.flags(), eta: 1.0 });
         }
-        let wi = if uc < self.p_ms(wo) {
-            cosine_hemisphere(u)
-        } else {
-            reflect(wo, self.ggx.regularized().sample_visible(wo, u))
-        };
+        let wi = if uc < self.p_ms(wo) { cosine_hemisphere(u) } else { reflect(wo, self.ggx.regularized().sample_visible(wo, u)) };
         if wi.z <= 0.0 {
             return None;
         }
@@ -226,13 +188,7 @@ impl Conductor {
             return None;
         }
         let weight = self.eval(wo, wi) * wi.z / pdf;
-        weight.is_finite().then_some(LobeSample {
-            wi,
-            weight,
-            pdf,
-            flags: self.flags(),
-            eta: 1.0,
-        })
+        weight.is_finite().then_some(LobeSample { wi, weight, pdf, flags: self.flags(), eta: 1.0 })
     }
 
     /// Albedo estimate at `wo`: F(μo)·E(μo) plus the compensation lobe's 1 − E(μo) share.
@@ -261,19 +217,11 @@ mod tests {
     const ROUGHNESS: [f32; 6] = [0.0, 1e-4, 0.1, 0.5, 0.8, 1.0];
 
     fn white(r: f32, aniso: f32, compensate: bool) -> Lobe {
-        Lobe::Conductor(Conductor::new(
-            r,
-            aniso,
-            ConductorFresnel::White,
-            compensate,
-        ))
+        Lobe::Conductor(Conductor::new(r, aniso, ConductorFresnel::White, compensate))
     }
 
     fn gold(r: f32, aniso: f32) -> Lobe {
-        let fresnel = ConductorFresnel::Gulbrandsen {
-            r: Vec3::new(0.944, 0.776, 0.373),
-            g: Vec3::new(0.998, 0.981, 0.751),
-        };
+        let fresnel = ConductorFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };
         Lobe::Conductor(Conductor::new(r, aniso, fresnel, true))
     }
 
@@ -311,11 +259,7 @@ mod tests {
         for r in ROUGHNESS {
             for wo in testing::probe_directions() {
                 let a = testing::albedo_estimate(&white(r, 0.0, true), wo, 100_000).x;
-                assert!(
-                    (a - 1.0).abs() < 0.01,
-                    "roughness {r}, cos {}: albedo {a}",
-                    wo.z
-                );
+                assert!((a - 1.0).abs() < 0.01, "roughness {r}, cos {}: albedo {a}", wo.z);
             }
         }
         // Without it, roughness 1 loses what E_avg says.
@@ -324,14 +268,9 @@ mod tests {
         for k in 0..n {
             let mu = (k as f32 + 0.5) / n as f32;
             let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-            avg += 2.0 * mu * testing::albedo_estimate(&white(1.0, 0.0, false), wo, 20_000).x
-                / n as f32;
+            avg += 2.0 * mu * testing::albedo_estimate(&white(1.0, 0.0, false), wo, 20_000).x / n as f32;
         }
-        assert!(
-            (1.0 - avg - energy::fit_one_minus_e_avg(1.0)).abs() < 0.015,
-            "1 - E_avg(1) = {}",
-            1.0 - avg
-        );
+        assert!((1.0 - avg - energy::fit_one_minus_e_avg(1.0)).abs() < 0.015, "1 - E_avg(1) = {}", 1.0 - avg);
     }
 
     #[test]
@@ -344,15 +283,7 @@ mod tests {
 
     #[test]
     fn chi_square() {
-        for (k, lobe) in [
-            white(0.2, 0.0, false),
-            white(0.6, 0.0, true),
-            gold(0.3, 0.8),
-            gold(1.0, -1.0),
-        ]
-        .iter()
-        .enumerate()
-        {
+        for (k, lobe) in [white(0.2, 0.0, false), white(0.6, 0.0, true), gold(0.3, 0.8), gold(1.0, -1.0)].iter().enumerate() {
             testing::assert_chi2(lobe, 100 + k as u64);
         }
     }

@@ -44,11 +44,7 @@ pub struct DisneyDiffuse {
 
 impl DisneyDiffuse {
     /// Reflection, not delta.
-    pub const FLAGS: LobeFlags = LobeFlags {
-        reflection: true,
-        transmission: false,
-        delta: false,
-    };
+    pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
 
     /// f without the cosine.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
@@ -76,10 +72,7 @@ impl DisneyDiffuse {
         } else {
             0.0
         };
-        (
-            FRAC_1_PI * (1.0 + (hk - 1.0) * flatness) * (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv),
-            FRAC_1_PI * retro,
-        )
+        (FRAC_1_PI * (1.0 + (hk - 1.0) * flatness) * (1.0 - 0.5 * fl) * (1.0 - 0.5 * fv), FRAC_1_PI * retro)
     }
 
     /// Cosine-weighted on `wo`'s side.
@@ -89,22 +82,12 @@ impl DisneyDiffuse {
         }
         let wi = cosine_same_side(wo, u);
         let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
-            pdf,
-            flags: Self::FLAGS,
-            eta: 1.0,
-        })
+        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// |cos θi|/π on `wo`'s side.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z * wi.z > 0.0 {
-            cosine_hemisphere_pdf(wi.z.abs())
-        } else {
-            0.0
-        }
+        if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
     }
 
     /// The base colour.
@@ -127,10 +110,7 @@ pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
         let mut t = Vec::with_capacity(TABLE_N * TABLE_N);
         for j in 0..TABLE_N {
             for i in 0..TABLE_N {
-                let (r, fl) = (
-                    j as f32 / (TABLE_N - 1) as f32,
-                    i as f32 / (TABLE_N - 1) as f32,
-                );
+                let (r, fl) = (j as f32 / (TABLE_N - 1) as f32, i as f32 / (TABLE_N - 1) as f32);
                 let mut eb_max: f32 = 0.0;
                 let mut pairs = Vec::with_capacity(32);
                 for m in 0..32 {
@@ -140,10 +120,7 @@ pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
                     const Q: usize = 64;
                     for a in 0..Q {
                         for b in 0..Q {
-                            let wi = cosine_hemisphere(Vec2::new(
-                                (a as f32 + 0.5) / Q as f32,
-                                (b as f32 + 0.5) / Q as f32,
-                            ));
+                            let wi = cosine_hemisphere(Vec2::new((a as f32 + 0.5) / Q as f32, (b as f32 + 0.5) / Q as f32));
                             let (fb, fr) = DisneyDiffuse::parts(r, fl, wo, wi);
                             eb += (fb * PI) as f64;
                             er += (fr * PI) as f64;
@@ -155,11 +132,8 @@ pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
                 }
                 // 0.5% margin for the quadrature and for cosines between the nodes.
                 let s = (0.995 / eb_max).min(1.0);
-                let k = pairs
-                    .iter()
-                    .filter(|(_, er)| *er > 0.0)
-                    .map(|(eb, er)| ((0.995 - s * eb) / er).clamp(0.0, 1.0))
-                    .fold(1.0f32, f32::min);
+                let k =
+                    pairs.iter().filter(|(_, er)| *er > 0.0).map(|(eb, er)| ((0.995 - s * eb) / er).clamp(0.0, 1.0)).fold(1.0f32, f32::min);
                 t.push((s, k));
             }
         }
@@ -186,19 +160,11 @@ pub struct DiffuseTransmission {
 
 impl DiffuseTransmission {
     /// Transmission, not delta.
-    pub const FLAGS: LobeFlags = LobeFlags {
-        reflection: false,
-        transmission: true,
-        delta: false,
-    };
+    pub const FLAGS: LobeFlags = LobeFlags { reflection: false, transmission: true, delta: false };
 
     /// c/π for opposite sides.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z * wi.z < 0.0 {
-            self.color * FRAC_1_PI
-        } else {
-            Vec3::ZERO
-        }
+        if wo.z * wi.z < 0.0 { self.color * FRAC_1_PI } else { Vec3::ZERO }
     }
 
     /// Cosine-weighted on the far side.
@@ -207,22 +173,12 @@ impl DiffuseTransmission {
             return None;
         }
         let wi = -cosine_same_side(wo, u);
-        (wi.z != 0.0).then(|| LobeSample {
-            wi,
-            weight: self.color,
-            pdf: cosine_hemisphere_pdf(wi.z.abs()),
-            flags: Self::FLAGS,
-            eta: 1.0,
-        })
+        (wi.z != 0.0).then(|| LobeSample { wi, weight: self.color, pdf: cosine_hemisphere_pdf(wi.z.abs()), flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// |cos θi|/π on the far side.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z * wi.z < 0.0 {
-            cosine_hemisphere_pdf(wi.z.abs())
-        } else {
-            0.0
-        }
+        if wo.z * wi.z < 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
     }
 
     /// The colour.
@@ -240,11 +196,7 @@ pub struct Sheen {
 
 impl Sheen {
     /// Reflection, not delta.
-    pub const FLAGS: LobeFlags = LobeFlags {
-        reflection: true,
-        transmission: false,
-        delta: false,
-    };
+    pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
 
     /// The Disney sheen colour from `baseColor`'s hue (the BRDF Explorer's tint).
     pub fn tint(base: Vec3) -> Vec3 {
@@ -268,22 +220,12 @@ impl Sheen {
         }
         let wi = cosine_same_side(wo, u);
         let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
-            pdf,
-            flags: Self::FLAGS,
-            eta: 1.0,
-        })
+        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// |cos θi|/π on `wo`'s side.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z * wi.z > 0.0 {
-            cosine_hemisphere_pdf(wi.z.abs())
-        } else {
-            0.0
-        }
+        if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
     }
 
     /// Directional albedo estimate: the sheen peaks at grazing; (1 − μ)⁵-weighted average.
@@ -305,20 +247,13 @@ pub struct Clearcoat {
 
 impl Clearcoat {
     /// Reflection, not delta.
-    pub const FLAGS: LobeFlags = LobeFlags {
-        reflection: true,
-        transmission: false,
-        delta: false,
-    };
+    pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
     const G_ALPHA: Ggx = Ggx { ax: 0.25, ay: 0.25 };
 
     /// From Disney's `clearcoat` and `clearcoatGloss`.
     pub fn new(clearcoat: f32, gloss: f32) -> Self {
         let g = gloss.clamp(0.0, 1.0);
-        Clearcoat {
-            weight: 0.25 * clearcoat.clamp(0.0, 1.0),
-            alpha: 0.1 + (0.001 - 0.1) * g,
-        }
+        Clearcoat { weight: 0.25 * clearcoat.clamp(0.0, 1.0), alpha: 0.1 + (0.001 - 0.1) * g }
     }
 
     /// f without the cosine (reflection on either side).
@@ -351,13 +286,7 @@ impl Clearcoat {
             return None;
         }
         let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample {
-            wi,
-            weight: self.eval(wo, wi) * wi.z.abs() / pdf,
-            pdf,
-            flags: Self::FLAGS,
-            eta: 1.0,
-        })
+        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// D(h)·cos θh / (4|wo·h|).
@@ -385,16 +314,10 @@ mod tests {
         let mut v = Vec::new();
         for r in [0.0, 0.5, 1.0] {
             for flatness in [0.0, 0.5, 1.0] {
-                v.push(Lobe::DisneyDiffuse(DisneyDiffuse {
-                    color: Vec3::ONE,
-                    roughness: r,
-                    flatness,
-                }));
+                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness }));
             }
         }
-        v.push(Lobe::DiffuseTransmission(DiffuseTransmission {
-            color: Vec3::ONE,
-        }));
+        v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE }));
         v.push(Lobe::Sheen(Sheen { color: Vec3::ONE }));
         for gloss in [0.0, 0.5, 1.0] {
             v.push(Lobe::Clearcoat(Clearcoat::new(1.0, gloss)));
@@ -439,11 +362,7 @@ mod tests {
     #[test]
     fn chi_square() {
         let lobes = lobes();
-        for (k, lobe) in lobes
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| (k % 3 == 0 || *k >= 9) && *k != lobes.len() - 1)
-        {
+        for (k, lobe) in lobes.iter().enumerate().filter(|(k, _)| (k % 3 == 0 || *k >= 9) && *k != lobes.len() - 1) {
             testing::assert_chi2(lobe, 400 + k as u64);
         }
     }

@@ -15,20 +15,12 @@ pub struct Lambert {
 
 impl Lambert {
     /// Reflection only, not delta.
-    pub const FLAGS: LobeFlags = LobeFlags {
-        reflection: true,
-        transmission: false,
-        delta: false,
-    };
+    pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
 
     /// f(wo, wi) = R/π when both directions are above the surface.
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z > 0.0 && wi.z > 0.0 {
-            self.r * FRAC_1_PI
-        } else {
-            Vec3::ZERO
-        }
+        if wo.z > 0.0 && wi.z > 0.0 { self.r * FRAC_1_PI } else { Vec3::ZERO }
     }
 
     /// Cosine-weighted sampling: the weight is exactly R.
@@ -41,23 +33,13 @@ impl Lambert {
         if wi.z <= 0.0 {
             return None;
         }
-        Some(LobeSample {
-            wi,
-            weight: self.r,
-            pdf: cosine_hemisphere_pdf(wi.z),
-            flags: Self::FLAGS,
-            eta: 1.0,
-        })
+        Some(LobeSample { wi, weight: self.r, pdf: cosine_hemisphere_pdf(wi.z), flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// cos θi / π above the surface.
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z > 0.0 && wi.z > 0.0 {
-            cosine_hemisphere_pdf(wi.z)
-        } else {
-            0.0
-        }
+        if wo.z > 0.0 && wi.z > 0.0 { cosine_hemisphere_pdf(wi.z) } else { 0.0 }
     }
 
     /// The albedo is R at every angle.
@@ -73,12 +55,7 @@ mod tests {
     use crate::bsdf::{Lobe, testing};
 
     fn lobes() -> Vec<Lobe> {
-        vec![
-            Lobe::Lambert(Lambert { r: Vec3::ONE }),
-            Lobe::Lambert(Lambert {
-                r: Vec3::new(0.2, 0.5, 0.0),
-            }),
-        ]
+        vec![Lobe::Lambert(Lambert { r: Vec3::ONE }), Lobe::Lambert(Lambert { r: Vec3::new(0.2, 0.5, 0.0) })]
     }
 
     #[test]
@@ -87,11 +64,7 @@ mod tests {
             testing::assert_albedo_at_most_one(&lobe);
         }
         // R = 1 reflects everything.
-        let a = testing::albedo_estimate(
-            &Lobe::Lambert(Lambert { r: Vec3::ONE }),
-            Vec3::new(0.6, 0.0, 0.8),
-            100_000,
-        );
+        let a = testing::albedo_estimate(&Lobe::Lambert(Lambert { r: Vec3::ONE }), Vec3::new(0.6, 0.0, 0.8), 100_000);
         assert!((a - Vec3::ONE).abs().max_element() < 0.01, "{a:?}");
     }
 

@@ -29,21 +29,10 @@ impl Ggx {
     /// Disney's mapping (Schutte, "Specular BRDF"): aspect = sqrt(1 − 0.9·anisotropic),
     /// αx = roughness²/aspect, αy = roughness²·aspect. `anisotropic` is clamped to [−1, 1].
     pub fn from_roughness(roughness: f32, anisotropic: f32) -> Self {
-        let r = if roughness.is_finite() {
-            roughness.clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        let aniso = if anisotropic.is_finite() {
-            anisotropic.clamp(-1.0, 1.0)
-        } else {
-            0.0
-        };
+        let r = if roughness.is_finite() { roughness.clamp(0.0, 1.0) } else { 1.0 };
+        let aniso = if anisotropic.is_finite() { anisotropic.clamp(-1.0, 1.0) } else { 0.0 };
         let aspect = (1.0 - 0.9 * aniso).sqrt();
-        Ggx {
-            ax: r * r / aspect,
-            ay: r * r * aspect,
-        }
+        Ggx { ax: r * r / aspect, ay: r * r * aspect }
     }
 
     /// True when the lobe is a mirror (a delta).
@@ -53,10 +42,7 @@ impl Ggx {
 
     /// The same lobe with each α floored at [`MIN_ALPHA`].
     pub fn regularized(&self) -> Self {
-        Ggx {
-            ax: self.ax.max(MIN_ALPHA),
-            ay: self.ay.max(MIN_ALPHA),
-        }
+        Ggx { ax: self.ax.max(MIN_ALPHA), ay: self.ay.max(MIN_ALPHA) }
     }
 
     /// D(m): normal distribution, for a microfacet normal in the local frame.
@@ -108,11 +94,7 @@ impl Ggx {
         // Stretch to the hemisphere configuration.
         let vh = Vec3::new(self.ax * wo.x, self.ay * wo.y, wo.z).normalize();
         let lensq = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if lensq > 0.0 {
-            Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
-        } else {
-            Vec3::X
-        };
+        let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
         let phi = 2.0 * PI * u.y;
@@ -150,11 +132,7 @@ mod tests {
     #[test]
     fn d_is_normalised_projected_area() {
         // ∫ D(m) m.z dm = 1 over the hemisphere.
-        for g in [
-            Ggx { ax: 0.3, ay: 0.3 },
-            Ggx { ax: 0.1, ay: 0.6 },
-            Ggx { ax: 1.0, ay: 1.0 },
-        ] {
+        for g in [Ggx { ax: 0.3, ay: 0.3 }, Ggx { ax: 0.1, ay: 0.6 }, Ggx { ax: 1.0, ay: 1.0 }] {
             let mut rng = Pcg32::new(1, 1);
             let n = 400_000;
             let mut acc = 0.0f64;
@@ -162,11 +140,7 @@ mod tests {
                 let m = uniform_sphere(rng.next_2d());
                 acc += (g.d(m) * m.z.max(0.0)) as f64 * 4.0 * std::f64::consts::PI;
             }
-            assert!(
-                (acc / n as f64 - 1.0).abs() < 0.03,
-                "{g:?}: {}",
-                acc / n as f64
-            );
+            assert!((acc / n as f64 - 1.0).abs() < 0.03, "{g:?}: {}", acc / n as f64);
         }
     }
 

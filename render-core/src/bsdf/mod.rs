@@ -169,10 +169,7 @@ impl Bsdf {
     }
 
     fn lobes(&self) -> impl Iterator<Item = (usize, &Lobe)> {
-        self.lobes[..self.count]
-            .iter()
-            .enumerate()
-            .filter_map(|(i, l)| l.as_ref().map(|l| (i, l)))
+        self.lobes[..self.count].iter().enumerate().filter_map(|(i, l)| l.as_ref().map(|l| (i, l)))
     }
 
     /// Sets lobe selection probabilities from albedo estimates at `wo`. Call once per
@@ -185,11 +182,7 @@ impl Bsdf {
             total += w;
         }
         for i in 0..self.count {
-            self.select[i] = if total > 0.0 {
-                self.select[i] / total
-            } else {
-                1.0 / self.count as f32
-            };
+            self.select[i] = if total > 0.0 { self.select[i] / total } else { 1.0 / self.count as f32 };
         }
     }
 
@@ -200,9 +193,7 @@ impl Bsdf {
 
     /// The mixture density of [`Bsdf::sample`].
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        self.lobes()
-            .map(|(i, l)| self.select[i] * l.pdf(wo, wi))
-            .sum()
+        self.lobes().map(|(i, l)| self.select[i] * l.pdf(wo, wi)).sum()
     }
 
     /// Sum of the lobes' albedo estimates.
@@ -227,30 +218,18 @@ impl Bsdf {
         let lobe = self.lobes[i]?;
         // Reuse the selection number inside the lobe, rescaled (Cycles' trick, which keeps
         // its stratification).
-        let uc = if self.select[i] > 0.0 {
-            ((u_lobe - lo) / self.select[i]).clamp(0.0, 1.0 - f32::EPSILON)
-        } else {
-            0.5
-        };
+        let uc = if self.select[i] > 0.0 { ((u_lobe - lo) / self.select[i]).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.5 };
         let s = lobe.sample(wo, uc, u)?;
         if s.flags.delta {
             let p = self.select[i];
-            return (p > 0.0).then(|| LobeSample {
-                weight: s.weight / p,
-                pdf: p,
-                ..s
-            });
+            return (p > 0.0).then(|| LobeSample { weight: s.weight / p, pdf: p, ..s });
         }
         let pdf = self.pdf(wo, s.wi);
         if !(pdf > 0.0) {
             return None;
         }
         let f = self.eval(wo, s.wi);
-        Some(LobeSample {
-            weight: f * s.wi.z.abs() / pdf,
-            pdf,
-            ..s
-        })
+        Some(LobeSample { weight: f * s.wi.z.abs() / pdf, pdf, ..s })
     }
 }
 
@@ -264,41 +243,24 @@ mod finite_everywhere {
 
     fn dir() -> impl Strategy<Value = Vec3> {
         // Any direction, including below the horizon, exactly grazing and unnormalised.
-        (
-            -1.0f32..1.0,
-            -1.0f32..1.0,
-            prop_oneof![Just(0.0f32), Just(1e-6f32), Just(-1e-6f32), -1.0f32..1.0],
-        )
+        (-1.0f32..1.0, -1.0f32..1.0, prop_oneof![Just(0.0f32), Just(1e-6f32), Just(-1e-6f32), -1.0f32..1.0])
             .prop_map(|(x, y, z)| Vec3::new(x, y, z))
     }
 
     fn lobe() -> impl Strategy<Value = Lobe> {
-        let r = prop_oneof![
-            Just(0.0f32),
-            Just(1e-7f32),
-            Just(1e-4f32),
-            Just(1.0f32),
-            0.0f32..1.0
-        ];
+        let r = prop_oneof![Just(0.0f32), Just(1e-7f32), Just(1e-4f32), Just(1.0f32), 0.0f32..1.0];
         let a = prop_oneof![Just(-1.0f32), Just(0.0f32), Just(1.0f32), -1.0f32..1.0];
         let c = (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0).prop_map(|(x, y, z)| Vec3::new(x, y, z));
         prop_oneof![
             c.clone().prop_map(|r| Lobe::Lambert(Lambert { r })),
-            (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(
-                |(r, a, f, g, comp)| Lobe::Conductor(Conductor::new(
-                    r,
-                    a,
-                    ConductorFresnel::Gulbrandsen { r: f, g },
-                    comp
-                ))
-            ),
+            (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(|(r, a, f, g, comp)| Lobe::Conductor(Conductor::new(
+                r,
+                a,
+                ConductorFresnel::Gulbrandsen { r: f, g },
+                comp
+            ))),
             (r, a, c.clone(), c, 0.01f32..10.0, any::<bool>()).prop_map(|(r, a, f, g, p, comp)| {
-                Lobe::Conductor(Conductor::new(
-                    r,
-                    a,
-                    ConductorFresnel::Artistic { r: f, g, p },
-                    comp,
-                ))
+                Lobe::Conductor(Conductor::new(r, a, ConductorFresnel::Artistic { r: f, g, p }, comp))
             }),
         ]
     }

@@ -30,11 +30,7 @@ pub fn albedo_estimate(lobe: &Lobe, wo: Vec3, n: u32) -> Vec3 {
     let mut acc = glam::DVec3::ZERO;
     for _ in 0..n {
         if let Some(s) = lobe.sample(wo, rng.next_f32(), rng.next_2d()) {
-            assert!(
-                crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0,
-                "bad weight {:?}",
-                s.weight
-            );
+            assert!(crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0, "bad weight {:?}", s.weight);
             acc += (s.weight * s.eta * s.eta).as_dvec3();
         }
     }
@@ -45,10 +41,7 @@ pub fn albedo_estimate(lobe: &Lobe, wo: Vec3, n: u32) -> Vec3 {
 pub fn assert_albedo_at_most_one(lobe: &Lobe) {
     for wo in probe_directions() {
         let a = albedo_estimate(lobe, wo, 50_000);
-        assert!(
-            a.max_element() <= 1.0 + 1e-3 + 0.01,
-            "albedo {a:?} > 1 at wo={wo:?} for {lobe:?}"
-        );
+        assert!(a.max_element() <= 1.0 + 1e-3 + 0.01, "albedo {a:?} > 1 at wo={wo:?} for {lobe:?}");
     }
 }
 
@@ -61,10 +54,7 @@ pub fn assert_reciprocal(lobe: &Lobe) {
         let f1 = lobe.eval(a, b);
         let f2 = lobe.eval(b, a);
         let scale = f1.abs().max(f2.abs()).max_element().max(1e-6);
-        assert!(
-            (f1 - f2).abs().max_element() <= 1e-4 * scale,
-            "f({a:?},{b:?})={f1:?} but reversed {f2:?}"
-        );
+        assert!((f1 - f2).abs().max_element() <= 1e-4 * scale, "f({a:?},{b:?})={f1:?} but reversed {f2:?}");
     }
 }
 
@@ -81,18 +71,9 @@ pub fn assert_weights_consistent(lobe: &Lobe) {
                 continue;
             }
             let pdf = lobe.pdf(wo, s.wi);
-            assert!(
-                (pdf - s.pdf).abs() <= 1e-3 * pdf.max(1e-3),
-                "pdf {pdf} vs sampled {}",
-                s.pdf
-            );
+            assert!((pdf - s.pdf).abs() <= 1e-3 * pdf.max(1e-3), "pdf {pdf} vs sampled {}", s.pdf);
             let w = lobe.eval(wo, s.wi) * s.wi.z.abs() / pdf;
-            assert!(
-                (w - s.weight).abs().max_element() <= 1e-3 * w.max_element().max(1e-3),
-                "weight {:?} vs {:?}",
-                s.weight,
-                w
-            );
+            assert!((w - s.weight).abs().max_element() <= 1e-3 * w.max_element().max(1e-3), "weight {:?} vs {:?}", s.weight, w);
         }
     }
 }
@@ -105,13 +86,9 @@ const ALPHA: f64 = 0.01;
 
 fn bin_of(w: Vec3) -> usize {
     let theta = (w.z as f64).clamp(-1.0, 1.0).acos();
-    let c = (theta / PI * THETA_BINS as f64)
-        .floor()
-        .clamp(0.0, THETA_BINS as f64 - 1.0) as usize;
+    let c = (theta / PI * THETA_BINS as f64).floor().clamp(0.0, THETA_BINS as f64 - 1.0) as usize;
     let phi = (w.y as f64).atan2(w.x as f64).rem_euclid(2.0 * PI);
-    let p = (phi / (2.0 * PI) * PHI_BINS as f64)
-        .floor()
-        .clamp(0.0, PHI_BINS as f64 - 1.0) as usize;
+    let p = (phi / (2.0 * PI) * PHI_BINS as f64).floor().clamp(0.0, PHI_BINS as f64 - 1.0) as usize;
     c * PHI_BINS + p
 }
 
@@ -144,10 +121,7 @@ fn chi2_over(lobe: &Lobe, seed: u64, dirs: Vec<Vec3>) {
             continue;
         }
         let p = chi2_survival(stat, dof as f64);
-        assert!(
-            p > alpha,
-            "chi-square rejects sampling of {lobe:?} at wo={wo:?}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}"
-        );
+        assert!(p > alpha, "chi-square rejects sampling of {lobe:?} at wo={wo:?}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}");
     }
 }
 
@@ -179,15 +153,7 @@ fn expected_counts(pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
 }
 
 /// ∫ pdf over a cell by jittered stratified sampling, strata equal in cos θ and φ.
-fn stratified(
-    pdf: &impl Fn(Vec3) -> f32,
-    rng: &mut Pcg32,
-    t0: f64,
-    t1: f64,
-    p0: f64,
-    p1: f64,
-    n: usize,
-) -> f64 {
+fn stratified(pdf: &impl Fn(Vec3) -> f32, rng: &mut Pcg32, t0: f64, t1: f64, p0: f64, p1: f64, n: usize) -> f64 {
     let (c0, c1) = (t0.cos(), t1.cos());
     let mut acc = 0.0;
     for a in 0..n {
@@ -195,11 +161,7 @@ fn stratified(
             let z = c0 + (c1 - c0) * (a as f64 + rng.next_f32() as f64) / n as f64;
             let phi = p0 + (p1 - p0) * (b as f64 + rng.next_f32() as f64) / n as f64;
             let r = (1.0 - z * z).max(0.0).sqrt();
-            acc += pdf(Vec3::new(
-                (r * phi.cos()) as f32,
-                (r * phi.sin()) as f32,
-                z as f32,
-            )) as f64;
+            acc += pdf(Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)) as f64;
         }
     }
     acc / (n * n) as f64 * (c0 - c1) * (p1 - p0)
@@ -214,45 +176,22 @@ fn midpoint(pdf: &impl Fn(Vec3) -> f32, t0: f64, t1: f64, p0: f64, p1: f64) -> f
         let (st, ct) = theta.sin_cos();
         for b in 0..N {
             let phi = p0 + (b as f64 + 0.5) * hp;
-            acc += pdf(Vec3::new(
-                (st * phi.cos()) as f32,
-                (st * phi.sin()) as f32,
-                ct as f32,
-            )) as f64
-                * st;
+            acc += pdf(Vec3::new((st * phi.cos()) as f32, (st * phi.sin()) as f32, ct as f32)) as f64 * st;
         }
     }
     acc * ht * hp
 }
 
 /// Quadtree refinement where a 4×4 midpoint rule and its four children disagree.
-fn integrate_cell(
-    pdf: &impl Fn(Vec3) -> f32,
-    t0: f64,
-    t1: f64,
-    p0: f64,
-    p1: f64,
-    depth: u32,
-) -> f64 {
+fn integrate_cell(pdf: &impl Fn(Vec3) -> f32, t0: f64, t1: f64, p0: f64, p1: f64, depth: u32) -> f64 {
     let (tm, pm) = (0.5 * (t0 + t1), 0.5 * (p0 + p1));
     let coarse = midpoint(pdf, t0, t1, p0, p1);
-    let children = [
-        (t0, tm, p0, pm),
-        (t0, tm, pm, p1),
-        (tm, t1, p0, pm),
-        (tm, t1, pm, p1),
-    ];
-    let fine: f64 = children
-        .iter()
-        .map(|&(a, b, c, d)| midpoint(pdf, a, b, c, d))
-        .sum();
+    let children = [(t0, tm, p0, pm), (t0, tm, pm, p1), (tm, t1, p0, pm), (tm, t1, pm, p1)];
+    let fine: f64 = children.iter().map(|&(a, b, c, d)| midpoint(pdf, a, b, c, d)).sum();
     if (fine - coarse).abs() <= (1e-3 * fine).max(0.02 / SAMPLES as f64) || depth >= 7 {
         return fine;
     }
-    children
-        .iter()
-        .map(|&(a, b, c, d)| integrate_cell(pdf, a, b, c, d, depth + 1))
-        .sum()
+    children.iter().map(|&(a, b, c, d)| integrate_cell(pdf, a, b, c, d, depth + 1)).sum()
 }
 
 /// Pearson's statistic with cells of expected count < 5 pooled (pbrt's approach).
@@ -260,16 +199,8 @@ fn chi2_statistic(observed: &[f64], expected: &[f64]) -> (f64, usize) {
     // Samples where the integrated pdf is zero mean the sampler and pdf disagree, unless they
     // are a handful landing in a sliver the quadrature cannot resolve (e.g. at the edge of
     // total internal reflection); those are pooled with the other small cells.
-    let stray: f64 = observed
-        .iter()
-        .zip(expected)
-        .filter(|(_, e)| **e == 0.0)
-        .map(|(o, _)| *o)
-        .sum();
-    assert!(
-        stray <= 1e-4 * observed.iter().sum::<f64>(),
-        "{stray} samples landed in bins of zero density"
-    );
+    let stray: f64 = observed.iter().zip(expected).filter(|(_, e)| **e == 0.0).map(|(o, _)| *o).sum();
+    assert!(stray <= 1e-4 * observed.iter().sum::<f64>(), "{stray} samples landed in bins of zero density");
     let mut idx: Vec<usize> = (0..observed.len()).collect();
     idx.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
     let (mut pooled_o, mut pooled_e, mut stat, mut dof) = (0.0, 0.0, 0.0, 0usize);

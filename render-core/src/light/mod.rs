@@ -97,10 +97,7 @@ impl LightDesc {
             return None;
         }
         let shape = shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?;
-        Some(Light {
-            shape,
-            visible_to_camera: self.visible_to_camera,
-        })
+        Some(Light { shape, visible_to_camera: self.visible_to_camera })
     }
 }
 
@@ -116,10 +113,7 @@ impl LightSet {
     /// Builds the selection distribution in proportion to emitted power; `scene_radius`
     /// sizes the infinite lights' power.
     pub fn new(lights: Vec<Light>, scene_radius: f32) -> Self {
-        let power: Vec<f32> = lights
-            .iter()
-            .map(|l| luminance(l.shape.power(scene_radius)))
-            .collect();
+        let power: Vec<f32> = lights.iter().map(|l| luminance(l.shape.power(scene_radius))).collect();
         let selection = Distribution1D::new(&power);
         LightSet { lights, selection }
     }
@@ -130,12 +124,7 @@ impl LightSet {
     }
 
     /// Picks a light with `u` and samples a direction on it.
-    pub fn sample(
-        &self,
-        ctx: &ShadingContext,
-        u_select: f32,
-        u: glam::Vec2,
-    ) -> Option<LightSample> {
+    pub fn sample(&self, ctx: &ShadingContext, u_select: f32, u: glam::Vec2) -> Option<LightSample> {
         if self.lights.is_empty() {
             return None;
         }

@@ -118,11 +118,7 @@ impl Shape {
                     return None;
                 }
                 let area = 4.0 * PI * r * r;
-                Shape::Sphere {
-                    center,
-                    radius: r,
-                    l: if normalize { l / area } else { l },
-                }
+                Shape::Sphere { center, radius: r, l: if normalize { l / area } else { l } }
             }
             LightKind::Rect { width, height } => {
                 let u = Vec3::from(xf.matrix3.x_axis) * (0.5 * width);
@@ -134,19 +130,8 @@ impl Shape {
                 }
                 // The light faces local −Z; with a mirroring transform −(u×v) still is the image of −Z's side.
                 let n = -Vec3::from(xf.matrix3.z_axis).normalize_or_zero();
-                let n = if n.dot(cross) <= 0.0 {
-                    -cross.normalize()
-                } else {
-                    cross.normalize()
-                };
-                Shape::Rect {
-                    center,
-                    u,
-                    v,
-                    n,
-                    area,
-                    l: if normalize { l / area } else { l },
-                }
+                let n = if n.dot(cross) <= 0.0 { -cross.normalize() } else { cross.normalize() };
+                Shape::Rect { center, u, v, n, area, l: if normalize { l / area } else { l } }
             }
             LightKind::Disk { radius } => {
                 let u = Vec3::from(xf.matrix3.x_axis) * radius;
@@ -157,19 +142,8 @@ impl Shape {
                     return None;
                 }
                 let n = -Vec3::from(xf.matrix3.z_axis).normalize_or_zero();
-                let n = if n.dot(cross) <= 0.0 {
-                    -cross.normalize()
-                } else {
-                    cross.normalize()
-                };
-                Shape::Disk {
-                    center,
-                    u,
-                    v,
-                    n,
-                    area,
-                    l: if normalize { l / area } else { l },
-                }
+                let n = if n.dot(cross) <= 0.0 { -cross.normalize() } else { cross.normalize() };
+                Shape::Disk { center, u, v, n, area, l: if normalize { l / area } else { l } }
             }
             LightKind::Distant { angle_degrees } => {
                 // The light travels along local −Z, so it lies towards +Z.
@@ -181,27 +155,11 @@ impl Shape {
                 let (s, c) = half.sin_cos();
                 if s * s <= 1e-12 {
                     // A zero angle is a delta light whose intensity is the illuminance.
-                    Shape::Distant {
-                        dir,
-                        frame: Frame::from_normal(dir),
-                        cos_half: 1.0,
-                        one_minus_cos_half: 0.0,
-                        l,
-                    }
+                    Shape::Distant { dir, frame: Frame::from_normal(dir), cos_half: 1.0, one_minus_cos_half: 0.0, l }
                 } else {
-                    let one_minus = if half < 0.5 * PI {
-                        s * s / (1.0 + c)
-                    } else {
-                        1.0 - c
-                    };
+                    let one_minus = if half < 0.5 * PI { s * s / (1.0 + c) } else { 1.0 - c };
                     let l = if normalize { l / (PI * s * s) } else { l };
-                    Shape::Distant {
-                        dir,
-                        frame: Frame::from_normal(dir),
-                        cos_half: c,
-                        one_minus_cos_half: one_minus,
-                        l,
-                    }
+                    Shape::Distant { dir, frame: Frame::from_normal(dir), cos_half: c, one_minus_cos_half: one_minus, l }
                 }
             }
             LightKind::Dome => Shape::Dome { l },
@@ -213,12 +171,7 @@ impl Shape {
     pub fn triangle(p: [Vec3; 3], l: Vec3) -> Option<Shape> {
         let c = (p[1] - p[0]).cross(p[2] - p[0]);
         let area = 0.5 * c.length();
-        (area > 0.0 && area.is_finite()).then(|| Shape::Triangle {
-            p,
-            n: c.normalize(),
-            area,
-            l,
-        })
+        (area > 0.0 && area.is_finite()).then(|| Shape::Triangle { p, n: c.normalize(), area, l })
     }
 
     /// Emitted power, with infinite lights sized by the scene's bounding radius.
@@ -228,16 +181,8 @@ impl Shape {
             Shape::Sphere { radius, l, .. } => *l * (4.0 * PI * radius * radius * PI),
             Shape::Rect { area, l, .. } | Shape::Disk { area, l, .. } => *l * (area * PI),
             Shape::Triangle { area, l, .. } => *l * (2.0 * area * PI),
-            Shape::Distant {
-                one_minus_cos_half,
-                l,
-                ..
-            } => {
-                let e = if *one_minus_cos_half == 0.0 {
-                    *l
-                } else {
-                    *l * PI * one_minus_cos_half * (2.0 - one_minus_cos_half)
-                };
+            Shape::Distant { one_minus_cos_half, l, .. } => {
+                let e = if *one_minus_cos_half == 0.0 { *l } else { *l * PI * one_minus_cos_half * (2.0 - one_minus_cos_half) };
                 e * disk
             }
             Shape::Dome { l } => *l * (4.0 * PI * disk),
@@ -253,25 +198,11 @@ impl Shape {
     pub fn sample(&self, ctx: &ShadingContext, u: Vec2) -> Option<LightSample> {
         match self {
             Shape::Sphere { center, radius, l } => sample_sphere(ctx.p, *center, *radius, *l, u),
-            Shape::Rect {
-                center,
-                u: a,
-                v: b,
-                n,
-                area,
-                l,
-            } => {
+            Shape::Rect { center, u: a, v: b, n, area, l } => {
                 let q = *center + (2.0 * u.x - 1.0) * *a + (2.0 * u.y - 1.0) * *b;
                 area_sample(ctx.p, q, *n, *area, *l, false)
             }
-            Shape::Disk {
-                center,
-                u: a,
-                v: b,
-                n,
-                area,
-                l,
-            } => {
+            Shape::Disk { center, u: a, v: b, n, area, l } => {
                 let d = concentric_disk(u);
                 area_sample(ctx.p, *center + d.x * *a + d.y * *b, *n, *area, *l, false)
             }
@@ -280,47 +211,19 @@ impl Shape {
                 let q = p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
                 area_sample(ctx.p, q, *n, *area, *l, true)
             }
-            Shape::Distant {
-                frame,
-                one_minus_cos_half,
-                l,
-                dir,
-                ..
-            } => {
+            Shape::Distant { frame, one_minus_cos_half, l, dir, .. } => {
                 if *one_minus_cos_half == 0.0 {
-                    return Some(LightSample {
-                        wi: *dir,
-                        dist: f32::INFINITY,
-                        li: *l,
-                        pdf: 1.0,
-                        delta: true,
-                    });
+                    return Some(LightSample { wi: *dir, dist: f32::INFINITY, li: *l, pdf: 1.0, delta: true });
                 }
-                let wi = frame
-                    .to_world(cone_direction(u, *one_minus_cos_half))
-                    .normalize();
-                Some(LightSample {
-                    wi,
-                    dist: f32::INFINITY,
-                    li: *l,
-                    pdf: cone_pdf(*one_minus_cos_half),
-                    delta: false,
-                })
+                let wi = frame.to_world(cone_direction(u, *one_minus_cos_half)).normalize();
+                Some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf: cone_pdf(*one_minus_cos_half), delta: false })
             }
             Shape::Dome { l } => {
                 // Cosine-weighted around the normal: exact importance for diffuse under a
                 // constant dome. Directions below get pdf 0 and are left to BSDF sampling.
-                let wi = Frame::from_normal(ctx.n)
-                    .to_world(cosine_hemisphere(u))
-                    .normalize();
+                let wi = Frame::from_normal(ctx.n).to_world(cosine_hemisphere(u)).normalize();
                 let pdf = wi.dot(ctx.n).max(0.0) / PI;
-                (pdf > 0.0).then_some(LightSample {
-                    wi,
-                    dist: f32::INFINITY,
-                    li: *l,
-                    pdf,
-                    delta: false,
-                })
+                (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf, delta: false })
             }
         }
     }
@@ -336,11 +239,7 @@ impl Shape {
                     // Inside: uniform area sampling, converted to solid angle.
                     let q = ctx.p + wi * t;
                     let cos = ((q - *center) / *radius).dot(-wi).abs();
-                    return if cos > 0.0 {
-                        t * t / (cos * 4.0 * PI * r2)
-                    } else {
-                        0.0
-                    };
+                    return if cos > 0.0 { t * t / (cos * 4.0 * PI * r2) } else { 0.0 };
                 }
                 let sin2 = r2 / d2;
                 cone_pdf(sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt()))
@@ -353,9 +252,7 @@ impl Shape {
                 let cos = n.dot(-wi).abs();
                 if cos > 0.0 { t * t / (cos * area) } else { 0.0 }
             }
-            Shape::Distant {
-                one_minus_cos_half, ..
-            } => {
+            Shape::Distant { one_minus_cos_half, .. } => {
                 if *one_minus_cos_half == 0.0 {
                     0.0
                 } else {
@@ -387,19 +284,14 @@ impl Shape {
                 let t = if t0 > 0.0 { t0 } else { return None };
                 (t < tmax).then_some(LightHit { t, le: *l })
             }
-            Shape::Rect {
-                center, u, v, n, l, ..
-            } => {
+            Shape::Rect { center, u, v, n, l, .. } => {
                 let t = plane_hit(o, d, *center, *n)?;
                 let q = o + d * t - *center;
                 let a = q.dot(*u) / u.length_squared();
                 let b = q.dot(*v) / v.length_squared();
-                (t < tmax && a.abs() <= 1.0 && b.abs() <= 1.0 && d.dot(*n) < 0.0)
-                    .then_some(LightHit { t, le: *l })
+                (t < tmax && a.abs() <= 1.0 && b.abs() <= 1.0 && d.dot(*n) < 0.0).then_some(LightHit { t, le: *l })
             }
-            Shape::Disk {
-                center, u, v, n, l, ..
-            } => {
+            Shape::Disk { center, u, v, n, l, .. } => {
                 let t = plane_hit(o, d, *center, *n)?;
                 let q = o + d * t - *center;
                 // Coordinates in the (u, v) basis, which may be skewed by the transform.
@@ -408,8 +300,7 @@ impl Shape {
                 let det = uu * vv - uv * uv;
                 let a = (qu * vv - qv * uv) / det;
                 let b = (qv * uu - qu * uv) / det;
-                (t < tmax && a * a + b * b <= 1.0 && d.dot(*n) < 0.0)
-                    .then_some(LightHit { t, le: *l })
+                (t < tmax && a * a + b * b <= 1.0 && d.dot(*n) < 0.0).then_some(LightHit { t, le: *l })
             }
             _ => None,
         }
@@ -419,25 +310,11 @@ impl Shape {
     pub fn escaped(&self, d: Vec3) -> Vec3 {
         match self {
             Shape::Dome { l } => *l,
-            Shape::Distant {
-                dir,
-                cos_half,
-                one_minus_cos_half,
-                l,
-                ..
-            } if *one_minus_cos_half > 0.0 => {
+            Shape::Distant { dir, cos_half, one_minus_cos_half, l, .. } if *one_minus_cos_half > 0.0 => {
                 let c = d.dot(*dir);
                 // Compare 1 − cos for precision at the sun's 0.53° angle.
-                let one_minus = if c > 0.0 {
-                    (d - *dir).length_squared() * 0.5
-                } else {
-                    1.0 - c
-                };
-                if c >= *cos_half || one_minus <= *one_minus_cos_half {
-                    *l
-                } else {
-                    Vec3::ZERO
-                }
+                let one_minus = if c > 0.0 { (d - *dir).length_squared() * 0.5 } else { 1.0 - c };
+                if c >= *cos_half || one_minus <= *one_minus_cos_half { *l } else { Vec3::ZERO }
             }
             _ => Vec3::ZERO,
         }
@@ -465,14 +342,7 @@ fn plane_hit(o: Vec3, d: Vec3, c: Vec3, n: Vec3) -> Option<f32> {
     (t > 0.0).then_some(t)
 }
 
-fn area_sample(
-    p: Vec3,
-    q: Vec3,
-    n: Vec3,
-    area: f32,
-    l: Vec3,
-    two_sided: bool,
-) -> Option<LightSample> {
+fn area_sample(p: Vec3, q: Vec3, n: Vec3, area: f32, l: Vec3, two_sided: bool) -> Option<LightSample> {
     let to = q - p;
     let d2 = to.length_squared();
     if !(d2 > 0.0) {
@@ -480,22 +350,12 @@ fn area_sample(
     }
     let dist = d2.sqrt();
     let wi = to / dist;
-    let cos = if two_sided {
-        n.dot(-wi).abs()
-    } else {
-        n.dot(-wi)
-    };
+    let cos = if two_sided { n.dot(-wi).abs() } else { n.dot(-wi) };
     if cos <= 0.0 {
         return None;
     }
     let pdf = d2 / (cos * area);
-    pdf.is_finite().then_some(LightSample {
-        wi,
-        dist,
-        li: l,
-        pdf,
-        delta: false,
-    })
+    pdf.is_finite().then_some(LightSample { wi, dist, li: l, pdf, delta: false })
 }
 
 /// Direction in a cone around +Z, parameterised by 1 − cos θmax for precision.
@@ -531,13 +391,7 @@ fn sample_sphere(p: Vec3, center: Vec3, radius: f32, l: Vec3, u: Vec2) -> Option
             return None;
         }
         // Inside, the surface emits outward, away from p: nothing reaches p.
-        return Some(LightSample {
-            wi,
-            dist,
-            li: Vec3::ZERO,
-            pdf: dist2 / (cos * 4.0 * PI * r2),
-            delta: false,
-        });
+        return Some(LightSample { wi, dist, li: Vec3::ZERO, pdf: dist2 / (cos * 4.0 * PI * r2), delta: false });
     }
     // Outside: sample the cone of directions the sphere subtends.
     let dc = d2.sqrt();
@@ -550,13 +404,7 @@ fn sample_sphere(p: Vec3, center: Vec3, radius: f32, l: Vec3, u: Vec2) -> Option
     let b = to_c.dot(wi);
     let h2 = (d2 - b * b).max(0.0);
     let dist = (b - (r2 - h2).max(0.0).sqrt()).max(0.0);
-    Some(LightSample {
-        wi,
-        dist,
-        li: l,
-        pdf: cone_pdf(one_minus),
-        delta: false,
-    })
+    Some(LightSample { wi, dist, li: l, pdf: cone_pdf(one_minus), delta: false })
 }
 
 #[cfg(test)]
@@ -584,13 +432,8 @@ mod tests {
     #[test]
     fn small_sphere_light_gives_inverse_square_irradiance() {
         // Unnormalised sphere of radiance L and radius r at distance d: E = L π r²/d² (far field).
-        let s = Shape::new(
-            LightKind::Sphere { radius: 0.01 },
-            &Affine3A::from_translation(Vec3::new(0.0, 0.0, 2.0)),
-            Vec3::ONE,
-            false,
-        )
-        .unwrap();
+        let s = Shape::new(LightKind::Sphere { radius: 0.01 }, &Affine3A::from_translation(Vec3::new(0.0, 0.0, 2.0)), Vec3::ONE, false)
+            .unwrap();
         let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 20_000);
         let expected = PI as f64 * 1e-4 / 4.0;
         assert!((e / expected - 1.0).abs() < 0.01, "{e} vs {expected}");
@@ -598,13 +441,9 @@ mod tests {
 
     #[test]
     fn tiny_sphere_light_stays_finite() {
-        let s = Shape::new(
-            LightKind::Sphere { radius: 1e-6 },
-            &Affine3A::from_translation(Vec3::new(0.0, 0.0, 1.0)),
-            Vec3::splat(1e6),
-            false,
-        )
-        .unwrap();
+        let s =
+            Shape::new(LightKind::Sphere { radius: 1e-6 }, &Affine3A::from_translation(Vec3::new(0.0, 0.0, 1.0)), Vec3::splat(1e6), false)
+                .unwrap();
         let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 1000);
         assert!(e.is_finite() && e > 0.0);
     }
@@ -612,16 +451,7 @@ mod tests {
     #[test]
     fn rect_normalize_divides_by_world_area() {
         let xf = Affine3A::from_scale(Vec3::new(2.0, 3.0, 1.0));
-        let Shape::Rect { l, area, .. } = Shape::new(
-            LightKind::Rect {
-                width: 1.0,
-                height: 1.0,
-            },
-            &xf,
-            Vec3::ONE,
-            true,
-        )
-        .unwrap() else {
+        let Shape::Rect { l, area, .. } = Shape::new(LightKind::Rect { width: 1.0, height: 1.0 }, &xf, Vec3::ONE, true).unwrap() else {
             panic!()
         };
         assert!((area - 6.0).abs() < 1e-5);
@@ -631,15 +461,7 @@ mod tests {
     #[test]
     fn normalized_distant_light_gives_its_intensity_as_illuminance() {
         for angle in [0.0f32, 0.53, 10.0, 60.0] {
-            let s = Shape::new(
-                LightKind::Distant {
-                    angle_degrees: angle,
-                },
-                &Affine3A::IDENTITY,
-                Vec3::splat(3.0),
-                true,
-            )
-            .unwrap();
+            let s = Shape::new(LightKind::Distant { angle_degrees: angle }, &Affine3A::IDENTITY, Vec3::splat(3.0), true).unwrap();
             let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 20_000);
             assert!((e - 3.0).abs() < 0.01, "angle {angle}: {e}");
         }
@@ -648,10 +470,7 @@ mod tests {
     #[test]
     fn rect_faces_minus_z_and_its_pdf_matches_sampling() {
         let s = Shape::new(
-            LightKind::Rect {
-                width: 2.0,
-                height: 1.0,
-            },
+            LightKind::Rect { width: 2.0, height: 1.0 },
             &Affine3A::from_translation(Vec3::new(0.0, 0.0, 3.0)),
             Vec3::ONE,
             false,
@@ -661,39 +480,24 @@ mod tests {
         let mut rng = Pcg32::new(1, 2);
         for _ in 0..100 {
             let smp = s.sample(&c, rng.next_2d()).unwrap();
-            let hit = s
-                .intersect(c.p, smp.wi, f32::INFINITY)
-                .expect("the sampled direction hits the light");
+            let hit = s.intersect(c.p, smp.wi, f32::INFINITY).expect("the sampled direction hits the light");
             assert!((hit.t - smp.dist).abs() < 1e-4);
             assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-3);
         }
         // From above (behind the emitting face) nothing is seen.
-        assert!(
-            s.intersect(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, f32::INFINITY)
-                .is_none()
-        );
+        assert!(s.intersect(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, f32::INFINITY).is_none());
     }
 
     #[test]
     fn sphere_cone_pdf_matches_intersection() {
-        let s = Shape::new(
-            LightKind::Sphere { radius: 0.5 },
-            &Affine3A::from_translation(Vec3::new(1.0, 0.0, 2.0)),
-            Vec3::ONE,
-            false,
-        )
-        .unwrap();
+        let s =
+            Shape::new(LightKind::Sphere { radius: 0.5 }, &Affine3A::from_translation(Vec3::new(1.0, 0.0, 2.0)), Vec3::ONE, false).unwrap();
         let c = ctx(Vec3::ZERO, Vec3::Z);
         let mut rng = Pcg32::new(4, 2);
         for _ in 0..100 {
             let smp = s.sample(&c, rng.next_2d()).unwrap();
             let hit = s.intersect(c.p, smp.wi, f32::INFINITY).expect("hit");
-            assert!(
-                (hit.t - smp.dist).abs() < 1e-3 * smp.dist.max(1.0),
-                "{} vs {}",
-                hit.t,
-                smp.dist
-            );
+            assert!((hit.t - smp.dist).abs() < 1e-3 * smp.dist.max(1.0), "{} vs {}", hit.t, smp.dist);
             assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-3);
         }
     }

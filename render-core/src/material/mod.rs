@@ -25,10 +25,7 @@ pub struct Material {
 impl Default for Material {
     /// UsdPreviewSurface's defaults: diffuse 0.18 grey, no emission.
     fn default() -> Self {
-        Material {
-            diffuse: Vec3::splat(0.18),
-            emission: Vec3::ZERO,
-        }
+        Material { diffuse: Vec3::splat(0.18), emission: Vec3::ZERO }
     }
 }
 

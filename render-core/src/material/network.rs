@@ -96,9 +96,7 @@ impl MaterialNetwork {
         let mut report = ResolveReport::default();
         let mut m = Material::default();
         let Some(surface) = self.node(&self.surface_node) else {
-            report.warnings.push(format!(
-                "{material_path}: no surface shader; using the UsdPreviewSurface defaults"
-            ));
+            report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (m, report);
         };
         if surface.node_type_id != "UsdPreviewSurface" {
@@ -110,44 +108,27 @@ impl MaterialNetwork {
         }
         for (name, value) in &surface.parameters {
             match (name.as_str(), value) {
-                ("diffuseColor", ParamValue::Float3(c)) => {
-                    m.diffuse = c.clamp(Vec3::ZERO, Vec3::ONE)
-                }
+                ("diffuseColor", ParamValue::Float3(c)) => m.diffuse = c.clamp(Vec3::ZERO, Vec3::ONE),
                 ("emissiveColor", ParamValue::Float3(c)) => m.emission = c.max(Vec3::ZERO),
-                (n, _) if PREVIEW_SURFACE_MAPPED.contains(&n) => report.warnings.push(format!(
-                    "{}: input '{n}' has the wrong type {value:?}; using its default",
-                    surface.path
-                )),
-                (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => report.warnings.push(format!(
-                    "{}: input '{n}' is not supported yet and has no effect",
-                    surface.path
-                )),
-                (n, _) => report.warnings.push(format!(
-                    "{}: unknown UsdPreviewSurface input '{n}'",
-                    surface.path
-                )),
+                (n, _) if PREVIEW_SURFACE_MAPPED.contains(&n) => {
+                    report.warnings.push(format!("{}: input '{n}' has the wrong type {value:?}; using its default", surface.path))
+                }
+                (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
+                    report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", surface.path))
+                }
+                (n, _) => report.warnings.push(format!("{}: unknown UsdPreviewSurface input '{n}'", surface.path)),
             }
         }
-        for c in self
-            .connections
-            .iter()
-            .filter(|c| c.downstream_node == surface.path)
-        {
-            let upstream = self
-                .node(&c.upstream_node)
-                .map_or("?", |n| n.node_type_id.as_str());
+        for c in self.connections.iter().filter(|c| c.downstream_node == surface.path) {
+            let upstream = self.node(&c.upstream_node).map_or("?", |n| n.node_type_id.as_str());
             report.warnings.push(format!(
                 "{}: input '{}' is connected to {} ({upstream}); texture and primvar inputs are not supported yet, so its fallback value is used",
                 surface.path, c.downstream_input, c.upstream_node
             ));
         }
         for n in &self.nodes {
-            if n.path != surface.path && !self.connections.iter().any(|c| c.upstream_node == n.path)
-            {
-                report.warnings.push(format!(
-                    "{}: node '{}' is not connected to the surface and is ignored",
-                    n.path, n.node_type_id
-                ));
+            if n.path != surface.path && !self.connections.iter().any(|c| c.upstream_node == n.path) {
+                report.warnings.push(format!("{}: node '{}' is not connected to the surface and is ignored", n.path, n.node_type_id));
             }
         }
         (m, report)
@@ -163,10 +144,7 @@ mod tests {
             nodes: vec![MaterialNode {
                 path: "/M/S".into(),
                 node_type_id: "UsdPreviewSurface".into(),
-                parameters: params
-                    .iter()
-                    .map(|(k, v)| (k.to_string(), v.clone()))
-                    .collect(),
+                parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
             }],
             connections: vec![],
             surface_node: "/M/S".into(),
@@ -176,10 +154,7 @@ mod tests {
     #[test]
     fn maps_diffuse_and_emission_and_reports_the_rest() {
         let (m, r) = preview(&[
-            (
-                "diffuseColor",
-                ParamValue::Float3(Vec3::new(0.5, 2.0, -1.0)),
-            ),
+            ("diffuseColor", ParamValue::Float3(Vec3::new(0.5, 2.0, -1.0))),
             ("emissiveColor", ParamValue::Float3(Vec3::splat(3.0))),
             ("metallic", ParamValue::Float(1.0)),
             ("bogus", ParamValue::Float(1.0)),
@@ -187,16 +162,8 @@ mod tests {
         .resolve("/M");
         assert_eq!(m.diffuse, Vec3::new(0.5, 1.0, 0.0));
         assert_eq!(m.emission, Vec3::splat(3.0));
-        assert!(
-            r.warnings
-                .iter()
-                .any(|w| w.contains("'metallic'") && w.contains("/M/S"))
-        );
-        assert!(
-            r.warnings
-                .iter()
-                .any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'"))
-        );
+        assert!(r.warnings.iter().any(|w| w.contains("'metallic'") && w.contains("/M/S")));
+        assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
     }
 
     #[test]
