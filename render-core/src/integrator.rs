@@ -19,6 +19,8 @@ use crate::scene::CommittedScene;
 pub struct IntegratorSettings {
     /// Maximum number of scattering events.
     pub max_depth: u32,
+    /// Kulla-Conty energy compensation on all lobes (the `energy_compensation` setting).
+    pub energy_compensation: bool,
     /// Bounce after which Russian roulette may end paths (5, as Mitsuba 3 does: earlier
     /// roulette saves little time in bright interiors and adds visible variance).
     pub rr_start: u32,
@@ -26,7 +28,7 @@ pub struct IntegratorSettings {
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings { max_depth: 8, rr_start: 5 }
+        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true }
     }
 }
 
@@ -108,9 +110,20 @@ pub fn trace_path(
 
         let s = scene.surface(&hit);
         let wo = -ray.dir;
-        let ng = if s.ng.dot(wo) < 0.0 { -s.ng } else { s.ng };
-        let ns = if s.ns.dot(ng) < 0.0 { -s.ns } else { s.ns };
         let material = &scene.materials[s.material as usize];
+        let mut bsdf = material.bsdf(settings.energy_compensation);
+        // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
+        // their authored orientation (the shading normal's side is outside), so a ray inside
+        // glass sees its inside.
+        let ns0 = if bsdf.transmits() {
+            s.ns
+        } else if s.ns.dot(wo) < 0.0 {
+            -s.ns
+        } else {
+            s.ns
+        };
+        let ng = if s.ng.dot(ns0) < 0.0 { -s.ng } else { s.ng };
+        let ns = ns0;
 
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
@@ -118,7 +131,6 @@ pub fn trace_path(
             l += beta * light.shape.radiance() * weight(&prev, li, pdf);
         }
 
-        let mut bsdf = material.bsdf();
         let frame = Frame::from_normal(ns);
         let wo_local = frame.to_local(wo);
         if depth == 0 {
@@ -131,7 +143,8 @@ pub fn trace_path(
             break;
         }
         bsdf.prepare(wo_local);
-        let ctx = ShadingContext { p: s.p, n: ng };
+        // Light sampling context: the geometric normal on the viewer's side.
+        let ctx = ShadingContext { p: s.p, n: if ng.dot(wo) < 0.0 { -ng } else { ng } };
 
         // Next-event estimation.
         if !lights.is_empty() {

@@ -353,16 +353,31 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if lights.is_empty() {
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
-    let diffuse_users: Vec<String> =
-        desc.materials.keys().filter(|p| materials[material_index[p.as_str()] as usize].diffuse.max_element() > 0.0).cloned().collect();
-    plan.enable("diffuse", "Lambert reflection (UsdPreviewSurface diffuseColor)", diffuse_users);
+    // Each effect the materials call for, with the materials that call for it.
+    type Pred = fn(&crate::material::Principled) -> bool;
+    let effects: [(&str, &str, Pred); 6] = [
+        ("diffuse", "Disney diffuse with retro-reflection", |p| p.metallic < 1.0 && p.spec_trans < 1.0),
+        ("metal", "GGX conductor reflection", |p| p.metallic > 0.0),
+        ("transmission", "rough dielectric refraction (glass)", |p| p.metallic < 1.0 && p.spec_trans > 0.0),
+        ("clearcoat", "GTR1 clearcoat", |p| p.clearcoat > 0.0),
+        ("sheen", "Disney sheen", |p| p.sheen > 0.0 && p.metallic < 1.0),
+        ("anisotropy", "anisotropic GGX", |p| p.anisotropic != 0.0),
+    ];
+    for (effect, reason, pred) in effects {
+        let who: Vec<String> = desc
+            .materials
+            .keys()
+            .filter(|m| pred(&materials[material_index[m.as_str()] as usize].principled.sanitized()))
+            .cloned()
+            .collect();
+        if !who.is_empty() {
+            plan.enable(effect, reason, who);
+        }
+    }
     if !desc.instancers.is_empty() {
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
-    plan.skipped = ["specular", "transmission", "subsurface", "textures", "depth-of-field"]
-        .iter()
-        .map(|s| format!("{s}: no prim calls for it (not supported yet in this build)"))
-        .collect();
+    plan.skipped = ["subsurface", "textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
 
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");

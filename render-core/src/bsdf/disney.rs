@@ -40,6 +40,10 @@ pub struct DisneyDiffuse {
     pub roughness: f32,
     /// Thin-surface flatness: blend from Lambert to Hanrahan-Krueger (0 for solids).
     pub flatness: f32,
+    /// Under a dielectric specular of (η, roughness): the diffuse then reflects only what the
+    /// specular leaves, f·(1 − E_s(μo))(1 − E_s(μi))/(1 − E_s,avg) (`004_...`, "Microfacet
+    /// dielectrics - diffuse term"), so specular + diffuse never exceeds 1.
+    pub coupling: Option<(f32, f32)>,
 }
 
 impl DisneyDiffuse {
@@ -53,7 +57,15 @@ impl DisneyDiffuse {
         }
         let (base, retro) = Self::parts(self.roughness, self.flatness, wo, wi);
         let (s, k) = diffuse_energy_scales(self.roughness, self.flatness);
-        self.color * (s * base + k * retro).max(0.0)
+        let couple = match self.coupling {
+            Some((eta, r)) => {
+                let t = super::energy::dielectric_specular();
+                let avg = t.e_avg(eta, r);
+                if avg < 1.0 { (1.0 - t.e(eta, r, wo.z.abs())) * (1.0 - t.e(eta, r, wi.z.abs())) / (1.0 - avg) } else { 0.0 }
+            }
+            None => 1.0,
+        };
+        self.color * ((s * base + k * retro) * couple).max(0.0)
     }
 
     /// The two parts of f (base, retro-reflection) for a white lobe, without the scales.
@@ -90,9 +102,12 @@ impl DisneyDiffuse {
         if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
     }
 
-    /// The base colour.
-    pub fn albedo(&self, _wo: Vec3) -> Vec3 {
-        self.color
+    /// The base colour, less what a coupled specular takes.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        match self.coupling {
+            Some((eta, r)) => self.color * (1.0 - super::energy::dielectric_specular().e(eta, r, wo.z.abs())),
+            None => self.color,
+        }
     }
 }
 
@@ -314,7 +329,7 @@ mod tests {
         let mut v = Vec::new();
         for r in [0.0, 0.5, 1.0] {
             for flatness in [0.0, 0.5, 1.0] {
-                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness }));
+                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness, coupling: None }));
             }
         }
         v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE }));

@@ -10,18 +10,18 @@
 //! albedo weight, as Cycles does with `sample_weight`; evaluation and pdf are the weighted
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
-mod conductor;
 mod dielectric;
 mod disney;
 pub mod energy;
 pub mod fresnel;
 mod lambert;
 pub mod microfacet;
+mod reflection;
 
-pub use conductor::{Conductor, ConductorFresnel};
 pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use lambert::Lambert;
+pub use reflection::{GgxReflection, SpecularFresnel};
 
 use glam::{Vec2, Vec3};
 
@@ -57,8 +57,9 @@ pub struct LobeSample {
 pub enum Lobe {
     /// Ideal diffuse reflection.
     Lambert(Lambert),
-    /// Rough or smooth conductor with optional energy compensation.
-    Conductor(Conductor),
+    /// Rough or smooth microfacet reflection (metals; dielectric specular) with optional
+    /// energy compensation.
+    GgxReflection(GgxReflection),
     /// Rough or smooth dielectric interface: reflection and refraction.
     Dielectric(Dielectric),
     /// Disney diffuse with retro-reflection (and the thin-surface blend).
@@ -77,7 +78,7 @@ impl Lobe {
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         match self {
             Lobe::Lambert(l) => l.eval(wo, wi),
-            Lobe::Conductor(l) => l.eval(wo, wi),
+            Lobe::GgxReflection(l) => l.eval(wo, wi),
             Lobe::Dielectric(l) => l.eval(wo, wi),
             Lobe::DisneyDiffuse(l) => l.eval(wo, wi),
             Lobe::DiffuseTransmission(l) => l.eval(wo, wi),
@@ -91,7 +92,7 @@ impl Lobe {
     pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
         match self {
             Lobe::Lambert(l) => l.sample(wo, uc, u),
-            Lobe::Conductor(l) => l.sample(wo, uc, u),
+            Lobe::GgxReflection(l) => l.sample(wo, uc, u),
             Lobe::Dielectric(l) => l.sample(wo, uc, u),
             Lobe::DisneyDiffuse(l) => l.sample(wo, uc, u),
             Lobe::DiffuseTransmission(l) => l.sample(wo, uc, u),
@@ -105,7 +106,7 @@ impl Lobe {
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Lobe::Lambert(l) => l.pdf(wo, wi),
-            Lobe::Conductor(l) => l.pdf(wo, wi),
+            Lobe::GgxReflection(l) => l.pdf(wo, wi),
             Lobe::Dielectric(l) => l.pdf(wo, wi),
             Lobe::DisneyDiffuse(l) => l.pdf(wo, wi),
             Lobe::DiffuseTransmission(l) => l.pdf(wo, wi),
@@ -119,7 +120,7 @@ impl Lobe {
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
         match self {
             Lobe::Lambert(l) => l.albedo(wo),
-            Lobe::Conductor(l) => l.albedo(wo),
+            Lobe::GgxReflection(l) => l.albedo(wo),
             Lobe::Dielectric(l) => l.albedo(wo),
             Lobe::DisneyDiffuse(l) => l.albedo(wo),
             Lobe::DiffuseTransmission(l) => l.albedo(wo),
@@ -133,7 +134,7 @@ impl Lobe {
     pub fn flags(&self) -> LobeFlags {
         match self {
             Lobe::Lambert(_) => Lambert::FLAGS,
-            Lobe::Conductor(c) => c.flags(),
+            Lobe::GgxReflection(c) => c.flags(),
             Lobe::Dielectric(d) => d.flags(),
             Lobe::DisneyDiffuse(_) => DisneyDiffuse::FLAGS,
             Lobe::DiffuseTransmission(_) => DiffuseTransmission::FLAGS,
@@ -146,21 +147,39 @@ impl Lobe {
 /// Most lobes one material instance may hold.
 pub const MAX_LOBES: usize = 8;
 
-/// The lobes of one shading point, with selection probabilities.
+/// The weighted lobes of one shading point, with selection probabilities.
 #[derive(Clone, Debug, Default)]
 pub struct Bsdf {
     lobes: [Option<Lobe>; MAX_LOBES],
+    weights: [f32; MAX_LOBES],
     select: [f32; MAX_LOBES],
     count: usize,
 }
 
 impl Bsdf {
-    /// Adds a lobe; lobes past [`MAX_LOBES`] are ignored (a material never builds that many).
+    /// Adds a lobe of weight 1.
     pub fn push(&mut self, lobe: Lobe) {
-        if self.count < MAX_LOBES {
+        self.push_weighted(lobe, 1.0);
+    }
+
+    /// Adds a lobe scaled by `weight`; zero-weight lobes are not added, and lobes past
+    /// [`MAX_LOBES`] are ignored (a material never builds that many).
+    pub fn push_weighted(&mut self, lobe: Lobe, weight: f32) {
+        if self.count < MAX_LOBES && weight > 0.0 && weight.is_finite() {
             self.lobes[self.count] = Some(lobe);
+            self.weights[self.count] = weight;
             self.count += 1;
         }
+    }
+
+    /// Number of lobes.
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    /// True when any lobe transmits.
+    pub fn transmits(&self) -> bool {
+        self.lobes().any(|(_, l)| l.flags().transmission)
     }
 
     /// True when nothing scatters.
@@ -177,7 +196,7 @@ impl Bsdf {
     pub fn prepare(&mut self, wo: Vec3) {
         let mut total = 0.0;
         for i in 0..self.count {
-            let w = self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
+            let w = self.weights[i] * self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
             self.select[i] = w;
             total += w;
         }
@@ -186,9 +205,9 @@ impl Bsdf {
         }
     }
 
-    /// Sum of the lobes' f(wo, wi).
+    /// Weighted sum of the lobes' f(wo, wi).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.lobes().map(|(_, l)| l.eval(wo, wi)).sum()
+        self.lobes().map(|(i, l)| self.weights[i] * l.eval(wo, wi)).sum()
     }
 
     /// The mixture density of [`Bsdf::sample`].
@@ -196,9 +215,9 @@ impl Bsdf {
         self.lobes().map(|(i, l)| self.select[i] * l.pdf(wo, wi)).sum()
     }
 
-    /// Sum of the lobes' albedo estimates.
+    /// Weighted sum of the lobes' albedo estimates.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
-        self.lobes().map(|(_, l)| l.albedo(wo)).sum()
+        self.lobes().map(|(i, l)| self.weights[i] * l.albedo(wo)).sum()
     }
 
     /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS
@@ -222,7 +241,7 @@ impl Bsdf {
         let s = lobe.sample(wo, uc, u)?;
         if s.flags.delta {
             let p = self.select[i];
-            return (p > 0.0).then(|| LobeSample { weight: s.weight / p, pdf: p, ..s });
+            return (p > 0.0).then(|| LobeSample { weight: s.weight * (self.weights[i] / p), pdf: p * s.pdf, ..s });
         }
         let pdf = self.pdf(wo, s.wi);
         if !(pdf > 0.0) {
@@ -253,14 +272,11 @@ mod finite_everywhere {
         let c = (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0).prop_map(|(x, y, z)| Vec3::new(x, y, z));
         prop_oneof![
             c.clone().prop_map(|r| Lobe::Lambert(Lambert { r })),
-            (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(|(r, a, f, g, comp)| Lobe::Conductor(Conductor::new(
-                r,
-                a,
-                ConductorFresnel::Gulbrandsen { r: f, g },
-                comp
-            ))),
+            (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(|(r, a, f, g, comp)| Lobe::GgxReflection(
+                GgxReflection::new(r, a, SpecularFresnel::Gulbrandsen { r: f, g }, comp)
+            )),
             (r, a, c.clone(), c, 0.01f32..10.0, any::<bool>()).prop_map(|(r, a, f, g, p, comp)| {
-                Lobe::Conductor(Conductor::new(r, a, ConductorFresnel::Artistic { r: f, g, p }, comp))
+                Lobe::GgxReflection(GgxReflection::new(r, a, SpecularFresnel::Artistic { r: f, g, p }, comp))
             }),
         ]
     }

@@ -7,8 +7,47 @@ use std::f64::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-use super::Lobe;
+use super::{Bsdf, Lobe, LobeSample};
 use crate::sampling::Pcg32;
+
+/// What the battery needs of a scattering function: a lobe, or a whole BSDF.
+pub trait Scatter: std::fmt::Debug {
+    /// f(wo, wi).
+    fn f(&self, wo: Vec3, wi: Vec3) -> Vec3;
+    /// Sample.
+    fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample>;
+    /// Density of `sample_dir`.
+    fn density(&self, wo: Vec3, wi: Vec3) -> f32;
+}
+
+impl Scatter for Lobe {
+    fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval(wo, wi)
+    }
+    fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
+        self.sample(wo, uc, u)
+    }
+    fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.pdf(wo, wi)
+    }
+}
+
+/// A BSDF, prepared for each `wo` it is asked about.
+impl Scatter for Bsdf {
+    fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval(wo, wi)
+    }
+    fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
+        let mut b = self.clone();
+        b.prepare(wo);
+        b.sample(wo, uc, u)
+    }
+    fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let mut b = self.clone();
+        b.prepare(wo);
+        b.pdf(wo, wi)
+    }
+}
 
 /// Directions `wo` the battery probes, down to grazing (cos θ = 1e-4).
 pub fn probe_directions() -> Vec<Vec3> {
@@ -25,11 +64,11 @@ pub fn probe_directions() -> Vec<Vec3> {
 
 /// Monte Carlo estimate of the directional albedo ∫ f·|cos| dωi via the lobe's own sampling,
 /// in energy: transmitted samples have their radiance scaling 1/η'² undone.
-pub fn albedo_estimate(lobe: &Lobe, wo: Vec3, n: u32) -> Vec3 {
+pub fn albedo_estimate(lobe: &impl Scatter, wo: Vec3, n: u32) -> Vec3 {
     let mut rng = Pcg32::new(17, 23);
     let mut acc = glam::DVec3::ZERO;
     for _ in 0..n {
-        if let Some(s) = lobe.sample(wo, rng.next_f32(), rng.next_2d()) {
+        if let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
             assert!(crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0, "bad weight {:?}", s.weight);
             acc += (s.weight * s.eta * s.eta).as_dvec3();
         }
@@ -38,7 +77,7 @@ pub fn albedo_estimate(lobe: &Lobe, wo: Vec3, n: u32) -> Vec3 {
 }
 
 /// White furnace: albedo ≤ 1 + 1e-3 (plus Monte Carlo slack) at every probe direction.
-pub fn assert_albedo_at_most_one(lobe: &Lobe) {
+pub fn assert_albedo_at_most_one(lobe: &impl Scatter) {
     for wo in probe_directions() {
         let a = albedo_estimate(lobe, wo, 50_000);
         assert!(a.max_element() <= 1.0 + 1e-3 + 0.01, "albedo {a:?} > 1 at wo={wo:?} for {lobe:?}");
@@ -46,13 +85,13 @@ pub fn assert_albedo_at_most_one(lobe: &Lobe) {
 }
 
 /// f(wo, wi) = f(wi, wo) to 1e-4 relative for random direction pairs.
-pub fn assert_reciprocal(lobe: &Lobe) {
+pub fn assert_reciprocal(lobe: &impl Scatter) {
     let mut rng = Pcg32::new(5, 9);
     for _ in 0..1000 {
         let a = crate::sampling::uniform_sphere(rng.next_2d());
         let b = crate::sampling::uniform_sphere(rng.next_2d());
-        let f1 = lobe.eval(a, b);
-        let f2 = lobe.eval(b, a);
+        let f1 = lobe.f(a, b);
+        let f2 = lobe.f(b, a);
         let scale = f1.abs().max(f2.abs()).max_element().max(1e-6);
         assert!((f1 - f2).abs().max_element() <= 1e-4 * scale, "f({a:?},{b:?})={f1:?} but reversed {f2:?}");
     }
@@ -60,19 +99,19 @@ pub fn assert_reciprocal(lobe: &Lobe) {
 
 /// For sampled directions, the returned weight equals eval·|cos θi|/pdf and pdf matches
 /// `Lobe::pdf`.
-pub fn assert_weights_consistent(lobe: &Lobe) {
+pub fn assert_weights_consistent(lobe: &impl Scatter) {
     let mut rng = Pcg32::new(77, 1);
     for wo in probe_directions() {
         for _ in 0..2000 {
-            let Some(s) = lobe.sample(wo, rng.next_f32(), rng.next_2d()) else {
+            let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) else {
                 continue;
             };
             if s.flags.delta {
                 continue;
             }
-            let pdf = lobe.pdf(wo, s.wi);
+            let pdf = lobe.density(wo, s.wi);
             assert!((pdf - s.pdf).abs() <= 1e-3 * pdf.max(1e-3), "pdf {pdf} vs sampled {}", s.pdf);
-            let w = lobe.eval(wo, s.wi) * s.wi.z.abs() / pdf;
+            let w = lobe.f(wo, s.wi) * s.wi.z.abs() / pdf;
             assert!((w - s.weight).abs().max_element() <= 1e-3 * w.max_element().max(1e-3), "weight {:?} vs {:?}", s.weight, w);
         }
     }
@@ -93,29 +132,29 @@ fn bin_of(w: Vec3) -> usize {
 }
 
 /// Chi-square test of `sample` against `pdf` at every probe direction.
-pub fn assert_chi2(lobe: &Lobe, seed: u64) {
+pub fn assert_chi2(lobe: &impl Scatter, seed: u64) {
     chi2_over(lobe, seed, probe_directions());
 }
 
 /// The chi-square test at the given `wo` directions.
-pub fn assert_chi2_at(lobe: &Lobe, seed: u64, dirs: Vec<Vec3>) {
+pub fn assert_chi2_at(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
     chi2_over(lobe, seed, dirs);
 }
 
-fn chi2_over(lobe: &Lobe, seed: u64, dirs: Vec<Vec3>) {
+fn chi2_over(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
     let alpha = 1.0 - (1.0 - ALPHA).powf(1.0 / dirs.len() as f64);
     for (k, wo) in dirs.into_iter().enumerate() {
         let mut rng = Pcg32::new(seed, k as u64);
         let mut observed = vec![0.0f64; THETA_BINS * PHI_BINS];
         for _ in 0..SAMPLES {
-            if let Some(s) = lobe.sample(wo, rng.next_f32(), rng.next_2d()) {
+            if let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
                 if s.flags.delta {
                     return;
                 }
                 observed[bin_of(s.wi.normalize())] += 1.0;
             }
         }
-        let expected = expected_counts(|wi| lobe.pdf(wo, wi));
+        let expected = expected_counts(|wi| lobe.density(wo, wi));
         let (stat, dof) = chi2_statistic(&observed, &expected);
         if dof == 0 {
             continue;

@@ -1,42 +1,34 @@
 //! Materials: node graphs as Hydra delivers them, resolved per material into one
 //! uber-material parameter set, which builds a [`Bsdf`] holding only its non-zero lobes.
 //!
-//! The vertical slice maps UsdPreviewSurface's `diffuseColor` and `emissiveColor`; the
-//! layered front-ends and the full lobe set arrive with the material issues, behind the
-//! same interface: `resolve(network) -> Material`, then `Material::bsdf()`.
+//! Front-ends (UsdPreviewSurface, `tessera:Principled`) resolve to the principled
+//! uber-material ([`Principled`]), whose `bsdf()` holds only its non-zero lobes. The layered
+//! DreamWorks-style front-ends arrive with the layered-materials issue behind the same
+//! interface: `resolve(network) -> Material`, then `Material::bsdf()`.
 
 mod network;
+mod principled;
 
 pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport};
+pub use principled::Principled;
 
 use glam::Vec3;
 
-use crate::bsdf::{Bsdf, Lambert, Lobe};
+use crate::bsdf::Bsdf;
 
 /// The uber-material parameter set of one material instance.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct Material {
-    /// Diffuse reflectance (linear RGB, each in [0, 1]).
-    pub diffuse: Vec3,
+    /// Scattering.
+    pub principled: Principled,
     /// Emitted radiance, in the same units as UsdLux radiance.
     pub emission: Vec3,
 }
 
-impl Default for Material {
-    /// UsdPreviewSurface's defaults: diffuse 0.18 grey, no emission.
-    fn default() -> Self {
-        Material { diffuse: Vec3::splat(0.18), emission: Vec3::ZERO }
-    }
-}
-
 impl Material {
-    /// The lobes at a shading point; only non-zero lobes are added.
-    pub fn bsdf(&self) -> Bsdf {
-        let mut bsdf = Bsdf::default();
-        if self.diffuse.max_element() > 0.0 {
-            bsdf.push(Lobe::Lambert(Lambert { r: self.diffuse }));
-        }
-        bsdf
+    /// The lobes at a shading point; `energy_compensation` switches the Kulla-Conty layer.
+    pub fn bsdf(&self, energy_compensation: bool) -> Bsdf {
+        self.principled.bsdf(energy_compensation)
     }
 
     /// True when the material emits light.

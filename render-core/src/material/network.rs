@@ -91,7 +91,7 @@ impl MaterialNetwork {
     }
 
     /// Resolves the network into the uber-material. Unknown nodes, unmapped inputs and
-    /// connected inputs the slice cannot evaluate are reported, never silently dropped.
+    /// connected inputs that cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
         let mut m = Material::default();
@@ -99,24 +99,77 @@ impl MaterialNetwork {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (m, report);
         };
-        if surface.node_type_id != "UsdPreviewSurface" {
-            report.warnings.push(format!(
-                "{}: shader id '{}' is not supported yet; rendering {material_path} with UsdPreviewSurface defaults",
-                surface.path, surface.node_type_id
-            ));
-            return (m, report);
-        }
-        for (name, value) in &surface.parameters {
-            match (name.as_str(), value) {
-                ("diffuseColor", ParamValue::Float3(c)) => m.diffuse = c.clamp(Vec3::ZERO, Vec3::ONE),
-                ("emissiveColor", ParamValue::Float3(c)) => m.emission = c.max(Vec3::ZERO),
-                (n, _) if PREVIEW_SURFACE_MAPPED.contains(&n) => {
-                    report.warnings.push(format!("{}: input '{n}' has the wrong type {value:?}; using its default", surface.path))
+        let p = &mut m.principled;
+        match surface.node_type_id.as_str() {
+            "UsdPreviewSurface" => {
+                // UsdPreviewSurface's own defaults differ from Disney's where it says so.
+                p.roughness = 0.5;
+                p.specular = 0.5;
+                for (name, value) in &surface.parameters {
+                    match (name.as_str(), value) {
+                        ("diffuseColor", ParamValue::Float3(c)) => p.base_color = *c,
+                        ("emissiveColor", ParamValue::Float3(c)) => m.emission = c.max(Vec3::ZERO),
+                        ("metallic", ParamValue::Float(x)) => p.metallic = *x,
+                        ("roughness", ParamValue::Float(x)) => p.roughness = *x,
+                        ("clearcoat", ParamValue::Float(x)) => p.clearcoat = *x,
+                        ("clearcoatRoughness", ParamValue::Float(x)) => p.clearcoat_gloss = 1.0 - x,
+                        // The IOR sets the dielectric specular: F0 = ((η − 1)/(η + 1))² = 0.08·specular.
+                        ("ior", ParamValue::Float(x)) => {
+                            p.ior = *x;
+                            p.specular = (crate::bsdf::fresnel::f0_from_ior(*x) / 0.08).clamp(0.0, 1.0);
+                        }
+                        (
+                            n @ ("diffuseColor" | "emissiveColor" | "metallic" | "roughness" | "clearcoat" | "clearcoatRoughness" | "ior"),
+                            v,
+                        ) => report.warnings.push(format!("{}: input '{n}' has the wrong type {v:?}; using its default", surface.path)),
+                        (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
+                            report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", surface.path))
+                        }
+                        (n, _) => report.warnings.push(format!("{}: unknown UsdPreviewSurface input '{n}'", surface.path)),
+                    }
                 }
-                (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
-                    report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", surface.path))
+            }
+            "tessera:Principled" => {
+                for (name, value) in &surface.parameters {
+                    let f = |v: &ParamValue| if let ParamValue::Float(x) = v { Some(*x) } else { None };
+                    let ok = match name.as_str() {
+                        "baseColor" => matches!(value, ParamValue::Float3(c) if { p.base_color = *c; true }),
+                        "emission" => matches!(value, ParamValue::Float3(c) if { m.emission = c.max(Vec3::ZERO); true }),
+                        "thin" => matches!(value, ParamValue::Bool(b) if { p.thin = *b; true }),
+                        other => {
+                            let slot = match other {
+                                "metallic" => &mut p.metallic,
+                                "specular" => &mut p.specular,
+                                "specularTint" => &mut p.specular_tint,
+                                "roughness" => &mut p.roughness,
+                                "anisotropic" => &mut p.anisotropic,
+                                "sheen" => &mut p.sheen,
+                                "sheenTint" => &mut p.sheen_tint,
+                                "clearcoat" => &mut p.clearcoat,
+                                "clearcoatGloss" => &mut p.clearcoat_gloss,
+                                "specTrans" => &mut p.spec_trans,
+                                "diffTrans" => &mut p.diff_trans,
+                                "flatness" => &mut p.flatness,
+                                "ior" => &mut p.ior,
+                                unknown => {
+                                    report.warnings.push(format!("{}: unknown tessera:Principled input '{unknown}'", surface.path));
+                                    continue;
+                                }
+                            };
+                            f(value).map(|x| *slot = x).is_some()
+                        }
+                    };
+                    if !ok {
+                        report.warnings.push(format!("{}: input '{name}' has the wrong type {value:?}; using its default", surface.path));
+                    }
                 }
-                (n, _) => report.warnings.push(format!("{}: unknown UsdPreviewSurface input '{n}'", surface.path)),
+            }
+            other => {
+                report.warnings.push(format!(
+                    "{}: shader id '{other}' is not supported yet; rendering {material_path} with UsdPreviewSurface defaults",
+                    surface.path
+                ));
+                return (m, report);
             }
         }
         for c in self.connections.iter().filter(|c| c.downstream_node == surface.path) {
@@ -152,18 +205,38 @@ mod tests {
     }
 
     #[test]
-    fn maps_diffuse_and_emission_and_reports_the_rest() {
+    fn maps_preview_surface_inputs_and_reports_the_rest() {
         let (m, r) = preview(&[
             ("diffuseColor", ParamValue::Float3(Vec3::new(0.5, 2.0, -1.0))),
             ("emissiveColor", ParamValue::Float3(Vec3::splat(3.0))),
             ("metallic", ParamValue::Float(1.0)),
+            ("roughness", ParamValue::Float(0.25)),
+            ("ior", ParamValue::Float(1.5)),
+            ("opacity", ParamValue::Float(0.5)),
             ("bogus", ParamValue::Float(1.0)),
         ])
         .resolve("/M");
-        assert_eq!(m.diffuse, Vec3::new(0.5, 1.0, 0.0));
+        let p = m.principled.sanitized();
+        assert_eq!(p.base_color, Vec3::new(0.5, 1.0, 0.0));
+        assert_eq!((p.metallic, p.roughness), (1.0, 0.25));
+        assert!((p.specular - 0.5).abs() < 1e-5, "IOR 1.5 is Disney's specular 0.5");
         assert_eq!(m.emission, Vec3::splat(3.0));
-        assert!(r.warnings.iter().any(|w| w.contains("'metallic'") && w.contains("/M/S")));
+        assert!(r.warnings.iter().any(|w| w.contains("'opacity'") && w.contains("/M/S")));
         assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
+    }
+
+    #[test]
+    fn native_principled_shader_takes_disney_names() {
+        let mut n = preview(&[
+            ("baseColor", ParamValue::Float3(Vec3::ONE)),
+            ("specTrans", ParamValue::Float(1.0)),
+            ("thin", ParamValue::Bool(true)),
+            ("sheenn", ParamValue::Float(1.0)),
+        ]);
+        n.nodes[0].node_type_id = "tessera:Principled".into();
+        let (m, r) = n.resolve("/M");
+        assert_eq!((m.principled.spec_trans, m.principled.thin, m.principled.base_color), (1.0, true, Vec3::ONE));
+        assert!(r.warnings.iter().any(|w| w.contains("unknown tessera:Principled input 'sheenn'")));
     }
 
     #[test]

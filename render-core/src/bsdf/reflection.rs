@@ -1,5 +1,6 @@
-//! Rough conductor reflection: anisotropic GGX with a conductor Fresnel, plus Kulla-Conty's
-//! multiple-scattering compensation lobe.
+//! Microfacet reflection: anisotropic GGX with a conductor's or a dielectric's Fresnel, plus
+//! Kulla-Conty's multiple-scattering compensation lobe. Metals use it alone; opaque dielectrics
+//! put it over a diffuse base coupled through [`super::energy::dielectric_specular`].
 //!
 //! f = D·G2·F / (4 μo μi) + f_ms, with (`004_...`, "Microfacet energy compensation")
 //! f_ms = (1 − E(μo))(1 − E(μi)) / (π(1 − E_avg)) · F_avg² E_avg / (1 − F_avg(1 − E_avg)),
@@ -18,7 +19,7 @@ use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
 /// How a conductor's reflectance varies with angle.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ConductorFresnel {
+pub enum SpecularFresnel {
     /// Gulbrandsen's reflectivity `r` and edge tint `g` (`004_...`, conductor Fresnel slide).
     Gulbrandsen {
         /// Normal-incidence colour.
@@ -40,19 +41,25 @@ pub enum ConductorFresnel {
         /// F0.
         f0: Vec3,
     },
+    /// A dielectric's exact Fresnel with relative IOR `eta` (the specular of plastics).
+    Dielectric {
+        /// IOR below over above.
+        eta: f32,
+    },
     /// F = 1: an ideal reflector, for furnace tests.
     White,
 }
 
-impl ConductorFresnel {
+impl SpecularFresnel {
     /// F(μ) where μ is the cosine between the direction and the microfacet normal.
     #[inline]
     pub fn eval(&self, mu: f32) -> Vec3 {
         match *self {
-            ConductorFresnel::Gulbrandsen { r, g } => fresnel::gulbrandsen(r, g, mu),
-            ConductorFresnel::Artistic { r, g, p } => fresnel::artistic(r, g, p, mu),
-            ConductorFresnel::Schlick { f0 } => fresnel::schlick(f0, mu),
-            ConductorFresnel::White => Vec3::ONE,
+            SpecularFresnel::Gulbrandsen { r, g } => fresnel::gulbrandsen(r, g, mu),
+            SpecularFresnel::Artistic { r, g, p } => fresnel::artistic(r, g, p, mu),
+            SpecularFresnel::Schlick { f0 } => fresnel::schlick(f0, mu),
+            SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric(mu, eta)),
+            SpecularFresnel::White => Vec3::ONE,
         }
     }
 
@@ -60,18 +67,19 @@ impl ConductorFresnel {
     #[inline]
     pub fn average(&self) -> Vec3 {
         match *self {
-            ConductorFresnel::Gulbrandsen { r, g } => fresnel::gulbrandsen_avg_fit(r, g),
-            ConductorFresnel::Artistic { r, g, p } => fresnel::artistic_avg(r, g, p),
+            SpecularFresnel::Gulbrandsen { r, g } => fresnel::gulbrandsen_avg_fit(r, g),
+            SpecularFresnel::Artistic { r, g, p } => fresnel::artistic_avg(r, g, p),
             // Schlick integrates exactly: F0 + (1 − F0)·2∫(1−μ)⁵μ dμ = F0 + (1 − F0)/21.
-            ConductorFresnel::Schlick { f0 } => f0 + (Vec3::ONE - f0) / 21.0,
-            ConductorFresnel::White => Vec3::ONE,
+            SpecularFresnel::Schlick { f0 } => f0 + (Vec3::ONE - f0) / 21.0,
+            SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
+            SpecularFresnel::White => Vec3::ONE,
         }
     }
 }
 
-/// A rough (or, below α = 1e-3, perfectly smooth) conductor.
+/// Rough (or, below α = 1e-3, perfectly smooth) microfacet reflection.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Conductor {
+pub struct GgxReflection {
     /// Distribution.
     pub ggx: Ggx,
     /// Roughness driving the compensation tables: sqrt of the smaller α. The slides drive
@@ -79,17 +87,17 @@ pub struct Conductor {
     /// to 2% near grazing (measured), while the smaller α never over-compensates.
     pub roughness: f32,
     /// Reflectance.
-    pub fresnel: ConductorFresnel,
+    pub fresnel: SpecularFresnel,
     /// Add the multiple-scattering compensation lobe.
     pub compensate: bool,
 }
 
-impl Conductor {
-    /// A conductor of `roughness` and `anisotropic` (Disney mapping).
-    pub fn new(roughness: f32, anisotropic: f32, fresnel: ConductorFresnel, compensate: bool) -> Self {
+impl GgxReflection {
+    /// A lobe of `roughness` and `anisotropic` (Disney mapping).
+    pub fn new(roughness: f32, anisotropic: f32, fresnel: SpecularFresnel, compensate: bool) -> Self {
         let roughness = if roughness.is_finite() { roughness.clamp(0.0, 1.0) } else { 1.0 };
         let ggx = Ggx::from_roughness(roughness, anisotropic);
-        Conductor { ggx, roughness: ggx.ax.min(ggx.ay).sqrt().min(1.0), fresnel, compensate }
+        GgxReflection { ggx, roughness: ggx.ax.min(ggx.ay).sqrt().min(1.0), fresnel, compensate }
     }
 
     fn smooth(&self) -> bool {
@@ -152,7 +160,7 @@ impl Conductor {
         if f.is_finite() { f } else { Vec3::ZERO }
     }
 
-    /// Density of [`Conductor::sample`] choosing `wi`.
+    /// Density of [`GgxReflection::sample`] choosing `wi`.
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 || self.smooth() {
@@ -217,12 +225,12 @@ mod tests {
     const ROUGHNESS: [f32; 6] = [0.0, 1e-4, 0.1, 0.5, 0.8, 1.0];
 
     fn white(r: f32, aniso: f32, compensate: bool) -> Lobe {
-        Lobe::Conductor(Conductor::new(r, aniso, ConductorFresnel::White, compensate))
+        Lobe::GgxReflection(GgxReflection::new(r, aniso, SpecularFresnel::White, compensate))
     }
 
     fn gold(r: f32, aniso: f32) -> Lobe {
-        let fresnel = ConductorFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };
-        Lobe::Conductor(Conductor::new(r, aniso, fresnel, true))
+        let fresnel = SpecularFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };
+        Lobe::GgxReflection(GgxReflection::new(r, aniso, fresnel, true))
     }
 
     #[test]
