@@ -48,7 +48,17 @@ enum Command {
         /// Render threads on the server (0 = all cores).
         #[arg(long, default_value_t = 0)]
         threads: u32,
+        /// Kulla-Conty energy compensation (multiple scattering in rough microfacets, glass,
+        /// and the diffuse-specular coupling).
+        #[arg(long, value_enum, default_value_t = OnOff::On)]
+        energy_compensation: OnOff,
     },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum OnOff {
+    On,
+    Off,
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32)> {
@@ -74,9 +84,21 @@ async fn main() {
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
-        Command::Render { scene, output, spp, res, camera, max_depth, seed, aov, server, threads } => {
+        Command::Render { scene, output, spp, res, camera, max_depth, seed, aov, server, threads, energy_compensation } => {
             let (width, height) = parse_res(&res)?;
-            let options = RenderOptions { width, height, spp, max_depth, seed, camera, aovs: aov, threads, progressive_f16: true };
+            let energy_compensation = energy_compensation == OnOff::On;
+            let options = RenderOptions {
+                width,
+                height,
+                spp,
+                max_depth,
+                seed,
+                camera,
+                aovs: aov,
+                threads,
+                progressive_f16: true,
+                energy_compensation,
+            };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             run(&RenderJob { scene, output, options, server, progress }).await?;
         }

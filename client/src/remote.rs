@@ -28,6 +28,8 @@ pub struct RenderOptions {
     pub threads: u32,
     /// Stream intermediate passes as f16.
     pub progressive_f16: bool,
+    /// Kulla-Conty energy compensation.
+    pub energy_compensation: bool,
 }
 
 impl Default for RenderOptions {
@@ -42,6 +44,7 @@ impl Default for RenderOptions {
             aovs: Vec::new(),
             threads: 0,
             progressive_f16: true,
+            energy_compensation: true,
         }
     }
 }
@@ -130,6 +133,7 @@ impl Connection {
             tile_size: 0,
             progressive_format: if opts.progressive_f16 { pb::PixelFormat::F16 } else { pb::PixelFormat::F32 } as i32,
             threads: opts.threads,
+            disable_energy_compensation: !opts.energy_compensation,
         };
         let mut stream = self
             .client

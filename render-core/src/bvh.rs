@@ -239,7 +239,9 @@ impl Tlas {
             let (_, blas, xf) = &self.ordered[id];
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
-            if blases[*blas].occluded(o, d, r.tmax) { 0.5 * r.tmax } else { f32::INFINITY }
+            // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
+            // shadow rays towards dome and distant lights and let them pass through everything.
+            if blases[*blas].occluded(o, d, r.tmax) { 0.0 } else { f32::INFINITY }
         })
     }
 }
@@ -291,6 +293,7 @@ mod tests {
         assert!((p - Vec3::new(0.5, 0.25, 0.0)).length() < 1e-5);
         assert!(tlas.occluded(&blas, &ray, 6.0));
         assert!(!tlas.occluded(&blas, &ray, 4.0));
+        assert!(tlas.occluded(&blas, &ray, f32::INFINITY), "an unbounded shadow ray is blocked too");
         let miss = Ray::new(Vec3::new(5.0, 5.0, 0.0), Vec3::new(0.0, 0.0, -1.0));
         assert!(tlas.intersect(&blas, &miss).is_none());
     }

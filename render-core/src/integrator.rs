@@ -123,7 +123,7 @@ pub fn trace_path(
             s.ns
         };
         let ng = if s.ng.dot(ns0) < 0.0 { -s.ng } else { s.ng };
-        let ns = ns0;
+        let ns = if bsdf.transmits() { ng } else { ns0 };
 
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];

@@ -199,7 +199,11 @@ impl RenderJob {
                 spp,
                 seed: s.seed,
                 tile_size: tile,
-                integrator: IntegratorSettings { max_depth: if s.max_depth == 0 { 8 } else { s.max_depth }, ..Default::default() },
+                integrator: IntegratorSettings {
+                    max_depth: if s.max_depth == 0 { 8 } else { s.max_depth },
+                    energy_compensation: !s.disable_energy_compensation,
+                    ..Default::default()
+                },
             },
             aovs,
             camera_path: s.camera_path.clone(),

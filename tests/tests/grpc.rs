@@ -71,10 +71,11 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
     ));
     let (server, mut conn) = session_with(&t).await;
     let report = conn.render(&small(16, 16, 1), |_| {}).await.unwrap();
-    // The default camera frames the grid: its centre sees the grey (0.18) plane under the dome.
+    // The default camera frames the grid: its centre sees the unbound mesh's default material
+    // (UsdPreviewSurface: diffuse 0.18 under an IOR 1.5 specular) reflecting the unit dome.
     let centre = report.image.pixel("beauty", 8, 8);
     assert_eq!(centre[3], 1.0, "the grid was synced and is hit");
-    assert!((centre[0] - 0.18).abs() < 1e-3, "{centre:?}");
+    assert!(centre[0] > 0.18 && centre[0] < 0.3, "{centre:?}");
     server.stop().await.unwrap();
 }
 

@@ -44,6 +44,9 @@ pub struct DisneyDiffuse {
     /// specular leaves, f·(1 − E_s(μo))(1 − E_s(μi))/(1 − E_s,avg) (`004_...`, "Microfacet
     /// dielectrics - diffuse term"), so specular + diffuse never exceeds 1.
     pub coupling: Option<(f32, f32)>,
+    /// A plain Lambertian base (UsdPreviewSurface's diffuse): no Fresnel shadow, no
+    /// retro-reflection, still coupled.
+    pub lambert: bool,
 }
 
 impl DisneyDiffuse {
@@ -55,8 +58,8 @@ impl DisneyDiffuse {
         if wo.z * wi.z <= 0.0 || (wo + wi).length_squared() == 0.0 {
             return Vec3::ZERO;
         }
-        let (base, retro) = Self::parts(self.roughness, self.flatness, wo, wi);
-        let (s, k) = diffuse_energy_scales(self.roughness, self.flatness);
+        let (base, retro) = if self.lambert { (FRAC_1_PI, 0.0) } else { Self::parts(self.roughness, self.flatness, wo, wi) };
+        let (s, k) = if self.lambert { (1.0, 1.0) } else { diffuse_energy_scales(self.roughness, self.flatness) };
         let couple = match self.coupling {
             Some((eta, r)) => {
                 let t = super::energy::dielectric_specular();
@@ -329,7 +332,7 @@ mod tests {
         let mut v = Vec::new();
         for r in [0.0, 0.5, 1.0] {
             for flatness in [0.0, 0.5, 1.0] {
-                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness, coupling: None }));
+                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness, coupling: None, lambert: false }));
             }
         }
         v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE }));

@@ -66,24 +66,9 @@ pub struct ResolveReport {
     pub warnings: Vec<String>,
 }
 
-/// UsdPreviewSurface inputs this slice maps; everything else is reported once.
-const PREVIEW_SURFACE_MAPPED: &[&str] = &["diffuseColor", "emissiveColor"];
-/// UsdPreviewSurface inputs that are known but not yet mapped to lobes.
-const PREVIEW_SURFACE_KNOWN: &[&str] = &[
-    "useSpecularWorkflow",
-    "specularColor",
-    "metallic",
-    "roughness",
-    "clearcoat",
-    "clearcoatRoughness",
-    "opacity",
-    "opacityMode",
-    "opacityThreshold",
-    "ior",
-    "normal",
-    "displacement",
-    "occlusion",
-];
+/// UsdPreviewSurface inputs that are known but not yet mapped (the layered-materials issue).
+const PREVIEW_SURFACE_KNOWN: &[&str] =
+    &["useSpecularWorkflow", "specularColor", "opacity", "opacityMode", "opacityThreshold", "normal", "displacement", "occlusion"];
 
 impl MaterialNetwork {
     fn node(&self, path: &str) -> Option<&MaterialNode> {
@@ -102,7 +87,9 @@ impl MaterialNetwork {
         let p = &mut m.principled;
         match surface.node_type_id.as_str() {
             "UsdPreviewSurface" => {
-                // UsdPreviewSurface's own defaults differ from Disney's where it says so.
+                // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0
+                // comes from `ior` (default 1.5); `ior` 1 means no specular.
+                p.lambert = true;
                 p.roughness = 0.5;
                 p.specular = 0.5;
                 for (name, value) in &surface.parameters {

@@ -39,6 +39,9 @@ pub struct Principled {
     pub thin: bool,
     /// `ior` of the transmissive part.
     pub ior: f32,
+    /// Lambertian diffuse instead of Disney's (front-ends whose diffuse is Lambertian, such
+    /// as UsdPreviewSurface).
+    pub lambert: bool,
 }
 
 impl Default for Principled {
@@ -59,6 +62,7 @@ impl Default for Principled {
             flatness: 0.0,
             thin: false,
             ior: 1.5,
+            lambert: false,
         }
     }
 }
@@ -84,6 +88,7 @@ impl Principled {
             flatness: u(self.flatness, d.flatness),
             thin: self.thin,
             ior: if self.ior.is_finite() && self.ior > 0.0 { self.ior.clamp(1.0 / 3.0, 3.0) } else { d.ior },
+            lambert: self.lambert,
         }
     }
 
@@ -108,13 +113,13 @@ impl Principled {
         };
         if dielectric > 0.0 {
             let coupling = (compensate && p.specular > 0.0).then_some((eta, p.roughness));
-            let color = if p.thin && p.diff_trans > 0.0 { p.base_color } else { p.base_color };
             bsdf.push_weighted(
                 Lobe::DisneyDiffuse(DisneyDiffuse {
-                    color,
+                    color: p.base_color,
                     roughness: p.roughness,
                     flatness: if p.thin { p.flatness } else { 0.0 },
                     coupling,
+                    lambert: p.lambert,
                 }),
                 dielectric * (1.0 - p.diff_trans),
             );
