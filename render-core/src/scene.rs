@@ -379,6 +379,19 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     }
     plan.skipped = ["subsurface", "textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
 
+    // Build the energy tables the plan calls for now, in parallel on the commit thread, rather
+    // than on first use inside the first tiles; scenes without the effect never build them.
+    let used = |pred: fn(&crate::material::Principled) -> bool| materials.iter().any(|m| pred(&m.principled.sanitized()));
+    if used(|p| p.roughness > 0.0) {
+        crate::bsdf::energy::ggx();
+    }
+    if used(|p| p.metallic < 1.0 && p.spec_trans > 0.0 && p.roughness > 0.0) {
+        crate::bsdf::energy::glass();
+    }
+    if used(|p| p.metallic < 1.0 && p.spec_trans < 1.0 && p.specular > 0.0) {
+        crate::bsdf::energy::dielectric_specular();
+    }
+
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {

@@ -238,19 +238,17 @@ fn glass_eta(side: usize, i: usize) -> f32 {
 impl GlassEnergy {
     fn compute() -> Self {
         let _span = tracing::debug_span!("glass_energy_tables").entered();
+        use rayon::prelude::*;
         let (n, nm) = (GLASS_N, GLASS_MU);
-        let mut e = vec![0.0; 2 * n * n * nm];
-        for side in 0..2 {
-            for i in 0..n {
-                for j in 0..n {
-                    for k in 0..nm {
-                        let mu = ((k as f32 / (nm - 1) as f32).powi(2)).max(MU_MIN);
-                        e[((side * n + i) * n + j) * nm + k] =
-                            dielectric_albedo(mu, j as f32 / (n - 1) as f32, glass_eta(side, i), 32).min(1.0);
-                    }
-                }
-            }
-        }
+        // Cells are independent and deterministic (each seeds its own stream): build in parallel.
+        let e: Vec<f32> = (0..2 * n * n * nm)
+            .into_par_iter()
+            .map(|idx| {
+                let (k, j, i, side) = (idx % nm, (idx / nm) % n, (idx / (nm * n)) % n, idx / (nm * n * n));
+                let mu = ((k as f32 / (nm - 1) as f32).powi(2)).max(MU_MIN);
+                dielectric_albedo(mu, j as f32 / (n - 1) as f32, glass_eta(side, i), 32).min(1.0)
+            })
+            .collect();
         let mut t = GlassEnergy { e, e_avg: vec![0.0; 2 * n * n] };
         for side in 0..2 {
             for i in 0..n {
@@ -351,10 +349,13 @@ fn spec_eta(i: usize) -> f32 {
 impl DielectricSpecularEnergy {
     fn compute() -> Self {
         let _span = tracing::debug_span!("dielectric_specular_tables").entered();
+        use rayon::prelude::*;
         let n = GLASS_N;
-        let mut e = vec![0.0; n * n * n];
-        for i in 0..n {
-            for j in 0..n {
+        let rows: Vec<Vec<f32>> = (0..n * n)
+            .into_par_iter()
+            .map(|ij| {
+                let (i, j) = (ij / n, ij % n);
+                let mut row = vec![0.0; n];
                 let lobe = super::Lobe::GgxReflection(super::GgxReflection::new(
                     j as f32 / (n - 1) as f32,
                     0.0,
@@ -375,10 +376,12 @@ impl DielectricSpecularEnergy {
                             }
                         }
                     }
-                    e[(i * n + j) * n + k] = ((acc / (S * S) as f64) as f32).min(1.0);
+                    row[k] = ((acc / (S * S) as f64) as f32).min(1.0);
                 }
-            }
-        }
+                row
+            })
+            .collect();
+        let e: Vec<f32> = rows.into_iter().flatten().collect();
         let mut t = DielectricSpecularEnergy { e, e_avg: vec![0.0; n * n] };
         for i in 0..n {
             for j in 0..n {

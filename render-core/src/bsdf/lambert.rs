@@ -69,6 +69,19 @@ mod tests {
     }
 
     #[test]
+    fn pdf_integrates_to_one() {
+        // Every cosine sample is returned, so the chi-square mass check pins the integral at 1.
+        let lobe = Lobe::Lambert(Lambert { r: Vec3::ONE });
+        let mut rng = crate::sampling::Pcg32::new(2, 2);
+        let (n, mut acc) = (400_000, 0.0f64);
+        for _ in 0..n {
+            let w = crate::sampling::uniform_sphere(rng.next_2d());
+            acc += lobe.pdf(Vec3::new(0.3, 0.1, 0.95).normalize(), w) as f64 * 4.0 * std::f64::consts::PI;
+        }
+        assert!((acc / n as f64 - 1.0).abs() < 0.01, "{}", acc / n as f64);
+    }
+
+    #[test]
     fn reciprocity() {
         for lobe in lobes() {
             testing::assert_reciprocal(&lobe);

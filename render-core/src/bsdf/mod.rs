@@ -11,7 +11,7 @@
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
 mod dielectric;
-mod disney;
+pub mod disney;
 pub mod energy;
 pub mod fresnel;
 mod lambert;

@@ -155,6 +155,15 @@ fn chi2_over(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
             }
         }
         let expected = expected_counts(|wi| lobe.density(wo, wi));
+        // The pdf integrates to at most 1, and to the fraction of samples actually returned
+        // (to the integration's 0.5%, reached on grazing lobes a degree wide).
+        let mass = expected.iter().sum::<f64>() / SAMPLES as f64;
+        let returned = observed.iter().sum::<f64>() / SAMPLES as f64;
+        assert!(mass <= 1.0 + 5e-3, "pdf of {lobe:?} at wo={wo:?} integrates to {mass}");
+        assert!(
+            (mass - returned).abs() <= 5e-3,
+            "pdf of {lobe:?} at wo={wo:?} integrates to {mass} but {returned} of samples were returned"
+        );
         let (stat, dof) = chi2_statistic(&observed, &expected);
         if dof == 0 {
             continue;

@@ -1,0 +1,114 @@
+//! Nanoseconds per `eval` and per `sample` for each lobe and for the principled BSDF, with
+//! energy compensation on and off, on a fixed set of directions (the tables are built before
+//! timing). Run: `cargo bench -p render-core --bench lobes`.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use render_core::bsdf::{Bsdf, Clearcoat, Dielectric, DisneyDiffuse, GgxReflection, Lambert, Lobe, Sheen, SpecularFresnel};
+use render_core::material::Principled;
+use render_core::sampling::{Pcg32, cosine_hemisphere, uniform_sphere};
+
+const N: usize = 1 << 18;
+
+fn inputs() -> Vec<(Vec3, Vec3, f32, Vec2)> {
+    let mut rng = Pcg32::new(1, 2);
+    (0..N)
+        .map(|_| {
+            let wo = cosine_hemisphere(rng.next_2d());
+            let wi = uniform_sphere(rng.next_2d());
+            (wo, wi, rng.next_f32(), rng.next_2d())
+        })
+        .collect()
+}
+
+fn time(f: impl Fn() -> f32) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = Instant::now();
+        black_box(f());
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    best * 1e9 / N as f64
+}
+
+fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
+    let eval = time(|| data.iter().map(|(wo, wi, _, _)| lobe.eval(*wo, *wi).x + lobe.pdf(*wo, *wi)).sum());
+    let sample = time(|| data.iter().filter_map(|(wo, _, uc, u)| lobe.sample(*wo, *uc, *u)).map(|s| s.weight.x).sum());
+    println!("{name:<44} {eval:>10.1} {sample:>10.1}");
+}
+
+fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
+    let eval = time(|| data.iter().map(|(wo, wi, _, _)| bsdf.eval(*wo, *wi).x + bsdf.pdf(*wo, *wi)).sum());
+    let sample = time(|| {
+        data.iter()
+            .filter_map(|(wo, _, uc, u)| {
+                let mut b = bsdf.clone();
+                b.prepare(*wo);
+                b.sample(*wo, *uc, *u)
+            })
+            .map(|s| s.weight.x)
+            .sum()
+    });
+    println!("{name:<44} {eval:>10.1} {sample:>10.1}");
+}
+
+fn main() {
+    let data = inputs();
+    // Build every table before timing, and report what each costs on first use.
+    let build = |name: &str, f: &dyn Fn()| {
+        let t = Instant::now();
+        f();
+        println!("table build, first use: {name:<36} {:>8.0} ms", t.elapsed().as_secs_f64() * 1e3);
+    };
+    build("GGX E(mu, r) 32x32 + E_avg", &|| {
+        render_core::bsdf::energy::ggx();
+    });
+    build("glass E(eta, r, mu) 2 x 16x16x32", &|| {
+        render_core::bsdf::energy::glass();
+    });
+    build("dielectric specular E_s 16^3", &|| {
+        render_core::bsdf::energy::dielectric_specular();
+    });
+    build("Disney diffuse energy scales 16x16", &|| {
+        render_core::bsdf::disney::diffuse_energy_scales(0.5, 0.0);
+    });
+    println!("{:<44} {:>10} {:>10}", "lobe (1 thread)", "eval+pdf ns", "sample ns");
+    lobe_row("lambert", &Lobe::Lambert(Lambert { r: Vec3::splat(0.5) }), &data);
+    for comp in [false, true] {
+        let gold = SpecularFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };
+        lobe_row(
+            &format!("metal (Gulbrandsen) r=0.5, compensation {comp}"),
+            &Lobe::GgxReflection(GgxReflection::new(0.5, 0.0, gold, comp)),
+            &data,
+        );
+        lobe_row(
+            &format!("glass r=0.5 eta=1.5, compensation {comp}"),
+            &Lobe::Dielectric(Dielectric::new(0.5, 0.0, 1.5, Vec3::ONE).compensated(comp)),
+            &data,
+        );
+        let coupling = comp.then_some((1.5, 0.5));
+        lobe_row(
+            &format!("disney diffuse r=0.5, coupling {comp}"),
+            &Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::splat(0.5), roughness: 0.5, flatness: 0.0, coupling, lambert: false }),
+            &data,
+        );
+    }
+    lobe_row("sheen", &Lobe::Sheen(Sheen { color: Vec3::ONE }), &data);
+    lobe_row("clearcoat gloss 0.5", &Lobe::Clearcoat(Clearcoat::new(1.0, 0.5)), &data);
+    for comp in [false, true] {
+        let plastic = Principled { base_color: Vec3::new(0.8, 0.3, 0.2), roughness: 0.4, ..Default::default() };
+        let everything = Principled {
+            base_color: Vec3::new(0.8, 0.3, 0.2),
+            metallic: 0.3,
+            spec_trans: 0.3,
+            roughness: 0.4,
+            sheen: 0.5,
+            clearcoat: 0.5,
+            ..Default::default()
+        };
+        bsdf_row(&format!("principled plastic, compensation {comp}"), &plastic.bsdf(comp), &data);
+        bsdf_row(&format!("principled 6 lobes, compensation {comp}"), &everything.bsdf(comp), &data);
+    }
+}
