@@ -24,6 +24,23 @@ fn cosine_same_side(wo: Vec3, u: Vec2) -> Vec3 {
     if wo.z < 0.0 { -w } else { w }
 }
 
+/// A cosine-sampled reflection with its weight f·|cos|/pdf, for the lobes sampled that way.
+#[inline]
+fn cosine_reflection_sample(wo: Vec3, u: Vec2, flags: LobeFlags, eval: impl Fn(Vec3) -> Vec3) -> Option<LobeSample> {
+    if wo.z == 0.0 {
+        return None;
+    }
+    let wi = cosine_same_side(wo, u);
+    let pdf = cosine_reflection_pdf(wo, wi);
+    (pdf > 0.0).then(|| LobeSample { wi, weight: eval(wi) * wi.z.abs() / pdf, pdf, flags, eta: 1.0 })
+}
+
+/// |cos θi|/π on `wo`'s side.
+#[inline]
+fn cosine_reflection_pdf(wo: Vec3, wi: Vec3) -> f32 {
+    if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
+}
+
 /// Disney diffuse: f = c/π·[s·(1 − F_L/2)(1 − F_V/2)·lerp(1, HK, flatness) + k·R_R(F_L + F_V + F_L F_V (R_R − 1))],
 /// R_R = 2·roughness·cos²θd. Reflection only, on either side of a two-sided surface.
 ///
@@ -92,17 +109,12 @@ impl DisneyDiffuse {
 
     /// Cosine-weighted on `wo`'s side.
     pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
-        if wo.z == 0.0 {
-            return None;
-        }
-        let wi = cosine_same_side(wo, u);
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
+        cosine_reflection_sample(wo, u, Self::FLAGS, |wi| self.eval(wo, wi))
     }
 
     /// |cos θi|/π on `wo`'s side.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
+        cosine_reflection_pdf(wo, wi)
     }
 
     /// The base colour, less what a coupled specular takes.
@@ -233,17 +245,12 @@ impl Sheen {
 
     /// Cosine-weighted on `wo`'s side.
     pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
-        if wo.z == 0.0 {
-            return None;
-        }
-        let wi = cosine_same_side(wo, u);
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
+        cosine_reflection_sample(wo, u, Self::FLAGS, |wi| self.eval(wo, wi))
     }
 
     /// |cos θi|/π on `wo`'s side.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z * wi.z > 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
+        cosine_reflection_pdf(wo, wi)
     }
 
     /// Directional albedo estimate: the sheen peaks at grazing; (1 − μ)⁵-weighted average.

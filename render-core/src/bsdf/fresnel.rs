@@ -15,19 +15,11 @@ use glam::Vec3;
 /// Fresnel"), with g² = η² + μ² − 1.
 #[inline]
 pub fn dielectric(cos_i: f32, eta: f32) -> f32 {
-    let mu = cos_i.abs().min(1.0);
-    let g2 = eta * eta + mu * mu - 1.0;
-    if g2 <= 0.0 {
-        return 1.0;
-    }
-    let g = g2.sqrt();
-    let a = (g - mu) / (g + mu);
-    let b = (mu * (g + mu) - 1.0) / (mu * (g - mu) + 1.0);
-    (0.5 * a * a * (1.0 + b * b)).clamp(0.0, 1.0)
+    dielectric_f64(cos_i as f64, eta as f64) as f32
 }
 
-/// [`dielectric`] in f64, for evaluations that must be reciprocal to 1e-4 near the critical
-/// angle, where F is steep.
+/// [`dielectric`] in f64: evaluations that must be reciprocal to 1e-4 near the critical angle,
+/// where F is steep, call it directly.
 #[inline]
 pub fn dielectric_f64(cos_i: f64, eta: f64) -> f64 {
     let mu = cos_i.abs().min(1.0);
