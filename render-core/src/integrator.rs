@@ -110,8 +110,7 @@ pub fn trace_path(
 
         let s = scene.surface(&hit);
         let wo = -ray.dir;
-        let material = &scene.materials[s.material as usize];
-        let mut bsdf = material.bsdf(settings.energy_compensation);
+        let mut bsdf = scene.bsdf(s.material, settings.energy_compensation).clone();
         // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
         // their authored orientation (the shading normal's side is outside), so a ray inside
         // glass sees its inside.

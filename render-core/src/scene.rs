@@ -141,6 +141,9 @@ pub struct CommittedScene {
     tlas: Tlas,
     /// Resolved materials; index 0 is the default material.
     pub materials: Vec<Material>,
+    /// Each material's BSDF without and with energy compensation, built once at commit:
+    /// materials carry no textures yet, so a BSDF does not vary over a surface.
+    bsdfs: [Vec<crate::bsdf::Bsdf>; 2],
     /// Lights and their selection distribution.
     pub lights: LightSet,
     /// Indices of the finite lights a ray may cross (area lights; not triangle emitters,
@@ -392,6 +395,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         crate::bsdf::energy::dielectric_specular();
     }
 
+    let bsdfs = [false, true].map(|comp| materials.iter().map(|m| m.bsdf(comp)).collect());
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {
@@ -400,6 +404,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances,
         tlas,
         materials,
+        bsdfs,
         lights: light_set,
         crossable_lights,
         infinite_lights,
@@ -412,6 +417,12 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
 }
 
 impl CommittedScene {
+    /// The BSDF of material `index` (unprepared), with or without energy compensation.
+    #[inline]
+    pub fn bsdf(&self, index: u32, energy_compensation: bool) -> &crate::bsdf::Bsdf {
+        &self.bsdfs[energy_compensation as usize][index as usize]
+    }
+
     /// Closest surface hit along `ray`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
