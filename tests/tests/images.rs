@@ -54,6 +54,13 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         assert_eq!(c, c0, "{aov} channels");
         assert_eq!(data, original, "{aov} pixels survive the EXR round trip");
     }
+    // The render reports its own price: one convergence row per pass, spp doubling, noise
+    // falling once there are enough samples to estimate it.
+    let table = tessera::commands::render::convergence_table(&report.progress);
+    assert_eq!(table.lines().count(), 2 + report.progress.len());
+    let spp: Vec<u32> = report.progress.iter().map(|p| p.spp).collect();
+    assert_eq!(spp, vec![1, 2, 4]);
+    assert!(report.progress[2].estimated_noise < report.progress[1].estimated_noise);
     let png = image::open(dir.join("cornell.png")).expect("png preview");
     assert_eq!((png.width(), png.height()), (40, 30));
     std::fs::remove_dir_all(dir).ok();

@@ -107,6 +107,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
     ];
     write_outputs(&job.output, &report, &metadata)?;
+    eprint!("{}", convergence_table(&report.progress));
     println!(
         "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
         job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
@@ -122,6 +123,18 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         output::preview_path(&job.output).display()
     );
     Ok(report)
+}
+
+/// The render's price, pass by pass: samples, elapsed time and estimated noise (relative
+/// standard error of the image's mean luminance).
+pub fn convergence_table(progress: &[pb::Progress]) -> String {
+    let mut out = String::from("convergence:\n  pass    spp   elapsed s   noise %\n");
+    for p in progress {
+        // One sample per pixel cannot estimate a variance.
+        let noise = if p.spp < 2 { "-".to_string() } else { format!("{:.3}", 100.0 * p.estimated_noise) };
+        out += &format!("  {:>4} {:>6} {:>11.3} {:>9}\n", p.pass_index, p.spp, p.elapsed_seconds, noise);
+    }
+    out
 }
 
 /// Writes the EXR and its PNG preview.
