@@ -21,8 +21,8 @@ enum Command {
         /// The scene.
         scene: PathBuf,
         /// Output EXR path; a PNG preview is written beside it.
-        #[arg(short, long)]
-        output: PathBuf,
+        #[arg(short, long, required_unless_present = "explain_plan")]
+        output: Option<PathBuf>,
         /// Samples per pixel.
         #[arg(long, default_value_t = 64)]
         spp: u32,
@@ -48,6 +48,10 @@ enum Command {
         /// Render threads on the server (0 = all cores).
         #[arg(long, default_value_t = 0)]
         threads: u32,
+        /// Print the render plan (what is simulated, and which prims call for it) and exit
+        /// without rendering.
+        #[arg(long)]
+        explain_plan: bool,
         /// Kulla-Conty energy compensation (multiple scattering in rough microfacets, glass,
         /// and the diffuse-specular coupling).
         #[arg(long, value_enum, default_value_t = OnOff::On)]
@@ -84,7 +88,23 @@ async fn main() {
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
-        Command::Render { scene, output, spp, res, camera, max_depth, seed, aov, server, threads, energy_compensation } => {
+        Command::Render { scene, explain_plan: true, .. } => {
+            print!("{}", tessera::commands::render::explain_plan(&scene)?);
+        }
+        Command::Render {
+            scene,
+            output,
+            spp,
+            res,
+            camera,
+            max_depth,
+            seed,
+            aov,
+            server,
+            threads,
+            energy_compensation,
+            explain_plan: false,
+        } => {
             let (width, height) = parse_res(&res)?;
             let energy_compensation = energy_compensation == OnOff::On;
             let options = RenderOptions {
@@ -100,6 +120,7 @@ async fn real_main() -> Result<()> {
                 energy_compensation,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let output = output.expect("clap requires --output unless --explain-plan");
             run(&RenderJob { scene, output, options, server, progress }).await?;
         }
     }

@@ -65,3 +65,13 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
     assert_eq!((png.width(), png.height()), (40, 30));
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
+    let glass = tessera::commands::render::explain_plan(&fixture("furnace_rough_glass.usda")).unwrap();
+    assert!(glass.contains("transmission") && glass.contains("/World/Looks/RoughGlass"), "{glass}");
+    assert!(!glass.contains("+ metal"), "{glass}");
+    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda")).unwrap();
+    assert!(cornell.contains("+ lights") && cornell.contains("/World/Lights/CeilingLight"), "{cornell}");
+    assert!(!cornell.contains("+ transmission"), "a scene without glass pays nothing for it: {cornell}");
+}

@@ -125,6 +125,20 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     Ok(report)
 }
 
+/// The render plan of a scene: what the renderer will simulate and which prims call for it,
+/// from the same commit the server performs (`render_core::scene::commit`), plus what the
+/// USD translation could not render.
+pub fn explain_plan(scene: &Path) -> Result<String> {
+    let translation = crate::usd::load(scene)?;
+    let committed = render_core::scene::commit(&translation.to_scene_desc(), &mut render_core::scene::BlasCache::default())
+        .with_context(|| format!("{}: the scene does not commit", scene.display()))?;
+    let mut out = format!("render plan for {}:\n{}", scene.display(), committed.plan);
+    for w in translation.warnings.iter().chain(&committed.warnings) {
+        out += &format!("  ! {w}\n");
+    }
+    Ok(out)
+}
+
 /// The render's price, pass by pass: samples, elapsed time and estimated noise (relative
 /// standard error of the image's mean luminance).
 pub fn convergence_table(progress: &[pb::Progress]) -> String {
