@@ -359,7 +359,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     // Each effect the materials call for, with the materials that call for it.
     type Pred = fn(&crate::material::Principled) -> bool;
     let effects: [(&str, &str, Pred); 6] = [
-        ("diffuse", "Disney diffuse with retro-reflection", |p| p.metallic < 1.0 && p.spec_trans < 1.0),
+        ("diffuse", "diffuse reflection (Lambertian for UsdPreviewSurface, Disney for tessera:Principled)", |p| p.metallic < 1.0 && p.spec_trans < 1.0),
         ("metal", "GGX conductor reflection", |p| p.metallic > 0.0),
         ("transmission", "rough dielectric refraction (glass)", |p| p.metallic < 1.0 && p.spec_trans > 0.0),
         ("clearcoat", "GTR1 clearcoat", |p| p.clearcoat > 0.0),
