@@ -475,10 +475,6 @@ impl CommittedScene {
         let dist = radius / half.sin();
         Ok(CameraDesc { transform: Affine3A::from_translation(center + Vec3::Z * dist), near: (dist - radius).max(1e-3) * 0.5, ..d })
     }
-
-    /// MIS context of a shading point.
-    pub fn shading_context(p: Vec3, n: Vec3) -> ShadingContext {
-        ShadingContext { p, n }
     }
 }
 
