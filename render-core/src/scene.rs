@@ -13,7 +13,7 @@ use glam::{Affine3A, Vec2, Vec3};
 use crate::bvh::{Blas, BuildQuality, Hit, Tlas, TlasInstance};
 use crate::camera::CameraDesc;
 use crate::geometry::{Mesh, Normals, Ray, Transform};
-use crate::light::{Light, LightDesc, LightSet, ShadingContext};
+use crate::light::{Light, LightDesc, LightSet};
 use crate::material::{Material, MaterialNetwork};
 use crate::plan::RenderPlan;
 
@@ -359,7 +359,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     // Each effect the materials call for, with the materials that call for it.
     type Pred = fn(&crate::material::Principled) -> bool;
     let effects: [(&str, &str, Pred); 6] = [
-        ("diffuse", "diffuse reflection (Lambertian for UsdPreviewSurface, Disney for tessera:Principled)", |p| p.metallic < 1.0 && p.spec_trans < 1.0),
+        ("diffuse", "diffuse reflection (Lambertian for UsdPreviewSurface, Disney for tessera:Principled)", |p| {
+            p.metallic < 1.0 && p.spec_trans < 1.0
+        }),
         ("metal", "GGX conductor reflection", |p| p.metallic > 0.0),
         ("transmission", "rough dielectric refraction (glass)", |p| p.metallic < 1.0 && p.spec_trans > 0.0),
         ("clearcoat", "GTR1 clearcoat", |p| p.clearcoat > 0.0),
@@ -474,7 +476,6 @@ impl CommittedScene {
         let half = (0.5 * d.vertical_aperture / d.focal_length).atan();
         let dist = radius / half.sin();
         Ok(CameraDesc { transform: Affine3A::from_translation(center + Vec3::Z * dist), near: (dist - radius).max(1e-3) * 0.5, ..d })
-    }
     }
 }
 
