@@ -112,17 +112,17 @@ pub fn trace_path(
         let wo = -ray.dir;
         let mut bsdf = scene.bsdf(s.material, settings.energy_compensation).clone();
         // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
-        // their authored orientation (the shading normal's side is outside), so a ray inside
-        // glass sees its inside.
-        let ns0 = if bsdf.transmits() {
-            s.ns
-        } else if s.ns.dot(wo) < 0.0 {
-            -s.ns
+        // their authored orientation (the shading normal's side is outside) so a ray inside
+        // glass sees its inside, and shade with the geometric normal for now: a smooth
+        // shading normal can put a direction on the other side than the geometry does
+        // (tessellated glass therefore looks faceted).
+        let (ns, ng) = if bsdf.transmits() {
+            let ng = if s.ng.dot(s.ns) < 0.0 { -s.ng } else { s.ng };
+            (ng, ng)
         } else {
-            s.ns
+            let ns = if s.ns.dot(wo) < 0.0 { -s.ns } else { s.ns };
+            (ns, if s.ng.dot(ns) < 0.0 { -s.ng } else { s.ng })
         };
-        let ng = if s.ng.dot(ns0) < 0.0 { -s.ng } else { s.ng };
-        let ns = if bsdf.transmits() { ng } else { ns0 };
 
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
