@@ -79,10 +79,8 @@ impl GgxEnergy {
         }
         let mut tables = GgxEnergy { e, e_avg };
         for j in 0..N {
-            // E_avg = 2∫E(μ)μ dμ of the interpolated table, midpoint rule.
-            const M: usize = 4096;
-            let acc: f64 = (0..M).map(|k| (k as f64 + 0.5) / M as f64).map(|mu| tables.e_at_row(j, mu as f32) as f64 * mu).sum();
-            e_avg[j] = (2.0 * acc / M as f64) as f32;
+            // E_avg of the interpolated table itself.
+            e_avg[j] = cosine_average(4096, |mu| tables.e_at_row(j, mu));
         }
         tables.e_avg = e_avg;
         tables
@@ -193,10 +191,16 @@ mod tests {
 /// single-scattering rough dielectric for `wo` on the side where the relative IOR is `eta`,
 /// by stratified sampling of the lobe itself.
 pub fn dielectric_albedo(mu: f32, roughness: f32, eta: f32, strata: u32) -> f32 {
-    let lobe = super::Dielectric::new(roughness, 0.0, eta, Vec3::ONE);
+    let lobe = super::Lobe::Dielectric(super::Dielectric::new(roughness, 0.0, eta, Vec3::ONE));
     let mu = mu.clamp(MU_MIN, 1.0);
-    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
     let mut rng = Pcg32::new(0x51f15e, (mu.to_bits() as u64) << 32 | (roughness.to_bits() ^ eta.to_bits()) as u64);
+    lobe_energy(&lobe, mu, &mut rng, strata)
+}
+
+/// Directional energy of `lobe` at cosine μ (radiance scaling of transmission undone), by
+/// sampling the lobe itself on strata×strata jittered strata.
+fn lobe_energy(lobe: &super::Lobe, mu: f32, rng: &mut Pcg32, strata: u32) -> f32 {
+    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
     let mut acc = 0.0f64;
     for a in 0..strata {
         for b in 0..strata {
@@ -207,6 +211,12 @@ pub fn dielectric_albedo(mu: f32, roughness: f32, eta: f32, strata: u32) -> f32 
         }
     }
     (acc / (strata * strata) as f64) as f32
+}
+
+/// 2∫f(μ)μ dμ by the midpoint rule on `m` cosines: the E_avg of a tabulated E.
+fn cosine_average(m: usize, f: impl Fn(f32) -> f32) -> f32 {
+    let acc: f64 = (0..m).map(|k| (k as f64 + 0.5) / m as f64).map(|mu| f(mu as f32) as f64 * mu).sum();
+    (2.0 * acc / m as f64) as f32
 }
 
 /// Glass table resolution in η and roughness (`004_...`: "16^3 tables").
@@ -253,10 +263,7 @@ impl GlassEnergy {
         for side in 0..2 {
             for i in 0..n {
                 for j in 0..n {
-                    const M: usize = 1024;
-                    let acc: f64 =
-                        (0..M).map(|m| (m as f64 + 0.5) / M as f64).map(|mu| t.lookup_node(side, i, j, mu as f32) as f64 * mu).sum();
-                    t.e_avg[(side * n + i) * n + j] = (2.0 * acc / M as f64) as f32;
+                    t.e_avg[(side * n + i) * n + j] = cosine_average(1024, |mu| t.lookup_node(side, i, j, mu));
                 }
             }
         }
@@ -362,21 +369,10 @@ impl DielectricSpecularEnergy {
                     super::SpecularFresnel::Dielectric { eta: spec_eta(i) },
                     true,
                 ));
-                for k in 0..n {
+                for (k, e) in row.iter_mut().enumerate() {
                     let mu = ((k as f32 / (n - 1) as f32).powi(2)).max(MU_MIN);
-                    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
                     let mut rng = Pcg32::new(0xd1ff, (i * n * n + j * n + k) as u64);
-                    let mut acc = 0.0f64;
-                    const S: u32 = 32;
-                    for a in 0..S {
-                        for b in 0..S {
-                            let u = Vec2::new((a as f32 + rng.next_f32()) / S as f32, (b as f32 + rng.next_f32()) / S as f32);
-                            if let Some(s) = lobe.sample(wo, rng.next_f32(), u) {
-                                acc += s.weight.x as f64;
-                            }
-                        }
-                    }
-                    row[k] = ((acc / (S * S) as f64) as f32).min(1.0);
+                    *e = lobe_energy(&lobe, mu, &mut rng, 32).min(1.0);
                 }
                 row
             })
@@ -385,9 +381,7 @@ impl DielectricSpecularEnergy {
         let mut t = DielectricSpecularEnergy { e, e_avg: vec![0.0; n * n] };
         for i in 0..n {
             for j in 0..n {
-                const M: usize = 1024;
-                let acc: f64 = (0..M).map(|m| (m as f64 + 0.5) / M as f64).map(|mu| t.node(i, j, mu as f32) as f64 * mu).sum();
-                t.e_avg[i * n + j] = (2.0 * acc / M as f64) as f32;
+                t.e_avg[i * n + j] = cosine_average(1024, |mu| t.node(i, j, mu));
             }
         }
         t
