@@ -384,20 +384,14 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     }
     plan.skipped = ["subsurface", "textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
 
-    // Build the energy tables the plan calls for now, in parallel on the commit thread, rather
-    // than on first use inside the first tiles; scenes without the effect never build them.
-    let used = |pred: fn(&crate::material::Principled) -> bool| materials.iter().any(|m| pred(&m.principled.sanitized()));
-    if used(|p| p.roughness > 0.0) {
-        crate::bsdf::energy::ggx();
+    let bsdfs: [Vec<crate::bsdf::Bsdf>; 2] = [false, true].map(|comp| materials.iter().map(|m| m.bsdf(comp)).collect());
+    // The energy tables that the BSDFs of used materials read are built now (in parallel)
+    // rather than in the first tiles; scenes whose lobes do not read them never build them,
+    // and the fallback material counts only when a mesh falls back to it.
+    let used: std::collections::BTreeSet<u32> = instances.iter().map(|i| i.material).collect();
+    for set in &bsdfs {
+        used.iter().for_each(|&m| set[m as usize].build_tables());
     }
-    if used(|p| p.metallic < 1.0 && p.spec_trans > 0.0 && p.roughness > 0.0) {
-        crate::bsdf::energy::glass();
-    }
-    if used(|p| p.metallic < 1.0 && p.spec_trans < 1.0 && p.specular > 0.0) {
-        crate::bsdf::energy::dielectric_specular();
-    }
-
-    let bsdfs = [false, true].map(|comp| materials.iter().map(|m| m.bsdf(comp)).collect());
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {

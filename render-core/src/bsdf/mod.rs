@@ -182,6 +182,17 @@ impl Bsdf {
         self.lobes().any(|(_, l)| l.flags().transmission)
     }
 
+    /// Builds the energy tables this BSDF's lobes read (each is computed once per process),
+    /// so a scene commit pays for them rather than the first tiles, and only for lobes that
+    /// use them: evaluating every lobe once in reflection and transmission touches exactly
+    /// its tables.
+    pub fn build_tables(&self) {
+        for (_, l) in self.lobes() {
+            l.eval(Vec3::Z, Vec3::Z);
+            l.eval(Vec3::Z, -Vec3::Z);
+        }
+    }
+
     /// True when nothing scatters.
     pub fn is_empty(&self) -> bool {
         self.count == 0
