@@ -65,6 +65,9 @@ fn main() {
     build("GGX E(mu, r) 32x32 + E_avg", &|| {
         render_core::bsdf::energy::ggx();
     });
+    build("anisotropic GGX E 32x8x8x32 + E_avg", &|| {
+        render_core::bsdf::energy::ggx_anisotropic();
+    });
     build("glass E(eta, r, mu) 2 x 16x16x32", &|| {
         render_core::bsdf::energy::glass();
     });
@@ -81,6 +84,11 @@ fn main() {
         lobe_row(
             &format!("metal (Gulbrandsen) r=0.5, compensation {comp}"),
             &Lobe::GgxReflection(GgxReflection::new(0.5, 0.0, gold, comp)),
+            &data,
+        );
+        lobe_row(
+            &format!("metal (Gulbrandsen) r=0.5 aniso 0.8, comp. {comp}"),
+            &Lobe::GgxReflection(GgxReflection::new(0.5, 0.8, gold, comp)),
             &data,
         );
         lobe_row(

@@ -31,10 +31,20 @@ pub struct Dielectric {
     pub eta: f32,
     /// Tint of transmitted light (1 for clear glass).
     pub transmittance: Vec3,
-    /// Roughness driving the compensation tables (√ of the smaller α, as for conductors).
+    /// Roughness driving the compensation tables.
     pub roughness: f32,
-    /// Add the multiple-scattering compensation lobes.
-    pub compensate: bool,
+    /// The multiple-scattering compensation lobes' constants, when compensating.
+    pub compensation: Option<GlassCompensation>,
+}
+
+/// What the compensation lobes need besides E(μ), integrated once when the lobe is built:
+/// E_avg of the lobe's own interpolated E on each side, so each compensation lobe's albedo is
+/// exactly 1 − E(μo) of the table, and Ratio on each side. Index 0 is seen from above
+/// (relative IOR η), 1 from below (1/η).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlassCompensation {
+    e_avg: [f32; 2],
+    ratio: [f32; 2],
 }
 
 /// Fresnel reflectance for a direction on either side: cos < 0 means from inside.
@@ -73,41 +83,59 @@ impl Dielectric {
             ggx,
             eta,
             transmittance: transmittance.clamp(Vec3::ZERO, Vec3::ONE),
-            roughness: ggx.ax.min(ggx.ay).sqrt().min(1.0),
-            compensate: false,
+            roughness: ggx.ax.sqrt().min(1.0),
+            compensation: None,
         }
     }
 
-    /// The same lobe with energy compensation switched on or off.
+    /// The same lobe with energy compensation switched on or off. Anisotropic glass stays
+    /// uncompensated: its energy depends on the view azimuth far more than the isotropic
+    /// tables allow (single-scattering E at cos θ = 0.01 seen from inside, roughness 1, η = 1.5:
+    /// 0.68 with anisotropic −1, 0.58 isotropic, 0.30 with anisotropic 1, measured), and
+    /// driving it by one roughness, as the slides do for reflection, gained up to 9%. Losing
+    /// energy is the conservative failure; a table over azimuth and η is future work.
     pub fn compensated(self, on: bool) -> Self {
-        Dielectric { compensate: on, ..self }
+        let wanted = on && self.ggx.ax == self.ggx.ay && !self.smooth();
+        let compensation = wanted.then(|| {
+            let t = energy::glass();
+            let e_avg = [t.e_avg_of_lookup(self.eta, self.roughness), t.e_avg_of_lookup(1.0 / self.eta, self.roughness)];
+            let ratio = [
+                energy::glass_reflect_ratio(self.eta, e_avg[0], e_avg[1]),
+                energy::glass_reflect_ratio(1.0 / self.eta, e_avg[1], e_avg[0]),
+            ];
+            GlassCompensation { e_avg, ratio }
+        });
+        Dielectric { compensation, ..self }
+    }
+
+    /// True when the compensation lobes are on.
+    pub fn compensate(&self) -> bool {
+        self.compensation.is_some()
     }
 
     /// (E(μo) from wo's side, Ratio, η seen from wo) when compensating.
     #[inline]
     fn ms_terms(&self, wo: Vec3) -> Option<(f32, f32, f32)> {
-        if !self.compensate || self.smooth() || wo.z == 0.0 {
+        let c = self.compensation.as_ref()?;
+        if wo.z == 0.0 {
             return None;
         }
-        let eta_o = if wo.z > 0.0 { self.eta } else { 1.0 / self.eta };
+        let (side, eta_o) = if wo.z > 0.0 { (0, self.eta) } else { (1, 1.0 / self.eta) };
         let e_o = energy::glass().e(eta_o, self.roughness, wo.z.abs());
-        (e_o < 1.0).then(|| (e_o, energy::glass_reflect_ratio(eta_o, self.roughness), eta_o))
+        (e_o < 1.0).then_some((e_o, c.ratio[side], eta_o))
     }
 
     /// The compensation lobes' f(wo, wi), radiance-scaled like the single-scattering BTDF.
     #[inline]
     fn f_ms(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let Some((e_o, ratio, eta_o)) = self.ms_terms(wo) else { return 0.0 };
+        let (Some(c), Some((e_o, ratio, eta_o))) = (self.compensation.as_ref(), self.ms_terms(wo)) else { return 0.0 };
         let t = energy::glass();
         let mu_i = wi.z.abs();
-        if wo.z * wi.z > 0.0 {
-            ratio * (1.0 - e_o) * (1.0 - t.e(eta_o, self.roughness, mu_i)) / (PI * (1.0 - t.e_avg(eta_o, self.roughness)).max(1e-6))
-        } else {
-            let inv = 1.0 / eta_o;
-            (1.0 - ratio) * (1.0 - e_o) * (1.0 - t.e(inv, self.roughness, mu_i))
-                / (PI * (1.0 - t.e_avg(inv, self.roughness)).max(1e-6))
-                / (eta_o * eta_o)
-        }
+        // E_avg on wi's side: index 0 above the surface, 1 below.
+        let avg_i = if wi.z > 0.0 { c.e_avg[0] } else { c.e_avg[1] };
+        let eta_i = if wi.z > 0.0 { self.eta } else { 1.0 / self.eta };
+        let lobe = (1.0 - e_o) * (1.0 - t.e(eta_i, self.roughness, mu_i)) / (PI * (1.0 - avg_i).max(1e-6));
+        if wo.z * wi.z > 0.0 { ratio * lobe } else { (1.0 - ratio) * lobe / (eta_o * eta_o) }
     }
 
     fn smooth(&self) -> bool {
@@ -271,6 +299,11 @@ impl Dielectric {
             }
             wi
         };
+        // At grazing angles f32 rounding can put the sampled wi where `half` finds a
+        // back-facing microfacet, so eval and pdf_single are 0 there. Such a sample must be
+        // dropped, not weighted by the compensation lobes' tiny density alone: that made
+        // weights of 200-400 (a firefly source) at cos θ = 1e-4, roughness 0.05.
+        self.half(wo, wi)?;
         self.finish(wo, wi)
     }
 
@@ -323,15 +356,18 @@ mod tests {
 
     #[test]
     fn compensated_rough_glass_keeps_its_energy() {
-        // Reflected + transmitted energy within 2% of 1 (`004_...`, glass energy conservation),
-        // from both sides, and never above 1 + 1e-3 beyond Monte Carlo noise.
-        for r in [0.1, 0.3, 0.6, 1.0] {
-            for eta in [1.1, 1.5, 2.0, 3.0] {
+        // Reflected + transmitted energy within 2% of 1 (`004_...`, glass energy conservation)
+        // from both sides for cos θ ≥ 0.05, within 3% down to 1e-4 and near index matching,
+        // where E changes fastest (a sweep over 490 such probes measured 0.973 to 1.015 at
+        // 200k samples), and never more than 2% above 1.
+        for r in [0.05, 0.1, 0.3, 0.6, 1.0] {
+            for eta in [1.001, 1.1, 1.5, 2.0, 3.0] {
                 let lobe = compensated(r, eta);
-                for wo in testing::probe_directions().into_iter().filter(|w| w.z >= 0.05) {
+                for wo in testing::probe_directions() {
                     for wo in [wo, -wo] {
                         let a = testing::albedo_estimate(&lobe, wo, 40_000).x;
-                        assert!((a - 1.0).abs() < 0.02, "roughness {r}, eta {eta}, wo {wo:?}: energy {a}");
+                        let tolerance = if wo.z.abs() >= 0.05 { 0.02 } else { 0.03 };
+                        assert!(a <= 1.02 && (a - 1.0).abs() < tolerance, "roughness {r}, eta {eta}, wo {wo:?}: energy {a}");
                     }
                 }
             }
@@ -353,7 +389,7 @@ mod tests {
                 assert!((l - r).abs() <= 1e-3 * l.abs().max(r.abs()) + 1e-7, "eta {eta}, {a:?} {b:?}: {l} vs {r}");
             }
         }
-        let dirs: Vec<Vec3> = testing::probe_directions().into_iter().filter(|w| w.z >= 1e-3).collect();
+        let dirs: Vec<Vec3> = testing::probe_directions();
         let below: Vec<Vec3> = dirs.iter().map(|w| -*w).collect();
         testing::assert_chi2_at(&compensated(0.6, 1.5), 500, dirs);
         testing::assert_chi2_at(&compensated(0.6, 1.5), 501, below);
@@ -418,13 +454,10 @@ mod tests {
         }
     }
 
-    /// From outside and inside, down to |cos θo| = 0.01. Known gap: at cos θo = −1e-4 from
-    /// inside (roughness 1, η = 3) χ² reads 570 for 400 degrees of freedom while the expected
-    /// counts agree with brute-force integration, a small sampler/pdf mismatch at the horizon
-    /// that is not yet found.
+    /// From outside and inside, down to |cos θo| = 1e-4.
     #[test]
     fn chi_square_from_both_sides() {
-        let dirs: Vec<Vec3> = testing::probe_directions().into_iter().filter(|w| w.z >= 1e-3).collect();
+        let dirs: Vec<Vec3> = testing::probe_directions();
         let below: Vec<Vec3> = dirs.iter().map(|w| -*w).collect();
         for (k, lobe) in
             [glass(0.3, 1.5), glass(0.6, 1.0 / 1.5), glass(1.0, 3.0), Lobe::Dielectric(Dielectric::new(0.4, 0.8, 1.33, Vec3::ONE))]

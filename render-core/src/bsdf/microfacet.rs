@@ -107,14 +107,17 @@ impl Ggx {
     }
 }
 
-/// Burley's GTR1 distribution (`001_...`, section 5.4), used by the Disney clearcoat.
+/// Burley's GTR1 distribution (`001_...`, section 5.4), used by the Disney clearcoat, for a
+/// unit microfacet normal `h` in the local frame. The denominator 1 + (α² − 1)cos²θ is formed
+/// as sin²θ + α²cos²θ from h's components: computed from cos θ in f32 it cancels near the peak
+/// of a gloss-1 coat (α² = 1e-6) and D came out up to 6% off there.
 #[inline]
-pub fn gtr1_d(cos_h: f32, alpha: f32) -> f32 {
+pub fn gtr1_d(h: Vec3, alpha: f32) -> f32 {
     if alpha >= 1.0 {
         return 1.0 / PI;
     }
     let a2 = alpha * alpha;
-    let t = 1.0 + (a2 - 1.0) * cos_h * cos_h;
+    let t = h.x * h.x + h.y * h.y + a2 * h.z * h.z;
     (a2 - 1.0) / (PI * a2.ln() * t)
 }
 
@@ -183,7 +186,8 @@ mod tests {
                 let t = lo + (hi - lo) * (i as f64 + 0.5) / n as f64;
                 let u = t.exp();
                 let c = (1.0 - u).max(0.0).sqrt();
-                acc += gtr1_d(c as f32, alpha) as f64 * 0.5 * u * (hi - lo) / n as f64;
+                let h = Vec3::new(u.sqrt() as f32, 0.0, c as f32);
+                acc += gtr1_d(h, alpha) as f64 * 0.5 * u * (hi - lo) / n as f64;
             }
             let integral = acc * 2.0 * std::f64::consts::PI;
             assert!((integral - 1.0).abs() < 0.01, "alpha {alpha}: {integral}");

@@ -200,19 +200,32 @@ fn expected_counts(pdf: impl Fn(Vec3) -> f32) -> Vec<f64> {
     expected
 }
 
-/// ∫ pdf over a cell by jittered stratified sampling, strata equal in cos θ and φ.
+/// ∫ pdf over a cell by jittered stratified sampling, strata equal in φ and in cos θ, except
+/// that cells touching the horizon or a pole place their strata on a cubic warp towards it:
+/// transmission from inside at grazing angles leaves through steep microfacets into a sliver
+/// z < 3e-4 just above the horizon, a 500th of the cell, and the sharpest clearcoat
+/// (α = 0.001) peaks within 1 − z < 1e-5 of the pole; equal strata missed both.
 fn stratified(pdf: &impl Fn(Vec3) -> f32, rng: &mut Pcg32, t0: f64, t1: f64, p0: f64, p1: f64, n: usize) -> f64 {
     let (c0, c1) = (t0.cos(), t1.cos());
+    // z = edge + (far − edge)·t³, dz = 3t²(far − edge) dt, with `edge` the horizon when touched.
+    let (edge, far, warp) = if c1.abs() < 1e-9 || c1 < -1.0 + 1e-9 {
+        (c1, c0, true)
+    } else if c0.abs() < 1e-9 || c0 > 1.0 - 1e-9 {
+        (c0, c1, true)
+    } else {
+        (c0, c1, false)
+    };
     let mut acc = 0.0;
     for a in 0..n {
         for b in 0..n {
-            let z = c0 + (c1 - c0) * (a as f64 + rng.next_f32() as f64) / n as f64;
+            let t = (a as f64 + rng.next_f32() as f64) / n as f64;
+            let (z, jacobian) = if warp { (edge + (far - edge) * t.powi(5), 5.0 * t.powi(4)) } else { (edge + (far - edge) * t, 1.0) };
             let phi = p0 + (p1 - p0) * (b as f64 + rng.next_f32() as f64) / n as f64;
             let r = (1.0 - z * z).max(0.0).sqrt();
-            acc += pdf(Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)) as f64;
+            acc += pdf(Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)) as f64 * jacobian;
         }
     }
-    acc / (n * n) as f64 * (c0 - c1) * (p1 - p0)
+    acc / (n * n) as f64 * (c0 - c1).abs() * (p1 - p0)
 }
 
 fn midpoint(pdf: &impl Fn(Vec3) -> f32, t0: f64, t1: f64, p0: f64, p1: f64) -> f64 {
