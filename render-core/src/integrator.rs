@@ -113,16 +113,21 @@ pub fn trace_path(
         let mut bsdf = scene.bsdf(s.material, settings.energy_compensation).clone();
         // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
         // their authored orientation (the shading normal's side is outside) so a ray inside
-        // glass sees its inside, and shade with the geometric normal for now: a smooth
-        // shading normal can put a direction on the other side than the geometry does
-        // (tessellated glass therefore looks faceted).
+        // glass sees its inside. The geometric normal is turned to the shading normal's side;
+        // a direction the two normals put on different sides is dropped below.
         let (ns, ng) = if bsdf.transmits() {
             let ng = if s.ng.dot(s.ns) < 0.0 { -s.ng } else { s.ng };
-            (ng, ng)
+            // Near silhouettes the viewer itself can be on different sides of the two normals:
+            // there the facet decides.
+            if wo.dot(ng) * wo.dot(s.ns) > 0.0 { (s.ns, ng) } else { (ng, ng) }
         } else {
             let ns = if s.ns.dot(wo) < 0.0 { -s.ns } else { s.ns };
             (ns, if s.ng.dot(ns) < 0.0 { -s.ng } else { s.ng })
         };
+        // Where an interpolated normal and the facet disagree about which side a direction is
+        // on, following it would reflect into the surface or refract out of the wrong side
+        // (light leaks through tessellated glass); such directions carry no light instead.
+        let sides_agree = |w: Vec3, local_z: f32| w.dot(ng) * local_z > 0.0;
 
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
@@ -152,7 +157,7 @@ pub fn trace_path(
             if let Some(ls) = lights.sample(&ctx, u_sel, u_light) {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
-                    let f = bsdf.eval(wo_local, wi_local);
+                    let f = if sides_agree(ls.wi, wi_local.z) { bsdf.eval(wo_local, wi_local) } else { Vec3::ZERO };
                     if f != Vec3::ZERO {
                         let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng });
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
@@ -177,6 +182,9 @@ pub fn trace_path(
             break;
         };
         let wi = frame.to_world(bs.wi).normalize();
+        if !sides_agree(wi, bs.wi.z) {
+            break;
+        }
         beta *= bs.weight;
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
