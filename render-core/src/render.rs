@@ -101,6 +101,7 @@ pub struct RenderOutcome {
 /// Renders `scene` through `camera` progressively on the current rayon pool.
 pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
+    scene.prepare_bsdfs(settings.integrator.energy_compensation);
     let tiles: Vec<Mutex<TileFilm>> =
         tiles_centre_out(settings.width, settings.height, settings.tile_size).into_iter().map(|r| Mutex::new(TileFilm::new(r))).collect();
     let rays = AtomicU64::new(0);

@@ -141,9 +141,11 @@ pub struct CommittedScene {
     tlas: Tlas,
     /// Resolved materials; index 0 is the default material.
     pub materials: Vec<Material>,
-    /// Each material's BSDF without and with energy compensation, built once at commit:
-    /// materials carry no textures yet, so a BSDF does not vary over a surface.
-    bsdfs: [Vec<crate::bsdf::Bsdf>; 2],
+    /// Each material's BSDF without and with energy compensation, built on first use of each
+    /// setting (materials carry no textures yet, so a BSDF does not vary over a surface).
+    bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
+    /// Materials some instance uses: only their lobes' energy tables are built.
+    used_materials: Vec<u32>,
     /// Lights and their selection distribution.
     pub lights: LightSet,
     /// Indices of the finite lights a ray may cross (area lights; not triangle emitters,
@@ -185,7 +187,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let mut plan = RenderPlan::default();
 
     // Materials: index 0 is the fallback for unbound meshes.
-    let mut materials = vec![Material::default()];
+    let mut materials = vec![Material::preview_surface_default()];
     let mut material_index: HashMap<&str, u32> = HashMap::new();
     for (path, network) in &desc.materials {
         let (m, report) = network.resolve(path);
@@ -384,14 +386,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     }
     plan.skipped = ["subsurface", "textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
 
-    let bsdfs: [Vec<crate::bsdf::Bsdf>; 2] = [false, true].map(|comp| materials.iter().map(|m| m.bsdf(comp)).collect());
-    // The energy tables that the BSDFs of used materials read are built now (in parallel)
-    // rather than in the first tiles; scenes whose lobes do not read them never build them,
-    // and the fallback material counts only when a mesh falls back to it.
-    let used: std::collections::BTreeSet<u32> = instances.iter().map(|i| i.material).collect();
-    for set in &bsdfs {
-        used.iter().for_each(|&m| set[m as usize].build_tables());
-    }
+    let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {
@@ -400,7 +395,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances,
         tlas,
         materials,
-        bsdfs,
+        bsdfs: Default::default(),
+        used_materials,
         lights: light_set,
         crossable_lights,
         infinite_lights,
@@ -413,10 +409,23 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
 }
 
 impl CommittedScene {
+    /// Builds the BSDFs for one energy-compensation setting, and the energy tables their
+    /// lobes read, for the materials some instance uses: a render calls this before its first
+    /// tile, so a render with compensation off never builds the compensation tables and the
+    /// fallback material counts only when a mesh falls back to it.
+    pub fn prepare_bsdfs(&self, energy_compensation: bool) -> &[crate::bsdf::Bsdf] {
+        self.bsdfs[energy_compensation as usize].get_or_init(|| {
+            let _span = tracing::info_span!("prepare_bsdfs", energy_compensation).entered();
+            let set: Vec<crate::bsdf::Bsdf> = self.materials.iter().map(|m| m.bsdf(energy_compensation)).collect();
+            self.used_materials.iter().for_each(|&m| set[m as usize].build_tables());
+            set
+        })
+    }
+
     /// The BSDF of material `index` (unprepared), with or without energy compensation.
     #[inline]
     pub fn bsdf(&self, index: u32, energy_compensation: bool) -> &crate::bsdf::Bsdf {
-        &self.bsdfs[energy_compensation as usize][index as usize]
+        &self.prepare_bsdfs(energy_compensation)[index as usize]
     }
 
     /// Closest surface hit along `ray`.

@@ -26,6 +26,16 @@ pub struct Material {
 }
 
 impl Material {
+    /// UsdPreviewSurface with every input at its specification default (diffuse 0.18,
+    /// roughness 0.5, ior 1.5, no metal): the fallback of unbound meshes and of materials
+    /// without a surface shader, as Hydra's fallback material is.
+    pub fn preview_surface_default() -> Self {
+        Material {
+            principled: Principled { lambert: true, base_color: Vec3::splat(0.18), roughness: 0.5, specular: 0.5, ..Default::default() },
+            emission: Vec3::ZERO,
+        }
+    }
+
     /// The lobes at a shading point; `energy_compensation` switches the Kulla-Conty layer.
     pub fn bsdf(&self, energy_compensation: bool) -> Bsdf {
         self.principled.bsdf(energy_compensation)

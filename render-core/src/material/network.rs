@@ -79,7 +79,7 @@ impl MaterialNetwork {
     /// connected inputs that cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
-        let mut m = Material::default();
+        let mut m = Material::preview_surface_default();
         let Some(surface) = self.node(&self.surface_node) else {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (m, report);
@@ -88,10 +88,8 @@ impl MaterialNetwork {
         match surface.node_type_id.as_str() {
             "UsdPreviewSurface" => {
                 // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0
-                // comes from `ior` (default 1.5); `ior` 1 means no specular.
-                p.lambert = true;
-                p.roughness = 0.5;
-                p.specular = 0.5;
+                // comes from `ior` (default 1.5); `ior` 1 means no specular. The defaults are
+                // already in `m`.
                 for (name, value) in &surface.parameters {
                     match (name.as_str(), value) {
                         ("diffuseColor", ParamValue::Float3(c)) => p.base_color = *c,
@@ -117,6 +115,8 @@ impl MaterialNetwork {
                 }
             }
             "tessera:Principled" => {
+                // Disney's defaults, not UsdPreviewSurface's.
+                *p = super::Principled::default();
                 for (name, value) in &surface.parameters {
                     let f = |v: &ParamValue| if let ParamValue::Float(x) = v { Some(*x) } else { None };
                     let ok = match name.as_str() {
@@ -231,7 +231,7 @@ mod tests {
         let mut n = preview(&[]);
         n.nodes[0].node_type_id = "ND_standard_surface".into();
         let (m, r) = n.resolve("/M");
-        assert_eq!(m, Material::default());
+        assert_eq!(m, Material::preview_surface_default());
         assert!(r.warnings[0].contains("/M/S") && r.warnings[0].contains("ND_standard_surface"));
     }
 }
