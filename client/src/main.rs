@@ -1,5 +1,6 @@
 //! `tessera`: the command-line client.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
@@ -56,6 +57,23 @@ enum Command {
         /// and the diffuse-specular coupling).
         #[arg(long, value_enum, default_value_t = OnOff::On)]
         energy_compensation: OnOff,
+        /// Time code at which to evaluate animated attributes (default: the stage's
+        /// startTimeCode, else 0).
+        #[arg(long)]
+        frame: Option<f64>,
+    },
+    /// Print what the client reads from a USD file: meshes with their world transforms and
+    /// materials, instancers, lights, cameras, material networks, skipped prims.
+    Inspect {
+        /// The scene.
+        scene: PathBuf,
+        /// Print JSON (the only format so far; the same shape `fixtures/inspect_usd.py`
+        /// prints from Pixar's usd-core).
+        #[arg(long)]
+        json: bool,
+        /// Time code for animated attributes.
+        #[arg(long)]
+        frame: Option<f64>,
     },
 }
 
@@ -88,8 +106,12 @@ async fn main() {
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
-        Command::Render { scene, explain_plan: true, .. } => {
-            print!("{}", tessera::commands::render::explain_plan(&scene)?);
+        Command::Inspect { scene, json: _, frame } => {
+            // A closed pipe (`| head`) is not an error worth a panic.
+            let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
+        }
+        Command::Render { scene, explain_plan: true, frame, .. } => {
+            print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
         }
         Command::Render {
             scene,
@@ -103,6 +125,7 @@ async fn real_main() -> Result<()> {
             server,
             threads,
             energy_compensation,
+            frame,
             explain_plan: false,
         } => {
             let (width, height) = parse_res(&res)?;
@@ -121,7 +144,7 @@ async fn real_main() -> Result<()> {
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");
-            run(&RenderJob { scene, output, options, server, progress }).await?;
+            run(&RenderJob { scene, output, options, server, progress, frame }).await?;
         }
     }
     Ok(())

@@ -62,6 +62,13 @@ pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
         items.extend(chunks(path, pb::ArrayField::TriangleIndices, &indices, |c, v| c.uints = v));
         items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| c.floats = v));
     }
+    // Instancers after meshes: the server resolves each prototype by path at commit.
+    for (path, inst) in &t.instancers {
+        let transforms: Vec<f64> = inst.transforms.iter().flat_map(|xf| convert::matrix(xf).m).collect();
+        let prim = pb::InstancerPrim { prototype_path: inst.prototype.clone(), transforms_len: transforms.len() as u64 };
+        items.push(delta(path, pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim)));
+        items.extend(chunks(path, pb::ArrayField::InstanceTransforms, &transforms, |c, v| c.doubles = v));
+    }
     items
 }
 

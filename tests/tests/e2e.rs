@@ -7,3 +7,4 @@ mod furnace;
 mod grpc;
 mod images;
 mod light_units;
+mod usd;

@@ -43,9 +43,10 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
     let out = dir.join("cornell.exr");
     let mut options = small(40, 30, 4);
     options.aovs = vec!["albedo".into(), "normal".into(), "depth".into()];
-    let report = run(&RenderJob { scene: fixture("cornell_box.usda"), output: out.clone(), options, server: None, progress: false })
-        .await
-        .expect("renders");
+    let report =
+        run(&RenderJob { scene: fixture("cornell_box.usda"), output: out.clone(), options, server: None, progress: false, frame: None })
+            .await
+            .expect("renders");
     let back = tessera::output::read_exr(&out).expect("reads back");
     assert_eq!((back.width, back.height), (40, 30));
     for aov in ["beauty", "albedo", "normal", "depth"] {
@@ -68,10 +69,10 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
 
 #[test]
 fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
-    let glass = tessera::commands::render::explain_plan(&fixture("furnace_rough_glass.usda")).unwrap();
+    let glass = tessera::commands::render::explain_plan(&fixture("furnace_rough_glass.usda"), None).unwrap();
     assert!(glass.contains("transmission") && glass.contains("/World/Looks/RoughGlass"), "{glass}");
     assert!(!glass.contains("+ metal"), "{glass}");
-    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda")).unwrap();
+    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda"), None).unwrap();
     assert!(cornell.contains("+ lights") && cornell.contains("/World/Lights/CeilingLight"), "{cornell}");
     assert!(!cornell.contains("+ transmission"), "a scene without glass pays nothing for it: {cornell}");
 }

@@ -1,3 +1,4 @@
 //! The CLI's subcommands.
 
+pub mod inspect;
 pub mod render;

@@ -24,14 +24,16 @@ pub struct RenderJob {
     pub server: Option<String>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Time code for animated attributes; `None` for the stage's default.
+    pub frame: Option<f64>,
 }
 
 /// Reads the scene, renders it and writes the outputs. Returns the report for callers
 /// (tests) that want the numbers.
 pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     let t0 = Instant::now();
-    let scene = job.scene.clone();
-    let translation = tokio::task::spawn_blocking(move || crate::usd::load(&scene)).await??;
+    let (scene, frame) = (job.scene.clone(), job.frame);
+    let translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
     for w in &translation.warnings {
         eprintln!("warning: {w}");
     }
@@ -128,8 +130,8 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
 /// The render plan of a scene: what the renderer will simulate and which prims call for it,
 /// from the same commit the server performs (`render_core::scene::commit`), plus what the
 /// USD translation could not render.
-pub fn explain_plan(scene: &Path) -> Result<String> {
-    let translation = crate::usd::load(scene)?;
+pub fn explain_plan(scene: &Path, frame: Option<f64>) -> Result<String> {
+    let translation = crate::usd::load_at(scene, frame)?;
     let committed = render_core::scene::commit(&translation.to_scene_desc(), &mut render_core::scene::BlasCache::default())
         .with_context(|| format!("{}: the scene does not commit", scene.display()))?;
     let mut out = format!("render plan for {}:\n{}", scene.display(), committed.plan);

@@ -7,6 +7,7 @@
 //! schema's documented ones.
 
 mod mesh;
+pub mod shapes;
 mod values;
 
 use std::collections::HashMap;
@@ -17,11 +18,11 @@ use glam::{Affine3A, DMat4, Mat4, Vec3};
 use openusd::schemas::geom::{Imageable, Purpose, Visibility, Xformable};
 use openusd::schemas::shade::{Material, MaterialBindingAPI};
 use openusd::sdf::{self, Value};
-use openusd::usd::{Prim, PrimPredicate, SchemaBase, SchemaKind, Stage};
+use openusd::usd::{Prim, PrimPredicate, SchemaBase, SchemaKind, Stage, TimeCode};
 use render_core::camera::CameraDesc;
 use render_core::light::{LightDesc, LightKind};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
-use render_core::scene::{MeshDesc, SceneDesc};
+use render_core::scene::{InstancerDesc, MeshDesc, SceneDesc};
 
 pub use mesh::{MeshSource, triangulate};
 
@@ -32,6 +33,8 @@ pub struct Translation {
     pub meshes: Vec<(String, MeshDesc)>,
     /// Material networks by material path.
     pub materials: Vec<(String, MaterialNetwork)>,
+    /// Instancers (one per PointInstancer prototype mesh), by a key naming the instancer.
+    pub instancers: Vec<(String, InstancerDesc)>,
     /// Lights by prim path.
     pub lights: Vec<(String, LightDesc)>,
     /// Cameras by prim path.
@@ -47,6 +50,7 @@ impl Translation {
     pub fn to_scene_desc(&self) -> SceneDesc {
         let mut d = SceneDesc::default();
         d.meshes.extend(self.meshes.iter().cloned());
+        d.instancers.extend(self.instancers.iter().cloned());
         d.materials.extend(self.materials.iter().cloned());
         d.lights.extend(self.lights.iter().cloned());
         d.cameras.extend(self.cameras.iter().cloned());
@@ -68,18 +72,34 @@ impl Xformable for AnyXformable {}
 
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
 const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
+const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane"];
 const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "DistantLight", "DomeLight"];
 
-/// Reads and translates the stage at `path`.
+/// Reads and translates the stage at `path` at its default frame.
 pub fn load(path: &std::path::Path) -> Result<Translation> {
+    load_at(path, None)
+}
+
+/// Reads and translates the stage at `path`, evaluating time samples (linearly interpolated)
+/// at `frame`, by default the stage's `startTimeCode` when it authors a range, else 0.
+pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation> {
     let _span = tracing::info_span!("usd_load", path = %path.display()).entered();
     let path_str = path.to_str().context("scene path is not valid UTF-8")?;
     if !path.exists() {
         anyhow::bail!("{}: no such file", path.display());
     }
     let stage = Stage::open(path_str).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
-    let time = openusd::usd::TimeCode::new(if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 });
-    let mut reader = Reader { stage: &stage, time, world: HashMap::new(), out: Translation::default(), materials_seen: HashMap::new() };
+    let default_frame = if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 };
+    let time = TimeCode::new(frame.unwrap_or(default_frame));
+    let mut reader = Reader {
+        stage: &stage,
+        time,
+        world: HashMap::new(),
+        out: Translation::default(),
+        materials_seen: HashMap::new(),
+        all_paths: Vec::new(),
+        instancer_roots: Vec::new(),
+    };
     for e in stage.composition_errors() {
         reader.out.warnings.push(format!("composition: {e}"));
     }
@@ -87,6 +107,7 @@ pub fn load(path: &std::path::Path) -> Result<Translation> {
     stage
         .traverse(PrimPredicate::DEFAULT_PROXIES, |p| paths.push(p.clone()))
         .map_err(|e| anyhow::anyhow!("{}: traversal failed: {e:#}", path.display()))?;
+    reader.all_paths = paths.clone();
     for p in paths {
         reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
     }
@@ -96,14 +117,49 @@ pub fn load(path: &std::path::Path) -> Result<Translation> {
 struct Reader<'s> {
     stage: &'s Stage,
     /// Time at which time-sampled transforms are read: the stage's start time.
-    time: openusd::usd::TimeCode,
+    time: TimeCode,
     world: HashMap<String, DMat4>,
     out: Translation,
     materials_seen: HashMap<String, ()>,
+    /// Every prim path the traversal visits, in order.
+    all_paths: Vec<sdf::Path>,
+    /// PointInstancers seen so far: prims beneath them render only through them.
+    instancer_roots: Vec<String>,
 }
 
-fn get(prim: &Prim, name: &str) -> Result<Option<Value>> {
-    prim.attribute(name).get::<Value>().map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
+/// A double-precision world matrix as the renderer's affine transform.
+fn to_affine(m: &DMat4) -> Result<Affine3A> {
+    let a = Affine3A::from_mat4(Mat4::from_cols_array(&m.to_cols_array().map(|x| x as f32)));
+    if !a.is_finite() {
+        anyhow::bail!("the transform is not finite");
+    }
+    Ok(a)
+}
+
+/// The rotation matrix USD makes of an orientation quaternion (GfMatrix4d::SetRotate): the
+/// unit-quaternion formula applied to the raw components, without normalising. Half-precision
+/// orientations are rarely unit length; normalising them (or going through GfRotation's
+/// axis-angle) moved instances by 1e-4 relative to what usd-core computes.
+fn usd_rotation(q: glam::DQuat) -> glam::DMat3 {
+    let (x2, y2, z2) = (q.x + q.x, q.y + q.y, q.z + q.z);
+    let (xx, xy, xz) = (q.x * x2, q.x * y2, q.x * z2);
+    let (yy, yz, zz) = (q.y * y2, q.y * z2, q.z * z2);
+    let (wx, wy, wz) = (q.w * x2, q.w * y2, q.w * z2);
+    glam::DMat3::from_cols(
+        glam::DVec3::new(1.0 - (yy + zz), xy + wz, xz - wy),
+        glam::DVec3::new(xy - wz, 1.0 - (xx + zz), yz + wx),
+        glam::DVec3::new(xz + wy, yz - wx, 1.0 - (xx + yy)),
+    )
+}
+
+/// True when `path` is `root` or beneath it.
+fn under(path: &str, root: &str) -> bool {
+    path == root || (path.starts_with(root) && path.as_bytes().get(root.len()) == Some(&b'/'))
+}
+
+/// An attribute's value at `time`: its time samples interpolated, else its default.
+fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {
+    prim.attribute(name).get_at::<Value>(time).map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
 }
 
 impl Reader<'_> {
@@ -111,7 +167,7 @@ impl Reader<'_> {
         let prim = self.stage.prim(path.clone());
         let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
         let p = path.as_str().to_string();
-        if STRUCTURAL.contains(&type_name.as_str()) {
+        if STRUCTURAL.contains(&type_name.as_str()) || self.instancer_roots.iter().any(|r| under(&p, r) && *r != p) {
             return Ok(());
         }
         let view = AnyXformable(prim.clone());
@@ -122,6 +178,8 @@ impl Reader<'_> {
         let visible = view.compute_visibility()? != Visibility::Invisible;
         match type_name.as_str() {
             "Mesh" => self.mesh(&prim, &p, visible),
+            t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
+            "PointInstancer" => self.point_instancer(&prim, &p, visible),
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
             other => {
@@ -152,16 +210,12 @@ impl Reader<'_> {
 
     fn affine(&mut self, prim: &Prim, p: &str) -> Result<Affine3A> {
         let m = self.world_transform(prim.path())?;
-        let m = Mat4::from_cols_array(&m.to_cols_array().map(|x| x as f32));
-        let a = Affine3A::from_mat4(m);
-        if !a.is_finite() {
-            anyhow::bail!("{p}: xformOps compose to a non-finite transform");
-        }
-        Ok(a)
+        to_affine(&m).with_context(|| format!("{p}: xformOps compose to a non-finite transform"))
     }
 
     fn mesh(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
-        let req = |name: &str| -> Result<Value> { get(prim, name)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
+        let time = self.time;
+        let req = |name: &str| -> Result<Value> { get(prim, name, time)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
         let points = req("points")?;
         let points = values::vec3_array(&points)
             .with_context(|| format!("{p}: attribute 'points' has type {}, expected point3f[]", values::type_of(&points)))?;
@@ -173,23 +227,204 @@ impl Reader<'_> {
         let indices = req("faceVertexIndices")?;
         let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
         let normals = self.normals(prim, p)?;
-        let left_handed = get(prim, "orientation")?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
+        let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
         // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
-        let smooth = get(prim, "subdivisionScheme")?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
         let src = MeshSource { points, counts, indices, normals, left_handed, smooth };
         let mut warnings = Vec::new();
         let mesh = triangulate(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         self.out.warnings.extend(warnings);
+        self.add_mesh(prim, p, mesh, visible)
+    }
+
+    /// Places a triangulated gprim: its world transform and its material (the bound one,
+    /// else a preview surface of its `displayColor`, else the renderer's fallback).
+    fn add_mesh(&mut self, prim: &Prim, p: &str, mesh: render_core::geometry::Mesh, visible: bool) -> Result<()> {
         let transform = self.affine(prim, p)?;
-        let material = self.bound_material(prim)?.unwrap_or_default();
-        if !material.is_empty() {
-            self.material(&material)?;
-        }
+        let material = match self.bound_material(prim)? {
+            Some(m) => {
+                self.material(&m)?;
+                m
+            }
+            None => self.display_color_material(prim, p)?.unwrap_or_default(),
+        };
         self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, material, visible }));
         Ok(())
     }
 
+    /// UsdGeom: an unbound gprim shows its `primvars:displayColor` (or the older
+    /// `displayColor`). Per-vertex colours are averaged into one, with a warning, until
+    /// primvars reach the shading system.
+    fn display_color_material(&mut self, prim: &Prim, p: &str) -> Result<Option<String>> {
+        let time = self.time;
+        let Some(v) = get(prim, "primvars:displayColor", time)?.or(get(prim, "displayColor", time)?) else {
+            return Ok(None);
+        };
+        let colors = values::vec3_array(&v).or_else(|| values::vec3(&v).map(|c| vec![c])).unwrap_or_default();
+        if colors.is_empty() || colors.iter().any(|c| !c.is_finite()) {
+            self.out.warnings.push(format!("{p}: primvars:displayColor is empty or not finite and is ignored"));
+            return Ok(None);
+        }
+        if colors.len() > 1 {
+            self.out.warnings.push(format!("{p}: primvars:displayColor varies over the surface; its average colour is used"));
+        }
+        let c = colors.iter().copied().sum::<Vec3>() / colors.len() as f32;
+        let path = format!("/__displayColor/c{:08x}{:08x}{:08x}", c.x.to_bits(), c.y.to_bits(), c.z.to_bits());
+        if !self.materials_seen.contains_key(&path) {
+            self.materials_seen.insert(path.clone(), ());
+            let shader = format!("{path}/PreviewSurface");
+            let mut node = MaterialNode { path: shader.clone(), node_type_id: "UsdPreviewSurface".into(), ..Default::default() };
+            node.parameters.insert("diffuseColor".into(), ParamValue::Float3(c.clamp(Vec3::ZERO, Vec3::ONE)));
+            self.out.materials.push((path.clone(), MaterialNetwork { nodes: vec![node], connections: Vec::new(), surface_node: shader }));
+        }
+        Ok(Some(path))
+    }
+
+    /// An implicit prim, tessellated with the schema's defaults for unauthored sizes.
+    fn implicit(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
+        let time = self.time;
+        let size = |name: &str, default: f64| -> Result<f32> {
+            let v = get(prim, name, time)?.as_ref().and_then(values::scalar).unwrap_or(default);
+            if !(v.is_finite() && v > 0.0) {
+                anyhow::bail!("{p}: attribute '{name}' is {v}; it must be finite and positive");
+            }
+            Ok(v as f32)
+        };
+        let axis = match get(prim, "axis", time)?.as_ref().and_then(values::token) {
+            None => shapes::Axis::Z,
+            Some(t) => shapes::Axis::parse(&t).with_context(|| format!("{p}: attribute 'axis' is '{t}', expected X, Y or Z"))?,
+        };
+        let shape = match type_name {
+            "Sphere" => shapes::Shape::Sphere { radius: size("radius", 1.0)? },
+            "Cube" => shapes::Shape::Cube { size: size("size", 2.0)? },
+            "Cylinder" => shapes::Shape::Cylinder { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
+            "Cone" => shapes::Shape::Cone { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
+            "Capsule" => shapes::Shape::Capsule { radius: size("radius", 0.5)?, height: size("height", 1.0)?, axis },
+            _ => shapes::Shape::Plane { width: size("width", 2.0)?, length: size("length", 2.0)?, axis },
+        };
+        self.add_mesh(prim, p, shapes::tessellate(shape), visible)
+    }
+
+    /// A `PointInstancer`: each mesh (or implicit prim) of each prototype becomes one
+    /// instancer of a shared BLAS, placed by the instancer's world transform, the instance's
+    /// translate-orient-scale (UsdGeomPointInstancer's order) and the mesh's transform
+    /// relative to its prototype root's parent (the prototype's own xform included, as
+    /// USD's default `IncludeProtoXform` does).
+    fn point_instancer(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
+        let _span = tracing::debug_span!("point_instancer", path = p).entered();
+        self.instancer_roots.push(p.to_string());
+        let time = self.time;
+        let ints = |name: &str| -> Result<Option<Vec<i64>>> {
+            match get(prim, name, time)? {
+                None => Ok(None),
+                Some(v) => Ok(Some(values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array"))?)),
+            }
+        };
+        let prototypes = prim.relationship("prototypes").targets()?;
+        let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
+        let n = proto_indices.len();
+        let positions = match get(prim, "positions", time)? {
+            Some(v) => values::vec3_array(&v).with_context(|| format!("{p}: attribute 'positions' is not a point3f[]"))?,
+            None => anyhow::bail!("{p}: attribute 'positions' is missing"),
+        };
+        let orientations = match get(prim, "orientations", time)?.or(get(prim, "orientationsf", time)?) {
+            Some(v) => Some(values::quat_array(&v).with_context(|| format!("{p}: attribute 'orientations' is not a quath[]"))?),
+            None => None,
+        };
+        let scales = match get(prim, "scales", time)? {
+            Some(v) => Some(values::vec3_array(&v).with_context(|| format!("{p}: attribute 'scales' is not a float3[]"))?),
+            None => None,
+        };
+        let check = |name: &str, len: usize| -> Result<()> {
+            if len != n {
+                anyhow::bail!("{p}: attribute '{name}' has {len} entries but protoIndices has {n}");
+            }
+            Ok(())
+        };
+        check("positions", positions.len())?;
+        if let Some(o) = &orientations {
+            check("orientations", o.len())?;
+        }
+        if let Some(s) = &scales {
+            check("scales", s.len())?;
+        }
+        if let Some((i, &k)) = proto_indices.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= prototypes.len()) {
+            anyhow::bail!("{p}: attribute 'protoIndices': entry {i} is {k}, but there are {} prototypes", prototypes.len());
+        }
+        // Instances hidden by id (ids default to the instance index).
+        let hidden: std::collections::HashSet<i64> = ints("invisibleIds")?.unwrap_or_default().into_iter().collect();
+        let ids = ints("ids")?;
+        let instancer_world = self.world_transform(prim.path())?;
+        let mut per_proto: Vec<Vec<DMat4>> = vec![Vec::new(); prototypes.len()];
+        for i in 0..n {
+            let id = ids.as_ref().and_then(|ids| ids.get(i).copied()).unwrap_or(i as i64);
+            if hidden.contains(&id) {
+                continue;
+            }
+            let t = positions[i].as_dvec3();
+            let r = orientations.as_ref().map_or(glam::DMat3::IDENTITY, |o| usd_rotation(o[i]));
+            let s = scales.as_ref().map_or(glam::DVec3::ONE, |s| s[i].as_dvec3());
+            if !(t.is_finite() && r.is_finite() && s.is_finite()) {
+                anyhow::bail!("{p}: instance {i} has a non-finite position, orientation or scale");
+            }
+            let trs = DMat4::from_translation(t) * DMat4::from_mat3(r) * DMat4::from_scale(s);
+            per_proto[proto_indices[i] as usize].push(instancer_world * trs);
+        }
+        for (k, proto) in prototypes.iter().enumerate() {
+            let root = proto.as_str().to_string();
+            let root_parent = match proto.parent() {
+                Some(pp) if pp.as_str() != "/" && !pp.as_str().is_empty() => self.world_transform(&pp)?.inverse(),
+                _ => DMat4::IDENTITY,
+            };
+            let members: Vec<sdf::Path> = self.all_paths.iter().filter(|q| under(q.as_str(), &root)).cloned().collect();
+            if members.is_empty() {
+                anyhow::bail!("{p}: relationship 'prototypes' targets {root}, which is not a prim on the stage");
+            }
+            for member in members {
+                let mprim = self.stage.prim(member.clone());
+                let type_name = mprim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
+                if type_name != "Mesh" && !IMPLICIT.contains(&type_name.as_str()) {
+                    if !STRUCTURAL.contains(&type_name.as_str()) {
+                        self.out
+                            .warnings
+                            .push(format!("{}: prim type '{type_name}' in a PointInstancer prototype is not rendered", member.as_str()));
+                        self.out.skipped.push(member.as_str().to_string());
+                    }
+                    continue;
+                }
+                let view = AnyXformable(mprim.clone());
+                if matches!(view.compute_purpose()?, Purpose::Proxy | Purpose::Guide) || view.compute_visibility()? == Visibility::Invisible
+                {
+                    continue;
+                }
+                // The prototype mesh itself, never drawn directly.
+                let key = if under(member.as_str(), p) { member.as_str().to_string() } else { format!("{}@{p}", member.as_str()) };
+                let before = self.out.meshes.len();
+                if type_name == "Mesh" {
+                    self.mesh(&mprim, member.as_str(), false)?;
+                } else {
+                    self.implicit(&mprim, member.as_str(), &type_name, false)?;
+                }
+                let Some((mesh_key, _)) = self.out.meshes.get_mut(before) else { continue };
+                *mesh_key = key.clone();
+                let relative = root_parent * self.world_transform(&member)?;
+                let transforms = if visible {
+                    per_proto[k]
+                        .iter()
+                        .map(|m| to_affine(&(*m * relative)))
+                        .collect::<Result<Vec<_>>>()
+                        .with_context(|| format!("{p}: instances of {root}"))?
+                } else {
+                    Vec::new()
+                };
+                self.out.instancers.push((format!("{p}[{}]", member.as_str()), InstancerDesc { prototype: key, transforms }));
+            }
+        }
+        Ok(())
+    }
+
     fn normals(&self, prim: &Prim, p: &str) -> Result<Option<(Vec<Vec3>, String)>> {
+        let time = self.time;
         let interp = |name: &str, default: &str| -> String {
             prim.attribute(name)
                 .get_metadata::<openusd::tf::Token>("interpolation")
@@ -198,15 +433,15 @@ impl Reader<'_> {
                 .map(|t| t.as_str().to_string())
                 .unwrap_or_else(|| default.to_string())
         };
-        if let Some(v) = get(prim, "primvars:normals")? {
+        if let Some(v) = get(prim, "primvars:normals", time)? {
             let n = values::vec3_array(&v).with_context(|| format!("{p}: primvars:normals is not a normal3f[]"))?;
-            let n = match get(prim, "primvars:normals:indices")?.as_ref().and_then(values::int_array) {
+            let n = match get(prim, "primvars:normals:indices", time)?.as_ref().and_then(values::int_array) {
                 Some(idx) => idx.iter().map(|&i| n.get(i as usize).copied().unwrap_or(Vec3::ZERO)).collect(),
                 None => n,
             };
             return Ok(Some((n, interp("primvars:normals", "constant"))));
         }
-        match get(prim, "normals")? {
+        match get(prim, "normals", time)? {
             Some(v) => Ok(Some((
                 values::vec3_array(&v).with_context(|| format!("{p}: normals is not a normal3f[]"))?,
                 interp("normals", "vertex"),
@@ -235,6 +470,7 @@ impl Reader<'_> {
 
     /// Collects the network feeding the material's surface terminal, as Hydra does.
     fn material(&mut self, path: &str) -> Result<()> {
+        let time = self.time;
         if self.materials_seen.contains_key(path) {
             return Ok(());
         }
@@ -257,7 +493,7 @@ impl Reader<'_> {
                 continue;
             }
             let prim = self.stage.prim(node_path.clone());
-            let id = get(&prim, "info:id")?.as_ref().and_then(values::token).unwrap_or_default();
+            let id = get(&prim, "info:id", time)?.as_ref().and_then(values::token).unwrap_or_default();
             let mut node = MaterialNode { path: node_path.as_str().to_string(), node_type_id: id, ..Default::default() };
             for name in prim.property_names()? {
                 let Some(input) = name.strip_prefix("inputs:") else {
@@ -274,7 +510,7 @@ impl Reader<'_> {
                     });
                     stack.push(up_prim);
                 }
-                if let Some(v) = attr.get::<Value>()? {
+                if let Some(v) = attr.get_at::<Value>(time)? {
                     match param(&v) {
                         Some(pv) => {
                             node.parameters.insert(input.to_string(), pv);
@@ -292,11 +528,12 @@ impl Reader<'_> {
     }
 
     fn light(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
+        let time = self.time;
         // UsdLux inputs; pre-2021 files spell them without the `inputs:` prefix.
         let input = |name: &str| -> Result<Option<Value>> {
-            match get(prim, &format!("inputs:{name}"))? {
+            match get(prim, &format!("inputs:{name}"), time)? {
                 Some(v) => Ok(Some(v)),
-                None => get(prim, name),
+                None => get(prim, name, time),
             }
         };
         let float =
@@ -334,14 +571,15 @@ impl Reader<'_> {
     }
 
     fn camera(&mut self, prim: &Prim, p: &str) -> Result<()> {
+        let time = self.time;
         let d = CameraDesc::default();
         let float = |name: &str, default: f32| -> Result<f32> {
-            Ok(get(prim, name)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
+            Ok(get(prim, name, time)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
         };
-        if get(prim, "projection")?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic") {
+        if get(prim, "projection", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic") {
             self.out.warnings.push(format!("{p}: orthographic projection is not supported yet; rendering as perspective"));
         }
-        let clip = get(prim, "clippingRange")?.as_ref().and_then(values::vec2).unwrap_or([d.near as f64, d.far as f64]);
+        let clip = get(prim, "clippingRange", time)?.as_ref().and_then(values::vec2).unwrap_or([d.near as f64, d.far as f64]);
         let desc = CameraDesc {
             transform: self.affine(prim, p)?,
             focal_length: float("focalLength", d.focal_length)?,

@@ -79,3 +79,13 @@ pub fn type_of(v: &Value) -> String {
     let s = format!("{v:?}");
     s.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
 }
+
+/// A quaternion array (w, x, y, z) from any precision.
+pub fn quat_array(v: &Value) -> Option<Vec<glam::DQuat>> {
+    Some(match v {
+        Value::QuathVec(a) => a.iter().map(|q| glam::DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64())).collect(),
+        Value::QuatfVec(a) => a.iter().map(|q| glam::DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64)).collect(),
+        Value::QuatdVec(a) => a.iter().map(|q| glam::DQuat::from_xyzw(q.x, q.y, q.z, q.w)).collect(),
+        _ => return None,
+    })
+}

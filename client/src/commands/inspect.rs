@@ -1,0 +1,99 @@
+//! `tessera inspect SCENE --json`: what the client's USD reader makes of a stage, in a shape
+//! that `fixtures/inspect_usd.py` also produces from Pixar's usd-core, so the two readers
+//! can be compared field by field.
+//!
+//! Matrices are USD's: row-major, row vectors, translation in the last row, flattened.
+
+use std::path::Path;
+
+use anyhow::Result;
+use glam::{Affine3A, Mat4};
+use render_core::material::ParamValue;
+use serde_json::{Map, Value, json};
+
+use crate::usd::Translation;
+
+fn usd_matrix(a: &Affine3A) -> Value {
+    // glam's columns are USD's rows (see `usd::values::matrix`).
+    json!(Mat4::from(*a).to_cols_array().iter().map(|&x| x as f64).collect::<Vec<_>>())
+}
+
+fn param(v: &ParamValue) -> Value {
+    match v {
+        ParamValue::Float(x) => json!(x),
+        ParamValue::Float3(c) => json!([c.x, c.y, c.z]),
+        ParamValue::Int(i) => json!(i),
+        ParamValue::Bool(b) => json!(b),
+        ParamValue::String(s) | ParamValue::Asset(s) => json!(s),
+    }
+}
+
+/// The translation as JSON: meshes (world matrix, triangles, material, visibility),
+/// instancers (one per prototype mesh: the instances' world matrices), lights, cameras and
+/// the material networks' surface shaders.
+pub fn to_json(t: &Translation) -> Value {
+    let mut meshes = Map::new();
+    for (path, m) in &t.meshes {
+        meshes.insert(
+            path.clone(),
+            json!({
+                "world": usd_matrix(&m.transform),
+                "triangles": m.mesh.indices.len(),
+                "material": m.material,
+                "visible": m.visible,
+            }),
+        );
+    }
+    let mut instancers = Map::new();
+    for (path, i) in &t.instancers {
+        instancers.insert(
+            path.clone(),
+            json!({ "prototype": i.prototype, "instances": i.transforms.iter().map(usd_matrix).collect::<Vec<_>>() }),
+        );
+    }
+    let mut lights = Map::new();
+    for (path, l) in &t.lights {
+        lights.insert(
+            path.clone(),
+            json!({
+                "world": usd_matrix(&l.transform),
+                "intensity": l.intensity,
+                "exposure": l.exposure,
+                "color": [l.color.x, l.color.y, l.color.z],
+                "normalize": l.normalize,
+            }),
+        );
+    }
+    let mut cameras = Map::new();
+    for (path, c) in &t.cameras {
+        cameras.insert(
+            path.clone(),
+            json!({
+                "world": usd_matrix(&c.transform),
+                "focalLength": c.focal_length,
+                "horizontalAperture": c.horizontal_aperture,
+                "verticalAperture": c.vertical_aperture,
+            }),
+        );
+    }
+    let mut materials = Map::new();
+    for (path, n) in &t.materials {
+        let surface = n.nodes.iter().find(|node| node.path == n.surface_node);
+        let inputs: Map<String, Value> =
+            surface.map(|s| s.parameters.iter().map(|(k, v)| (k.clone(), param(v))).collect()).unwrap_or_default();
+        materials.insert(path.clone(), json!({ "surface": surface.map_or("", |s| s.node_type_id.as_str()), "inputs": inputs }));
+    }
+    json!({
+        "meshes": meshes,
+        "instancers": instancers,
+        "lights": lights,
+        "cameras": cameras,
+        "materials": materials,
+        "skipped": t.skipped,
+    })
+}
+
+/// Reads `scene` at `frame` and returns its JSON description.
+pub fn inspect(scene: &Path, frame: Option<f64>) -> Result<Value> {
+    Ok(to_json(&crate::usd::load_at(scene, frame)?))
+}

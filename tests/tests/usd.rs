@@ -1,0 +1,178 @@
+//! USD translation: the client's reader against Pixar's usd-core on every fixture, and each
+//! translated feature (implicit prims, PointInstancer, time samples, purpose and visibility)
+//! checked in a render or in the translation.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+use tessera::usd::load_at;
+use tessera_tests::*;
+
+/// Every fixture a reader should accept (the `bad/` ones are meant to fail).
+fn all_fixtures() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("fixtures directory") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                if path.file_name().is_some_and(|n| n != "bad") {
+                    walk(&path, out);
+                }
+            } else if path.extension().is_some_and(|e| e == "usda" || e == "usdc" || e == "usdz") {
+                out.push(path);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&fixture(""), &mut out);
+    out.sort();
+    out
+}
+
+/// What usd-core reads, from `fixtures/inspect_usd.py`.
+fn usd_core_reads(scene: &Path, frame: Option<f64>) -> Value {
+    let mut cmd = std::process::Command::new("python3");
+    cmd.arg(fixture("inspect_usd.py")).arg(scene);
+    if let Some(f) = frame {
+        cmd.arg("--frame").arg(f.to_string());
+    }
+    let out = cmd.output().expect("python3 runs (the tests use Pixar's usd-core as an independent reader)");
+    assert!(
+        out.status.success(),
+        "inspect_usd.py failed on {} (is usd-core installed? pip install -r fixtures/requirements.txt):\n{}",
+        scene.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON")
+}
+
+/// Compares `expected` (usd-core) with `actual` (ours) recursively; numbers to 1e-4
+/// relative, since our transforms are f32. Returns the differences found.
+fn differences(expected: &Value, actual: &Value, at: &str, ours: &Value, out: &mut Vec<String>) {
+    match (expected, actual) {
+        (Value::Object(e), Value::Object(a)) => {
+            for (k, ev) in e {
+                match a.get(k) {
+                    Some(av) => differences(ev, av, &format!("{at}.{k}"), ours, out),
+                    None => out.push(format!("{at}.{k}: usd-core has it, Tessera does not")),
+                }
+            }
+            for k in a.keys().filter(|k| !e.contains_key(*k)) {
+                out.push(format!("{at}.{k}: Tessera has it, usd-core does not"));
+            }
+        }
+        (Value::Array(e), Value::Array(a)) => {
+            if e.len() != a.len() {
+                out.push(format!("{at}: {} entries in usd-core, {} in Tessera", e.len(), a.len()));
+            }
+            for (i, (ev, av)) in e.iter().zip(a).enumerate() {
+                differences(ev, av, &format!("{at}[{i}]"), ours, out);
+            }
+        }
+        (Value::Number(e), Value::Number(a)) => {
+            let (e, a) = (e.as_f64().unwrap(), a.as_f64().unwrap());
+            if (e - a).abs() > 1e-4 * e.abs().max(1.0) {
+                out.push(format!("{at}: usd-core {e}, Tessera {a}"));
+            }
+        }
+        // Implicit prims: each reader tessellates its own way.
+        (Value::Null, _) => {}
+        // An unbound gprim's displayColor: Tessera names a preview material of that colour.
+        (Value::Object(e), Value::String(material)) if e.contains_key("displayColor") => {
+            let diffuse = &ours["materials"][material.as_str()]["inputs"]["diffuseColor"];
+            differences(&e["displayColor"], diffuse, &format!("{at}(displayColor)"), ours, out);
+        }
+        (e, a) if e == a => {}
+        (e, a) => out.push(format!("{at}: usd-core {e}, Tessera {a}")),
+    }
+}
+
+#[test]
+fn an_independent_reader_agrees_on_every_fixture() {
+    let fixtures = all_fixtures();
+    assert!(fixtures.len() >= 15, "found only {} fixtures", fixtures.len());
+    let mut cases: Vec<(PathBuf, Option<f64>)> = fixtures.into_iter().map(|f| (f, None)).collect();
+    cases.push((fixture("usd/animated.usda"), Some(5.5)));
+    let mut problems = Vec::new();
+    for (scene, frame) in cases {
+        let ours = tessera::commands::inspect::inspect(&scene, frame).unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
+        let theirs = usd_core_reads(&scene, frame);
+        for section in ["meshes", "instancers", "lights", "cameras"] {
+            let mut found = Vec::new();
+            differences(&theirs[section], &ours[section], section, &ours, &mut found);
+            problems.extend(found.into_iter().map(|d| format!("{} (frame {frame:?}): {d}", scene.display())));
+        }
+    }
+    assert!(problems.is_empty(), "{} differences:\n{}", problems.len(), problems[..problems.len().min(30)].join("\n"));
+}
+
+#[test]
+fn time_samples_are_read_at_the_frame() {
+    let scene = fixture("usd/animated.usda");
+    let mover_x = |frame| {
+        let t = load_at(&scene, frame).unwrap();
+        let (_, m) = t.meshes.iter().find(|(p, _)| p == "/World/Mover").expect("the cube");
+        let apex = t.meshes.iter().find(|(p, _)| p == "/World/Triangle").unwrap().1.mesh.positions[2].y;
+        (m.transform.translation.x, apex)
+    };
+    // The default frame is startTimeCode (1); in between, linear interpolation.
+    assert_eq!(mover_x(None), (0.0, 1.0));
+    assert_eq!(mover_x(Some(5.5)), (4.5, 2.0));
+    assert_eq!(mover_x(Some(10.0)), (9.0, 3.0));
+    // Past the last sample, the last value holds.
+    assert_eq!(mover_x(Some(20.0)), (9.0, 3.0));
+}
+
+#[test]
+fn purpose_visibility_and_activity_decide_what_renders() {
+    let t = load("usd/purpose_visibility.usda");
+    let mut meshes: Vec<(&str, bool)> = t.meshes.iter().map(|(p, m)| (p.as_str(), m.visible)).collect();
+    meshes.sort();
+    // Proxy and guide purposes (also inherited) and inactive prims are absent; a child of an
+    // invisible parent is kept, invisible, so an edit can show it.
+    assert_eq!(meshes, vec![("/World/Default", true), ("/World/Hidden/Child", false), ("/World/Render", true)]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn implicit_prims_render_with_their_display_colours() {
+    let t = load("usd/implicit_shapes.usda");
+    let bound = t.meshes.iter().find(|(p, _)| p == "/World/Shapes/BoundSphere").unwrap();
+    assert_eq!(bound.1.material, "/World/Looks/Grey", "a binding wins over displayColor");
+    let (w, h) = (192u32, 64u32);
+    let opts = tessera::remote::RenderOptions { aovs: vec!["albedo".into()], ..small(w, h, 4) };
+    let report = render_fixture("usd/implicit_shapes.usda", &opts).await;
+    assert_all_finite(&report.image);
+    // Camera at z = 10 looking down −Z, focal length 50 mm over a 36 mm aperture: a point at
+    // (x, 0, 0) lands at column w/2·(1 + 50/18·x/10).
+    let colours = [
+        (-2.5, [0.8, 0.1, 0.1]),
+        (-1.5, [0.1, 0.8, 0.1]),
+        (-0.5, [0.1, 0.1, 0.8]),
+        (0.5, [0.8, 0.8, 0.1]),
+        (1.5, [0.1, 0.8, 0.8]),
+        (2.5, [0.8, 0.1, 0.8]),
+    ];
+    for (x, c) in colours {
+        let col = (w as f64 / 2.0 * (1.0 + 50.0 / 18.0 * x / 10.0)) as u32;
+        let a = report.image.pixel("albedo", col, h / 2);
+        for k in 0..3 {
+            // Albedo = displayColor plus the preview surface's ~4% dielectric specular.
+            assert!((a[k] as f64 - c[k]).abs() < 0.08, "shape at x = {x}: albedo {a:?}, displayColor {c:?}");
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_point_instancer_renders_like_its_expansion_into_prims() {
+    let instanced = load("usd/point_instancer.usda");
+    let instances: usize = instanced.instancers.iter().map(|(_, i)| i.transforms.len()).sum();
+    // 144 instances, 2 hidden by id; trees have two gprims each.
+    assert_eq!(instances, 2 * 95 + 47);
+    let opts = small(96, 96, 16);
+    let a = render_fixture("usd/point_instancer.usda", &opts).await;
+    let b = render_fixture("usd/point_instancer_expanded.usda", &opts).await;
+    let (pa, pb) = (&a.image.layers["beauty"].1, &b.image.layers["beauty"].1);
+    let differing = pa.iter().zip(pb).filter(|(x, y)| (**x - **y).abs() > 1e-3 * x.abs().max(1.0)).count();
+    // Same random numbers and the same geometry: only pixels where f32 rounding of the
+    // (separately computed) matrices moves an edge or a shadow boundary may differ.
+    assert!(differing <= pa.len() / 200, "{differing} of {} values differ", pa.len());
+}
