@@ -11,6 +11,7 @@ use render_core::camera::Camera;
 use render_core::film::Aov;
 use render_core::integrator::IntegratorSettings;
 use render_core::render::{RenderSettings, render_to_framebuffer};
+use render_core::sampling::SamplerKind;
 use render_core::scene::{BlasCache, CommittedScene, commit};
 
 const W: u32 = 256;
@@ -20,6 +21,10 @@ const SPP: u32 = 64;
 const MITSUBA_MAX_DEPTH: u32 = 8;
 
 fn render_rgb(scene: &CommittedScene, threads: usize, spp: u32, seed: u64) -> (Vec<f32>, f64) {
+    render_rgb_with(scene, threads, spp, seed, SamplerKind::Sobol)
+}
+
+fn render_rgb_with(scene: &CommittedScene, threads: usize, spp: u32, seed: u64, sampler: SamplerKind) -> (Vec<f32>, f64) {
     let settings = RenderSettings {
         width: W,
         height: H,
@@ -27,6 +32,7 @@ fn render_rgb(scene: &CommittedScene, threads: usize, spp: u32, seed: u64) -> (V
         seed,
         tile_size: 32,
         integrator: IntegratorSettings { max_depth: MITSUBA_MAX_DEPTH - 1, ..Default::default() },
+        sampler,
     };
     let cam = Camera::new(&scene.camera("").unwrap(), W, H);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -124,10 +130,12 @@ fn main() {
     if let (Some(reference), Some(mits)) = (read_f32(&out.join("mitsuba_ref.bin")), read_f32(&out.join("mitsuba.bin"))) {
         if ref_spp > 0 && reference.len() == (W * H * 3) as usize {
             let (img, _) = render_rgb(&scene, 2, SPP, 7);
+            let (indep, _) = render_rgb_with(&scene, 2, SPP, 7, SamplerKind::Independent);
             let (our_ref, ref_secs) = render_rgb(&scene, 2, ref_spp, 11);
             println!(
-                "error vs Mitsuba {ref_spp}-spp reference (relMSE, equal {SPP} spp): tessera {:.5}, mitsuba {:.5}",
+                "error vs Mitsuba {ref_spp}-spp reference (relMSE, equal {SPP} spp): tessera sobol {:.5}, tessera independent {:.5}, mitsuba {:.5}",
                 rel_mse(&img, &reference),
+                rel_mse(&indep, &reference),
                 rel_mse(&mits, &reference)
             );
             let (a, b) = (mean(&our_ref), mean(&reference));

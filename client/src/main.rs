@@ -61,6 +61,9 @@ enum Command {
         /// startTimeCode, else 0).
         #[arg(long)]
         frame: Option<f64>,
+        /// The numbers paths draw: Owen-scrambled Sobol points or independent random numbers.
+        #[arg(long, value_enum, default_value_t = SamplerArg::Sobol)]
+        sampler: SamplerArg,
     },
     /// Print what the client reads from a USD file: meshes with their world transforms and
     /// materials, instancers, lights, cameras, material networks, skipped prims.
@@ -75,6 +78,12 @@ enum Command {
         #[arg(long)]
         frame: Option<f64>,
     },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum SamplerArg {
+    Sobol,
+    Independent,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -126,6 +135,7 @@ async fn real_main() -> Result<()> {
             threads,
             energy_compensation,
             frame,
+            sampler,
             explain_plan: false,
         } => {
             let (width, height) = parse_res(&res)?;
@@ -141,6 +151,7 @@ async fn real_main() -> Result<()> {
                 threads,
                 progressive_f16: true,
                 energy_compensation,
+                sobol: sampler == SamplerArg::Sobol,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");

@@ -30,6 +30,8 @@ pub struct RenderOptions {
     pub progressive_f16: bool,
     /// Kulla-Conty energy compensation.
     pub energy_compensation: bool,
+    /// Owen-scrambled Sobol (true, the default) or independent random numbers.
+    pub sobol: bool,
 }
 
 impl Default for RenderOptions {
@@ -45,6 +47,7 @@ impl Default for RenderOptions {
             threads: 0,
             progressive_f16: true,
             energy_compensation: true,
+            sobol: true,
         }
     }
 }
@@ -134,6 +137,7 @@ impl Connection {
             progressive_format: if opts.progressive_f16 { pb::PixelFormat::F16 } else { pb::PixelFormat::F32 } as i32,
             threads: opts.threads,
             disable_energy_compensation: !opts.energy_compensation,
+            sampler: if opts.sobol { pb::Sampler::Sobol } else { pb::Sampler::Independent } as i32,
         };
         let mut stream = self
             .client

@@ -5,13 +5,13 @@
 //! only. Mitsuba's `max_depth` counts path vertices including the emitter, so its
 //! `max_depth = 8` equals our 7.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::film::PixelSample;
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::light::ShadingContext;
 use crate::math::{Frame, is_finite};
-use crate::sampling::{Pcg32, power_heuristic};
+use crate::sampling::{PathSampler, power_heuristic};
 use crate::scene::CommittedScene;
 
 /// Path-tracing settings.
@@ -55,7 +55,7 @@ pub fn trace_path(
     camera_ray: Ray,
     depth_of: impl Fn(f32) -> f32,
     background_depth: f32,
-    rng: &mut Pcg32,
+    rng: &mut PathSampler,
     settings: &IntegratorSettings,
     counters: &mut PathCounters,
 ) -> PixelSample {
@@ -149,11 +149,15 @@ pub fn trace_path(
         bsdf.prepare(wo_local);
         // Light sampling context: the geometric normal on the viewer's side.
         let ctx = ShadingContext { p: s.p, n: if ng.dot(wo) < 0.0 { -ng } else { ng } };
+        // Each bounce draws two 4D sets, whatever happens along the path: (light position,
+        // light choice, roulette) and (BSDF direction, lobe choice), the 2D pairs on a set's
+        // best-stratified first two dimensions.
+        let [ul_x, ul_y, u_sel, u_rr] = rng.next_4d();
+        let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
 
         // Next-event estimation.
         if !lights.is_empty() {
-            let u_sel = rng.next_f32();
-            let u_light = rng.next_2d();
+            let u_light = Vec2::new(ul_x, ul_y);
             if let Some(ls) = lights.sample(&ctx, u_sel, u_light) {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
@@ -169,16 +173,10 @@ pub fn trace_path(
                     }
                 }
             }
-        } else {
-            // Keep the random stream aligned whether or not the scene has lights.
-            rng.next_f32();
-            rng.next_2d();
         }
 
         // Continue the path by sampling the BSDF.
-        let u_lobe = rng.next_f32();
-        let u = rng.next_2d();
-        let Some(bs) = bsdf.sample(wo_local, u_lobe, u) else {
+        let Some(bs) = bsdf.sample(wo_local, u_lobe, Vec2::new(ub_x, ub_y)) else {
             break;
         };
         let wi = frame.to_world(bs.wi).normalize();
@@ -195,7 +193,7 @@ pub fn trace_path(
 
         if depth >= settings.rr_start {
             let q = (1.0 - beta.max_element()).max(0.05);
-            if rng.next_f32() < q {
+            if u_rr < q {
                 break;
             }
             beta /= 1.0 - q;

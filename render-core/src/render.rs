@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::camera::Camera;
 use crate::film::{Aov, TileFilm, tiles_centre_out};
 use crate::integrator::{IntegratorSettings, PathCounters, trace_path};
-use crate::sampling::PixelSampler;
+use crate::sampling::{PathSampler, SamplerKind};
 use crate::scene::CommittedScene;
 
 /// What one render does.
@@ -26,11 +26,21 @@ pub struct RenderSettings {
     pub tile_size: u32,
     /// Path tracing settings.
     pub integrator: IntegratorSettings,
+    /// The numbers paths draw.
+    pub sampler: SamplerKind,
 }
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings { width: 256, height: 256, spp: 64, seed: 0, tile_size: 32, integrator: IntegratorSettings::default() }
+        RenderSettings {
+            width: 256,
+            height: 256,
+            spp: 64,
+            seed: 0,
+            tile_size: 32,
+            integrator: IntegratorSettings::default(),
+            sampler: SamplerKind::default(),
+        }
     }
 }
 
@@ -175,9 +185,10 @@ fn render_tile(
             let (x, y) = (r.x + px, r.y + py);
             let i = (py * r.width + px) as usize;
             for k in first_sample..first_sample + count {
-                let mut rng = PixelSampler::for_sample(settings.seed, x, y, k);
-                let jitter = rng.next_2d();
-                let (ray, cos) = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
+                let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
+                // The camera's 4D set: pixel jitter (and, later, the lens).
+                let [jx, jy, _, _] = rng.next_4d();
+                let (ray, cos) = camera.ray(x as f32 + jx, y as f32 + jy);
                 let sample =
                     trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &settings.integrator, counters);
                 tile.add(i, &sample);

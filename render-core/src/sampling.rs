@@ -64,9 +64,72 @@ pub struct PixelSampler;
 impl PixelSampler {
     /// The generator for sample `sample_index` of pixel (`x`, `y`).
     pub fn for_sample(seed: u64, x: u32, y: u32, sample_index: u32) -> Pcg32 {
-        let pixel = ((y as u64) << 32) | x as u64;
-        let key = mix64(seed ^ mix64(pixel.wrapping_add(0x9e37_79b9_7f4a_7c15)));
+        let key = Self::pixel_key(seed, x, y);
         Pcg32::new(mix64(key ^ sample_index as u64), key)
+    }
+
+    fn pixel_key(seed: u64, x: u32, y: u32) -> u64 {
+        let pixel = ((y as u64) << 32) | x as u64;
+        mix64(seed ^ mix64(pixel.wrapping_add(0x9e37_79b9_7f4a_7c15)))
+    }
+}
+
+/// Which numbers a render's paths draw.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SamplerKind {
+    /// Owen-scrambled Sobol points, shuffled per pixel and padded in 4D sets (Burley,
+    /// "Practical Hash-based Owen Scrambling", JCGT 2020, through the `sobol_burley` crate).
+    #[default]
+    Sobol,
+    /// Independent uniform random numbers (PCG32).
+    Independent,
+}
+
+/// The numbers of one camera sample, four dimensions at a time: a pure function of (seed,
+/// pixel, sample index), so renders do not depend on thread scheduling.
+///
+/// With Sobol, each 4D set of a path (camera, then two per bounce) is the first four
+/// dimensions of an Owen-scrambled Sobol sequence whose index shuffle and scramble are
+/// seeded by (pixel, set): sample k of a pixel is point k of that pixel's sequence, so every
+/// power-of-two prefix of a pixel's samples is stratified in each set's 2D and 4D projections
+/// (progressive), while pixels and sets stay decorrelated (Burley's padding). Past 2^16
+/// samples a pixel falls back to independent numbers (the crate's sequence length).
+pub enum PathSampler {
+    /// Sobol: sample index, per-pixel key, next 4D set.
+    Sobol {
+        /// Point index in the pixel's sequence.
+        index: u32,
+        /// Per-pixel key.
+        key: u64,
+        /// Next 4D set.
+        set: u32,
+    },
+    /// Independent numbers.
+    Independent(Pcg32),
+}
+
+impl PathSampler {
+    /// The sampler of sample `sample_index` of pixel (`x`, `y`).
+    pub fn for_sample(kind: SamplerKind, seed: u64, x: u32, y: u32, sample_index: u32) -> Self {
+        match kind {
+            SamplerKind::Sobol if sample_index < (1 << 16) => {
+                PathSampler::Sobol { index: sample_index, key: PixelSampler::pixel_key(seed, x, y), set: 0 }
+            }
+            _ => PathSampler::Independent(PixelSampler::for_sample(seed, x, y, sample_index)),
+        }
+    }
+
+    /// The next four dimensions, each in [0, 1).
+    #[inline]
+    pub fn next_4d(&mut self) -> [f32; 4] {
+        match self {
+            PathSampler::Sobol { index, key, set } => {
+                let seed = mix64(*key ^ (*set as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)) as u32;
+                *set += 1;
+                sobol_burley::sample_4d(*index, 0, seed)
+            }
+            PathSampler::Independent(rng) => [rng.next_f32(), rng.next_f32(), rng.next_f32(), rng.next_f32()],
+        }
     }
 }
 
@@ -205,6 +268,36 @@ impl Distribution1D {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sobol_prefixes_are_stratified_per_pixel_and_pixels_differ() {
+        // Every power-of-two prefix of one pixel's samples puts exactly one point in each
+        // elementary 2D interval of each 4D set's first two dimensions (a (0, 2)-sequence
+        // property that Owen scrambling and shuffling keep), while other pixels get
+        // different points.
+        for (x, y) in [(0, 0), (17, 3), (511, 1023)] {
+            for n in [4u32, 16, 64] {
+                let side = (n as f32).sqrt() as u32;
+                for set in 0..3 {
+                    let mut cells = vec![0u32; n as usize];
+                    for k in 0..n {
+                        let mut s = PathSampler::for_sample(SamplerKind::Sobol, 7, x, y, k);
+                        let mut v = [0.0; 4];
+                        for _ in 0..=set {
+                            v = s.next_4d();
+                        }
+                        let (cx, cy) = ((v[0] * side as f32) as u32, (v[1] * side as f32) as u32);
+                        cells[(cy * side + cx) as usize] += 1;
+                    }
+                    assert!(cells.iter().all(|&c| c == 1), "pixel ({x}, {y}), {n} samples, set {set}: {cells:?}");
+                }
+            }
+        }
+        let first = |x| PathSampler::for_sample(SamplerKind::Sobol, 7, x, 0, 0).next_4d();
+        assert_ne!(first(0), first(1));
+        // Pure function of (seed, pixel, index).
+        assert_eq!(first(5), first(5));
+    }
 
     #[test]
     fn pixel_streams_are_deterministic_and_distinct() {

@@ -204,6 +204,11 @@ impl RenderJob {
                     energy_compensation: !s.disable_energy_compensation,
                     ..Default::default()
                 },
+                sampler: match pb::Sampler::try_from(s.sampler) {
+                    Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,
+                    Ok(pb::Sampler::Independent) => render_core::sampling::SamplerKind::Independent,
+                    Err(_) => return Err(bad("sampler", format!("unknown sampler {}", s.sampler))),
+                },
             },
             aovs,
             camera_path: s.camera_path.clone(),

@@ -7,4 +7,5 @@ mod furnace;
 mod grpc;
 mod images;
 mod light_units;
+mod sampling;
 mod usd;
