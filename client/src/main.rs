@@ -64,6 +64,10 @@ enum Command {
         /// The numbers paths draw: Owen-scrambled Sobol points or independent random numbers.
         #[arg(long, value_enum, default_value_t = SamplerArg::Sobol)]
         sampler: SamplerArg,
+        /// Firefly clamp: limit each indirect contribution's largest component to this value
+        /// (off by default; it darkens what it clamps, and the render reports it).
+        #[arg(long)]
+        clamp: Option<f32>,
     },
     /// Print what the client reads from a USD file: meshes with their world transforms and
     /// materials, instancers, lights, cameras, material networks, skipped prims.
@@ -136,6 +140,7 @@ async fn real_main() -> Result<()> {
             energy_compensation,
             frame,
             sampler,
+            clamp,
             explain_plan: false,
         } => {
             let (width, height) = parse_res(&res)?;
@@ -152,6 +157,7 @@ async fn real_main() -> Result<()> {
                 progressive_f16: true,
                 energy_compensation,
                 sobol: sampler == SamplerArg::Sobol,
+                clamp_indirect: clamp,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");

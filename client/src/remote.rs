@@ -32,6 +32,8 @@ pub struct RenderOptions {
     pub energy_compensation: bool,
     /// Owen-scrambled Sobol (true, the default) or independent random numbers.
     pub sobol: bool,
+    /// Firefly clamp on indirect contributions; `None` (the default) is off.
+    pub clamp_indirect: Option<f32>,
 }
 
 impl Default for RenderOptions {
@@ -48,6 +50,7 @@ impl Default for RenderOptions {
             progressive_f16: true,
             energy_compensation: true,
             sobol: true,
+            clamp_indirect: None,
         }
     }
 }
@@ -138,6 +141,7 @@ impl Connection {
             threads: opts.threads,
             disable_energy_compensation: !opts.energy_compensation,
             sampler: if opts.sobol { pb::Sampler::Sobol } else { pb::Sampler::Independent } as i32,
+            clamp_indirect: opts.clamp_indirect.unwrap_or(0.0),
         };
         let mut stream = self
             .client

@@ -24,11 +24,24 @@ pub struct IntegratorSettings {
     /// Bounce after which Russian roulette may end paths (5, as Mitsuba 3 does: earlier
     /// roulette saves little time in bright interiors and adds visible variance).
     pub rr_start: u32,
+    /// Firefly clamp: the largest component an indirect contribution may have (light
+    /// reaching the first visible surface after at least one more bounce). Off (`None`) by
+    /// default: it trades variance for a bias (energy loss) a user must choose knowingly.
+    pub clamp_indirect: Option<f32>,
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true }
+        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true, clamp_indirect: None }
+    }
+}
+
+/// A contribution, clamped when it is indirect and a clamp is set.
+#[inline]
+fn clamped(c: Vec3, indirect: bool, clamp: Option<f32>) -> Vec3 {
+    match clamp {
+        Some(max) if indirect && c.max_element() > max => c * (max / c.max_element()),
+        _ => c,
     }
 }
 
@@ -89,7 +102,7 @@ pub fn trace_path(
             }
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
-                l += beta * lh.le * weight(&prev, i, pdf);
+                l += clamped(beta * lh.le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
             }
         }
 
@@ -102,7 +115,7 @@ pub fn trace_path(
                 let le = light.shape.escaped(ray.dir);
                 if le != Vec3::ZERO {
                     let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, f32::INFINITY));
-                    l += beta * le * weight(&prev, i, pdf);
+                    l += clamped(beta * le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
                 }
             }
             break;
@@ -132,7 +145,7 @@ pub fn trace_path(
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
             let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, hit.t));
-            l += beta * light.shape.radiance() * weight(&prev, li, pdf);
+            l += clamped(beta * light.shape.radiance() * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
         }
 
         let frame = Frame::from_normal(ns);
@@ -168,7 +181,7 @@ pub fn trace_path(
                         counters.rays += 1;
                         if !scene.occluded(&Ray::new(origin, ls.wi), tmax) {
                             let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)) };
-                            l += beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf);
+                            l += clamped(beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf), depth >= 1, settings.clamp_indirect);
                         }
                     }
                 }

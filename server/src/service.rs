@@ -163,6 +163,18 @@ struct RenderJob {
 }
 
 impl RenderJob {
+    /// What the settings cost in accuracy, said where every client sees it.
+    fn settings_warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if let Some(c) = self.settings.integrator.clamp_indirect {
+            w.push(format!("firefly clamp on: indirect contributions above {c} are scaled down (biased, darker)"));
+        }
+        if !self.settings.integrator.energy_compensation {
+            w.push("energy compensation off: rough surfaces lose the energy of multiple scattering".into());
+        }
+        w
+    }
+
     fn new(s: &pb::RenderSettings, limits: &Limits) -> Result<Self, Status> {
         let bad = |field: &str, why: String| Status::invalid_argument(format!("render settings: {field}: {why}"));
         let (w, h) = (if s.width == 0 { 256 } else { s.width }, if s.height == 0 { 256 } else { s.height });
@@ -202,6 +214,11 @@ impl RenderJob {
                 integrator: IntegratorSettings {
                     max_depth: if s.max_depth == 0 { 8 } else { s.max_depth },
                     energy_compensation: !s.disable_energy_compensation,
+                    clamp_indirect: match s.clamp_indirect {
+                        0.0 => None,
+                        x if x.is_finite() && x > 0.0 => Some(x),
+                        x => return Err(bad("clamp_indirect", format!("{x} must be positive and finite (0 = off)"))),
+                    },
                     ..Default::default()
                 },
                 sampler: match pb::Sampler::try_from(s.sampler) {
@@ -260,7 +277,7 @@ impl RenderJob {
                         .collect(),
                     aovs: self.aovs.iter().map(|a| a.name().to_string()).collect(),
                     scene_version: version,
-                    warnings: scene.warnings.clone(),
+                    warnings: scene.warnings.iter().cloned().chain(self.settings_warnings()).collect(),
                 }));
                 first = false;
             } else {

@@ -102,8 +102,15 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         (
             "settings".to_string(),
             format!(
-                "{}x{} spp={} max_depth={} seed={}",
-                job.options.width, job.options.height, job.options.spp, job.options.max_depth, job.options.seed
+                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={}",
+                job.options.width,
+                job.options.height,
+                job.options.spp,
+                job.options.max_depth,
+                job.options.seed,
+                if job.options.sobol { "sobol" } else { "independent" },
+                if job.options.energy_compensation { "on" } else { "off" },
+                job.options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
             ),
         ),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
