@@ -4,6 +4,7 @@
 
 pub mod commands;
 pub mod output;
+pub mod quality;
 pub mod remote;
 pub mod sync;
 pub mod usd;

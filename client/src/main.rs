@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use clap::{Parser, Subcommand};
 use tessera::commands::render::{RenderJob, run};
+use tessera::quality::Quality;
 use tessera::remote::RenderOptions;
 
 #[derive(Parser)]
@@ -24,18 +25,23 @@ enum Command {
         /// Output EXR path; a PNG preview is written beside it.
         #[arg(short, long, required_unless_present = "explain_plan")]
         output: Option<PathBuf>,
-        /// Samples per pixel.
-        #[arg(long, default_value_t = 64)]
-        spp: u32,
+        /// Quality preset: sets --spp, --max-depth and --clamp unless given (see
+        /// docs/accuracy-vs-time.md for what each costs and reaches).
+        #[arg(long, value_enum, default_value_t = Quality::Preview)]
+        quality: Quality,
+        /// Samples per pixel (default: the preset's).
+        #[arg(long)]
+        spp: Option<u32>,
         /// Resolution as WIDTHxHEIGHT.
         #[arg(long, default_value = "512x512")]
         res: String,
         /// Camera prim path (default: the scene's first camera).
         #[arg(long, default_value = "")]
         camera: String,
-        /// Maximum scattering events per path (1 = direct lighting only).
-        #[arg(long, default_value_t = 8)]
-        max_depth: u32,
+        /// Maximum scattering events per path, 1 = direct lighting only (default: the
+        /// preset's).
+        #[arg(long)]
+        max_depth: Option<u32>,
         /// Sampling seed.
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -69,6 +75,11 @@ enum Command {
         #[arg(long)]
         clamp: Option<f32>,
     },
+    /// Measure what the quality knobs buy and cost, and write the report.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
+    },
     /// Print what the client reads from a USD file: meshes with their world transforms and
     /// materials, instancers, lights, cameras, material networks, skipped prims.
     Inspect {
@@ -81,6 +92,26 @@ enum Command {
         /// Time code for animated attributes.
         #[arg(long)]
         frame: Option<f64>,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Error against a reference versus render time for every quality knob; writes
+    /// docs/accuracy-vs-time.md and its SVG plot.
+    Accuracy {
+        /// The report to write (the plot goes beside it, as .svg).
+        #[arg(long, default_value = "docs/accuracy-vs-time.md")]
+        out: PathBuf,
+        /// The fixtures directory.
+        #[arg(long, default_value = "fixtures")]
+        fixtures: PathBuf,
+        /// Image edge of the Cornell box renders.
+        #[arg(long, default_value_t = 64)]
+        size: u32,
+        /// Samples per pixel of the reference renders.
+        #[arg(long, default_value_t = 8192)]
+        reference_spp: u32,
     },
 }
 
@@ -119,6 +150,16 @@ async fn main() {
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
+        Command::Bench { what: BenchCommand::Accuracy { out, fixtures, size, reference_spp } } => {
+            let (report, _) = tessera::commands::bench::accuracy(&tessera::commands::bench::AccuracyBench {
+                fixtures,
+                out: out.clone(),
+                size,
+                reference_spp,
+            })?;
+            print!("{report}");
+            eprintln!("wrote {}", out.display());
+        }
         Command::Inspect { scene, json: _, frame } => {
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
@@ -141,8 +182,11 @@ async fn real_main() -> Result<()> {
             frame,
             sampler,
             clamp,
+            quality,
             explain_plan: false,
         } => {
+            let preset = quality.preset();
+            let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
             let (width, height) = parse_res(&res)?;
             let energy_compensation = energy_compensation == OnOff::On;
             let options = RenderOptions {

@@ -70,3 +70,31 @@ async fn the_firefly_clamp_trades_variance_for_a_reported_bias() {
     assert!(var_on < 0.7 * var_off, "clamping does not reduce variance: {var_on} vs {var_off}");
     assert!(mean_on < 0.98 * mean_off, "clamping must lose energy (its bias): {mean_on} vs {mean_off}");
 }
+
+/// `tessera bench accuracy` at a small size: the report and its plot are written, and the
+/// numbers behind them say what they should (error falls with spp and with depth; Sobol
+/// below independent; compensation brings the furnace to 1).
+#[test]
+fn the_accuracy_report_measures_what_the_knobs_do() {
+    let dir = std::env::temp_dir().join(format!("tessera-accuracy-{}", std::process::id()));
+    let out = dir.join("accuracy.md");
+    let bench = tessera::commands::bench::AccuracyBench { fixtures: fixture(""), out: out.clone(), size: 24, reference_spp: 1024 };
+    let (md, s) = tessera::commands::bench::accuracy(&bench).expect("the benchmark runs");
+    assert!(md.contains("Max depth") && std::fs::metadata(out.with_extension("svg")).is_ok_and(|m| m.len() > 1000));
+    for (name, curve) in &s.spp_curves {
+        let (first, last) = (curve.first().unwrap().2, curve.last().unwrap().2);
+        assert!(last < first / 30.0, "{name}: relMSE {first} at 1 spp, {last} at 256");
+        assert!(last > 3.0 * s.reference_noise, "{name}: the reference is too noisy to measure {last}");
+    }
+    let at = |name: &str, i: usize| s.spp_curves.iter().find(|(n, _)| n == name).unwrap().1[i].2;
+    assert!(at("Sobol", 4) < at("independent", 4), "Sobol at 256 spp");
+    assert!(s.depth[0].1 > 5.0 * s.depth[4].1, "one bounce misses most indirect light: {:?}", s.depth);
+    for (scene, on, mean) in &s.furnace {
+        if *on {
+            assert!((mean - 1.0).abs() < 0.02, "{scene} with compensation: {mean}");
+        } else {
+            assert!(*mean < 0.9, "{scene} without compensation: {mean}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

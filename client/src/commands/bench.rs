@@ -1,0 +1,317 @@
+//! `tessera bench accuracy`: what each quality knob buys and what it costs, measured.
+//!
+//! Renders fixtures in-process (no server: the timings are the renderer's own) under each
+//! knob, compares every image with a reference of the same scene rendered by this renderer in
+//! `reference` mode (all approximations off, many samples) or with the closed form where the
+//! scene has one, and writes `docs/accuracy-vs-time.md` with tables and an SVG plot.
+//! Errors are relative MSE (Rousselle et al.'s ε = 0.01) and mean absolute error; the
+//! reference's own noise is measured by rendering it twice with different seeds.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use render_core::camera::Camera;
+use render_core::film::Aov;
+use render_core::integrator::IntegratorSettings;
+use render_core::render::{RenderSettings, render_to_framebuffer};
+use render_core::sampling::SamplerKind;
+use render_core::scene::{BlasCache, CommittedScene, commit};
+
+use crate::quality::Quality;
+
+/// One configuration of the knobs.
+#[derive(Clone, Copy, Debug)]
+pub struct Knobs {
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Scattering events.
+    pub max_depth: u32,
+    /// Kulla-Conty energy compensation.
+    pub energy_compensation: bool,
+    /// Sampler.
+    pub sampler: SamplerKind,
+    /// Firefly clamp.
+    pub clamp: Option<f32>,
+}
+
+impl Knobs {
+    fn from_quality(q: Quality) -> Self {
+        let p = q.preset();
+        Knobs { spp: p.spp, max_depth: p.max_depth, energy_compensation: true, sampler: SamplerKind::Sobol, clamp: p.clamp }
+    }
+}
+
+/// An image and what it cost.
+struct Rendered {
+    rgb: Vec<f64>,
+    seconds: f64,
+}
+
+fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Rendered {
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp: k.spp,
+        seed,
+        tile_size: 16,
+        integrator: IntegratorSettings {
+            max_depth: k.max_depth,
+            energy_compensation: k.energy_compensation,
+            clamp_indirect: k.clamp,
+            ..Default::default()
+        },
+        sampler: k.sampler,
+    };
+    let camera = Camera::new(&scene.camera("").expect("the fixture has a camera"), w, h);
+    // One-time energy-table builds are a load cost, not a per-render one (see
+    // docs/benchmarks.md for their price): build before timing.
+    scene.prepare_bsdfs(k.energy_compensation);
+    let t = Instant::now();
+    let (fb, _) = render_to_framebuffer(scene, &camera, &settings);
+    let seconds = t.elapsed().as_secs_f64();
+    let rgb = fb.layers[&Aov::Beauty].chunks(4).flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect();
+    Rendered { rgb, seconds }
+}
+
+fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
+    img.iter().zip(reference).map(|(a, r)| (a - r).powi(2) / (r * r + 0.01)).sum::<f64>() / img.len() as f64
+}
+
+fn mean_abs(img: &[f64], reference: &[f64]) -> f64 {
+    img.iter().zip(reference).map(|(a, r)| (a - r).abs()).sum::<f64>() / img.len() as f64
+}
+
+fn mean(img: &[f64]) -> f64 {
+    img.iter().sum::<f64>() / img.len() as f64
+}
+
+fn load(fixtures: &Path, name: &str) -> Result<CommittedScene> {
+    let t = crate::usd::load(&fixtures.join(name))?;
+    commit(&t.to_scene_desc(), &mut BlasCache::default()).with_context(|| format!("{name} does not commit"))
+}
+
+/// A row of a results table.
+struct Row {
+    label: String,
+    seconds: f64,
+    rel_mse: f64,
+    mae: f64,
+}
+
+/// Options of `tessera bench accuracy`.
+#[derive(Clone, Debug)]
+pub struct AccuracyBench {
+    /// `fixtures/` directory.
+    pub fixtures: PathBuf,
+    /// Markdown report to write; the SVG goes beside it.
+    pub out: PathBuf,
+    /// Image size of the Cornell box renders.
+    pub size: u32,
+    /// Samples per pixel of the reference.
+    pub reference_spp: u32,
+}
+
+/// The measured numbers behind the report, for tests.
+#[derive(Clone, Debug, Default)]
+pub struct AccuracySummary {
+    /// Per sampler: (spp, seconds, relMSE) over the spp sweep.
+    pub spp_curves: Vec<(String, Vec<(u32, f64, f64)>)>,
+    /// (max depth, relMSE).
+    pub depth: Vec<(u32, f64)>,
+    /// (fixture, compensation on, image mean) in the furnace.
+    pub furnace: Vec<(String, bool, f64)>,
+    /// The reference's own relMSE.
+    pub reference_noise: f64,
+}
+
+/// Runs the benchmark, writes the report and returns its text and numbers.
+pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
+    let mut summary = AccuracySummary::default();
+    if let Some(dir) = b.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let machine = machine_description();
+    let threads = rayon::current_num_threads();
+    let res = (b.size, b.size);
+    let mut md = String::new();
+    writeln!(md, "# What accuracy costs in time\n")?;
+    writeln!(
+        md,
+        "Written by `tessera bench accuracy` on {} ({machine}, {threads} render threads). Regenerate with\n`cargo run --release -p tessera -- bench accuracy`; the numbers below are this run's.\n",
+        today()
+    )?;
+
+    // ------------------------------------------------------------ Cornell box
+    let cornell = load(&b.fixtures, "cornell_box.usda")?;
+    let reference_knobs = Knobs::from_quality(Quality::Reference);
+    let reference_knobs = Knobs { spp: b.reference_spp, ..reference_knobs };
+    eprintln!("cornell reference: {} spp at {}x{} ...", b.reference_spp, res.0, res.1);
+    let r1 = render(&cornell, res, reference_knobs, 1_000_001);
+    let r2 = render(&cornell, res, reference_knobs, 2_000_002);
+    // Each reference's own relMSE is half that between two independent ones; their average
+    // halves it again.
+    let reference: Vec<f64> = r1.rgb.iter().zip(&r2.rgb).map(|(a, b)| 0.5 * (a + b)).collect();
+    let reference_noise = rel_mse(&r1.rgb, &r2.rgb) / 4.0;
+    summary.reference_noise = reference_noise;
+    writeln!(
+        md,
+        "## Cornell box ({}x{}, `fixtures/cornell_box.usda`)\n\nReference: `reference` mode (no clamp, max depth {}, Sobol), two renders of {} spp averaged ({:.1} s each). Its own remaining noise is relMSE {:.2e}, below every error reported here.\n",
+        res.0, res.1, reference_knobs.max_depth, b.reference_spp, r1.seconds, reference_noise
+    )?;
+
+    let base = Knobs { spp: 64, max_depth: 7, energy_compensation: true, sampler: SamplerKind::Sobol, clamp: None };
+    let measure = |label: String, k: Knobs| -> Row {
+        let r = render(&cornell, res, k, 7);
+        Row { label, seconds: r.seconds, rel_mse: rel_mse(&r.rgb, &reference), mae: mean_abs(&r.rgb, &reference) }
+    };
+
+    // Samples per pixel and sampler: the convergence curves.
+    let spps = [1u32, 4, 16, 64, 256];
+    let mut curves: Vec<(&str, Vec<Row>)> = Vec::new();
+    for (name, sampler) in [("Sobol", SamplerKind::Sobol), ("independent", SamplerKind::Independent)] {
+        eprintln!("cornell spp sweep, {name} ...");
+        curves.push((name, spps.iter().map(|&spp| measure(format!("{spp} spp"), Knobs { spp, sampler, ..base })).collect()));
+    }
+    writeln!(md, "### Samples per pixel and sampler (max depth 7)\n")?;
+    writeln!(md, "| spp | Sobol s | Sobol relMSE | independent s | independent relMSE |\n| ---: | ---: | ---: | ---: | ---: |")?;
+    for (i, spp) in spps.iter().enumerate() {
+        let (s, r) = (&curves[0].1[i], &curves[1].1[i]);
+        writeln!(md, "| {spp} | {:.3} | {:.2e} | {:.3} | {:.2e} |", s.seconds, s.rel_mse, r.seconds, r.rel_mse)?;
+    }
+    for (name, rows) in &curves {
+        let slope = log_slope(rows.iter().map(|r| (r.seconds, r.rel_mse)).collect());
+        writeln!(md, "\n{name}: relMSE falls as time^{slope:.2} (Monte Carlo alone would give -1).")?;
+    }
+    summary.spp_curves = curves
+        .iter()
+        .map(|(name, rows)| (name.to_string(), rows.iter().zip(spps).map(|(r, spp)| (spp, r.seconds, r.rel_mse)).collect()))
+        .collect();
+    let svg = b.out.with_extension("svg");
+    plot_curves(&svg, &curves)?;
+    writeln!(md, "\n![relMSE against render time]({})\n", svg.file_name().unwrap().to_string_lossy())?;
+
+    // Max depth: bias against time.
+    eprintln!("cornell depth sweep ...");
+    let depths = [1u32, 2, 3, 5, 7, 12];
+    let depth_rows: Vec<Row> = depths.iter().map(|&d| measure(format!("max depth {d}"), Knobs { max_depth: d, ..base })).collect();
+    summary.depth = depths.iter().zip(&depth_rows).map(|(&d, r)| (d, r.rel_mse)).collect();
+    table(&mut md, "Max depth (64 spp, Sobol): light lost to truncated paths is bias", &depth_rows)?;
+
+    // Firefly clamp.
+    eprintln!("cornell clamp sweep ...");
+    let clamp_rows: Vec<Row> = [None, Some(10.0f32), Some(1.0), Some(0.2)]
+        .iter()
+        .map(|&c| measure(c.map_or("clamp off".to_string(), |c| format!("clamp {c}")), Knobs { clamp: c, ..base }))
+        .collect();
+    table(&mut md, "Firefly clamp (64 spp, max depth 7): variance traded for bias", &clamp_rows)?;
+
+    // Quality presets on the Cornell box.
+    eprintln!("cornell presets ...");
+    let preset_rows: Vec<Row> = [Quality::Draft, Quality::Preview, Quality::Final]
+        .iter()
+        .map(|&q| measure(format!("`--quality {}`", q.name()), Knobs::from_quality(q)))
+        .collect();
+    table(&mut md, "Quality presets (`--quality`)", &preset_rows)?;
+    writeln!(md, "{}", Quality::table())?;
+
+    // ------------------------------------------------------------ energy compensation
+    writeln!(
+        md,
+        "## Energy compensation (furnace: the closed form is 1 everywhere)\n\nA rough (roughness 1) white metal sphere and a rough (0.7) clear glass sphere in a unit white dome, {}x{}, 64 spp, max depth 64. Error is the mean absolute difference from 1 over the whole image; time per sample shows what the compensation lobes cost.\n",
+        res.0 / 2,
+        res.1 / 2
+    )?;
+    writeln!(md, "| scene | compensation | seconds | mean | mean abs error vs 1 |\n| --- | --- | ---: | ---: | ---: |")?;
+    for name in ["furnace_rough_metal.usda", "furnace_rough_glass.usda"] {
+        eprintln!("{name} ...");
+        let scene = load(&b.fixtures, name)?;
+        for on in [true, false] {
+            let k = Knobs { spp: 64, max_depth: 64, energy_compensation: on, sampler: SamplerKind::Sobol, clamp: None };
+            let r = render(&scene, (res.0 / 2, res.1 / 2), k, 3);
+            let ones = vec![1.0; r.rgb.len()];
+            summary.furnace.push((name.to_string(), on, mean(&r.rgb)));
+            writeln!(
+                md,
+                "| {name} | {} | {:.3} | {:.4} | {:.4} |",
+                if on { "on" } else { "off" },
+                r.seconds,
+                mean(&r.rgb),
+                mean_abs(&r.rgb, &ones)
+            )?;
+        }
+    }
+    writeln!(
+        md,
+        "\nNot measured yet (the knobs do not exist in this build): NEE/BSDF/MIS strategy choice, caustics avoid/full, adaptive sampling, subsurface random walk against its diffuse fallback, texture filtering."
+    )?;
+
+    std::fs::write(&b.out, &md).with_context(|| format!("cannot write {}", b.out.display()))?;
+    Ok((md, summary))
+}
+
+fn table(md: &mut String, title: &str, rows: &[Row]) -> Result<()> {
+    writeln!(md, "### {title}\n\n| setting | seconds | relMSE | mean abs error |\n| --- | ---: | ---: | ---: |")?;
+    for r in rows {
+        writeln!(md, "| {} | {:.3} | {:.2e} | {:.4} |", r.label, r.seconds, r.rel_mse, r.mae)?;
+    }
+    writeln!(md)?;
+    Ok(())
+}
+
+/// Least-squares slope of log(error) against log(time).
+fn log_slope(points: Vec<(f64, f64)>) -> f64 {
+    let pts: Vec<(f64, f64)> = points.into_iter().filter(|(t, e)| *t > 0.0 && *e > 0.0).map(|(t, e)| (t.ln(), e.ln())).collect();
+    let n = pts.len() as f64;
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let cov: f64 = pts.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let var: f64 = pts.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    if var > 0.0 { cov / var } else { f64::NAN }
+}
+
+fn plot_curves(path: &Path, curves: &[(&str, Vec<Row>)]) -> Result<()> {
+    use plotters::prelude::*;
+    let pts = curves.iter().flat_map(|(_, rows)| rows.iter().map(|r| (r.seconds, r.rel_mse)));
+    let (tmin, tmax, emin, emax) =
+        pts.fold((f64::MAX, 0.0f64, f64::MAX, 0.0f64), |(a, b, c, d), (t, e)| (a.min(t), b.max(t), c.min(e), d.max(e)));
+    let root = SVGBackend::new(path, (640, 420)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Cornell box: relMSE against render time", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((tmin * 0.7..tmax * 1.4).log_scale(), (emin * 0.7..emax * 1.4).log_scale())?;
+    chart.configure_mesh().x_desc("seconds").y_desc("relMSE").draw()?;
+    for (i, (name, rows)) in curves.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let series: Vec<(f64, f64)> = rows.iter().map(|r| (r.seconds, r.rel_mse)).collect();
+        chart
+            .draw_series(LineSeries::new(series.clone(), colour.stroke_width(2)))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+        chart.draw_series(series.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
+    }
+    chart.configure_series_labels().border_style(BLACK).background_style(WHITE.mix(0.8)).draw()?;
+    root.present()?;
+    Ok(())
+}
+
+fn today() -> String {
+    std::process::Command::new("date")
+        .arg("+%Y-%m-%d")
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_else(|| "today".into())
+}
+
+fn machine_description() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!("{cpu}, {cores} cores")
+}
