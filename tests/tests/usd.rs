@@ -176,3 +176,32 @@ async fn a_point_instancer_renders_like_its_expansion_into_prims() {
     // (separately computed) matrices moves an edge or a shadow boundary may differ.
     assert!(differing <= pa.len() / 200, "{differing} of {} values differ", pa.len());
 }
+
+/// A mesh's bound `materialBind` subsets shade their faces with their own materials; the
+/// rest (an unbound subset, another family's subset) keep the mesh's. Seen from above and
+/// front-right: the top is red, the +x side blue, the front green.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn geom_subsets_carry_their_own_materials() {
+    let report =
+        render_fixture("usd/geom_subsets.usda", &tessera::remote::RenderOptions { aovs: vec!["albedo".into()], ..small(64, 64, 4) }).await;
+    let img = &report.image;
+    let mut counts = [0usize; 3];
+    let mut covered = 0;
+    for y in 0..img.height {
+        for x in 0..img.width {
+            if img.pixel("beauty", x, y)[3] < 1.0 {
+                continue;
+            }
+            covered += 1;
+            let a = img.pixel("albedo", x, y);
+            let dominant = (0..3).max_by(|&i, &j| a[i].total_cmp(&a[j])).unwrap();
+            if a[dominant] > 0.6 {
+                counts[dominant] += 1;
+            }
+        }
+    }
+    for (c, name) in counts.iter().zip(["red (Top subset)", "green (the mesh's binding)", "blue (Sides subset)"]) {
+        assert!(*c * 8 > covered, "{name} covers {c} of {covered} box pixels");
+    }
+    assert!(counts.iter().sum::<usize>() * 10 > covered * 9, "unexpected colours: {counts:?} of {covered}");
+}

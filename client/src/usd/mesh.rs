@@ -21,7 +21,23 @@ pub struct MeshSource {
 }
 
 /// Triangulates `src`; errors name the attribute at fault. Warnings go to `warn`.
-pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mesh, String> {
+pub fn triangulate(src: &MeshSource, warn: impl FnMut(String)) -> Result<Mesh, String> {
+    triangulate_with_faces(src, warn).map(|(m, _)| m)
+}
+
+/// The triangles of `mesh` whose face (from [`triangulate_with_faces`]) `keep` accepts, as a
+/// mesh of its own: same points, the kept triangles, their normals.
+pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) -> Mesh {
+    let kept: Vec<usize> = (0..mesh.indices.len()).filter(|&t| keep(face_of[t])).collect();
+    let normals = match &mesh.normals {
+        Normals::FaceVarying(n) => Normals::FaceVarying(kept.iter().flat_map(|&t| [n[3 * t], n[3 * t + 1], n[3 * t + 2]]).collect()),
+        other => other.clone(),
+    };
+    Mesh { positions: mesh.positions.clone(), indices: kept.iter().map(|&t| mesh.indices[t]).collect(), normals }
+}
+
+/// [`triangulate`], also returning the authored face of each triangle.
+pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<(Mesh, Vec<u32>), String> {
     let total: i64 = src.counts.iter().sum();
     if src.counts.iter().any(|&c| c < 0) || total != src.indices.len() as i64 {
         return Err(format!("faceVertexCounts add up to {total} but faceVertexIndices has {} entries", src.indices.len()));
@@ -87,7 +103,8 @@ pub fn triangulate(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<Mes
         }
         other => other,
     };
-    Ok(Mesh { positions: src.points.clone(), indices: tris, normals })
+    let face_of = uniform_of.iter().map(|&f| f as u32).collect();
+    Ok((Mesh { positions: src.points.clone(), indices: tris, normals }, face_of))
 }
 
 /// Area-weighted vertex normals.

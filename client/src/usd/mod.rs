@@ -24,7 +24,7 @@ use render_core::light::{LightDesc, LightKind};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 use render_core::scene::{InstancerDesc, MeshDesc, SceneDesc};
 
-pub use mesh::{MeshSource, triangulate};
+pub use mesh::{MeshSource, select_faces, triangulate, triangulate_with_faces};
 
 /// A stage translated into what the renderer consumes, plus what it could not render.
 #[derive(Clone, Debug, Default)]
@@ -230,22 +230,98 @@ impl Reader<'_> {
         let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
         // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
         let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let face_count = counts.len();
         let src = MeshSource { points, counts, indices, normals, left_handed, smooth };
         let mut warnings = Vec::new();
-        let mesh = triangulate(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        let (mesh, face_of) =
+            triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         self.out.warnings.extend(warnings);
-        self.add_mesh(prim, p, mesh, visible)
+        let subsets = self.material_subsets(prim, p, face_count)?;
+        if subsets.is_empty() {
+            return self.add_mesh(prim, p, mesh, visible);
+        }
+        // Faces in a bound GeomSubset render as a mesh of their own (named by the subset's
+        // path) with the subset's material; the rest keep the mesh's.
+        let mut claimed = vec![false; face_count];
+        for (subset, faces) in &subsets {
+            let set: std::collections::HashSet<u32> = faces.iter().copied().collect();
+            for &f in faces {
+                claimed[f as usize] = true;
+            }
+            let part = select_faces(&mesh, &face_of, |f| set.contains(&f));
+            let material = self.bound_material(subset)?;
+            let material = match material {
+                Some(m) => {
+                    self.material(&m)?;
+                    Some(m)
+                }
+                None => None,
+            };
+            self.add_mesh_with(prim, subset.path().as_str(), part, visible, material)?;
+        }
+        let rest = select_faces(&mesh, &face_of, |f| !claimed[f as usize]);
+        if rest.indices.is_empty() {
+            return Ok(());
+        }
+        self.add_mesh(prim, p, rest, visible)
+    }
+
+    /// The mesh's `materialBind` GeomSubsets of faces that carry a material binding, with
+    /// their face indices (validated against `face_count`).
+    fn material_subsets(&self, prim: &Prim, p: &str, face_count: usize) -> Result<Vec<(Prim, Vec<u32>)>> {
+        let time = self.time;
+        let mut out = Vec::new();
+        for child in prim.children()? {
+            if child.type_name()?.is_none_or(|t| t.as_str() != "GeomSubset") {
+                continue;
+            }
+            let c = child.path().as_str().to_string();
+            let family = get(&child, "familyName", time)?.as_ref().and_then(values::token).unwrap_or_default();
+            let element = get(&child, "elementType", time)?.as_ref().and_then(values::token).unwrap_or_else(|| "face".into());
+            if family != "materialBind" || element != "face" {
+                continue;
+            }
+            let indices = match get(&child, "indices", time)? {
+                Some(v) => values::int_array(&v).with_context(|| format!("{c}: attribute 'indices' is not an int array"))?,
+                None => Vec::new(),
+            };
+            if let Some((i, &f)) = indices.iter().enumerate().find(|(_, f)| **f < 0 || **f as usize >= face_count) {
+                anyhow::bail!("{c}: attribute 'indices': entry {i} is face {f}, but {p} has {face_count} faces");
+            }
+            if MaterialBindingAPI::get(self.stage, child.path().clone())?.is_none() {
+                continue; // an unbound subset keeps the mesh's material
+            }
+            out.push((child, indices.into_iter().map(|f| f as u32).collect()));
+        }
+        Ok(out)
     }
 
     /// Places a triangulated gprim: its world transform and its material (the bound one,
     /// else a preview surface of its `displayColor`, else the renderer's fallback).
     fn add_mesh(&mut self, prim: &Prim, p: &str, mesh: render_core::geometry::Mesh, visible: bool) -> Result<()> {
-        let transform = self.affine(prim, p)?;
         let material = match self.bound_material(prim)? {
             Some(m) => {
                 self.material(&m)?;
-                m
+                Some(m)
             }
+            None => None,
+        };
+        self.add_mesh_with(prim, p, mesh, visible, material)
+    }
+
+    /// As [`Self::add_mesh`], with the material already resolved (`None`: the gprim's
+    /// displayColor, else the fallback).
+    fn add_mesh_with(
+        &mut self,
+        prim: &Prim,
+        p: &str,
+        mesh: render_core::geometry::Mesh,
+        visible: bool,
+        material: Option<String>,
+    ) -> Result<()> {
+        let transform = self.affine(prim, p)?;
+        let material = match material {
+            Some(m) => m,
             None => self.display_color_material(prim, p)?.unwrap_or_default(),
         };
         self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, material, visible }));
@@ -397,16 +473,13 @@ impl Reader<'_> {
                 {
                     continue;
                 }
-                // The prototype mesh itself, never drawn directly.
-                let key = if under(member.as_str(), p) { member.as_str().to_string() } else { format!("{}@{p}", member.as_str()) };
+                // The prototype mesh itself (one per bound GeomSubset too), never drawn directly.
                 let before = self.out.meshes.len();
                 if type_name == "Mesh" {
                     self.mesh(&mprim, member.as_str(), false)?;
                 } else {
                     self.implicit(&mprim, member.as_str(), &type_name, false)?;
                 }
-                let Some((mesh_key, _)) = self.out.meshes.get_mut(before) else { continue };
-                *mesh_key = key.clone();
                 let relative = root_parent * self.world_transform(&member)?;
                 let transforms = if visible {
                     per_proto[k]
@@ -417,7 +490,15 @@ impl Reader<'_> {
                 } else {
                     Vec::new()
                 };
-                self.out.instancers.push((format!("{p}[{}]", member.as_str()), InstancerDesc { prototype: key, transforms }));
+                for (mesh_key, _) in &mut self.out.meshes[before..] {
+                    let part = mesh_key.clone();
+                    if !under(&part, p) {
+                        *mesh_key = format!("{part}@{p}");
+                    }
+                    self.out
+                        .instancers
+                        .push((format!("{p}[{part}]"), InstancerDesc { prototype: mesh_key.clone(), transforms: transforms.clone() }));
+                }
             }
         }
         Ok(())
