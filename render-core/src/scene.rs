@@ -264,12 +264,17 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances.push(InstanceData { mesh, transform, material, emitter_base: None, prim });
         Ok(())
     };
+    // A cut-out material removes its surfaces altogether (constant opacity below threshold).
+    let cut_out = |m: u32| materials[m as usize].cut_out;
     for (path, m) in &desc.meshes {
         if !m.visible {
             continue;
         }
         if let Some(&slot) = mesh_slot.get(path.as_str()) {
-            push_instance(&mut prim_paths, &mut instances, path, slot, &m.transform, material_of(path, &m.material))?;
+            let material = material_of(path, &m.material);
+            if !cut_out(material) {
+                push_instance(&mut prim_paths, &mut instances, path, slot, &m.transform, material)?;
+            }
         }
     }
     for (path, inst) in &desc.instancers {
@@ -281,6 +286,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         };
         let proto = &desc.meshes[&inst.prototype];
         let material = material_of(path, &proto.material);
+        if cut_out(material) {
+            continue;
+        }
         for xf in &inst.transforms {
             push_instance(&mut prim_paths, &mut instances, path, slot, xf, material)?;
         }
@@ -515,5 +523,32 @@ mod tests {
         assert_eq!(cache.last_builds, 0);
         let hit = scene.intersect(&Ray::new(Vec3::new(1.2, 0.2, 1.0), -Vec3::Z)).expect("moved triangle is hit");
         assert!((hit.t - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_cut_out_material_removes_its_surfaces() {
+        use crate::material::{MaterialNetwork, MaterialNode, ParamValue};
+        let network = |opacity: f32| MaterialNetwork {
+            nodes: vec![MaterialNode {
+                path: "/M/S".into(),
+                node_type_id: "UsdPreviewSurface".into(),
+                parameters: [("opacity", opacity), ("opacityThreshold", 0.5)]
+                    .into_iter()
+                    .map(|(k, v)| (k.to_string(), ParamValue::Float(v)))
+                    .collect(),
+            }],
+            connections: vec![],
+            surface_node: "/M/S".into(),
+        };
+        for (opacity, hit) in [(0.2, false), (0.7, true)] {
+            let mut desc = SceneDesc::default();
+            desc.materials.insert("/M".into(), network(opacity));
+            desc.meshes
+                .insert("/A".into(), MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, material: "/M".into(), visible: true });
+            let scene = commit(&desc, &mut BlasCache::default()).unwrap();
+            let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
+            assert_eq!(scene.intersect(&ray).is_some(), hit, "opacity {opacity} against threshold 0.5");
+            assert_eq!(scene.occluded(&ray, 10.0), hit, "a cut-out casts no shadow either");
+        }
     }
 }

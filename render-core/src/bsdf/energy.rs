@@ -245,6 +245,46 @@ pub fn ggx_anisotropic() -> &'static GgxAnisoEnergy {
     TABLES.get_or_init(GgxAnisoEnergy::compute)
 }
 
+/// Directional albedo of the Disney clearcoat lobe at full strength (weight 1) over
+/// (gloss, √μ), 16×32, by stratified sampling of the lobe itself: what a coat reflects and
+/// therefore takes from the layers beneath it (`004_...`, "Coatings":
+/// f_base' = min(1 − E(μo), 1 − E(μi))·f_base).
+pub struct ClearcoatEnergy {
+    e: [[f32; N]; 16],
+}
+
+impl ClearcoatEnergy {
+    fn compute() -> Self {
+        let _span = tracing::debug_span!("clearcoat_energy_table").entered();
+        let mut e = [[0.0; N]; 16];
+        for (j, row) in e.iter_mut().enumerate() {
+            let mut lobe = super::Clearcoat::new(1.0, j as f32 / 15.0);
+            lobe.weight = 1.0;
+            for (i, cell) in row.iter_mut().enumerate() {
+                let mut rng = Pcg32::new(0xc0a7, (j * N + i) as u64);
+                *cell = lobe_energy(&super::Lobe::Clearcoat(lobe), grid_mu(i), &mut rng, 48).min(1.0);
+            }
+        }
+        ClearcoatEnergy { e }
+    }
+
+    /// E(μ) of a clearcoat of `alpha` (Disney's gloss mapping inverted) at weight 1.
+    pub fn e(&self, alpha: f32, mu: f32) -> f32 {
+        let gloss = ((0.1 - alpha) / 0.099).clamp(0.0, 1.0) * 15.0;
+        let j0 = (gloss.floor() as usize).min(14);
+        let tj = gloss - j0 as f32;
+        let (i0, i1, ti) = lerp_index(mu.clamp(0.0, 1.0).sqrt());
+        let row = |j: usize| self.e[j][i0] * (1.0 - ti) + self.e[j][i1] * ti;
+        row(j0) * (1.0 - tj) + row(j0 + 1) * tj
+    }
+}
+
+/// The clearcoat table, computed on first use by materials with a coat.
+pub fn clearcoat() -> &'static ClearcoatEnergy {
+    static TABLE: OnceLock<ClearcoatEnergy> = OnceLock::new();
+    TABLE.get_or_init(ClearcoatEnergy::compute)
+}
+
 /// Kulla & Conty's analytic fit of 1 − E(μ, r) (appendix, "Numerical fit").
 pub fn fit_one_minus_e(mu: f32, r: f32) -> f32 {
     const S: [f32; 5] = [-0.170718, 4.07985, -11.5295, 18.4961, -9.23618];

@@ -154,6 +154,8 @@ pub struct Bsdf {
     weights: [f32; MAX_LOBES],
     select: [f32; MAX_LOBES],
     count: usize,
+    /// A clearcoat over the other lobes: its index and the lobe (see [`Bsdf::coat_with`]).
+    coat: Option<(usize, Clearcoat)>,
 }
 
 impl Bsdf {
@@ -169,6 +171,35 @@ impl Bsdf {
             self.lobes[self.count] = Some(lobe);
             self.weights[self.count] = weight;
             self.count += 1;
+        }
+    }
+
+    /// Puts a clearcoat over every lobe added so far, layered as Imageworks combines coats
+    /// (`004_...`, "Coatings"): the lobes beneath are scaled by
+    /// min(1 − E_c(|μo|), 1 − E_c(|μi|)), E_c the coat's directional albedo, so coat plus base
+    /// never reflects more than 1 and the product stays reciprocal.
+    pub fn coat_with(&mut self, coat: Clearcoat) {
+        if coat.weight > 0.0 && self.count < MAX_LOBES {
+            self.coat = Some((self.count, coat));
+            self.push(Lobe::Clearcoat(coat));
+        }
+    }
+
+    /// What the coat lets through at cosine `mu`: 1 − E_c(μ).
+    #[inline]
+    fn coat_through(&self, mu: f32) -> f32 {
+        match &self.coat {
+            Some((_, c)) => (1.0 - c.weight * energy::clearcoat().e(c.alpha, mu.abs())).max(0.0),
+            None => 1.0,
+        }
+    }
+
+    /// The scale of lobe `i`: the coat's attenuation for lobes beneath it.
+    #[inline]
+    fn under_coat(&self, i: usize, wo: Vec3, wi: Vec3) -> f32 {
+        match &self.coat {
+            Some((k, _)) if *k != i => self.coat_through(wo.z).min(self.coat_through(wi.z)),
+            _ => 1.0,
         }
     }
 
@@ -191,6 +222,7 @@ impl Bsdf {
             l.eval(Vec3::Z, Vec3::Z);
             l.eval(Vec3::Z, -Vec3::Z);
         }
+        self.coat_through(1.0);
     }
 
     /// True when nothing scatters.
@@ -207,7 +239,8 @@ impl Bsdf {
     pub fn prepare(&mut self, wo: Vec3) {
         let mut total = 0.0;
         for i in 0..self.count {
-            let w = self.weights[i] * self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
+            let w =
+                self.weights[i] * self.under_coat(i, wo, wo) * self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
             self.select[i] = w;
             total += w;
         }
@@ -218,7 +251,7 @@ impl Bsdf {
 
     /// Weighted sum of the lobes' f(wo, wi).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.lobes().map(|(i, l)| self.weights[i] * l.eval(wo, wi)).sum()
+        self.lobes().map(|(i, l)| self.weights[i] * self.under_coat(i, wo, wi) * l.eval(wo, wi)).sum()
     }
 
     /// The mixture density of [`Bsdf::sample`].
@@ -228,7 +261,7 @@ impl Bsdf {
 
     /// Weighted sum of the lobes' albedo estimates.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
-        self.lobes().map(|(i, l)| self.weights[i] * l.albedo(wo)).sum()
+        self.lobes().map(|(i, l)| self.weights[i] * self.under_coat(i, wo, wo) * l.albedo(wo)).sum()
     }
 
     /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS
@@ -252,7 +285,8 @@ impl Bsdf {
         let s = lobe.sample(wo, uc, u)?;
         if s.flags.delta {
             let p = self.select[i];
-            return (p > 0.0).then(|| LobeSample { weight: s.weight * (self.weights[i] / p), pdf: p * s.pdf, ..s });
+            let scale = self.weights[i] * self.under_coat(i, wo, s.wi) / p;
+            return (p > 0.0).then(|| LobeSample { weight: s.weight * scale, pdf: p * s.pdf, ..s });
         }
         let pdf = self.pdf(wo, s.wi);
         if !(pdf > 0.0) {

@@ -23,6 +23,10 @@ pub struct Material {
     pub principled: Principled,
     /// Emitted radiance, in the same units as UsdLux radiance.
     pub emission: Vec3,
+    /// Cut out everywhere: UsdPreviewSurface `opacity` below a positive `opacityThreshold`.
+    /// With constant inputs (textures are not supported yet) that removes the whole surface,
+    /// which then neither renders nor shadows.
+    pub cut_out: bool,
 }
 
 impl Material {
@@ -33,6 +37,7 @@ impl Material {
         Material {
             principled: Principled { lambert: true, base_color: Vec3::splat(0.18), roughness: 0.5, specular: 0.5, ..Default::default() },
             emission: Vec3::ZERO,
+            cut_out: false,
         }
     }
 

@@ -89,9 +89,38 @@ impl MaterialNetwork {
             "UsdPreviewSurface" => {
                 // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0
                 // comes from `ior` (default 1.5); `ior` 1 means no specular. The defaults are
-                // already in `m`.
+                // already in `m`. (docs/materials.md holds the whole mapping and its reasons.)
+                let float = |n: &str| surface.parameters.get(n).and_then(|v| if let ParamValue::Float(x) = v { Some(*x) } else { None });
+                let int = |n: &str| {
+                    surface.parameters.get(n).and_then(|v| match v {
+                        ParamValue::Int(i) => Some(*i),
+                        ParamValue::Bool(b) => Some(*b as i32),
+                        _ => None,
+                    })
+                };
+                let specular_workflow = int("useSpecularWorkflow").unwrap_or(0) != 0;
+                let opacity = float("opacity").unwrap_or(1.0);
+                let threshold = float("opacityThreshold").unwrap_or(0.0);
+                if threshold > 0.0 {
+                    // A cut-out: present where opacity ≥ threshold, absent elsewhere.
+                    m.cut_out = opacity < threshold;
+                } else if opacity < 1.0 {
+                    // "Transparent but lit, like clear glass": a smooth dielectric
+                    // transmission of weight 1 − opacity with the material's ior.
+                    p.spec_trans = (1.0 - opacity).clamp(0.0, 1.0);
+                    p.transmission_roughness = Some(0.0);
+                    p.transmission_color = Some(Vec3::ONE);
+                }
                 for (name, value) in &surface.parameters {
                     match (name.as_str(), value) {
+                        ("useSpecularWorkflow", ParamValue::Int(_) | ParamValue::Bool(_)) => {}
+                        ("specularColor", ParamValue::Float3(c)) if specular_workflow => p.specular_color = Some(*c),
+                        // The metallic workflow ignores specularColor, the specular one metallic.
+                        ("specularColor", ParamValue::Float3(_)) => {}
+                        ("metallic", ParamValue::Float(_)) if specular_workflow => {}
+                        ("opacity" | "opacityThreshold", ParamValue::Float(_)) => {}
+                        // Ambient occlusion is for rasterisers: a path tracer computes it.
+                        ("occlusion", ParamValue::Float(_)) => {}
                         ("diffuseColor", ParamValue::Float3(c)) => p.base_color = *c,
                         ("emissiveColor", ParamValue::Float3(c)) => m.emission = c.max(Vec3::ZERO),
                         ("metallic", ParamValue::Float(x)) => p.metallic = *x,
@@ -199,7 +228,8 @@ mod tests {
             ("metallic", ParamValue::Float(1.0)),
             ("roughness", ParamValue::Float(0.25)),
             ("ior", ParamValue::Float(1.5)),
-            ("opacity", ParamValue::Float(0.5)),
+            ("displacement", ParamValue::Float(0.1)),
+            ("occlusion", ParamValue::Float(0.5)),
             ("bogus", ParamValue::Float(1.0)),
         ])
         .resolve("/M");
@@ -208,8 +238,63 @@ mod tests {
         assert_eq!((p.metallic, p.roughness), (1.0, 0.25));
         assert!((p.specular - 0.5).abs() < 1e-5, "IOR 1.5 is Disney's specular 0.5");
         assert_eq!(m.emission, Vec3::splat(3.0));
-        assert!(r.warnings.iter().any(|w| w.contains("'opacity'") && w.contains("/M/S")));
+        assert!(r.warnings.iter().any(|w| w.contains("'displacement'") && w.contains("/M/S")));
+        assert!(!r.warnings.iter().any(|w| w.contains("'occlusion'")), "occlusion is meaningless to a path tracer, not unsupported");
         assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
+    }
+
+    #[test]
+    fn preview_surface_opacity_is_clear_transmission_or_a_cut_out() {
+        // opacityThreshold 0: transparent but lit, like clear glass.
+        let (m, r) = preview(&[("opacity", ParamValue::Float(0.3)), ("diffuseColor", ParamValue::Float3(Vec3::X))]).resolve("/M");
+        let p = m.principled.sanitized();
+        assert!((p.spec_trans - 0.7).abs() < 1e-6 && !m.cut_out && r.warnings.is_empty());
+        assert_eq!((p.transmission_roughness, p.transmission_color), (Some(0.0), Some(Vec3::ONE)));
+        assert!(m.bsdf(true).transmits());
+        // A positive threshold makes opacity binary.
+        for (opacity, gone) in [(0.2, true), (0.5, false), (0.8, false)] {
+            let (m, _) = preview(&[("opacity", ParamValue::Float(opacity)), ("opacityThreshold", ParamValue::Float(0.5))]).resolve("/M");
+            assert_eq!(m.cut_out, gone, "opacity {opacity}");
+            assert!(!m.bsdf(true).transmits());
+        }
+    }
+
+    #[test]
+    fn preview_surface_specular_workflow_uses_specular_color_and_ignores_metallic() {
+        let red = ParamValue::Float3(Vec3::new(0.9, 0.0, 0.0));
+        let (m, r) =
+            preview(&[("useSpecularWorkflow", ParamValue::Int(1)), ("specularColor", red.clone()), ("metallic", ParamValue::Float(1.0))])
+                .resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert_eq!((m.principled.metallic, m.principled.specular_color), (0.0, Some(Vec3::new(0.9, 0.0, 0.0))));
+        // Seen head-on, a smooth specular-workflow surface reflects its specular colour.
+        let smooth = Material { principled: super::super::Principled { roughness: 0.0, base_color: Vec3::ZERO, ..m.principled }, ..m };
+        let spec = crate::bsdf::testing::albedo_estimate(&smooth.bsdf(true), Vec3::Z, 4096);
+        assert!((spec.x - 0.9).abs() < 0.02 && spec.y.abs() < 1e-3, "head-on specular {spec:?}");
+        // The metallic workflow ignores specularColor.
+        let (m, _) = preview(&[("specularColor", red), ("metallic", ParamValue::Float(1.0))]).resolve("/M");
+        assert_eq!((m.principled.metallic, m.principled.specular_color), (1.0, None));
+    }
+
+    #[test]
+    fn preview_surface_variants_conserve_energy() {
+        use crate::bsdf::testing;
+        let white = ParamValue::Float3(Vec3::ONE);
+        let cases = [
+            vec![("diffuseColor", white.clone()), ("opacity", ParamValue::Float(0.5)), ("roughness", ParamValue::Float(0.4))],
+            vec![("diffuseColor", white.clone()), ("useSpecularWorkflow", ParamValue::Int(1)), ("specularColor", white.clone())],
+            vec![("diffuseColor", white.clone()), ("clearcoat", ParamValue::Float(1.0)), ("roughness", ParamValue::Float(1.0))],
+        ];
+        for params in cases {
+            let (m, _) = preview(&params).resolve("/M");
+            let bsdf = m.bsdf(true);
+            for wo in testing::probe_directions() {
+                for wo in [wo, -wo] {
+                    let a = testing::albedo_estimate(&bsdf, wo, 20_000);
+                    assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{params:?} at {wo:?}: {a:?}");
+                }
+            }
+        }
     }
 
     #[test]

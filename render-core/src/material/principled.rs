@@ -42,6 +42,16 @@ pub struct Principled {
     /// Lambertian diffuse instead of Disney's (front-ends whose diffuse is Lambertian, such
     /// as UsdPreviewSurface).
     pub lambert: bool,
+    /// A dielectric specular whose normal-incidence reflectance is this colour, going to white
+    /// at grazing angles (Schlick), instead of the one `specular` sets: UsdPreviewSurface's
+    /// specular workflow.
+    pub specular_color: Option<Vec3>,
+    /// Roughness of the glass lobe when it differs from `roughness` (UsdPreviewSurface's
+    /// opacity transmission is smooth).
+    pub transmission_roughness: Option<f32>,
+    /// Tint of the glass lobe's transmission when it is not `baseColor` (UsdPreviewSurface's
+    /// opacity transmission is clear).
+    pub transmission_color: Option<Vec3>,
 }
 
 impl Default for Principled {
@@ -63,6 +73,9 @@ impl Default for Principled {
             thin: false,
             ior: 1.5,
             lambert: false,
+            specular_color: None,
+            transmission_roughness: None,
+            transmission_color: None,
         }
     }
 }
@@ -89,6 +102,9 @@ impl Principled {
             thin: self.thin,
             ior: if self.ior.is_finite() && self.ior > 0.0 { self.ior.clamp(1.0 / 3.0, 3.0) } else { d.ior },
             lambert: self.lambert,
+            specular_color: self.specular_color.map(|c| if c.is_finite() { c.clamp(Vec3::ZERO, Vec3::ONE) } else { Vec3::splat(0.04) }),
+            transmission_roughness: self.transmission_roughness.map(|r| u(r, 0.0)),
+            transmission_color: self.transmission_color.map(|c| if c.is_finite() { c.clamp(Vec3::ZERO, Vec3::ONE) } else { Vec3::ONE }),
         }
     }
 
@@ -103,19 +119,35 @@ impl Principled {
         let glass = (1.0 - p.metallic) * p.spec_trans;
         let tint = Sheen::tint(p.base_color);
 
-        // Dielectric specular: η from `specular` (F0 = 0.08·specular), or Schlick when tinted.
-        let f0 = 0.08 * p.specular;
+        // Dielectric specular: η from `specular` (F0 = 0.08·specular), or Schlick when tinted
+        // or given a specular colour (whose largest component then sets the diffuse's
+        // coupling η: the most energy the specular can take).
+        let f0 = p.specular_color.map_or(0.08 * p.specular, |c| c.max_element());
+        let has_specular = f0 > 0.0;
         let eta = ((1.0 + f0.sqrt()) / (1.0 - f0.sqrt()).max(1e-3)).clamp(1.0, 3.0);
-        let spec_fresnel = if p.specular_tint > 0.0 {
+        let spec_fresnel = if let Some(f0) = p.specular_color {
+            SpecularFresnel::Schlick { f0 }
+        } else if p.specular_tint > 0.0 {
             SpecularFresnel::Schlick { f0: f0 * Vec3::ONE.lerp(tint, p.specular_tint) }
         } else {
             SpecularFresnel::Dielectric { eta }
+        };
+        // A specular colour brighter than a dielectric of η = 3 (F0 = 0.25, the coupling
+        // table's limit) takes more than the coupling leaves out: scale the diffuse by what
+        // the excess takes at normal incidence, (1 − F0)/(1 − F0(η)). A white specular colour
+        // over a white diffuse reflected 1.76 without it.
+        let specular_color_excess = match p.specular_color {
+            Some(_) if compensate => {
+                let f0_eta = crate::bsdf::fresnel::f0_from_ior(eta);
+                ((1.0 - f0) / (1.0 - f0_eta).max(1e-6)).clamp(0.0, 1.0)
+            }
+            _ => 1.0,
         };
         if dielectric > 0.0 {
             // An anisotropic specular couples by its smoother axis: seen along that axis it
             // keeps more energy than the isotropic lobe of the mean roughness.
             let ggx = crate::bsdf::microfacet::Ggx::from_roughness(p.roughness, p.anisotropic);
-            let coupling = (compensate && p.specular > 0.0).then_some((eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)));
+            let coupling = (compensate && has_specular).then_some((eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)));
             bsdf.push_weighted(
                 Lobe::DisneyDiffuse(DisneyDiffuse {
                     color: p.base_color,
@@ -124,11 +156,11 @@ impl Principled {
                     coupling,
                     lambert: p.lambert,
                 }),
-                dielectric * (1.0 - p.diff_trans),
+                dielectric * (1.0 - p.diff_trans) * specular_color_excess,
             );
             let trans_color = if p.thin { p.base_color.powf(0.5) } else { p.base_color };
             bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: trans_color }), dielectric * p.diff_trans);
-            if p.specular > 0.0 {
+            if has_specular {
                 bsdf.push_weighted(
                     Lobe::GgxReflection(GgxReflection::new(p.roughness, p.anisotropic, spec_fresnel, compensate)),
                     dielectric,
@@ -150,11 +182,13 @@ impl Principled {
             );
         }
         if glass > 0.0 {
-            let color = if p.thin { p.base_color.powf(0.5) } else { p.base_color };
-            bsdf.push_weighted(Lobe::Dielectric(Dielectric::new(p.roughness, p.anisotropic, p.ior, color).compensated(compensate)), glass);
+            let tint = p.transmission_color.unwrap_or(p.base_color);
+            let color = if p.thin { tint.powf(0.5) } else { tint };
+            let roughness = p.transmission_roughness.unwrap_or(p.roughness);
+            bsdf.push_weighted(Lobe::Dielectric(Dielectric::new(roughness, p.anisotropic, p.ior, color).compensated(compensate)), glass);
         }
         if p.clearcoat > 0.0 {
-            bsdf.push_weighted(Lobe::Clearcoat(Clearcoat::new(p.clearcoat, p.clearcoat_gloss)), 1.0);
+            bsdf.coat_with(Clearcoat::new(p.clearcoat, p.clearcoat_gloss));
         }
         bsdf
     }
@@ -251,6 +285,30 @@ mod tests {
                 testing::assert_chi2_at(&p.bsdf(true), 700 + k as u64, dirs.iter().map(|w| -*w).collect());
             }
         }
+    }
+
+    #[test]
+    fn a_clearcoat_takes_its_energy_from_the_layers_beneath() {
+        // Added on top, Disney's coat over a white base reflects more than it receives at
+        // grazing angles; layered (`004_...`, "Coatings") it never does, stays reciprocal and
+        // samples its pdf.
+        let coated =
+            Principled { base_color: Vec3::ONE, roughness: 1.0, lambert: true, clearcoat: 1.0, clearcoat_gloss: 0.5, ..Default::default() };
+        let base = Principled { clearcoat: 0.0, ..coated };
+        let coat = crate::bsdf::Lobe::Clearcoat(Clearcoat::new(1.0, 0.5));
+        let added = testing::probe_directions()
+            .into_iter()
+            .map(|wo| testing::albedo_estimate(&base.bsdf(true), wo, 60_000).x + testing::albedo_estimate(&coat, wo, 60_000).x)
+            .fold(0.0f32, f32::max);
+        assert!(added > 1.02, "coat + base added: {added}");
+        let bsdf = coated.bsdf(true);
+        for wo in testing::probe_directions() {
+            let a = testing::albedo_estimate(&bsdf, wo, 60_000).x;
+            assert!(a <= 1.0 + 1e-3 + 0.01, "coated white base at {wo:?}: {a}");
+        }
+        testing::assert_reciprocal(&bsdf);
+        testing::assert_chi2(&bsdf, 77);
+        testing::assert_weights_consistent(&bsdf);
     }
 
     #[test]
