@@ -179,13 +179,20 @@ pub struct Tlas {
     bvh: Option<CwBvh>,
     /// Instances in BVH order, with their original index.
     ordered: Vec<(u32, usize, Transform)>,
+    /// Rays enter traversal with their direction scaled by this power of two (≤ 1):
+    /// obvhs's CWBVH node test clamps the entry distance to an absolute 1e-4 (`node.rs`,
+    /// `EPSILON`), which culled every box closer than 1e-4 units, i.e. most of a scene
+    /// 2e-4 units big (its continuation rays missed the walls). Scaling the direction by the
+    /// scene's extent (rounded down to a power of two, so exactly) moves that limit to 1e-4 of
+    /// the scene's size; scenes a unit or larger keep 1.
+    ray_scale: f32,
 }
 
 impl Tlas {
     /// Builds over `instances`, whose `blas` indices refer into `blases`.
     pub fn build(blases: &[std::sync::Arc<Blas>], instances: &[TlasInstance]) -> Self {
         if instances.is_empty() {
-            return Tlas { bvh: None, ordered: Vec::new() };
+            return Tlas { bvh: None, ordered: Vec::new(), ray_scale: 1.0 };
         }
         let bounds: Vec<InstanceBounds> = instances
             .iter()
@@ -205,13 +212,16 @@ impl Tlas {
             .collect();
         let bvh = build_cwbvh(&bounds, BuildQuality::Medium.params(), &mut Duration::default());
         let ordered = bvh.primitive_indices.iter().map(|&i| (i, instances[i as usize].blas, instances[i as usize].transform)).collect();
-        Tlas { bvh: Some(bvh), ordered }
+        let extent = (bvh.total_aabb.max - bvh.total_aabb.min).max_element();
+        let ray_scale = if extent.is_finite() && extent > 0.0 && extent < 1.0 { 2f32.powi(extent.log2().floor() as i32) } else { 1.0 };
+        Tlas { bvh: Some(bvh), ordered, ray_scale }
     }
 
     /// Closest hit along `ray` before `ray.tmax`.
     pub fn intersect(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
-        let wray = bvh_ray(ray.origin.into(), ray.dir.into(), ray.tmax);
+        let k = self.ray_scale;
+        let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, ray.tmax / k);
         let mut rh = RayHit::none();
         let mut best: Option<Hit> = None;
         bvh.ray_traverse(wray, &mut rh, |r, id| {
@@ -220,7 +230,7 @@ impl Tlas {
             let d = xf.to_object.transform_vector3a(r.direction);
             match blases[*blas].intersect(o, d, r.tmax) {
                 Some((t, tri, bary)) => {
-                    best = Some(Hit { t, instance: *inst, triangle: tri, bary });
+                    best = Some(Hit { t: t * k, instance: *inst, triangle: tri, bary });
                     t
                 }
                 None => f32::INFINITY,
@@ -234,7 +244,8 @@ impl Tlas {
         let Some(bvh) = self.bvh.as_ref() else {
             return false;
         };
-        let wray = bvh_ray(ray.origin.into(), ray.dir.into(), tmax);
+        let k = self.ray_scale;
+        let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, tmax / k);
         !bvh.ray_traverse_miss(wray, |r, id| {
             let (_, blas, xf) = &self.ordered[id];
             let o = xf.to_object.transform_point3a(r.origin);
@@ -258,6 +269,20 @@ mod tests {
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn hits_closer_than_obvhs_node_epsilon_are_found_in_tiny_scenes() {
+        // A quad 2e-4 across, instanced at that scale; rays 5e-5 away must hit it, though
+        // obvhs clamps node entry distances to 1e-4.
+        let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
+        let xf = Transform::new(Affine3A::from_scale(Vec3::splat(1e-4))).unwrap();
+        let tlas = Tlas::build(&blas, &[TlasInstance { blas: 0, transform: xf }]);
+        let ray = Ray::new(Vec3::new(2e-5, -3e-5, 5e-5), -Vec3::Z);
+        let hit = tlas.intersect(&blas, &ray).expect("a hit 5e-5 away");
+        assert!((hit.t - 5e-5).abs() < 1e-9, "t = {}", hit.t);
+        assert!(tlas.occluded(&blas, &ray, 1e-4));
+        assert!(!tlas.occluded(&blas, &ray, 4e-5));
     }
 
     #[test]

@@ -19,6 +19,12 @@ impl Ray {
         Ray { origin, dir, tmax: f32::INFINITY }
     }
 
+    /// The same ray ending at `tmax`.
+    #[inline]
+    pub fn with_tmax(self, tmax: f32) -> Self {
+        Ray { tmax, ..self }
+    }
+
     /// The point at parameter `t`.
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
@@ -28,13 +34,18 @@ impl Ray {
 
 /// Offsets a surface point along its geometric normal so that a ray leaving it does not
 /// re-hit the same surface: Wächter & Binder, "A Fast and Robust Method for Avoiding
-/// Self-Intersection", Ray Tracing Gems (2019), chapter 6. The offset scales with the
-/// magnitude of the coordinates, so it holds at 1e-4 and at 1e5 scene units alike.
+/// Self-Intersection", Ray Tracing Gems (2019), chapter 6. Away from the origin the offset is
+/// a number of ulps of each coordinate; near it (where ulps vanish) their method adds a fixed
+/// 1/65536 within 1/32 of the origin. Both of those constants assume a scene about one unit
+/// big, so here they scale with `scene_scale` (the largest coordinate magnitude of the
+/// scene): unscaled, a Cornell box of 2e-4 units got offsets of 8% of its size (light leaked
+/// in, the boxes went black) and one of 2e5 units self-shadowed its floor at y = 0, where
+/// 1/65536 is far below the intersection error of rays 1e5 long.
 #[inline]
-pub fn offset_ray_origin(p: Vec3, ng: Vec3) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+pub fn offset_ray_origin(p: Vec3, ng: Vec3, scene_scale: f32) -> Vec3 {
     const INT_SCALE: f32 = 256.0;
+    let s = if scene_scale.is_finite() && scene_scale > 0.0 { scene_scale } else { 1.0 };
+    let (origin, float_scale) = (s / 32.0, s / 65536.0);
     let of_i = [(INT_SCALE * ng.x) as i32, (INT_SCALE * ng.y) as i32, (INT_SCALE * ng.z) as i32];
     let bump = |c: f32, o: i32| -> f32 {
         let bits = c.to_bits() as i32;
@@ -42,9 +53,9 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3) -> Vec3 {
     };
     let p_i = Vec3::new(bump(p.x, of_i[0]), bump(p.y, of_i[1]), bump(p.z, of_i[2]));
     Vec3::new(
-        if p.x.abs() < ORIGIN { p.x + FLOAT_SCALE * ng.x } else { p_i.x },
-        if p.y.abs() < ORIGIN { p.y + FLOAT_SCALE * ng.y } else { p_i.y },
-        if p.z.abs() < ORIGIN { p.z + FLOAT_SCALE * ng.z } else { p_i.z },
+        if p.x.abs() < origin { p.x + float_scale * ng.x } else { p_i.x },
+        if p.y.abs() < origin { p.y + float_scale * ng.y } else { p_i.y },
+        if p.z.abs() < origin { p.z + float_scale * ng.z } else { p_i.z },
     )
 }
 
@@ -142,14 +153,18 @@ mod tests {
     #[test]
     fn offset_moves_off_the_surface_at_every_scale() {
         for scale in [1e-4f32, 1.0, 1e5] {
-            let p = Vec3::new(0.3, -0.7, 0.2) * scale;
-            let n = Vec3::new(0.0, 0.0, 1.0);
-            let q = offset_ray_origin(p, n);
-            assert!(q.z > p.z, "scale {scale}: {q:?}");
-            let q = offset_ray_origin(p, -n);
-            assert!(q.z < p.z, "scale {scale}: {q:?}");
-            // The offset is tiny relative to the coordinate.
-            assert!((q - p).length() <= 1e-3 * scale.max(1.0));
+            // Points of a scene `scale` big, one of them on a plane through the origin.
+            for p in [Vec3::new(0.3, -0.7, 0.2) * scale, Vec3::new(0.4 * scale, 0.0, -0.6 * scale)] {
+                for n in [Vec3::Z, Vec3::Y] {
+                    let (up, down) = (offset_ray_origin(p, n, scale), offset_ray_origin(p, -n, scale));
+                    assert!((up - p).dot(n) > 0.0 && (down - p).dot(n) < 0.0, "scale {scale}, p {p}, n {n}");
+                    // Tiny relative to the scene, and above the f32 error of hitting p with a
+                    // ray as long as the scene (a few ulps of the scene's size).
+                    let moved = (up - p).length();
+                    assert!(moved <= 1e-3 * scale, "scale {scale}: moved {moved}");
+                    assert!(moved >= 8.0 * f32::EPSILON * scale, "scale {scale}: moved only {moved}");
+                }
+            }
         }
     }
 

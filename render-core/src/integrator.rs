@@ -176,10 +176,20 @@ pub fn trace_path(
                     let wi_local = frame.to_local(ls.wi);
                     let f = if sides_agree(ls.wi, wi_local.z) { bsdf.eval(wo_local, wi_local) } else { Vec3::ZERO };
                     if f != Vec3::ZERO {
-                        let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng });
-                        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) } else { f32::INFINITY };
+                        let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale);
+                        // Aim from the offset origin at the sampled light point and stop just
+                        // short of it: the offset (which scales with the surface) can exceed
+                        // the 1e-4 margin, and a shadow ray along the original direction then
+                        // met an emitting mesh's own surface before tmax.
+                        let shadow = if ls.dist.is_finite() {
+                            let to = s.p + ls.wi * ls.dist - origin;
+                            let d = to.length();
+                            Ray::new(origin, to / d).with_tmax(d * (1.0 - 1e-4))
+                        } else {
+                            Ray::new(origin, ls.wi)
+                        };
                         counters.rays += 1;
-                        if !scene.occluded(&Ray::new(origin, ls.wi), tmax) {
+                        if !scene.occluded(&shadow, shadow.tmax) {
                             let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)) };
                             l += clamped(beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf), depth >= 1, settings.clamp_indirect);
                         }
@@ -201,7 +211,7 @@ pub fn trace_path(
             break;
         }
         prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta });
-        ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }), wi);
+        ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
         depth += 1;
 
         if depth >= settings.rr_start {

@@ -178,6 +178,11 @@ pub struct SurfaceHit {
     pub material: u32,
     /// Triangle-light index when the surface emits.
     pub light: Option<u32>,
+    /// The size that bounds the error of `p`: the larger of its coordinates and the hit
+    /// triangle's world-space edges. Ray origins leaving the surface are offset in proportion
+    /// ([`crate::geometry::offset_ray_origin`]), so a 1 km ground plane and a 1 mm bead in the
+    /// same scene each get an offset fit for them.
+    pub offset_scale: f32,
 }
 
 /// Builds the renderable scene from its description, reusing cached BLASes.
@@ -264,8 +269,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances.push(InstanceData { mesh, transform, material, emitter_base: None, prim });
         Ok(())
     };
-    // A cut-out material removes its surfaces altogether (constant opacity below threshold).
-    let cut_out = |m: u32| materials[m as usize].cut_out;
+    // Materials with no effect on light (cut out, index-matched clear glass) remove their
+    // surfaces altogether.
+    let cut_out = |m: u32| materials[m as usize].is_invisible();
     for (path, m) in &desc.meshes {
         if !m.visible {
             continue;
@@ -464,7 +470,10 @@ impl CommittedScene {
             .map(|n| (inst.transform.normal_matrix * n).normalize_or_zero())
             .filter(|n| *n != Vec3::ZERO && n.is_finite())
             .unwrap_or(ng);
-        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle) }
+        let m = inst.transform.to_world.matrix3;
+        let edges = (m * glam::Vec3A::from(b - a)).abs().max((m * glam::Vec3A::from(c - a)).abs()).max_element();
+        let offset_scale = p.abs().max_element().max(edges);
+        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle), offset_scale }
     }
 
     /// The scene's camera at `path`, the first camera when `path` is empty, or a default

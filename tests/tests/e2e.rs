@@ -5,6 +5,7 @@ mod energy;
 mod errors;
 mod furnace;
 mod grpc;
+mod hard;
 mod images;
 mod light_units;
 mod sampling;

@@ -46,6 +46,15 @@ impl Material {
         self.principled.bsdf(energy_compensation)
     }
 
+    /// True when the material has no effect on light at all, so its surfaces can be left
+    /// out of the scene: cut out, or clear glass whose IOR is exactly 1 (an index-matched
+    /// interface neither reflects nor bends, so dropping it is exact, shadows included).
+    pub fn is_invisible(&self) -> bool {
+        let p = self.principled.sanitized();
+        let clear = p.transmission_color.unwrap_or(p.base_color) == Vec3::ONE;
+        self.cut_out || (p.spec_trans == 1.0 && p.metallic == 0.0 && p.ior == 1.0 && clear && p.clearcoat == 0.0 && !self.is_emissive())
+    }
+
     /// True when the material emits light.
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
