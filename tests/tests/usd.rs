@@ -70,7 +70,11 @@ fn differences(expected: &Value, actual: &Value, at: &str, ours: &Value, out: &m
         }
         (Value::Number(e), Value::Number(a)) => {
             let (e, a) = (e.as_f64().unwrap(), a.as_f64().unwrap());
-            if (e - a).abs() > 1e-4 * e.abs().max(1.0) {
+            // Light colours carry the black body of their colour temperature: Tessera
+            // integrates Planck's law, usd-core interpolates a table (within 1.1% from 2700 K
+            // up, 3.7% at 1000 K).
+            let tolerance = if at.contains(".color[") { 0.04 } else { 1e-4 };
+            if (e - a).abs() > tolerance * e.abs().max(1.0) {
                 out.push(format!("{at}: usd-core {e}, Tessera {a}"));
             }
         }

@@ -631,16 +631,18 @@ impl Reader<'_> {
                 self.out.warnings.push(format!("{p}: inputs:texture:file is not supported yet; the light's constant colour is used"));
             }
         }
-        if input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0 {
-            self.out.warnings.push(format!("{p}: colour temperature is not supported yet and is ignored"));
-        }
+        // UsdLux: the colour temperature multiplies `color` when enabled (default 6500 K).
+        let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
+            .then(|| float("colorTemperature", 6500.0))
+            .transpose()?;
         let desc = LightDesc {
             kind,
             transform: self.affine(prim, p)?,
             // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
             intensity: float("intensity", if type_name == "DistantLight" { 50000.0 } else { 1.0 })?,
             exposure: float("exposure", 0.0)?,
-            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE),
+            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE)
+                * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
             normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
             visible_to_camera: visible,
         };
