@@ -43,7 +43,7 @@ impl Image {
 fn channel_names(aov: &str, channels: u32) -> Vec<String> {
     let base: &[&str] = match (aov, channels) {
         ("beauty", 4) => return ["R", "G", "B", "A"].map(String::from).to_vec(),
-        ("normal", 3) => &["X", "Y", "Z"],
+        ("normal" | "position", 3) => &["X", "Y", "Z"],
         ("depth", 1) => &["Z"],
         (_, 1) => &["Y"],
         _ => &["R", "G", "B", "A"],

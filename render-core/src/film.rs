@@ -16,11 +16,28 @@ pub enum Aov {
     Normal,
     /// Camera-space depth of the first surface.
     Depth,
+    /// World-space position of the first surface.
+    Position,
+    /// Light that left the first surface through a diffuse lobe (Lambert, Disney diffuse,
+    /// sheen), directly or after further bounces.
+    Diffuse,
+    /// Light reflected by the first surface's glossy and mirror lobes (microfacet reflection,
+    /// clearcoat, a dielectric's reflection).
+    Specular,
+    /// Light transmitted through the first surface (a dielectric's refraction, diffuse
+    /// transmission).
+    Transmission,
+    /// Light the camera sees directly: emitters and the environment.
+    Emission,
 }
 
 impl Aov {
     /// All AOVs.
-    pub const ALL: [Aov; 4] = [Aov::Beauty, Aov::Albedo, Aov::Normal, Aov::Depth];
+    pub const ALL: [Aov; 9] =
+        [Aov::Beauty, Aov::Albedo, Aov::Normal, Aov::Depth, Aov::Position, Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission];
+
+    /// The light-path components: their sum is the beauty's RGB.
+    pub const COMPONENTS: [Aov; 4] = [Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission];
 
     /// The AOV's wire and file name.
     pub fn name(self) -> &'static str {
@@ -29,7 +46,18 @@ impl Aov {
             Aov::Albedo => "albedo",
             Aov::Normal => "normal",
             Aov::Depth => "depth",
+            Aov::Position => "position",
+            Aov::Diffuse => "diffuse",
+            Aov::Specular => "specular",
+            Aov::Transmission => "transmission",
+            Aov::Emission => "emission",
         }
+    }
+
+    /// True for the AOVs kept in a tile's optional second buffer (so renders that do not ask
+    /// for them do not pay their memory).
+    pub fn is_extra(self) -> bool {
+        self.offset() >= VALUES
     }
 
     /// Parses a wire name.
@@ -41,22 +69,29 @@ impl Aov {
     pub fn channels(self) -> usize {
         match self {
             Aov::Beauty => 4,
-            Aov::Albedo | Aov::Normal => 3,
             Aov::Depth => 1,
+            _ => 3,
         }
     }
 
+    /// Where the AOV's values start: below [`VALUES`] in the main sums, above in the extra.
     fn offset(self) -> usize {
         match self {
             Aov::Beauty => 0,
             Aov::Albedo => 4,
             Aov::Normal => 7,
             Aov::Depth => 10,
+            Aov::Position => VALUES,
+            Aov::Diffuse => VALUES + 3,
+            Aov::Specular => VALUES + 6,
+            Aov::Transmission => VALUES + 9,
+            Aov::Emission => VALUES + 12,
         }
     }
 }
 
 const VALUES: usize = 11;
+const EXTRA: usize = 15;
 
 /// One camera sample's contribution to every AOV.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -71,6 +106,11 @@ pub struct PixelSample {
     pub normal: Vec3,
     /// First-hit depth.
     pub depth: f32,
+    /// First-hit position.
+    pub position: Vec3,
+    /// The radiance split by what the first surface did: diffuse, specular, transmission,
+    /// emission (the order of [`Aov::COMPONENTS`]); they sum to `radiance`.
+    pub components: [Vec3; 4],
 }
 
 /// A rectangle of pixels.
@@ -92,16 +132,24 @@ pub struct TileFilm {
     /// Pixels covered.
     pub rect: Rect,
     sums: Vec<[f64; VALUES]>,
+    /// Position and light-path components, allocated only when asked for.
+    extra: Vec<[f64; EXTRA]>,
     lum_sq: Vec<f64>,
     /// Samples per pixel so far.
     pub samples: u32,
 }
 
 impl TileFilm {
-    /// An empty tile.
-    pub fn new(rect: Rect) -> Self {
+    /// An empty tile; `extra` allocates the position and light-path AOVs.
+    pub fn new(rect: Rect, extra: bool) -> Self {
         let n = (rect.width * rect.height) as usize;
-        TileFilm { rect, sums: vec![[0.0; VALUES]; n], lum_sq: vec![0.0; n], samples: 0 }
+        let extra = if extra { vec![[0.0; EXTRA]; n] } else { Vec::new() };
+        TileFilm { rect, sums: vec![[0.0; VALUES]; n], extra, lum_sq: vec![0.0; n], samples: 0 }
+    }
+
+    /// True when the tile records the position and light-path AOVs.
+    pub fn has_extra(&self) -> bool {
+        !self.extra.is_empty()
     }
 
     /// Adds one sample to local pixel `i` (row-major within the tile). Non-finite
@@ -127,12 +175,27 @@ impl TileFilm {
         }
         let l = luminance(s.radiance) as f64;
         self.lum_sq[i] += l * l;
+        if let Some(extra) = self.extra.get_mut(i) {
+            let vs = std::iter::once(s.position).chain(s.components);
+            for (k, v) in vs.enumerate() {
+                extra[3 * k] += v.x as f64;
+                extra[3 * k + 1] += v.y as f64;
+                extra[3 * k + 2] += v.z as f64;
+            }
+        }
     }
 
     /// Mean of `aov` over the samples so far, row-major, channels interleaved.
     pub fn resolve(&self, aov: Aov) -> Vec<f32> {
         let n = self.samples.max(1) as f64;
         let (o, c) = (aov.offset(), aov.channels());
+        if aov.is_extra() {
+            let o = o - VALUES;
+            return match self.extra.is_empty() {
+                true => vec![0.0; self.sums.len() * c],
+                false => self.extra.iter().flat_map(|s| (0..c).map(move |k| (s[o + k] / n) as f32)).collect(),
+            };
+        }
         let mut out = Vec::with_capacity(self.sums.len() * c);
         for s in &self.sums {
             if aov == Aov::Normal {
@@ -206,9 +269,9 @@ mod tests {
 
     #[test]
     fn resolve_averages_and_renormalises_normals() {
-        let mut f = TileFilm::new(Rect { x: 0, y: 0, width: 1, height: 1 });
-        f.add(0, &PixelSample { radiance: Vec3::ONE, alpha: 1.0, albedo: Vec3::ONE, normal: Vec3::Z, depth: 2.0 });
-        f.add(0, &PixelSample { radiance: Vec3::ZERO, alpha: 0.0, albedo: Vec3::ZERO, normal: Vec3::Z, depth: 4.0 });
+        let mut f = TileFilm::new(Rect { x: 0, y: 0, width: 1, height: 1 }, false);
+        f.add(0, &PixelSample { radiance: Vec3::ONE, alpha: 1.0, albedo: Vec3::ONE, normal: Vec3::Z, depth: 2.0, ..Default::default() });
+        f.add(0, &PixelSample { radiance: Vec3::ZERO, alpha: 0.0, albedo: Vec3::ZERO, normal: Vec3::Z, depth: 4.0, ..Default::default() });
         f.samples = 2;
         assert_eq!(f.resolve(Aov::Beauty), vec![0.5, 0.5, 0.5, 0.5]);
         assert_eq!(f.resolve(Aov::Normal), vec![0.0, 0.0, 1.0]);

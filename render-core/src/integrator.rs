@@ -28,13 +28,19 @@ pub struct IntegratorSettings {
     /// reaching the first visible surface after at least one more bounce). Off (`None`) by
     /// default: it trades variance for a bias (energy loss) a user must choose knowingly.
     pub clamp_indirect: Option<f32>,
+    /// Split the radiance into the light-path AOVs (diffuse, specular, transmission,
+    /// emission) and record the position: off unless a client asks for them.
+    pub light_path_aovs: bool,
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true, clamp_indirect: None }
+        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true, clamp_indirect: None, light_path_aovs: false }
     }
 }
+
+/// Index of the emission component in [`PixelSample::components`].
+const EMISSION: usize = 3;
 
 /// A contribution, clamped when it is indirect and a clamp is set.
 #[inline]
@@ -88,6 +94,9 @@ pub fn trace_path(
         }
     };
 
+    // The light-path components, and the one the first scattering event chose.
+    let mut comp = [Vec3::ZERO; 4];
+    let mut first = EMISSION;
     let mut depth = 0u32;
     loop {
         counters.rays += 1;
@@ -102,7 +111,9 @@ pub fn trace_path(
             }
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
-                l += clamped(beta * lh.le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                let c = clamped(beta * lh.le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                l += c;
+                comp[if depth == 0 { EMISSION } else { first }] += c;
             }
         }
 
@@ -115,7 +126,9 @@ pub fn trace_path(
                 let le = light.shape.escaped(ray.dir);
                 if le != Vec3::ZERO {
                     let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, f32::INFINITY));
-                    l += clamped(beta * le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                    let c = clamped(beta * le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                    l += c;
+                    comp[if depth == 0 { EMISSION } else { first }] += c;
                 }
             }
             break;
@@ -145,7 +158,9 @@ pub fn trace_path(
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
             let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, hit.t));
-            l += clamped(beta * light.shape.radiance() * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
+            let c = clamped(beta * light.shape.radiance() * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
+            l += c;
+            comp[if depth == 0 { EMISSION } else { first }] += c;
         }
 
         let frame = Frame::from_normal(ns);
@@ -154,6 +169,7 @@ pub fn trace_path(
             out.alpha = 1.0;
             out.normal = ns;
             out.depth = depth_of(hit.t);
+            out.position = s.p;
             out.albedo = bsdf.albedo(wo_local.with_z(wo_local.z.abs()));
         }
         if depth >= settings.max_depth || bsdf.is_empty() {
@@ -191,7 +207,17 @@ pub fn trace_path(
                         counters.rays += 1;
                         if !scene.occluded(&shadow, shadow.tmax) {
                             let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)) };
-                            l += clamped(beta * f * wi_local.z.abs() * ls.li * (w / ls.pdf), depth >= 1, settings.clamp_indirect);
+                            let scale = beta * wi_local.z.abs() * ls.li * (w / ls.pdf);
+                            let c = clamped(f * scale, depth >= 1, settings.clamp_indirect);
+                            l += c;
+                            if depth == 0 && settings.light_path_aovs {
+                                // Direct light at the first surface, split by the lobes that reflect it.
+                                for (k, part) in bsdf.eval_by_kind(wo_local, wi_local).into_iter().enumerate() {
+                                    comp[k] += part * scale;
+                                }
+                            } else {
+                                comp[first] += c;
+                            }
                         }
                     }
                 }
@@ -199,9 +225,12 @@ pub fn trace_path(
         }
 
         // Continue the path by sampling the BSDF.
-        let Some(bs) = bsdf.sample(wo_local, u_lobe, Vec2::new(ub_x, ub_y)) else {
+        let Some((bs, kind)) = bsdf.sample_kind(wo_local, u_lobe, Vec2::new(ub_x, ub_y)) else {
             break;
         };
+        if depth == 0 {
+            first = kind as usize;
+        }
         let wi = frame.to_world(bs.wi).normalize();
         if !sides_agree(wi, bs.wi.z) {
             break;
@@ -226,7 +255,9 @@ pub fn trace_path(
     if !is_finite(l) {
         counters.non_finite += 1;
         l = Vec3::ZERO;
+        comp = [Vec3::ZERO; 4];
     }
     out.radiance = l;
+    out.components = comp;
     out
 }

@@ -112,8 +112,10 @@ pub struct RenderOutcome {
 pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
     scene.prepare_bsdfs(settings.integrator.energy_compensation);
-    let tiles: Vec<Mutex<TileFilm>> =
-        tiles_centre_out(settings.width, settings.height, settings.tile_size).into_iter().map(|r| Mutex::new(TileFilm::new(r))).collect();
+    let tiles: Vec<Mutex<TileFilm>> = tiles_centre_out(settings.width, settings.height, settings.tile_size)
+        .into_iter()
+        .map(|r| Mutex::new(TileFilm::new(r, settings.integrator.light_path_aovs)))
+        .collect();
     let rays = AtomicU64::new(0);
     let non_finite = AtomicU64::new(0);
     let paths = AtomicU64::new(0);

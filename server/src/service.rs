@@ -194,8 +194,10 @@ impl RenderJob {
         }
         let mut aovs = vec![Aov::Beauty];
         for name in &s.aovs {
-            let aov =
-                Aov::from_name(name).ok_or_else(|| bad("aovs", format!("unknown AOV '{name}' (known: beauty, albedo, normal, depth)")))?;
+            let aov = Aov::from_name(name).ok_or_else(|| {
+                let known: Vec<&str> = Aov::ALL.iter().map(|a| a.name()).collect();
+                bad("aovs", format!("unknown AOV '{name}' (known: {})", known.join(", ")))
+            })?;
             if !aovs.contains(&aov) {
                 aovs.push(aov);
             }
@@ -214,6 +216,7 @@ impl RenderJob {
                 integrator: IntegratorSettings {
                     max_depth: if s.max_depth == 0 { 8 } else { s.max_depth },
                     energy_compensation: !s.disable_energy_compensation,
+                    light_path_aovs: aovs.iter().any(|a| a.is_extra()),
                     clamp_indirect: match s.clamp_indirect {
                         0.0 => None,
                         x if x.is_finite() && x > 0.0 => Some(x),

@@ -142,6 +142,28 @@ impl Lobe {
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
         }
     }
+
+    /// What the lobe does to light going from `wi` to `wo`, for the light-path AOVs.
+    pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
+        match self {
+            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) => PathKind::Diffuse,
+            Lobe::GgxReflection(_) | Lobe::Clearcoat(_) => PathKind::Specular,
+            Lobe::DiffuseTransmission(_) => PathKind::Transmission,
+            Lobe::Dielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
+            Lobe::Dielectric(_) => PathKind::Transmission,
+        }
+    }
+}
+
+/// The light-path AOV a scattering event belongs to (`film::Aov::COMPONENTS` order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathKind {
+    /// Diffuse reflection.
+    Diffuse = 0,
+    /// Glossy or mirror reflection.
+    Specular = 1,
+    /// Transmission.
+    Transmission = 2,
 }
 
 /// Most lobes one material instance may hold.
@@ -264,10 +286,30 @@ impl Bsdf {
         self.lobes().map(|(i, l)| self.weights[i] * self.under_coat(i, wo, wo) * l.albedo(wo)).sum()
     }
 
+    /// [`Bsdf::eval`] split by [`PathKind`]: the three parts sum to `eval`.
+    pub fn eval_by_kind(&self, wo: Vec3, wi: Vec3) -> [Vec3; 3] {
+        let mut out = [Vec3::ZERO; 3];
+        for (i, l) in self.lobes() {
+            out[l.kind(wo, wi) as usize] += self.weights[i] * self.under_coat(i, wo, wi) * l.eval(wo, wi);
+        }
+        out
+    }
+
+    /// [`Bsdf::sample`], also saying which kind of lobe produced the sample.
+    pub fn sample_kind(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, PathKind)> {
+        let (s, i) = self.sample_lobe(wo, u_lobe, u)?;
+        Some((s, self.lobes[i]?.kind(wo, s.wi)))
+    }
+
     /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS
     /// estimate of the whole BSDF (f and pdf summed over all non-delta lobes). Reflection and
     /// transmission lobes are evaluated on their own side: the cosine is |cos θi|.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<LobeSample> {
+        self.sample_lobe(wo, u_lobe, u).map(|(s, _)| s)
+    }
+
+    /// [`Bsdf::sample`] and the index of the lobe chosen.
+    fn sample_lobe(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, usize)> {
         let mut acc = 0.0;
         let mut chosen = None;
         for (i, _) in self.lobes() {
@@ -286,14 +328,14 @@ impl Bsdf {
         if s.flags.delta {
             let p = self.select[i];
             let scale = self.weights[i] * self.under_coat(i, wo, s.wi) / p;
-            return (p > 0.0).then(|| LobeSample { weight: s.weight * scale, pdf: p * s.pdf, ..s });
+            return (p > 0.0).then(|| (LobeSample { weight: s.weight * scale, pdf: p * s.pdf, ..s }, i));
         }
         let pdf = self.pdf(wo, s.wi);
         if !(pdf > 0.0) {
             return None;
         }
         let f = self.eval(wo, s.wi);
-        Some(LobeSample { weight: f * s.wi.z.abs() / pdf, pdf, ..s })
+        Some((LobeSample { weight: f * s.wi.z.abs() / pdf, pdf, ..s }, i))
     }
 }
 
