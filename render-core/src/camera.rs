@@ -1,8 +1,15 @@
-//! The perspective camera of a `UsdGeomCamera`.
+//! The camera of a `UsdGeomCamera`: perspective (with a thin lens when `fStop` > 0) or
+//! orthographic.
+//!
+//! USD camera units: focal length and apertures are in tenths of a scene unit, so an
+//! orthographic camera's `horizontalAperture` of 20 frames 2 units, and the thin lens of a
+//! perspective one has radius (focalLength/10)/(2·fStop) scene units (`UsdGeomCamera`
+//! documentation; pbrt-v4's `PerspectiveCamera` for the thin-lens model).
 
 use glam::{Affine3A, Vec2, Vec3};
 
 use crate::geometry::Ray;
+use crate::sampling::concentric_disk;
 
 /// Camera parameters as USD authors them (apertures and focal length share a unit, so
 /// only their ratios matter here).
@@ -24,6 +31,12 @@ pub struct CameraDesc {
     pub near: f32,
     /// `clippingRange` far.
     pub far: f32,
+    /// `projection` is `orthographic`.
+    pub orthographic: bool,
+    /// `fStop`: 0 for a pinhole (no depth of field).
+    pub f_stop: f32,
+    /// `focusDistance`, in scene units.
+    pub focus_distance: f32,
 }
 
 impl Default for CameraDesc {
@@ -38,6 +51,9 @@ impl Default for CameraDesc {
             vertical_aperture_offset: 0.0,
             near: 1.0,
             far: 1_000_000.0,
+            orthographic: false,
+            f_stop: 0.0,
+            focus_distance: 0.0,
         }
     }
 }
@@ -46,7 +62,6 @@ impl Default for CameraDesc {
 #[derive(Clone, Debug)]
 pub struct Camera {
     to_world: Affine3A,
-    origin: Vec3,
     forward: Vec3,
     /// Film window on the plane z = −1: (left, top) and size.
     window_min: Vec2,
@@ -55,6 +70,11 @@ pub struct Camera {
     height: u32,
     near: f32,
     far: f32,
+    /// Orthographic: the window is in scene units on the plane z = 0.
+    orthographic: bool,
+    /// Thin lens radius and focus distance (scene units); radius 0 is a pinhole.
+    lens_radius: f32,
+    focus_distance: f32,
 }
 
 impl Camera {
@@ -76,13 +96,16 @@ impl Camera {
         } else {
             va = ha / image_aspect;
         }
-        let center = Vec2::new(desc.horizontal_aperture_offset, desc.vertical_aperture_offset) / f;
-        let size = Vec2::new(ha, va) / f;
+        // Perspective: the window on the plane z = −1 (apertures over focal length).
+        // Orthographic: the window itself, apertures in tenths of a scene unit.
+        let scale = if desc.orthographic { 10.0 } else { f };
+        let center = Vec2::new(desc.horizontal_aperture_offset, desc.vertical_aperture_offset) / scale;
+        let size = Vec2::new(ha, va) / scale;
+        let thin_lens = !desc.orthographic && desc.f_stop > 0.0 && desc.focus_distance > 0.0 && desc.f_stop.is_finite();
         let window_min = Vec2::new(center.x - 0.5 * size.x, center.y + 0.5 * size.y);
         let forward = (-Vec3::from(desc.transform.matrix3.z_axis)).normalize_or(-Vec3::Z);
         Camera {
             to_world: desc.transform,
-            origin: desc.transform.translation.into(),
             forward,
             window_min,
             window_size: size,
@@ -90,6 +113,9 @@ impl Camera {
             height,
             near: desc.near.max(0.0),
             far: if desc.far > desc.near { desc.far } else { f32::INFINITY },
+            orthographic: desc.orthographic,
+            lens_radius: if thin_lens { (f / 10.0) / (2.0 * desc.f_stop) } else { 0.0 },
+            focus_distance: if thin_lens { desc.focus_distance } else { 0.0 },
         }
     }
 
@@ -97,13 +123,29 @@ impl Camera {
     /// to the clipping planes. Also returns cos of the angle to the view axis, which turns
     /// a hit distance into camera-space depth.
     pub fn ray(&self, x: f32, y: f32) -> (Ray, f32) {
+        self.ray_through_lens(x, y, Vec2::splat(0.5))
+    }
+
+    /// [`Camera::ray`] through the lens point that `lens` (in [0, 1)²) picks: with a thin
+    /// lens, rays from every lens point through a pixel meet on the plane of focus.
+    pub fn ray_through_lens(&self, x: f32, y: f32, lens: Vec2) -> (Ray, f32) {
         let sx = x / self.width as f32;
         let sy = y / self.height as f32;
-        let local = Vec3::new(self.window_min.x + sx * self.window_size.x, self.window_min.y - sy * self.window_size.y, -1.0);
-        let dir = self.to_world.transform_vector3(local).normalize();
+        let film = Vec2::new(self.window_min.x + sx * self.window_size.x, self.window_min.y - sy * self.window_size.y);
+        let (origin_local, dir_local) = if self.orthographic {
+            (film.extend(0.0), -Vec3::Z)
+        } else if self.lens_radius > 0.0 {
+            let focus = film.extend(-1.0) * self.focus_distance;
+            let on_lens = (concentric_disk(lens) * self.lens_radius).extend(0.0);
+            (on_lens, (focus - on_lens).normalize())
+        } else {
+            (Vec3::ZERO, film.extend(-1.0).normalize())
+        };
+        let dir = self.to_world.transform_vector3(dir_local).normalize();
+        let origin = self.to_world.transform_point3(origin_local);
         let cos = dir.dot(self.forward).max(1e-6);
         let t0 = self.near / cos;
-        let mut ray = Ray::new(self.origin + dir * t0, dir);
+        let mut ray = Ray::new(origin + dir * t0, dir);
         ray.tmax = self.far / cos - t0;
         (ray, cos)
     }
@@ -136,6 +178,46 @@ mod tests {
         // Top row is +Y.
         let (r, _) = cam.ray(50.0, 0.0);
         assert!(r.dir.y > 0.0);
+    }
+
+    #[test]
+    fn orthographic_rays_are_parallel_and_frame_the_aperture_in_tenths_of_a_unit() {
+        let desc = CameraDesc { orthographic: true, horizontal_aperture: 40.0, vertical_aperture: 40.0, near: 0.0, ..Default::default() };
+        let cam = Camera::new(&desc, 100, 100);
+        let (a, _) = cam.ray(0.0, 50.0);
+        let (b, _) = cam.ray(100.0, 50.0);
+        assert_eq!((a.dir, b.dir), (-Vec3::Z, -Vec3::Z));
+        assert!((b.origin.x - a.origin.x - 4.0).abs() < 1e-5, "40 tenths frame 4 units: {} to {}", a.origin.x, b.origin.x);
+    }
+
+    #[test]
+    fn a_thin_lens_focuses_on_the_focus_distance() {
+        let desc = CameraDesc {
+            focal_length: 50.0,
+            horizontal_aperture: 36.0,
+            vertical_aperture: 36.0,
+            f_stop: 2.0,
+            focus_distance: 7.0,
+            near: 0.0,
+            ..Default::default()
+        };
+        let cam = Camera::new(&desc, 64, 64);
+        // Radius (50/10)/(2·2) = 1.25 units; every lens point's ray through pixel (20, 30)
+        // crosses z = −7 at the same point.
+        let points: Vec<Vec3> = [(0.1, 0.2), (0.9, 0.5), (0.5, 0.95), (0.3, 0.7)]
+            .iter()
+            .map(|&(u, v)| {
+                let (r, _) = cam.ray_through_lens(20.0, 30.0, Vec2::new(u, v));
+                assert!(r.origin.length() <= 1.25 + 1e-5);
+                r.at(7.0 / -r.dir.z)
+            })
+            .collect();
+        for p in &points[1..] {
+            assert!((*p - points[0]).length() < 1e-4, "{p} vs {}", points[0]);
+        }
+        // fStop 0 is a pinhole.
+        let pinhole = Camera::new(&CameraDesc { f_stop: 0.0, ..desc }, 64, 64);
+        assert_eq!(pinhole.ray_through_lens(20.0, 30.0, Vec2::new(0.1, 0.9)).0.origin, Vec3::ZERO);
     }
 
     #[test]

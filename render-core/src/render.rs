@@ -188,9 +188,9 @@ fn render_tile(
             let i = (py * r.width + px) as usize;
             for k in first_sample..first_sample + count {
                 let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
-                // The camera's 4D set: pixel jitter (and, later, the lens).
-                let [jx, jy, _, _] = rng.next_4d();
-                let (ray, cos) = camera.ray(x as f32 + jx, y as f32 + jy);
+                // The camera's 4D set: pixel jitter and the lens point.
+                let [jx, jy, lx, ly] = rng.next_4d();
+                let (ray, cos) = camera.ray_through_lens(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly));
                 let sample =
                     trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &settings.integrator, counters);
                 tile.add(i, &sample);

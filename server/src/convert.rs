@@ -114,6 +114,9 @@ pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, St
         vertical_aperture_offset: c.vertical_aperture_offset,
         near: c.near_clip,
         far: c.far_clip,
+        orthographic: c.orthographic,
+        f_stop: c.f_stop,
+        focus_distance: c.focus_distance,
     })
 }
 
@@ -128,6 +131,9 @@ pub fn camera_to_wire(c: &CameraDesc) -> pb::CameraPrim {
         vertical_aperture_offset: c.vertical_aperture_offset,
         near_clip: c.near,
         far_clip: c.far,
+        orthographic: c.orthographic,
+        f_stop: c.f_stop,
+        focus_distance: c.focus_distance,
     }
 }
 

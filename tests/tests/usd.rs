@@ -142,11 +142,6 @@ async fn implicit_prims_render_with_their_display_colours() {
     let bound = t.meshes.iter().find(|(p, _)| p == "/World/Shapes/BoundSphere").unwrap();
     assert_eq!(bound.1.material, "/World/Looks/Grey", "a binding wins over displayColor");
     let (w, h) = (192u32, 64u32);
-    let opts = tessera::remote::RenderOptions { aovs: vec!["albedo".into()], ..small(w, h, 4) };
-    let report = render_fixture("usd/implicit_shapes.usda", &opts).await;
-    assert_all_finite(&report.image);
-    // Camera at z = 10 looking down −Z, focal length 50 mm over a 36 mm aperture: a point at
-    // (x, 0, 0) lands at column w/2·(1 + 50/18·x/10).
     let colours = [
         (-2.5, [0.8, 0.1, 0.1]),
         (-1.5, [0.1, 0.8, 0.1]),
@@ -155,12 +150,24 @@ async fn implicit_prims_render_with_their_display_colours() {
         (1.5, [0.1, 0.8, 0.8]),
         (2.5, [0.8, 0.1, 0.8]),
     ];
-    for (x, c) in colours {
-        let col = (w as f64 / 2.0 * (1.0 + 50.0 / 18.0 * x / 10.0)) as u32;
-        let a = report.image.pixel("albedo", col, h / 2);
-        for k in 0..3 {
-            // Albedo = displayColor plus the preview surface's ~4% dielectric specular.
-            assert!((a[k] as f64 - c[k]).abs() < 0.08, "shape at x = {x}: albedo {a:?}, displayColor {c:?}");
+    // Camera at z = 10 looking down −Z, focal length 50 mm over a 36 mm aperture: a point at
+    // (x, 0, 0) lands at column w/2·(1 + 50/18·x/10); the thin-lens camera (f/1.4) focuses
+    // there, so its first hits agree; the orthographic one frames 6 units: column
+    // w·(x/6 + 1/2), whatever the distance.
+    let perspective = |x: f64| w as f64 / 2.0 * (1.0 + 50.0 / 18.0 * x / 10.0);
+    let orthographic = |x: f64| w as f64 * (x / 6.0 + 0.5);
+    let cameras: [(&str, &dyn Fn(f64) -> f64); 3] =
+        [("/World/Camera", &perspective), ("/World/ThinLensCam", &perspective), ("/World/OrthoCam", &orthographic)];
+    for (camera, column) in cameras {
+        let opts = tessera::remote::RenderOptions { aovs: vec!["albedo".into()], camera: camera.into(), ..small(w, h, 4) };
+        let report = render_fixture("usd/implicit_shapes.usda", &opts).await;
+        assert_all_finite(&report.image);
+        for (x, c) in colours {
+            let a = report.image.pixel("albedo", column(x) as u32, h / 2);
+            for k in 0..3 {
+                // Albedo = displayColor plus the preview surface's ~4% dielectric specular.
+                assert!((a[k] as f64 - c[k]).abs() < 0.08, "{camera}: shape at x = {x}: albedo {a:?}, displayColor {c:?}");
+            }
         }
     }
 }

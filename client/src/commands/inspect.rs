@@ -73,6 +73,9 @@ pub fn to_json(t: &Translation) -> Value {
                 "focalLength": c.focal_length,
                 "horizontalAperture": c.horizontal_aperture,
                 "verticalAperture": c.vertical_aperture,
+                "projection": if c.orthographic { "orthographic" } else { "perspective" },
+                "fStop": c.f_stop,
+                "focusDistance": c.focus_distance,
             }),
         );
     }

@@ -659,8 +659,10 @@ impl Reader<'_> {
         let float = |name: &str, default: f32| -> Result<f32> {
             Ok(get(prim, name, time)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
         };
-        if get(prim, "projection", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic") {
-            self.out.warnings.push(format!("{p}: orthographic projection is not supported yet; rendering as perspective"));
+        let orthographic = get(prim, "projection", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic");
+        let f_stop = float("fStop", 0.0)?;
+        if orthographic && f_stop > 0.0 {
+            self.out.warnings.push(format!("{p}: depth of field is not simulated for orthographic cameras; fStop is ignored"));
         }
         let clip = get(prim, "clippingRange", time)?.as_ref().and_then(values::vec2).unwrap_or([d.near as f64, d.far as f64]);
         let desc = CameraDesc {
@@ -672,6 +674,9 @@ impl Reader<'_> {
             vertical_aperture_offset: float("verticalApertureOffset", 0.0)?,
             near: clip[0] as f32,
             far: clip[1] as f32,
+            orthographic,
+            f_stop,
+            focus_distance: float("focusDistance", 0.0)?,
         };
         self.out.cameras.push((p.to_string(), desc));
         Ok(())
