@@ -32,10 +32,10 @@ enum Command {
         /// Samples per pixel (default: the preset's).
         #[arg(long)]
         spp: Option<u32>,
-        /// Resolution as WIDTHxHEIGHT.
-        #[arg(long, default_value = "512x512")]
-        res: String,
-        /// Camera prim path (default: the scene's first camera).
+        /// Resolution as WIDTHxHEIGHT (default: the stage's RenderSettings, else 512x512).
+        #[arg(long)]
+        res: Option<String>,
+        /// Camera prim path (default: the stage RenderSettings camera, else the first camera).
         #[arg(long, default_value = "")]
         camera: String,
         /// Maximum scattering events per path, 1 = direct lighting only (default: the
@@ -188,7 +188,11 @@ async fn real_main() -> Result<()> {
         } => {
             let preset = quality.preset();
             let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
-            let (width, height) = parse_res(&res)?;
+            // 0x0: not given; the scene's RenderSettings or 512x512 decide (RenderJob::run).
+            let (width, height) = match &res {
+                Some(r) => parse_res(r)?,
+                None => (0, 0),
+            };
             let energy_compensation = energy_compensation == OnOff::On;
             let options = RenderOptions {
                 width,

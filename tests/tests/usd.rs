@@ -216,3 +216,30 @@ async fn geom_subsets_carry_their_own_materials() {
     }
     assert!(counts.iter().sum::<usize>() * 10 > covered * 9, "unexpected colours: {counts:?} of {covered}");
 }
+
+/// A `RenderSettings` prim supplies the camera and resolution the command line leaves open:
+/// the one `renderSettingsPrimPath` designates, not another; flags still win.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn render_settings_supply_camera_and_resolution_and_flags_override_them() {
+    use tessera::commands::render::{RenderJob, run};
+    let dir = std::env::temp_dir().join(format!("tessera-render-settings-{}", std::process::id()));
+    let job = |width, height, camera: &str| RenderJob {
+        scene: fixture("usd/render_settings.usda"),
+        output: dir.join(format!("{width}x{height}{}.exr", camera.replace('/', "_"))),
+        options: tessera::remote::RenderOptions { width, height, camera: camera.into(), ..small(0, 0, 4) },
+        server: None,
+        progress: false,
+        frame: None,
+    };
+    // Nothing on the command line: /Render/Settings says CamB (the red quad), 64 x 32.
+    let r = run(&job(0, 0, "")).await.expect("renders");
+    assert_eq!((r.image.width, r.image.height), (64, 32));
+    let centre = r.image.pixel("beauty", 32, 16);
+    assert!(centre[0] > 2.0 * centre[1], "CamB sees the red quad: {centre:?}");
+    // Flags override: CamA (green) at 24 x 24.
+    let r = run(&job(24, 24, "/World/CamA")).await.expect("renders");
+    assert_eq!((r.image.width, r.image.height), (24, 24));
+    let centre = r.image.pixel("beauty", 12, 12);
+    assert!(centre[1] > 2.0 * centre[0], "CamA sees the green quad: {centre:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}

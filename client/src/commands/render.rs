@@ -40,6 +40,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     if !translation.skipped.is_empty() {
         eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
     }
+    let options = &resolve_options(&job.options, &translation);
 
     let embedded = match &job.server {
         Some(_) => None,
@@ -56,13 +57,13 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     }
     let load_secs = t0.elapsed().as_secs_f64();
 
-    let bar = if job.progress { ProgressBar::new(job.options.spp as u64) } else { ProgressBar::hidden() };
+    let bar = if job.progress { ProgressBar::new(options.spp as u64) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} spp  {msg}  ETA {eta}").expect("valid template"),
     );
     let mut tiles_this_pass = 0u32;
     let report = conn
-        .render(&job.options, |e| match e {
+        .render(options, |e| match e {
             pb::render_event::Event::Started(s) => {
                 if !s.plan.is_empty() {
                     bar.println("render plan:");
@@ -103,14 +104,14 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
             "settings".to_string(),
             format!(
                 "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={}",
-                job.options.width,
-                job.options.height,
-                job.options.spp,
-                job.options.max_depth,
-                job.options.seed,
-                if job.options.sobol { "sobol" } else { "independent" },
-                if job.options.energy_compensation { "on" } else { "off" },
-                job.options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
+                options.width,
+                options.height,
+                options.spp,
+                options.max_depth,
+                options.seed,
+                if options.sobol { "sobol" } else { "independent" },
+                if options.energy_compensation { "on" } else { "off" },
+                options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
             ),
         ),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
@@ -120,8 +121,8 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     println!(
         "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
         job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
-        job.options.width,
-        job.options.height,
+        options.width,
+        options.height,
         f.spp,
         f.seconds,
         load_secs,
@@ -132,6 +133,28 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         output::preview_path(&job.output).display()
     );
     Ok(report)
+}
+
+/// Options the command line left open, from the stage's RenderSettings: the camera (when no
+/// `--camera`) and the resolution (width 0 means no `--res`), else 512x512.
+pub fn resolve_options(given: &RenderOptions, translation: &crate::usd::Translation) -> RenderOptions {
+    let mut o = given.clone();
+    if let Some(rs) = &translation.render_settings {
+        if o.camera.is_empty() {
+            if let Some(c) = &rs.camera {
+                o.camera = c.clone();
+            }
+        }
+        if o.width == 0 {
+            if let Some((w, h)) = rs.resolution {
+                (o.width, o.height) = (w, h);
+            }
+        }
+    }
+    if o.width == 0 || o.height == 0 {
+        (o.width, o.height) = (512, 512);
+    }
+    o
 }
 
 /// The render plan of a scene: what the renderer will simulate and which prims call for it,

@@ -43,6 +43,20 @@ pub struct Translation {
     pub warnings: Vec<String>,
     /// Prims that exist but are not rendered (unsupported types), by path.
     pub skipped: Vec<String>,
+    /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
+    /// first one), which supply defaults the command line overrides.
+    pub render_settings: Option<RenderSettingsDesc>,
+}
+
+/// What a `RenderSettings` prim asks for.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderSettingsDesc {
+    /// The prim's path.
+    pub path: String,
+    /// Its `camera` relationship's target.
+    pub camera: Option<String>,
+    /// `resolution`.
+    pub resolution: Option<(u32, u32)>,
 }
 
 impl Translation {
@@ -180,6 +194,13 @@ impl Reader<'_> {
             "Mesh" => self.mesh(&prim, &p, visible),
             t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
             "PointInstancer" => self.point_instancer(&prim, &p, visible),
+            "RenderSettings" => self.render_settings(&prim, &p),
+            "RenderProduct" | "RenderVar" => {
+                self.out.warnings.push(format!(
+                    "{p}: {type_name} is not supported: the client writes one multi-layer EXR with the AOVs asked for on the command line"
+                ));
+                Ok(())
+            }
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
             other => {
@@ -379,6 +400,27 @@ impl Reader<'_> {
             _ => shapes::Shape::Plane { width: size("width", 2.0)?, length: size("length", 2.0)?, axis },
         };
         self.add_mesh(prim, p, shapes::tessellate(shape), visible)
+    }
+
+    /// A `UsdRender` `RenderSettings` prim: kept when it is the one the stage designates
+    /// (`renderSettingsPrimPath`) or, without one, the first met.
+    fn render_settings(&mut self, prim: &Prim, p: &str) -> Result<()> {
+        let designated = self.stage.stage_metadata("renderSettingsPrimPath")?.as_ref().and_then(values::token);
+        let chosen = match &designated {
+            Some(d) => d == p,
+            None => self.out.render_settings.is_none(),
+        };
+        if !chosen {
+            return Ok(());
+        }
+        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string());
+        let resolution = match get(prim, "resolution", self.time)? {
+            Some(Value::Vec2i(r)) if r.x > 0 && r.y > 0 => Some((r.x as u32, r.y as u32)),
+            Some(v) => anyhow::bail!("{p}: attribute 'resolution' is {v:?}; expected two positive integers"),
+            None => None,
+        };
+        self.out.render_settings = Some(RenderSettingsDesc { path: p.to_string(), camera, resolution });
+        Ok(())
     }
 
     /// A `PointInstancer`: each mesh (or implicit prim) of each prototype becomes one
