@@ -111,7 +111,7 @@ pub fn trace_path(
             }
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
-                let c = clamped(beta * lh.le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                let c = clamped(beta * lh.le * light.shaped(ray.dir) * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
                 l += c;
                 comp[if depth == 0 { EMISSION } else { first }] += c;
             }

@@ -72,6 +72,24 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         color: vec3(&l.color, Vec3::ONE),
         normalize: l.normalize,
         visible_to_camera: l.visible,
+        shaping: match &l.shaping {
+            None => None,
+            Some(s) => {
+                for (name, v) in
+                    [("shaping.cone_angle", s.cone_angle), ("shaping.cone_softness", s.cone_softness), ("shaping.focus", s.focus)]
+                {
+                    if !v.is_finite() {
+                        return Err(invalid(prim, name, format!("{v} is not finite")));
+                    }
+                }
+                Some(render_core::light::Shaping {
+                    cone_angle: s.cone_angle,
+                    cone_softness: s.cone_softness,
+                    focus: s.focus,
+                    focus_tint: vec3(&s.focus_tint, Vec3::ZERO),
+                })
+            }
+        },
     })
 }
 
@@ -84,6 +102,12 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         color: Some(float3(l.color)),
         normalize: l.normalize,
         visible: l.visible_to_camera,
+        shaping: l.shaping.map(|s| pb::Shaping {
+            cone_angle: s.cone_angle,
+            cone_softness: s.cone_softness,
+            focus: s.focus,
+            focus_tint: Some(float3(s.focus_tint)),
+        }),
         ..Default::default()
     };
     match l.kind {

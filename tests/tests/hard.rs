@@ -124,3 +124,31 @@ async fn a_sealed_light_leaks_nothing() {
     let lit = img.iter().filter(|v| **v != 0.0).count();
     assert_eq!(lit, 0, "{lit} values lit outside a sealed box (max {})", img.iter().fold(0.0f64, |a, b| a.max(*b)));
 }
+
+/// A spot light (ShapingAPI cone 30°, focus 2) of radius 1e-6 one unit above the floor, seen
+/// from straight above: inside the cone the floor shows the point-light answer times the
+/// focus, 0.5/π·cos³θ·cos²θ; outside it, exactly nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_spot_light_lights_its_cone_and_nothing_else() {
+    let (w, h) = (64u32, 64u32);
+    let report = render_fixture("hard/spot_light.usda", &opts(w, h, 16)).await;
+    assert_all_finite(&report.image);
+    // Camera 3 above, 50 mm over 36 mm: the image spans 2·3·18/50 = 2.16 units of floor.
+    let at = |x: f64| {
+        let col = ((x / 2.16 + 0.5) * w as f64) as u32;
+        let x_centre = ((col as f64 + 0.5) / w as f64 - 0.5) * 2.16;
+        (report.image.pixel("beauty", col, h / 2)[0] as f64, x_centre)
+    };
+    for x in [0.0, 0.3, 0.5] {
+        let (got, xc) = at(x);
+        let cos = 1.0 / (1.0 + xc * xc).sqrt();
+        let want = 0.5 / std::f64::consts::PI * cos.powi(5);
+        println!("spot at x {xc:.3}: {got} vs {want}");
+        assert!((got - want).abs() < 0.03 * want, "inside the cone at x = {xc}: {got}, expected {want}");
+    }
+    // tan 30° = 0.577: beyond it the floor is dark.
+    for x in [0.65, 0.9] {
+        let (got, xc) = at(x);
+        assert_eq!(got, 0.0, "outside the cone at x = {xc}");
+    }
+}

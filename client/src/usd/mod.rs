@@ -687,12 +687,39 @@ impl Reader<'_> {
                 * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
             normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
             visible_to_camera: visible,
+            shaping: self.shaping(prim, p, type_name)?,
         };
         if !visible {
             return Ok(());
         }
         self.out.lights.push((p.to_string(), desc));
         Ok(())
+    }
+
+    /// `ShapingAPI` inputs when any is authored (on the area lights it applies to); IES
+    /// profiles are reported as unsupported.
+    fn shaping(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<Option<render_core::light::Shaping>> {
+        let time = self.time;
+        let read = |name: &str| get(prim, &format!("inputs:shaping:{name}"), time);
+        let (angle, softness, focus, tint) = (read("cone:angle")?, read("cone:softness")?, read("focus")?, read("focusTint")?);
+        if read("ies:file")?.is_some() {
+            self.out.warnings.push(format!("{p}: IES profiles (inputs:shaping:ies:file) are not supported yet and are ignored"));
+        }
+        if angle.is_none() && softness.is_none() && focus.is_none() && tint.is_none() {
+            return Ok(None);
+        }
+        if matches!(type_name, "DomeLight" | "DistantLight") {
+            self.out.warnings.push(format!("{p}: ShapingAPI has no meaning for a {type_name} and is ignored"));
+            return Ok(None);
+        }
+        let d = render_core::light::Shaping::default();
+        let scalar = |v: &Option<Value>, default: f32| v.as_ref().and_then(values::scalar).map_or(default, |x| x as f32);
+        Ok(Some(render_core::light::Shaping {
+            cone_angle: scalar(&angle, d.cone_angle),
+            cone_softness: scalar(&softness, d.cone_softness),
+            focus: scalar(&focus, d.focus),
+            focus_tint: tint.as_ref().and_then(values::vec3).unwrap_or(d.focus_tint),
+        }))
     }
 
     fn camera(&mut self, prim: &Prim, p: &str) -> Result<()> {
