@@ -7,6 +7,7 @@
 
 use glam::{Vec2, Vec3};
 
+use crate::bsdf::PathKind;
 use crate::film::PixelSample;
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::light::ShadingContext;
@@ -66,6 +67,8 @@ struct PrevVertex {
     ctx: ShadingContext,
     bsdf_pdf: f32,
     delta: bool,
+    /// The kind of lobe that sampled the direction, for lights' diffuse/specular multipliers.
+    kind: PathKind,
 }
 
 /// Radiance and first-hit AOVs along a camera ray.
@@ -111,7 +114,8 @@ pub fn trace_path(
             }
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
-                let c = clamped(beta * lh.le * light.shaped(ray.dir) * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                let m = prev.map_or(1.0, |p| light.multiplier(p.kind));
+                let c = clamped(beta * lh.le * light.shaped(ray.dir) * (m * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
                 l += c;
                 comp[if depth == 0 { EMISSION } else { first }] += c;
             }
@@ -126,7 +130,8 @@ pub fn trace_path(
                 let le = light.shape.escaped(ray.dir);
                 if le != Vec3::ZERO {
                     let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, f32::INFINITY));
-                    let c = clamped(beta * le * weight(&prev, i, pdf), depth >= 2, settings.clamp_indirect);
+                    let m = prev.map_or(1.0, |p| light.multiplier(p.kind));
+                    let c = clamped(beta * le * (m * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
                     l += c;
                     comp[if depth == 0 { EMISSION } else { first }] += c;
                 }
@@ -187,10 +192,25 @@ pub fn trace_path(
         // Next-event estimation.
         if !lights.is_empty() {
             let u_light = Vec2::new(ul_x, ul_y);
-            if let Some(ls) = lights.sample(&ctx, u_sel, u_light) {
+            if let Some((ls, light)) = lights.sample(&ctx, u_sel, u_light) {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
-                    let f = if sides_agree(ls.wi, wi_local.z) { bsdf.eval(wo_local, wi_local) } else { Vec3::ZERO };
+                    // A light with diffuse/specular multipliers weighs each kind of lobe apart.
+                    let parts = (light.has_multipliers() || (depth == 0 && settings.light_path_aovs)).then(|| {
+                        let mut parts = bsdf.eval_by_kind(wo_local, wi_local);
+                        for (k, kind) in [PathKind::Diffuse, PathKind::Specular, PathKind::Transmission].into_iter().enumerate() {
+                            parts[k] *= light.multiplier(kind);
+                        }
+                        parts
+                    });
+                    let f = if !sides_agree(ls.wi, wi_local.z) {
+                        Vec3::ZERO
+                    } else {
+                        match &parts {
+                            Some(p) => p[0] + p[1] + p[2],
+                            None => bsdf.eval(wo_local, wi_local),
+                        }
+                    };
                     if f != Vec3::ZERO {
                         let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale);
                         // Aim from the offset origin at the sampled light point and stop just
@@ -212,7 +232,7 @@ pub fn trace_path(
                             l += c;
                             if depth == 0 && settings.light_path_aovs {
                                 // Direct light at the first surface, split by the lobes that reflect it.
-                                for (k, part) in bsdf.eval_by_kind(wo_local, wi_local).into_iter().enumerate() {
+                                for (k, part) in parts.unwrap_or_default().into_iter().enumerate() {
                                     comp[k] += part * scale;
                                 }
                             } else {
@@ -239,7 +259,7 @@ pub fn trace_path(
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
         }
-        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta });
+        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind });
         ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
         depth += 1;
 

@@ -349,7 +349,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
                 area: 0.0,
                 l: Vec3::ZERO,
             });
-            lights.push(Light { shape, visible_to_camera: true, shaping: None });
+            lights.push(Light::plain(shape, true));
         }
         emissive_triangles += mesh.triangle_count();
         emissive_prims.push(prim_paths[inst.prim as usize].clone());

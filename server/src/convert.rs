@@ -59,6 +59,8 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         ("width", l.width),
         ("height", l.height),
         ("angle", l.angle),
+        ("diffuse", l.diffuse.unwrap_or(1.0)),
+        ("specular", l.specular.unwrap_or(1.0)),
     ] {
         if !v.is_finite() {
             return Err(invalid(prim, name, format!("{v} is not finite")));
@@ -72,6 +74,8 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         color: vec3(&l.color, Vec3::ONE),
         normalize: l.normalize,
         visible_to_camera: l.visible,
+        diffuse: l.diffuse.unwrap_or(1.0),
+        specular: l.specular.unwrap_or(1.0),
         shaping: match &l.shaping {
             None => None,
             Some(s) => {
@@ -102,6 +106,8 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         color: Some(float3(l.color)),
         normalize: l.normalize,
         visible: l.visible_to_camera,
+        diffuse: (l.diffuse != 1.0).then_some(l.diffuse),
+        specular: (l.specular != 1.0).then_some(l.specular),
         shaping: l.shaping.map(|s| pb::Shaping {
             cone_angle: s.cone_angle,
             cone_softness: s.cone_softness,

@@ -68,6 +68,8 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
             normalize: false,
             visible_to_camera: true,
             shaping: None,
+            diffuse: 1.0,
+            specular: 1.0,
         },
     ));
     let (server, mut conn) = session_with(&t).await;

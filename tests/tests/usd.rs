@@ -243,3 +243,23 @@ async fn render_settings_supply_camera_and_resolution_and_flags_override_them() 
     assert!(centre[1] > 2.0 * centre[0], "CamA sees the green quad: {centre:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// UsdLux `inputs:diffuse` and `inputs:specular`: a light with diffuse 0 leaves a Lambert
+/// quad black while a rough metal beside it reflects it, and one with specular 0 the
+/// opposite, through light sampling and BSDF sampling alike (exactly 0, not just dimmer).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn light_diffuse_and_specular_multipliers_select_the_lobes_they_light() {
+    for (fixture_name, dark, lit) in [("usd/light_specular_only.usda", "left", "right"), ("usd/light_diffuse_only.usda", "right", "left")] {
+        let report = render_fixture(fixture_name, &tessera::remote::RenderOptions { max_depth: 4, ..small(48, 32, 16) }).await;
+        let img = &report.image;
+        // The Lambert quad fills the left of the image, the metal the right.
+        let side = |s: &str| {
+            let (lo, hi) = if s == "left" { (4, 20) } else { (28, 44) };
+            mean_where(img, "beauty", 0, |x, y| (lo..hi).contains(&x) && (8..24).contains(&y) && img.pixel("beauty", x, y)[3] == 1.0)
+        };
+        let ((d, nd), (l, nl)) = (side(dark), side(lit));
+        assert!(nd > 50 && nl > 50, "{fixture_name}: too few quad pixels");
+        assert_eq!(d, 0.0, "{fixture_name}: the {dark} quad must be black");
+        assert!(l > 0.01, "{fixture_name}: the {lit} quad must be lit ({l})");
+    }
+}

@@ -688,6 +688,8 @@ impl Reader<'_> {
             normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
             visible_to_camera: visible,
             shaping: self.shaping(prim, p, type_name)?,
+            diffuse: float("diffuse", 1.0)?,
+            specular: float("specular", 1.0)?,
         };
         if !visible {
             return Ok(());

@@ -37,6 +37,10 @@ pub struct LightDesc {
     pub visible_to_camera: bool,
     /// `ShapingAPI`: a cone and focus around the light's local −Z.
     pub shaping: Option<Shaping>,
+    /// `inputs:diffuse`: scales what diffuse lobes receive from this light.
+    pub diffuse: f32,
+    /// `inputs:specular`: scales what specular and transmission lobes receive.
+    pub specular: f32,
 }
 
 /// UsdLux `ShapingAPI` controls. The schema leaves the exact falloff to renderers ("TODO:
@@ -125,9 +129,32 @@ pub struct Light {
     pub visible_to_camera: bool,
     /// Shaping and the world-space axis it is measured from.
     pub shaping: Option<(Shaping, Vec3)>,
+    /// Multipliers of what diffuse and of what specular/transmission lobes receive
+    /// (UsdLux `inputs:diffuse`, `inputs:specular`); (1, 1) for ordinary lights.
+    pub multipliers: (f32, f32),
 }
 
 impl Light {
+    /// An unshaped light that lights every lobe alike.
+    pub fn plain(shape: shapes::Shape, visible_to_camera: bool) -> Self {
+        Light { shape, visible_to_camera, shaping: None, multipliers: (1.0, 1.0) }
+    }
+
+    /// True when the light treats diffuse and specular lobes differently.
+    #[inline]
+    pub fn has_multipliers(&self) -> bool {
+        self.multipliers != (1.0, 1.0)
+    }
+
+    /// The multiplier for light arriving through a lobe of `kind`.
+    #[inline]
+    pub fn multiplier(&self, kind: crate::bsdf::PathKind) -> f32 {
+        match kind {
+            crate::bsdf::PathKind::Diffuse => self.multipliers.0,
+            crate::bsdf::PathKind::Specular | crate::bsdf::PathKind::Transmission => self.multipliers.1,
+        }
+    }
+
     /// The shaping factor for light leaving the light along `dir` (1 without shaping).
     #[inline]
     pub fn shaped(&self, dir: Vec3) -> Vec3 {
@@ -163,7 +190,8 @@ impl LightDesc {
         let shape = shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?;
         let axis = (-Vec3::from(self.transform.matrix3.z_axis)).normalize_or_zero();
         let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| (s, axis));
-        Some(Light { shape, visible_to_camera: self.visible_to_camera, shaping })
+        let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };
+        Some(Light { shape, visible_to_camera: self.visible_to_camera, shaping, multipliers: (m(self.diffuse), m(self.specular)) })
     }
 }
 
@@ -190,7 +218,7 @@ impl LightSet {
     }
 
     /// Picks a light with `u` and samples a direction on it.
-    pub fn sample(&self, ctx: &ShadingContext, u_select: f32, u: glam::Vec2) -> Option<LightSample> {
+    pub fn sample(&self, ctx: &ShadingContext, u_select: f32, u: glam::Vec2) -> Option<(LightSample, &Light)> {
         if self.lights.is_empty() {
             return None;
         }
@@ -199,7 +227,7 @@ impl LightSet {
         let mut s = light.shape.sample(ctx, u)?;
         s.pdf *= p;
         s.li *= light.shaped(-s.wi);
-        Some(s)
+        Some((s, light))
     }
 
     /// Selection probability of light `i`.
