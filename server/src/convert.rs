@@ -50,6 +50,7 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         pb::LightType::Disk => LightKind::Disk { radius: l.radius },
         pb::LightType::Distant => LightKind::Distant { angle_degrees: l.angle },
         pb::LightType::Dome => LightKind::Dome,
+        pb::LightType::Cylinder => LightKind::Cylinder { radius: l.radius, length: l.length },
         pb::LightType::Unspecified => return Err(invalid(prim, "light_type", "unspecified")),
     };
     for (name, v) in [
@@ -59,6 +60,7 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         ("width", l.width),
         ("height", l.height),
         ("angle", l.angle),
+        ("length", l.length),
         ("diffuse", l.diffuse.unwrap_or(1.0)),
         ("specular", l.specular.unwrap_or(1.0)),
     ] {
@@ -122,6 +124,7 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         LightKind::Disk { radius } => (w.light_type, w.radius) = (pb::LightType::Disk as i32, radius),
         LightKind::Distant { angle_degrees } => (w.light_type, w.angle) = (pb::LightType::Distant as i32, angle_degrees),
         LightKind::Dome => w.light_type = pb::LightType::Dome as i32,
+        LightKind::Cylinder { radius, length } => (w.light_type, w.radius, w.length) = (pb::LightType::Cylinder as i32, radius, length),
     }
     w
 }

@@ -80,13 +80,24 @@ async fn normalized_rect_light_divides_by_world_area() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_unit_light_seen_head_on_is_pixel_value_one() {
-    let report = render_fixture("lights/rect_head_on.usda", &small(16, 16, 4)).await;
+    assert_every_pixel_is_one("lights/rect_head_on.usda", 0.0).await;
+}
+
+/// Renders `fixture_name` at 16x16 and checks every pixel's RGB is 1 within `tolerance`.
+async fn assert_every_pixel_is_one(fixture_name: &str, tolerance: f32) {
+    let report = render_fixture(fixture_name, &small(16, 16, 4)).await;
     for y in 0..16 {
         for x in 0..16 {
             let p = report.image.pixel("beauty", x, y);
-            assert_eq!(&p[..3], &[1.0, 1.0, 1.0], "pixel ({x}, {y})");
+            assert!(p[..3].iter().all(|v| (v - 1.0).abs() <= tolerance), "{fixture_name}: pixel ({x}, {y}) is {p:?}");
         }
     }
+}
+
+/// A normalized CylinderLight seen side-on: intensity equal to its side's area is radiance 1.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_normalized_cylinder_light_seen_side_on_is_its_intensity_over_its_area() {
+    assert_every_pixel_is_one("lights/cylinder_side_on.usda", 1e-5).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

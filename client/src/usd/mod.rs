@@ -87,7 +87,7 @@ impl Xformable for AnyXformable {}
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
 const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
 const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane"];
-const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "DistantLight", "DomeLight"];
+const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "CylinderLight", "DistantLight", "DomeLight"];
 
 /// Reads and translates the stage at `path` at its default frame.
 pub fn load(path: &std::path::Path) -> Result<Translation> {
@@ -665,6 +665,7 @@ impl Reader<'_> {
             "SphereLight" => LightKind::Sphere { radius: float("radius", 0.5)? },
             "RectLight" => LightKind::Rect { width: float("width", 1.0)?, height: float("height", 1.0)? },
             "DiskLight" => LightKind::Disk { radius: float("radius", 0.5)? },
+            "CylinderLight" => LightKind::Cylinder { radius: float("radius", 0.5)?, length: float("length", 1.0)? },
             "DistantLight" => LightKind::Distant { angle_degrees: float("angle", 0.53)? },
             _ => LightKind::Dome,
         };

@@ -111,6 +111,14 @@ pub enum LightKind {
         /// Radius in object space.
         radius: f32,
     },
+    /// `CylinderLight` along local X with `inputs:radius` and `inputs:length`, emitting from
+    /// its side, not its caps.
+    Cylinder {
+        /// Radius in object space.
+        radius: f32,
+        /// Length in object space.
+        length: f32,
+    },
     /// `DistantLight` shining along local −Z, `inputs:angle` in degrees.
     Distant {
         /// Angular diameter in degrees.
