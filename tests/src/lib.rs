@@ -1,6 +1,6 @@
 //! Helpers for the end-to-end tests: fixtures, an embedded server per test, image statistics.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use tessera::output::Image;
 use tessera::remote::{Connection, RenderOptions, RenderReport};
@@ -10,6 +10,26 @@ use tessera_server::EmbeddedServer;
 /// Path of a file under `fixtures/`.
 pub fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures").join(rel)
+}
+
+/// Every fixture a reader should accept (the `bad/` ones are meant to fail).
+pub fn all_fixtures() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("fixtures directory") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                if path.file_name().is_some_and(|n| n != "bad") {
+                    walk(&path, out);
+                }
+            } else if path.extension().is_some_and(|e| e == "usda" || e == "usdc" || e == "usdz") {
+                out.push(path);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&fixture(""), &mut out);
+    out.sort();
+    out
 }
 
 /// Reads a fixture with the client's USD reader.

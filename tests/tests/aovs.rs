@@ -69,3 +69,17 @@ async fn each_component_holds_what_its_name_says() {
         }
     }
 }
+
+/// Every AOV is finite everywhere on every fixture (a NaN anywhere would poison a compositor).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_aov_is_finite_on_every_fixture() {
+    let aovs: Vec<String> = render_core::film::Aov::ALL.iter().skip(1).map(|a| a.name().to_string()).collect();
+    for path in all_fixtures() {
+        let translation = tessera::usd::load(&path).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+        let (server, mut conn) = session_with(&translation).await;
+        let report = conn.render(&RenderOptions { aovs: aovs.clone(), ..small(12, 12, 2) }, |_| {}).await.expect("renders");
+        server.stop().await.expect("server stops");
+        assert_eq!(report.image.layers.len(), aovs.len() + 1, "{}", path.display());
+        assert_all_finite(&report.image);
+    }
+}

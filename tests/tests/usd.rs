@@ -8,26 +8,6 @@ use serde_json::Value;
 use tessera::usd::load_at;
 use tessera_tests::*;
 
-/// Every fixture a reader should accept (the `bad/` ones are meant to fail).
-fn all_fixtures() -> Vec<PathBuf> {
-    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-        for entry in std::fs::read_dir(dir).expect("fixtures directory") {
-            let path = entry.expect("entry").path();
-            if path.is_dir() {
-                if path.file_name().is_some_and(|n| n != "bad") {
-                    walk(&path, out);
-                }
-            } else if path.extension().is_some_and(|e| e == "usda" || e == "usdc" || e == "usdz") {
-                out.push(path);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    walk(&fixture(""), &mut out);
-    out.sort();
-    out
-}
-
 /// What usd-core reads, from `fixtures/inspect_usd.py`.
 fn usd_core_reads(scene: &Path, frame: Option<f64>) -> Value {
     let mut cmd = std::process::Command::new("python3");
