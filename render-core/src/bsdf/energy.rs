@@ -109,10 +109,17 @@ impl GgxEnergy {
 }
 
 fn lerp_index(x: f32) -> (usize, usize, f32) {
-    let x = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
-    let f = x * (N - 1) as f32;
-    let i0 = (f.floor() as usize).min(N - 2);
-    (i0, i0 + 1, f - i0 as f32)
+    let [(i0, _), (i1, t)] = split_axis(x, N);
+    (i0, i1, t)
+}
+
+/// The two of `n` uniform nodes over [0, 1] that bracket `x` (clamped; NaN reads node 0), with
+/// their linear-interpolation weights: the lookup every table here interpolates with.
+fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
+    let f = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 } * (n - 1) as f32;
+    let i0 = (f.floor() as usize).min(n - 2);
+    let t = f - i0 as f32;
+    [(i0, 1.0 - t), (i0 + 1, t)]
 }
 
 /// The GGX tables, computed on first use (~0.3 s on one core in release).
@@ -158,13 +165,6 @@ pub struct AnisoCoords {
     s: [(usize, f32); 2],
     rho: [(usize, f32); 2],
     rough_x: bool,
-}
-
-fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
-    let f = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 } * (n - 1) as f32;
-    let i0 = (f.floor() as usize).min(n - 2);
-    let t = f - i0 as f32;
-    [(i0, 1.0 - t), (i0 + 1, t)]
 }
 
 impl AnisoCoords {
@@ -270,12 +270,9 @@ impl ClearcoatEnergy {
 
     /// E(μ) of a clearcoat of `alpha` (Disney's gloss mapping inverted) at weight 1.
     pub fn e(&self, alpha: f32, mu: f32) -> f32 {
-        let gloss = ((0.1 - alpha) / 0.099).clamp(0.0, 1.0) * 15.0;
-        let j0 = (gloss.floor() as usize).min(14);
-        let tj = gloss - j0 as f32;
+        let gloss = split_axis((0.1 - alpha) / 0.099, 16);
         let (i0, i1, ti) = lerp_index(mu.clamp(0.0, 1.0).sqrt());
-        let row = |j: usize| self.e[j][i0] * (1.0 - ti) + self.e[j][i1] * ti;
-        row(j0) * (1.0 - tj) + row(j0 + 1) * tj
+        gloss.iter().map(|&(j, w)| w * (self.e[j][i0] * (1.0 - ti) + self.e[j][i1] * ti)).sum()
     }
 }
 
@@ -403,14 +400,13 @@ pub const GLASS_N: usize = 16;
 /// between them (η = 1/1.1, roughness 0.6).
 pub const GLASS_MU: usize = 32;
 
-/// E(η, r, μ) and E_avg(η, r) of the rough dielectric, for η in [1, 3] (entering) and in
+/// E(η, r, μ) of the rough dielectric, for η in [1, 3] (entering) and in
 /// [1/3, 1] (leaving), each indexed by η (or 1/η) = 1.0001 + 1.9999(i/15)³, r = (j/15)² and
 /// the critical-angle coordinate u = k/31 ([`glass_u`]).
 pub struct GlassEnergy {
-    /// [side][η][r][μ]: side 0 is η ≥ 1, side 1 is η ≤ 1.
+    /// [side][η][r][μ]: side 0 is η ≥ 1, side 1 is η ≤ 1. E_avg is integrated per lobe
+    /// ([`GlassEnergy::e_avg_of_lookup`]), not tabulated.
     e: Vec<f32>,
-    /// [side][η][r].
-    e_avg: Vec<f32>,
 }
 
 fn glass_eta(side: usize, i: usize) -> f32 {
@@ -485,40 +481,19 @@ impl GlassEnergy {
                 dielectric_albedo(mu, glass_roughness(j), eta, 32).min(1.0)
             })
             .collect();
-        let mut t = GlassEnergy { e, e_avg: vec![0.0; 2 * n * n] };
-        for side in 0..2 {
-            for i in 0..n {
-                for j in 0..n {
-                    let u_of = |mu| glass_u(glass_eta(side, i), mu);
-                    t.e_avg[(side * n + i) * n + j] = cosine_average(2048, |mu| t.lookup_node(side, i, j, u_of(mu)));
-                }
-            }
-        }
-        t
+        GlassEnergy { e }
     }
 
-    /// E at a (side, η, r) node for the μ coordinate `u` ([`glass_u`]), linear in `u`. E_avg
-    /// is computed from this same function, keeping the compensation lobe's albedo 1 − E(μo).
+    /// E at a (side, η, r) node for the μ coordinate `u` ([`glass_u`]), linear in `u`.
     fn lookup_node(&self, side: usize, i: usize, j: usize, u: f32) -> f32 {
-        let (n, nm) = (GLASS_N, GLASS_MU);
-        let f = u.clamp(0.0, 1.0) * (nm - 1) as f32;
-        let k0 = (f.floor() as usize).min(nm - 2);
-        let t = f - k0 as f32;
-        let base = ((side * n + i) * n + j) * nm;
-        self.e[base + k0] * (1.0 - t) + self.e[base + k0 + 1] * t
+        let base = ((side * GLASS_N + i) * GLASS_N + j) * GLASS_MU;
+        split_axis(u, GLASS_MU).iter().map(|&(k, w)| w * self.e[base + k]).sum()
     }
 
     fn coords(eta: f32, roughness: f32) -> (usize, [(usize, f32); 2], [(usize, f32); 2]) {
-        let n = GLASS_N as f32 - 1.0;
         let (side, x) = if eta >= 1.0 { (0, eta) } else { (1, 1.0 / eta) };
-        let fi = ((x.clamp(GLASS_X0, 3.0) - GLASS_X0) / (3.0 - GLASS_X0)).powf(1.0 / GLASS_P) * n;
-        let fj = roughness.clamp(0.0, 1.0).sqrt() * n;
-        let split = |f: f32| {
-            let i0 = (f.floor() as usize).min(GLASS_N - 2);
-            let t = f - i0 as f32;
-            [(i0, 1.0 - t), (i0 + 1, t)]
-        };
-        (side, split(fi), split(fj))
+        let i = ((x.clamp(GLASS_X0, 3.0) - GLASS_X0) / (3.0 - GLASS_X0)).powf(1.0 / GLASS_P);
+        (side, split_axis(i, GLASS_N), split_axis(roughness.clamp(0.0, 1.0).sqrt(), GLASS_N))
     }
 
     /// E(η, r, μ), trilinear in (η, r, u) with u aligned to the critical angle ([`glass_u`]).
@@ -536,16 +511,6 @@ impl GlassEnergy {
     /// critical-angle axis makes it differ from interpolating the nodes' E_avg).
     pub fn e_avg_of_lookup(&self, eta: f32, roughness: f32) -> f32 {
         cosine_average(1024, |mu| self.e(eta, roughness, mu))
-    }
-
-    /// E_avg(η, r), bilinear in the nodes' averages.
-    pub fn e_avg(&self, eta: f32, roughness: f32) -> f32 {
-        let (side, is, js) = Self::coords(eta, roughness);
-        let n = GLASS_N;
-        is.iter()
-            .flat_map(|&(i, wi)| js.iter().map(move |&(j, wj)| (i, j, wi * wj)))
-            .map(|(i, j, w)| w * self.e_avg[(side * n + i) * n + j])
-            .sum()
     }
 }
 
@@ -617,21 +582,14 @@ impl DielectricSpecularEnergy {
     }
 
     fn node(&self, i: usize, j: usize, mu: f32) -> f32 {
-        let n = GLASS_N;
-        let f = mu.max(0.0).sqrt().min(1.0) * (n - 1) as f32;
-        let k0 = (f.floor() as usize).min(n - 2);
-        let t = f - k0 as f32;
-        let base = (i * n + j) * n;
-        self.e[base + k0] * (1.0 - t) + self.e[base + k0 + 1] * t
+        let base = (i * GLASS_N + j) * GLASS_N;
+        split_axis(mu.max(0.0).sqrt(), GLASS_N).iter().map(|&(k, w)| w * self.e[base + k]).sum()
     }
 
     fn corners(eta: f32, roughness: f32) -> [(usize, usize, f32); 4] {
-        let n = GLASS_N as f32 - 1.0;
-        let fi = ((eta.clamp(1.0, 3.0) - 1.0) / 2.0).sqrt() * n;
-        let fj = roughness.clamp(0.0, 1.0) * n;
-        let (i0, j0) = ((fi.floor() as usize).min(GLASS_N - 2), (fj.floor() as usize).min(GLASS_N - 2));
-        let (ti, tj) = (fi - i0 as f32, fj - j0 as f32);
-        [(i0, j0, (1.0 - ti) * (1.0 - tj)), (i0 + 1, j0, ti * (1.0 - tj)), (i0, j0 + 1, (1.0 - ti) * tj), (i0 + 1, j0 + 1, ti * tj)]
+        let [(i0, ui), (i1, ti)] = split_axis(((eta.clamp(1.0, 3.0) - 1.0) / 2.0).sqrt(), GLASS_N);
+        let [(j0, uj), (j1, tj)] = split_axis(roughness.clamp(0.0, 1.0), GLASS_N);
+        [(i0, j0, ui * uj), (i1, j0, ti * uj), (i0, j1, ui * tj), (i1, j1, ti * tj)]
     }
 
     /// E_s(η, r, μ).
