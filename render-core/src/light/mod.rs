@@ -69,10 +69,39 @@ impl Default for Shaping {
 impl Shaping {
     /// The factor for emission at cos θ off the axis.
     pub fn factor(&self, cos_theta: f32) -> Vec3 {
-        let cos_theta = cos_theta.clamp(-1.0, 1.0);
+        self.around(Vec3::Z).at(cos_theta)
+    }
+
+    /// The shaping around a world-space `axis`, with its cone's cosines worked out once.
+    pub fn around(&self, axis: Vec3) -> ShapingProfile {
         let outer = self.cone_angle.clamp(0.0, 180.0).to_radians();
         let inner = outer * (1.0 - self.cone_softness.clamp(0.0, 1.0));
-        let (cos_outer, cos_inner) = (outer.cos(), inner.cos());
+        ShapingProfile {
+            axis,
+            cos_outer: outer.cos(),
+            cos_inner: inner.cos(),
+            focus: self.focus,
+            focus_tint: self.focus_tint.max(Vec3::ZERO),
+        }
+    }
+}
+
+/// A committed light's [`Shaping`], ready to evaluate per light sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShapingProfile {
+    /// Unit world-space axis (the light's local −Z).
+    pub axis: Vec3,
+    cos_outer: f32,
+    cos_inner: f32,
+    focus: f32,
+    focus_tint: Vec3,
+}
+
+impl ShapingProfile {
+    /// The factor for emission at cos θ off the axis.
+    pub fn at(&self, cos_theta: f32) -> Vec3 {
+        let cos_theta = cos_theta.clamp(-1.0, 1.0);
+        let (cos_outer, cos_inner) = (self.cos_outer, self.cos_inner);
         let cone = if cos_theta < cos_outer {
             0.0
         } else if cos_theta >= cos_inner || cos_inner <= cos_outer {
@@ -81,12 +110,7 @@ impl Shaping {
             let t = (cos_theta - cos_outer) / (cos_inner - cos_outer);
             t * t * (3.0 - 2.0 * t)
         };
-        let focus = if self.focus > 0.0 {
-            let w = cos_theta.max(0.0).powf(self.focus);
-            self.focus_tint.max(Vec3::ZERO).lerp(Vec3::ONE, w)
-        } else {
-            Vec3::ONE
-        };
+        let focus = if self.focus > 0.0 { self.focus_tint.lerp(Vec3::ONE, cos_theta.max(0.0).powf(self.focus)) } else { Vec3::ONE };
         focus * cone
     }
 }
@@ -135,8 +159,8 @@ pub struct Light {
     pub shape: shapes::Shape,
     /// Seen by camera rays.
     pub visible_to_camera: bool,
-    /// Shaping and the world-space axis it is measured from.
-    pub shaping: Option<(Shaping, Vec3)>,
+    /// Shaping around the light's world-space axis, ready to evaluate.
+    pub shaping: Option<ShapingProfile>,
     /// Multipliers of what diffuse and of what specular/transmission lobes receive
     /// (UsdLux `inputs:diffuse`, `inputs:specular`); (1, 1) for ordinary lights.
     pub multipliers: (f32, f32),
@@ -167,7 +191,7 @@ impl Light {
     #[inline]
     pub fn shaped(&self, dir: Vec3) -> Vec3 {
         match &self.shaping {
-            Some((s, axis)) => s.factor(dir.dot(*axis)),
+            Some(p) => p.at(dir.dot(p.axis)),
             None => Vec3::ONE,
         }
     }
@@ -197,7 +221,7 @@ impl LightDesc {
         }
         let shape = shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?;
         let axis = (-Vec3::from(self.transform.matrix3.z_axis)).normalize_or_zero();
-        let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| (s, axis));
+        let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| s.around(axis));
         let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };
         Some(Light { shape, visible_to_camera: self.visible_to_camera, shaping, multipliers: (m(self.diffuse), m(self.specular)) })
     }
