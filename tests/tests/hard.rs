@@ -22,15 +22,22 @@ fn covered_mean(report: &RenderReport) -> (f64, usize) {
     ((r + g + b) / 3.0, n)
 }
 
+/// Renders a furnace fixture at 64 spp, checks every AOV is finite, and returns the report
+/// with the mean over the pixels that see geometry (and their count).
+async fn furnace(fixture_name: &str, w: u32, h: u32) -> (RenderReport, f64, usize) {
+    let report = render_fixture(fixture_name, &opts(w, h, 64)).await;
+    assert_all_finite(&report.image);
+    let (mean, n) = covered_mean(&report);
+    println!("{fixture_name}: mean {mean} over {n} pixels");
+    (report, mean, n)
+}
+
 /// Grazing angles: a camera 0.1° above huge white rough-metal and rough-glass surfaces in the
 /// furnace. Guards against NaN from cos θ → 0 and against energy gain or loss at grazing
 /// incidence (Kulla-Conty compensation): everything the camera sees is 1.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn grazing_views_of_rough_metal_and_glass_keep_the_furnace_at_one() {
-    let report = render_fixture("hard/grazing.usda", &opts(64, 32, 64)).await;
-    assert_all_finite(&report.image);
-    let (mean, n) = covered_mean(&report);
-    println!("grazing: mean {mean} over {n} pixels");
+    let (report, mean, n) = furnace("hard/grazing.usda", 64, 32).await;
     assert!(n > 300 && (mean - 1.0).abs() < 0.03, "grazing furnace: mean {mean} over {n} pixels");
     let max = rgb(&report).into_iter().fold(0.0f64, f64::max);
     assert!(max < 3.0, "a firefly of {max} at grazing incidence");
@@ -40,10 +47,7 @@ async fn grazing_views_of_rough_metal_and_glass_keep_the_furnace_at_one() {
 /// clearcoat, white, in the furnace: every sphere is 1.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn roughness_zero_tiny_and_one_stay_finite_and_conserve_energy() {
-    let report = render_fixture("hard/roughness_extremes.usda", &opts(72, 72, 64)).await;
-    assert_all_finite(&report.image);
-    let (mean, n) = covered_mean(&report);
-    println!("roughness extremes: mean {mean} over {n} pixels");
+    let (_, mean, n) = furnace("hard/roughness_extremes.usda", 72, 72).await;
     assert!(n > 1000 && (mean - 1.0).abs() < 0.02, "roughness extremes: mean {mean}");
 }
 
@@ -61,10 +65,7 @@ async fn glass_of_ior_one_vanishes_exactly() {
 /// the furnace, with a depth limit: finite, and 1 within the energy the depth limit drops.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn total_internal_reflection_stays_finite_and_near_one() {
-    let report = render_fixture("hard/tir.usda", &opts(64, 64, 64)).await;
-    assert_all_finite(&report.image);
-    let (mean, n) = covered_mean(&report);
-    println!("tir: mean {mean} over {n} pixels");
+    let (_, mean, n) = furnace("hard/tir.usda", 64, 64).await;
     assert!(n > 300 && mean > 0.95 && mean < 1.01, "TIR furnace: mean {mean}");
 }
 
