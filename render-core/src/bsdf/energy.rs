@@ -115,7 +115,7 @@ fn lerp_index(x: f32) -> (usize, usize, f32) {
 
 /// The two of `n` uniform nodes over [0, 1] that bracket `x` (clamped; NaN reads node 0), with
 /// their linear-interpolation weights: the lookup every table here interpolates with.
-fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
+pub(crate) fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
     let f = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 } * (n - 1) as f32;
     let i0 = (f.floor() as usize).min(n - 2);
     let t = f - i0 as f32;

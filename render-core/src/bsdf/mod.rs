@@ -10,6 +10,8 @@
 //! albedo weight, as Cycles does with `sample_weight`; evaluation and pdf are the weighted
 //! sums over all lobes, so MIS sees the one-sample mixture density.
 
+pub mod charlie;
+mod coat;
 mod dielectric;
 pub mod disney;
 pub mod energy;
@@ -18,6 +20,8 @@ mod lambert;
 pub mod microfacet;
 mod reflection;
 
+pub use charlie::CharlieSheen;
+pub use coat::{Coat, DielectricCoat};
 pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use lambert::Lambert;
@@ -70,6 +74,8 @@ pub enum Lobe {
     Sheen(Sheen),
     /// Disney clearcoat.
     Clearcoat(Clearcoat),
+    /// Imageworks' "Charlie" sheen.
+    CharlieSheen(CharlieSheen),
 }
 
 impl Lobe {
@@ -84,6 +90,7 @@ impl Lobe {
             Lobe::DiffuseTransmission(l) => l.eval(wo, wi),
             Lobe::Sheen(l) => l.eval(wo, wi),
             Lobe::Clearcoat(l) => l.eval(wo, wi),
+            Lobe::CharlieSheen(l) => l.eval(wo, wi),
         }
     }
 
@@ -98,6 +105,7 @@ impl Lobe {
             Lobe::DiffuseTransmission(l) => l.sample(wo, uc, u),
             Lobe::Sheen(l) => l.sample(wo, uc, u),
             Lobe::Clearcoat(l) => l.sample(wo, uc, u),
+            Lobe::CharlieSheen(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -112,6 +120,7 @@ impl Lobe {
             Lobe::DiffuseTransmission(l) => l.pdf(wo, wi),
             Lobe::Sheen(l) => l.pdf(wo, wi),
             Lobe::Clearcoat(l) => l.pdf(wo, wi),
+            Lobe::CharlieSheen(l) => l.pdf(wo, wi),
         }
     }
 
@@ -126,6 +135,7 @@ impl Lobe {
             Lobe::DiffuseTransmission(l) => l.albedo(wo),
             Lobe::Sheen(l) => l.albedo(wo),
             Lobe::Clearcoat(l) => l.albedo(wo),
+            Lobe::CharlieSheen(l) => l.albedo(wo),
         }
     }
 
@@ -140,13 +150,14 @@ impl Lobe {
             Lobe::DiffuseTransmission(_) => DiffuseTransmission::FLAGS,
             Lobe::Sheen(_) => Sheen::FLAGS,
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
+            Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
         }
     }
 
     /// What the lobe does to light going from `wi` to `wo`, for the light-path AOVs.
     pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
         match self {
-            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) => PathKind::Diffuse,
+            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
             Lobe::GgxReflection(_) | Lobe::Clearcoat(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
             Lobe::Dielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
@@ -167,7 +178,9 @@ pub enum PathKind {
 }
 
 /// Most lobes one material instance may hold.
-pub const MAX_LOBES: usize = 8;
+pub const MAX_LOBES: usize = 10;
+/// Most coats one material instance may stack.
+pub const MAX_COATS: usize = 3;
 
 /// The weighted lobes of one shading point, with selection probabilities.
 #[derive(Clone, Debug, Default)]
@@ -176,8 +189,9 @@ pub struct Bsdf {
     weights: [f32; MAX_LOBES],
     select: [f32; MAX_LOBES],
     count: usize,
-    /// A clearcoat over the other lobes: its index and the lobe (see [`Bsdf::coat_with`]).
-    coat: Option<(usize, Clearcoat)>,
+    /// Coats over the lobes before them, with the index of their own lobe (see
+    /// [`Bsdf::coat_with`]).
+    coats: [Option<(usize, Coat)>; MAX_COATS],
 }
 
 impl Bsdf {
@@ -196,33 +210,29 @@ impl Bsdf {
         }
     }
 
-    /// Puts a clearcoat over every lobe added so far, layered as Imageworks combines coats
-    /// (`004_...`, "Coatings"): the lobes beneath are scaled by
-    /// min(1 − E_c(|μo|), 1 − E_c(|μi|)), E_c the coat's directional albedo, so coat plus base
-    /// never reflects more than 1 and the product stays reciprocal.
-    pub fn coat_with(&mut self, coat: Clearcoat) {
-        if coat.weight > 0.0 && self.count < MAX_LOBES {
-            self.coat = Some((self.count, coat));
-            self.push(Lobe::Clearcoat(coat));
+    /// Puts `coat` over every lobe added so far (coats included, so coats stack), layered as
+    /// Imageworks combines coats (`004_...`, "Coatings"): the lobes beneath are scaled by
+    /// [`Coat::over`], so coat plus base never reflects more than 1 and the product stays
+    /// reciprocal. `compensate` switches the coat lobe's own energy compensation.
+    pub fn coat_with(&mut self, coat: Coat, compensate: bool) {
+        let (lobe, weight) = coat.lobe(compensate);
+        let Some(slot) = self.coats.iter_mut().find(|c| c.is_none()) else { return };
+        if weight > 0.0 && self.count < MAX_LOBES {
+            *slot = Some((self.count, coat));
+            self.push_weighted(lobe, weight);
         }
     }
 
-    /// What the coat lets through at cosine `mu`: 1 − E_c(μ).
+    /// The scale of lobe `i`: the attenuation of every coat above it.
     #[inline]
-    fn coat_through(&self, mu: f32) -> f32 {
-        match &self.coat {
-            Some((_, c)) => (1.0 - c.weight * energy::clearcoat().e(c.alpha, mu.abs())).max(0.0),
-            None => 1.0,
+    fn under_coat(&self, i: usize, wo: Vec3, wi: Vec3) -> Vec3 {
+        let mut scale = Vec3::ONE;
+        for (k, c) in self.coats.iter().flatten() {
+            if *k > i {
+                scale *= c.over(wo, wi);
+            }
         }
-    }
-
-    /// The scale of lobe `i`: the coat's attenuation for lobes beneath it.
-    #[inline]
-    fn under_coat(&self, i: usize, wo: Vec3, wi: Vec3) -> f32 {
-        match &self.coat {
-            Some((k, _)) if *k != i => self.coat_through(wo.z).min(self.coat_through(wi.z)),
-            _ => 1.0,
-        }
+        scale
     }
 
     /// Number of lobes.
@@ -244,7 +254,9 @@ impl Bsdf {
             l.eval(Vec3::Z, Vec3::Z);
             l.eval(Vec3::Z, -Vec3::Z);
         }
-        self.coat_through(1.0);
+        self.coats.iter().flatten().for_each(|(_, c)| {
+            c.through(1.0);
+        });
     }
 
     /// True when nothing scatters.
@@ -262,7 +274,7 @@ impl Bsdf {
         let mut total = 0.0;
         for i in 0..self.count {
             let w =
-                self.weights[i] * self.under_coat(i, wo, wo) * self.lobes[i].map_or(0.0, |l| crate::math::luminance(l.albedo(wo)).max(0.0));
+                self.weights[i] * self.lobes[i].map_or(0.0, |l| crate::math::luminance(self.under_coat(i, wo, wo) * l.albedo(wo)).max(0.0));
             self.select[i] = w;
             total += w;
         }

@@ -188,7 +188,7 @@ impl Principled {
             bsdf.push_weighted(Lobe::Dielectric(Dielectric::new(roughness, p.anisotropic, p.ior, color).compensated(compensate)), glass);
         }
         if p.clearcoat > 0.0 {
-            bsdf.coat_with(Clearcoat::new(p.clearcoat, p.clearcoat_gloss));
+            bsdf.coat_with(crate::bsdf::Coat::Disney(Clearcoat::new(p.clearcoat, p.clearcoat_gloss)), compensate);
         }
         bsdf
     }
