@@ -19,6 +19,7 @@ pub mod fresnel;
 mod lambert;
 pub mod microfacet;
 mod reflection;
+mod thin;
 
 pub use charlie::CharlieSheen;
 pub use coat::{Coat, DielectricCoat};
@@ -26,6 +27,7 @@ pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
+pub use thin::ThinDielectric;
 
 use glam::{Vec2, Vec3};
 
@@ -76,6 +78,8 @@ pub enum Lobe {
     Clearcoat(Clearcoat),
     /// Imageworks' "Charlie" sheen.
     CharlieSheen(CharlieSheen),
+    /// A thin dielectric sheet: reflection and undeflected transmission.
+    ThinDielectric(ThinDielectric),
 }
 
 impl Lobe {
@@ -91,6 +95,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.eval(wo, wi),
             Lobe::Clearcoat(l) => l.eval(wo, wi),
             Lobe::CharlieSheen(l) => l.eval(wo, wi),
+            Lobe::ThinDielectric(l) => l.eval(wo, wi),
         }
     }
 
@@ -106,6 +111,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.sample(wo, uc, u),
             Lobe::Clearcoat(l) => l.sample(wo, uc, u),
             Lobe::CharlieSheen(l) => l.sample(wo, uc, u),
+            Lobe::ThinDielectric(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -121,6 +127,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.pdf(wo, wi),
             Lobe::Clearcoat(l) => l.pdf(wo, wi),
             Lobe::CharlieSheen(l) => l.pdf(wo, wi),
+            Lobe::ThinDielectric(l) => l.pdf(wo, wi),
         }
     }
 
@@ -136,6 +143,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.albedo(wo),
             Lobe::Clearcoat(l) => l.albedo(wo),
             Lobe::CharlieSheen(l) => l.albedo(wo),
+            Lobe::ThinDielectric(l) => l.albedo(wo),
         }
     }
 
@@ -151,6 +159,7 @@ impl Lobe {
             Lobe::Sheen(_) => Sheen::FLAGS,
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
             Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
+            Lobe::ThinDielectric(t) => t.flags(),
         }
     }
 
@@ -160,8 +169,8 @@ impl Lobe {
             Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
             Lobe::GgxReflection(_) | Lobe::Clearcoat(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
-            Lobe::Dielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
-            Lobe::Dielectric(_) => PathKind::Transmission,
+            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
+            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) => PathKind::Transmission,
         }
     }
 }

@@ -4,7 +4,9 @@
 
 use glam::Vec3;
 
-use crate::bsdf::{Bsdf, Clearcoat, Dielectric, DiffuseTransmission, DisneyDiffuse, GgxReflection, Lobe, Sheen, SpecularFresnel};
+use crate::bsdf::{
+    Bsdf, Clearcoat, Dielectric, DiffuseTransmission, DisneyDiffuse, GgxReflection, Lobe, Sheen, SpecularFresnel, ThinDielectric,
+};
 
 /// Principled parameters; defaults are Disney's.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -185,7 +187,14 @@ impl Principled {
             let tint = p.transmission_color.unwrap_or(p.base_color);
             let color = if p.thin { tint.powf(0.5) } else { tint };
             let roughness = p.transmission_roughness.unwrap_or(p.roughness);
-            bsdf.push_weighted(Lobe::Dielectric(Dielectric::new(roughness, p.anisotropic, p.ior, color).compensated(compensate)), glass);
+            // Thin: one surface stands for a sheet, which Imageworks' thin dielectric models
+            // (light crosses undeflected; Disney's sqrt colour is one crossing's tint).
+            let lobe = if p.thin {
+                Lobe::ThinDielectric(ThinDielectric::new(roughness, p.anisotropic, p.ior, color, compensate))
+            } else {
+                Lobe::Dielectric(Dielectric::new(roughness, p.anisotropic, p.ior, color).compensated(compensate))
+            };
+            bsdf.push_weighted(lobe, glass);
         }
         if p.clearcoat > 0.0 {
             bsdf.coat_with(crate::bsdf::Coat::Disney(Clearcoat::new(p.clearcoat, p.clearcoat_gloss)), compensate);
@@ -277,6 +286,7 @@ mod tests {
                 diff_trans: 0.3,
                 ..Default::default()
             },
+            Principled { base_color: Vec3::new(0.9, 0.8, 0.6), spec_trans: 1.0, thin: true, roughness: 0.4, ..Default::default() },
         ];
         let dirs: Vec<Vec3> = testing::probe_directions().into_iter().filter(|w| w.z >= 1e-3).collect();
         for (k, p) in cases.iter().enumerate() {
