@@ -15,6 +15,7 @@ mod coat;
 mod dielectric;
 pub mod disney;
 pub mod energy;
+pub mod fabric;
 pub mod fresnel;
 mod lambert;
 pub mod microfacet;
@@ -25,6 +26,7 @@ pub use charlie::CharlieSheen;
 pub use coat::{Coat, DielectricCoat};
 pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
+pub use fabric::Fabric;
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
 pub use thin::ThinDielectric;
@@ -80,6 +82,8 @@ pub enum Lobe {
     CharlieSheen(CharlieSheen),
     /// A thin dielectric sheet: reflection and undeflected transmission.
     ThinDielectric(ThinDielectric),
+    /// The DreamWorks fabric cone.
+    Fabric(Fabric),
 }
 
 impl Lobe {
@@ -96,6 +100,7 @@ impl Lobe {
             Lobe::Clearcoat(l) => l.eval(wo, wi),
             Lobe::CharlieSheen(l) => l.eval(wo, wi),
             Lobe::ThinDielectric(l) => l.eval(wo, wi),
+            Lobe::Fabric(l) => l.eval(wo, wi),
         }
     }
 
@@ -112,6 +117,7 @@ impl Lobe {
             Lobe::Clearcoat(l) => l.sample(wo, uc, u),
             Lobe::CharlieSheen(l) => l.sample(wo, uc, u),
             Lobe::ThinDielectric(l) => l.sample(wo, uc, u),
+            Lobe::Fabric(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -128,6 +134,7 @@ impl Lobe {
             Lobe::Clearcoat(l) => l.pdf(wo, wi),
             Lobe::CharlieSheen(l) => l.pdf(wo, wi),
             Lobe::ThinDielectric(l) => l.pdf(wo, wi),
+            Lobe::Fabric(l) => l.pdf(wo, wi),
         }
     }
 
@@ -144,6 +151,7 @@ impl Lobe {
             Lobe::Clearcoat(l) => l.albedo(wo),
             Lobe::CharlieSheen(l) => l.albedo(wo),
             Lobe::ThinDielectric(l) => l.albedo(wo),
+            Lobe::Fabric(l) => l.albedo(wo),
         }
     }
 
@@ -160,6 +168,7 @@ impl Lobe {
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
             Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
             Lobe::ThinDielectric(t) => t.flags(),
+            Lobe::Fabric(_) => Fabric::FLAGS,
         }
     }
 
@@ -167,7 +176,7 @@ impl Lobe {
     pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
         match self {
             Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
-            Lobe::GgxReflection(_) | Lobe::Clearcoat(_) => PathKind::Specular,
+            Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) => PathKind::Transmission,
@@ -383,9 +392,13 @@ mod finite_everywhere {
             (r.clone(), a.clone(), c.clone(), c.clone(), any::<bool>()).prop_map(|(r, a, f, g, comp)| Lobe::GgxReflection(
                 GgxReflection::new(r, a, SpecularFresnel::Gulbrandsen { r: f, g }, comp)
             )),
-            (r, a, c.clone(), c, 0.01f32..10.0, any::<bool>()).prop_map(|(r, a, f, g, p, comp)| {
+            (r.clone(), a.clone(), c.clone(), c.clone(), 0.01f32..10.0, any::<bool>()).prop_map(|(r, a, f, g, p, comp)| {
                 Lobe::GgxReflection(GgxReflection::new(r, a, SpecularFresnel::Artistic { r: f, g, p }, comp))
             }),
+            (r.clone(), a.clone(), prop_oneof![Just(1.0f32), Just(1.0001f32), Just(3.0f32), 0.3f32..3.0], c.clone(), any::<bool>())
+                .prop_map(|(r, a, eta, c, comp)| Lobe::ThinDielectric(ThinDielectric::new(r, a, eta, c, comp))),
+            (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::CharlieSheen(CharlieSheen::new(c, r))),
+            (c, r, a).prop_map(|(c, r, a)| Lobe::Fabric(Fabric::new(c, r, a * 3.0))),
         ]
     }
 
