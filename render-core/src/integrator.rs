@@ -168,7 +168,7 @@ pub fn trace_path(
             comp[if depth == 0 { EMISSION } else { first }] += c;
         }
 
-        let frame = Frame::from_normal(ns);
+        let frame = if bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
         let wo_local = frame.to_local(wo);
         if depth == 0 {
             out.alpha = 1.0;

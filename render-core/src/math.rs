@@ -25,6 +25,20 @@ impl Frame {
         Frame { t, b: bt, n }
     }
 
+    /// A frame whose tangent runs around `axis` (t ∥ axis × n), like lines of latitude around
+    /// an object's up axis: continuous everywhere but where `n` is parallel to `axis`, where it
+    /// falls back to [`Frame::from_normal`]. Anisotropic lobes need a tangent field without
+    /// the seam the branchless basis has across the z = 0 plane.
+    pub fn from_normal_around(n: Vec3, axis: Vec3) -> Self {
+        let t = axis.cross(n);
+        let len = t.length();
+        if !(len > 1e-4 * axis.length()) {
+            return Frame::from_normal(n);
+        }
+        let t = t / len;
+        Frame { t, b: n.cross(t), n }
+    }
+
     /// World direction to local coordinates.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
@@ -65,6 +79,17 @@ mod tests {
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
             // right-handed: t x b = n
             assert!((f.t.cross(f.b) - n).length() < 1e-4);
+            let g = Frame::from_normal_around(n, Vec3::Y);
+            assert!(g.t.dot(g.b).abs() < 1e-5 && g.t.dot(n).abs() < 1e-5 && (g.t.cross(g.b) - n).length() < 1e-4);
         }
+    }
+
+    /// Across the z = 0 plane the branchless basis turns its tangent round; the latitude
+    /// frame does not (what made an anisotropic sphere split down the middle).
+    #[test]
+    fn latitude_frame_is_continuous_where_the_branchless_one_is_not() {
+        let (a, b) = (Vec3::new(0.6, 0.8, 1e-3).normalize(), Vec3::new(0.6, 0.8, -1e-3).normalize());
+        assert!(Frame::from_normal(a).t.dot(Frame::from_normal(b).t) < 0.5);
+        assert!(Frame::from_normal_around(a, Vec3::Y).t.dot(Frame::from_normal_around(b, Vec3::Y).t) > 0.999);
     }
 }

@@ -183,6 +183,10 @@ pub struct SurfaceHit {
     /// ([`crate::geometry::offset_ray_origin`]), so a 1 km ground plane and a 1 mm bead in the
     /// same scene each get an offset fit for them.
     pub offset_scale: f32,
+    /// The object's up axis (local +Y) in world space: anisotropic and fabric materials run
+    /// their tangent around it ([`crate::math::Frame::from_normal_around`]) until meshes carry
+    /// UV tangents.
+    pub up: Vec3,
 }
 
 /// Builds the renderable scene from its description, reusing cached BLASes.
@@ -373,24 +377,35 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
     // Each effect the materials call for, with the materials that call for it.
-    type Pred = fn(&crate::material::Principled) -> bool;
-    let effects: [(&str, &str, Pred); 6] = [
-        ("diffuse", "diffuse reflection (Lambertian for UsdPreviewSurface, Disney for tessera:Principled)", |p| {
-            p.metallic < 1.0 && p.spec_trans < 1.0
+    type Pred = fn(&crate::material::Uber) -> bool;
+    let effects: [(&str, &str, Pred); 10] = [
+        ("diffuse", "diffuse reflection (Lambertian; Disney's for tessera:Principled)", |u| {
+            u.plastic.weight > 0.0 || (u.fabric.weight > 0.0 && u.fabric.params.specular < 1.0)
         }),
-        ("metal", "GGX conductor reflection", |p| p.metallic > 0.0),
-        ("transmission", "rough dielectric refraction (glass)", |p| p.metallic < 1.0 && p.spec_trans > 0.0),
-        ("clearcoat", "GTR1 clearcoat", |p| p.clearcoat > 0.0),
-        ("sheen", "Disney sheen", |p| p.sheen > 0.0 && p.metallic < 1.0),
-        ("anisotropy", "anisotropic GGX", |p| p.anisotropic != 0.0),
+        ("metal", "GGX conductor reflection", |u| u.metal.weight > 0.0),
+        ("transmission", "rough dielectric refraction (glass)", |u| u.has_refraction()),
+        ("thin-transmission", "thin dielectric sheets (Imageworks' double-refraction series)", |u| {
+            u.glass.weight > 0.0 && u.glass.params.thin
+        }),
+        ("diffuse-transmission", "Lambertian transmission", |u| u.plastic.weight > 0.0 && u.plastic.params.diffuse_transmission > 0.0),
+        ("clearcoat", "a clearcoat layered over the base", |u| u.clearcoat.weight > 0.0 && u.specular_control > 0.0),
+        ("sheen", "sheen (Charlie coat, or Disney's for tessera:Principled)", |u| {
+            u.sheen.weight > 0.0 || (u.plastic.weight > 0.0 && u.plastic.params.disney_sheen.max_element() > 0.0)
+        }),
+        ("fabric", "the DreamWorks fabric cone", |u| u.fabric.weight > 0.0 && u.fabric.params.specular > 0.0),
+        ("double-specular", "two GGX roughnesses blended", |u| {
+            (u.metal.weight > 0.0 && u.metal.params.mix2 > 0.0)
+                || (u.plastic.weight > 0.0 && u.plastic.params.specular.is_some_and(|s| s.mix2 > 0.0))
+        }),
+        ("anisotropy", "anisotropic GGX", |u| {
+            (u.metal.weight > 0.0 && u.metal.params.anisotropic != 0.0)
+                || (u.plastic.weight > 0.0 && u.plastic.params.specular.is_some_and(|s| s.anisotropic != 0.0))
+                || (u.glass.weight > 0.0 && u.glass.params.anisotropic != 0.0)
+        }),
     ];
     for (effect, reason, pred) in effects {
-        let who: Vec<String> = desc
-            .materials
-            .keys()
-            .filter(|m| pred(&materials[material_index[m.as_str()] as usize].principled.sanitized()))
-            .cloned()
-            .collect();
+        let who: Vec<String> =
+            desc.materials.keys().filter(|m| pred(&materials[material_index[m.as_str()] as usize].surface)).cloned().collect();
         if !who.is_empty() {
             plan.enable(effect, reason, who);
         }
@@ -398,7 +413,23 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if !desc.instancers.is_empty() {
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
-    plan.skipped = ["subsurface", "textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
+    plan.skipped = ["textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
+    let subsurface: Vec<&String> = desc
+        .materials
+        .keys()
+        .filter(|m| {
+            let u = &materials[material_index[m.as_str()] as usize].surface;
+            u.plastic.weight > 0.0 && u.plastic.params.scattering_radius > 0.0
+        })
+        .collect();
+    plan.skipped.push(if subsurface.is_empty() {
+        "subsurface: not supported yet in this build".to_string()
+    } else {
+        format!(
+            "subsurface: not supported yet; {} render with a Lambertian base instead",
+            subsurface.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+        )
+    });
 
     let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
     let light_set = LightSet::new(lights, scene_radius);
@@ -473,7 +504,8 @@ impl CommittedScene {
         let m = inst.transform.to_world.matrix3;
         let edges = (m * glam::Vec3A::from(b - a)).abs().max((m * glam::Vec3A::from(c - a)).abs()).max_element();
         let offset_scale = p.abs().max_element().max(edges);
-        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle), offset_scale }
+        let up = Vec3::from(m * glam::Vec3A::Y);
+        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle), offset_scale, up }
     }
 
     /// The scene's camera at `path`, the first camera when `path` is empty, or a default

@@ -9,5 +9,6 @@ mod grpc;
 mod hard;
 mod images;
 mod light_units;
+mod materials;
 mod sampling;
 mod usd;

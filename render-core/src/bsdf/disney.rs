@@ -186,15 +186,26 @@ pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
 pub struct DiffuseTransmission {
     /// Transmitted colour.
     pub color: Vec3,
+    /// Under a dielectric specular of (η, roughness): what crosses the surface is what the
+    /// specular leaves, min(1 − E_s(|μo|), 1 − E_s(|μi|)) (the coats' reciprocal rule,
+    /// `004_...`, "Coatings"). Without it a white diffuse transmission under a specular
+    /// reflected and transmitted 1.03 of the light.
+    pub coupling: Option<(f32, f32)>,
 }
 
 impl DiffuseTransmission {
     /// Transmission, not delta.
     pub const FLAGS: LobeFlags = LobeFlags { reflection: false, transmission: true, delta: false };
 
+    /// What the coupled specular lets through at cosine `mu`.
+    #[inline]
+    fn through(&self, mu: f32) -> f32 {
+        self.coupling.map_or(1.0, |(eta, r)| 1.0 - super::energy::dielectric_specular().e(eta, r, mu.abs()))
+    }
+
     /// c/π for opposite sides.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z * wi.z < 0.0 { self.color * FRAC_1_PI } else { Vec3::ZERO }
+        if wo.z * wi.z < 0.0 { self.color * (FRAC_1_PI * self.through(wo.z).min(self.through(wi.z))) } else { Vec3::ZERO }
     }
 
     /// Cosine-weighted on the far side.
@@ -203,7 +214,8 @@ impl DiffuseTransmission {
             return None;
         }
         let wi = -cosine_same_side(wo, u);
-        (wi.z != 0.0).then(|| LobeSample { wi, weight: self.color, pdf: cosine_hemisphere_pdf(wi.z.abs()), flags: Self::FLAGS, eta: 1.0 })
+        let weight = self.color * self.through(wo.z).min(self.through(wi.z));
+        (wi.z != 0.0).then(|| LobeSample { wi, weight, pdf: cosine_hemisphere_pdf(wi.z.abs()), flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// |cos θi|/π on the far side.
@@ -211,9 +223,9 @@ impl DiffuseTransmission {
         if wo.z * wi.z < 0.0 { cosine_hemisphere_pdf(wi.z.abs()) } else { 0.0 }
     }
 
-    /// The colour.
-    pub fn albedo(&self, _wo: Vec3) -> Vec3 {
-        self.color
+    /// The colour, less what the specular takes at `wo`.
+    pub fn albedo(&self, wo: Vec3) -> Vec3 {
+        self.color * self.through(wo.z)
     }
 }
 
@@ -344,7 +356,8 @@ mod tests {
                 v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness, coupling: None, lambert: false }));
             }
         }
-        v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE }));
+        v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE, coupling: None }));
+        v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE, coupling: Some((1.5, 0.3)) }));
         v.push(Lobe::Sheen(Sheen { color: Vec3::ONE }));
         for gloss in [0.0, 0.5, 1.0] {
             v.push(Lobe::Clearcoat(Clearcoat::new(1.0, gloss)));

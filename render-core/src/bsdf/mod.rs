@@ -258,6 +258,18 @@ impl Bsdf {
         self.count
     }
 
+    /// True when the lobes depend on the direction of the tangent (anisotropic microfacets,
+    /// fabric threads), so the shading frame must be a continuous tangent field.
+    pub fn is_anisotropic(&self) -> bool {
+        self.lobes().any(|(_, l)| match l {
+            Lobe::GgxReflection(g) => g.ggx.ax != g.ggx.ay,
+            Lobe::Dielectric(d) => d.ggx.ax != d.ggx.ay,
+            Lobe::ThinDielectric(t) => t.reflect.ax != t.reflect.ay,
+            Lobe::Fabric(_) => true,
+            _ => false,
+        })
+    }
+
     /// True when any lobe transmits.
     pub fn transmits(&self) -> bool {
         self.lobes().any(|(_, l)| l.flags().transmission)

@@ -17,7 +17,7 @@
 //! weighs its series at its own half vector, the sum can exceed 1 at grazing angles; the
 //! lobe measures its largest albedo when built and scales itself below 1.
 
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::FRAC_1_PI;
 
 use glam::{Vec2, Vec3};
 

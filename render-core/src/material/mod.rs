@@ -1,16 +1,21 @@
 //! Materials: node graphs as Hydra delivers them, resolved per material into one
 //! uber-material parameter set, which builds a [`Bsdf`] holding only its non-zero lobes.
 //!
-//! Front-ends (UsdPreviewSurface, `tessera:Principled`) resolve to the principled
-//! uber-material ([`Principled`]), whose `bsdf()` holds only its non-zero lobes. The layered
-//! DreamWorks-style front-ends arrive with the layered-materials issue behind the same
-//! interface: `resolve(network) -> Material`, then `Material::bsdf()`.
+//! Every front-end resolves to the uber-material ([`Uber`]): UsdPreviewSurface and
+//! `tessera:Principled` through Disney's parameters ([`Principled`]), the DreamWorks-style
+//! `tessera:Metal`, `tessera:Refractive`, `tessera:SolidDielectric` and `tessera:Fabric`
+//! directly ([`native`]), and `tessera:Layer` by blending two resolved materials
+//! (`000_...`, section 2.2: parameter resolution, then closure creation).
 
+pub mod native;
 mod network;
+mod preview;
 mod principled;
+pub mod uber;
 
 pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport};
 pub use principled::Principled;
+pub use uber::Uber;
 
 use glam::Vec3;
 
@@ -20,7 +25,7 @@ use crate::bsdf::Bsdf;
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Material {
     /// Scattering.
-    pub principled: Principled,
+    pub surface: Uber,
     /// Emitted radiance, in the same units as UsdLux radiance.
     pub emission: Vec3,
     /// Cut out everywhere: UsdPreviewSurface `opacity` below a positive `opacityThreshold`.
@@ -34,25 +39,37 @@ impl Material {
     /// roughness 0.5, ior 1.5, no metal): the fallback of unbound meshes and of materials
     /// without a surface shader, as Hydra's fallback material is.
     pub fn preview_surface_default() -> Self {
-        Material {
-            principled: Principled { lambert: true, base_color: Vec3::splat(0.18), roughness: 0.5, specular: 0.5, ..Default::default() },
-            emission: Vec3::ZERO,
-            cut_out: false,
-        }
+        Material { surface: Principled::preview_surface_default().uber(), emission: Vec3::ZERO, cut_out: false }
+    }
+
+    /// A material of Disney principled parameters.
+    pub fn principled(p: Principled) -> Self {
+        Material { surface: p.uber(), emission: Vec3::ZERO, cut_out: false }
     }
 
     /// The lobes at a shading point; `energy_compensation` switches the Kulla-Conty layer.
     pub fn bsdf(&self, energy_compensation: bool) -> Bsdf {
-        self.principled.bsdf(energy_compensation)
+        self.surface.bsdf(energy_compensation)
+    }
+
+    /// "A over B" (`tessera:Layer`): `self` is B, `mask` A's coverage. Emission blends
+    /// linearly; a cut-out follows the side that covers more.
+    pub fn layered_under(&self, a: &Material, mask: f32) -> Material {
+        let m = if mask.is_finite() { mask.clamp(0.0, 1.0) } else { 0.0 };
+        Material {
+            surface: self.surface.layered_under(&a.surface, m),
+            emission: self.emission.lerp(a.emission, m),
+            cut_out: if m > 0.5 { a.cut_out } else { self.cut_out },
+        }
     }
 
     /// True when the material has no effect on light at all, so its surfaces can be left
     /// out of the scene: cut out, or clear glass whose IOR is exactly 1 (an index-matched
     /// interface neither reflects nor bends, so dropping it is exact, shadows included).
     pub fn is_invisible(&self) -> bool {
-        let p = self.principled.sanitized();
-        let clear = p.transmission_color.unwrap_or(p.base_color) == Vec3::ONE;
-        self.cut_out || (p.spec_trans == 1.0 && p.metallic == 0.0 && p.ior == 1.0 && clear && p.clearcoat == 0.0 && !self.is_emissive())
+        let u = &self.surface;
+        let clear_glass = u.glass.weight >= 1.0 && u.glass.params.ior == 1.0 && u.glass.params.color == Vec3::ONE;
+        self.cut_out || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !self.is_emissive())
     }
 
     /// True when the material emits light.

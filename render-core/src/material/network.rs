@@ -66,249 +66,155 @@ pub struct ResolveReport {
     pub warnings: Vec<String>,
 }
 
-/// UsdPreviewSurface inputs that are known but not yet mapped (the layered-materials issue).
-const PREVIEW_SURFACE_KNOWN: &[&str] =
-    &["useSpecularWorkflow", "specularColor", "opacity", "opacityMode", "opacityThreshold", "normal", "displacement", "occlusion"];
+/// Deepest chain of `tessera:Layer` nodes followed (a cycle is reported, not followed).
+const MAX_LAYER_DEPTH: usize = 32;
 
 impl MaterialNetwork {
     fn node(&self, path: &str) -> Option<&MaterialNode> {
         self.nodes.iter().find(|n| n.path == path)
     }
 
-    /// Resolves the network into the uber-material. Unknown nodes, unmapped inputs and
-    /// connected inputs that cannot be evaluated yet are reported, never silently dropped.
+    /// The node connected to `input` of `node`, if any.
+    fn upstream(&self, node: &str, input: &str) -> Option<&MaterialConnection> {
+        self.connections.iter().find(|c| c.downstream_node == node && c.downstream_input == input)
+    }
+
+    /// Resolves the network into the uber-material, top-down from the surface node:
+    /// a `tessera:Layer` evaluates its mask first and then only the sub-materials it shows
+    /// (`000_...`, section 2.2). Unknown nodes, unmapped inputs and connected inputs that
+    /// cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
-        let mut m = Material::preview_surface_default();
-        let Some(surface) = self.node(&self.surface_node) else {
+        if self.node(&self.surface_node).is_none() {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
-            return (m, report);
-        };
-        let p = &mut m.principled;
-        match surface.node_type_id.as_str() {
-            "UsdPreviewSurface" => {
-                // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0
-                // comes from `ior` (default 1.5); `ior` 1 means no specular. The defaults are
-                // already in `m`. (docs/materials.md holds the whole mapping and its reasons.)
-                let float = |n: &str| surface.parameters.get(n).and_then(|v| if let ParamValue::Float(x) = v { Some(*x) } else { None });
-                let int = |n: &str| {
-                    surface.parameters.get(n).and_then(|v| match v {
-                        ParamValue::Int(i) => Some(*i),
-                        ParamValue::Bool(b) => Some(*b as i32),
-                        _ => None,
-                    })
-                };
-                let specular_workflow = int("useSpecularWorkflow").unwrap_or(0) != 0;
-                let opacity = float("opacity").unwrap_or(1.0);
-                let threshold = float("opacityThreshold").unwrap_or(0.0);
-                if threshold > 0.0 {
-                    // A cut-out: present where opacity ≥ threshold, absent elsewhere.
-                    m.cut_out = opacity < threshold;
-                } else if opacity < 1.0 {
-                    // "Transparent but lit, like clear glass": a smooth dielectric
-                    // transmission of weight 1 − opacity with the material's ior.
-                    p.spec_trans = (1.0 - opacity).clamp(0.0, 1.0);
-                    p.transmission_roughness = Some(0.0);
-                    p.transmission_color = Some(Vec3::ONE);
-                }
-                for (name, value) in &surface.parameters {
-                    match (name.as_str(), value) {
-                        ("useSpecularWorkflow", ParamValue::Int(_) | ParamValue::Bool(_)) => {}
-                        ("specularColor", ParamValue::Float3(c)) if specular_workflow => p.specular_color = Some(*c),
-                        // The metallic workflow ignores specularColor, the specular one metallic.
-                        ("specularColor", ParamValue::Float3(_)) => {}
-                        ("metallic", ParamValue::Float(_)) if specular_workflow => {}
-                        ("opacity" | "opacityThreshold", ParamValue::Float(_)) => {}
-                        // Ambient occlusion is for rasterisers: a path tracer computes it.
-                        ("occlusion", ParamValue::Float(_)) => {}
-                        ("diffuseColor", ParamValue::Float3(c)) => p.base_color = *c,
-                        ("emissiveColor", ParamValue::Float3(c)) => m.emission = c.max(Vec3::ZERO),
-                        ("metallic", ParamValue::Float(x)) => p.metallic = *x,
-                        ("roughness", ParamValue::Float(x)) => p.roughness = *x,
-                        ("clearcoat", ParamValue::Float(x)) => p.clearcoat = *x,
-                        ("clearcoatRoughness", ParamValue::Float(x)) => p.clearcoat_gloss = 1.0 - x,
-                        // The IOR sets the dielectric specular: F0 = ((η − 1)/(η + 1))² = 0.08·specular.
-                        ("ior", ParamValue::Float(x)) => {
-                            p.ior = *x;
-                            p.specular = (crate::bsdf::fresnel::f0_from_ior(*x) / 0.08).clamp(0.0, 1.0);
-                        }
-                        (
-                            n @ ("diffuseColor" | "emissiveColor" | "metallic" | "roughness" | "clearcoat" | "clearcoatRoughness" | "ior"),
-                            v,
-                        ) => report.warnings.push(format!("{}: input '{n}' has the wrong type {v:?}; using its default", surface.path)),
-                        (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
-                            report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", surface.path))
-                        }
-                        (n, _) => report.warnings.push(format!("{}: unknown UsdPreviewSurface input '{n}'", surface.path)),
-                    }
-                }
-            }
-            "tessera:Principled" => {
-                // Disney's defaults, not UsdPreviewSurface's.
-                *p = super::Principled::default();
-                for (name, value) in &surface.parameters {
-                    let f = |v: &ParamValue| if let ParamValue::Float(x) = v { Some(*x) } else { None };
-                    let ok = match name.as_str() {
-                        "baseColor" => matches!(value, ParamValue::Float3(c) if { p.base_color = *c; true }),
-                        "emission" => matches!(value, ParamValue::Float3(c) if { m.emission = c.max(Vec3::ZERO); true }),
-                        "thin" => matches!(value, ParamValue::Bool(b) if { p.thin = *b; true }),
-                        other => {
-                            let slot = match other {
-                                "metallic" => &mut p.metallic,
-                                "specular" => &mut p.specular,
-                                "specularTint" => &mut p.specular_tint,
-                                "roughness" => &mut p.roughness,
-                                "anisotropic" => &mut p.anisotropic,
-                                "sheen" => &mut p.sheen,
-                                "sheenTint" => &mut p.sheen_tint,
-                                "clearcoat" => &mut p.clearcoat,
-                                "clearcoatGloss" => &mut p.clearcoat_gloss,
-                                "specTrans" => &mut p.spec_trans,
-                                "diffTrans" => &mut p.diff_trans,
-                                "flatness" => &mut p.flatness,
-                                "ior" => &mut p.ior,
-                                unknown => {
-                                    report.warnings.push(format!("{}: unknown tessera:Principled input '{unknown}'", surface.path));
-                                    continue;
-                                }
-                            };
-                            f(value).map(|x| *slot = x).is_some()
-                        }
-                    };
-                    if !ok {
-                        report.warnings.push(format!("{}: input '{name}' has the wrong type {value:?}; using its default", surface.path));
-                    }
-                }
-            }
-            other => {
-                report.warnings.push(format!(
-                    "{}: shader id '{other}' is not supported yet; rendering {material_path} with UsdPreviewSurface defaults",
-                    surface.path
-                ));
-                return (m, report);
-            }
+            return (Material::preview_surface_default(), report);
         }
-        for c in self.connections.iter().filter(|c| c.downstream_node == surface.path) {
-            let upstream = self.node(&c.upstream_node).map_or("?", |n| n.node_type_id.as_str());
-            report.warnings.push(format!(
-                "{}: input '{}' is connected to {} ({upstream}); texture and primvar inputs are not supported yet, so its fallback value is used",
-                surface.path, c.downstream_input, c.upstream_node
-            ));
-        }
+        let mut used = vec![self.surface_node.clone()];
+        let m = self.resolve_node(&self.surface_node, material_path, 0, &mut used, &mut report);
         for n in &self.nodes {
-            if n.path != surface.path && !self.connections.iter().any(|c| c.upstream_node == n.path) {
+            if !used.contains(&n.path) && !self.connections.iter().any(|c| c.upstream_node == n.path) {
                 report.warnings.push(format!("{}: node '{}' is not connected to the surface and is ignored", n.path, n.node_type_id));
             }
         }
         (m, report)
+    }
+
+    fn resolve_node(&self, path: &str, material_path: &str, depth: usize, used: &mut Vec<String>, report: &mut ResolveReport) -> Material {
+        let Some(node) = self.node(path) else {
+            report.warnings.push(format!("{path}: connected shader is missing from {material_path}; using the UsdPreviewSurface defaults"));
+            return Material::preview_surface_default();
+        };
+        if !used.iter().any(|u| u == path) {
+            used.push(path.to_string());
+        }
+        let id = node.node_type_id.as_str();
+        let m = match id {
+            "UsdPreviewSurface" | "tessera:Principled" => super::preview::resolve(node, report),
+            "tessera:Layer" => return self.resolve_layer(node, material_path, depth, used, report),
+            _ => match super::native::resolve(node, report) {
+                Some(m) => m,
+                None => {
+                    report.warnings.push(format!(
+                        "{}: shader id '{id}' is not supported yet; rendering {material_path} with UsdPreviewSurface defaults",
+                        node.path
+                    ));
+                    return Material::preview_surface_default();
+                }
+            },
+        };
+        for c in self.connections.iter().filter(|c| c.downstream_node == node.path) {
+            let upstream = self.node(&c.upstream_node).map_or("?", |n| n.node_type_id.as_str());
+            report.warnings.push(format!(
+                "{}: input '{}' is connected to {} ({upstream}); texture and primvar inputs are not supported yet, so its fallback value is used",
+                node.path, c.downstream_input, c.upstream_node
+            ));
+        }
+        m
+    }
+
+    /// `tessera:Layer`: A over B with one mask (`000_...`, section 2.2). A sub-material is
+    /// evaluated only when the mask shows it.
+    fn resolve_layer(
+        &self,
+        node: &MaterialNode,
+        material_path: &str,
+        depth: usize,
+        used: &mut Vec<String>,
+        report: &mut ResolveReport,
+    ) -> Material {
+        let mask = match node.parameters.get("mask") {
+            None => 1.0,
+            Some(ParamValue::Float(x)) if x.is_finite() => x.clamp(0.0, 1.0),
+            Some(v) => {
+                report.warnings.push(format!("{}: input 'mask' has the wrong type {v:?}; using 1", node.path));
+                1.0
+            }
+        };
+        for (name, _) in node.parameters.iter().filter(|(n, _)| !matches!(n.as_str(), "mask" | "a" | "b")) {
+            report.warnings.push(format!("{}: unknown tessera:Layer input '{name}'", node.path));
+        }
+        if self.upstream(&node.path, "mask").is_some() {
+            report.warnings.push(format!(
+                "{}: input 'mask' is connected; texture and primvar inputs are not supported yet, so its value {mask} is used",
+                node.path
+            ));
+        }
+        let side = |input: &str, shown: bool, used: &mut Vec<String>, report: &mut ResolveReport| -> Material {
+            let Some(c) = self.upstream(&node.path, input) else {
+                if shown {
+                    report.warnings.push(format!("{}: input '{input}' is not connected; using the UsdPreviewSurface defaults", node.path));
+                }
+                return Material::preview_surface_default();
+            };
+            if !shown {
+                used.push(c.upstream_node.clone());
+                return Material::preview_surface_default();
+            }
+            if depth >= MAX_LAYER_DEPTH {
+                report
+                    .warnings
+                    .push(format!("{}: layers nest deeper than {MAX_LAYER_DEPTH} (a cycle?); '{input}' is not followed", node.path));
+                return Material::preview_surface_default();
+            }
+            self.resolve_node(&c.upstream_node, material_path, depth + 1, used, report)
+        };
+        let a = side("a", mask > 0.0, used, report);
+        let b = side("b", mask < 1.0, used, report);
+        b.layered_under(&a, mask)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::preview::tests::preview;
+    use glam::Vec3;
 
-    fn preview(params: &[(&str, ParamValue)]) -> MaterialNetwork {
+    fn node(path: &str, id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
+        MaterialNode {
+            path: path.into(),
+            node_type_id: id.into(),
+            parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    fn link(down: &str, input: &str, up: &str) -> MaterialConnection {
+        MaterialConnection {
+            downstream_node: down.into(),
+            downstream_input: input.into(),
+            upstream_node: up.into(),
+            upstream_output: "surface".into(),
+        }
+    }
+
+    /// Layer(mask) of A over B, where A and B are the given nodes.
+    fn layer(mask: f32, a: MaterialNode, b: MaterialNode) -> MaterialNetwork {
+        let (pa, pb) = (a.path.clone(), b.path.clone());
         MaterialNetwork {
-            nodes: vec![MaterialNode {
-                path: "/M/S".into(),
-                node_type_id: "UsdPreviewSurface".into(),
-                parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
-            }],
-            connections: vec![],
-            surface_node: "/M/S".into(),
+            nodes: vec![node("/M/L", "tessera:Layer", &[("mask", ParamValue::Float(mask))]), a, b],
+            connections: vec![link("/M/L", "a", &pa), link("/M/L", "b", &pb)],
+            surface_node: "/M/L".into(),
         }
-    }
-
-    #[test]
-    fn maps_preview_surface_inputs_and_reports_the_rest() {
-        let (m, r) = preview(&[
-            ("diffuseColor", ParamValue::Float3(Vec3::new(0.5, 2.0, -1.0))),
-            ("emissiveColor", ParamValue::Float3(Vec3::splat(3.0))),
-            ("metallic", ParamValue::Float(1.0)),
-            ("roughness", ParamValue::Float(0.25)),
-            ("ior", ParamValue::Float(1.5)),
-            ("displacement", ParamValue::Float(0.1)),
-            ("occlusion", ParamValue::Float(0.5)),
-            ("bogus", ParamValue::Float(1.0)),
-        ])
-        .resolve("/M");
-        let p = m.principled.sanitized();
-        assert_eq!(p.base_color, Vec3::new(0.5, 1.0, 0.0));
-        assert_eq!((p.metallic, p.roughness), (1.0, 0.25));
-        assert!((p.specular - 0.5).abs() < 1e-5, "IOR 1.5 is Disney's specular 0.5");
-        assert_eq!(m.emission, Vec3::splat(3.0));
-        assert!(r.warnings.iter().any(|w| w.contains("'displacement'") && w.contains("/M/S")));
-        assert!(!r.warnings.iter().any(|w| w.contains("'occlusion'")), "occlusion is meaningless to a path tracer, not unsupported");
-        assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
-    }
-
-    #[test]
-    fn preview_surface_opacity_is_clear_transmission_or_a_cut_out() {
-        // opacityThreshold 0: transparent but lit, like clear glass.
-        let (m, r) = preview(&[("opacity", ParamValue::Float(0.3)), ("diffuseColor", ParamValue::Float3(Vec3::X))]).resolve("/M");
-        let p = m.principled.sanitized();
-        assert!((p.spec_trans - 0.7).abs() < 1e-6 && !m.cut_out && r.warnings.is_empty());
-        assert_eq!((p.transmission_roughness, p.transmission_color), (Some(0.0), Some(Vec3::ONE)));
-        assert!(m.bsdf(true).transmits());
-        // A positive threshold makes opacity binary.
-        for (opacity, gone) in [(0.2, true), (0.5, false), (0.8, false)] {
-            let (m, _) = preview(&[("opacity", ParamValue::Float(opacity)), ("opacityThreshold", ParamValue::Float(0.5))]).resolve("/M");
-            assert_eq!(m.cut_out, gone, "opacity {opacity}");
-            assert!(!m.bsdf(true).transmits());
-        }
-    }
-
-    #[test]
-    fn preview_surface_specular_workflow_uses_specular_color_and_ignores_metallic() {
-        let red = ParamValue::Float3(Vec3::new(0.9, 0.0, 0.0));
-        let (m, r) =
-            preview(&[("useSpecularWorkflow", ParamValue::Int(1)), ("specularColor", red.clone()), ("metallic", ParamValue::Float(1.0))])
-                .resolve("/M");
-        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
-        assert_eq!((m.principled.metallic, m.principled.specular_color), (0.0, Some(Vec3::new(0.9, 0.0, 0.0))));
-        // Seen head-on, a smooth specular-workflow surface reflects its specular colour.
-        let smooth = Material { principled: super::super::Principled { roughness: 0.0, base_color: Vec3::ZERO, ..m.principled }, ..m };
-        let spec = crate::bsdf::testing::albedo_estimate(&smooth.bsdf(true), Vec3::Z, 4096);
-        assert!((spec.x - 0.9).abs() < 0.02 && spec.y.abs() < 1e-3, "head-on specular {spec:?}");
-        // The metallic workflow ignores specularColor.
-        let (m, _) = preview(&[("specularColor", red), ("metallic", ParamValue::Float(1.0))]).resolve("/M");
-        assert_eq!((m.principled.metallic, m.principled.specular_color), (1.0, None));
-    }
-
-    #[test]
-    fn preview_surface_variants_conserve_energy() {
-        use crate::bsdf::testing;
-        let white = ParamValue::Float3(Vec3::ONE);
-        let cases = [
-            vec![("diffuseColor", white.clone()), ("opacity", ParamValue::Float(0.5)), ("roughness", ParamValue::Float(0.4))],
-            vec![("diffuseColor", white.clone()), ("useSpecularWorkflow", ParamValue::Int(1)), ("specularColor", white.clone())],
-            vec![("diffuseColor", white.clone()), ("clearcoat", ParamValue::Float(1.0)), ("roughness", ParamValue::Float(1.0))],
-        ];
-        for params in cases {
-            let (m, _) = preview(&params).resolve("/M");
-            let bsdf = m.bsdf(true);
-            for wo in testing::probe_directions() {
-                for wo in [wo, -wo] {
-                    let a = testing::albedo_estimate(&bsdf, wo, 20_000);
-                    assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{params:?} at {wo:?}: {a:?}");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn native_principled_shader_takes_disney_names() {
-        let mut n = preview(&[
-            ("baseColor", ParamValue::Float3(Vec3::ONE)),
-            ("specTrans", ParamValue::Float(1.0)),
-            ("thin", ParamValue::Bool(true)),
-            ("sheenn", ParamValue::Float(1.0)),
-        ]);
-        n.nodes[0].node_type_id = "tessera:Principled".into();
-        let (m, r) = n.resolve("/M");
-        assert_eq!((m.principled.spec_trans, m.principled.thin, m.principled.base_color), (1.0, true, Vec3::ONE));
-        assert!(r.warnings.iter().any(|w| w.contains("unknown tessera:Principled input 'sheenn'")));
     }
 
     #[test]
@@ -318,5 +224,97 @@ mod tests {
         let (m, r) = n.resolve("/M");
         assert_eq!(m, Material::preview_surface_default());
         assert!(r.warnings[0].contains("/M/S") && r.warnings[0].contains("ND_standard_surface"));
+    }
+
+    /// Dirt over glass: the glass keeps its own IOR and roughness, the dirt's dielectric
+    /// parameters stay in the plastic family (`004_...`, "Putting it all together").
+    #[test]
+    fn layers_blend_within_families_without_contaminating_glass() {
+        let dirt = node(
+            "/M/Dirt",
+            "tessera:SolidDielectric",
+            &[
+                ("refractiveIndex", ParamValue::Float(1.3)),
+                ("roughness", ParamValue::Float(0.9)),
+                ("albedo", ParamValue::Float3(Vec3::new(0.3, 0.2, 0.1))),
+            ],
+        );
+        let glass =
+            node("/M/Glass", "tessera:Refractive", &[("refractiveIndex", ParamValue::Float(1.8)), ("roughness", ParamValue::Float(0.1))]);
+        let (m, r) = layer(0.4, dirt, glass).resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        let u = &m.surface;
+        assert!((u.plastic.weight - 0.4).abs() < 1e-6 && (u.glass.weight - 0.6).abs() < 1e-6);
+        assert_eq!((u.glass.params.ior, u.glass.params.roughness), (1.8, 0.1));
+        assert_eq!(u.plastic.params.diffuse, Vec3::new(0.3, 0.2, 0.1));
+        assert!(m.bsdf(true).transmits());
+    }
+
+    /// Within one family the parameters interpolate: gold over silver at mask 0.25.
+    #[test]
+    fn same_family_parameters_interpolate_by_the_mask() {
+        let metal = |p: &str, r: f32, c: f32| {
+            node(p, "tessera:Metal", &[("roughness", ParamValue::Float(r)), ("reflectivity", ParamValue::Float3(Vec3::splat(c)))])
+        };
+        let (m, _) = layer(0.25, metal("/M/A", 0.2, 1.0), metal("/M/B", 0.6, 0.5)).resolve("/M");
+        let s = m.surface.metal.params;
+        assert!((s.roughness - 0.5).abs() < 1e-6 && m.surface.metal.weight == 1.0, "{s:?}");
+        match s.fresnel {
+            crate::bsdf::SpecularFresnel::Gulbrandsen { r, .. } => assert!((r.x - 0.625).abs() < 1e-6),
+            f => panic!("{f:?}"),
+        }
+    }
+
+    /// Only the shown sub-materials are evaluated: a hidden side's problems are not reported.
+    #[test]
+    fn a_fully_masked_side_is_not_evaluated() {
+        let bad = node("/M/Bad", "ND_unknown", &[]);
+        let ok = node("/M/Ok", "tessera:Metal", &[]);
+        let (m, r) = layer(1.0, ok.clone(), bad.clone()).resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert_eq!(m.surface.metal.weight, 1.0);
+        let (_, r) = layer(0.0, bad.clone(), ok.clone()).resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        let (_, r) = layer(0.5, bad, ok).resolve("/M");
+        assert!(r.warnings.iter().any(|w| w.contains("/M/Bad") && w.contains("ND_unknown")));
+    }
+
+    #[test]
+    fn nested_layers_resolve_and_cycles_are_reported() {
+        // (gold over plastic) over glass.
+        let mut n =
+            layer(0.5, node("/M/Inner", "tessera:Layer", &[("mask", ParamValue::Float(0.5))]), node("/M/Glass", "tessera:Refractive", &[]));
+        n.nodes.push(node("/M/Gold", "tessera:Metal", &[]));
+        n.nodes.push(node("/M/Plastic", "tessera:SolidDielectric", &[]));
+        n.connections.push(link("/M/Inner", "a", "/M/Gold"));
+        n.connections.push(link("/M/Inner", "b", "/M/Plastic"));
+        let (m, r) = n.resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        let u = &m.surface;
+        assert_eq!((u.metal.weight, u.plastic.weight, u.glass.weight), (0.25, 0.25, 0.5));
+        // A layer whose input leads back to itself stops with a warning instead of recursing.
+        let mut cyclic = layer(0.5, node("/M/X", "tessera:Metal", &[]), node("/M/Y", "tessera:Metal", &[]));
+        cyclic.connections[0].upstream_node = "/M/L".into();
+        let (_, r) = cyclic.resolve("/M");
+        assert!(r.warnings.iter().any(|w| w.contains("nest deeper")), "{:?}", r.warnings);
+    }
+
+    #[test]
+    fn layered_materials_conserve_energy() {
+        use crate::bsdf::testing;
+        let white_metal =
+            node("/M/A", "tessera:Metal", &[("reflectivity", ParamValue::Float3(Vec3::ONE)), ("roughness", ParamValue::Float(0.7))]);
+        let white_plastic = node(
+            "/M/B",
+            "tessera:SolidDielectric",
+            &[("albedo", ParamValue::Float3(Vec3::ONE)), ("clearcoat", ParamValue::Float(1.0)), ("sheen", ParamValue::Float(1.0))],
+        );
+        let (m, _) = layer(0.5, white_metal, white_plastic).resolve("/M");
+        let bsdf = m.bsdf(true);
+        for wo in testing::probe_directions() {
+            let a = testing::albedo_estimate(&bsdf, wo, 40_000).x;
+            assert!(a <= 1.0 + 1e-3 + 0.01, "at {wo:?}: {a}");
+        }
+        testing::assert_reciprocal(&bsdf);
     }
 }

@@ -1,12 +1,11 @@
 //! The Disney principled parameters (Burley 2012 `001_...` section 5.1 plus the 2015
 //! `specTrans`, `diffTrans`, `flatness`, `thin`, as Schutte 2018 `002_...` implements them)
-//! and the BSDF they build: the uber-material every front-end resolves to.
+//! as the front-end of UsdPreviewSurface and `tessera:Principled`, mapped onto the uber-material.
 
 use glam::Vec3;
 
-use crate::bsdf::{
-    Bsdf, Clearcoat, Dielectric, DiffuseTransmission, DisneyDiffuse, GgxReflection, Lobe, Sheen, SpecularFresnel, ThinDielectric,
-};
+use super::uber::{ClearcoatParams, Glass, Plastic, Specular, Uber, Weighted};
+use crate::bsdf::{Bsdf, Sheen, SpecularFresnel};
 
 /// Principled parameters; defaults are Disney's.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,24 +109,25 @@ impl Principled {
         }
     }
 
-    /// The BSDF, holding only its non-zero lobes. Weights follow Schutte's "Bringing it all
-    /// together": diffuse and dielectric specular by (1 − metallic)(1 − specTrans), metal by
-    /// metallic, glass by (1 − metallic)·specTrans; sheen and clearcoat add on top.
-    /// `compensate` switches the whole Kulla-Conty energy layer.
-    pub fn bsdf(&self, compensate: bool) -> Bsdf {
+    /// UsdPreviewSurface's defaults in these terms: Lambertian diffuse 0.18, roughness 0.5,
+    /// specular from IOR 1.5.
+    pub fn preview_surface_default() -> Self {
+        Principled { lambert: true, base_color: Vec3::splat(0.18), roughness: 0.5, specular: 0.5, ..Default::default() }
+    }
+
+    /// The uber-material. Family weights follow Schutte's "Bringing it all together": plastic
+    /// (diffuse and dielectric specular) (1 − metallic)(1 − specTrans), metal metallic, glass
+    /// (1 − metallic)·specTrans; Disney's sheen rides on the plastic and the clearcoat on top.
+    pub fn uber(&self) -> Uber {
         let p = self.sanitized();
-        let mut bsdf = Bsdf::default();
-        let dielectric = (1.0 - p.metallic) * (1.0 - p.spec_trans);
-        let glass = (1.0 - p.metallic) * p.spec_trans;
         let tint = Sheen::tint(p.base_color);
 
         // Dielectric specular: η from `specular` (F0 = 0.08·specular), or Schlick when tinted
         // or given a specular colour (whose largest component then sets the diffuse's
         // coupling η: the most energy the specular can take).
         let f0 = p.specular_color.map_or(0.08 * p.specular, |c| c.max_element());
-        let has_specular = f0 > 0.0;
         let eta = ((1.0 + f0.sqrt()) / (1.0 - f0.sqrt()).max(1e-3)).clamp(1.0, 3.0);
-        let spec_fresnel = if let Some(f0) = p.specular_color {
+        let fresnel = if let Some(f0) = p.specular_color {
             SpecularFresnel::Schlick { f0 }
         } else if p.specular_tint > 0.0 {
             SpecularFresnel::Schlick { f0: f0 * Vec3::ONE.lerp(tint, p.specular_tint) }
@@ -137,69 +137,49 @@ impl Principled {
         // A specular colour brighter than a dielectric of η = 3 (F0 = 0.25, the coupling
         // table's limit) takes more than the coupling leaves out: scale the diffuse by what
         // the excess takes at normal incidence, (1 − F0)/(1 − F0(η)). A white specular colour
-        // over a white diffuse reflected 1.76 without it.
-        let specular_color_excess = match p.specular_color {
-            Some(_) if compensate => {
-                let f0_eta = crate::bsdf::fresnel::f0_from_ior(eta);
-                ((1.0 - f0) / (1.0 - f0_eta).max(1e-6)).clamp(0.0, 1.0)
-            }
-            _ => 1.0,
+        // over a white diffuse reflected 1.76 without it. (Applied only with compensation.)
+        let diffuse_scale = match p.specular_color {
+            Some(_) => ((1.0 - f0) / (1.0 - crate::bsdf::fresnel::f0_from_ior(eta)).max(1e-6)).clamp(0.0, 1.0),
+            None => 1.0,
         };
-        if dielectric > 0.0 {
-            // An anisotropic specular couples by its smoother axis: seen along that axis it
-            // keeps more energy than the isotropic lobe of the mean roughness.
-            let ggx = crate::bsdf::microfacet::Ggx::from_roughness(p.roughness, p.anisotropic);
-            let coupling = (compensate && has_specular).then_some((eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)));
-            bsdf.push_weighted(
-                Lobe::DisneyDiffuse(DisneyDiffuse {
-                    color: p.base_color,
-                    roughness: p.roughness,
-                    flatness: if p.thin { p.flatness } else { 0.0 },
-                    coupling,
-                    lambert: p.lambert,
-                }),
-                dielectric * (1.0 - p.diff_trans) * specular_color_excess,
-            );
-            let trans_color = if p.thin { p.base_color.powf(0.5) } else { p.base_color };
-            bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: trans_color }), dielectric * p.diff_trans);
-            if has_specular {
-                bsdf.push_weighted(
-                    Lobe::GgxReflection(GgxReflection::new(p.roughness, p.anisotropic, spec_fresnel, compensate)),
-                    dielectric,
-                );
-            }
-            if p.sheen > 0.0 {
-                bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.sheen * Vec3::ONE.lerp(tint, p.sheen_tint) }), dielectric);
-            }
+        let specular =
+            |fresnel| Specular { fresnel, roughness: p.roughness, anisotropic: p.anisotropic, roughness2: p.roughness, mix2: 0.0 };
+        let plastic = Plastic {
+            diffuse: p.base_color,
+            diffuse_roughness: p.roughness,
+            lambert: p.lambert,
+            flatness: if p.thin { p.flatness } else { 0.0 },
+            diffuse_transmission: p.diff_trans,
+            transmission_color: if p.thin { p.base_color.powf(0.5) } else { p.base_color },
+            specular: (f0 > 0.0).then(|| specular(fresnel)),
+            coupling_eta: eta,
+            diffuse_scale,
+            disney_sheen: if p.sheen > 0.0 { p.sheen * Vec3::ONE.lerp(tint, p.sheen_tint) } else { Vec3::ZERO },
+            scattering_radius: 0.0,
+        };
+        // Thin glass is Imageworks' thin sheet (light crosses undeflected), Disney's sqrt
+        // colour one crossing's tint.
+        let tint = p.transmission_color.unwrap_or(p.base_color);
+        let glass = Glass {
+            roughness: p.transmission_roughness.unwrap_or(p.roughness),
+            anisotropic: p.anisotropic,
+            ior: p.ior,
+            color: if p.thin { tint.powf(0.5) } else { tint },
+            thin: p.thin,
+        };
+        Uber {
+            metal: Weighted { weight: p.metallic, params: specular(SpecularFresnel::Schlick { f0: p.base_color }) },
+            plastic: Weighted { weight: (1.0 - p.metallic) * (1.0 - p.spec_trans), params: plastic },
+            glass: Weighted { weight: (1.0 - p.metallic) * p.spec_trans, params: glass },
+            clearcoat: Weighted { weight: p.clearcoat, params: ClearcoatParams::Disney { gloss: p.clearcoat_gloss } },
+            ..Uber::default()
         }
-        if p.metallic > 0.0 {
-            bsdf.push_weighted(
-                Lobe::GgxReflection(GgxReflection::new(
-                    p.roughness,
-                    p.anisotropic,
-                    SpecularFresnel::Schlick { f0: p.base_color },
-                    compensate,
-                )),
-                p.metallic,
-            );
-        }
-        if glass > 0.0 {
-            let tint = p.transmission_color.unwrap_or(p.base_color);
-            let color = if p.thin { tint.powf(0.5) } else { tint };
-            let roughness = p.transmission_roughness.unwrap_or(p.roughness);
-            // Thin: one surface stands for a sheet, which Imageworks' thin dielectric models
-            // (light crosses undeflected; Disney's sqrt colour is one crossing's tint).
-            let lobe = if p.thin {
-                Lobe::ThinDielectric(ThinDielectric::new(roughness, p.anisotropic, p.ior, color, compensate))
-            } else {
-                Lobe::Dielectric(Dielectric::new(roughness, p.anisotropic, p.ior, color).compensated(compensate))
-            };
-            bsdf.push_weighted(lobe, glass);
-        }
-        if p.clearcoat > 0.0 {
-            bsdf.coat_with(crate::bsdf::Coat::Disney(Clearcoat::new(p.clearcoat, p.clearcoat_gloss)), compensate);
-        }
-        bsdf
+    }
+
+    /// The BSDF, holding only its non-zero lobes; `compensate` switches the whole
+    /// Kulla-Conty energy layer.
+    pub fn bsdf(&self, compensate: bool) -> Bsdf {
+        self.uber().bsdf(compensate)
     }
 }
 
@@ -305,7 +285,7 @@ mod tests {
         let coated =
             Principled { base_color: Vec3::ONE, roughness: 1.0, lambert: true, clearcoat: 1.0, clearcoat_gloss: 0.5, ..Default::default() };
         let base = Principled { clearcoat: 0.0, ..coated };
-        let coat = crate::bsdf::Lobe::Clearcoat(Clearcoat::new(1.0, 0.5));
+        let coat = crate::bsdf::Lobe::Clearcoat(crate::bsdf::Clearcoat::new(1.0, 0.5));
         let added = testing::probe_directions()
             .into_iter()
             .map(|wo| testing::albedo_estimate(&base.bsdf(true), wo, 60_000).x + testing::albedo_estimate(&coat, wo, 60_000).x)

@@ -1,0 +1,426 @@
+//! Tessera's own shaders, reachable from any USD file by `info:id`: the DreamWorks-style
+//! specialized materials (`000_...`, section 2.3) `tessera:Metal`, `tessera:Refractive`,
+//! `tessera:SolidDielectric`, and `tessera:Fabric` (section 4). Each is declared once here,
+//! inputs with types, defaults and ranges, and that declaration both reads a node and writes
+//! the reference table in docs/materials.md (a test checks the two agree; an ignored test
+//! rewrites the table: `cargo test -p render-core write_shader_reference -- --ignored`).
+
+use std::collections::BTreeMap;
+
+use glam::Vec3;
+
+use super::Material;
+use super::network::{MaterialNode, ParamValue, ResolveReport};
+use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, Uber, Weighted};
+use crate::bsdf::SpecularFresnel;
+
+/// An input's type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// `float`.
+    Float,
+    /// `color3f`.
+    Color,
+    /// `bool`.
+    Bool,
+}
+
+/// One declared input.
+#[derive(Clone, Copy, Debug)]
+pub struct Input {
+    /// Name without `inputs:`.
+    pub name: &'static str,
+    /// Type.
+    pub kind: Kind,
+    /// Default (a float or bool in `.0[0]`).
+    pub default: [f32; 3],
+    /// Valid range; values outside are clamped.
+    pub range: (f32, f32),
+    /// What it does.
+    pub doc: &'static str,
+}
+
+const fn float(name: &'static str, default: f32, range: (f32, f32), doc: &'static str) -> Input {
+    Input { name, kind: Kind::Float, default: [default, default, default], range, doc }
+}
+
+const fn color(name: &'static str, default: f32, doc: &'static str) -> Input {
+    Input { name, kind: Kind::Color, default: [default, default, default], range: (0.0, 1.0), doc }
+}
+
+const fn flag(name: &'static str, doc: &'static str) -> Input {
+    Input { name, kind: Kind::Bool, default: [0.0; 3], range: (0.0, 1.0), doc }
+}
+
+/// One declared shader.
+#[derive(Clone, Copy, Debug)]
+pub struct Shader {
+    /// `info:id`.
+    pub id: &'static str,
+    /// What it is.
+    pub doc: &'static str,
+    /// Its own inputs.
+    pub inputs: &'static [Input],
+    /// Whether it takes the shared coat / emission / specularControl inputs.
+    pub shared: bool,
+}
+
+/// Inputs every specialized material takes (`000_...`, section 2.3 "additional features"; the
+/// sheen coat and double specular from `004_...`, "Coatings" and "Double specular").
+pub const SHARED: &[Input] = &[
+    float("clearcoat", 0.0, (0.0, 1.0), "coverage of a dielectric clearcoat over the material"),
+    float("clearcoatRefractiveIndex", 1.5, (1.0, 3.0), "the coat's refractive index"),
+    float("clearcoatRoughness", 0.0, (0.0, 1.0), "the coat's roughness"),
+    float("clearcoatThickness", 0.0, (0.0, 100.0), "absorbing thickness; 1 tints a head-on round trip by exactly the attenuation colour"),
+    color("clearcoatAttenuationColor", 1.0, "colour the coat absorbs towards"),
+    float("sheen", 0.0, (0.0, 1.0), "coverage of a Charlie sheen coat (microfibres) over everything"),
+    color("sheenColor", 1.0, "sheen colour"),
+    float("sheenRoughness", 0.3, (0.07, 1.0), "sheen roughness (clamped at 0.07, where the slides' Λ fit stops conserving energy)"),
+    float("roughness2", 0.5, (0.0, 1.0), "double specular: the second roughness"),
+    float("doubleSpecularMix", 0.0, (0.0, 1.0), "double specular: the second roughness's share"),
+    color("emission", 0.0, "emitted radiance"),
+    float("specularControl", 1.0, (0.0, 1.0), "scales every specular lobe; 0 kills specular in pits and gaps"),
+];
+
+/// The specialized shaders.
+pub const SHADERS: &[Shader] = &[
+    Shader {
+        id: "tessera:Metal",
+        doc: "A conductor: anisotropic GGX with Gulbrandsen's reflectivity and edge tint (DreamWorks use Beckmann; GGX carries our energy tables).",
+        inputs: &[
+            color("reflectivity", 0.9, "normal-incidence colour (Gulbrandsen r)"),
+            color("edgeTint", 1.0, "colour towards grazing angles (Gulbrandsen g)"),
+            float("roughness", 0.3, (0.0, 1.0), "roughness (α = roughness²)"),
+            float("anisotropy", 0.0, (-1.0, 1.0), "stretch along the tangent (−1) or bitangent (1)"),
+        ],
+        shared: true,
+    },
+    Shader {
+        id: "tessera:Refractive",
+        doc: "Glass: one roughness for reflection and transmission, exact dielectric Fresnel; `thin` makes it a sheet (Imageworks' thin surface).",
+        inputs: &[
+            float("refractiveIndex", 1.5, (1.0, 3.0), "index of refraction (1: the surface vanishes)"),
+            float("roughness", 0.0, (0.0, 1.0), "roughness of reflection and transmission"),
+            float("anisotropy", 0.0, (-1.0, 1.0), "anisotropy"),
+            color("transmissionColor", 1.0, "tint of transmitted light (a sheet: of one crossing)"),
+            float(
+                "transmissionRefractiveIndex",
+                0.0,
+                (0.0, 3.0),
+                "decoupled bending index (0: same as refractiveIndex); not supported yet, reported when set",
+            ),
+            flag("thin", "a thin sheet: light crosses undeflected"),
+        ],
+        shared: true,
+    },
+    Shader {
+        id: "tessera:SolidDielectric",
+        doc: "An opaque dielectric: Lambertian albedo under the dielectric specular, optional diffuse transmission.",
+        inputs: &[
+            color("albedo", 0.8, "diffuse colour"),
+            float("refractiveIndex", 1.5, (1.0, 3.0), "index of refraction of the specular"),
+            float("roughness", 0.3, (0.0, 1.0), "specular roughness"),
+            float("anisotropy", 0.0, (-1.0, 1.0), "specular anisotropy"),
+            color("diffuseTransmission", 0.0, "colour of light diffusely transmitted (taken from the diffuse reflection)"),
+            float(
+                "scatteringRadius",
+                0.0,
+                (0.0, 1e6),
+                "mean free path of a subsurface medium; not rendered yet (Lambertian base), reported when set",
+            ),
+            color("scatteringColor", 0.8, "subsurface colour; used with scatteringRadius"),
+        ],
+        shared: true,
+    },
+    Shader {
+        id: "tessera:Fabric",
+        doc: "DreamWorks fabric: the normalised specular cone around the thread over a Lambertian base.",
+        inputs: &[
+            color("color", 1.0, "thread (cone) colour"),
+            float("roughness", 0.3, (0.0, 1.0), "fabric roughness α; the cone exponent is ceil(1 + 29(1 − α)²)"),
+            float("threadRotation", 0.0, (-360.0, 360.0), "thread direction, degrees from the surface tangent"),
+            float("specular", 0.5, (0.0, 1.0), "share of the cone; the rest is the diffuse base"),
+            color("diffuseColor", 0.5, "diffuse base colour"),
+        ],
+        shared: false,
+    },
+];
+
+/// A node's values by input name, defaults filled in, ranges applied.
+struct Values(BTreeMap<&'static str, [f32; 3]>);
+
+impl Values {
+    fn read(shader: &Shader, node: &MaterialNode, report: &mut ResolveReport) -> Values {
+        let shared: &[Input] = if shader.shared { SHARED } else { &[] };
+        let decl = || shader.inputs.iter().chain(shared.iter());
+        let mut v: BTreeMap<&'static str, [f32; 3]> = decl().map(|i| (i.name, i.default)).collect();
+        for (name, value) in &node.parameters {
+            let Some(input) = decl().find(|i| i.name == name) else {
+                report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
+                continue;
+            };
+            let (lo, hi) = input.range;
+            let clamp = |x: f32| if x.is_finite() { x.clamp(lo, hi) } else { input.default[0] };
+            let got = match (input.kind, value) {
+                (Kind::Float, ParamValue::Float(x)) => Some([clamp(*x); 3]),
+                (Kind::Float, ParamValue::Int(x)) => Some([clamp(*x as f32); 3]),
+                (Kind::Color, ParamValue::Float3(c)) => Some([clamp(c.x), clamp(c.y), clamp(c.z)]),
+                (Kind::Color, ParamValue::Float(x)) => Some([clamp(*x); 3]),
+                (Kind::Bool, ParamValue::Bool(b)) => Some([*b as u8 as f32; 3]),
+                (Kind::Bool, ParamValue::Int(i)) => Some([(*i != 0) as u8 as f32; 3]),
+                _ => None,
+            };
+            match got {
+                Some(x) => {
+                    v.insert(input.name, x);
+                }
+                None => report.warnings.push(format!("{}: input '{name}' has the wrong type {value:?}; using its default", node.path)),
+            }
+        }
+        Values(v)
+    }
+
+    fn f(&self, name: &str) -> f32 {
+        self.0[name][0]
+    }
+
+    fn c(&self, name: &str) -> Vec3 {
+        Vec3::from_array(self.0[name])
+    }
+
+    fn b(&self, name: &str) -> bool {
+        self.0[name][0] != 0.0
+    }
+}
+
+/// The uber-material of a specialized shader node, or None for an id this module does not
+/// declare.
+pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Option<Material> {
+    let shader = SHADERS.iter().find(|s| s.id == node.node_type_id)?;
+    let v = Values::read(shader, node, report);
+    let mut u = Uber { plastic: Weighted { weight: 0.0, params: Plastic::default() }, ..Uber::default() };
+    let specular = |fresnel, roughness: f32, anisotropic: f32| Specular {
+        fresnel,
+        roughness,
+        anisotropic,
+        roughness2: if shader.shared { v.f("roughness2") } else { roughness },
+        mix2: if shader.shared { v.f("doubleSpecularMix") } else { 0.0 },
+    };
+    match shader.id {
+        "tessera:Metal" => {
+            let fresnel = SpecularFresnel::Gulbrandsen { r: v.c("reflectivity"), g: v.c("edgeTint") };
+            u.metal = Weighted { weight: 1.0, params: specular(fresnel, v.f("roughness"), v.f("anisotropy")) };
+        }
+        "tessera:Refractive" => {
+            if v.f("transmissionRefractiveIndex") > 0.0 && v.f("transmissionRefractiveIndex") != v.f("refractiveIndex") {
+                report.warnings.push(format!(
+                    "{}: input 'transmissionRefractiveIndex' is not supported yet; light bends by refractiveIndex {}",
+                    node.path,
+                    v.f("refractiveIndex")
+                ));
+            }
+            let glass = Glass {
+                roughness: v.f("roughness"),
+                anisotropic: v.f("anisotropy"),
+                ior: v.f("refractiveIndex"),
+                color: v.c("transmissionColor"),
+                thin: v.b("thin"),
+            };
+            u.glass = Weighted { weight: 1.0, params: glass };
+        }
+        "tessera:SolidDielectric" => {
+            let eta = v.f("refractiveIndex");
+            let dt = v.c("diffuseTransmission");
+            let share = dt.max_element();
+            if v.f("scatteringRadius") > 0.0 {
+                report.warnings.push(format!(
+                    "{}: subsurface scattering (scatteringRadius {}) is not rendered yet; the albedo is used as a Lambertian base",
+                    node.path,
+                    v.f("scatteringRadius")
+                ));
+            }
+            let plastic = Plastic {
+                diffuse: v.c("albedo"),
+                lambert: true,
+                diffuse_transmission: share,
+                transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
+                specular: (eta > 1.0).then(|| specular(SpecularFresnel::Dielectric { eta }, v.f("roughness"), v.f("anisotropy"))),
+                coupling_eta: eta,
+                scattering_radius: v.f("scatteringRadius"),
+                ..Plastic::default()
+            };
+            u.plastic = Weighted { weight: 1.0, params: plastic };
+        }
+        "tessera:Fabric" => {
+            let fabric = FabricParams {
+                color: v.c("color"),
+                roughness: v.f("roughness"),
+                angle: v.f("threadRotation").to_radians(),
+                specular: v.f("specular"),
+                diffuse: v.c("diffuseColor"),
+            };
+            u.fabric = Weighted { weight: 1.0, params: fabric };
+        }
+        _ => unreachable!("every declared shader is mapped"),
+    }
+    let mut emission = Vec3::ZERO;
+    if shader.shared {
+        u.clearcoat = Weighted {
+            weight: v.f("clearcoat"),
+            params: ClearcoatParams::Dielectric {
+                ior: v.f("clearcoatRefractiveIndex"),
+                roughness: v.f("clearcoatRoughness"),
+                color: v.c("clearcoatAttenuationColor"),
+                thickness: v.f("clearcoatThickness"),
+            },
+        };
+        u.sheen = Weighted { weight: v.f("sheen"), params: SheenParams { color: v.c("sheenColor"), roughness: v.f("sheenRoughness") } };
+        u.specular_control = v.f("specularControl");
+        emission = v.c("emission");
+    }
+    Some(Material { surface: u, emission, cut_out: false })
+}
+
+/// The reference table of every declared shader, as docs/materials.md holds it.
+pub fn markdown_reference() -> String {
+    let mut out = String::new();
+    let row = |i: &Input| {
+        let default = match i.kind {
+            Kind::Float => format!("{}", i.default[0]),
+            Kind::Color => format!("({}, {}, {})", i.default[0], i.default[1], i.default[2]),
+            Kind::Bool => "false".to_string(),
+        };
+        let range = match i.kind {
+            Kind::Bool => "-".to_string(),
+            _ => format!("[{}, {}]", i.range.0, i.range.1),
+        };
+        let kind = match i.kind {
+            Kind::Float => "float",
+            Kind::Color => "color3f",
+            Kind::Bool => "bool",
+        };
+        format!("| `{}` | {kind} | {default} | {range} | {} |\n", i.name, i.doc)
+    };
+    for s in SHADERS {
+        out += &format!("### `{}`\n\n{}\n\n| input | type | default | range | meaning |\n|---|---|---|---|---|\n", s.id, s.doc);
+        for i in s.inputs {
+            out += &row(i);
+        }
+        if s.shared {
+            out += "| *(the shared inputs below)* | | | | |\n";
+        }
+        out += "\n";
+    }
+    out += "### Shared by `tessera:Metal`, `tessera:Refractive`, `tessera:SolidDielectric`\n\n| input | type | default | range | meaning |\n|---|---|---|---|---|\n";
+    for i in SHARED {
+        out += &row(i);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::testing;
+
+    const DOC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/materials.md");
+    const BEGIN: &str = "<!-- shader reference: generated from render-core/src/material/native.rs -->\n";
+    const END: &str = "<!-- end of shader reference -->";
+
+    fn node(id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
+        MaterialNode {
+            path: "/M/S".into(),
+            node_type_id: id.into(),
+            parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    fn resolved(id: &str, params: &[(&str, ParamValue)]) -> (Material, ResolveReport) {
+        let mut r = ResolveReport::default();
+        (resolve(&node(id, params), &mut r).expect("declared shader"), r)
+    }
+
+    #[test]
+    fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
+        let white = ParamValue::Float3(Vec3::ONE);
+        let cases: [(&str, Vec<(&str, ParamValue)>); 6] = [
+            ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
+            ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
+            ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
+            (
+                "tessera:SolidDielectric",
+                vec![("albedo", white.clone()), ("clearcoat", ParamValue::Float(1.0)), ("sheen", ParamValue::Float(0.5))],
+            ),
+            ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseTransmission", ParamValue::Float3(Vec3::splat(0.4)))]),
+            ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
+        ];
+        for (id, params) in cases {
+            let (defaults, r) = resolved(id, &[]);
+            assert!(r.warnings.is_empty() && !defaults.bsdf(true).is_empty(), "{id}: {:?}", r.warnings);
+            let (m, r) = resolved(id, &params);
+            assert!(r.warnings.is_empty(), "{id}: {:?}", r.warnings);
+            let bsdf = m.bsdf(true);
+            for wo in testing::probe_directions() {
+                for wo in if bsdf.transmits() { vec![wo, -wo] } else { vec![wo] } {
+                    let a = testing::albedo_estimate(&bsdf, wo, 20_000);
+                    assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{id} {params:?} at {wo:?}: {a:?}");
+                }
+            }
+            // Refraction scales radiance by 1/η'², so only its energy form is reciprocal.
+            if !m.surface.has_refraction() {
+                testing::assert_reciprocal(&bsdf);
+            }
+        }
+    }
+
+    #[test]
+    fn metal_uses_gulbrandsen_and_reflects_its_reflectivity_head_on() {
+        let gold = ParamValue::Float3(Vec3::new(0.944, 0.776, 0.373));
+        let (m, _) = resolved("tessera:Metal", &[("reflectivity", gold), ("roughness", ParamValue::Float(0.0))]);
+        let a = testing::albedo_estimate(&m.bsdf(true), Vec3::Z, 256);
+        assert!((a - Vec3::new(0.944, 0.776, 0.373)).abs().max_element() < 1e-3, "{a:?}");
+    }
+
+    #[test]
+    fn bad_and_unsupported_inputs_are_reported_by_name() {
+        let (m, r) = resolved(
+            "tessera:Refractive",
+            &[
+                ("refractiveIndex", ParamValue::Float(9.0)),
+                ("roughness", ParamValue::Bool(true)),
+                ("bogus", ParamValue::Float(1.0)),
+                ("transmissionRefractiveIndex", ParamValue::Float(1.2)),
+            ],
+        );
+        assert_eq!(m.surface.glass.params.ior, 3.0, "clamped to the declared range");
+        for needle in
+            ["'roughness' has the wrong type", "unknown tessera:Refractive input 'bogus'", "'transmissionRefractiveIndex' is not supported"]
+        {
+            assert!(r.warnings.iter().any(|w| w.contains(needle) && w.contains("/M/S")), "{needle}: {:?}", r.warnings);
+        }
+        let (_, r) = resolved("tessera:SolidDielectric", &[("scatteringRadius", ParamValue::Float(0.1))]);
+        assert!(r.warnings.iter().any(|w| w.contains("subsurface")), "{:?}", r.warnings);
+    }
+
+    #[test]
+    fn docs_hold_the_current_shader_reference() {
+        let doc = std::fs::read_to_string(DOC).expect("docs/materials.md");
+        let expected = format!("{BEGIN}{}{END}", markdown_reference());
+        assert!(
+            doc.contains(&expected),
+            "docs/materials.md's shader reference is stale: run `cargo test -p render-core write_shader_reference -- --ignored`"
+        );
+    }
+
+    #[test]
+    #[ignore = "rewrites docs/materials.md"]
+    fn write_shader_reference() {
+        let doc = std::fs::read_to_string(DOC).expect("docs/materials.md");
+        let table = format!("{BEGIN}{}{END}", markdown_reference());
+        let new = match (doc.find(BEGIN), doc.find(END)) {
+            (Some(a), Some(b)) => format!("{}{table}{}", &doc[..a], &doc[b + END.len()..]),
+            _ => format!("{doc}\n## Tessera's own shaders\n\n{table}\n"),
+        };
+        std::fs::write(DOC, new).unwrap();
+    }
+}

@@ -1,0 +1,465 @@
+//! The uber-material every front-end resolves to, and the parameter blending that layers
+//! materials (`000_...`, section 2.2: "parameter resolution, then closure creation").
+//!
+//! Parameters live in families, as Imageworks' shaders track them (`004_...`, "Putting it all
+//! together": Metal, Plastic, Glass, "parameter blending within each lobe ... avoids
+//! contamination in cases like dirt on glass"), plus the DreamWorks fabric as a fourth family.
+//! Each family has a weight (the weights sum to at most 1) and its own parameters; blending
+//! two materials interpolates each family's weight linearly and its parameters weighted by
+//! how much of the family each side holds, so a family one side lacks does not pull the
+//! other's parameters towards zero. Coats (clearcoat, sheen) blend the same way by coverage.
+//! Then [`Uber::bsdf`] builds one [`Bsdf`] holding only the non-zero lobes.
+
+use glam::Vec3;
+
+use crate::bsdf::{
+    Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Lobe,
+    Sheen, SpecularFresnel, ThinDielectric,
+};
+
+/// Linear interpolation of parameters from `self` (weight `wa`) towards `other` (weight `wb`).
+pub trait Mix: Sized {
+    /// The blend; with `wa + wb = 0` it is `self`.
+    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self;
+}
+
+/// Share of `wb` in `wa + wb` (0 when both are 0).
+fn share(wa: f32, wb: f32) -> f32 {
+    if wa + wb > 0.0 { wb / (wa + wb) } else { 0.0 }
+}
+
+impl Mix for f32 {
+    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
+        self + (other - self) * share(wa, wb)
+    }
+}
+
+impl Mix for Vec3 {
+    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
+        self.lerp(*other, share(wa, wb))
+    }
+}
+
+/// Discrete choices go to the side that holds more.
+impl Mix for bool {
+    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
+        if share(wa, wb) > 0.5 { *other } else { *self }
+    }
+}
+
+impl Mix for SpecularFresnel {
+    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
+        use SpecularFresnel as F;
+        match (*self, *other) {
+            (F::Gulbrandsen { r, g }, F::Gulbrandsen { r: r2, g: g2 }) => F::Gulbrandsen { r: r.mix(wa, &r2, wb), g: g.mix(wa, &g2, wb) },
+            (F::Schlick { f0 }, F::Schlick { f0: f2 }) => F::Schlick { f0: f0.mix(wa, &f2, wb) },
+            (F::Dielectric { eta }, F::Dielectric { eta: e2 }) => F::Dielectric { eta: eta.mix(wa, &e2, wb) },
+            (a, b) => {
+                if share(wa, wb) > 0.5 {
+                    b
+                } else {
+                    a
+                }
+            }
+        }
+    }
+}
+
+/// A microfacet specular: Fresnel, roughness, anisotropy, and Imageworks' double specular
+/// (`004_...`, "Double specular": a second roughness and its share, a linear combination of
+/// energy-preserving lobes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Specular {
+    /// Reflectance.
+    pub fresnel: SpecularFresnel,
+    /// Roughness (α = roughness²).
+    pub roughness: f32,
+    /// Anisotropy in [−1, 1].
+    pub anisotropic: f32,
+    /// Second roughness.
+    pub roughness2: f32,
+    /// Share of the second roughness in [0, 1].
+    pub mix2: f32,
+}
+
+impl Default for Specular {
+    fn default() -> Self {
+        Specular { fresnel: SpecularFresnel::Dielectric { eta: 1.5 }, roughness: 0.5, anisotropic: 0.0, roughness2: 0.5, mix2: 0.0 }
+    }
+}
+
+impl Mix for Specular {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        Specular {
+            fresnel: self.fresnel.mix(wa, &o.fresnel, wb),
+            roughness: self.roughness.mix(wa, &o.roughness, wb),
+            anisotropic: self.anisotropic.mix(wa, &o.anisotropic, wb),
+            roughness2: self.roughness2.mix(wa, &o.roughness2, wb),
+            mix2: self.mix2.mix(wa, &o.mix2, wb),
+        }
+    }
+}
+
+impl Specular {
+    /// The lobes, weighted (one, or two for a double specular), scaled by `weight`.
+    fn push(&self, bsdf: &mut Bsdf, weight: f32, compensate: bool) {
+        let m = self.mix2.clamp(0.0, 1.0);
+        bsdf.push_weighted(
+            Lobe::GgxReflection(GgxReflection::new(self.roughness, self.anisotropic, self.fresnel, compensate)),
+            weight * (1.0 - m),
+        );
+        bsdf.push_weighted(
+            Lobe::GgxReflection(GgxReflection::new(self.roughness2, self.anisotropic, self.fresnel, compensate)),
+            weight * m,
+        );
+    }
+}
+
+/// The opaque dielectric family: a diffuse base under a dielectric specular.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plastic {
+    /// Diffuse albedo.
+    pub diffuse: Vec3,
+    /// Disney diffuse roughness (retro-reflection); ignored when `lambert`.
+    pub diffuse_roughness: f32,
+    /// Lambertian diffuse instead of Disney's.
+    pub lambert: bool,
+    /// Disney thin-surface flatness.
+    pub flatness: f32,
+    /// Share of the diffuse that transmits, and its colour.
+    pub diffuse_transmission: f32,
+    /// Colour of the diffuse transmission.
+    pub transmission_color: Vec3,
+    /// The specular, absent for `specular` 0.
+    pub specular: Option<Specular>,
+    /// The η the diffuse couples to (the most energy the specular can take).
+    pub coupling_eta: f32,
+    /// Diffuse scale for specular colours brighter than the coupling table covers.
+    pub diffuse_scale: f32,
+    /// Disney's sheen colour (`tessera:Principled`), added on top.
+    pub disney_sheen: Vec3,
+    /// DreamWorks `scatteringRadius`: a subsurface medium when positive (rendered as the
+    /// diffuse base until the random walk lands).
+    pub scattering_radius: f32,
+}
+
+impl Default for Plastic {
+    fn default() -> Self {
+        Plastic {
+            diffuse: Vec3::splat(0.18),
+            diffuse_roughness: 0.5,
+            lambert: true,
+            flatness: 0.0,
+            diffuse_transmission: 0.0,
+            transmission_color: Vec3::ONE,
+            specular: Some(Specular::default()),
+            coupling_eta: 1.5,
+            diffuse_scale: 1.0,
+            disney_sheen: Vec3::ZERO,
+            scattering_radius: 0.0,
+        }
+    }
+}
+
+impl Mix for Plastic {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        let specular = match (self.specular, o.specular) {
+            (Some(a), Some(b)) => Some(a.mix(wa, &b, wb)),
+            (a, b) => {
+                if share(wa, wb) > 0.5 {
+                    b
+                } else {
+                    a
+                }
+            }
+        };
+        Plastic {
+            diffuse: self.diffuse.mix(wa, &o.diffuse, wb),
+            diffuse_roughness: self.diffuse_roughness.mix(wa, &o.diffuse_roughness, wb),
+            lambert: self.lambert.mix(wa, &o.lambert, wb),
+            flatness: self.flatness.mix(wa, &o.flatness, wb),
+            diffuse_transmission: self.diffuse_transmission.mix(wa, &o.diffuse_transmission, wb),
+            transmission_color: self.transmission_color.mix(wa, &o.transmission_color, wb),
+            specular,
+            coupling_eta: self.coupling_eta.mix(wa, &o.coupling_eta, wb),
+            diffuse_scale: self.diffuse_scale.mix(wa, &o.diffuse_scale, wb),
+            disney_sheen: self.disney_sheen.mix(wa, &o.disney_sheen, wb),
+            scattering_radius: self.scattering_radius.mix(wa, &o.scattering_radius, wb),
+        }
+    }
+}
+
+/// The glass family: a rough dielectric interface, or a thin sheet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Glass {
+    /// Roughness of reflection and transmission.
+    pub roughness: f32,
+    /// Anisotropy.
+    pub anisotropic: f32,
+    /// Refractive index.
+    pub ior: f32,
+    /// Transmission tint (for a thin sheet, one crossing's colour).
+    pub color: Vec3,
+    /// A thin sheet rather than a solid's boundary.
+    pub thin: bool,
+}
+
+impl Default for Glass {
+    fn default() -> Self {
+        Glass { roughness: 0.0, anisotropic: 0.0, ior: 1.5, color: Vec3::ONE, thin: false }
+    }
+}
+
+impl Mix for Glass {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        Glass {
+            roughness: self.roughness.mix(wa, &o.roughness, wb),
+            anisotropic: self.anisotropic.mix(wa, &o.anisotropic, wb),
+            ior: self.ior.mix(wa, &o.ior, wb),
+            color: self.color.mix(wa, &o.color, wb),
+            thin: self.thin.mix(wa, &o.thin, wb),
+        }
+    }
+}
+
+/// The fabric family: the DreamWorks cone over a Lambertian base, in proportion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FabricParams {
+    /// Thread (specular) colour.
+    pub color: Vec3,
+    /// Fabric roughness α.
+    pub roughness: f32,
+    /// Thread direction, radians from the tangent.
+    pub angle: f32,
+    /// Share of the cone; the rest is the diffuse base.
+    pub specular: f32,
+    /// Diffuse colour of the base.
+    pub diffuse: Vec3,
+}
+
+impl Default for FabricParams {
+    fn default() -> Self {
+        FabricParams { color: Vec3::ONE, roughness: 0.3, angle: 0.0, specular: 0.5, diffuse: Vec3::splat(0.5) }
+    }
+}
+
+impl Mix for FabricParams {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        FabricParams {
+            color: self.color.mix(wa, &o.color, wb),
+            roughness: self.roughness.mix(wa, &o.roughness, wb),
+            angle: self.angle.mix(wa, &o.angle, wb),
+            specular: self.specular.mix(wa, &o.specular, wb),
+            diffuse: self.diffuse.mix(wa, &o.diffuse, wb),
+        }
+    }
+}
+
+/// A clearcoat: Disney's GTR1 or the dielectric layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ClearcoatParams {
+    /// Disney: `clearcoat` and `clearcoatGloss`.
+    Disney {
+        /// Gloss in [0, 1].
+        gloss: f32,
+    },
+    /// Imageworks / DreamWorks: refractive index, roughness, attenuation colour and thickness.
+    Dielectric {
+        /// Refractive index.
+        ior: f32,
+        /// Roughness.
+        roughness: f32,
+        /// Colour of a head-on round trip through thickness 1.
+        color: Vec3,
+        /// Thickness.
+        thickness: f32,
+    },
+}
+
+impl Mix for ClearcoatParams {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        use ClearcoatParams as C;
+        match (*self, *o) {
+            (C::Disney { gloss }, C::Disney { gloss: g2 }) => C::Disney { gloss: gloss.mix(wa, &g2, wb) },
+            (C::Dielectric { ior, roughness, color, thickness }, C::Dielectric { ior: i2, roughness: r2, color: c2, thickness: t2 }) => {
+                C::Dielectric {
+                    ior: ior.mix(wa, &i2, wb),
+                    roughness: roughness.mix(wa, &r2, wb),
+                    color: color.mix(wa, &c2, wb),
+                    thickness: thickness.mix(wa, &t2, wb),
+                }
+            }
+            (a, b) => {
+                if share(wa, wb) > 0.5 {
+                    b
+                } else {
+                    a
+                }
+            }
+        }
+    }
+}
+
+/// A Charlie sheen coat.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SheenParams {
+    /// Colour.
+    pub color: Vec3,
+    /// Roughness.
+    pub roughness: f32,
+}
+
+impl Mix for SheenParams {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        SheenParams { color: self.color.mix(wa, &o.color, wb), roughness: self.roughness.mix(wa, &o.roughness, wb) }
+    }
+}
+
+/// A family or coat with its weight.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Weighted<T> {
+    /// Weight (families) or coverage (coats) in [0, 1].
+    pub weight: f32,
+    /// Parameters.
+    pub params: T,
+}
+
+impl<T: Mix> Weighted<T> {
+    /// A over B: `self` is B, `a` is A, `mask` A's coverage.
+    fn over(&self, a: &Self, mask: f32) -> Self {
+        let (wb, wa) = ((1.0 - mask) * self.weight, mask * a.weight);
+        Weighted { weight: wb + wa, params: self.params.mix(wb, &a.params, wa) }
+    }
+}
+
+/// The resolved parameters of one material instance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Uber {
+    /// Conductors.
+    pub metal: Weighted<Specular>,
+    /// Opaque dielectrics.
+    pub plastic: Weighted<Plastic>,
+    /// Glass.
+    pub glass: Weighted<Glass>,
+    /// Fabric.
+    pub fabric: Weighted<FabricParams>,
+    /// Clearcoat over everything.
+    pub clearcoat: Weighted<ClearcoatParams>,
+    /// Charlie sheen over everything (and over the clearcoat).
+    pub sheen: Weighted<SheenParams>,
+    /// DreamWorks `specularControl` in [0, 1]: scales every specular lobe (1: untouched).
+    pub specular_control: f32,
+}
+
+impl Default for Uber {
+    /// UsdPreviewSurface's defaults: an opaque dielectric.
+    fn default() -> Self {
+        Uber {
+            metal: Weighted { weight: 0.0, params: Specular::default() },
+            plastic: Weighted { weight: 1.0, params: Plastic::default() },
+            glass: Weighted { weight: 0.0, params: Glass::default() },
+            fabric: Weighted { weight: 0.0, params: FabricParams::default() },
+            clearcoat: Weighted { weight: 0.0, params: ClearcoatParams::Disney { gloss: 1.0 } },
+            sheen: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.3 } },
+            specular_control: 1.0,
+        }
+    }
+}
+
+impl Uber {
+    /// "A over B" with one mask (`000_...`, section 2.2): `self` is B.
+    pub fn layered_under(&self, a: &Uber, mask: f32) -> Uber {
+        let m = if mask.is_finite() { mask.clamp(0.0, 1.0) } else { 0.0 };
+        Uber {
+            metal: self.metal.over(&a.metal, m),
+            plastic: self.plastic.over(&a.plastic, m),
+            glass: self.glass.over(&a.glass, m),
+            fabric: self.fabric.over(&a.fabric, m),
+            clearcoat: self.clearcoat.over(&a.clearcoat, m),
+            sheen: self.sheen.over(&a.sheen, m),
+            specular_control: self.specular_control.mix(1.0 - m, &a.specular_control, m),
+        }
+    }
+
+    /// True when a lobe transmits light through a solid's boundary (bending it).
+    pub fn has_refraction(&self) -> bool {
+        self.glass.weight > 0.0 && !self.glass.params.thin
+    }
+
+    /// The BSDF, holding only its non-zero lobes, in the order: plastic (diffuse, diffuse
+    /// transmission, specular, Disney sheen), metal, glass, fabric, then the coats.
+    pub fn bsdf(&self, compensate: bool) -> Bsdf {
+        let mut bsdf = Bsdf::default();
+        let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+        let spec_scale = finite(self.specular_control);
+        let plastic_w = finite(self.plastic.weight);
+        if plastic_w > 0.0 {
+            let p = &self.plastic.params;
+            let coupling = match p.specular {
+                Some(s) if compensate => {
+                    let ggx = crate::bsdf::microfacet::Ggx::from_roughness(s.roughness, s.anisotropic);
+                    Some((p.coupling_eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)))
+                }
+                _ => None,
+            };
+            let dt = finite(p.diffuse_transmission);
+            let scale = if compensate { p.diffuse_scale } else { 1.0 };
+            bsdf.push_weighted(
+                Lobe::DisneyDiffuse(DisneyDiffuse {
+                    color: p.diffuse,
+                    roughness: p.diffuse_roughness,
+                    flatness: p.flatness,
+                    coupling,
+                    lambert: p.lambert,
+                }),
+                plastic_w * (1.0 - dt) * scale,
+            );
+            bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
+            if let Some(s) = p.specular {
+                s.push(&mut bsdf, plastic_w * spec_scale, compensate);
+            }
+            if p.disney_sheen.max_element() > 0.0 {
+                bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.disney_sheen }), plastic_w);
+            }
+        }
+        let metal_w = finite(self.metal.weight);
+        if metal_w > 0.0 {
+            self.metal.params.push(&mut bsdf, metal_w * spec_scale, compensate);
+        }
+        let glass_w = finite(self.glass.weight);
+        if glass_w > 0.0 {
+            let g = &self.glass.params;
+            let lobe = if g.thin {
+                Lobe::ThinDielectric(ThinDielectric::new(g.roughness, g.anisotropic, g.ior, g.color, compensate))
+            } else {
+                Lobe::Dielectric(Dielectric::new(g.roughness, g.anisotropic, g.ior, g.color).compensated(compensate))
+            };
+            bsdf.push_weighted(lobe, glass_w);
+        }
+        let fabric_w = finite(self.fabric.weight);
+        if fabric_w > 0.0 {
+            // The normalised cone reflects at most 1 and the base is a Lambertian of albedo ≤ 1,
+            // so their convex combination conserves energy.
+            let f = &self.fabric.params;
+            let s = finite(f.specular);
+            bsdf.push_weighted(Lobe::Fabric(Fabric::new(f.color, f.roughness, f.angle)), fabric_w * s * spec_scale);
+            bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
+        }
+        let coat_w = finite(self.clearcoat.weight) * spec_scale;
+        if coat_w > 0.0 {
+            let coat = match self.clearcoat.params {
+                ClearcoatParams::Disney { gloss } => Coat::Disney(Clearcoat::new(coat_w, gloss)),
+                ClearcoatParams::Dielectric { ior, roughness, color, thickness } => {
+                    Coat::Dielectric(DielectricCoat::new(coat_w, ior, roughness, color, thickness))
+                }
+            };
+            bsdf.coat_with(coat, compensate);
+        }
+        let sheen_w = finite(self.sheen.weight);
+        if sheen_w > 0.0 {
+            let s = &self.sheen.params;
+            bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
+        }
+        bsdf
+    }
+}
