@@ -78,7 +78,7 @@ pub const SHARED: &[Input] = &[
     float("sheenRoughness", 0.3, (0.07, 1.0), "sheen roughness (clamped at 0.07, where the slides' Λ fit stops conserving energy)"),
     float("roughness2", 0.5, (0.0, 1.0), "double specular: the second roughness"),
     float("doubleSpecularMix", 0.0, (0.0, 1.0), "double specular: the second roughness's share"),
-    color("emission", 0.0, "emitted radiance"),
+    Input { name: "emission", kind: Kind::Color, default: [0.0; 3], range: (0.0, f32::MAX), doc: "emitted radiance, in UsdLux units" },
     float("specularControl", 1.0, (0.0, 1.0), "scales every specular lobe; 0 kills specular in pits and gaps"),
 ];
 
@@ -292,6 +292,7 @@ pub fn markdown_reference() -> String {
         };
         let range = match i.kind {
             Kind::Bool => "-".to_string(),
+            _ if i.range.1 == f32::MAX => format!("≥ {}", i.range.0),
             _ => format!("[{}, {}]", i.range.0, i.range.1),
         };
         let kind = match i.kind {
