@@ -93,7 +93,7 @@ pub fn trace_path(
         match prev {
             None => 1.0,
             Some(p) if p.delta => 1.0,
-            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(light as usize) * pdf_light),
+            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize) * pdf_light),
         }
     };
 
@@ -107,10 +107,10 @@ pub fn trace_path(
         let t_hit = hit.map_or(ray.tmax, |h| h.t);
 
         // Area lights crossed before the surface (they do not occlude).
-        for &i in &scene.crossable_lights {
+        scene.crossable_lights.visit_crossed(ray.origin, ray.dir, t_hit, |i| {
             let light = &lights.lights[i as usize];
             if prev.is_none() && !light.visible_to_camera {
-                continue;
+                return;
             }
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
@@ -119,7 +119,7 @@ pub fn trace_path(
                 l += c;
                 comp[if depth == 0 { EMISSION } else { first }] += c;
             }
-        }
+        });
 
         let Some(hit) = hit else {
             for &i in &scene.infinite_lights {

@@ -150,7 +150,7 @@ pub struct CommittedScene {
     pub lights: LightSet,
     /// Indices of the finite lights a ray may cross (area lights; not triangle emitters,
     /// which are found through the BVH).
-    pub crossable_lights: Vec<u32>,
+    pub crossable_lights: crate::light::tree::LightTree,
     /// Indices of the lights at infinity.
     pub infinite_lights: Vec<u32>,
     /// Prim path of each instance's source.
@@ -358,7 +358,12 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         emissive_triangles += mesh.triangle_count();
         emissive_prims.push(prim_paths[inst.prim as usize].clone());
     }
-    let crossable_lights = (0..light_prims.len() as u32).filter(|&i| !lights[i as usize].shape.is_infinite()).collect();
+    // UsdLux lights a ray can pass through, in a BVH: with thousands of them a linear scan per
+    // ray would dominate the render.
+    let crossable_lights = crate::light::tree::LightTree::build(
+        (0..light_prims.len()).filter_map(|i| crate::light::tree::LightBounds::of(&lights[i].shape, 1.0).map(|b| (i as u32, b))).collect(),
+        light_prims.len(),
+    );
     let infinite_lights = (0..light_prims.len() as u32).filter(|&i| lights[i as usize].shape.is_infinite()).collect();
 
     // The plan: what this scene calls for.

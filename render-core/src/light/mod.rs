@@ -10,6 +10,7 @@
 
 pub mod blackbody;
 mod shapes;
+pub mod tree;
 
 pub use shapes::{LightHit, LightSample, Shape};
 
@@ -227,21 +228,46 @@ impl LightDesc {
     }
 }
 
-/// The set of lights and the distribution NEE picks them from.
+/// The set of lights and how next-event estimation picks one: lights at infinity by power
+/// among themselves, finite lights (UsdLux prims and emissive triangles) through a
+/// [`tree::LightTree`] by their likely contribution at the shading point, the two groups in
+/// proportion to their power.
 #[derive(Default)]
 pub struct LightSet {
     /// Lights, including one per emissive triangle.
     pub lights: Vec<Light>,
-    selection: Distribution1D,
+    /// Indices of the lights at infinity, and the choice among them by power.
+    infinite: Vec<u32>,
+    infinite_selection: Distribution1D,
+    /// Per light: its slot in `infinite`, if it is one.
+    infinite_slot: Vec<Option<u32>>,
+    /// Chance of choosing a light at infinity.
+    p_infinite: f32,
+    tree: tree::LightTree,
 }
 
 impl LightSet {
-    /// Builds the selection distribution in proportion to emitted power; `scene_radius`
-    /// sizes the infinite lights' power.
+    /// Builds the light tree and the choice among lights at infinity; `scene_radius` sizes
+    /// the infinite lights' power.
     pub fn new(lights: Vec<Light>, scene_radius: f32) -> Self {
-        let power: Vec<f32> = lights.iter().map(|l| luminance(l.shape.power(scene_radius))).collect();
-        let selection = Distribution1D::new(&power);
-        LightSet { lights, selection }
+        let power: Vec<f32> = lights.iter().map(|l| luminance(l.shape.power(scene_radius)).max(0.0)).collect();
+        let infinite: Vec<u32> = (0..lights.len() as u32).filter(|&i| lights[i as usize].shape.is_infinite()).collect();
+        let mut infinite_slot = vec![None; lights.len()];
+        for (k, &i) in infinite.iter().enumerate() {
+            infinite_slot[i as usize] = Some(k as u32);
+        }
+        let infinite_power: Vec<f32> = infinite.iter().map(|&i| power[i as usize]).collect();
+        let finite: Vec<(u32, tree::LightBounds)> =
+            (0..lights.len()).filter_map(|i| tree::LightBounds::of(&lights[i].shape, power[i]).map(|b| (i as u32, b))).collect();
+        let (p_inf, p_fin): (f32, f32) = (infinite_power.iter().sum(), finite.iter().map(|(i, _)| power[*i as usize]).sum());
+        let tree = tree::LightTree::build(finite, lights.len());
+        let p_infinite = match (infinite.is_empty(), tree.is_empty()) {
+            (true, _) => 0.0,
+            (false, true) => 1.0,
+            (false, false) if p_inf + p_fin > 0.0 => p_inf / (p_inf + p_fin),
+            _ => 0.5,
+        };
+        LightSet { lights, infinite_selection: Distribution1D::new(&infinite_power), infinite, infinite_slot, p_infinite, tree }
     }
 
     /// True when nothing emits.
@@ -249,12 +275,16 @@ impl LightSet {
         self.lights.is_empty()
     }
 
-    /// Picks a light with `u` and samples a direction on it.
+    /// Picks a light with `u_select` for the shading point and samples a direction on it.
     pub fn sample(&self, ctx: &ShadingContext, u_select: f32, u: glam::Vec2) -> Option<(LightSample, &Light)> {
-        if self.lights.is_empty() {
-            return None;
-        }
-        let (i, p) = self.selection.sample(u_select);
+        let (i, p) = if u_select < self.p_infinite {
+            let (k, p) = self.infinite_selection.sample((u_select / self.p_infinite).min(1.0 - f32::EPSILON));
+            (self.infinite[k] as usize, p * self.p_infinite)
+        } else {
+            let u = ((u_select - self.p_infinite) / (1.0 - self.p_infinite)).clamp(0.0, 1.0 - f32::EPSILON);
+            let (i, p) = self.tree.sample(ctx.p, ctx.n, u)?;
+            (i as usize, p * (1.0 - self.p_infinite))
+        };
         let light = &self.lights[i];
         let mut s = light.shape.sample(ctx, u)?;
         s.pdf *= p;
@@ -262,9 +292,13 @@ impl LightSet {
         Some((s, light))
     }
 
-    /// Selection probability of light `i`.
-    pub fn pmf(&self, i: usize) -> f32 {
-        self.selection.pmf(i)
+    /// The probability that [`LightSet::sample`] picks light `i` at the shading point `ctx`.
+    pub fn pmf(&self, ctx: &ShadingContext, i: usize) -> f32 {
+        match self.infinite_slot.get(i) {
+            Some(Some(k)) => self.p_infinite * self.infinite_selection.pmf(*k as usize),
+            Some(None) => (1.0 - self.p_infinite) * self.tree.pmf(ctx.p, ctx.n, i),
+            None => 0.0,
+        }
     }
 }
 

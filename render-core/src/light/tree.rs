@@ -1,0 +1,439 @@
+//! A light BVH for choosing one of many lights by its likely contribution at a shading point
+//! (Conty & Kulla, "Importance Sampling of Many Lights with Adaptive Tree Splitting", 2018;
+//! the bounds and importance as pbrt-v4's `BVHLightSampler` formulates them).
+//!
+//! Every node bounds its lights in space (a box), in power (the sum) and in direction (a cone
+//! of normals, spread θo, plus the emission spread θe about each normal). Sampling walks from
+//! the root, choosing each child in proportion to an importance that upper-bounds what the
+//! child can deliver to the point: power × the best-case cosine at the emitter × the best-case
+//! cosine at the receiver / squared distance. The probability of a light is the product of the
+//! choices on its path, which [`LightTree::pmf`] retraces from the light's bit trail so that
+//! MIS sees the same density.
+
+use glam::{Quat, Vec3};
+
+use super::shapes::Shape;
+
+/// Spatial, power and directional bounds of a set of emitters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightBounds {
+    lo: Vec3,
+    hi: Vec3,
+    /// Power (luminance).
+    phi: f32,
+    /// Cone axis of the emitters' normals.
+    w: Vec3,
+    /// cos θo: spread of the normals about `w` (−1: every direction).
+    cos_o: f32,
+    /// cos θe: how far from its normal each emitter emits (0: a hemisphere).
+    cos_e: f32,
+    /// Emits from both faces.
+    two_sided: bool,
+}
+
+/// cos(max(0, a − b)) from the sines and cosines of a and b.
+#[inline]
+fn cos_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b { 1.0 } else { cos_a * cos_b + sin_a * sin_b }
+}
+
+/// sin(max(0, a − b)).
+#[inline]
+fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b { 0.0 } else { sin_a * cos_b - cos_a * sin_b }
+}
+
+#[inline]
+fn sin_of(cos: f32) -> f32 {
+    (1.0 - cos * cos).max(0.0).sqrt()
+}
+
+impl LightBounds {
+    /// The bounds of one finite light of power `phi`; None for lights at infinity.
+    pub fn of(shape: &Shape, phi: f32) -> Option<Self> {
+        let all = |lo: Vec3, hi: Vec3| LightBounds { lo, hi, phi, w: Vec3::Z, cos_o: -1.0, cos_e: 0.0, two_sided: false };
+        let facing = |lo: Vec3, hi: Vec3, n: Vec3, two_sided: bool| LightBounds { lo, hi, phi, w: n, cos_o: 1.0, cos_e: 0.0, two_sided };
+        Some(match *shape {
+            Shape::Sphere { center, radius, .. } => all(center - Vec3::splat(radius), center + Vec3::splat(radius)),
+            Shape::Rect { center, u, v, n, .. } | Shape::Disk { center, u, v, n, .. } => {
+                let e = u.abs() + v.abs();
+                facing(center - e, center + e, n, false)
+            }
+            Shape::Cylinder { center, axis, half_length, radius, .. } => {
+                let e = (axis * half_length).abs() + Vec3::splat(radius);
+                all(center - e, center + e)
+            }
+            Shape::Triangle { p, n, .. } => facing(p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]), n, true),
+            Shape::Distant { .. } | Shape::Dome { .. } => return None,
+        })
+    }
+
+    fn centroid(&self) -> Vec3 {
+        0.5 * (self.lo + self.hi)
+    }
+
+    /// The union: boxes and powers add, normal cones merge (the smallest cone holding both).
+    fn union(&self, o: &LightBounds) -> LightBounds {
+        if self.phi <= 0.0 {
+            return *o;
+        }
+        if o.phi <= 0.0 {
+            return *self;
+        }
+        let (w, cos_o) = cone_union((self.w, self.cos_o), (o.w, o.cos_o));
+        LightBounds {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+            phi: self.phi + o.phi,
+            w,
+            cos_o,
+            cos_e: self.cos_e.min(o.cos_e),
+            two_sided: self.two_sided || o.two_sided,
+        }
+    }
+
+    /// An upper bound of what these lights deliver to a point `p` with normal `n` (zero
+    /// normal: a point in a medium), up to a common factor.
+    pub fn importance(&self, p: Vec3, n: Vec3) -> f32 {
+        if self.phi <= 0.0 {
+            return 0.0;
+        }
+        let pc = self.centroid();
+        let half_diag = 0.5 * (self.hi - self.lo).length();
+        let d2 = (p - pc).length_squared().max(half_diag);
+        let wi = (p - pc).normalize_or_zero();
+        let mut cos_w = self.w.dot(wi);
+        if self.two_sided {
+            cos_w = cos_w.abs();
+        }
+        let sin_w = sin_of(cos_w);
+        // Directions the box subtends from p: inside its bounding sphere, all of them.
+        let r2 = half_diag * half_diag;
+        let dist2 = (p - pc).length_squared();
+        let (sin_b, cos_b) = if dist2 <= r2 { (0.0, -1.0) } else { ((r2 / dist2).sqrt(), (1.0 - r2 / dist2).max(0.0).sqrt()) };
+        let (sin_o, cos_o) = (sin_of(self.cos_o), self.cos_o);
+        let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
+        let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+        if cos_p <= self.cos_e {
+            return 0.0;
+        }
+        let mut importance = self.phi * cos_p / d2;
+        if n != Vec3::ZERO {
+            let cos_i = wi.dot(n).abs();
+            importance *= cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b);
+        }
+        importance.max(0.0)
+    }
+}
+
+/// The smallest cone holding cones a and b, as (axis, cos of the half-angle).
+fn cone_union(a: (Vec3, f32), b: (Vec3, f32)) -> (Vec3, f32) {
+    let (ta, tb) = (a.1.clamp(-1.0, 1.0).acos(), b.1.clamp(-1.0, 1.0).acos());
+    let td = a.0.angle_between(b.0);
+    if (td + tb).min(std::f32::consts::PI) <= ta {
+        return a;
+    }
+    if (td + ta).min(std::f32::consts::PI) <= tb {
+        return b;
+    }
+    let to = 0.5 * (ta + td + tb);
+    if to >= std::f32::consts::PI {
+        return (a.0, -1.0);
+    }
+    let axis = a.0.cross(b.0);
+    if axis.length_squared() < 1e-12 {
+        return (a.0, -1.0);
+    }
+    (Quat::from_axis_angle(axis.normalize(), to - ta) * a.0, to.cos())
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Node {
+    Leaf { light: u32, bounds: LightBounds },
+    Interior { right: u32, bounds: LightBounds },
+}
+
+impl Node {
+    fn bounds(&self) -> &LightBounds {
+        match self {
+            Node::Leaf { bounds, .. } | Node::Interior { bounds, .. } => bounds,
+        }
+    }
+}
+
+/// The tree over a set of finite lights.
+#[derive(Debug, Default)]
+pub struct LightTree {
+    nodes: Vec<Node>,
+    /// Per light index: (path bits from the root, 1 = right; depth), or None when not in
+    /// the tree.
+    trails: Vec<Option<(u64, u32)>>,
+}
+
+impl LightTree {
+    /// Builds the tree over `(light index, bounds)` pairs; `n_lights` sizes the trail table.
+    pub fn build(mut items: Vec<(u32, LightBounds)>, n_lights: usize) -> Self {
+        let mut tree = LightTree { nodes: Vec::with_capacity(2 * items.len()), trails: vec![None; n_lights] };
+        items.retain(|(_, b)| b.phi > 0.0 && b.phi.is_finite() && b.lo.is_finite() && b.hi.is_finite());
+        if !items.is_empty() {
+            tree.build_node(&mut items, 0, 0);
+        }
+        tree
+    }
+
+    /// Builds the node for `items` and returns its bounds. Splits at the median of the
+    /// centroids along their widest axis, which keeps the tree balanced (depth log2 n).
+    fn build_node(&mut self, items: &mut [(u32, LightBounds)], bits: u64, depth: u32) -> LightBounds {
+        if items.len() == 1 || depth >= 63 {
+            let bounds = items.iter().skip(1).fold(items[0].1, |acc, (_, b)| acc.union(b));
+            let (light, _) = items[0];
+            // Past depth 63 the trail cannot grow: lights left over share one leaf's bounds,
+            // and only the first is reachable (never happens below 2^63 lights).
+            self.trails[light as usize] = Some((bits, depth));
+            self.nodes.push(Node::Leaf { light, bounds });
+            return bounds;
+        }
+        let (lo, hi) =
+            items.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), (_, b)| (lo.min(b.centroid()), hi.max(b.centroid())));
+        let axis = (hi - lo).max_position();
+        let mid = items.len() / 2;
+        items.select_nth_unstable_by(mid, |a, b| a.1.centroid()[axis].total_cmp(&b.1.centroid()[axis]));
+        let at = self.nodes.len();
+        self.nodes.push(Node::Leaf { light: 0, bounds: items[0].1 });
+        let (left, right) = items.split_at_mut(mid);
+        let lb = self.build_node(left, bits, depth + 1);
+        let right_index = self.nodes.len() as u32;
+        let rb = self.build_node(right, bits | (1 << depth), depth + 1);
+        let bounds = lb.union(&rb);
+        self.nodes[at] = Node::Interior { right: right_index, bounds };
+        bounds
+    }
+
+    /// True when the tree holds no light.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Calls `visit` with every light whose bounding box the ray `o + t·d`, t in [0, tmax],
+    /// crosses: the tree doubles as a BVH for finding lights a ray passes through.
+    pub fn visit_crossed(&self, o: Vec3, d: Vec3, tmax: f32, mut visit: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let inv = d.recip();
+        let crosses = |b: &LightBounds| {
+            let (t0, t1) = ((b.lo - o) * inv, (b.hi - o) * inv);
+            let (near, far) = (t0.min(t1), t0.max(t1));
+            // NaN from 0·∞ (a ray in a box face's plane) reads as crossing: conservative.
+            let enter = near.max_element().max(0.0);
+            let exit = far.min_element().min(tmax);
+            !(enter > exit * (1.0 + 2.0 * f32::EPSILON))
+        };
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let at = stack[top] as usize;
+            match &self.nodes[at] {
+                Node::Leaf { light, bounds } => {
+                    if crosses(bounds) {
+                        visit(*light)
+                    }
+                }
+                Node::Interior { right, bounds } => {
+                    if crosses(bounds) && top + 2 <= stack.len() {
+                        stack[top] = *right;
+                        stack[top + 1] = at as u32 + 1;
+                        top += 2;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Probabilities of the two children of interior node `at` (which sits at index `at`,
+    /// its left child at `at + 1`).
+    #[inline]
+    fn child_probs(&self, at: usize, right: usize, p: Vec3, n: Vec3) -> Option<(f32, f32)> {
+        let il = self.nodes[at + 1].bounds().importance(p, n);
+        let ir = self.nodes[right].bounds().importance(p, n);
+        let total = il + ir;
+        (total > 0.0 && total.is_finite()).then(|| (il / total, ir / total))
+    }
+
+    /// Picks a light for point `p` with normal `n`: its index and probability.
+    pub fn sample(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32)> {
+        let mut at = 0usize;
+        let mut pmf = 1.0f32;
+        // A root with no importance here (every light faces away) delivers nothing.
+        if self.nodes.is_empty() || self.nodes[0].bounds().importance(p, n) <= 0.0 {
+            return None;
+        }
+        loop {
+            match self.nodes[at] {
+                Node::Leaf { light, .. } => return (pmf > 0.0).then_some((light, pmf)),
+                Node::Interior { right, .. } => {
+                    let (pl, pr) = self.child_probs(at, right as usize, p, n)?;
+                    if u < pl {
+                        u = (u / pl).min(1.0 - f32::EPSILON);
+                        pmf *= pl;
+                        at += 1;
+                    } else {
+                        u = ((u - pl) / pr).clamp(0.0, 1.0 - f32::EPSILON);
+                        pmf *= pr;
+                        at = right as usize;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The probability that [`LightTree::sample`] picks `light` for `p`, `n`.
+    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize) -> f32 {
+        let Some(Some((bits, depth))) = self.trails.get(light) else { return 0.0 };
+        if self.nodes[0].bounds().importance(p, n) <= 0.0 {
+            return 0.0;
+        }
+        let (mut at, mut pmf) = (0usize, 1.0f32);
+        for level in 0..*depth {
+            let Node::Interior { right, .. } = self.nodes[at] else { return 0.0 };
+            let Some((pl, pr)) = self.child_probs(at, right as usize, p, n) else { return 0.0 };
+            if bits >> level & 1 == 1 {
+                pmf *= pr;
+                at = right as usize;
+            } else {
+                pmf *= pl;
+                at += 1;
+            }
+        }
+        match self.nodes[at] {
+            Node::Leaf { light: l, .. } if l as usize == light => pmf,
+            _ => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Pcg32;
+
+    fn sphere(c: Vec3, phi: f32) -> (Shape, f32) {
+        (Shape::Sphere { center: c, radius: 0.01, l: Vec3::ONE }, phi)
+    }
+
+    fn tree_of(lights: &[(Shape, f32)]) -> LightTree {
+        let items = lights.iter().enumerate().map(|(i, (s, phi))| (i as u32, LightBounds::of(s, *phi).unwrap())).collect();
+        LightTree::build(items, lights.len())
+    }
+
+    /// The probabilities of all lights sum to one, and sampling picks each light as often as
+    /// its pmf says.
+    #[test]
+    fn pmf_sums_to_one_and_matches_sampling() {
+        let mut rng = Pcg32::new(3, 4);
+        let lights: Vec<_> = (0..37)
+            .map(|_| sphere(Vec3::new(rng.next_f32() * 10.0, 2.0 + rng.next_f32(), rng.next_f32() * 10.0), 0.5 + rng.next_f32()))
+            .collect();
+        let t = tree_of(&lights);
+        for (p, n) in [(Vec3::new(5.0, 0.0, 5.0), Vec3::Y), (Vec3::new(-3.0, 0.0, 1.0), Vec3::Y), (Vec3::new(5.0, 2.5, 5.0), Vec3::ZERO)] {
+            let total: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i)).sum();
+            assert!((total - 1.0).abs() < 1e-4, "Σ pmf = {total}");
+            let mut counts = vec![0u32; lights.len()];
+            let n_samples = 200_000;
+            for k in 0..n_samples {
+                let (i, pmf) = t.sample(p, n, (k as f32 + 0.5) / n_samples as f32).unwrap();
+                assert!((pmf - t.pmf(p, n, i as usize)).abs() < 1e-5 * pmf.max(1e-3));
+                counts[i as usize] += 1;
+            }
+            for (i, c) in counts.iter().enumerate() {
+                let expected = t.pmf(p, n, i) * n_samples as f32;
+                assert!((*c as f32 - expected).abs() <= 2.0 + 1e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
+            }
+        }
+    }
+
+    /// Lights behind a one-sided emitter's back, or below the receiver, get no probability.
+    #[test]
+    fn facing_away_means_zero_importance() {
+        let up = LightBounds::of(
+            &Shape::Rect { center: Vec3::ZERO, u: Vec3::X * 0.1, v: Vec3::Z * 0.1, n: Vec3::Y, area: 0.04, l: Vec3::ONE },
+            1.0,
+        )
+        .unwrap();
+        assert!(up.importance(Vec3::new(0.0, 1.0, 0.0), Vec3::Y) > 0.0);
+        assert_eq!(up.importance(Vec3::new(0.0, -1.0, 0.0), Vec3::Y), 0.0);
+    }
+
+    /// The tree as a BVH finds exactly the lights a brute-force test of every box finds.
+    #[test]
+    fn visiting_crossed_boxes_matches_brute_force() {
+        let mut rng = Pcg32::new(8, 1);
+        let lights: Vec<_> = (0..300).map(|_| sphere(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 20.0, 1.0)).collect();
+        let fat: Vec<_> = lights
+            .iter()
+            .map(|(s, p)| match s {
+                Shape::Sphere { center, l, .. } => (Shape::Sphere { center: *center, radius: 0.7, l: *l }, *p),
+                _ => unreachable!(),
+            })
+            .collect();
+        let t = tree_of(&fat);
+        for _ in 0..200 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 20.0;
+            let d = crate::sampling::uniform_sphere(rng.next_2d());
+            let tmax = 5.0 + 20.0 * rng.next_f32();
+            let mut found = Vec::new();
+            t.visit_crossed(o, d, tmax, |i| found.push(i));
+            found.sort();
+            let expected: Vec<u32> = (0..fat.len() as u32)
+                .filter(|&i| {
+                    let b = LightBounds::of(&fat[i as usize].0, 1.0).unwrap();
+                    let (t0, t1) = ((b.lo - o) / d, (b.hi - o) / d);
+                    t0.min(t1).max_element().max(0.0) <= t0.max(t1).min_element().min(tmax)
+                })
+                .collect();
+            assert_eq!(found, expected);
+        }
+    }
+
+    #[test]
+    fn cone_union_holds_both_cones() {
+        let (w, c) = cone_union((Vec3::X, 1.0), (Vec3::Y, 1.0));
+        assert!((w - Vec3::new(1.0, 1.0, 0.0).normalize()).length() < 1e-5 && (c - std::f32::consts::FRAC_PI_4.cos()).abs() < 1e-5);
+        assert_eq!(cone_union((Vec3::X, 1.0), (-Vec3::X, 1.0)).1, -1.0);
+        assert_eq!(cone_union((Vec3::X, 0.5), (Vec3::X, 0.9)), (Vec3::X, 0.5));
+    }
+
+    /// Under a 100×100 grid of equal small lights, the one-sample irradiance estimate from a
+    /// tree-chosen light has a small relative spread, where choosing by power alone (all
+    /// equal: uniformly) is an order of magnitude worse.
+    #[test]
+    fn ten_thousand_lights_are_picked_by_their_contribution() {
+        let grid: Vec<(Shape, f32)> =
+            (0..100 * 100).map(|k| sphere(Vec3::new((k % 100) as f32 - 49.5, 1.0, (k / 100) as f32 - 49.5), 1.0)).collect();
+        let tree = tree_of(&grid);
+        // Relative standard deviation of the one-sample estimate E ≈ I·cos/d² / pmf.
+        let spread = |pick: &dyn Fn(f32) -> (usize, f32), p: Vec3| {
+            let (mut s, mut s2) = (0.0f64, 0.0f64);
+            let n = 20_000;
+            for k in 0..n {
+                let (i, pmf) = pick((k as f32 + 0.5) / n as f32);
+                let Shape::Sphere { center, .. } = grid[i].0 else { unreachable!() };
+                let d = center - p;
+                let e = (d.normalize().dot(Vec3::Y).max(0.0) / d.length_squared() / pmf) as f64;
+                s += e;
+                s2 += e * e;
+            }
+            let mean = s / n as f64;
+            (s2 / n as f64 - mean * mean).max(0.0).sqrt() / mean
+        };
+        let p = Vec3::new(3.3, 0.0, -7.1);
+        let with_tree = spread(&|u| tree.sample(p, Vec3::Y, u).map(|(i, pmf)| (i as usize, pmf)).unwrap(), p);
+        let by_power = spread(&|u| (((u * grid.len() as f32) as usize).min(grid.len() - 1), 1.0 / grid.len() as f32), p);
+        // Measured: 1.58 with the tree, 20.1 by power (a variance 160 times larger). One light
+        // of the same power has no selection spread at all; the tree's 1.58 is what remains.
+        assert!(with_tree < 2.0, "tree relative spread {with_tree}");
+        assert!(by_power > 10.0 * with_tree, "by power {by_power} vs tree {with_tree}");
+    }
+}
