@@ -192,7 +192,7 @@ pub fn trace_path(
         // Next-event estimation.
         if !lights.is_empty() {
             let u_light = Vec2::new(ul_x, ul_y);
-            if let Some((ls, light)) = lights.sample(&ctx, u_sel, u_light) {
+            lights.sample_each(&ctx, u_sel, u_light, |ls, light| {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
                     // A light with diffuse/specular multipliers weighs each kind of lobe apart.
@@ -241,7 +241,7 @@ pub fn trace_path(
                         }
                     }
                 }
-            }
+            });
         }
 
         // Continue the path by sampling the BSDF.

@@ -9,6 +9,12 @@
 //! cosine at the receiver / squared distance. The probability of a light is the product of the
 //! choices on its path, which [`LightTree::pmf`] retraces from the light's bit trail so that
 //! MIS sees the same density.
+//!
+//! Adaptive splitting (the paper's title): where a cluster is close to the point compared
+//! with its size, its importance bound says little about which of its lights matter, so
+//! instead of choosing between its children the walk takes both, up to [`SPLIT_BUDGET`]
+//! lights per shading point. Which nodes split depends only on the point, so the probability
+//! of a light is still a product along its path, with 1 at split nodes.
 
 use glam::{Quat, Vec3};
 
@@ -148,6 +154,12 @@ fn cone_union(a: (Vec3, f32), b: (Vec3, f32)) -> (Vec3, f32) {
     (Quat::from_axis_angle(axis.normalize(), to - ta) * a.0, to.cos())
 }
 
+/// Most lights one shading point samples through splitting.
+pub const SPLIT_BUDGET: usize = 8;
+
+/// A cluster splits when the point is closer to its centre than this many half-diagonals.
+const SPLIT_DISTANCE: f32 = 2.0;
+
 #[derive(Clone, Copy, Debug)]
 enum Node {
     Leaf { light: u32, bounds: LightBounds },
@@ -262,12 +274,59 @@ impl LightTree {
         (total > 0.0 && total.is_finite()).then(|| (il / total, ir / total))
     }
 
-    /// Picks a light for point `p` with normal `n`: its index and probability.
-    pub fn sample(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32)> {
-        let mut at = 0usize;
+    /// The nodes that split at `p` (breadth first from the root, while the budget lasts) and
+    /// the cut below them: the nodes each stochastic walk starts from.
+    fn cut(&self, p: Vec3, split: bool) -> ([u32; SPLIT_BUDGET], usize, [u32; SPLIT_BUDGET], usize) {
+        let (mut splits, mut n_splits) = ([0u32; SPLIT_BUDGET], 0usize);
+        let (mut frontier, mut n_front) = ([0u32; SPLIT_BUDGET], 1usize);
+        let mut k = 0;
+        while split && k < n_front && n_front < SPLIT_BUDGET {
+            let at = frontier[k] as usize;
+            if let Node::Interior { right, bounds } = self.nodes[at] {
+                let half_diag = 0.5 * (bounds.hi - bounds.lo).length();
+                if (p - bounds.centroid()).length_squared() < (SPLIT_DISTANCE * half_diag).powi(2) {
+                    splits[n_splits] = at as u32;
+                    n_splits += 1;
+                    // Replace the node by its children in the frontier.
+                    frontier[k] = at as u32 + 1;
+                    frontier[n_front] = right;
+                    n_front += 1;
+                    continue;
+                }
+            }
+            k += 1;
+        }
+        (splits, n_splits, frontier, n_front)
+    }
+
+    /// Picks lights for point `p` with normal `n`: with `split`, one per cluster of the cut
+    /// (at most [`SPLIT_BUDGET`]), else one; each with its probability.
+    pub fn sample_split(&self, p: Vec3, n: Vec3, u: f32, split: bool, mut visit: impl FnMut(u32, f32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let (_, _, frontier, n_front) = self.cut(p, split);
+        for &start in &frontier[..n_front] {
+            if let Some((light, pmf)) = self.walk(start as usize, p, n, u) {
+                visit(light, pmf);
+            }
+        }
+    }
+
+    /// Picks a light for point `p` with normal `n` without splitting: its index and
+    /// probability.
+    pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        self.walk(0, p, n, u)
+    }
+
+    /// The stochastic walk from node `at` down to a leaf.
+    fn walk(&self, mut at: usize, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32)> {
         let mut pmf = 1.0f32;
-        // A root with no importance here (every light faces away) delivers nothing.
-        if self.nodes.is_empty() || self.nodes[0].bounds().importance(p, n) <= 0.0 {
+        // A cluster with no importance here (every light faces away) delivers nothing.
+        if self.nodes[at].bounds().importance(p, n) <= 0.0 {
             return None;
         }
         loop {
@@ -289,17 +348,29 @@ impl LightTree {
         }
     }
 
-    /// The probability that [`LightTree::sample`] picks `light` for `p`, `n`.
-    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize) -> f32 {
+    /// The probability that [`LightTree::sample_split`] (or, without `split`,
+    /// [`LightTree::sample`]) picks `light` for `p`, `n`.
+    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize, split: bool) -> f32 {
         let Some(Some((bits, depth))) = self.trails.get(light) else { return 0.0 };
-        if self.nodes[0].bounds().importance(p, n) <= 0.0 {
-            return 0.0;
-        }
+        let (splits, n_splits, _, _) = self.cut(p, split);
         let (mut at, mut pmf) = (0usize, 1.0f32);
+        let mut walking = false;
         for level in 0..*depth {
             let Node::Interior { right, .. } = self.nodes[at] else { return 0.0 };
+            let right_taken = bits >> level & 1 == 1;
+            if !walking && splits[..n_splits].contains(&(at as u32)) {
+                at = if right_taken { right as usize } else { at + 1 };
+                continue;
+            }
+            if !walking {
+                // The walk starts here: a cluster with no importance is never walked.
+                if self.nodes[at].bounds().importance(p, n) <= 0.0 {
+                    return 0.0;
+                }
+                walking = true;
+            }
             let Some((pl, pr)) = self.child_probs(at, right as usize, p, n) else { return 0.0 };
-            if bits >> level & 1 == 1 {
+            if right_taken {
                 pmf *= pr;
                 at = right as usize;
             } else {
@@ -308,7 +379,14 @@ impl LightTree {
             }
         }
         match self.nodes[at] {
-            Node::Leaf { light: l, .. } if l as usize == light => pmf,
+            // A leaf reached by splits alone is sampled whenever it matters here.
+            Node::Leaf { light: l, bounds } if l as usize == light => {
+                if walking || bounds.importance(p, n) > 0.0 {
+                    pmf
+                } else {
+                    0.0
+                }
+            }
             _ => 0.0,
         }
     }
@@ -338,19 +416,47 @@ mod tests {
             .collect();
         let t = tree_of(&lights);
         for (p, n) in [(Vec3::new(5.0, 0.0, 5.0), Vec3::Y), (Vec3::new(-3.0, 0.0, 1.0), Vec3::Y), (Vec3::new(5.0, 2.5, 5.0), Vec3::ZERO)] {
-            let total: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i)).sum();
+            let total: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, false)).sum();
             assert!((total - 1.0).abs() < 1e-4, "Σ pmf = {total}");
             let mut counts = vec![0u32; lights.len()];
             let n_samples = 200_000;
             for k in 0..n_samples {
                 let (i, pmf) = t.sample(p, n, (k as f32 + 0.5) / n_samples as f32).unwrap();
-                assert!((pmf - t.pmf(p, n, i as usize)).abs() < 1e-5 * pmf.max(1e-3));
+                assert!((pmf - t.pmf(p, n, i as usize, false)).abs() < 1e-5 * pmf.max(1e-3));
                 counts[i as usize] += 1;
             }
             for (i, c) in counts.iter().enumerate() {
-                let expected = t.pmf(p, n, i) * n_samples as f32;
+                let expected = t.pmf(p, n, i, false) * n_samples as f32;
                 assert!((*c as f32 - expected).abs() <= 2.0 + 1e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
             }
+        }
+    }
+
+    /// With splitting, each light's pmf is the chance it is among the samples: summed over
+    /// the lights it counts the expected number of samples, and sampling agrees.
+    #[test]
+    fn split_pmf_matches_split_sampling() {
+        let mut rng = Pcg32::new(5, 6);
+        let lights: Vec<_> = (0..64)
+            .map(|_| sphere(Vec3::new(rng.next_f32() * 4.0, 1.0 + rng.next_f32(), rng.next_f32() * 4.0), 0.5 + rng.next_f32()))
+            .collect();
+        let t = tree_of(&lights);
+        let (p, n) = (Vec3::new(2.0, 0.0, 2.0), Vec3::Y);
+        let expected_count: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, true)).sum();
+        let (_, _, _, n_front) = t.cut(p, true);
+        assert!(n_front > 1, "the point sits under the lights: the tree should split");
+        assert!((expected_count - n_front as f32).abs() < 1e-3, "Σ pmf {expected_count} vs {n_front} walks");
+        let mut counts = vec![0u32; lights.len()];
+        let n_samples = 100_000;
+        for k in 0..n_samples {
+            t.sample_split(p, n, (k as f32 + 0.5) / n_samples as f32, true, |i, pmf| {
+                assert!((pmf - t.pmf(p, n, i as usize, true)).abs() < 1e-5 * pmf.max(1e-3));
+                counts[i as usize] += 1;
+            });
+        }
+        for (i, c) in counts.iter().enumerate() {
+            let expected = t.pmf(p, n, i, true) * n_samples as f32;
+            assert!((*c as f32 - expected).abs() <= 2.0 + 2e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
         }
     }
 
