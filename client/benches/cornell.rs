@@ -33,6 +33,7 @@ fn render_rgb_with(scene: &CommittedScene, threads: usize, spp: u32, seed: u64, 
         tile_size: 32,
         integrator: IntegratorSettings { max_depth: MITSUBA_MAX_DEPTH - 1, ..Default::default() },
         sampler,
+        ..Default::default()
     };
     let cam = Camera::new(&scene.camera("").unwrap(), W, H);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();

@@ -75,6 +75,11 @@ enum Command {
         /// (off by default; it darkens what it clamps, and the render reports it).
         #[arg(long)]
         clamp: Option<f32>,
+        /// Adaptive sampling: a pixel stops receiving samples once the relative standard error
+        /// of its mean (worst over its 3x3 neighbours) is below this, e.g. 0.01 for 1%; off by
+        /// default. Pixels take at least 16 samples first.
+        #[arg(long)]
+        noise_threshold: Option<f32>,
     },
     /// Measure what the quality knobs buy and cost, and write the report.
     Bench {
@@ -183,6 +188,7 @@ async fn real_main() -> Result<()> {
             frame,
             sampler,
             clamp,
+            noise_threshold,
             quality,
             explain_plan: false,
         } => {
@@ -207,6 +213,7 @@ async fn real_main() -> Result<()> {
                 energy_compensation,
                 sobol: sampler == SamplerArg::Sobol,
                 clamp_indirect: clamp,
+                noise_threshold,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");

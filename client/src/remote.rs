@@ -34,6 +34,8 @@ pub struct RenderOptions {
     pub sobol: bool,
     /// Firefly clamp on indirect contributions; `None` (the default) is off.
     pub clamp_indirect: Option<f32>,
+    /// Adaptive sampling's relative-error target; `None` (the default) is off.
+    pub noise_threshold: Option<f32>,
 }
 
 impl Default for RenderOptions {
@@ -51,6 +53,7 @@ impl Default for RenderOptions {
             energy_compensation: true,
             sobol: true,
             clamp_indirect: None,
+            noise_threshold: None,
         }
     }
 }
@@ -142,6 +145,7 @@ impl Connection {
             disable_energy_compensation: !opts.energy_compensation,
             sampler: if opts.sobol { pb::Sampler::Sobol } else { pb::Sampler::Independent } as i32,
             clamp_indirect: opts.clamp_indirect.unwrap_or(0.0),
+            noise_threshold: opts.noise_threshold.unwrap_or(0.0),
         };
         let mut stream = self
             .client

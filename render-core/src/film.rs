@@ -29,12 +29,27 @@ pub enum Aov {
     Transmission,
     /// Light the camera sees directly: emitters and the environment.
     Emission,
+    /// Camera samples the pixel received (fewer than asked where adaptive sampling stopped).
+    SampleCount,
+    /// Estimated variance of the pixel's mean luminance (the square of its standard error).
+    Variance,
 }
 
 impl Aov {
     /// All AOVs.
-    pub const ALL: [Aov; 9] =
-        [Aov::Beauty, Aov::Albedo, Aov::Normal, Aov::Depth, Aov::Position, Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission];
+    pub const ALL: [Aov; 11] = [
+        Aov::Beauty,
+        Aov::Albedo,
+        Aov::Normal,
+        Aov::Depth,
+        Aov::Position,
+        Aov::Diffuse,
+        Aov::Specular,
+        Aov::Transmission,
+        Aov::Emission,
+        Aov::SampleCount,
+        Aov::Variance,
+    ];
 
     /// The light-path components: their sum is the beauty's RGB.
     pub const COMPONENTS: [Aov; 4] = [Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission];
@@ -51,13 +66,20 @@ impl Aov {
             Aov::Specular => "specular",
             Aov::Transmission => "transmission",
             Aov::Emission => "emission",
+            Aov::SampleCount => "sampleCount",
+            Aov::Variance => "variance",
         }
     }
 
     /// True for the AOVs kept in a tile's optional second buffer (so renders that do not ask
     /// for them do not pay their memory).
     pub fn is_extra(self) -> bool {
-        self.offset() >= VALUES
+        !self.is_statistic() && self.offset() >= VALUES
+    }
+
+    /// True for the AOVs computed from the sample statistics rather than accumulated.
+    pub fn is_statistic(self) -> bool {
+        matches!(self, Aov::SampleCount | Aov::Variance)
     }
 
     /// Parses a wire name.
@@ -69,7 +91,7 @@ impl Aov {
     pub fn channels(self) -> usize {
         match self {
             Aov::Beauty => 4,
-            Aov::Depth => 1,
+            Aov::Depth | Aov::SampleCount | Aov::Variance => 1,
             _ => 3,
         }
     }
@@ -86,6 +108,7 @@ impl Aov {
             Aov::Specular => VALUES + 6,
             Aov::Transmission => VALUES + 9,
             Aov::Emission => VALUES + 12,
+            Aov::SampleCount | Aov::Variance => usize::MAX,
         }
     }
 }
@@ -135,7 +158,11 @@ pub struct TileFilm {
     /// Position and light-path components, allocated only when asked for.
     extra: Vec<[f64; EXTRA]>,
     lum_sq: Vec<f64>,
-    /// Samples per pixel so far.
+    /// Samples each pixel has received.
+    counts: Vec<u32>,
+    /// Pixels still receiving samples (adaptive sampling turns them off).
+    active: Vec<bool>,
+    /// Samples per pixel scheduled so far (the most any pixel has).
     pub samples: u32,
 }
 
@@ -144,7 +171,7 @@ impl TileFilm {
     pub fn new(rect: Rect, extra: bool) -> Self {
         let n = (rect.width * rect.height) as usize;
         let extra = if extra { vec![[0.0; EXTRA]; n] } else { Vec::new() };
-        TileFilm { rect, sums: vec![[0.0; VALUES]; n], extra, lum_sq: vec![0.0; n], samples: 0 }
+        TileFilm { rect, sums: vec![[0.0; VALUES]; n], extra, lum_sq: vec![0.0; n], counts: vec![0; n], active: vec![true; n], samples: 0 }
     }
 
     /// True when the tile records the position and light-path AOVs.
@@ -175,6 +202,7 @@ impl TileFilm {
         }
         let l = luminance(s.radiance) as f64;
         self.lum_sq[i] += l * l;
+        self.counts[i] += 1;
         if let Some(extra) = self.extra.get_mut(i) {
             let vs = std::iter::once(s.position).chain(s.components);
             for (k, v) in vs.enumerate() {
@@ -185,19 +213,80 @@ impl TileFilm {
         }
     }
 
+    /// True when pixel `i` still receives samples.
+    #[inline]
+    pub fn is_active(&self, i: usize) -> bool {
+        self.active[i]
+    }
+
+    /// Number of pixels still receiving samples, and the samples taken in the tile.
+    pub fn sample_totals(&self) -> (usize, u64) {
+        (self.active.iter().filter(|&&a| a).count(), self.counts.iter().map(|&c| c as u64).sum())
+    }
+
+    /// Mean and variance of the mean of pixel `i`'s luminance.
+    fn luminance_stats(&self, i: usize) -> (f64, f64) {
+        let n = self.counts[i] as f64;
+        if n < 2.0 {
+            return (0.0, 0.0);
+        }
+        let s = &self.sums[i];
+        let mean = luminance(Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32)) as f64 / n;
+        let var = ((self.lum_sq[i] / n) - mean * mean).max(0.0) * n / (n - 1.0);
+        (mean, var / n)
+    }
+
+    /// Adaptive sampling: turns off the pixels whose relative standard error, the worst over
+    /// their 3×3 neighbourhood within the tile (one pixel's estimate alone is itself noisy,
+    /// and a pixel that has not yet met a rare bright path looks converged), is below
+    /// `threshold`. The error is relative to the mean luminance plus 1e-3, so black pixels
+    /// converge at once and very dark ones by their absolute error.
+    pub fn retire_converged(&mut self, threshold: f32) {
+        let (w, h) = (self.rect.width as i64, self.rect.height as i64);
+        let rel: Vec<f64> = (0..self.counts.len())
+            .map(|i| {
+                let (mean, var) = self.luminance_stats(i);
+                var.sqrt() / (mean + 1e-3)
+            })
+            .collect();
+        for y in 0..h {
+            for x in 0..w {
+                let mut worst = 0.0f64;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 0 && ny >= 0 && nx < w && ny < h {
+                            worst = worst.max(rel[(ny * w + nx) as usize]);
+                        }
+                    }
+                }
+                if worst < threshold as f64 {
+                    self.active[(y * w + x) as usize] = false;
+                }
+            }
+        }
+    }
+
     /// Mean of `aov` over the samples so far, row-major, channels interleaved.
     pub fn resolve(&self, aov: Aov) -> Vec<f32> {
-        let n = self.samples.max(1) as f64;
-        let (o, c) = (aov.offset(), aov.channels());
+        let c = aov.channels();
+        match aov {
+            Aov::SampleCount => return self.counts.iter().map(|&n| n as f32).collect(),
+            Aov::Variance => return (0..self.counts.len()).map(|i| self.luminance_stats(i).1 as f32).collect(),
+            _ => {}
+        }
+        let o = aov.offset();
+        let count = |i: usize| self.counts[i].max(1) as f64;
         if aov.is_extra() {
             let o = o - VALUES;
             return match self.extra.is_empty() {
                 true => vec![0.0; self.sums.len() * c],
-                false => self.extra.iter().flat_map(|s| (0..c).map(move |k| (s[o + k] / n) as f32)).collect(),
+                false => self.extra.iter().enumerate().flat_map(|(i, s)| (0..c).map(move |k| (s[o + k] / count(i)) as f32)).collect(),
             };
         }
         let mut out = Vec::with_capacity(self.sums.len() * c);
-        for s in &self.sums {
+        for (i, s) in self.sums.iter().enumerate() {
+            let n = count(i);
             if aov == Aov::Normal {
                 // Average normals are renormalised so the AOV holds unit vectors.
                 let v = Vec3::new(s[o] as f32, s[o + 1] as f32, s[o + 2] as f32).normalize_or_zero();
@@ -212,19 +301,10 @@ impl TileFilm {
     /// Sum over pixels of (variance of the mean of luminance, mean luminance), for the
     /// noise estimate.
     pub fn noise_terms(&self) -> (f64, f64) {
-        let n = self.samples as f64;
-        if n < 2.0 {
+        if self.samples < 2 {
             return (0.0, 0.0);
         }
-        let mut var_sum = 0.0;
-        let mut mean_sum = 0.0;
-        for (s, &sq) in self.sums.iter().zip(&self.lum_sq) {
-            let mean = luminance(Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32)) as f64 / n;
-            let var = ((sq / n) - mean * mean).max(0.0) * n / (n - 1.0);
-            var_sum += var / n;
-            mean_sum += mean;
-        }
-        (var_sum, mean_sum)
+        (0..self.counts.len()).map(|i| self.luminance_stats(i)).fold((0.0, 0.0), |(v, m), (mean, var)| (v + var, m + mean))
     }
 }
 
@@ -276,5 +356,32 @@ mod tests {
         assert_eq!(f.resolve(Aov::Beauty), vec![0.5, 0.5, 0.5, 0.5]);
         assert_eq!(f.resolve(Aov::Normal), vec![0.0, 0.0, 1.0]);
         assert_eq!(f.resolve(Aov::Depth), vec![3.0]);
+        assert_eq!(f.resolve(Aov::SampleCount), vec![2.0]);
+        // Luminance 1 and 0: sample variance 0.5, so the mean's variance is 0.25.
+        assert!((f.resolve(Aov::Variance)[0] - 0.25).abs() < 1e-6);
+    }
+
+    /// Pixels retire only when they and their neighbours are below the threshold, and each
+    /// pixel's mean uses its own sample count.
+    #[test]
+    fn converged_neighbourhoods_retire_and_means_use_their_own_counts() {
+        let mut f = TileFilm::new(Rect { x: 0, y: 0, width: 5, height: 1 }, false);
+        for k in 0..16 {
+            for i in 0..5 {
+                // Pixel 0 is noisy, the others constant.
+                let v = if i == 0 { (k % 2) as f32 } else { 0.5 };
+                f.add(i, &PixelSample { radiance: Vec3::splat(v), ..Default::default() });
+            }
+        }
+        f.samples = 16;
+        f.retire_converged(0.01);
+        assert_eq!((0..5).map(|i| f.is_active(i)).collect::<Vec<_>>(), vec![true, true, false, false, false]);
+        for _ in 0..16 {
+            f.add(0, &PixelSample { radiance: Vec3::splat(1.0), ..Default::default() });
+        }
+        f.samples = 32;
+        let beauty = f.resolve(Aov::Beauty);
+        assert!((beauty[0] - 0.75).abs() < 1e-6 && (beauty[4] - 0.5).abs() < 1e-6, "{beauty:?}");
+        assert_eq!(f.resolve(Aov::SampleCount), vec![32.0, 16.0, 16.0, 16.0, 16.0]);
     }
 }

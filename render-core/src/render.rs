@@ -28,7 +28,14 @@ pub struct RenderSettings {
     pub integrator: IntegratorSettings,
     /// The numbers paths draw.
     pub sampler: SamplerKind,
+    /// Adaptive sampling: a pixel stops receiving samples once the relative standard error of
+    /// its mean (worst over its neighbourhood) is below this; 0 = off.
+    pub noise_threshold: f32,
 }
+
+/// Samples every pixel takes before adaptive sampling may retire it: fewer make the
+/// variance estimate itself too noisy to trust.
+pub const ADAPTIVE_MIN_SPP: u32 = 16;
 
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -40,6 +47,7 @@ impl Default for RenderSettings {
             tile_size: 32,
             integrator: IntegratorSettings::default(),
             sampler: SamplerKind::default(),
+            noise_threshold: 0.0,
         }
     }
 }
@@ -83,6 +91,10 @@ pub struct PassStats {
     pub rays: u64,
     /// Relative standard error of the image's mean luminance (RMS over pixels).
     pub noise: f32,
+    /// Pixels still receiving samples after this pass (all of them without adaptive sampling).
+    pub active_pixels: u64,
+    /// Camera samples taken so far over the whole image.
+    pub samples_taken: u64,
 }
 
 /// Where a render sends its results. Called from worker threads.
@@ -139,10 +151,11 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
                         let Some(tile) = tiles.get(i) else { return };
                         let mut tile = tile.lock().unwrap();
                         let mut counters = PathCounters::default();
-                        render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters);
                         rays.fetch_add(counters.rays, Ordering::Relaxed);
                         non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
-                        paths.fetch_add((tile.rect.width * tile.rect.height * pass_spp) as u64, Ordering::Relaxed);
+                        let before = tile.sample_totals().1;
+                        render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters);
+                        paths.fetch_add(tile.sample_totals().1 - before, Ordering::Relaxed);
                         sink.tile(&tile, pass as u32);
                     }
                 });
@@ -152,11 +165,18 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             return RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: Some(reason) };
         }
         spp_done += pass_spp;
-        let (mut var, mut mean) = (0.0, 0.0);
+        let (mut var, mut mean, mut active, mut taken) = (0.0, 0.0, 0u64, 0u64);
         for t in &tiles {
-            let (v, m) = t.lock().unwrap().noise_terms();
+            let mut t = t.lock().unwrap();
+            if settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP {
+                t.retire_converged(settings.noise_threshold);
+            }
+            let (v, m) = t.noise_terms();
             var += v;
             mean += m;
+            let (a, n) = t.sample_totals();
+            active += a as u64;
+            taken += n;
         }
         let pixels = (settings.width * settings.height).max(1) as f64;
         let noise = if mean > 0.0 { ((var / pixels).sqrt() / (mean / pixels)) as f32 } else { 0.0 };
@@ -166,8 +186,14 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             elapsed: start.elapsed().as_secs_f64(),
             rays: rays.load(Ordering::Relaxed),
             noise,
+            active_pixels: active,
+            samples_taken: taken,
         };
         sink.pass_done(&last);
+        if active == 0 {
+            // Every pixel converged: the render is done early.
+            break;
+        }
     }
     RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None }
 }
@@ -186,6 +212,9 @@ fn render_tile(
         for px in 0..r.width {
             let (x, y) = (r.x + px, r.y + py);
             let i = (py * r.width + px) as usize;
+            if !tile.is_active(i) {
+                continue;
+            }
             for k in first_sample..first_sample + count {
                 let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
                 // The camera's 4D set: pixel jitter and the lens point.

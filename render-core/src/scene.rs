@@ -370,7 +370,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if !light_prims.is_empty() {
         plan.enable(
             "lights",
-            format!("{} UsdLux light(s), sampled by power with MIS (power heuristic)", light_prims.len()),
+            format!("{} UsdLux light(s), chosen through a light tree with adaptive splitting, MIS (power heuristic)", light_prims.len()),
             light_prims.clone(),
         );
     }

@@ -224,6 +224,10 @@ impl RenderJob {
                     },
                     ..Default::default()
                 },
+                noise_threshold: match s.noise_threshold {
+                    x if x.is_finite() && x >= 0.0 => x,
+                    x => return Err(bad("noise_threshold", format!("{x} must be finite and not negative (0 = off)"))),
+                },
                 sampler: match pb::Sampler::try_from(s.sampler) {
                     Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,
                     Ok(pb::Sampler::Independent) => render_core::sampling::SamplerKind::Independent,
@@ -232,7 +236,11 @@ impl RenderJob {
             },
             aovs,
             camera_path: s.camera_path.clone(),
-            progressive_format: pb::PixelFormat::try_from(s.progressive_format).unwrap_or(pb::PixelFormat::F32),
+            progressive_format: if s.noise_threshold > 0.0 {
+                pb::PixelFormat::F32
+            } else {
+                pb::PixelFormat::try_from(s.progressive_format).unwrap_or(pb::PixelFormat::F32)
+            },
             threads,
         })
     }
@@ -310,6 +318,7 @@ impl RenderJob {
                         estimated_noise: s.noise,
                         cancelled: stopped.is_some(),
                         skipped_prims: Vec::new(),
+                        mean_spp: s.samples_taken as f64 / (self.settings.width as f64 * self.settings.height as f64).max(1.0),
                     }));
                     return;
                 }
@@ -348,6 +357,8 @@ impl RenderSink for StreamSink<'_> {
             rays_per_second: s.rays as f64 / s.elapsed.max(1e-9),
             estimated_noise: s.noise,
             elapsed_seconds: s.elapsed,
+            active_pixels: s.active_pixels,
+            samples_taken: s.samples_taken,
         };
         if self.tx.blocking_send(Ok(pb::RenderEvent { event: Some(pb::render_event::Event::Progress(progress)) })).is_err() {
             self.cancel.store(true, Ordering::Release);

@@ -98,3 +98,63 @@ fn the_accuracy_report_measures_what_the_knobs_do() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Adaptive sampling on a nearly noiseless image: a white diffuse sphere in the white furnace
+/// is 1 within about 1% on every path (the tessellation's shading normals), far below a 5%
+/// target, so every pixel retires after the minimum 16 samples and the render ends early.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn adaptive_sampling_stops_a_noiseless_image_at_the_minimum() {
+    let opts = RenderOptions { noise_threshold: Some(0.05), aovs: vec!["sampleCount".into()], ..small(24, 24, 256) };
+    let report = render_fixture("furnace.usda", &opts).await;
+    let counts = &report.image.layers["sampleCount"].1;
+    let odd: Vec<(usize, f32)> = counts.iter().copied().enumerate().filter(|(_, c)| *c != 16.0).collect();
+    assert!(
+        odd.is_empty(),
+        "sample counts other than 16: {odd:?}; beauty there {:?}",
+        odd.iter().map(|(i, _)| &report.image.layers["beauty"].1[4 * i..4 * i + 4]).collect::<Vec<_>>()
+    );
+    assert_eq!(report.finished.mean_spp, 16.0);
+    assert_eq!(report.progress.last().unwrap().active_pixels, 0);
+}
+
+/// On the Cornell box, adaptive sampling spends fewer samples where the image is easy, the
+/// pixels it retired are below the target by their own variance, and the image stays
+/// unbiased: its mean matches a uniform render of the full budget within their noise.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn adaptive_sampling_retires_converged_pixels_without_bias() {
+    let threshold = 0.1f32;
+    let (w, h) = (32, 32);
+    let aovs = vec!["sampleCount".to_string(), "variance".to_string()];
+    let base = RenderOptions { max_depth: 7, aovs, ..small(w, h, 256) };
+    let (server, mut conn) = session_with(&load("cornell_box.usda")).await;
+    let uniform = conn.render(&base, |_| {}).await.unwrap();
+    let adaptive = conn.render(&RenderOptions { noise_threshold: Some(threshold), ..base.clone() }, |_| {}).await.unwrap();
+    let img = &adaptive.image;
+    let counts = &img.layers["sampleCount"].1;
+    let (lo, hi) = counts.iter().fold((f32::MAX, 0.0f32), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+    println!(
+        "cornell {w}x{h}, target {threshold}: mean {:.1} spp of 256, per pixel {lo}..{hi}; {}",
+        adaptive.finished.mean_spp,
+        tessera::commands::render::adaptive_summary(&adaptive, threshold)
+    );
+    assert!(lo >= 16.0 && hi <= 256.0 && lo < hi, "sample counts {lo}..{hi}");
+    assert!(adaptive.finished.mean_spp < 0.9 * 256.0, "adaptive sampling saved nothing: {}", adaptive.finished.mean_spp);
+    // Every retired pixel's own relative standard error is below the target.
+    let beauty = &img.layers["beauty"].1;
+    let variance = &img.layers["variance"].1;
+    for i in 0..(w * h) as usize {
+        if counts[i] < hi {
+            let lum = 0.2126 * beauty[4 * i] + 0.7152 * beauty[4 * i + 1] + 0.0722 * beauty[4 * i + 2];
+            assert!(variance[i].sqrt() / (lum + 1e-3) < threshold, "pixel {i}: retired with error {}", variance[i].sqrt() / (lum + 1e-3));
+        }
+    }
+    // Unbiased: the image means agree within a few standard errors of their difference.
+    let mean = |r: &tessera::remote::RenderReport| beauty_rgb(r).iter().sum::<f64>() / (3 * w * h) as f64;
+    let (mu, ma) = (mean(&uniform), mean(&adaptive));
+    let se =
+        |r: &tessera::remote::RenderReport| r.image.layers["variance"].1.iter().map(|&v| v as f64).sum::<f64>().sqrt() / (w * h) as f64;
+    let tolerance = 4.0 * (se(&uniform).powi(2) + se(&adaptive).powi(2)).sqrt() + 1e-4;
+    assert!((mu - ma).abs() < tolerance, "uniform mean {mu}, adaptive {ma}, tolerance {tolerance}");
+    conn.close().await.ok();
+    server.stop().await.unwrap();
+}

@@ -103,7 +103,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         (
             "settings".to_string(),
             format!(
-                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={}",
+                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={}",
                 options.width,
                 options.height,
                 options.spp,
@@ -112,12 +112,17 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 if options.sobol { "sobol" } else { "independent" },
                 if options.energy_compensation { "on" } else { "off" },
                 options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
+                options.noise_threshold.map_or("off".to_string(), |c| c.to_string()),
             ),
         ),
+        ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
     ];
     write_outputs(&job.output, &report, &metadata)?;
     eprint!("{}", convergence_table(&report.progress));
+    if let Some(t) = options.noise_threshold {
+        eprintln!("{}", adaptive_summary(&report, t));
+    }
     println!(
         "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
         job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
@@ -171,14 +176,36 @@ pub fn explain_plan(scene: &Path, frame: Option<f64>) -> Result<String> {
     Ok(out)
 }
 
-/// The render's price, pass by pass: samples, elapsed time and estimated noise (relative
-/// standard error of the image's mean luminance).
+/// The render's price, pass by pass: samples, elapsed time, estimated noise (relative
+/// standard error of the image's mean luminance) and the pixels still sampling.
 pub fn convergence_table(progress: &[pb::Progress]) -> String {
-    let mut out = String::from("convergence:\n  pass    spp   elapsed s   noise %\n");
+    let mut out = String::from("convergence:\n  pass    spp   elapsed s   noise %   active px\n");
     for p in progress {
         // One sample per pixel cannot estimate a variance.
         let noise = if p.spp < 2 { "-".to_string() } else { format!("{:.3}", 100.0 * p.estimated_noise) };
-        out += &format!("  {:>4} {:>6} {:>11.3} {:>9}\n", p.pass_index, p.spp, p.elapsed_seconds, noise);
+        out += &format!("  {:>4} {:>6} {:>11.3} {:>9} {:>11}\n", p.pass_index, p.spp, p.elapsed_seconds, noise, p.active_pixels);
+    }
+    out
+}
+
+/// What adaptive sampling did: samples per pixel on average against the budget, the share of
+/// pixels that reached the target, and the spread of samples over the image (from the
+/// `sampleCount` AOV when it was rendered).
+pub fn adaptive_summary(report: &RenderReport, threshold: f32) -> String {
+    let f = &report.finished;
+    let pixels = (report.image.width as u64 * report.image.height as u64).max(1);
+    let converged = report.progress.last().map_or(0, |p| pixels.saturating_sub(p.active_pixels));
+    let mut out = format!(
+        "adaptive sampling (target {:.2}%): {:.1} spp on average of {} ({:.0}% of the samples), {:.1}% of pixels reached the target",
+        100.0 * threshold,
+        f.mean_spp,
+        f.spp,
+        100.0 * f.mean_spp / f.spp.max(1) as f64,
+        100.0 * converged as f64 / pixels as f64
+    );
+    if let Some((_, counts)) = report.image.layers.get("sampleCount") {
+        let (lo, hi) = counts.iter().fold((f32::MAX, 0.0f32), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        out += &format!("; per pixel {lo:.0} to {hi:.0}");
     }
     out
 }
