@@ -71,6 +71,11 @@ enum Command {
         /// The numbers paths draw: Owen-scrambled Sobol points or independent random numbers.
         #[arg(long, value_enum, default_value_t = SamplerArg::Sobol)]
         sampler: SamplerArg,
+        /// Caustic paths: `full` path tracing (unbiased), or `avoid` them as Imageworks do
+        /// (roughness clamping and transparent shadows through smooth glass: biased, far less
+        /// noisy; see docs/accuracy-vs-time.md for what it costs in error).
+        #[arg(long, value_enum, default_value_t = CausticsArg::Full)]
+        caustics: CausticsArg,
         /// Firefly clamp: limit each indirect contribution's largest component to this value
         /// (off by default; it darkens what it clamps, and the render reports it).
         #[arg(long)]
@@ -125,6 +130,12 @@ enum BenchCommand {
 enum SamplerArg {
     Sobol,
     Independent,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum CausticsArg {
+    Full,
+    Avoid,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -187,6 +198,7 @@ async fn real_main() -> Result<()> {
             energy_compensation,
             frame,
             sampler,
+            caustics,
             clamp,
             noise_threshold,
             quality,
@@ -214,6 +226,7 @@ async fn real_main() -> Result<()> {
                 sobol: sampler == SamplerArg::Sobol,
                 clamp_indirect: clamp,
                 noise_threshold,
+                avoid_caustics: caustics == CausticsArg::Avoid,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");

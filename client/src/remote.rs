@@ -36,6 +36,8 @@ pub struct RenderOptions {
     pub clamp_indirect: Option<f32>,
     /// Adaptive sampling's relative-error target; `None` (the default) is off.
     pub noise_threshold: Option<f32>,
+    /// Caustic avoidance (biased, less noisy) instead of full path tracing.
+    pub avoid_caustics: bool,
 }
 
 impl Default for RenderOptions {
@@ -54,6 +56,7 @@ impl Default for RenderOptions {
             sobol: true,
             clamp_indirect: None,
             noise_threshold: None,
+            avoid_caustics: false,
         }
     }
 }
@@ -146,6 +149,7 @@ impl Connection {
             sampler: if opts.sobol { pb::Sampler::Sobol } else { pb::Sampler::Independent } as i32,
             clamp_indirect: opts.clamp_indirect.unwrap_or(0.0),
             noise_threshold: opts.noise_threshold.unwrap_or(0.0),
+            caustics: if opts.avoid_caustics { pb::Caustics::Avoid } else { pb::Caustics::Full } as i32,
         };
         let mut stream = self
             .client

@@ -8,6 +8,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::PathKind;
+use crate::caustics::{self, CausticMode, RoughnessFloor};
 use crate::film::PixelSample;
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::light::ShadingContext;
@@ -32,11 +33,20 @@ pub struct IntegratorSettings {
     /// Split the radiance into the light-path AOVs (diffuse, specular, transmission,
     /// emission) and record the position: off unless a client asks for them.
     pub light_path_aovs: bool,
+    /// Caustic paths: full path tracing, or Imageworks' avoidance ([`crate::caustics`]).
+    pub caustics: CausticMode,
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        IntegratorSettings { max_depth: 8, rr_start: 5, energy_compensation: true, clamp_indirect: None, light_path_aovs: false }
+        IntegratorSettings {
+            max_depth: 8,
+            rr_start: 5,
+            energy_compensation: true,
+            clamp_indirect: None,
+            light_path_aovs: false,
+            caustics: CausticMode::Full,
+        }
     }
 }
 
@@ -69,6 +79,8 @@ struct PrevVertex {
     delta: bool,
     /// The kind of lobe that sampled the direction, for lights' diffuse/specular multipliers.
     kind: PathKind,
+    /// The roughest lobe there, for caustic avoidance's weighting.
+    roughness: f32,
 }
 
 /// Radiance and first-hit AOVs along a camera ray.
@@ -86,6 +98,8 @@ pub fn trace_path(
     let mut beta = Vec3::ONE;
     let mut ray = camera_ray;
     let mut prev: Option<PrevVertex> = None;
+    // Caustic avoidance: the roughness every later lobe is clamped to.
+    let mut floor = RoughnessFloor::default();
     let lights = &scene.lights;
 
     // MIS weight of a light found by BSDF sampling: 1 from the camera or after a delta lobe.
@@ -141,7 +155,12 @@ pub fn trace_path(
 
         let s = scene.surface(&hit);
         let wo = -ray.dir;
-        let mut bsdf = scene.bsdf(s.material, settings.energy_compensation).clone();
+        let avoid = settings.caustics == CausticMode::Avoid;
+        let level = if avoid { floor.level() } else { 0 };
+        let mut bsdf = scene.bsdf_floored(s.material, settings.energy_compensation, level).clone();
+        // The surface's own roughness (before clamping) weighs transparent shadows against
+        // paths through glass, on both sides of the comparison.
+        let a_roughness = if avoid { scene.bsdf(s.material, settings.energy_compensation).roughness() } else { 0.0 };
         // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
         // their authored orientation (the shading normal's side is outside) so a ray inside
         // glass sees its inside. The geometric normal is turned to the shading normal's side;
@@ -225,9 +244,24 @@ pub fn trace_path(
                             Ray::new(origin, ls.wi)
                         };
                         counters.rays += 1;
-                        if !scene.occluded(&shadow, shadow.tmax) {
-                            let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)) };
-                            let scale = beta * wi_local.z.abs() * ls.li * (w / ls.pdf);
+                        // With caustic avoidance, shadows pass through smooth glass, weighted
+                        // against the paths that refract through it; nothing else samples that
+                        // straight line, so no MIS weight.
+                        let through = if avoid {
+                            caustics::shadow_transmittance(scene, &shadow, shadow.tmax).map(|pass| match pass.crossings {
+                                0 => None,
+                                _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
+                            })
+                        } else {
+                            (!scene.occluded(&shadow, shadow.tmax)).then_some(None)
+                        };
+                        if let Some(glass) = through {
+                            let w = match glass {
+                                Some(_) => 1.0,
+                                None if ls.delta => 1.0,
+                                None => power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)),
+                            };
+                            let scale = beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (w / ls.pdf);
                             let c = clamped(f * scale, depth >= 1, settings.clamp_indirect);
                             l += c;
                             if depth == 0 && settings.light_path_aovs {
@@ -245,7 +279,7 @@ pub fn trace_path(
         }
 
         // Continue the path by sampling the BSDF.
-        let Some((bs, kind)) = bsdf.sample_kind(wo_local, u_lobe, Vec2::new(ub_x, ub_y)) else {
+        let Some((bs, kind, lobe_roughness)) = bsdf.sample_kind(wo_local, u_lobe, Vec2::new(ub_x, ub_y)) else {
             break;
         };
         if depth == 0 {
@@ -256,10 +290,19 @@ pub fn trace_path(
             break;
         }
         beta *= bs.weight;
+        if avoid {
+            // Refracting into smooth glass after a rougher vertex: transparent shadows from
+            // that vertex carry w'(B_t) of this light, so the path keeps 1 − w'(B_t), for
+            // everything inside (total internal reflection included).
+            if let (Some(p), PathKind::Transmission, Some(glass)) = (&prev, kind, scene.shadow_glass(s.material)) {
+                beta *= 1.0 - caustics::transparent_weight(p.roughness, glass.roughness);
+            }
+            floor = floor.after(lobe_roughness);
+        }
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
         }
-        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind });
+        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: a_roughness });
         ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
         depth += 1;
 

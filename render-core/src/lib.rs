@@ -22,6 +22,7 @@
 pub mod bsdf;
 pub mod bvh;
 pub mod camera;
+pub mod caustics;
 pub mod film;
 pub mod geometry;
 pub mod integrator;

@@ -124,6 +124,9 @@ pub struct RenderOutcome {
 pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
     scene.prepare_bsdfs(settings.integrator.energy_compensation);
+    if settings.integrator.caustics == crate::caustics::CausticMode::Avoid {
+        scene.prepare_floored_bsdfs(settings.integrator.energy_compensation);
+    }
     let tiles: Vec<Mutex<TileFilm>> = tiles_centre_out(settings.width, settings.height, settings.tile_size)
         .into_iter()
         .map(|r| Mutex::new(TileFilm::new(r, settings.integrator.light_path_aovs)))
@@ -151,10 +154,10 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
                         let Some(tile) = tiles.get(i) else { return };
                         let mut tile = tile.lock().unwrap();
                         let mut counters = PathCounters::default();
-                        rays.fetch_add(counters.rays, Ordering::Relaxed);
-                        non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
                         let before = tile.sample_totals().1;
                         render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters);
+                        rays.fetch_add(counters.rays, Ordering::Relaxed);
+                        non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
                         paths.fetch_add(tile.sample_totals().1 - before, Ordering::Relaxed);
                         sink.tile(&tile, pass as u32);
                     }

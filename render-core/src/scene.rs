@@ -144,6 +144,11 @@ pub struct CommittedScene {
     /// Each material's BSDF without and with energy compensation, built on first use of each
     /// setting (materials carry no textures yet, so a BSDF does not vary over a surface).
     bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
+    /// The same at each roughness floor of caustic avoidance ([`crate::caustics`]):
+    /// `[level][material]`, built only by renders that avoid caustics.
+    floored_bsdfs: [std::sync::OnceLock<Vec<Vec<crate::bsdf::Bsdf>>>; 2],
+    /// Each material's smooth glass as transparent shadows see it.
+    shadow_glass: Vec<Option<crate::caustics::ShadowGlass>>,
     /// Materials some instance uses: only their lobes' energy tables are built.
     used_materials: Vec<u32>,
     /// Lights and their selection distribution.
@@ -439,6 +444,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
+    let shadow_glass = materials.iter().map(crate::caustics::ShadowGlass::of).collect();
     Ok(CommittedScene {
         meshes,
         blases,
@@ -446,6 +452,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         tlas,
         materials,
         bsdfs: Default::default(),
+        floored_bsdfs: Default::default(),
+        shadow_glass,
         used_materials,
         lights: light_set,
         crossable_lights,
@@ -470,6 +478,36 @@ impl CommittedScene {
             self.used_materials.iter().for_each(|&m| set[m as usize].build_tables());
             set
         })
+    }
+
+    /// The BSDFs at every roughness floor of caustic avoidance (`[level][material]`, level 0
+    /// the materials' own), built on first use.
+    pub fn prepare_floored_bsdfs(&self, energy_compensation: bool) -> &[Vec<crate::bsdf::Bsdf>] {
+        self.floored_bsdfs[energy_compensation as usize].get_or_init(|| {
+            let _span = tracing::info_span!("prepare_floored_bsdfs", energy_compensation).entered();
+            (0..crate::caustics::FLOOR_LEVELS)
+                .map(|level| {
+                    let floor = crate::caustics::RoughnessFloor::of_level(level);
+                    self.materials.iter().map(|m| m.surface.with_roughness_floor(floor).bsdf(energy_compensation)).collect()
+                })
+                .collect()
+        })
+    }
+
+    /// The BSDF of material `index` with every microfacet lobe at least as rough as floor
+    /// `level` (0: the material's own).
+    #[inline]
+    pub fn bsdf_floored(&self, index: u32, energy_compensation: bool, level: usize) -> &crate::bsdf::Bsdf {
+        if level == 0 {
+            return self.bsdf(index, energy_compensation);
+        }
+        &self.prepare_floored_bsdfs(energy_compensation)[level][index as usize]
+    }
+
+    /// Material `index`'s glass as transparent shadows see it (None: opaque to them).
+    #[inline]
+    pub fn shadow_glass(&self, index: u32) -> Option<crate::caustics::ShadowGlass> {
+        self.shadow_glass.get(index as usize).copied().flatten()
     }
 
     /// The BSDF of material `index` (unprepared), with or without energy compensation.

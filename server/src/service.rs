@@ -169,6 +169,9 @@ impl RenderJob {
         if let Some(c) = self.settings.integrator.clamp_indirect {
             w.push(format!("firefly clamp on: indirect contributions above {c} are scaled down (biased, darker)"));
         }
+        if self.settings.integrator.caustics == render_core::caustics::CausticMode::Avoid {
+            w.push("caustics avoided: light through smooth glass arrives unfocused and unbent (biased, far less noisy)".into());
+        }
         if !self.settings.integrator.energy_compensation {
             w.push("energy compensation off: rough surfaces lose the energy of multiple scattering".into());
         }
@@ -221,6 +224,11 @@ impl RenderJob {
                         0.0 => None,
                         x if x.is_finite() && x > 0.0 => Some(x),
                         x => return Err(bad("clamp_indirect", format!("{x} must be positive and finite (0 = off)"))),
+                    },
+                    caustics: match pb::Caustics::try_from(s.caustics) {
+                        Ok(pb::Caustics::Full) => render_core::caustics::CausticMode::Full,
+                        Ok(pb::Caustics::Avoid) => render_core::caustics::CausticMode::Avoid,
+                        Err(_) => return Err(bad("caustics", format!("unknown caustics mode {}", s.caustics))),
                     },
                     ..Default::default()
                 },

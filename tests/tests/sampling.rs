@@ -114,6 +114,9 @@ async fn adaptive_sampling_stops_a_noiseless_image_at_the_minimum() {
         odd.iter().map(|(i, _)| &report.image.layers["beauty"].1[4 * i..4 * i + 4]).collect::<Vec<_>>()
     );
     assert_eq!(report.finished.mean_spp, 16.0);
+    // The counters see exactly the samples taken, each at least one ray.
+    assert_eq!(report.finished.paths, 16 * 24 * 24);
+    assert!(report.finished.rays >= report.finished.paths, "rays {} for {} paths", report.finished.rays, report.finished.paths);
     assert_eq!(report.progress.last().unwrap().active_pixels, 0);
 }
 

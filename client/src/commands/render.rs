@@ -103,7 +103,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         (
             "settings".to_string(),
             format!(
-                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={}",
+                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={} caustics={}",
                 options.width,
                 options.height,
                 options.spp,
@@ -113,6 +113,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 if options.energy_compensation { "on" } else { "off" },
                 options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
                 options.noise_threshold.map_or("off".to_string(), |c| c.to_string()),
+                if options.avoid_caustics { "avoid" } else { "full" },
             ),
         ),
         ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),

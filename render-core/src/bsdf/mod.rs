@@ -29,7 +29,7 @@ pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
-pub use thin::ThinDielectric;
+pub use thin::{ThinDielectric, sheet_series};
 
 use glam::{Vec2, Vec3};
 
@@ -169,6 +169,24 @@ impl Lobe {
             Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
             Lobe::ThinDielectric(t) => t.flags(),
             Lobe::Fabric(_) => Fabric::FLAGS,
+        }
+    }
+
+    /// How rough the lobe is, in [0, 1]: its microfacet roughness (the larger axis), 1 for
+    /// diffuse-like lobes. Caustic avoidance compares roughness along a path.
+    pub fn roughness(&self) -> f32 {
+        let r = |a: f32| a.max(0.0).sqrt().min(1.0);
+        match self {
+            Lobe::Lambert(_)
+            | Lobe::DisneyDiffuse(_)
+            | Lobe::DiffuseTransmission(_)
+            | Lobe::Sheen(_)
+            | Lobe::CharlieSheen(_)
+            | Lobe::Fabric(_) => 1.0,
+            Lobe::GgxReflection(g) => r(g.ggx.ax.max(g.ggx.ay)),
+            Lobe::Dielectric(d) => r(d.ggx.ax.max(d.ggx.ay)),
+            Lobe::ThinDielectric(t) => r(t.reflect.ax.max(t.reflect.ay)),
+            Lobe::Clearcoat(c) => r(c.alpha),
         }
     }
 
@@ -337,10 +355,17 @@ impl Bsdf {
         out
     }
 
-    /// [`Bsdf::sample`], also saying which kind of lobe produced the sample.
-    pub fn sample_kind(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, PathKind)> {
+    /// [`Bsdf::sample`], also saying which kind of lobe produced the sample and how rough
+    /// that lobe is.
+    pub fn sample_kind(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, PathKind, f32)> {
         let (s, i) = self.sample_lobe(wo, u_lobe, u)?;
-        Some((s, self.lobes[i]?.kind(wo, s.wi)))
+        let lobe = self.lobes[i]?;
+        Some((s, lobe.kind(wo, s.wi), lobe.roughness()))
+    }
+
+    /// The roughest lobe's roughness (0 for an empty BSDF).
+    pub fn roughness(&self) -> f32 {
+        self.lobes().map(|(_, l)| l.roughness()).fold(0.0, f32::max)
     }
 
     /// Picks a lobe with `u_lobe`, samples it with `u`, and returns the one-sample MIS

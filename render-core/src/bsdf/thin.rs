@@ -51,6 +51,19 @@ pub fn thin_roughness_scale(eta: f32) -> f32 {
     (3.7 * (eta - 1.0) * (eta - 0.5).powi(2) / eta.powi(3)).max(0.0).sqrt()
 }
 
+/// (R, T) of a flat sheet of IOR `eta` (≥ 1) and head-on crossing colour `a0` at incidence
+/// cosine `c`: the slides' series.
+#[inline]
+pub fn sheet_series(eta: f32, a0: Vec3, c: f32) -> [Vec3; 2] {
+    let f = fresnel::dielectric(c.clamp(0.0, 1.0), eta);
+    let cos_t = (1.0 - (1.0 - c * c) / (eta * eta)).max(1e-4).sqrt();
+    let a = a0.powf(1.0 / cos_t);
+    let denom = Vec3::ONE - f * f * a * a;
+    let r = f + (1.0 - f) * (1.0 - f) * f * a * a / denom;
+    let t = (1.0 - f) * (1.0 - f) * a / denom;
+    [r, t]
+}
+
 /// Mirror through the sheet's plane.
 #[inline]
 fn mirror(w: Vec3) -> Vec3 {
@@ -110,13 +123,7 @@ impl ThinDielectric {
     /// (R, T) of the series for a microfacet cosine `c`.
     #[inline]
     fn series(&self, c: f32) -> [Vec3; 2] {
-        let f = fresnel::dielectric(c.clamp(0.0, 1.0), self.eta);
-        let cos_t = (1.0 - (1.0 - c * c) / (self.eta * self.eta)).max(1e-4).sqrt();
-        let a = self.a0.powf(1.0 / cos_t);
-        let denom = Vec3::ONE - f * f * a * a;
-        let r = f + (1.0 - f) * (1.0 - f) * f * a * a / denom;
-        let t = (1.0 - f) * (1.0 - f) * a / denom;
-        [r, t]
+        sheet_series(self.eta, self.a0, c)
     }
 
     fn ggx(&self, half: usize) -> Ggx {

@@ -381,6 +381,33 @@ impl Uber {
         }
     }
 
+    /// The same material with every microfacet lobe at least `floor` rough (caustic
+    /// avoidance's roughness clamping, [`crate::caustics`]); diffuse, sheen and fabric lobes
+    /// have no roughness to clamp.
+    pub fn with_roughness_floor(&self, floor: f32) -> Uber {
+        let mut u = *self;
+        let clamp = |s: &mut Specular| {
+            s.roughness = s.roughness.max(floor);
+            s.roughness2 = s.roughness2.max(floor);
+        };
+        clamp(&mut u.metal.params);
+        if let Some(s) = u.plastic.params.specular.as_mut() {
+            clamp(s);
+        }
+        u.glass.params.roughness = u.glass.params.roughness.max(floor);
+        u.clearcoat.params = match u.clearcoat.params {
+            // Disney's coat: α = lerp(0.1, 0.001, gloss); roughness r ↔ α = r², so cap the gloss.
+            ClearcoatParams::Disney { gloss } => {
+                let max_gloss = ((0.1 - floor * floor) / 0.099).clamp(0.0, 1.0);
+                ClearcoatParams::Disney { gloss: gloss.min(max_gloss) }
+            }
+            ClearcoatParams::Dielectric { ior, roughness, color, thickness } => {
+                ClearcoatParams::Dielectric { ior, roughness: roughness.max(floor), color, thickness }
+            }
+        };
+        u
+    }
+
     /// True when a lobe transmits light through a solid's boundary (bending it).
     pub fn has_refraction(&self) -> bool {
         self.glass.weight > 0.0 && !self.glass.params.thin
