@@ -76,6 +76,10 @@ enum Command {
         /// noisy; see docs/accuracy-vs-time.md for what it costs in error).
         #[arg(long, value_enum, default_value_t = CausticsArg::Full)]
         caustics: CausticsArg,
+        /// Run every effect whether or not the scene calls for it: the same image, slower
+        /// (what `tessera bench effects` measures the render plan against).
+        #[arg(long)]
+        force_all_effects: bool,
         /// Firefly clamp: limit each indirect contribution's largest component to this value
         /// (off by default; it darkens what it clamps, and the render reports it).
         #[arg(long)]
@@ -123,6 +127,23 @@ enum BenchCommand {
         /// Samples per pixel of the reference renders.
         #[arg(long, default_value_t = 8192)]
         reference_spp: u32,
+    },
+    /// What the render plan saves: each fixture rendered as planned and with every effect
+    /// forced on; prints the speed-up and the difference between the images (equal within
+    /// noise). Writes docs/render-plan.md.
+    Effects {
+        /// The report to write.
+        #[arg(long, default_value = "docs/render-plan.md")]
+        out: PathBuf,
+        /// The fixtures directory.
+        #[arg(long, default_value = "fixtures")]
+        fixtures: PathBuf,
+        /// Image edge.
+        #[arg(long, default_value_t = 96)]
+        size: u32,
+        /// Samples per pixel.
+        #[arg(long, default_value_t = 32)]
+        spp: u32,
     },
 }
 
@@ -177,6 +198,13 @@ async fn real_main() -> Result<()> {
             print!("{report}");
             eprintln!("wrote {}", out.display());
         }
+        Command::Bench { what: BenchCommand::Effects { out, fixtures, size, spp } } => {
+            let names = tessera::commands::effects::FIXTURES.iter().map(|s| s.to_string()).collect();
+            let bench = tessera::commands::effects::EffectsBench { fixtures, names, size, spp, out: Some(out.clone()) };
+            let (report, _) = tessera::commands::effects::effects(&bench)?;
+            print!("{report}");
+            eprintln!("wrote {}", out.display());
+        }
         Command::Inspect { scene, json: _, frame } => {
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
@@ -199,6 +227,7 @@ async fn real_main() -> Result<()> {
             frame,
             sampler,
             caustics,
+            force_all_effects,
             clamp,
             noise_threshold,
             quality,
@@ -227,6 +256,7 @@ async fn real_main() -> Result<()> {
                 clamp_indirect: clamp,
                 noise_threshold,
                 avoid_caustics: caustics == CausticsArg::Avoid,
+                force_all_effects,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");

@@ -38,6 +38,8 @@ pub struct RenderOptions {
     pub noise_threshold: Option<f32>,
     /// Caustic avoidance (biased, less noisy) instead of full path tracing.
     pub avoid_caustics: bool,
+    /// Run every effect whether or not the scene calls for it (benchmarking the plan).
+    pub force_all_effects: bool,
 }
 
 impl Default for RenderOptions {
@@ -57,6 +59,7 @@ impl Default for RenderOptions {
             clamp_indirect: None,
             noise_threshold: None,
             avoid_caustics: false,
+            force_all_effects: false,
         }
     }
 }
@@ -150,6 +153,7 @@ impl Connection {
             clamp_indirect: opts.clamp_indirect.unwrap_or(0.0),
             noise_threshold: opts.noise_threshold.unwrap_or(0.0),
             caustics: if opts.avoid_caustics { pb::Caustics::Avoid } else { pb::Caustics::Full } as i32,
+            force_all_effects: opts.force_all_effects,
         };
         let mut stream = self
             .client

@@ -35,6 +35,10 @@ pub struct IntegratorSettings {
     pub light_path_aovs: bool,
     /// Caustic paths: full path tracing, or Imageworks' avoidance ([`crate::caustics`]).
     pub caustics: CausticMode,
+    /// Run every piece of machinery whether or not the scene calls for it (every lobe at
+    /// weight 0, every energy table, tangent frames, closest-hit shadow rays, light-path
+    /// AOVs), for the benchmark that measures what the render plan saves. Same image.
+    pub force_all_effects: bool,
 }
 
 impl Default for IntegratorSettings {
@@ -46,6 +50,7 @@ impl Default for IntegratorSettings {
             clamp_indirect: None,
             light_path_aovs: false,
             caustics: CausticMode::Full,
+            force_all_effects: false,
         }
     }
 }
@@ -157,7 +162,12 @@ pub fn trace_path(
         let wo = -ray.dir;
         let avoid = settings.caustics == CausticMode::Avoid;
         let level = if avoid { floor.level() } else { 0 };
-        let mut bsdf = scene.bsdf_floored(s.material, settings.energy_compensation, level).clone();
+        let force = settings.force_all_effects;
+        let mut bsdf = if force {
+            scene.bsdf_with_every_lobe(s.material, settings.energy_compensation).clone()
+        } else {
+            scene.bsdf_floored(s.material, settings.energy_compensation, level).clone()
+        };
         // The surface's own roughness (before clamping) weighs transparent shadows against
         // paths through glass, on both sides of the comparison.
         let a_roughness = if avoid { scene.bsdf(s.material, settings.energy_compensation).roughness() } else { 0.0 };
@@ -187,7 +197,7 @@ pub fn trace_path(
             comp[if depth == 0 { EMISSION } else { first }] += c;
         }
 
-        let frame = if bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
+        let frame = if force || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
         let wo_local = frame.to_local(wo);
         if depth == 0 {
             out.alpha = 1.0;
@@ -215,7 +225,7 @@ pub fn trace_path(
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
                     // A light with diffuse/specular multipliers weighs each kind of lobe apart.
-                    let parts = (light.has_multipliers() || (depth == 0 && settings.light_path_aovs)).then(|| {
+                    let parts = (light.has_multipliers() || (depth == 0 && (settings.light_path_aovs || force))).then(|| {
                         let mut parts = bsdf.eval_by_kind(wo_local, wi_local);
                         for (k, kind) in [PathKind::Diffuse, PathKind::Specular, PathKind::Transmission].into_iter().enumerate() {
                             parts[k] *= light.multiplier(kind);
@@ -252,6 +262,9 @@ pub fn trace_path(
                                 0 => None,
                                 _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
                             })
+                        } else if force {
+                            // The transparent-shadow walk, with glass still opaque.
+                            caustics::shadow_transmittance(scene, &shadow, shadow.tmax).filter(|p| p.crossings == 0).map(|_| None)
                         } else {
                             (!scene.occluded(&shadow, shadow.tmax)).then_some(None)
                         };
@@ -264,7 +277,7 @@ pub fn trace_path(
                             let scale = beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (w / ls.pdf);
                             let c = clamped(f * scale, depth >= 1, settings.clamp_indirect);
                             l += c;
-                            if depth == 0 && settings.light_path_aovs {
+                            if depth == 0 && (settings.light_path_aovs || force) {
                                 // Direct light at the first surface, split by the lobes that reflect it.
                                 for (k, part) in parts.unwrap_or_default().into_iter().enumerate() {
                                     comp[k] += part * scale;

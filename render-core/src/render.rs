@@ -124,12 +124,15 @@ pub struct RenderOutcome {
 pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
     scene.prepare_bsdfs(settings.integrator.energy_compensation);
+    if settings.integrator.force_all_effects {
+        scene.bsdf_with_every_lobe(0, settings.integrator.energy_compensation);
+    }
     if settings.integrator.caustics == crate::caustics::CausticMode::Avoid {
         scene.prepare_floored_bsdfs(settings.integrator.energy_compensation);
     }
     let tiles: Vec<Mutex<TileFilm>> = tiles_centre_out(settings.width, settings.height, settings.tile_size)
         .into_iter()
-        .map(|r| Mutex::new(TileFilm::new(r, settings.integrator.light_path_aovs)))
+        .map(|r| Mutex::new(TileFilm::new(r, settings.integrator.light_path_aovs || settings.integrator.force_all_effects)))
         .collect();
     let rays = AtomicU64::new(0);
     let non_finite = AtomicU64::new(0);

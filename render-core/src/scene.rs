@@ -147,6 +147,8 @@ pub struct CommittedScene {
     /// The same at each roughness floor of caustic avoidance ([`crate::caustics`]):
     /// `[level][material]`, built only by renders that avoid caustics.
     floored_bsdfs: [std::sync::OnceLock<Vec<Vec<crate::bsdf::Bsdf>>>; 2],
+    /// Each material's BSDF with every lobe (`force_all_effects`), built on first use.
+    every_lobe_bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
     /// Each material's smooth glass as transparent shadows see it.
     shadow_glass: Vec<Option<crate::caustics::ShadowGlass>>,
     /// Materials some instance uses: only their lobes' energy tables are built.
@@ -453,6 +455,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         materials,
         bsdfs: Default::default(),
         floored_bsdfs: Default::default(),
+        every_lobe_bsdfs: Default::default(),
         shadow_glass,
         used_materials,
         lights: light_set,
@@ -502,6 +505,16 @@ impl CommittedScene {
             return self.bsdf(index, energy_compensation);
         }
         &self.prepare_floored_bsdfs(energy_compensation)[level][index as usize]
+    }
+
+    /// Material `index`'s BSDF holding every lobe the uber-material can build (unused ones at
+    /// weight 0), with all their energy tables built: the cost without a render plan.
+    pub fn bsdf_with_every_lobe(&self, index: u32, energy_compensation: bool) -> &crate::bsdf::Bsdf {
+        &self.every_lobe_bsdfs[energy_compensation as usize].get_or_init(|| {
+            let set: Vec<crate::bsdf::Bsdf> = self.materials.iter().map(|m| m.surface.bsdf_with_every_lobe(energy_compensation)).collect();
+            set.iter().for_each(|b| b.build_tables());
+            set
+        })[index as usize]
     }
 
     /// Material `index`'s glass as transparent shadows see it (None: opaque to them).

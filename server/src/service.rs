@@ -230,6 +230,7 @@ impl RenderJob {
                         Ok(pb::Caustics::Avoid) => render_core::caustics::CausticMode::Avoid,
                         Err(_) => return Err(bad("caustics", format!("unknown caustics mode {}", s.caustics))),
                     },
+                    force_all_effects: s.force_all_effects,
                     ..Default::default()
                 },
                 noise_threshold: match s.noise_threshold {

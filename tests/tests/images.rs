@@ -76,3 +76,28 @@ fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
     assert!(cornell.contains("+ lights") && cornell.contains("/World/Lights/CeilingLight"), "{cornell}");
     assert!(!cornell.contains("+ transmission"), "a scene without glass pays nothing for it: {cornell}");
 }
+
+/// The render plan changes the price, not the picture: with every effect forced on, each
+/// fixture renders the same image within noise (planned and forced, of different seeds,
+/// differ no more than two planned renders of different seeds, with 50% slack).
+#[test]
+fn forcing_every_effect_changes_nothing_but_the_time() {
+    let bench = tessera::commands::effects::EffectsBench {
+        fixtures: fixture(""),
+        names: vec!["cornell_box.usda".into(), "materials/showcase.usda".into(), "furnace_rough_glass.usda".into()],
+        size: 48,
+        spp: 16,
+        out: None,
+    };
+    let (report, rows) = tessera::commands::effects::effects(&bench).expect("the benchmark runs");
+    println!("{report}");
+    for r in &rows {
+        assert!(
+            r.difference < 1.5 * r.noise + 1e-6,
+            "{}: planned vs forced {:.3e}, between seeds {:.3e}",
+            r.fixture,
+            r.difference,
+            r.noise
+        );
+    }
+}

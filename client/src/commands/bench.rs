@@ -375,7 +375,7 @@ fn plot_curves(path: &Path, curves: &[(&str, Vec<Row>)]) -> Result<()> {
     Ok(())
 }
 
-fn today() -> String {
+pub(crate) fn today() -> String {
     std::process::Command::new("date")
         .arg("+%Y-%m-%d")
         .output()
@@ -384,7 +384,7 @@ fn today() -> String {
         .unwrap_or_else(|| "today".into())
 }
 
-fn machine_description() -> String {
+pub(crate) fn machine_description() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))

@@ -1,5 +1,6 @@
 //! The CLI's subcommands.
 
 pub mod bench;
+pub mod effects;
 pub mod inspect;
 pub mod render;

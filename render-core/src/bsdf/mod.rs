@@ -214,7 +214,7 @@ pub enum PathKind {
 }
 
 /// Most lobes one material instance may hold.
-pub const MAX_LOBES: usize = 10;
+pub const MAX_LOBES: usize = 14;
 /// Most coats one material instance may stack.
 pub const MAX_COATS: usize = 3;
 
@@ -228,6 +228,9 @@ pub struct Bsdf {
     /// Coats over the lobes before them, with the index of their own lobe (see
     /// [`Bsdf::coat_with`]).
     coats: [Option<(usize, Coat)>; MAX_COATS],
+    /// Keep lobes of weight 0 (the `force_all_effects` benchmark's uber-shader that pays for
+    /// every lobe whether or not the material uses it).
+    keep_zero: bool,
 }
 
 impl Bsdf {
@@ -239,7 +242,7 @@ impl Bsdf {
     /// Adds a lobe scaled by `weight`; zero-weight lobes are not added, and lobes past
     /// [`MAX_LOBES`] are ignored (a material never builds that many).
     pub fn push_weighted(&mut self, lobe: Lobe, weight: f32) {
-        if self.count < MAX_LOBES && weight > 0.0 && weight.is_finite() {
+        if self.count < MAX_LOBES && (weight > 0.0 || (self.keep_zero && weight == 0.0)) && weight.is_finite() {
             self.lobes[self.count] = Some(lobe);
             self.weights[self.count] = weight;
             self.count += 1;
@@ -253,7 +256,7 @@ impl Bsdf {
     pub fn coat_with(&mut self, coat: Coat, compensate: bool) {
         let (lobe, weight) = coat.lobe(compensate);
         let Some(slot) = self.coats.iter_mut().find(|c| c.is_none()) else { return };
-        if weight > 0.0 && self.count < MAX_LOBES {
+        if (weight > 0.0 || self.keep_zero) && self.count < MAX_LOBES {
             *slot = Some((self.count, coat));
             self.push_weighted(lobe, weight);
         }
@@ -269,6 +272,11 @@ impl Bsdf {
             }
         }
         scale
+    }
+
+    /// A BSDF that keeps zero-weight lobes (see `keep_zero`).
+    pub fn keeping_zero_lobes() -> Self {
+        Bsdf { keep_zero: true, ..Default::default() }
     }
 
     /// Number of lobes.

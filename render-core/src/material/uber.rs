@@ -416,11 +416,22 @@ impl Uber {
     /// The BSDF, holding only its non-zero lobes, in the order: plastic (diffuse, diffuse
     /// transmission, specular, Disney sheen), metal, glass, fabric, then the coats.
     pub fn bsdf(&self, compensate: bool) -> Bsdf {
-        let mut bsdf = Bsdf::default();
+        self.build_bsdf(compensate, false)
+    }
+
+    /// The BSDF with every lobe the uber-material can build, those the material does not use
+    /// at weight 0: what an uber-shader without a render plan would evaluate. The image is
+    /// the same; `tessera bench effects` measures what the plan saves.
+    pub fn bsdf_with_every_lobe(&self, compensate: bool) -> Bsdf {
+        self.build_bsdf(compensate, true)
+    }
+
+    fn build_bsdf(&self, compensate: bool, every: bool) -> Bsdf {
+        let mut bsdf = if every { Bsdf::keeping_zero_lobes() } else { Bsdf::default() };
         let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
         let spec_scale = finite(self.specular_control);
         let plastic_w = finite(self.plastic.weight);
-        if plastic_w > 0.0 {
+        if plastic_w > 0.0 || every {
             let p = &self.plastic.params;
             let coupling = match p.specular {
                 Some(s) if compensate => {
@@ -442,29 +453,36 @@ impl Uber {
                 plastic_w * (1.0 - dt) * scale,
             );
             bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
-            if let Some(s) = p.specular {
-                s.push(&mut bsdf, plastic_w * spec_scale, compensate);
+            match p.specular {
+                Some(s) => s.push(&mut bsdf, plastic_w * spec_scale, compensate),
+                None if every => Specular::default().push(&mut bsdf, 0.0, compensate),
+                None => {}
             }
-            if p.disney_sheen.max_element() > 0.0 {
+            if p.disney_sheen.max_element() > 0.0 || every {
                 bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.disney_sheen }), plastic_w);
             }
         }
         let metal_w = finite(self.metal.weight);
-        if metal_w > 0.0 {
+        if metal_w > 0.0 || every {
             self.metal.params.push(&mut bsdf, metal_w * spec_scale, compensate);
         }
         let glass_w = finite(self.glass.weight);
-        if glass_w > 0.0 {
+        if glass_w > 0.0 || every {
             let g = &self.glass.params;
-            let lobe = if g.thin {
-                Lobe::ThinDielectric(ThinDielectric::new(g.roughness, g.anisotropic, g.ior, g.color, compensate))
-            } else {
-                Lobe::Dielectric(Dielectric::new(g.roughness, g.anisotropic, g.ior, g.color).compensated(compensate))
-            };
-            bsdf.push_weighted(lobe, glass_w);
+            if g.thin || every {
+                let w = if g.thin { glass_w } else { 0.0 };
+                bsdf.push_weighted(Lobe::ThinDielectric(ThinDielectric::new(g.roughness, g.anisotropic, g.ior, g.color, compensate)), w);
+            }
+            if !g.thin || every {
+                let w = if g.thin { 0.0 } else { glass_w };
+                bsdf.push_weighted(
+                    Lobe::Dielectric(Dielectric::new(g.roughness, g.anisotropic, g.ior, g.color).compensated(compensate)),
+                    w,
+                );
+            }
         }
         let fabric_w = finite(self.fabric.weight);
-        if fabric_w > 0.0 {
+        if fabric_w > 0.0 || every {
             // The normalised cone reflects at most 1 and the base is a Lambertian of albedo ≤ 1,
             // so their convex combination conserves energy.
             let f = &self.fabric.params;
@@ -473,7 +491,7 @@ impl Uber {
             bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
         }
         let coat_w = finite(self.clearcoat.weight) * spec_scale;
-        if coat_w > 0.0 {
+        if coat_w > 0.0 || every {
             let coat = match self.clearcoat.params {
                 ClearcoatParams::Disney { gloss } => Coat::Disney(Clearcoat::new(coat_w, gloss)),
                 ClearcoatParams::Dielectric { ior, roughness, color, thickness } => {
@@ -483,7 +501,7 @@ impl Uber {
             bsdf.coat_with(coat, compensate);
         }
         let sheen_w = finite(self.sheen.weight);
-        if sheen_w > 0.0 {
+        if sheen_w > 0.0 || every {
             let s = &self.sheen.params;
             bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
         }
