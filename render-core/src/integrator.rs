@@ -15,6 +15,7 @@ use crate::light::ShadingContext;
 use crate::math::{Frame, is_finite};
 use crate::sampling::{PathSampler, power_heuristic};
 use crate::scene::CommittedScene;
+use crate::subsurface::{Medium, Step};
 
 /// Path-tracing settings.
 #[derive(Clone, Copy, Debug)]
@@ -54,6 +55,9 @@ impl Default for IntegratorSettings {
         }
     }
 }
+
+/// Most scattering events one path takes inside subsurface media.
+const MAX_MEDIUM_STEPS: u32 = 4096;
 
 /// Index of the emission component in [`PixelSample::components`].
 const EMISSION: usize = 3;
@@ -120,9 +124,48 @@ pub fn trace_path(
     let mut comp = [Vec3::ZERO; 4];
     let mut first = EMISSION;
     let mut depth = 0u32;
+    // Subsurface: the medium the path is inside, and the scattering events taken in it.
+    let mut medium: Option<Medium> = None;
+    let mut medium_steps = 0u32;
     loop {
         counters.rays += 1;
         let hit = scene.intersect(&ray);
+        if let Some(m) = medium {
+            // Inside a subsurface medium: scatter before the boundary, or reach it.
+            let [u_channel, u_t, u_x, u_y] = rng.next_4d();
+            match m.step(hit.map_or(f32::INFINITY, |h| h.t), u_channel, u_t) {
+                Step::Scatter { t, weight } => {
+                    beta *= weight;
+                    medium_steps += 1;
+                    if medium_steps > MAX_MEDIUM_STEPS || beta == Vec3::ZERO || !is_finite(beta) {
+                        break;
+                    }
+                    if medium_steps > 8 {
+                        // Russian roulette on the throughput: deep walks in bright media are
+                        // long, most of their steps carry little.
+                        let q = (1.0 - beta.max_element()).clamp(0.0, 0.95);
+                        let [u_rr, ..] = rng.next_4d();
+                        if u_rr < q {
+                            break;
+                        }
+                        beta /= 1.0 - q;
+                    }
+                    let p = ray.origin + ray.dir * t;
+                    let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
+                    let kind = prev.map_or(PathKind::Transmission, |p| p.kind);
+                    prev = Some(PrevVertex {
+                        ctx: ShadingContext { p, n: Vec3::ZERO },
+                        bsdf_pdf: m.phase_pdf(ray.dir, wi),
+                        delta: false,
+                        kind,
+                        roughness: 1.0,
+                    });
+                    ray = Ray::new(p, wi);
+                    continue;
+                }
+                Step::Surface { weight } => beta *= weight,
+            }
+        }
         let t_hit = hit.map_or(ray.tmax, |h| h.t);
 
         // Area lights crossed before the surface (they do not occlude).
@@ -303,6 +346,13 @@ pub fn trace_path(
             break;
         }
         beta *= bs.weight;
+        if kind == PathKind::Transmission {
+            // Crossing a subsurface material's boundary: inwards enters its medium (against
+            // the outward geometric normal), outwards leaves it.
+            if let Some(m) = scene.medium(s.material) {
+                medium = (wi.dot(ng) < 0.0).then_some(m);
+            }
+        }
         if avoid {
             // Refracting into smooth glass after a rougher vertex: transparent shadows from
             // that vertex carry w'(B_t) of this light, so the path keeps 1 − w'(B_t), for

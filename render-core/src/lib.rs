@@ -33,5 +33,6 @@ pub mod plan;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod subsurface;
 
 pub use glam;

@@ -149,6 +149,8 @@ pub struct CommittedScene {
     floored_bsdfs: [std::sync::OnceLock<Vec<Vec<crate::bsdf::Bsdf>>>; 2],
     /// Each material's BSDF with every lobe (`force_all_effects`), built on first use.
     every_lobe_bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
+    /// Each material's subsurface medium.
+    media: Vec<Option<crate::subsurface::Medium>>,
     /// Each material's smooth glass as transparent shadows see it.
     shadow_glass: Vec<Option<crate::caustics::ShadowGlass>>,
     /// Materials some instance uses: only their lobes' energy tables are built.
@@ -426,27 +428,17 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
     plan.skipped = ["textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
-    let subsurface: Vec<&String> = desc
-        .materials
-        .keys()
-        .filter(|m| {
-            let u = &materials[material_index[m.as_str()] as usize].surface;
-            u.plastic.weight > 0.0 && u.plastic.params.scattering_radius > 0.0
-        })
-        .collect();
-    plan.skipped.push(if subsurface.is_empty() {
-        "subsurface: not supported yet in this build".to_string()
-    } else {
-        format!(
-            "subsurface: not supported yet; {} render with a Lambertian base instead",
-            subsurface.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
-        )
-    });
+    let subsurface: Vec<String> =
+        desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].medium().is_some()).cloned().collect();
+    if !subsurface.is_empty() {
+        plan.enable("subsurface", "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)", subsurface);
+    }
 
     let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     let shadow_glass = materials.iter().map(crate::caustics::ShadowGlass::of).collect();
+    let media = materials.iter().map(|m| m.medium()).collect();
     Ok(CommittedScene {
         meshes,
         blases,
@@ -457,6 +449,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         floored_bsdfs: Default::default(),
         every_lobe_bsdfs: Default::default(),
         shadow_glass,
+        media,
         used_materials,
         lights: light_set,
         crossable_lights,
@@ -515,6 +508,12 @@ impl CommittedScene {
             set.iter().for_each(|b| b.build_tables());
             set
         })[index as usize]
+    }
+
+    /// The scattering medium behind material `index`'s surface (subsurface scattering).
+    #[inline]
+    pub fn medium(&self, index: u32) -> Option<crate::subsurface::Medium> {
+        self.media.get(index as usize).copied().flatten()
     }
 
     /// Material `index`'s glass as transparent shadows see it (None: opaque to them).

@@ -49,3 +49,15 @@ fn showcase_plan_lists_every_effect_by_material() {
     let transmission = plan.lines().skip_while(|l| !l.contains("+ transmission ")).nth(1).unwrap();
     assert!(transmission.contains("/World/Looks/DirtyGlass"), "{plan}");
 }
+
+/// Subsurface scattering with a tiny mean free path behaves like its diffuse counterpart: a
+/// sphere whose medium shows colour C = 0.5 (by the van de Hulst inversion) renders 0.5 in the
+/// white furnace, as a Lambertian sphere of albedo 0.5 does, within the formula's accuracy.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn subsurface_with_a_tiny_mean_free_path_looks_like_its_diffuse_colour() {
+    let mean = furnace_mean("materials/furnace_subsurface.usda").await;
+    println!("subsurface sphere, C = 0.5, mfp = radius/1000: furnace mean {mean}");
+    assert!((mean - 0.5).abs() < 0.03, "subsurface sphere renders {mean}, its diffuse counterpart 0.5");
+    let plan = tessera::commands::render::explain_plan(&fixture("materials/furnace_subsurface.usda"), None).unwrap();
+    assert!(plan.contains("+ subsurface") && plan.contains("/World/Looks/Skin"), "{plan}");
+}

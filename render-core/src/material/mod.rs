@@ -72,6 +72,11 @@ impl Material {
         self.cut_out || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !self.is_emissive())
     }
 
+    /// The subsurface medium behind the surface, if any.
+    pub fn medium(&self) -> Option<crate::subsurface::Medium> {
+        self.surface.medium()
+    }
+
     /// True when the material emits light.
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0

@@ -126,9 +126,15 @@ pub const SHADERS: &[Shader] = &[
                 "scatteringRadius",
                 0.0,
                 (0.0, 1e6),
-                "mean free path of a subsurface medium; not rendered yet (Lambertian base), reported when set",
+                "mean free path of a subsurface medium behind a dielectric boundary (0: Lambertian); `albedo` is then the colour the medium shows",
             ),
-            color("scatteringColor", 0.8, "subsurface colour; used with scatteringRadius"),
+            color("scatteringColor", 1.0, "per-channel scale of scatteringRadius: how far each colour travels"),
+            float(
+                "scatteringAnisotropy",
+                0.0,
+                (-0.9, 0.9),
+                "Henyey-Greenstein eccentricity of the medium (the albedo inversion accounts for it)",
+            ),
         ],
         shared: true,
     },
@@ -232,13 +238,6 @@ pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Option<Materi
             let eta = v.f("refractiveIndex");
             let dt = v.c("diffuseTransmission");
             let share = dt.max_element();
-            if v.f("scatteringRadius") > 0.0 {
-                report.warnings.push(format!(
-                    "{}: subsurface scattering (scatteringRadius {}) is not rendered yet; the albedo is used as a Lambertian base",
-                    node.path,
-                    v.f("scatteringRadius")
-                ));
-            }
             let plastic = Plastic {
                 diffuse: v.c("albedo"),
                 lambert: true,
@@ -247,6 +246,8 @@ pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Option<Materi
                 specular: (eta > 1.0).then(|| specular(SpecularFresnel::Dielectric { eta }, v.f("roughness"), v.f("anisotropy"))),
                 coupling_eta: eta,
                 scattering_radius: v.f("scatteringRadius"),
+                scattering_color: v.c("scatteringColor"),
+                scattering_anisotropy: v.f("scatteringAnisotropy"),
                 ..Plastic::default()
             };
             u.plastic = Weighted { weight: 1.0, params: plastic };
@@ -399,8 +400,8 @@ mod tests {
         {
             assert!(r.warnings.iter().any(|w| w.contains(needle) && w.contains("/M/S")), "{needle}: {:?}", r.warnings);
         }
-        let (_, r) = resolved("tessera:SolidDielectric", &[("scatteringRadius", ParamValue::Float(0.1))]);
-        assert!(r.warnings.iter().any(|w| w.contains("subsurface")), "{:?}", r.warnings);
+        let (m, r) = resolved("tessera:SolidDielectric", &[("scatteringRadius", ParamValue::Float(0.1))]);
+        assert!(r.warnings.is_empty() && m.medium().is_some(), "{:?}", r.warnings);
     }
 
     #[test]

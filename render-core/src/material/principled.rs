@@ -155,7 +155,7 @@ impl Principled {
             coupling_eta: eta,
             diffuse_scale,
             disney_sheen: if p.sheen > 0.0 { p.sheen * Vec3::ONE.lerp(tint, p.sheen_tint) } else { Vec3::ZERO },
-            scattering_radius: 0.0,
+            ..Plastic::default()
         };
         // Thin glass is Imageworks' thin sheet (light crosses undeflected), Disney's sqrt
         // colour one crossing's tint.

@@ -138,9 +138,14 @@ pub struct Plastic {
     pub diffuse_scale: f32,
     /// Disney's sheen colour (`tessera:Principled`), added on top.
     pub disney_sheen: Vec3,
-    /// DreamWorks `scatteringRadius`: a subsurface medium when positive (rendered as the
-    /// diffuse base until the random walk lands).
+    /// DreamWorks `scatteringRadius`: when positive, the diffuse base becomes a scattering
+    /// medium behind a dielectric boundary ([`crate::subsurface`]), whose visible colour is
+    /// `diffuse`.
     pub scattering_radius: f32,
+    /// Per-channel scale of the mean free path (`scatteringColor`).
+    pub scattering_color: Vec3,
+    /// Phase function eccentricity of the medium.
+    pub scattering_anisotropy: f32,
 }
 
 impl Default for Plastic {
@@ -157,6 +162,8 @@ impl Default for Plastic {
             diffuse_scale: 1.0,
             disney_sheen: Vec3::ZERO,
             scattering_radius: 0.0,
+            scattering_color: Vec3::ONE,
+            scattering_anisotropy: 0.0,
         }
     }
 }
@@ -185,6 +192,8 @@ impl Mix for Plastic {
             diffuse_scale: self.diffuse_scale.mix(wa, &o.diffuse_scale, wb),
             disney_sheen: self.disney_sheen.mix(wa, &o.disney_sheen, wb),
             scattering_radius: self.scattering_radius.mix(wa, &o.scattering_radius, wb),
+            scattering_color: self.scattering_color.mix(wa, &o.scattering_color, wb),
+            scattering_anisotropy: self.scattering_anisotropy.mix(wa, &o.scattering_anisotropy, wb),
         }
     }
 }
@@ -408,6 +417,16 @@ impl Uber {
         u
     }
 
+    /// The scattering medium behind the surface, when the plastic family has a positive
+    /// `scatteringRadius` (subsurface scattering).
+    pub fn medium(&self) -> Option<crate::subsurface::Medium> {
+        let p = &self.plastic.params;
+        let r = p.scattering_radius;
+        (self.plastic.weight > 0.0 && r.is_finite() && r > 0.0)
+            .then(|| crate::subsurface::Medium::new(r * p.scattering_color.max(Vec3::splat(1e-3)), p.diffuse, p.scattering_anisotropy))
+            .flatten()
+    }
+
     /// True when a lobe transmits light through a solid's boundary (bending it).
     pub fn has_refraction(&self) -> bool {
         self.glass.weight > 0.0 && !self.glass.params.thin
@@ -431,7 +450,17 @@ impl Uber {
         let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
         let spec_scale = finite(self.specular_control);
         let plastic_w = finite(self.plastic.weight);
-        if plastic_w > 0.0 || every {
+        if plastic_w > 0.0 && self.medium().is_some() {
+            // Subsurface: the plastic's specular becomes the boundary of its medium, which the
+            // integrator's random walk crosses; its diffuse colour lives in the medium.
+            let p = &self.plastic.params;
+            let (roughness, anisotropic) = p.specular.map_or((0.0, 0.0), |s| (s.roughness, s.anisotropic));
+            let eta = p.coupling_eta.max(1.0);
+            bsdf.push_weighted(
+                Lobe::Dielectric(Dielectric::new(roughness, anisotropic, eta, Vec3::ONE).compensated(compensate)),
+                plastic_w,
+            );
+        } else if plastic_w > 0.0 || every {
             let p = &self.plastic.params;
             let coupling = match p.specular {
                 Some(s) if compensate => {
