@@ -3,6 +3,7 @@
 //! and a DCC plugin embeds the same library.
 
 pub mod commands;
+pub mod fuzzing;
 pub mod output;
 pub mod quality;
 pub mod remote;

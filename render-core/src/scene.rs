@@ -79,13 +79,21 @@ pub enum SceneError {
     },
 }
 
-/// Checks a mesh for what would break the renderer: non-finite positions, indices out of
-/// range, normal arrays of the wrong length. Bad normals are not an error; they are
-/// repaired at shading time (the geometric normal is used).
+/// Largest coordinate a point may have, in object or world space. Squared distances and
+/// cross products of coordinates beyond ~1e19 overflow f32 (the BVH builder indexed out of
+/// bounds on a point at 1e38); 1e15 scene units is already 6 700 astronomical units in metres.
+pub const MAX_COORDINATE: f32 = 1e15;
+
+/// Checks a mesh for what would break the renderer: non-finite or overflowing positions,
+/// indices out of range, normal arrays of the wrong length. Bad normals are not an error; they
+/// are repaired at shading time (the geometric normal is used).
 pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
     let invalid = |field: &str, problem: String| SceneError::Invalid { prim: path.to_string(), field: field.to_string(), problem };
     if let Some((i, p)) = mesh.positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
         return Err(invalid("points", format!("point {i} is {p} (NaN or Inf)")));
+    }
+    if let Some((i, p)) = mesh.positions.iter().enumerate().find(|(_, p)| p.abs().max_element() > MAX_COORDINATE) {
+        return Err(invalid("points", format!("point {i} is {p}, beyond ±{MAX_COORDINATE:e}: single-precision geometry overflows there")));
     }
     let n = mesh.positions.len() as u64;
     for (t, tri) in mesh.indices.iter().enumerate() {
@@ -313,10 +321,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         }
     }
 
-    let tlas_instances: Vec<TlasInstance> = instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform }).collect();
-    let tlas = Tlas::build(&blases, &tlas_instances);
-
-    // Bounds, for sizing infinite lights and the default camera.
+    // Bounds, for sizing infinite lights and the default camera; an instance whose transform
+    // carries its geometry beyond what f32 holds is an error naming it.
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     for inst in &instances {
@@ -324,10 +330,19 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         for i in 0..8 {
             let c = Vec3::new(if i & 1 == 0 { a.x } else { b.x }, if i & 2 == 0 { a.y } else { b.y }, if i & 4 == 0 { a.z } else { b.z });
             let w = inst.transform.to_world.transform_point3(c);
+            if !w.is_finite() || w.abs().max_element() > MAX_COORDINATE {
+                return Err(SceneError::Invalid {
+                    prim: prim_paths[inst.prim as usize].clone(),
+                    field: "transform".into(),
+                    problem: format!("places the geometry at {w}, beyond ±{MAX_COORDINATE:e}"),
+                });
+            }
             lo = lo.min(w);
             hi = hi.max(w);
         }
     }
+    let tlas_instances: Vec<TlasInstance> = instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform }).collect();
+    let tlas = Tlas::build(&blases, &tlas_instances);
     let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
 
     // Lights: UsdLux lights, then one per emissive triangle.

@@ -3,6 +3,7 @@
 //! embedded mode and the tests).
 
 pub mod convert;
+pub mod fuzzing;
 pub mod limits;
 pub mod service;
 pub mod session;

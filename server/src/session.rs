@@ -124,10 +124,12 @@ fn fill<T: Copy + Default>(
     if end > declared {
         return Err(invalid(prim, field, format!("chunk [{offset}, {end}) runs past the declared length {declared}")));
     }
-    if dst.len() as u64 != declared {
-        dst.resize(declared as usize, T::default());
+    // Chunks arrive in order, so what the server holds never exceeds what the client sent: a
+    // declared length alone (up to the per-mesh limit) allocates nothing.
+    if offset != dst.len() as u64 {
+        return Err(invalid(prim, field, format!("chunk at offset {offset} arrives out of order (expected {})", dst.len())));
     }
-    dst[offset as usize..end as usize].copy_from_slice(src);
+    dst.extend_from_slice(src);
     *filled += src.len() as u64;
     Ok(())
 }

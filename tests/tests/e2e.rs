@@ -6,6 +6,7 @@ mod caustics;
 mod energy;
 mod errors;
 mod furnace;
+mod fuzz;
 mod grpc;
 mod hard;
 mod images;

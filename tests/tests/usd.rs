@@ -106,6 +106,23 @@ fn time_samples_are_read_at_the_frame() {
     assert_eq!(mover_x(Some(20.0)), (9.0, 3.0));
 }
 
+/// The composition arcs real assets use come through composed: a sublayer's dome, a
+/// referenced file's chair moved by an xform authored over the reference, a payload's lamp
+/// (loaded by default), the selected variant's geometry only, and an inherited class's child.
+/// (The field-by-field comparison with usd-core covers this fixture too.)
+#[test]
+fn sublayers_references_payloads_variants_and_inherits_are_composed() {
+    let t = load("usd/composition/scene.usda");
+    let mut meshes: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
+    meshes.sort();
+    assert_eq!(meshes, vec!["/World/Chair/Seat", "/World/Floor", "/World/Marker/Dot", "/World/Prop/Geom_crate"]);
+    let mut lights: Vec<&str> = t.lights.iter().map(|(p, _)| p.as_str()).collect();
+    lights.sort();
+    assert_eq!(lights, vec!["/World/Lamp/Bulb", "/World/Sky"]);
+    let seat = &t.meshes.iter().find(|(p, _)| p == "/World/Chair/Seat").unwrap().1;
+    assert!((seat.transform.translation.x + 1.5).abs() < 1e-6, "the reference's xform: {:?}", seat.transform.translation);
+}
+
 #[test]
 fn purpose_visibility_and_activity_decide_what_renders() {
     let t = load("usd/purpose_visibility.usda");

@@ -6,6 +6,7 @@
 //! unauthored attribute reads as `None`, and the UsdLux / UsdGeom defaults below are the
 //! schema's documented ones.
 
+mod lint;
 mod mesh;
 pub mod shapes;
 mod values;
@@ -102,6 +103,12 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     if !path.exists() {
         anyhow::bail!("{}: no such file", path.display());
     }
+    // Text layers are checked for the malformed names and paths the crate cannot survive.
+    if let Ok(bytes) = std::fs::read(path)
+        && bytes.starts_with(b"#usda")
+    {
+        lint::check(&String::from_utf8_lossy(&bytes)).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e}", path.display()))?;
+    }
     let stage = Stage::open(path_str).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
     let default_frame = if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 };
     let time = TimeCode::new(frame.unwrap_or(default_frame));
@@ -178,6 +185,10 @@ fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {
 
 impl Reader<'_> {
     fn visit(&mut self, path: &sdf::Path) -> Result<()> {
+        if !well_formed_path(path.as_str()) {
+            self.out.warnings.push(format!("'{}' is not a valid prim path; the prim is skipped", path.as_str()));
+            return Ok(());
+        }
         let prim = self.stage.prim(path.clone());
         let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
         let p = path.as_str().to_string();
@@ -216,7 +227,18 @@ impl Reader<'_> {
         if let Some(m) = self.world.get(path.as_str()) {
             return Ok(*m);
         }
-        let view = AnyXformable(self.stage.prim(path.clone()));
+        let prim = self.stage.prim(path.clone());
+        // The schema looks each op up by name: check the names first (a garbled one sent the
+        // openusd crate into an endless loop, found by fuzzing).
+        if let Some(order) = get(&prim, "xformOpOrder", self.time)? {
+            for op in values::token_array(&order).unwrap_or_default() {
+                let name = op.trim_start_matches("!invert!");
+                if op != "!resetXformStack!" && !well_formed_name(name) {
+                    anyhow::bail!("{path}: attribute 'xformOpOrder' names '{op}', which is not a valid attribute name");
+                }
+            }
+        }
+        let view = AnyXformable(prim);
         let local = values::matrix(&view.local_to_parent_transform(self.time)?);
         let parent = match path.parent() {
             Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => {
@@ -413,7 +435,7 @@ impl Reader<'_> {
         if !chosen {
             return Ok(());
         }
-        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string());
+        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t));
         let resolution = match get(prim, "resolution", self.time)? {
             Some(Value::Vec2i(r)) if r.x > 0 && r.y > 0 => Some((r.x as u32, r.y as u32)),
             Some(v) => anyhow::bail!("{p}: attribute 'resolution' is {v:?}; expected two positive integers"),
@@ -439,6 +461,9 @@ impl Reader<'_> {
             }
         };
         let prototypes = prim.relationship("prototypes").targets()?;
+        if let Some(bad) = prototypes.iter().find(|t| !well_formed_path(t.as_str())) {
+            anyhow::bail!("{p}: relationship 'prototypes' targets '{}', which is not a valid path", bad.as_str());
+        }
         let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
         let n = proto_indices.len();
         let positions = match get(prim, "positions", time)? {
@@ -575,14 +600,40 @@ impl Reader<'_> {
 
     /// The bound material: the prim's own binding, else the nearest ancestor's (purpose
     /// `full`, falling back to all-purpose).
-    fn bound_material(&self, prim: &Prim) -> Result<Option<String>> {
+    fn bound_material(&mut self, prim: &Prim) -> Result<Option<String>> {
         let mut cur = Some(prim.path().clone());
         while let Some(path) = cur {
             if path.as_str() == "/" || path.as_str().is_empty() {
                 break;
             }
+            let here = self.stage.prim(path.clone());
+            let mut broken = false;
+            for rel in here.relationships()? {
+                let name = rel.path().name().unwrap_or_default().to_string();
+                if !name.starts_with("material:binding") {
+                    continue;
+                }
+                for t in rel.targets()? {
+                    if !well_formed_path(t.as_str()) {
+                        self.out.warnings.push(format!(
+                            "{path}: relationship '{name}' targets '{}', which is not a valid path; the binding is ignored",
+                            t.as_str()
+                        ));
+                        broken = true;
+                    }
+                }
+            }
+            if broken {
+                return Ok(None);
+            }
             if let Some(api) = MaterialBindingAPI::get(self.stage, path.clone())? {
                 if let Some(m) = api.compute_bound_material("full")? {
+                    if !well_formed_path(m.as_str()) {
+                        self.out
+                            .warnings
+                            .push(format!("{path}: bound material '{}' is not a valid path; the binding is ignored", m.as_str()));
+                        return Ok(None);
+                    }
                     return Ok(Some(m.as_str().to_string()));
                 }
             }
@@ -603,6 +654,24 @@ impl Reader<'_> {
             self.out.warnings.push(format!("{path}: bound material is not a Material prim; the default material is used"));
             return Ok(());
         };
+        // The material's outputs are followed by the openusd crate itself: check their
+        // connections first (a malformed one sent it into endless recursion, found by fuzzing).
+        let material_prim = self.stage.prim(sdf::path(path)?);
+        for name in material_prim.property_names()? {
+            if !name.as_str().starts_with("outputs:") {
+                continue;
+            }
+            for src in material_prim.attribute(name.as_str()).connections()? {
+                if !well_formed_path(src.as_str()) {
+                    self.out.warnings.push(format!(
+                        "{path}: '{}' connects to '{}', which is not a valid path; the default material is used",
+                        name.as_str(),
+                        src.as_str()
+                    ));
+                    return Ok(());
+                }
+            }
+        }
         let Some(surface) = material.compute_surface_source()? else {
             self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
             self.out.materials.push((path.to_string(), network));
@@ -624,6 +693,14 @@ impl Reader<'_> {
                 };
                 let attr = prim.attribute(name.as_str());
                 for src in attr.connections()? {
+                    if !well_formed_path(src.as_str()) {
+                        self.out.warnings.push(format!(
+                            "{}: input '{input}' connects to '{}', which is not a valid path; the connection is ignored",
+                            node.path,
+                            src.as_str()
+                        ));
+                        continue;
+                    }
                     let (up_prim, up_output) = (src.prim_path(), src.name().unwrap_or_default().trim_start_matches("outputs:").to_string());
                     network.connections.push(MaterialConnection {
                         downstream_node: node.path.clone(),
@@ -764,4 +841,41 @@ fn param(v: &Value) -> Option<ParamValue> {
         Value::AssetPath(a) => ParamValue::Asset(format!("{a:?}")),
         _ => ParamValue::Float3(values::vec3(v)?),
     })
+}
+
+/// True when `name` is a well-formed (namespaced) property name: identifiers joined by ':'.
+pub(crate) fn well_formed_name(name: &str) -> bool {
+    name.split(':')
+        .all(|s| s.chars().next().is_some_and(|c| c.is_alphabetic() || c == '_') && s.chars().all(|c| c.is_alphanumeric() || c == '_'))
+}
+
+/// True when `path` is a well-formed absolute path: prim names of letters, digits and
+/// underscores (not starting with a digit), optionally one namespaced property after a dot.
+/// Targets and connections are checked before the stage is asked about them: the openusd
+/// crate recursed without end composing a malformed binding target (`</World/Looks/Grey()`,
+/// found by fuzzing) and overflowed the stack.
+pub(crate) fn well_formed_path(path: &str) -> bool {
+    let Some(rest) = path.strip_prefix('/') else { return false };
+    if rest.is_empty() {
+        return true;
+    }
+    let ident =
+        |s: &str| s.chars().next().is_some_and(|c| c.is_alphabetic() || c == '_') && s.chars().all(|c| c.is_alphanumeric() || c == '_');
+    let (prims, property) = match rest.split_once('.') {
+        Some((a, b)) => (a, Some(b)),
+        None => (rest, None),
+    };
+    prims.split('/').all(ident) && property.is_none_or(well_formed_name)
+}
+
+#[cfg(test)]
+mod path_tests {
+    #[test]
+    fn malformed_paths_are_caught() {
+        use super::well_formed_path as ok;
+        assert!(ok("/World/Looks/Grey") && ok("/") && ok("/M/S.outputs:surface") && ok("/_a1/b_2"));
+        for bad in ["/World/Looks/Grey()", "World", "/a//b", "/a/1b", "/a.b.c", "/a.", "", "/a b"] {
+            assert!(!ok(bad), "{bad}");
+        }
+    }
 }

@@ -68,6 +68,15 @@ pub fn token(v: &Value) -> Option<String> {
     })
 }
 
+/// A token array (or string array).
+pub fn token_array(v: &Value) -> Option<Vec<String>> {
+    Some(match v {
+        Value::TokenVec(t) => t.iter().map(|t| t.as_str().to_string()).collect(),
+        Value::StringVec(s) => s.clone(),
+        _ => return None,
+    })
+}
+
 /// A USD matrix (row vectors, translation in the last row) as a glam matrix (column
 /// vectors): the same sixteen numbers read as columns are the transpose USD means.
 pub fn matrix(m: &openusd::gf::Matrix4d) -> DMat4 {

@@ -324,7 +324,7 @@ mod tests {
             let (on, off) = (sheet(r, 1.5, Vec3::ONE, true), sheet(r, 1.5, Vec3::ONE, false));
             for wo in testing::probe_directions().into_iter().filter(|w| w.z >= 0.2) {
                 let (a_on, a_off) = (testing::albedo_estimate(&on, wo, 40_000).x, testing::albedo_estimate(&off, wo, 40_000).x);
-                assert!(a_on <= 1.0 + 1e-3 + 0.01 && a_on >= 0.9, "r {r}, cos {}: compensated {a_on}", wo.z);
+                assert!((0.9..=1.0 + 1e-3 + 0.01).contains(&a_on), "r {r}, cos {}: compensated {a_on}", wo.z);
                 assert!(a_off <= a_on + 0.01, "r {r}, cos {}: uncompensated {a_off} above compensated {a_on}", wo.z);
                 if wo.z == 1.0 {
                     assert!(a_on >= 0.98, "r {r}: head-on {a_on}");

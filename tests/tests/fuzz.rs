@@ -1,0 +1,145 @@
+//! A short, deterministic fuzzing run on stable Rust, the one CI does: mutants of every
+//! fixture's USD text and of its sync stream go through the same entry points as the
+//! cargo-fuzz targets in `fuzz/` (README: "Fuzzing" for the longer run). Every input must end
+//! in Ok or an error, never a panic; a panicking input is saved under `target/fuzz-failures/`.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use tessera_tests::*;
+
+/// A small deterministic generator (SplitMix64) for the mutations.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// Values that break naive numeric code, spliced in as text or as raw bytes.
+const TOKENS: &[&str] =
+    &["nan", "-nan", "inf", "-inf", "1e38", "-1e38", "0", "-1", "4294967295", "99999999999999999999", "1e-45", "()", "[]", "\"", "{"];
+
+/// One mutant of `seed`: a few byte-level edits (flip, overwrite, delete, duplicate, splice a
+/// token over a number-looking byte).
+fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut v = seed.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        if v.is_empty() {
+            v.push(b'0');
+        }
+        let i = rng.below(v.len());
+        match rng.below(6) {
+            0 => v[i] ^= 1 << rng.below(8),
+            1 => v[i] = rng.next() as u8,
+            2 => {
+                let n = rng.below(16).min(v.len() - i);
+                v.drain(i..i + n);
+            }
+            3 => {
+                let n = rng.below(32).min(v.len() - i);
+                let copy: Vec<u8> = v[i..i + n].to_vec();
+                v.splice(i..i, copy);
+            }
+            4 => v.truncate(i),
+            _ => {
+                // Replace the number (or byte) at i with a hostile token.
+                let end = (i..v.len())
+                    .find(|&k| !(v[k].is_ascii_digit() || v[k] == b'.' || v[k] == b'-' || v[k] == b'e'))
+                    .unwrap_or(v.len())
+                    .max(i + 1)
+                    .min(v.len());
+                let t = TOKENS[rng.below(TOKENS.len())].as_bytes();
+                v.splice(i..end, t.iter().copied());
+            }
+        }
+    }
+    v
+}
+
+fn save_failure(kind: &str, k: usize, data: &[u8]) -> String {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/fuzz-failures");
+    std::fs::create_dir_all(&dir).ok();
+    let path = dir.join(format!("{kind}-{k}.bin"));
+    std::fs::write(&path, data).ok();
+    path.display().to_string()
+}
+
+/// Runs `f` on `n` mutants of each seed (times `TESSERA_FUZZ_SCALE`, default 1, for a longer
+/// local run); returns the saved paths of inputs that panicked.
+fn run(kind: &str, seeds: &[Vec<u8>], n: usize, f: impl Fn(&[u8])) -> Vec<String> {
+    let n = n * std::env::var("TESSERA_FUZZ_SCALE").ok().and_then(|s| s.parse().ok()).unwrap_or(1usize);
+    let mut rng = Rng(0x7e55_e7a0 ^ kind.len() as u64);
+    let mut failures = Vec::new();
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    for (s, seed) in seeds.iter().enumerate() {
+        for k in 0..n {
+            let input = if k == 0 { seed.clone() } else { mutate(seed, &mut rng) };
+            // A stack overflow aborts the process: the input in flight is kept for it.
+            save_failure(&format!("{kind}-in-flight"), 0, &input);
+            if catch_unwind(AssertUnwindSafe(|| f(&input))).is_err() {
+                failures.push(save_failure(kind, s * n + k, &input));
+            }
+        }
+    }
+    std::panic::set_hook(hook);
+    failures
+}
+
+/// The `.usda` fixtures, the mutation seeds of both targets.
+fn usda_seeds() -> Vec<(String, Vec<u8>)> {
+    all_fixtures()
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "usda"))
+        .filter(|p| std::fs::metadata(p).is_ok_and(|m| m.len() < 200_000))
+        .map(|p| (p.display().to_string(), std::fs::read(&p).unwrap()))
+        .collect()
+}
+
+#[test]
+fn mutated_usd_files_never_panic_the_client() {
+    let seeds: Vec<Vec<u8>> = usda_seeds().into_iter().map(|(_, d)| d).collect();
+    assert!(seeds.len() > 20, "{} seeds", seeds.len());
+    let failures = run("usd", &seeds, 60, |d| {
+        let _ = tessera::fuzzing::usd_text(d);
+    });
+    assert!(failures.is_empty(), "inputs that panicked the USD translation: {failures:?}");
+}
+
+#[test]
+fn mutated_sync_streams_never_panic_the_server() {
+    let seeds: Vec<Vec<u8>> = usda_seeds()
+        .into_iter()
+        .filter_map(|(name, _)| tessera::usd::load(std::path::Path::new(&name)).ok())
+        .map(|t| tessera_server::fuzzing::encode_stream(&tessera::sync::full_sync(&t)))
+        .collect();
+    // Every unmutated stream commits.
+    for s in &seeds {
+        tessera_server::fuzzing::sync_bytes(s).expect("a fixture's own sync stream commits");
+    }
+    let failures = run("sync", &seeds, 200, |d| {
+        let _ = tessera_server::fuzzing::sync_bytes(d);
+    });
+    assert!(failures.is_empty(), "inputs that panicked the server's validation: {failures:?}");
+}
+
+/// Replays one saved input with its panic and backtrace visible:
+/// `TESSERA_FUZZ_INPUT=target/fuzz-failures/usd-3.bin cargo test -p tessera-tests --test e2e replay -- --ignored --nocapture`
+/// (a name starting with `sync` replays it as a sync stream, anything else as USD text).
+#[test]
+#[ignore = "replays the input named by TESSERA_FUZZ_INPUT"]
+fn replay() {
+    let path = std::env::var("TESSERA_FUZZ_INPUT").expect("set TESSERA_FUZZ_INPUT");
+    let data = std::fs::read(&path).unwrap();
+    let sync = std::path::Path::new(&path).file_name().is_some_and(|n| n.to_string_lossy().starts_with("sync"));
+    let result = if sync { tessera_server::fuzzing::sync_bytes(&data).map(|_| ()) } else { tessera::fuzzing::usd_text(&data) };
+    println!("{result:?}");
+}
