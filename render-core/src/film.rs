@@ -33,11 +33,15 @@ pub enum Aov {
     SampleCount,
     /// Estimated variance of the pixel's mean luminance (the square of its standard error).
     Variance,
+    /// Which prim the pixel's first camera sample saw: 0 for none, else 1 + its index in the
+    /// render's prim table (`Started.prim_paths`; the EXR header `primIdPaths`). Not averaged:
+    /// ids are labels.
+    PrimId,
 }
 
 impl Aov {
     /// All AOVs.
-    pub const ALL: [Aov; 11] = [
+    pub const ALL: [Aov; 12] = [
         Aov::Beauty,
         Aov::Albedo,
         Aov::Normal,
@@ -49,6 +53,7 @@ impl Aov {
         Aov::Emission,
         Aov::SampleCount,
         Aov::Variance,
+        Aov::PrimId,
     ];
 
     /// The light-path components: their sum is the beauty's RGB.
@@ -68,6 +73,7 @@ impl Aov {
             Aov::Emission => "emission",
             Aov::SampleCount => "sampleCount",
             Aov::Variance => "variance",
+            Aov::PrimId => "primId",
         }
     }
 
@@ -79,7 +85,7 @@ impl Aov {
 
     /// True for the AOVs computed from the sample statistics rather than accumulated.
     pub fn is_statistic(self) -> bool {
-        matches!(self, Aov::SampleCount | Aov::Variance)
+        matches!(self, Aov::SampleCount | Aov::Variance | Aov::PrimId)
     }
 
     /// Parses a wire name.
@@ -91,7 +97,7 @@ impl Aov {
     pub fn channels(self) -> usize {
         match self {
             Aov::Beauty => 4,
-            Aov::Depth | Aov::SampleCount | Aov::Variance => 1,
+            Aov::Depth | Aov::SampleCount | Aov::Variance | Aov::PrimId => 1,
             _ => 3,
         }
     }
@@ -108,7 +114,7 @@ impl Aov {
             Aov::Specular => VALUES + 6,
             Aov::Transmission => VALUES + 9,
             Aov::Emission => VALUES + 12,
-            Aov::SampleCount | Aov::Variance => usize::MAX,
+            Aov::SampleCount | Aov::Variance | Aov::PrimId => usize::MAX,
         }
     }
 }
@@ -134,6 +140,8 @@ pub struct PixelSample {
     /// The radiance split by what the first surface did: diffuse, specular, transmission,
     /// emission (the order of [`Aov::COMPONENTS`]); they sum to `radiance`.
     pub components: [Vec3; 4],
+    /// 1 + the index of the prim the camera ray hit first, 0 for none.
+    pub prim_id: u32,
 }
 
 /// A rectangle of pixels.
@@ -160,6 +168,8 @@ pub struct TileFilm {
     lum_sq: Vec<f64>,
     /// Samples each pixel has received.
     counts: Vec<u32>,
+    /// The prim id of each pixel's first sample.
+    prim_ids: Vec<u32>,
     /// Pixels still receiving samples (adaptive sampling turns them off).
     active: Vec<bool>,
     /// Samples per pixel scheduled so far (the most any pixel has).
@@ -171,7 +181,16 @@ impl TileFilm {
     pub fn new(rect: Rect, extra: bool) -> Self {
         let n = (rect.width * rect.height) as usize;
         let extra = if extra { vec![[0.0; EXTRA]; n] } else { Vec::new() };
-        TileFilm { rect, sums: vec![[0.0; VALUES]; n], extra, lum_sq: vec![0.0; n], counts: vec![0; n], active: vec![true; n], samples: 0 }
+        TileFilm {
+            rect,
+            sums: vec![[0.0; VALUES]; n],
+            extra,
+            lum_sq: vec![0.0; n],
+            counts: vec![0; n],
+            prim_ids: vec![0; n],
+            active: vec![true; n],
+            samples: 0,
+        }
     }
 
     /// True when the tile records the position and light-path AOVs.
@@ -202,6 +221,9 @@ impl TileFilm {
         }
         let l = luminance(s.radiance) as f64;
         self.lum_sq[i] += l * l;
+        if self.counts[i] == 0 {
+            self.prim_ids[i] = s.prim_id;
+        }
         self.counts[i] += 1;
         if let Some(extra) = self.extra.get_mut(i) {
             let vs = std::iter::once(s.position).chain(s.components);
@@ -273,6 +295,7 @@ impl TileFilm {
         match aov {
             Aov::SampleCount => return self.counts.iter().map(|&n| n as f32).collect(),
             Aov::Variance => return (0..self.counts.len()).map(|i| self.luminance_stats(i).1 as f32).collect(),
+            Aov::PrimId => return self.prim_ids.iter().map(|&id| id as f32).collect(),
             _ => {}
         }
         let o = aov.offset();

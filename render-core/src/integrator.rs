@@ -244,6 +244,7 @@ pub fn trace_path(
         let wo_local = frame.to_local(wo);
         if depth == 0 {
             out.alpha = 1.0;
+            out.prim_id = scene.instances[hit.instance as usize].prim + 1;
             out.normal = ns;
             out.depth = depth_of(hit.t);
             out.position = s.p;

@@ -298,6 +298,7 @@ impl RenderJob {
                     aovs: self.aovs.iter().map(|a| a.name().to_string()).collect(),
                     scene_version: version,
                     warnings: scene.warnings.iter().cloned().chain(self.settings_warnings()).collect(),
+                    prim_paths: if self.aovs.contains(&Aov::PrimId) { scene.prim_paths.clone() } else { Vec::new() },
                 }));
                 first = false;
             } else {

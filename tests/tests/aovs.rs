@@ -83,3 +83,18 @@ async fn every_aov_is_finite_on_every_fixture() {
         assert_all_finite(&report.image);
     }
 }
+
+/// The primId AOV labels each pixel with the prim its first camera sample hit, through the
+/// table `Started` sends (and the EXR header keeps): the furnace sphere in the middle, nothing
+/// (0) in the corners; ids are whole numbers, never averaged.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn prim_ids_name_the_prim_each_pixel_sees() {
+    let opts = tessera::remote::RenderOptions { aovs: vec!["primId".into()], ..small(24, 24, 4) };
+    let report = render_fixture("furnace.usda", &opts).await;
+    let ids = &report.image.layers["primId"].1;
+    let table = &report.started.prim_paths;
+    assert!(ids.iter().all(|&id| id.fract() == 0.0 && id >= 0.0 && (id as usize) <= table.len()), "ids {ids:?}");
+    let at = |x: usize, y: usize| ids[y * 24 + x] as usize;
+    assert_eq!(table[at(12, 12) - 1], "/World/Sphere");
+    assert_eq!(at(0, 0), 0);
+}

@@ -117,6 +117,8 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
             ),
         ),
         ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),
+        // The primId AOV's table: line k names id k + 1.
+        ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
     ];
     write_outputs(&job.output, &report, &metadata)?;
