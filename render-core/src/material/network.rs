@@ -250,6 +250,21 @@ mod tests {
         assert!(m.bsdf(true).transmits());
     }
 
+    /// Mask 0 is exactly B and mask 1 exactly A, whatever families each holds: the same lobes
+    /// with the same parameters (families at weight 0 may keep the other side's values; they
+    /// build nothing).
+    #[test]
+    fn mask_zero_and_one_give_exactly_one_side() {
+        let a = node("/M/A", "tessera:Metal", &[("roughness", ParamValue::Float(0.2))]);
+        let b = node("/M/B", "tessera:Refractive", &[("refractiveIndex", ParamValue::Float(1.7))]);
+        let alone = |n: &MaterialNode| {
+            MaterialNetwork { nodes: vec![n.clone()], connections: vec![], surface_node: n.path.clone() }.resolve("/M").0
+        };
+        let lobes = |m: &Material| format!("{:?}", m.bsdf(true));
+        assert_eq!(lobes(&layer(0.0, a.clone(), b.clone()).resolve("/M").0), lobes(&alone(&b)));
+        assert_eq!(lobes(&layer(1.0, a.clone(), b.clone()).resolve("/M").0), lobes(&alone(&a)));
+    }
+
     /// Within one family the parameters interpolate: gold over silver at mask 0.25.
     #[test]
     fn same_family_parameters_interpolate_by_the_mask() {

@@ -28,15 +28,19 @@ fn share(wa: f32, wb: f32) -> f32 {
     if wa + wb > 0.0 { wb / (wa + wb) } else { 0.0 }
 }
 
+// (1 − t)·a + t·b rather than a + t(b − a): exactly b at t = 1, so a mask of 1 gives A's
+// parameters bit for bit.
 impl Mix for f32 {
     fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
-        self + (other - self) * share(wa, wb)
+        let t = share(wa, wb);
+        self * (1.0 - t) + other * t
     }
 }
 
 impl Mix for Vec3 {
     fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
-        self.lerp(*other, share(wa, wb))
+        let t = share(wa, wb);
+        *self * (1.0 - t) + *other * t
     }
 }
 
