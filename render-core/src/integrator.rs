@@ -36,6 +36,9 @@ pub struct IntegratorSettings {
     pub light_path_aovs: bool,
     /// Caustic paths: full path tracing, or Imageworks' avoidance ([`crate::caustics`]).
     pub caustics: CausticMode,
+    /// Which strategies find light: both, combined by MIS (the default), or one alone (to
+    /// measure what MIS buys; BSDF sampling alone cannot find delta lights).
+    pub strategy: LightStrategy,
     /// Run every piece of machinery whether or not the scene calls for it (every lobe at
     /// weight 0, every energy table, tangent frames, closest-hit shadow rays, light-path
     /// AOVs), for the benchmark that measures what the render plan saves. Same image.
@@ -52,8 +55,22 @@ impl Default for IntegratorSettings {
             light_path_aovs: false,
             caustics: CausticMode::Full,
             force_all_effects: false,
+            strategy: LightStrategy::Mis,
         }
     }
+}
+
+/// How paths find light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightStrategy {
+    /// Next-event estimation and BSDF sampling, combined by the power heuristic.
+    #[default]
+    Mis,
+    /// BSDF sampling alone: light counts only where a path hits it.
+    BsdfOnly,
+    /// Next-event estimation alone: a path hitting a light after a non-delta bounce adds
+    /// nothing (the camera and delta lobes still see emitters directly).
+    LightOnly,
 }
 
 /// Most scattering events one path takes inside subsurface media.
@@ -116,6 +133,8 @@ pub fn trace_path(
         match prev {
             None => 1.0,
             Some(p) if p.delta => 1.0,
+            Some(_) if settings.strategy == LightStrategy::BsdfOnly => 1.0,
+            Some(_) if settings.strategy == LightStrategy::LightOnly => 0.0,
             Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize) * pdf_light),
         }
     };
@@ -154,7 +173,7 @@ pub fn trace_path(
                     let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
                     let kind = prev.map_or(PathKind::Transmission, |p| p.kind);
                     prev = Some(PrevVertex {
-                        ctx: ShadingContext { p, n: Vec3::ZERO },
+                        ctx: ShadingContext { p, n: Vec3::ZERO, both_sides: true },
                         bsdf_pdf: m.phase_pdf(ray.dir, wi),
                         delta: false,
                         kind,
@@ -255,7 +274,7 @@ pub fn trace_path(
         }
         bsdf.prepare(wo_local);
         // Light sampling context: the geometric normal on the viewer's side.
-        let ctx = ShadingContext { p: s.p, n: if ng.dot(wo) < 0.0 { -ng } else { ng } };
+        let ctx = ShadingContext { p: s.p, n: if ng.dot(wo) < 0.0 { -ng } else { ng }, both_sides: bsdf.transmits() };
         // Each bounce draws two 4D sets, whatever happens along the path: (light position,
         // light choice, roulette) and (BSDF direction, lobe choice), the 2D pairs on a set's
         // best-stratified first two dimensions.
@@ -263,7 +282,7 @@ pub fn trace_path(
         let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
 
         // Next-event estimation.
-        if !lights.is_empty() {
+        if !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
             let u_light = Vec2::new(ul_x, ul_y);
             lights.sample_each(&ctx, u_sel, u_light, |ls, light| {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
@@ -315,7 +334,7 @@ pub fn trace_path(
                         if let Some(glass) = through {
                             let w = match glass {
                                 Some(_) => 1.0,
-                                None if ls.delta => 1.0,
+                                None if ls.delta || settings.strategy == LightStrategy::LightOnly => 1.0,
                                 None => power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)),
                             };
                             let scale = beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (w / ls.pdf);

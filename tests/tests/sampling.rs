@@ -161,3 +161,46 @@ async fn adaptive_sampling_retires_converged_pixels_without_bias() {
     conn.close().await.ok();
     server.stop().await.unwrap();
 }
+
+/// MIS combinations are unbiased: BSDF sampling alone, next-event estimation alone and their
+/// MIS combination render the same image mean within noise (the Cornell box's area light and
+/// the showcase's glossy and rough lobes), and MIS has the lowest variance of the three on the
+/// glossy scene.
+#[test]
+fn bsdf_only_light_only_and_mis_agree_within_noise() {
+    use render_core::integrator::{IntegratorSettings, LightStrategy};
+    use render_core::render::{RenderSettings, render_to_framebuffer};
+    for (name, spp) in [("cornell_box.usda", 256u32), ("materials/showcase.usda", 128)] {
+        let t = load(name);
+        let scene = render_core::scene::commit(&t.to_scene_desc(), &mut render_core::scene::BlasCache::default()).unwrap();
+        let (w, h) = (32u32, 24u32);
+        let camera = render_core::camera::Camera::new(&scene.camera("").unwrap(), w, h);
+        let mut rows = Vec::new();
+        for strategy in [LightStrategy::Mis, LightStrategy::BsdfOnly, LightStrategy::LightOnly] {
+            let settings = RenderSettings {
+                width: w,
+                height: h,
+                spp,
+                integrator: IntegratorSettings { max_depth: 6, strategy, ..Default::default() },
+                ..Default::default()
+            };
+            let (fb, _) = render_to_framebuffer(&scene, &camera, &settings);
+            let lum: Vec<f64> = fb.layers[&render_core::film::Aov::Beauty]
+                .chunks(4)
+                .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+                .collect();
+            let var: f64 = fb.layers[&render_core::film::Aov::Variance].iter().map(|&v| v as f64).sum();
+            let n = lum.len() as f64;
+            rows.push((strategy, lum.iter().sum::<f64>() / n, var.sqrt() / n, var / n));
+        }
+        println!("{name}: {rows:?}");
+        let (mis_mean, mis_se, mis_var) = (rows[0].1, rows[0].2, rows[0].3);
+        for &(strategy, mean, se, _) in &rows[1..] {
+            let tolerance = 4.0 * (se * se + mis_se * mis_se).sqrt();
+            assert!((mean - mis_mean).abs() < tolerance, "{name}: {strategy:?} mean {mean} vs MIS {mis_mean} (tolerance {tolerance})");
+        }
+        if name.contains("showcase") {
+            assert!(mis_var < rows[1].3 && mis_var < rows[2].3, "{name}: MIS variance {mis_var} vs {:?}", rows);
+        }
+    }
+}

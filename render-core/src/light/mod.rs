@@ -205,6 +205,9 @@ pub struct ShadingContext {
     pub p: Vec3,
     /// Geometric normal facing the incoming ray.
     pub n: Vec3,
+    /// The surface also receives light from behind (it transmits), so environment sampling
+    /// covers both hemispheres.
+    pub both_sides: bool,
 }
 
 impl LightDesc {

@@ -261,9 +261,15 @@ impl Shape {
             }
             Shape::Dome { l } => {
                 // Cosine-weighted around the normal: exact importance for diffuse under a
-                // constant dome. Directions below get pdf 0 and are left to BSDF sampling.
-                let wi = Frame::from_normal(ctx.n).to_world(cosine_hemisphere(u)).normalize();
-                let pdf = wi.dot(ctx.n).max(0.0) / PI;
+                // constant dome. A transmitting surface splits the samples between the two
+                // hemispheres; for others, directions below get pdf 0 (BSDF sampling's).
+                let (n, u) = if ctx.both_sides {
+                    if u.x < 0.5 { (ctx.n, Vec2::new(2.0 * u.x, u.y)) } else { (-ctx.n, Vec2::new(2.0 * u.x - 1.0, u.y)) }
+                } else {
+                    (ctx.n, u)
+                };
+                let wi = Frame::from_normal(n).to_world(cosine_hemisphere(u)).normalize();
+                let pdf = self.pdf(ctx, wi, f32::INFINITY);
                 (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf, delta: false })
             }
         }
@@ -305,6 +311,7 @@ impl Shape {
                     cone_pdf(*one_minus_cos_half)
                 }
             }
+            Shape::Dome { .. } if ctx.both_sides => 0.5 * wi.dot(ctx.n).abs() / PI,
             Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
         }
     }
@@ -479,7 +486,7 @@ mod tests {
     use crate::sampling::Pcg32;
 
     fn ctx(p: Vec3, n: Vec3) -> ShadingContext {
-        ShadingContext { p, n }
+        ShadingContext { p, n, both_sides: false }
     }
 
     /// Irradiance at `c` by NEE alone, estimated with the light's own sampling.
