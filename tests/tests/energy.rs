@@ -6,13 +6,7 @@ use tessera_tests::*;
 
 /// Mean red value over the pixels where the camera sees the sphere.
 async fn sphere_mean(fixture_name: &str, energy_compensation: bool) -> f64 {
-    let opts = RenderOptions { max_depth: 64, energy_compensation, ..small(32, 32, 64) };
-    let report = render_fixture(fixture_name, &opts).await;
-    assert_all_finite(&report.image);
-    let img = &report.image;
-    let (mean, n) = mean_where(img, "beauty", 0, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
-    assert!(n > 100, "{fixture_name}: the sphere covers {n} pixels");
-    mean
+    furnace_sphere_mean(fixture_name, energy_compensation).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -1,18 +1,11 @@
 //! The layered-material front-ends (`tessera:Metal`, `Refractive`, `SolidDielectric`,
 //! `Fabric`, `Layer`) in whole renders: read from USD, planned, and energy-safe.
 
-use tessera::remote::RenderOptions;
 use tessera_tests::*;
 
 /// Mean red value over the furnace sphere.
 async fn furnace_mean(rel: &str) -> f64 {
-    let opts = RenderOptions { max_depth: 64, ..small(32, 32, 64) };
-    let report = render_fixture(rel, &opts).await;
-    assert_all_finite(&report.image);
-    let img = &report.image;
-    let (mean, n) = mean_where(img, "beauty", 0, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
-    assert!(n > 100, "{rel}: the sphere covers {n} pixels");
-    mean
+    furnace_sphere_mean(rel, true).await
 }
 
 /// White metal over a white plastic with a clearcoat and a sheen (mask 0.5), and a closed
