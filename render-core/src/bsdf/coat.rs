@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::{CharlieSheen, Clearcoat, GgxReflection, Lobe, SpecularFresnel, charlie, energy};
+use super::{CharlieSheen, Clearcoat, GgxReflection, Lobe, SpecularFresnel, ThinFilmCoat, charlie, energy};
 
 /// A layer over the lobes added before it, which takes from them what it reflects
 /// (`004_...`, "Coatings": f_s' = min(1 − E(μo), 1 − E(μi))·f_s, E the coat's directional
@@ -17,6 +17,8 @@ pub enum Coat {
     Sheen(CharlieSheen),
     /// A dielectric layer with its own IOR, roughness and absorbing thickness.
     Dielectric(DielectricCoat),
+    /// A thin film's interference (iridescence).
+    ThinFilm(ThinFilmCoat),
 }
 
 /// Imageworks' clearcoat (`004_...`, "Clearcoat"; DreamWorks' `000_...` section 2.3 exposes
@@ -65,6 +67,7 @@ impl Coat {
                 Lobe::GgxReflection(GgxReflection::new(d.roughness, 0.0, SpecularFresnel::Dielectric { eta: d.eta }, compensate)),
                 d.weight,
             ),
+            Coat::ThinFilm(t) => (Lobe::GgxReflection(t.lobe(compensate)), t.weight),
         }
     }
 
@@ -75,6 +78,7 @@ impl Coat {
             Coat::Disney(c) => c.weight * energy::clearcoat().e(c.alpha, mu),
             Coat::Sheen(s) => s.color.max_element() * charlie::sheen_energy().e(s.r, mu),
             Coat::Dielectric(d) => d.weight * energy::dielectric_specular().e(d.eta, d.roughness, mu),
+            Coat::ThinFilm(t) => t.weight * t.e(mu),
         };
         (1.0 - e).max(0.0)
     }

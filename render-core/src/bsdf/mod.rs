@@ -21,6 +21,7 @@ mod lambert;
 pub mod microfacet;
 mod reflection;
 mod thin;
+pub mod thin_film;
 
 pub use charlie::CharlieSheen;
 pub use coat::{Coat, DielectricCoat};
@@ -30,6 +31,7 @@ pub use fabric::Fabric;
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
 pub use thin::{ThinDielectric, sheet_series};
+pub use thin_film::ThinFilmCoat;
 
 use glam::{Vec2, Vec3};
 

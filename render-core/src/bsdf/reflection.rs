@@ -48,6 +48,18 @@ pub enum SpecularFresnel {
     },
     /// F = 1: an ideal reflector, for furnace tests.
     White,
+    /// A thin film's interference over a dielectric substrate ([`super::thin_film::airy`]);
+    /// build with [`SpecularFresnel::thin_film`], which integrates its average once.
+    ThinFilm {
+        /// Film refractive index.
+        film: f32,
+        /// Thickness in nanometres.
+        thickness: f32,
+        /// Substrate refractive index.
+        substrate: f32,
+        /// Cosine-weighted average, per channel.
+        avg: Vec3,
+    },
 }
 
 impl SpecularFresnel {
@@ -60,7 +72,18 @@ impl SpecularFresnel {
             SpecularFresnel::Schlick { f0 } => fresnel::schlick(f0, mu),
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric(mu, eta)),
             SpecularFresnel::White => Vec3::ONE,
+            SpecularFresnel::ThinFilm { film, thickness, substrate, .. } => super::thin_film::airy(mu, film, thickness, substrate),
         }
+    }
+
+    /// A thin film's Fresnel, its average integrated by the midpoint rule on 64 cosines.
+    pub fn thin_film(film: f32, thickness: f32, substrate: f32) -> Self {
+        let n = 64;
+        let avg = (0..n)
+            .map(|k| (k as f32 + 0.5) / n as f32)
+            .map(|mu| super::thin_film::airy(mu, film, thickness, substrate) * (2.0 * mu / n as f32))
+            .sum();
+        SpecularFresnel::ThinFilm { film, thickness, substrate, avg }
     }
 
     /// The cosine-weighted average F_avg: the slides' fits or closed forms.
@@ -73,6 +96,7 @@ impl SpecularFresnel {
             SpecularFresnel::Schlick { f0 } => f0 + (Vec3::ONE - f0) / 21.0,
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
             SpecularFresnel::White => Vec3::ONE,
+            SpecularFresnel::ThinFilm { avg, .. } => avg,
         }
     }
 }

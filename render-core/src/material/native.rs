@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use super::Material;
 use super::network::{MaterialNode, ParamValue, ResolveReport};
-use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, Uber, Weighted};
+use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 
 /// An input's type.
@@ -76,6 +76,10 @@ pub const SHARED: &[Input] = &[
     float("sheen", 0.0, (0.0, 1.0), "coverage of a Charlie sheen coat (microfibres) over everything"),
     color("sheenColor", 1.0, "sheen colour"),
     float("sheenRoughness", 0.3, (0.07, 1.0), "sheen roughness (clamped at 0.07, where the slides' Λ fit stops conserving energy)"),
+    float("iridescence", 0.0, (0.0, 1.0), "coverage of a thin film (soap, oil, anodized) over the material and its clearcoat"),
+    float("iridescenceThickness", 400.0, (0.0, 1000.0), "film thickness in nanometres: its colours"),
+    float("iridescenceRefractiveIndex", 1.33, (1.0, 3.0), "the film's refractive index"),
+    float("iridescenceRoughness", 0.1, (0.0, 1.0), "the film's roughness"),
     float("roughness2", 0.5, (0.0, 1.0), "double specular: the second roughness"),
     float("doubleSpecularMix", 0.0, (0.0, 1.0), "double specular: the second roughness's share"),
     Input { name: "emission", kind: Kind::Color, default: [0.0; 3], range: (0.0, f32::MAX), doc: "emitted radiance, in UsdLux units" },
@@ -275,6 +279,14 @@ pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Option<Materi
                 thickness: v.f("clearcoatThickness"),
             },
         };
+        u.thin_film = Weighted {
+            weight: v.f("iridescence"),
+            params: ThinFilmParams {
+                ior: v.f("iridescenceRefractiveIndex"),
+                thickness: v.f("iridescenceThickness"),
+                roughness: v.f("iridescenceRoughness"),
+            },
+        };
         u.sheen = Weighted { weight: v.f("sheen"), params: SheenParams { color: v.c("sheenColor"), roughness: v.f("sheenRoughness") } };
         u.specular_control = v.f("specularControl");
         emission = v.c("emission");
@@ -345,7 +357,7 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 6] = [
+        let cases: [(&str, Vec<(&str, ParamValue)>); 7] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -355,6 +367,10 @@ mod tests {
             ),
             ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseTransmission", ParamValue::Float3(Vec3::splat(0.4)))]),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
+            (
+                "tessera:Metal",
+                vec![("reflectivity", white.clone()), ("iridescence", ParamValue::Float(1.0)), ("clearcoat", ParamValue::Float(1.0))],
+            ),
         ];
         for (id, params) in cases {
             let (defaults, r) = resolved(id, &[]);

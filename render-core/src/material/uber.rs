@@ -14,7 +14,7 @@ use glam::Vec3;
 
 use crate::bsdf::{
     Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Lobe,
-    Sheen, SpecularFresnel, ThinDielectric,
+    Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
 };
 
 /// Linear interpolation of parameters from `self` (weight `wa`) towards `other` (weight `wb`).
@@ -313,6 +313,27 @@ impl Mix for ClearcoatParams {
     }
 }
 
+/// A thin-film coat (iridescence); the substrate's index is the material's own.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinFilmParams {
+    /// Film refractive index.
+    pub ior: f32,
+    /// Thickness in nanometres.
+    pub thickness: f32,
+    /// Roughness.
+    pub roughness: f32,
+}
+
+impl Mix for ThinFilmParams {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        ThinFilmParams {
+            ior: self.ior.mix(wa, &o.ior, wb),
+            thickness: self.thickness.mix(wa, &o.thickness, wb),
+            roughness: self.roughness.mix(wa, &o.roughness, wb),
+        }
+    }
+}
+
 /// A Charlie sheen coat.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SheenParams {
@@ -358,6 +379,8 @@ pub struct Uber {
     pub fabric: Weighted<FabricParams>,
     /// Clearcoat over everything.
     pub clearcoat: Weighted<ClearcoatParams>,
+    /// Thin film over the clearcoat and everything beneath.
+    pub thin_film: Weighted<ThinFilmParams>,
     /// Charlie sheen over everything (and over the clearcoat).
     pub sheen: Weighted<SheenParams>,
     /// DreamWorks `specularControl` in [0, 1]: scales every specular lobe (1: untouched).
@@ -373,6 +396,7 @@ impl Default for Uber {
             glass: Weighted { weight: 0.0, params: Glass::default() },
             fabric: Weighted { weight: 0.0, params: FabricParams::default() },
             clearcoat: Weighted { weight: 0.0, params: ClearcoatParams::Disney { gloss: 1.0 } },
+            thin_film: Weighted { weight: 0.0, params: ThinFilmParams { ior: 1.33, thickness: 400.0, roughness: 0.1 } },
             sheen: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.3 } },
             specular_control: 1.0,
         }
@@ -389,6 +413,7 @@ impl Uber {
             glass: self.glass.over(&a.glass, m),
             fabric: self.fabric.over(&a.fabric, m),
             clearcoat: self.clearcoat.over(&a.clearcoat, m),
+            thin_film: self.thin_film.over(&a.thin_film, m),
             sheen: self.sheen.over(&a.sheen, m),
             specular_control: self.specular_control.mix(1.0 - m, &a.specular_control, m),
         }
@@ -408,6 +433,7 @@ impl Uber {
             clamp(s);
         }
         u.glass.params.roughness = u.glass.params.roughness.max(floor);
+        u.thin_film.params.roughness = u.thin_film.params.roughness.max(floor);
         u.clearcoat.params = match u.clearcoat.params {
             // Disney's coat: α = lerp(0.1, 0.001, gloss); roughness r ↔ α = r², so cap the gloss.
             ClearcoatParams::Disney { gloss } => {
@@ -532,6 +558,17 @@ impl Uber {
                 }
             };
             bsdf.coat_with(coat, compensate);
+        }
+        let film_w = finite(self.thin_film.weight) * spec_scale;
+        if film_w > 0.0 || every {
+            let f = &self.thin_film.params;
+            // The film lies on the material itself: its index is the glass's, else the
+            // dielectric specular's.
+            let substrate = if self.glass.weight > 0.0 { self.glass.params.ior } else { self.plastic.params.coupling_eta };
+            bsdf.coat_with(
+                Coat::ThinFilm(ThinFilmCoat::new(film_w, f.roughness, f.ior, f.thickness, substrate.max(1.0), compensate)),
+                compensate,
+            );
         }
         let sheen_w = finite(self.sheen.weight);
         if sheen_w > 0.0 || every {
