@@ -387,6 +387,24 @@ fn lobe_energy(lobe: &super::Lobe, mu: f32, rng: &mut Pcg32, strata: u32) -> f32
     (acc / (strata * strata) as f64) as f32
 }
 
+/// The largest channel of a sampler's directional albedo at cosine `mu`, by an n×n grid of
+/// stratum midpoints (choice numbers spread by the golden ratio): the cheap deterministic
+/// quadrature lobes built per material use to measure themselves.
+pub(crate) fn grid_albedo(sample: impl Fn(Vec3, f32, Vec2) -> Option<super::LobeSample>, mu: f32, n: u32) -> f32 {
+    let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let mut acc = Vec3::ZERO;
+    for a in 0..n {
+        for b in 0..n {
+            let u = Vec2::new((a as f32 + 0.5) / n as f32, (b as f32 + 0.5) / n as f32);
+            let uc = ((a * n + b) as f32 * 0.618_034).fract();
+            if let Some(s) = sample(wo, uc, u) {
+                acc += s.weight;
+            }
+        }
+    }
+    (acc / (n * n) as f32).max_element()
+}
+
 /// 2∫f(μ)μ dμ by the midpoint rule on `m` cosines: the E_avg of a tabulated E.
 fn cosine_average(m: usize, f: impl Fn(f32) -> f32) -> f32 {
     let acc: f64 = (0..m).map(|k| (k as f64 + 0.5) / m as f64).map(|mu| f(mu as f32) as f64 * mu).sum();

@@ -106,18 +106,7 @@ impl ThinDielectric {
     /// The largest channel of the directional albedo at cosine `mu`, by 32×32 stratified
     /// samples of the lobe itself.
     fn measured_albedo(&self, mu: f32) -> f32 {
-        let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-        let (n, mut acc) = (32u32, Vec3::ZERO);
-        for a in 0..n {
-            for b in 0..n {
-                let u = Vec2::new((a as f32 + 0.5) / n as f32, (b as f32 + 0.5) / n as f32);
-                let uc = ((a * n + b) as f32 * 0.618034).fract();
-                if let Some(s) = self.sample(wo, uc, u) {
-                    acc += s.weight;
-                }
-            }
-        }
-        (acc / (n * n) as f32).max_element()
+        energy::grid_albedo(|wo, uc, u| self.sample(wo, uc, u), mu, 32)
     }
 
     /// (R, T) of the series for a microfacet cosine `c`.

@@ -13,7 +13,7 @@
 //! nodes of the coat lobe's own quadrature), and the layers beneath keep
 //! min(1 − E(μo), 1 − E(μi)) as for the other coats.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 /// Wavelengths (nm) standing for red, green and blue.
 pub const WAVELENGTHS: [f32; 3] = [650.0, 550.0, 450.0];
@@ -90,19 +90,7 @@ impl ThinFilmCoat {
         let lobe = c.lobe(compensate);
         c.e = std::array::from_fn(|k| {
             let mu = ((k as f32 / 15.0).powi(2)).max(1e-4);
-            let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-            let n = 24u32;
-            let mut acc = Vec3::ZERO;
-            for a in 0..n {
-                for b in 0..n {
-                    let u = Vec2::new((a as f32 + 0.5) / n as f32, (b as f32 + 0.5) / n as f32);
-                    let uc = ((a * n + b) as f32 * 0.618_034).fract();
-                    if let Some(s) = lobe.sample(wo, uc, u) {
-                        acc += s.weight;
-                    }
-                }
-            }
-            (acc / (n * n) as f32).max_element().min(1.0)
+            super::energy::grid_albedo(|wo, uc, u| lobe.sample(wo, uc, u), mu, 24).min(1.0)
         });
         c
     }
