@@ -41,31 +41,44 @@ pub struct Knobs {
     pub avoid_caustics: bool,
     /// Which strategies find light.
     pub strategy: LightStrategy,
+    /// Run every effect whether or not the scene calls for it (`tessera bench effects`).
+    pub force_all_effects: bool,
+}
+
+impl Default for Knobs {
+    /// 64 spp, max depth 7, everything else at its unbiased default.
+    fn default() -> Self {
+        Knobs {
+            spp: 64,
+            max_depth: 7,
+            energy_compensation: true,
+            sampler: SamplerKind::Sobol,
+            clamp: None,
+            noise_threshold: 0.0,
+            avoid_caustics: false,
+            strategy: LightStrategy::Mis,
+            force_all_effects: false,
+        }
+    }
 }
 
 impl Knobs {
     fn from_quality(q: Quality) -> Self {
         let p = q.preset();
-        Knobs {
-            spp: p.spp,
-            max_depth: p.max_depth,
-            energy_compensation: true,
-            sampler: SamplerKind::Sobol,
-            clamp: p.clamp,
-            noise_threshold: 0.0,
-            avoid_caustics: false,
-            strategy: LightStrategy::Mis,
-        }
+        Knobs { spp: p.spp, max_depth: p.max_depth, clamp: p.clamp, ..Knobs::default() }
     }
 }
 
 /// An image and what it cost.
-struct Rendered {
-    rgb: Vec<f64>,
-    seconds: f64,
+pub(crate) struct Rendered {
+    /// RGB of the beauty, pixel by pixel.
+    pub(crate) rgb: Vec<f64>,
+    /// Wall time of the render alone.
+    pub(crate) seconds: f64,
 }
 
-fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Rendered {
+/// Renders `scene` in-process with the knobs; table builds are paid before timing.
+pub(crate) fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Rendered {
     let settings = RenderSettings {
         width: w,
         height: h,
@@ -78,6 +91,7 @@ fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Re
             clamp_indirect: k.clamp,
             caustics: if k.avoid_caustics { CausticMode::Avoid } else { CausticMode::Full },
             strategy: k.strategy,
+            force_all_effects: k.force_all_effects,
             ..Default::default()
         },
         sampler: k.sampler,
@@ -87,6 +101,9 @@ fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Re
     // One-time energy-table builds are a load cost, not a per-render one (see
     // docs/benchmarks.md for their price): build before timing.
     scene.prepare_bsdfs(k.energy_compensation);
+    if k.force_all_effects {
+        scene.bsdf_with_every_lobe(0, k.energy_compensation);
+    }
     let t = Instant::now();
     let (fb, _) = render_to_framebuffer(scene, &camera, &settings);
     let seconds = t.elapsed().as_secs_f64();
@@ -94,7 +111,8 @@ fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed: u64) -> Re
     Rendered { rgb, seconds }
 }
 
-fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
+/// Relative MSE against a reference, with Rousselle's ε = 0.01.
+pub(crate) fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
     img.iter().zip(reference).map(|(a, r)| (a - r).powi(2) / (r * r + 0.01)).sum::<f64>() / img.len() as f64
 }
 
@@ -106,8 +124,9 @@ fn mean(img: &[f64]) -> f64 {
     img.iter().sum::<f64>() / img.len() as f64
 }
 
-fn load(fixtures: &Path, name: &str) -> Result<CommittedScene> {
-    let t = crate::usd::load(&fixtures.join(name))?;
+/// Reads and commits a fixture.
+pub(crate) fn load(fixtures: &Path, name: &str) -> Result<CommittedScene> {
+    let t = crate::usd::load(&fixtures.join(name)).with_context(|| format!("cannot read {name}"))?;
     commit(&t.to_scene_desc(), &mut BlasCache::default()).with_context(|| format!("{name} does not commit"))
 }
 
@@ -184,16 +203,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
         res.0, res.1, reference_knobs.max_depth, b.reference_spp, r1.seconds, reference_noise
     )?;
 
-    let base = Knobs {
-        spp: 64,
-        max_depth: 7,
-        energy_compensation: true,
-        sampler: SamplerKind::Sobol,
-        clamp: None,
-        noise_threshold: 0.0,
-        avoid_caustics: false,
-        strategy: LightStrategy::Mis,
-    };
+    let base = Knobs::default();
     let measure = |label: String, k: Knobs| -> Row {
         let r = render(&cornell, res, k, 7);
         Row { label, seconds: r.seconds, rel_mse: rel_mse(&r.rgb, &reference), mae: mean_abs(&r.rgb, &reference) }
@@ -288,16 +298,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
         eprintln!("{name} ...");
         let scene = load(&b.fixtures, name)?;
         for on in [true, false] {
-            let k = Knobs {
-                spp: 64,
-                max_depth: 64,
-                energy_compensation: on,
-                sampler: SamplerKind::Sobol,
-                clamp: None,
-                noise_threshold: 0.0,
-                avoid_caustics: false,
-                strategy: LightStrategy::Mis,
-            };
+            let k = Knobs { max_depth: 64, energy_compensation: on, ..Knobs::default() };
             let r = render(&scene, (res.0 / 2, res.1 / 2), k, 3);
             let ones = vec![1.0; r.rgb.len()];
             summary.furnace.push((name.to_string(), on, mean(&r.rgb)));

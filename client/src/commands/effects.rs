@@ -6,15 +6,11 @@
 //! simulating effects a scene does not call for. Writes `docs/render-plan.md`.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use render_core::camera::Camera;
-use render_core::film::Aov;
-use render_core::integrator::IntegratorSettings;
-use render_core::render::{RenderSettings, render_to_framebuffer};
-use render_core::scene::{BlasCache, CommittedScene, commit};
+
+use crate::commands::bench::{Knobs, load, rel_mse, render};
 
 /// The fixtures the benchmark renders by default.
 pub const FIXTURES: &[&str] =
@@ -49,55 +45,25 @@ pub struct EffectsRow {
     pub noise: f64,
 }
 
-fn rgb(scene: &CommittedScene, size: u32, spp: u32, seed: u64, force: bool) -> (Vec<f64>, f64) {
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp,
-        seed,
-        tile_size: 16,
-        integrator: IntegratorSettings { max_depth: 8, force_all_effects: force, ..Default::default() },
-        ..Default::default()
-    };
-    let camera = Camera::new(&scene.camera("").expect("the fixture has a camera"), size, size);
-    // Table builds are a load cost: pay them before timing.
-    scene.prepare_bsdfs(true);
-    if force {
-        scene.bsdf_with_every_lobe(0, true);
-    }
-    let t = Instant::now();
-    let (fb, _) = render_to_framebuffer(scene, &camera, &settings);
-    let seconds = t.elapsed().as_secs_f64();
-    (fb.layers[&Aov::Beauty].chunks(4).flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect(), seconds)
-}
-
-/// Relative MSE of `a` against `b` (Rousselle's ε = 0.01), symmetric in its use here.
-fn rel_mse(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).powi(2) / (0.25 * (x + y).powi(2) + 0.01)).sum::<f64>() / a.len() as f64
-}
-
-fn load(fixtures: &Path, name: &str) -> Result<CommittedScene> {
-    let t = crate::usd::load(&fixtures.join(name)).with_context(|| format!("cannot read {name}"))?;
-    commit(&t.to_scene_desc(), &mut BlasCache::default()).with_context(|| format!("{name} does not commit"))
-}
-
 /// Runs the benchmark; returns the report and its rows.
 pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
     let mut rows = Vec::new();
     for name in &b.names {
         eprintln!("{name} ...");
         let scene = load(&b.fixtures, name)?;
-        let (planned, t_plan) = rgb(&scene, b.size, b.spp, 1, false);
-        let (other_seed, _) = rgb(&scene, b.size, b.spp, 2, false);
+        let res = (b.size, b.size);
+        let knobs = Knobs { spp: b.spp, max_depth: 8, ..Knobs::default() };
+        let planned = render(&scene, res, knobs, 1);
+        let other_seed = render(&scene, res, knobs, 2);
         // A third seed: the forced image is an independent estimate, so "equal within noise"
         // means it differs from the planned one as much as another planned seed does.
-        let (forced, t_forced) = rgb(&scene, b.size, b.spp, 3, true);
+        let forced = render(&scene, res, Knobs { force_all_effects: true, ..knobs }, 3);
         rows.push(EffectsRow {
             fixture: name.clone(),
             plan: scene.plan.entries.iter().map(|e| e.effect.clone()).collect(),
-            seconds: (t_plan, t_forced),
-            difference: rel_mse(&planned, &forced),
-            noise: rel_mse(&planned, &other_seed),
+            seconds: (planned.seconds, forced.seconds),
+            difference: rel_mse(&forced.rgb, &planned.rgb),
+            noise: rel_mse(&other_seed.rgb, &planned.rgb),
         });
     }
     let mut md = String::new();
