@@ -70,9 +70,10 @@ pub fn transparent_weight(r_a: f32, r_b: f32) -> f32 {
     if r_b > SMOOTH_GLASS {
         return 0.0;
     }
+    // w(B_t) + w(B_p) = 1, so the power heuristic's denominator is at least 1/2.
     let wt = (r_a - r_b).clamp(0.0, 1.0);
     let wp = 1.0 - wt;
-    if wt + wp <= 0.0 { 0.0 } else { wt * wt / (wt * wt + wp * wp) }
+    wt * wt / (wt * wt + wp * wp)
 }
 
 /// What a shadow ray found on its way to the light.

@@ -44,10 +44,14 @@ impl Mix for Vec3 {
     }
 }
 
-/// Discrete choices go to the side that holds more.
+/// A discrete choice (a flag, a Fresnel model, a coat kind): the side that holds more.
+fn pick<T>(a: T, wa: f32, b: T, wb: f32) -> T {
+    if share(wa, wb) > 0.5 { b } else { a }
+}
+
 impl Mix for bool {
     fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self {
-        if share(wa, wb) > 0.5 { *other } else { *self }
+        pick(*self, wa, *other, wb)
     }
 }
 
@@ -58,13 +62,7 @@ impl Mix for SpecularFresnel {
             (F::Gulbrandsen { r, g }, F::Gulbrandsen { r: r2, g: g2 }) => F::Gulbrandsen { r: r.mix(wa, &r2, wb), g: g.mix(wa, &g2, wb) },
             (F::Schlick { f0 }, F::Schlick { f0: f2 }) => F::Schlick { f0: f0.mix(wa, &f2, wb) },
             (F::Dielectric { eta }, F::Dielectric { eta: e2 }) => F::Dielectric { eta: eta.mix(wa, &e2, wb) },
-            (a, b) => {
-                if share(wa, wb) > 0.5 {
-                    b
-                } else {
-                    a
-                }
-            }
+            (a, b) => pick(a, wa, b, wb),
         }
     }
 }
@@ -176,13 +174,7 @@ impl Mix for Plastic {
     fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
         let specular = match (self.specular, o.specular) {
             (Some(a), Some(b)) => Some(a.mix(wa, &b, wb)),
-            (a, b) => {
-                if share(wa, wb) > 0.5 {
-                    b
-                } else {
-                    a
-                }
-            }
+            (a, b) => pick(a, wa, b, wb),
         };
         Plastic {
             diffuse: self.diffuse.mix(wa, &o.diffuse, wb),
@@ -302,13 +294,7 @@ impl Mix for ClearcoatParams {
                     thickness: thickness.mix(wa, &t2, wb),
                 }
             }
-            (a, b) => {
-                if share(wa, wb) > 0.5 {
-                    b
-                } else {
-                    a
-                }
-            }
+            (a, b) => pick(a, wa, b, wb),
         }
     }
 }
@@ -576,5 +562,27 @@ impl Uber {
             bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
         }
         bsdf
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `bsdf_with_every_lobe` really builds every lobe (so the render-plan benchmark measures
+    /// something) and changes nothing the material reflects.
+    #[test]
+    fn every_lobe_bsdf_holds_more_lobes_and_the_same_function() {
+        let u = Uber::default();
+        let (planned, every) = (u.bsdf(true), u.bsdf_with_every_lobe(true));
+        assert_eq!(planned.len(), 2, "diffuse and specular");
+        assert!(every.len() >= 12, "{} lobes", every.len());
+        let mut rng = crate::sampling::Pcg32::new(3, 7);
+        for _ in 0..200 {
+            let wo = crate::sampling::uniform_sphere(rng.next_2d());
+            let wi = crate::sampling::uniform_sphere(rng.next_2d());
+            let (a, b) = (planned.eval(wo, wi), every.eval(wo, wi));
+            assert!((a - b).abs().max_element() <= 1e-6 * a.max_element().max(1.0), "{a:?} vs {b:?}");
+        }
     }
 }
