@@ -2,13 +2,36 @@
 //! parser accepts some malformed names and paths (a prim named `Prin}ipled`, a binding target
 //! `</World/Looks/Grey()`) and its composition then recurses without end or loops: a stack
 //! overflow or a hang, which no error handling can catch (found by fuzzing). This pass finds
-//! such names and paths first and reports them by line, as a parse error would.
+//! such names and paths first and reports them by line, as a parse error would; the reader
+//! checks relationship targets and connections against the same grammar.
 
 use anyhow::{Result, bail};
 
 /// True for a USD identifier: a letter or underscore, then letters, digits, underscores.
 fn identifier(s: &str) -> bool {
     s.chars().next().is_some_and(|c| c.is_alphabetic() || c == '_') && s.chars().all(|c| c.is_alphanumeric() || c == '_')
+}
+
+/// True when `name` is a well-formed (namespaced) property name: identifiers joined by ':'.
+pub(crate) fn well_formed_name(name: &str) -> bool {
+    name.split(':').all(identifier)
+}
+
+/// True when `path` is a well-formed absolute path: prim names of letters, digits and
+/// underscores (not starting with a digit), optionally one namespaced property after a dot.
+/// Targets and connections are checked before the stage is asked about them: the openusd
+/// crate recursed without end composing a malformed binding target (`</World/Looks/Grey()`,
+/// found by fuzzing) and overflowed the stack.
+pub(crate) fn well_formed_path(path: &str) -> bool {
+    let Some(rest) = path.strip_prefix('/') else { return false };
+    if rest.is_empty() {
+        return true;
+    }
+    let (prims, property) = match rest.split_once('.') {
+        Some((a, b)) => (a, Some(b)),
+        None => (rest, None),
+    };
+    prims.split('/').all(identifier) && property.is_none_or(well_formed_name)
 }
 
 /// True for a path as a `<...>` literal may hold: absolute or relative (`.`/`..` steps),
@@ -30,7 +53,7 @@ fn path_literal(p: &str) -> bool {
         _ => (body, None),
     };
     let prims_ok = prims.is_empty() || prims.split('/').all(|s| identifier(s) || s == ".." || s == ".");
-    prims_ok && property.is_none_or(|prop| prop.split(':').all(identifier))
+    prims_ok && property.is_none_or(well_formed_name)
 }
 
 /// Checks prim names in `def`/`over`/`class` statements and every `<path>` literal.
@@ -77,6 +100,15 @@ pub fn check(text: &str) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn malformed_paths_are_caught() {
+        let ok = well_formed_path;
+        assert!(ok("/World/Looks/Grey") && ok("/") && ok("/M/S.outputs:surface") && ok("/_a1/b_2"));
+        for bad in ["/World/Looks/Grey()", "World", "/a//b", "/a/1b", "/a.b.c", "/a.", "", "/a b"] {
+            assert!(!ok(bad), "{bad}");
+        }
+    }
 
     #[test]
     fn accepts_what_the_fixtures_use_and_rejects_what_fuzzing_found() {

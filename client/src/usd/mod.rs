@@ -7,6 +7,7 @@
 //! schema's documented ones.
 
 mod lint;
+use lint::{well_formed_name, well_formed_path};
 mod mesh;
 pub mod shapes;
 mod values;
@@ -841,41 +842,4 @@ fn param(v: &Value) -> Option<ParamValue> {
         Value::AssetPath(a) => ParamValue::Asset(format!("{a:?}")),
         _ => ParamValue::Float3(values::vec3(v)?),
     })
-}
-
-/// True when `name` is a well-formed (namespaced) property name: identifiers joined by ':'.
-pub(crate) fn well_formed_name(name: &str) -> bool {
-    name.split(':')
-        .all(|s| s.chars().next().is_some_and(|c| c.is_alphabetic() || c == '_') && s.chars().all(|c| c.is_alphanumeric() || c == '_'))
-}
-
-/// True when `path` is a well-formed absolute path: prim names of letters, digits and
-/// underscores (not starting with a digit), optionally one namespaced property after a dot.
-/// Targets and connections are checked before the stage is asked about them: the openusd
-/// crate recursed without end composing a malformed binding target (`</World/Looks/Grey()`,
-/// found by fuzzing) and overflowed the stack.
-pub(crate) fn well_formed_path(path: &str) -> bool {
-    let Some(rest) = path.strip_prefix('/') else { return false };
-    if rest.is_empty() {
-        return true;
-    }
-    let ident =
-        |s: &str| s.chars().next().is_some_and(|c| c.is_alphabetic() || c == '_') && s.chars().all(|c| c.is_alphanumeric() || c == '_');
-    let (prims, property) = match rest.split_once('.') {
-        Some((a, b)) => (a, Some(b)),
-        None => (rest, None),
-    };
-    prims.split('/').all(ident) && property.is_none_or(well_formed_name)
-}
-
-#[cfg(test)]
-mod path_tests {
-    #[test]
-    fn malformed_paths_are_caught() {
-        use super::well_formed_path as ok;
-        assert!(ok("/World/Looks/Grey") && ok("/") && ok("/M/S.outputs:surface") && ok("/_a1/b_2"));
-        for bad in ["/World/Looks/Grey()", "World", "/a//b", "/a/1b", "/a.b.c", "/a.", "", "/a b"] {
-            assert!(!ok(bad), "{bad}");
-        }
-    }
 }
