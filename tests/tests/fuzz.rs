@@ -7,19 +7,15 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use tessera_tests::*;
 
-/// A small deterministic generator (SplitMix64) for the mutations.
-struct Rng(u64);
+/// The mutations' numbers: the renderer's own PCG32.
+struct Rng(render_core::sampling::Pcg32);
 
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
     fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
+        (self.0.next_u32() as usize) % n.max(1)
+    }
+    fn byte(&mut self) -> u8 {
+        self.0.next_u32() as u8
     }
 }
 
@@ -38,7 +34,7 @@ fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
         let i = rng.below(v.len());
         match rng.below(6) {
             0 => v[i] ^= 1 << rng.below(8),
-            1 => v[i] = rng.next() as u8,
+            1 => v[i] = rng.byte(),
             2 => {
                 let n = rng.below(16).min(v.len() - i);
                 v.drain(i..i + n);
@@ -76,7 +72,7 @@ fn save_failure(kind: &str, k: usize, data: &[u8]) -> String {
 /// local run); returns the saved paths of inputs that panicked.
 fn run(kind: &str, seeds: &[Vec<u8>], n: usize, f: impl Fn(&[u8])) -> Vec<String> {
     let n = n * std::env::var("TESSERA_FUZZ_SCALE").ok().and_then(|s| s.parse().ok()).unwrap_or(1usize);
-    let mut rng = Rng(0x7e55_e7a0 ^ kind.len() as u64);
+    let mut rng = Rng(render_core::sampling::Pcg32::new(0x7e55_e7a0, kind.len() as u64));
     let mut failures = Vec::new();
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
