@@ -34,5 +34,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod subsurface;
+pub mod texture;
 
 pub use glam;
