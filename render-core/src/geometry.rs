@@ -59,17 +59,63 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, scene_scale: f32) -> Vec3 {
     )
 }
 
-/// How a mesh's shading normals are stored.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub enum Normals {
-    /// Flat shading from the geometric normal.
-    #[default]
+/// Per-corner data of a mesh (normals, texture coordinates), in the two layouts a
+/// triangulated USD primvar takes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Attribute<T> {
+    /// Not authored.
     None,
-    /// One normal per vertex.
-    Vertex(Vec<Vec3>),
-    /// One normal per triangle corner (3 per triangle).
-    FaceVarying(Vec<Vec3>),
+    /// One value per vertex.
+    Vertex(Vec<T>),
+    /// One value per triangle corner (3 per triangle).
+    FaceVarying(Vec<T>),
 }
+
+impl<T> Default for Attribute<T> {
+    fn default() -> Self {
+        Attribute::None
+    }
+}
+
+impl<T> Attribute<T>
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    /// The three corner values of triangle `tri` with vertex indices `idx`.
+    #[inline]
+    pub fn corners(&self, tri: usize, idx: [u32; 3]) -> Option<[T; 3]> {
+        match self {
+            Attribute::None => None,
+            Attribute::Vertex(v) => Some(idx.map(|i| v[i as usize])),
+            Attribute::FaceVarying(v) => Some([v[3 * tri], v[3 * tri + 1], v[3 * tri + 2]]),
+        }
+    }
+
+    /// The value at barycentrics (`b1`, `b2`) of triangle `tri`.
+    #[inline]
+    pub fn interpolate(&self, tri: usize, idx: [u32; 3], bary: Vec2) -> Option<T> {
+        self.corners(tri, idx).map(|[a, b, c]| a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y)
+    }
+
+    /// Number of values held.
+    pub fn len(&self) -> usize {
+        match self {
+            Attribute::None => 0,
+            Attribute::Vertex(v) | Attribute::FaceVarying(v) => v.len(),
+        }
+    }
+
+    /// True when nothing is authored.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// How a mesh's shading normals are stored (`None`: flat shading from the geometric normal).
+pub type Normals = Attribute<Vec3>;
+
+/// A mesh's texture coordinates (`st`).
+pub type Uvs = Attribute<Vec2>;
 
 /// A triangle mesh in object space.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -80,6 +126,9 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
     /// Shading normals.
     pub normals: Normals,
+    /// Texture coordinates: the float2 primvar the mesh's material reads (`st` unless a
+    /// primvar reader names another).
+    pub uvs: Uvs,
 }
 
 impl Mesh {
@@ -94,15 +143,7 @@ impl Mesh {
     /// for flat meshes.
     #[inline]
     pub fn shading_normal(&self, tri: usize, bary: Vec2) -> Option<Vec3> {
-        let w = [1.0 - bary.x - bary.y, bary.x, bary.y];
-        match &self.normals {
-            Normals::None => None,
-            Normals::Vertex(n) => {
-                let [a, b, c] = self.indices[tri];
-                Some(n[a as usize] * w[0] + n[b as usize] * w[1] + n[c as usize] * w[2])
-            }
-            Normals::FaceVarying(n) => Some(n[3 * tri] * w[0] + n[3 * tri + 1] * w[1] + n[3 * tri + 2] * w[2]),
-        }
+        self.normals.interpolate(tri, self.indices[tri], bary)
     }
 
     /// Number of triangles.

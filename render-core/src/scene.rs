@@ -607,7 +607,12 @@ mod tests {
     use super::*;
 
     fn tri_mesh() -> Arc<Mesh> {
-        Arc::new(Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]], normals: Normals::None })
+        Arc::new(Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            normals: Normals::None,
+            uvs: Default::default(),
+        })
     }
 
     #[test]

@@ -205,6 +205,9 @@ fn param_from_wire(v: &pb::ParamValue) -> Option<ParamValue> {
         V::BoolValue(b) => ParamValue::Bool(*b),
         V::StringValue(s) => ParamValue::String(s.clone()),
         V::AssetValue(s) => ParamValue::Asset(s.clone()),
+        V::Float2Value(c) => ParamValue::Float2(glam::Vec2::new(c.x, c.y)),
+        V::Float4Value(c) => ParamValue::Float4(glam::Vec4::new(c.x, c.y, c.z, c.w)),
+        V::TextureValue(t) => ParamValue::Texture { hash: t.content_hash.clone(), source: t.source.clone() },
     })
 }
 
@@ -229,6 +232,11 @@ pub fn material_to_wire(m: &MaterialNetwork) -> pb::MaterialNetwork {
                             ParamValue::Bool(b) => V::BoolValue(*b),
                             ParamValue::String(s) => V::StringValue(s.clone()),
                             ParamValue::Asset(s) => V::AssetValue(s.clone()),
+                            ParamValue::Float2(c) => V::Float2Value(pb::Float2 { x: c.x, y: c.y }),
+                            ParamValue::Float4(c) => V::Float4Value(pb::Float4 { x: c.x, y: c.y, z: c.z, w: c.w }),
+                            ParamValue::Texture { hash, source } => {
+                                V::TextureValue(pb::TextureRef { content_hash: hash.clone(), source: source.clone() })
+                            }
                         };
                         (k.clone(), pb::ParamValue { value: Some(value) })
                     })

@@ -1,8 +1,9 @@
 //! `UsdGeomMesh` to triangles: polygon fan triangulation, winding, and normals in every
 //! interpolation the slice supports.
 
+use glam::Vec2;
 use glam::Vec3;
-use render_core::geometry::{Mesh, Normals};
+use render_core::geometry::{Attribute, Mesh, Normals, Uvs};
 
 /// Authored mesh data, straight from the stage.
 pub struct MeshSource {
@@ -14,6 +15,8 @@ pub struct MeshSource {
     pub indices: Vec<i64>,
     /// `normals` (or `primvars:normals`, de-indexed) and their interpolation.
     pub normals: Option<(Vec<Vec3>, String)>,
+    /// A float2 primvar for texture coordinates: its name, values (de-indexed) and interpolation.
+    pub uvs: Option<(String, Vec<Vec2>, String)>,
     /// `orientation == leftHanded`.
     pub left_handed: bool,
     /// `subdivisionScheme != none`: smooth normals are computed when none are authored.
@@ -29,11 +32,20 @@ pub fn triangulate(src: &MeshSource, warn: impl FnMut(String)) -> Result<Mesh, S
 /// mesh of its own: same points, the kept triangles, their normals.
 pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) -> Mesh {
     let kept: Vec<usize> = (0..mesh.indices.len()).filter(|&t| keep(face_of[t])).collect();
-    let normals = match &mesh.normals {
-        Normals::FaceVarying(n) => Normals::FaceVarying(kept.iter().flat_map(|&t| [n[3 * t], n[3 * t + 1], n[3 * t + 2]]).collect()),
-        other => other.clone(),
-    };
-    Mesh { positions: mesh.positions.clone(), indices: kept.iter().map(|&t| mesh.indices[t]).collect(), normals }
+    fn keep_corners<T: Copy>(a: &Attribute<T>, kept: &[usize]) -> Attribute<T> {
+        match a {
+            Attribute::FaceVarying(n) => {
+                Attribute::FaceVarying(kept.iter().flat_map(|&t| [n[3 * t], n[3 * t + 1], n[3 * t + 2]]).collect())
+            }
+            other => other.clone(),
+        }
+    }
+    Mesh {
+        positions: mesh.positions.clone(),
+        indices: kept.iter().map(|&t| mesh.indices[t]).collect(),
+        normals: keep_corners(&mesh.normals, &kept),
+        uvs: keep_corners(&mesh.uvs, &kept),
+    }
 }
 
 /// [`triangulate`], also returning the authored face of each triangle.
@@ -69,30 +81,15 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         warn(format!("{degenerate_faces} face(s) with fewer than 3 vertices skipped"));
     }
 
+    let layout = Layout { points: src.points.len(), faces: src.counts.len(), corners: &corners, face_of: &uniform_of };
     let normals = match &src.normals {
         None if src.smooth => Normals::Vertex(smooth_normals(&src.points, &tris)),
         None => Normals::None,
-        Some((n, interp)) => {
-            let mut expect = |want: usize| -> bool {
-                if n.len() == want {
-                    true
-                } else {
-                    warn(format!("normals: {} values for {interp} interpolation, {want} expected; ignoring them", n.len()));
-                    false
-                }
-            };
-            match interp.as_str() {
-                "vertex" | "varying" if expect(src.points.len()) => Normals::Vertex(n.clone()),
-                "faceVarying" if expect(src.indices.len()) => Normals::FaceVarying(corners.iter().flat_map(|c| c.map(|i| n[i])).collect()),
-                "uniform" if expect(src.counts.len()) => Normals::FaceVarying(uniform_of.iter().flat_map(|&f| [n[f]; 3]).collect()),
-                "constant" if expect(1) => Normals::FaceVarying(vec![n[0]; 3 * tris.len()]),
-                "vertex" | "varying" | "faceVarying" | "uniform" | "constant" => Normals::None,
-                other => {
-                    warn(format!("normals: unknown interpolation '{other}'; ignoring them"));
-                    Normals::None
-                }
-            }
-        }
+        Some((n, interp)) => layout.expand("normals", n, interp, &mut warn),
+    };
+    let uvs = match &src.uvs {
+        None => Uvs::None,
+        Some((name, uv, interp)) => layout.expand(name, uv, interp, &mut warn),
     };
     let normals = match normals {
         // Bad normals (zero length, NaN) are repaired to the geometric normal at shading
@@ -104,7 +101,47 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         other => other,
     };
     let face_of = uniform_of.iter().map(|&f| f as u32).collect();
-    Ok((Mesh { positions: src.points.clone(), indices: tris, normals }, face_of))
+    Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs }, face_of))
+}
+
+/// Where each triangle corner came from, to lay out primvars of any interpolation.
+struct Layout<'a> {
+    points: usize,
+    faces: usize,
+    /// Authored face-vertex index of each triangle corner.
+    corners: &'a [[usize; 3]],
+    /// Authored face of each triangle.
+    face_of: &'a [usize],
+}
+
+impl Layout<'_> {
+    /// A primvar of `interp` interpolation (already de-indexed) on the triangles; a length
+    /// that does not match its interpolation is a warning naming the primvar, and it is ignored.
+    fn expand<T: Copy>(&self, name: &str, v: &[T], interp: &str, warn: &mut impl FnMut(String)) -> Attribute<T> {
+        let face_vertices: usize = self.corners.iter().flatten().max().map_or(0, |m| m + 1);
+        let want = match interp {
+            "vertex" | "varying" => self.points,
+            "faceVarying" => face_vertices,
+            "uniform" => self.faces,
+            "constant" => 1,
+            other => {
+                warn(format!("{name}: unknown interpolation '{other}'; ignoring it"));
+                return Attribute::None;
+            }
+        };
+        // A face-varying primvar may cover more face-vertices than triangulated corners use.
+        let fits = if interp == "faceVarying" { v.len() >= want } else { v.len() == want };
+        if !fits {
+            warn(format!("{name}: {} values for {interp} interpolation, {want} expected; ignoring them", v.len()));
+            return Attribute::None;
+        }
+        match interp {
+            "vertex" | "varying" => Attribute::Vertex(v.to_vec()),
+            "faceVarying" => Attribute::FaceVarying(self.corners.iter().flat_map(|c| c.map(|i| v[i])).collect()),
+            "uniform" => Attribute::FaceVarying(self.face_of.iter().flat_map(|&f| [v[f]; 3]).collect()),
+            _ => Attribute::FaceVarying(vec![v[0]; 3 * self.corners.len()]),
+        }
+    }
 }
 
 /// Area-weighted vertex normals.
@@ -130,6 +167,7 @@ mod tests {
             counts: vec![4],
             indices: vec![0, 1, 2, 3],
             normals,
+            uvs: None,
             left_handed,
             smooth: false,
         }

@@ -7,12 +7,14 @@
 //! directly ([`native`]), and `tessera:Layer` by blending two resolved materials
 //! (`000_...`, section 2.2: parameter resolution, then closure creation).
 
+pub mod graph;
 pub mod native;
 mod network;
 mod preview;
 mod principled;
 pub mod uber;
 
+pub use graph::{ShadingPoint, TexturedMaterial};
 pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport};
 pub use principled::Principled;
 pub use uber::Uber;

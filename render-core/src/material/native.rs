@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use glam::Vec3;
 
 use super::Material;
-use super::network::{MaterialNode, ParamValue, ResolveReport};
+use super::network::{Inputs, ParamValue, ResolveReport};
 use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 
@@ -160,11 +160,11 @@ pub const SHADERS: &[Shader] = &[
 struct Values(BTreeMap<&'static str, [f32; 3]>);
 
 impl Values {
-    fn read(shader: &Shader, node: &MaterialNode, report: &mut ResolveReport) -> Values {
+    fn read(shader: &Shader, node: Inputs, report: &mut ResolveReport) -> Values {
         let shared: &[Input] = if shader.shared { SHARED } else { &[] };
         let decl = || shader.inputs.iter().chain(shared.iter());
         let mut v: BTreeMap<&'static str, [f32; 3]> = decl().map(|i| (i.name, i.default)).collect();
-        for (name, value) in &node.parameters {
+        for (name, value) in node.iter() {
             let Some(input) = decl().find(|i| i.name == name) else {
                 report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
                 continue;
@@ -205,7 +205,7 @@ impl Values {
 
 /// The uber-material of a specialized shader node, or None for an id this module does not
 /// declare.
-pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Option<Material> {
+pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Material> {
     let shader = SHADERS.iter().find(|s| s.id == node.node_type_id)?;
     let v = Values::read(shader, node, report);
     let mut u = Uber { plastic: Weighted { weight: 0.0, params: Plastic::default() }, ..Uber::default() };
@@ -341,8 +341,8 @@ mod tests {
     const BEGIN: &str = "<!-- shader reference: generated from render-core/src/material/native.rs -->\n";
     const END: &str = "<!-- end of shader reference -->";
 
-    fn node(id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
-        MaterialNode {
+    fn node(id: &str, params: &[(&str, ParamValue)]) -> crate::material::MaterialNode {
+        crate::material::MaterialNode {
             path: "/M/S".into(),
             node_type_id: id.into(),
             parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
@@ -351,7 +351,7 @@ mod tests {
 
     fn resolved(id: &str, params: &[(&str, ParamValue)]) -> (Material, ResolveReport) {
         let mut r = ResolveReport::default();
-        (resolve(&node(id, params), &mut r).expect("declared shader"), r)
+        (resolve(Inputs::authored(&node(id, params)), &mut r).expect("declared shader"), r)
     }
 
     #[test]

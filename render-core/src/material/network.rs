@@ -22,6 +22,17 @@ pub enum ParamValue {
     String(String),
     /// An asset path, already resolved by the client.
     Asset(String),
+    /// A texture coordinate or other pair.
+    Float2(glam::Vec2),
+    /// Four components (UsdUVTexture `scale`, `bias`, `fallback`).
+    Float4(glam::Vec4),
+    /// A texture file by content: its hash and where the client found it.
+    Texture {
+        /// `sha256:` and 64 hex digits.
+        hash: String,
+        /// The authored file, for messages.
+        source: String,
+    },
 }
 
 /// One shader node.
@@ -59,6 +70,54 @@ pub struct MaterialNetwork {
     pub surface_node: String,
 }
 
+/// Values of connected inputs evaluated at one shading point: `keys[i]` is (node path,
+/// input name) of `values[i]`. Empty at commit time.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Overrides<'a> {
+    pub keys: &'a [(String, String)],
+    pub values: &'a [ParamValue],
+}
+
+impl<'a> Overrides<'a> {
+    fn get(&self, node: &str, input: &str) -> Option<&'a ParamValue> {
+        self.keys.iter().position(|(n, i)| n == node && i == input).map(|k| &self.values[k])
+    }
+}
+
+/// A node's inputs as resolution reads them: the authored values, with connected inputs
+/// replaced by their values at the shading point. A connected input is always present among
+/// the authored ones (compilation writes a placeholder), so iterating covers it.
+#[derive(Clone, Copy)]
+pub(crate) struct Inputs<'a> {
+    node: &'a MaterialNode,
+    overrides: Overrides<'a>,
+}
+
+impl<'a> Inputs<'a> {
+    /// The node's authored values only.
+    pub fn authored(node: &'a MaterialNode) -> Self {
+        Inputs { node, overrides: Overrides::default() }
+    }
+
+    /// The value of input `name`.
+    pub fn get(&self, name: &str) -> Option<&'a ParamValue> {
+        self.overrides.get(&self.node.path, name).or_else(|| self.node.parameters.get(name))
+    }
+
+    /// Every input with a value.
+    pub fn iter(&self) -> impl Iterator<Item = (&'a String, &'a ParamValue)> + 'a {
+        let (node, overrides) = (self.node, self.overrides);
+        node.parameters.iter().map(move |(k, v)| (k, overrides.get(&node.path, k).unwrap_or(v)))
+    }
+}
+
+impl std::ops::Deref for Inputs<'_> {
+    type Target = MaterialNode;
+    fn deref(&self) -> &MaterialNode {
+        self.node
+    }
+}
+
 /// What resolution could not honour, each naming the node and input.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ResolveReport {
@@ -84,13 +143,21 @@ impl MaterialNetwork {
     /// (`000_...`, section 2.2). Unknown nodes, unmapped inputs and connected inputs that
     /// cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
+        self.resolve_with(material_path, Overrides::default())
+    }
+
+    /// [`Self::resolve`] with connected inputs evaluated at a shading point.
+    pub(crate) fn resolve_with(&self, material_path: &str, overrides: Overrides) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
         if self.node(&self.surface_node).is_none() {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (Material::preview_surface_default(), report);
         }
         let mut used = vec![self.surface_node.clone()];
-        let m = self.resolve_node(&self.surface_node, material_path, 0, &mut used, &mut report);
+        let m = self.resolve_node(&self.surface_node, material_path, 0, &mut used, &mut report, overrides);
+        if !overrides.keys.is_empty() {
+            return (m, report);
+        }
         for n in &self.nodes {
             if !used.contains(&n.path) && !self.connections.iter().any(|c| c.upstream_node == n.path) {
                 report.warnings.push(format!("{}: node '{}' is not connected to the surface and is ignored", n.path, n.node_type_id));
@@ -99,7 +166,15 @@ impl MaterialNetwork {
         (m, report)
     }
 
-    fn resolve_node(&self, path: &str, material_path: &str, depth: usize, used: &mut Vec<String>, report: &mut ResolveReport) -> Material {
+    fn resolve_node(
+        &self,
+        path: &str,
+        material_path: &str,
+        depth: usize,
+        used: &mut Vec<String>,
+        report: &mut ResolveReport,
+        overrides: Overrides,
+    ) -> Material {
         let Some(node) = self.node(path) else {
             report.warnings.push(format!("{path}: connected shader is missing from {material_path}; using the UsdPreviewSurface defaults"));
             return Material::preview_surface_default();
@@ -108,10 +183,11 @@ impl MaterialNetwork {
             used.push(path.to_string());
         }
         let id = node.node_type_id.as_str();
+        let inputs = Inputs { node, overrides };
         let m = match id {
-            "UsdPreviewSurface" | "tessera:Principled" => super::preview::resolve(node, report),
-            "tessera:Layer" => return self.resolve_layer(node, material_path, depth, used, report),
-            _ => match super::native::resolve(node, report) {
+            "UsdPreviewSurface" | "tessera:Principled" => super::preview::resolve(inputs, report),
+            "tessera:Layer" => return self.resolve_layer(inputs, material_path, depth, used, report, overrides),
+            _ => match super::native::resolve(inputs, report) {
                 Some(m) => m,
                 None => {
                     report.warnings.push(format!(
@@ -123,6 +199,9 @@ impl MaterialNetwork {
             },
         };
         for c in self.connections.iter().filter(|c| c.downstream_node == node.path) {
+            if overrides.get(&node.path, &c.downstream_input).is_some() || super::graph::evaluable(self, c) {
+                continue;
+            }
             let upstream = self.node(&c.upstream_node).map_or("?", |n| n.node_type_id.as_str());
             report.warnings.push(format!(
                 "{}: input '{}' is connected to {} ({upstream}); texture and primvar inputs are not supported yet, so its fallback value is used",
@@ -136,13 +215,14 @@ impl MaterialNetwork {
     /// evaluated only when the mask shows it.
     fn resolve_layer(
         &self,
-        node: &MaterialNode,
+        node: Inputs,
         material_path: &str,
         depth: usize,
         used: &mut Vec<String>,
         report: &mut ResolveReport,
+        overrides: Overrides,
     ) -> Material {
-        let mask = match node.parameters.get("mask") {
+        let mask = match node.get("mask") {
             None => 1.0,
             Some(ParamValue::Float(x)) if x.is_finite() => x.clamp(0.0, 1.0),
             Some(v) => {
@@ -150,13 +230,13 @@ impl MaterialNetwork {
                 1.0
             }
         };
-        for (name, _) in node.parameters.iter().filter(|(n, _)| !matches!(n.as_str(), "mask" | "a" | "b")) {
+        for (name, _) in node.iter().filter(|(n, _)| !matches!(n.as_str(), "mask" | "a" | "b")) {
             report.warnings.push(format!("{}: unknown tessera:Layer input '{name}'", node.path));
         }
-        if self.upstream(&node.path, "mask").is_some() {
+        if let Some(c) = self.upstream(&node.path, "mask").filter(|c| !super::graph::evaluable(self, c)) {
             report.warnings.push(format!(
-                "{}: input 'mask' is connected; texture and primvar inputs are not supported yet, so its value {mask} is used",
-                node.path
+                "{}: input 'mask' is connected to {}, which cannot be evaluated; its value {mask} is used",
+                node.path, c.upstream_node
             ));
         }
         let side = |input: &str, shown: bool, used: &mut Vec<String>, report: &mut ResolveReport| -> Material {
@@ -176,7 +256,7 @@ impl MaterialNetwork {
                     .push(format!("{}: layers nest deeper than {MAX_LAYER_DEPTH} (a cycle?); '{input}' is not followed", node.path));
                 return Material::preview_surface_default();
             }
-            self.resolve_node(&c.upstream_node, material_path, depth + 1, used, report)
+            self.resolve_node(&c.upstream_node, material_path, depth + 1, used, report, overrides)
         };
         let a = side("a", mask > 0.0, used, report);
         let b = side("b", mask < 1.0, used, report);

@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::network::{MaterialNode, ParamValue, ResolveReport};
+use super::network::{Inputs, ParamValue, ResolveReport};
 use super::{Material, Principled};
 
 /// UsdPreviewSurface inputs that are known but not yet mapped.
@@ -23,13 +23,13 @@ pub struct Resolved {
 }
 
 /// The material of a UsdPreviewSurface or `tessera:Principled` node.
-pub fn resolve(node: &MaterialNode, report: &mut ResolveReport) -> Material {
+pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Material {
     let r = principled_of(node, report);
     Material { surface: r.principled.uber(), emission: r.emission, cut_out: r.cut_out }
 }
 
 /// The Disney parameters of a UsdPreviewSurface or `tessera:Principled` node.
-pub fn principled_of(node: &MaterialNode, report: &mut ResolveReport) -> Resolved {
+pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolved {
     if node.node_type_id == "tessera:Principled" {
         return native_principled(node, report);
     }
@@ -37,9 +37,9 @@ pub fn principled_of(node: &MaterialNode, report: &mut ResolveReport) -> Resolve
     let p = &mut m.principled;
     // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0 comes from
     // `ior` (default 1.5); `ior` 1 means no specular.
-    let float = |n: &str| node.parameters.get(n).and_then(|v| if let ParamValue::Float(x) = v { Some(*x) } else { None });
+    let float = |n: &str| node.get(n).and_then(|v| if let ParamValue::Float(x) = v { Some(*x) } else { None });
     let int = |n: &str| {
-        node.parameters.get(n).and_then(|v| match v {
+        node.get(n).and_then(|v| match v {
             ParamValue::Int(i) => Some(*i),
             ParamValue::Bool(b) => Some(*b as i32),
             _ => None,
@@ -58,7 +58,7 @@ pub fn principled_of(node: &MaterialNode, report: &mut ResolveReport) -> Resolve
         p.transmission_roughness = Some(0.0);
         p.transmission_color = Some(Vec3::ONE);
     }
-    for (name, value) in &node.parameters {
+    for (name, value) in node.iter() {
         match (name.as_str(), value) {
             ("useSpecularWorkflow", ParamValue::Int(_) | ParamValue::Bool(_)) => {}
             ("specularColor", ParamValue::Float3(c)) if specular_workflow => p.specular_color = Some(*c),
@@ -92,10 +92,10 @@ pub fn principled_of(node: &MaterialNode, report: &mut ResolveReport) -> Resolve
 }
 
 /// `tessera:Principled`: Disney's names and defaults, not UsdPreviewSurface's.
-fn native_principled(node: &MaterialNode, report: &mut ResolveReport) -> Resolved {
+fn native_principled(node: Inputs, report: &mut ResolveReport) -> Resolved {
     let mut m = Resolved { principled: Principled::default(), emission: Vec3::ZERO, cut_out: false };
     let p = &mut m.principled;
-    for (name, value) in &node.parameters {
+    for (name, value) in node.iter() {
         let f = |v: &ParamValue| if let ParamValue::Float(x) = v { Some(*x) } else { None };
         let ok = match name.as_str() {
             "baseColor" => matches!(value, ParamValue::Float3(c) if { p.base_color = *c; true }),
@@ -138,7 +138,7 @@ pub(crate) mod tests {
 
     /// The Disney parameters the surface node resolves to.
     fn params(n: &MaterialNetwork) -> Principled {
-        principled_of(&n.nodes[0], &mut ResolveReport::default()).principled
+        principled_of(Inputs::authored(&n.nodes[0]), &mut ResolveReport::default()).principled
     }
 
     pub(crate) fn preview(params: &[(&str, ParamValue)]) -> MaterialNetwork {

@@ -1,0 +1,388 @@
+//! Inputs that vary over a surface: the UsdPreviewSurface texture nodes (`UsdUVTexture`,
+//! `UsdPrimvarReader_float2`, `UsdTransform2d`) compiled at commit into small expressions and
+//! evaluated at each shading point, whose values then go through the same parameter
+//! resolution as constant inputs (`000_...`, section 2.2: parameters first, then closures).
+
+use std::sync::Arc;
+
+use glam::{Mat2, Vec2, Vec3, Vec4};
+
+use super::Material;
+use super::network::{MaterialConnection, MaterialNetwork, MaterialNode, Overrides, ParamValue, ResolveReport};
+use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod};
+
+/// Node ids whose outputs this module evaluates.
+const EVALUATED: &[&str] = &["UsdUVTexture", "UsdPrimvarReader_float2", "UsdTransform2d"];
+
+/// True when the upstream node of `c` is one this module evaluates.
+pub(crate) fn evaluable(net: &MaterialNetwork, c: &MaterialConnection) -> bool {
+    net.nodes.iter().any(|n| n.path == c.upstream_node && EVALUATED.contains(&n.node_type_id.as_str()))
+}
+
+/// What a texture lookup needs to know about the point it shades.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingPoint {
+    /// The mesh's texture coordinates here, if it has any.
+    pub st: Option<Vec2>,
+    /// World-space width of the ray's footprint (its cone) at the point.
+    pub width: f32,
+    /// |cos| between the ray and the surface normal.
+    pub cos: f32,
+    /// Texture-space length per world-space length on this triangle (√ of the area ratio).
+    pub uv_density: f32,
+}
+
+impl ShadingPoint {
+    /// A footprint covering the whole texture: lookups return its mean (the coarsest mip).
+    pub fn whole_texture() -> Self {
+        ShadingPoint { st: Some(Vec2::splat(0.5)), width: f32::INFINITY, cos: 1.0, uv_density: 1.0 }
+    }
+}
+
+/// A compiled node output.
+#[derive(Clone, Debug)]
+enum Expr {
+    Const(Vec4),
+    /// The mesh's texture coordinates, or the reader's fallback where the mesh has none.
+    St {
+        fallback: Vec2,
+    },
+    Texture {
+        texture: Arc<Texture>,
+        st: Box<Expr>,
+        wrap: [Wrap; 2],
+        scale: Vec4,
+        bias: Vec4,
+    },
+    Transform2d {
+        input: Box<Expr>,
+        linear: Mat2,
+        translation: Vec2,
+    },
+}
+
+impl Expr {
+    /// The value and how much the texture coordinates it carries are stretched relative to
+    /// the mesh's (for the footprint of lookups downstream).
+    fn eval(&self, sp: &ShadingPoint) -> (Vec4, f32) {
+        match self {
+            Expr::Const(v) => (*v, 1.0),
+            Expr::St { fallback } => (sp.st.unwrap_or(*fallback).extend(0.0).extend(0.0), 1.0),
+            Expr::Texture { texture, st, wrap, scale, bias } => {
+                let (st, stretch) = st.eval(sp);
+                let lod = if sp.width.is_infinite() {
+                    f32::INFINITY
+                } else {
+                    ray_cone_lod(sp.width, sp.cos, sp.uv_density * stretch, texture.size())
+                };
+                (texture.lookup(Vec2::new(st.x, st.y), lod, *wrap) * *scale + *bias, 1.0)
+            }
+            Expr::Transform2d { input, linear, translation } => {
+                let (v, stretch) = input.eval(sp);
+                let st = *linear * Vec2::new(v.x, v.y) + *translation;
+                (st.extend(0.0).extend(0.0), stretch * linear.determinant().abs().sqrt())
+            }
+        }
+    }
+}
+
+/// Which part of a node's value an output names.
+#[derive(Clone, Copy, Debug)]
+enum Output {
+    Float(usize),
+    Float2,
+    Float3,
+}
+
+impl Output {
+    fn of(node: &MaterialNode, output: &str) -> Option<Output> {
+        Some(match (node.node_type_id.as_str(), output) {
+            ("UsdUVTexture", "r") => Output::Float(0),
+            ("UsdUVTexture", "g") => Output::Float(1),
+            ("UsdUVTexture", "b") => Output::Float(2),
+            ("UsdUVTexture", "a") => Output::Float(3),
+            ("UsdUVTexture", "rgb") => Output::Float3,
+            ("UsdPrimvarReader_float2" | "UsdTransform2d", "result") => Output::Float2,
+            _ => return None,
+        })
+    }
+
+    fn value(self, v: Vec4) -> ParamValue {
+        match self {
+            Output::Float(k) => ParamValue::Float(v[k]),
+            Output::Float2 => ParamValue::Float2(Vec2::new(v.x, v.y)),
+            Output::Float3 => ParamValue::Float3(v.truncate()),
+        }
+    }
+}
+
+/// Looks up a texture by content hash in a colour space.
+pub type TextureSource<'a> = dyn Fn(&str, ColorSpace) -> Option<Arc<Texture>> + 'a;
+
+/// A material some of whose inputs vary over the surface.
+#[derive(Clone, Debug)]
+pub struct TexturedMaterial {
+    path: String,
+    /// The network with a placeholder value on every connected input.
+    network: MaterialNetwork,
+    /// (node, input) of each varying input, and its expression.
+    keys: Vec<(String, String)>,
+    exprs: Vec<(Expr, Output)>,
+    /// Index of the surface node's `normal` input (a tangent-space normal map), if varying.
+    normal: Option<usize>,
+}
+
+impl TexturedMaterial {
+    /// Compiles the varying inputs of `network`; `None` when it has none. Inputs that cannot
+    /// be evaluated are reported and keep their authored values (or their defaults).
+    pub fn compile(network: &MaterialNetwork, path: &str, textures: &TextureSource, report: &mut ResolveReport) -> Option<Self> {
+        let mut keys = Vec::new();
+        let mut exprs = Vec::new();
+        let mut compiled = network.clone();
+        for c in &network.connections {
+            let Some(up) = network.nodes.iter().find(|n| n.path == c.upstream_node) else { continue };
+            if !EVALUATED.contains(&up.node_type_id.as_str()) {
+                continue;
+            }
+            let Some(output) = Output::of(up, &c.upstream_output) else {
+                report.warnings.push(format!(
+                    "{}: {} has no output '{}'; {} keeps its value",
+                    up.path, up.node_type_id, c.upstream_output, c.downstream_input
+                ));
+                continue;
+            };
+            let expr = compile_node(network, up, textures, report, 0);
+            let placeholder = output.value(expr.eval(&ShadingPoint::whole_texture()).0);
+            if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
+                node.parameters.insert(c.downstream_input.clone(), placeholder);
+            }
+            keys.push((c.downstream_node.clone(), c.downstream_input.clone()));
+            exprs.push((expr, output));
+        }
+        if keys.is_empty() {
+            return None;
+        }
+        let surface = network.nodes.iter().find(|n| n.path == network.surface_node);
+        let normal = surface
+            .filter(|n| n.node_type_id == "UsdPreviewSurface")
+            .and_then(|s| keys.iter().position(|(n, i)| *n == s.path && i == "normal"));
+        Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, normal })
+    }
+
+    /// The material as seen from far away: every texture at its mean (its coarsest level).
+    /// The render plan, light power and similar whole-surface decisions use it.
+    pub fn mean(&self) -> (Material, ResolveReport) {
+        self.network.resolve(&self.path)
+    }
+
+    /// The material at one shading point, and the tangent-space normal of a normal map
+    /// (+Z up; not normalised) if the surface has one.
+    pub fn at(&self, sp: &ShadingPoint) -> (Material, Option<Vec3>) {
+        let values: Vec<ParamValue> = self.exprs.iter().map(|(e, o)| o.value(e.eval(sp).0)).collect();
+        let normal = self.normal.and_then(|i| if let ParamValue::Float3(n) = values[i] { Some(n) } else { None });
+        let (m, _) = self.network.resolve_with(&self.path, Overrides { keys: &self.keys, values: &values });
+        (m, normal)
+    }
+}
+
+/// Deepest chain of texture nodes followed (a cycle is cut there).
+const MAX_CHAIN: usize = 16;
+
+fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSource, report: &mut ResolveReport, depth: usize) -> Expr {
+    let p = |name: &str| node.parameters.get(name);
+    let float2 = |name: &str, default: Vec2| match p(name) {
+        Some(ParamValue::Float2(v)) => *v,
+        Some(ParamValue::Float3(v)) => v.truncate(),
+        _ => default,
+    };
+    let float4 = |name: &str, default: Vec4| match p(name) {
+        Some(ParamValue::Float4(v)) => *v,
+        Some(ParamValue::Float3(v)) => v.extend(default.w),
+        Some(ParamValue::Float(x)) => Vec4::splat(*x),
+        _ => default,
+    };
+    // An input fed by another evaluated node, else its authored value.
+    let upstream = |input: &str, report: &mut ResolveReport| -> Option<Expr> {
+        let c = net.connections.iter().find(|c| c.downstream_node == node.path && c.downstream_input == input)?;
+        let up = net.nodes.iter().find(|n| n.path == c.upstream_node && EVALUATED.contains(&n.node_type_id.as_str()));
+        match up {
+            Some(up) if depth < MAX_CHAIN => Some(compile_node(net, up, textures, report, depth + 1)),
+            _ => {
+                report
+                    .warnings
+                    .push(format!("{}: input '{input}' is connected to {}, which cannot be evaluated", node.path, c.upstream_node));
+                None
+            }
+        }
+    };
+    match node.node_type_id.as_str() {
+        "UsdPrimvarReader_float2" => {
+            // The client sends the float2 primvar the readers name as the mesh's st.
+            Expr::St { fallback: float2("fallback", Vec2::ZERO) }
+        }
+        "UsdTransform2d" => {
+            let input = upstream("in", report).unwrap_or(Expr::Const(float2("in", Vec2::ZERO).extend(0.0).extend(0.0)));
+            let rotation = match p("rotation") {
+                Some(ParamValue::Float(r)) => r.to_radians(),
+                _ => 0.0,
+            };
+            // UsdTransform2d: result = in · scale · rotate + translation (rotation in degrees,
+            // counter-clockwise).
+            let linear = Mat2::from_angle(rotation) * Mat2::from_diagonal(float2("scale", Vec2::ONE));
+            Expr::Transform2d { input: Box::new(input), linear, translation: float2("translation", Vec2::ZERO) }
+        }
+        _ => {
+            let fallback = float4("fallback", Vec4::new(0.0, 0.0, 0.0, 1.0));
+            let wrap = |name: &str, report: &mut ResolveReport| match p(name) {
+                Some(ParamValue::String(t)) => Wrap::from_token(t).unwrap_or_else(|| {
+                    report.warnings.push(format!("{}: {name} '{t}' is not a wrap mode; using repeat", node.path));
+                    Wrap::Repeat
+                }),
+                _ => Wrap::Repeat,
+            };
+            let wrap = [wrap("wrapS", report), wrap("wrapT", report)];
+            let space = match p("sourceColorSpace") {
+                Some(ParamValue::String(t)) => ColorSpace::from_token(t).unwrap_or_else(|| {
+                    report.warnings.push(format!("{}: sourceColorSpace '{t}' is unknown; using auto", node.path));
+                    ColorSpace::Auto
+                }),
+                _ => ColorSpace::Auto,
+            };
+            let st = upstream("st", report).unwrap_or(Expr::Const(float2("st", Vec2::ZERO).extend(0.0).extend(0.0)));
+            let texture = match p("file") {
+                Some(ParamValue::Texture { hash, source }) => {
+                    let t = textures(hash, space);
+                    if t.is_none() {
+                        report.warnings.push(format!("{}: texture '{source}' is not on the server; using the fallback", node.path));
+                    }
+                    t
+                }
+                Some(ParamValue::Asset(a)) => {
+                    report.warnings.push(format!("{}: texture '{a}' could not be read by the client; using the fallback", node.path));
+                    None
+                }
+                _ => {
+                    report.warnings.push(format!("{}: no file; using the fallback", node.path));
+                    None
+                }
+            };
+            match texture {
+                Some(texture) => {
+                    Expr::Texture { texture, st: Box::new(st), wrap, scale: float4("scale", Vec4::ONE), bias: float4("bias", Vec4::ZERO) }
+                }
+                None => Expr::Const(fallback),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::Image;
+
+    fn node(path: &str, id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
+        MaterialNode {
+            path: path.into(),
+            node_type_id: id.into(),
+            parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        }
+    }
+
+    fn connect(down: &str, input: &str, up: &str, output: &str) -> MaterialConnection {
+        MaterialConnection {
+            downstream_node: down.into(),
+            downstream_input: input.into(),
+            upstream_node: up.into(),
+            upstream_output: output.into(),
+        }
+    }
+
+    /// A UsdPreviewSurface whose diffuseColor reads a 2 × 1 texture (red | blue) through a
+    /// primvar reader and a transform.
+    fn textured(transform: &[(&str, ParamValue)]) -> MaterialNetwork {
+        let tex = ParamValue::Texture { hash: "sha256:x".into(), source: "rb.png".into() };
+        MaterialNetwork {
+            nodes: vec![
+                node("/M/S", "UsdPreviewSurface", &[("roughness", ParamValue::Float(1.0))]),
+                node("/M/T", "UsdUVTexture", &[("file", tex), ("sourceColorSpace", ParamValue::String("raw".into()))]),
+                node("/M/X", "UsdTransform2d", transform),
+                node("/M/P", "UsdPrimvarReader_float2", &[("varname", ParamValue::String("st".into()))]),
+            ],
+            connections: vec![
+                connect("/M/S", "diffuseColor", "/M/T", "rgb"),
+                connect("/M/T", "st", "/M/X", "result"),
+                connect("/M/X", "in", "/M/P", "result"),
+            ],
+            surface_node: "/M/S".into(),
+        }
+    }
+
+    fn source() -> impl Fn(&str, ColorSpace) -> Option<Arc<Texture>> {
+        let t = Arc::new(Texture::new(&Image::from_f32(2, 1, 3, &[1., 0., 0., 0., 0., 1.]), ColorSpace::Raw));
+        move |h: &str, _| (h == "sha256:x").then(|| t.clone())
+    }
+
+    fn diffuse_at(m: &TexturedMaterial, st: Vec2) -> Vec3 {
+        let sp = ShadingPoint { st: Some(st), width: 0.0, cos: 1.0, uv_density: 1.0 };
+        m.at(&sp).0.surface.plastic.params.diffuse
+    }
+
+    #[test]
+    fn a_texture_drives_the_diffuse_colour_per_point_and_its_mean_far_away() {
+        let mut report = ResolveReport::default();
+        let m = TexturedMaterial::compile(&textured(&[]), "/M", &source(), &mut report).expect("varying");
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::X);
+        assert_eq!(diffuse_at(&m, Vec2::new(0.75, 0.5)), Vec3::Z);
+        let (mean, r) = m.mean();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert!((mean.surface.plastic.params.diffuse - Vec3::new(0.5, 0.0, 0.5)).abs().max_element() < 1e-3);
+    }
+
+    #[test]
+    fn transform2d_scales_rotates_then_translates() {
+        let m = TexturedMaterial::compile(
+            &textured(&[("translation", ParamValue::Float2(Vec2::new(0.5, 0.0)))]),
+            "/M",
+            &source(),
+            &mut ResolveReport::default(),
+        )
+        .unwrap();
+        assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Z, "translated onto the blue half");
+        let m = TexturedMaterial::compile(
+            &textured(&[("scale", ParamValue::Float2(Vec2::new(-1.0, 1.0))), ("translation", ParamValue::Float2(Vec2::new(1.0, 0.0)))]),
+            "/M",
+            &source(),
+            &mut ResolveReport::default(),
+        )
+        .unwrap();
+        assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Z, "mirrored");
+        // 90° counter-clockwise: (s, t) → (−t, s); with translation (1, 0), (0.6, 0.25) → (0.75, 0.6).
+        let m = TexturedMaterial::compile(
+            &textured(&[("rotation", ParamValue::Float(90.0)), ("translation", ParamValue::Float2(Vec2::new(1.0, 0.0)))]),
+            "/M",
+            &source(),
+            &mut ResolveReport::default(),
+        )
+        .unwrap();
+        assert_eq!(diffuse_at(&m, Vec2::new(0.6, 0.25)), Vec3::Z);
+        assert_eq!(diffuse_at(&m, Vec2::new(0.6, 0.75)), Vec3::X, "(0.6, 0.75) → (0.25, 0.6)");
+    }
+
+    #[test]
+    fn a_missing_texture_is_reported_and_the_fallback_used() {
+        let mut net = textured(&[]);
+        net.nodes[1].parameters.insert("fallback".into(), ParamValue::Float4(Vec4::new(0.0, 1.0, 0.0, 1.0)));
+        let mut report = ResolveReport::default();
+        let m = TexturedMaterial::compile(&net, "/M", &|_: &str, _| None, &mut report).unwrap();
+        assert!(report.warnings.iter().any(|w| w.contains("/M/T") && w.contains("rb.png")), "{:?}", report.warnings);
+        assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Y);
+    }
+
+    #[test]
+    fn constant_networks_do_not_compile() {
+        let net = MaterialNetwork { nodes: vec![node("/M/S", "UsdPreviewSurface", &[])], connections: vec![], surface_node: "/M/S".into() };
+        assert!(TexturedMaterial::compile(&net, "/M", &source(), &mut ResolveReport::default()).is_none());
+    }
+}
