@@ -150,6 +150,14 @@ impl Camera {
         (ray, cos)
     }
 
+    /// The footprint of one pixel as a ray cone: (width at the origin, spread angle). A
+    /// perspective pixel subtends about window height / image height radians; an
+    /// orthographic one is that many scene units wide and does not spread.
+    pub fn pixel_footprint(&self) -> (f32, f32) {
+        let pixel = self.window_size.y / self.height.max(1) as f32;
+        if self.orthographic { (pixel, 0.0) } else { (0.0, pixel) }
+    }
+
     /// Camera-space depth of a hit `t` along a ray made by [`Camera::ray`].
     pub fn depth(&self, t: f32, cos: f32) -> f32 {
         (t + self.near / cos) * cos

@@ -100,12 +100,15 @@ pub fn shadow_transmittance(scene: &CommittedScene, ray: &Ray, tmax: f32) -> Opt
             return Some(pass);
         }
         let s = scene.surface(&hit);
-        let glass = scene.shadow_glass(s.material)?;
-        pass.transmittance *= glass.transmission(s.ns.dot(r.dir).abs().min(1.0));
-        pass.roughness = pass.roughness.max(glass.roughness);
-        pass.crossings += 1;
-        if pass.transmittance == Vec3::ZERO {
-            return None;
+        // A point a textured opacity cuts out is no surface at all.
+        if !scene.cut_out_at(&hit) {
+            let glass = scene.shadow_glass(s.material)?;
+            pass.transmittance *= glass.transmission(s.ns.dot(r.dir).abs().min(1.0));
+            pass.roughness = pass.roughness.max(glass.roughness);
+            pass.crossings += 1;
+            if pass.transmittance == Vec3::ZERO {
+                return None;
+            }
         }
         let origin = offset_ray_origin(s.p, if r.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale);
         left -= (origin - r.origin).length();

@@ -12,6 +12,7 @@ use crate::caustics::{self, CausticMode, RoughnessFloor};
 use crate::film::PixelSample;
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::light::ShadingContext;
+use crate::material::ShadingPoint;
 use crate::math::{Frame, is_finite};
 use crate::sampling::{PathSampler, power_heuristic};
 use crate::scene::CommittedScene;
@@ -43,6 +44,9 @@ pub struct IntegratorSettings {
     /// weight 0, every energy table, tangent frames, closest-hit shadow rays, light-path
     /// AOVs), for the benchmark that measures what the render plan saves. Same image.
     pub force_all_effects: bool,
+    /// A camera ray's footprint as a cone, (width, spread angle), for texture filtering;
+    /// the renderer sets it from the camera. (0, 0) fetches the finest texture level.
+    pub pixel_footprint: (f32, f32),
 }
 
 impl Default for IntegratorSettings {
@@ -56,6 +60,7 @@ impl Default for IntegratorSettings {
             caustics: CausticMode::Full,
             force_all_effects: false,
             strategy: LightStrategy::Mis,
+            pixel_footprint: (0.0, 0.0),
         }
     }
 }
@@ -95,6 +100,29 @@ pub struct PathCounters {
     pub rays: u64,
     /// Samples whose radiance was not finite (dropped; a bug indicator).
     pub non_finite: u64,
+}
+
+/// A ray's footprint as a cone (Akenine-Möller et al., "Texture Level of Detail Strategies
+/// for Real-Time Ray Tracing", Ray Tracing Gems, 2019, chapter 20): width at the last vertex
+/// and spread angle. Camera rays start with the pixel's angle.
+#[derive(Clone, Copy, Debug)]
+struct RayCone {
+    width: f32,
+    spread: f32,
+}
+
+impl RayCone {
+    fn width_at(self, t: f32) -> f32 {
+        self.width + self.spread * t
+    }
+
+    /// After scattering at a vertex where the cone was `width` wide, by a lobe of
+    /// `roughness`: a glossy lobe widens the cone by about its lobe width (roughness² is the
+    /// GGX α, the tangent of the lobe's half-angle), a mirror keeps it (surface curvature
+    /// ignored), so textures seen in rough reflections are fetched blurred, as they look.
+    fn after_bounce(self, width: f32, roughness: f32) -> RayCone {
+        RayCone { width, spread: self.spread + roughness * roughness }
+    }
 }
 
 /// Where the previous vertex sampled its outgoing direction from, for MIS.
@@ -146,6 +174,9 @@ pub fn trace_path(
     // Subsurface: the medium the path is inside, and the scattering events taken in it.
     let mut medium: Option<Medium> = None;
     let mut medium_steps = 0u32;
+    // The ray's footprint, for texture filtering.
+    let mut cone = RayCone { width: settings.pixel_footprint.0, spread: settings.pixel_footprint.1 };
+    let mut cutouts_crossed = 0usize;
     loop {
         counters.rays += 1;
         let hit = scene.intersect(&ray);
@@ -220,19 +251,46 @@ pub fn trace_path(
             break;
         };
 
-        let s = scene.surface(&hit);
+        let mut s = scene.surface(&hit);
         let wo = -ray.dir;
         let avoid = settings.caustics == CausticMode::Avoid;
         let level = if avoid { floor.level() } else { 0 };
         let force = settings.force_all_effects;
-        let mut bsdf = if force {
-            scene.bsdf_with_every_lobe(s.material, settings.energy_compensation).clone()
-        } else {
-            scene.bsdf_floored(s.material, settings.energy_compensation, level).clone()
+        let cone_here = cone.width_at(hit.t);
+        // A textured material is resolved here, at this point and footprint.
+        let local = scene.textured(s.material).map(|t| {
+            let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
+            t.at(&ShadingPoint { st: s.st, width: cone_here, cos, uv_density: s.uv_density })
+        });
+        if let Some((m, normal)) = &local {
+            if m.cut_out {
+                // Cut out here: the ray goes on as if the surface were not there.
+                cutouts_crossed += 1;
+                if cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
+                    break;
+                }
+                cone.width = cone_here;
+                ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
+                continue;
+            }
+            if let Some(n) = normal {
+                s.ns = crate::material::graph::perturb_normal(s.ns, s.dpds, s.dpdt, *n);
+            }
+        }
+        let ec = settings.energy_compensation;
+        let mut bsdf = match &local {
+            Some((m, _)) if force => m.surface.bsdf_with_every_lobe(ec),
+            Some((m, _)) => m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
+            None if force => scene.bsdf_with_every_lobe(s.material, ec).clone(),
+            None => scene.bsdf_floored(s.material, ec, level).clone(),
         };
         // The surface's own roughness (before clamping) weighs transparent shadows against
         // paths through glass, on both sides of the comparison.
-        let a_roughness = if avoid { scene.bsdf(s.material, settings.energy_compensation).roughness() } else { 0.0 };
+        let a_roughness = match &local {
+            Some((m, _)) if avoid => m.surface.bsdf(ec).roughness(),
+            None if avoid => scene.bsdf(s.material, ec).roughness(),
+            _ => 0.0,
+        };
         // Opaque surfaces are two-sided: both normals face the viewer. Transmissive ones keep
         // their authored orientation (the shading normal's side is outside) so a ray inside
         // glass sees its inside. The geometric normal is turned to the shading normal's side;
@@ -369,7 +427,7 @@ pub fn trace_path(
         if kind == PathKind::Transmission {
             // Crossing a subsurface material's boundary: inwards enters its medium (against
             // the outward geometric normal), outwards leaves it.
-            if let Some(m) = scene.medium(s.material) {
+            if let Some(m) = local.as_ref().map_or_else(|| scene.medium(s.material), |(m, _)| m.medium()) {
                 medium = (wi.dot(ng) < 0.0).then_some(m);
             }
         }
@@ -377,7 +435,8 @@ pub fn trace_path(
             // Refracting into smooth glass after a rougher vertex: transparent shadows from
             // that vertex carry w'(B_t) of this light, so the path keeps 1 − w'(B_t), for
             // everything inside (total internal reflection included).
-            if let (Some(p), PathKind::Transmission, Some(glass)) = (&prev, kind, scene.shadow_glass(s.material)) {
+            let glass = local.as_ref().map_or_else(|| scene.shadow_glass(s.material), |(m, _)| caustics::ShadowGlass::of(m));
+            if let (Some(p), PathKind::Transmission, Some(glass)) = (&prev, kind, glass) {
                 beta *= 1.0 - caustics::transparent_weight(p.roughness, glass.roughness);
             }
             floor = floor.after(lobe_roughness);
@@ -386,6 +445,7 @@ pub fn trace_path(
             break;
         }
         prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: a_roughness });
+        cone = cone.after_bounce(cone_here, if bs.flags.delta { 0.0 } else { lobe_roughness });
         ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
         depth += 1;
 

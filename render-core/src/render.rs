@@ -214,6 +214,7 @@ fn render_tile(
     counters: &mut PathCounters,
 ) {
     let r = tile.rect;
+    let integrator = IntegratorSettings { pixel_footprint: camera.pixel_footprint(), ..settings.integrator };
     for py in 0..r.height {
         for px in 0..r.width {
             let (x, y) = (r.x + px, r.y + py);
@@ -226,8 +227,7 @@ fn render_tile(
                 // The camera's 4D set: pixel jitter and the lens point.
                 let [jx, jy, lx, ly] = rng.next_4d();
                 let (ray, cos) = camera.ray_through_lens(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly));
-                let sample =
-                    trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &settings.integrator, counters);
+                let sample = trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &integrator, counters);
                 tile.add(i, &sample);
             }
         }

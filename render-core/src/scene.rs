@@ -52,6 +52,8 @@ pub struct SceneDesc {
     pub lights: BTreeMap<String, LightDesc>,
     /// Cameras.
     pub cameras: BTreeMap<String, CameraDesc>,
+    /// Decoded texture files by content hash, as materials name them.
+    pub textures: BTreeMap<String, Arc<crate::texture::Image>>,
 }
 
 /// A scene that cannot be committed, naming the prim and field at fault.
@@ -120,6 +122,8 @@ pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
 #[derive(Default)]
 pub struct BlasCache {
     entries: HashMap<String, (Arc<Mesh>, Arc<Blas>)>,
+    /// Mip pyramids by (content hash, colour space), kept while a material reads them.
+    textures: HashMap<(String, crate::texture::ColorSpace), Arc<crate::texture::Texture>>,
     /// BLAS builds done by the last commit (for tests and logs).
     pub last_builds: usize,
 }
@@ -147,10 +151,16 @@ pub struct CommittedScene {
     /// Instances in the TLAS.
     pub instances: Vec<InstanceData>,
     tlas: Tlas,
-    /// Resolved materials; index 0 is the default material.
+    /// Resolved materials; index 0 is the default material. A textured material is here as
+    /// seen from afar (each texture at its mean); [`Self::textured`] gives it per point.
     pub materials: Vec<Material>,
+    /// Per material, its inputs that vary over the surface, if any.
+    pub textured: Vec<Option<Arc<crate::material::TexturedMaterial>>>,
+    /// True when some textured material can be cut out at a point (opacity below its
+    /// threshold): rays then test the material where they hit it.
+    pub has_textured_cutouts: bool,
     /// Each material's BSDF without and with energy compensation, built on first use of each
-    /// setting (materials carry no textures yet, so a BSDF does not vary over a surface).
+    /// setting (for a textured material, its mean).
     bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
     /// The same at each roughness floor of caustic avoidance ([`crate::caustics`]):
     /// `[level][material]`, built only by renders that avoid caustics.
@@ -204,7 +214,19 @@ pub struct SurfaceHit {
     /// their tangent around it ([`crate::math::Frame::from_normal_around`]) until meshes carry
     /// UV tangents.
     pub up: Vec3,
+    /// Texture coordinates, when the mesh has them.
+    pub st: Option<Vec2>,
+    /// Texture-space length per world-space length on the hit triangle (0 without `st`).
+    pub uv_density: f32,
+    /// World-space ∂p/∂s and ∂p/∂t of the hit triangle (zero without `st`): the tangent frame
+    /// of normal maps.
+    pub dpds: Vec3,
+    /// See [`Self::dpds`].
+    pub dpdt: Vec3,
 }
+
+/// Cut-out surfaces a ray passes through before the rest counts as opaque.
+pub const MAX_CUTOUT_CROSSINGS: usize = 64;
 
 /// Builds the renderable scene from its description, reusing cached BLASes.
 pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene, SceneError> {
@@ -214,13 +236,45 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
 
     // Materials: index 0 is the fallback for unbound meshes.
     let mut materials = vec![Material::preview_surface_default()];
+    let mut textured = vec![None];
     let mut material_index: HashMap<&str, u32> = HashMap::new();
+    let pyramids = std::cell::RefCell::new(HashMap::new());
+    let source = |hash: &str, space: crate::texture::ColorSpace| -> Option<Arc<crate::texture::Texture>> {
+        let key = (hash.to_string(), space);
+        let known = cache.textures.get(&key).cloned().or_else(|| pyramids.borrow().get(&key).cloned());
+        let t = match known {
+            Some(t) => t,
+            None => {
+                let image = desc.textures.get(hash)?;
+                let _span = tracing::info_span!("mipmap", hash, bytes = image.bytes()).entered();
+                Arc::new(crate::texture::Texture::new(image, space))
+            }
+        };
+        pyramids.borrow_mut().insert(key, Arc::clone(&t));
+        Some(t)
+    };
     for (path, network) in &desc.materials {
-        let (m, report) = network.resolve(path);
+        let mut report = crate::material::ResolveReport::default();
+        let varying = crate::material::TexturedMaterial::compile(network, path, &source, &mut report);
+        let m = match &varying {
+            Some(t) => {
+                let (m, r) = t.mean();
+                report.warnings.extend(r.warnings);
+                m
+            }
+            None => {
+                let (m, r) = network.resolve(path);
+                report.warnings.extend(r.warnings);
+                m
+            }
+        };
         warnings.extend(report.warnings);
         material_index.insert(path.as_str(), materials.len() as u32);
         materials.push(m);
+        textured.push(varying.map(Arc::new));
     }
+    // Keep exactly the pyramids this scene reads.
+    cache.textures = pyramids.into_inner();
 
     // Geometry: one BLAS per distinct mesh prim that has triangles.
     let mut meshes = Vec::new();
@@ -292,7 +346,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     };
     // Materials with no effect on light (cut out, index-matched clear glass) remove their
     // surfaces altogether.
-    let cut_out = |m: u32| materials[m as usize].is_invisible();
+    // A textured material is cut out point by point, never as a whole.
+    let cut_out = |m: u32| textured[m as usize].is_none() && materials[m as usize].is_invisible();
+    let has_textured_cutouts = textured.iter().flatten().any(|t| t.may_cut_out());
     for (path, m) in &desc.meshes {
         if !m.visible {
             continue;
@@ -461,6 +517,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances,
         tlas,
         materials,
+        textured,
+        has_textured_cutouts,
         bsdfs: Default::default(),
         floored_bsdfs: Default::default(),
         every_lobe_bsdfs: Default::default(),
@@ -550,10 +608,48 @@ impl CommittedScene {
         self.tlas.intersect(&self.blases, ray)
     }
 
+    /// Material `index`'s inputs that vary over the surface, if any.
+    #[inline]
+    pub fn textured(&self, index: u32) -> Option<&crate::material::TexturedMaterial> {
+        self.textured.get(index as usize).and_then(|t| t.as_deref())
+    }
+
+    /// True when the surface at `hit` is cut out there by a textured opacity, so rays pass
+    /// it untouched (lookups at the finest level: shadow rays carry no footprint).
+    pub fn cut_out_at(&self, hit: &Hit) -> bool {
+        let inst = &self.instances[hit.instance as usize];
+        let Some(t) = self.textured(inst.material).filter(|t| t.may_cut_out()) else { return false };
+        let s = self.surface(hit);
+        t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.cut_out
+    }
+
     /// True when a surface blocks the ray before `tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
+        if self.has_textured_cutouts {
+            return self.occluded_past_cutouts(ray, tmax);
+        }
         self.tlas.occluded(&self.blases, ray, tmax)
+    }
+
+    /// Occlusion walking through the points of surfaces their opacity cuts out.
+    fn occluded_past_cutouts(&self, ray: &Ray, tmax: f32) -> bool {
+        let mut r = ray.with_tmax(tmax);
+        // Each step passes one cut-out surface; a stack of more than this is treated as opaque.
+        for _ in 0..MAX_CUTOUT_CROSSINGS {
+            let Some(hit) = self.tlas.intersect(&self.blases, &r) else { return false };
+            if !self.cut_out_at(&hit) {
+                return true;
+            }
+            let s = self.surface(&hit);
+            let origin = crate::geometry::offset_ray_origin(s.p, if r.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale);
+            let left = r.tmax - (origin - r.origin).dot(r.dir) / r.dir.length_squared();
+            if left <= 0.0 {
+                return false;
+            }
+            r = Ray::new(origin, r.dir).with_tmax(left);
+        }
+        true
     }
 
     /// World-space surface data at `hit`.
@@ -576,7 +672,33 @@ impl CommittedScene {
         let edges = (m * glam::Vec3A::from(b - a)).abs().max((m * glam::Vec3A::from(c - a)).abs()).max_element();
         let offset_scale = p.abs().max_element().max(edges);
         let up = Vec3::from(m * glam::Vec3A::Y);
-        SurfaceHit { p, ng, ns, material: inst.material, light: inst.emitter_base.map(|b| b + hit.triangle), offset_scale, up }
+        let mut s = SurfaceHit {
+            p,
+            ng,
+            ns,
+            material: inst.material,
+            light: inst.emitter_base.map(|b| b + hit.triangle),
+            offset_scale,
+            up,
+            st: None,
+            uv_density: 0.0,
+            dpds: Vec3::ZERO,
+            dpdt: Vec3::ZERO,
+        };
+        if let Some([ta, tb, tc]) = mesh.uvs.corners(tri, mesh.indices[tri]) {
+            s.st = Some(ta * (1.0 - w.x - w.y) + tb * w.x + tc * w.y);
+            let (d1, d2) = (tb - ta, tc - ta);
+            let (e1, e2) = (Vec3::from(m * glam::Vec3A::from(b - a)), Vec3::from(m * glam::Vec3A::from(c - a)));
+            let uv_area = d1.perp_dot(d2);
+            let world_area = e1.cross(e2).length();
+            if uv_area != 0.0 && world_area > 0.0 {
+                s.uv_density = (uv_area.abs() / world_area).sqrt();
+                let r = 1.0 / uv_area;
+                s.dpds = (e1 * d2.y - e2 * d1.y) * r;
+                s.dpdt = (e2 * d1.x - e1 * d2.x) * r;
+            }
+        }
+        s
     }
 
     /// The scene's camera at `path`, the first camera when `path` is empty, or a default

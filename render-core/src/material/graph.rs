@@ -128,6 +128,8 @@ pub struct TexturedMaterial {
     /// (node, input) of each varying input, and its expression.
     keys: Vec<(String, String)>,
     exprs: Vec<(Expr, Output)>,
+    /// Each varying input's value over the whole texture.
+    means: Vec<ParamValue>,
     /// Index of the surface node's `normal` input (a tangent-space normal map), if varying.
     normal: Option<usize>,
 }
@@ -166,13 +168,25 @@ impl TexturedMaterial {
         let normal = surface
             .filter(|n| n.node_type_id == "UsdPreviewSurface")
             .and_then(|s| keys.iter().position(|(n, i)| *n == s.path && i == "normal"));
-        Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, normal })
+        let means = exprs.iter().map(|(e, o)| o.value(e.eval(&ShadingPoint::whole_texture()).0)).collect();
+        Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, means, normal })
+    }
+
+    /// True when opacity varies on a surface with a cut-out threshold, so some points may
+    /// be cut out and others not.
+    pub fn may_cut_out(&self) -> bool {
+        self.keys.iter().any(|(n, i)| {
+            i == "opacity"
+                && self.network.nodes.iter().any(|node| {
+                    node.path == *n && matches!(node.parameters.get("opacityThreshold"), Some(ParamValue::Float(t)) if *t > 0.0)
+                })
+        })
     }
 
     /// The material as seen from far away: every texture at its mean (its coarsest level).
     /// The render plan, light power and similar whole-surface decisions use it.
     pub fn mean(&self) -> (Material, ResolveReport) {
-        self.network.resolve(&self.path)
+        self.network.resolve_with(&self.path, Overrides { keys: &self.keys, values: &self.means }, true)
     }
 
     /// The material at one shading point, and the tangent-space normal of a normal map
@@ -180,9 +194,23 @@ impl TexturedMaterial {
     pub fn at(&self, sp: &ShadingPoint) -> (Material, Option<Vec3>) {
         let values: Vec<ParamValue> = self.exprs.iter().map(|(e, o)| o.value(e.eval(sp).0)).collect();
         let normal = self.normal.and_then(|i| if let ParamValue::Float3(n) = values[i] { Some(n) } else { None });
-        let (m, _) = self.network.resolve_with(&self.path, Overrides { keys: &self.keys, values: &values });
+        let (m, _) = self.network.resolve_with(&self.path, Overrides { keys: &self.keys, values: &values }, false);
         (m, normal)
     }
+}
+
+/// The shading normal a tangent-space normal map gives: `n_ts` (+Z along the normal; x, y
+/// along ∂p/∂s and ∂p/∂t) in the frame of `ns`, with the tangent from `dpds` made orthogonal
+/// to `ns` and the bitangent's handedness from `dpdt`, as MikkTSpace builds it per vertex
+/// (here per triangle). Degenerate input keeps `ns`.
+pub fn perturb_normal(ns: Vec3, dpds: Vec3, dpdt: Vec3, n_ts: Vec3) -> Vec3 {
+    let t = (dpds - ns * ns.dot(dpds)).normalize_or_zero();
+    if t == Vec3::ZERO || !n_ts.is_finite() {
+        return ns;
+    }
+    let b = ns.cross(t) * if ns.cross(t).dot(dpdt) < 0.0 { -1.0 } else { 1.0 };
+    let n = (t * n_ts.x + b * n_ts.y + ns * n_ts.z).normalize_or_zero();
+    if n == Vec3::ZERO { ns } else { n }
 }
 
 /// Deepest chain of texture nodes followed (a cycle is cut there).
@@ -378,6 +406,22 @@ mod tests {
         let m = TexturedMaterial::compile(&net, "/M", &|_: &str, _| None, &mut report).unwrap();
         assert!(report.warnings.iter().any(|w| w.contains("/M/T") && w.contains("rb.png")), "{:?}", report.warnings);
         assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Y);
+    }
+
+    #[test]
+    fn normal_maps_tilt_along_the_texture_axes_and_keep_their_handedness() {
+        let (ns, dpds, dpdt) = (Vec3::Z, Vec3::X * 2.0, Vec3::Y * 3.0);
+        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::Z), Vec3::Z, "a flat map is the shading normal");
+        let n = perturb_normal(ns, dpds, dpdt, Vec3::new(1.0, 0.0, 1.0));
+        assert!((n - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-6, "+x leans along ∂p/∂s: {n}");
+        // A mirrored texture (t running down) flips the bitangent, as MikkTSpace's sign does.
+        let up = perturb_normal(ns, dpds, dpdt, Vec3::new(0.0, 1.0, 1.0));
+        let mirrored = perturb_normal(ns, dpds, -dpdt, Vec3::new(0.0, 1.0, 1.0));
+        assert!(up.y > 0.0 && mirrored.y < 0.0, "{up} {mirrored}");
+        // Degenerate frames and values keep the normal.
+        assert_eq!(perturb_normal(ns, Vec3::Z, dpdt, Vec3::X), ns);
+        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::NAN), ns);
+        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::ZERO), ns);
     }
 
     #[test]

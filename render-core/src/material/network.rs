@@ -95,6 +95,7 @@ pub(crate) struct Inputs<'a> {
 
 impl<'a> Inputs<'a> {
     /// The node's authored values only.
+    #[cfg(test)]
     pub fn authored(node: &'a MaterialNode) -> Self {
         Inputs { node, overrides: Overrides::default() }
     }
@@ -102,6 +103,11 @@ impl<'a> Inputs<'a> {
     /// The value of input `name`.
     pub fn get(&self, name: &str) -> Option<&'a ParamValue> {
         self.overrides.get(&self.node.path, name).or_else(|| self.node.parameters.get(name))
+    }
+
+    /// True when `name` is a connected input evaluated at the shading point.
+    pub fn is_overridden(&self, name: &str) -> bool {
+        self.overrides.get(&self.node.path, name).is_some()
     }
 
     /// Every input with a value.
@@ -143,11 +149,11 @@ impl MaterialNetwork {
     /// (`000_...`, section 2.2). Unknown nodes, unmapped inputs and connected inputs that
     /// cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
-        self.resolve_with(material_path, Overrides::default())
+        self.resolve_with(material_path, Overrides::default(), true)
     }
 
     /// [`Self::resolve`] with connected inputs evaluated at a shading point.
-    pub(crate) fn resolve_with(&self, material_path: &str, overrides: Overrides) -> (Material, ResolveReport) {
+    pub(crate) fn resolve_with(&self, material_path: &str, overrides: Overrides, report_unused: bool) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
         if self.node(&self.surface_node).is_none() {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
@@ -155,7 +161,7 @@ impl MaterialNetwork {
         }
         let mut used = vec![self.surface_node.clone()];
         let m = self.resolve_node(&self.surface_node, material_path, 0, &mut used, &mut report, overrides);
-        if !overrides.keys.is_empty() {
+        if !report_unused {
             return (m, report);
         }
         for n in &self.nodes {

@@ -9,7 +9,7 @@ use super::{Material, Principled};
 
 /// UsdPreviewSurface inputs that are known but not yet mapped.
 const PREVIEW_SURFACE_KNOWN: &[&str] =
-    &["useSpecularWorkflow", "specularColor", "opacity", "opacityMode", "opacityThreshold", "normal", "displacement", "occlusion"];
+    &["useSpecularWorkflow", "specularColor", "opacity", "opacityMode", "opacityThreshold", "displacement", "occlusion"];
 
 /// What a Disney-parameter front-end resolves to.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,6 +66,10 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
             ("specularColor", ParamValue::Float3(_)) => {}
             ("metallic", ParamValue::Float(_)) if specular_workflow => {}
             ("opacity" | "opacityThreshold", ParamValue::Float(_)) => {}
+            // A tangent-space normal map, applied at shading time when the input is connected
+            // (graph.rs); an unconnected (0, 0, 1) is the unperturbed normal.
+            ("normal", ParamValue::Float3(n)) if *n == Vec3::Z => {}
+            ("normal", ParamValue::Float3(_)) if node.is_overridden("normal") => {}
             // Ambient occlusion is for rasterisers: a path tracer computes it.
             ("occlusion", ParamValue::Float(_)) => {}
             ("diffuseColor", ParamValue::Float3(c)) => p.base_color = *c,
