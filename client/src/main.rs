@@ -80,6 +80,9 @@ enum Command {
         /// (what `tessera bench effects` measures the render plan against).
         #[arg(long)]
         force_all_effects: bool,
+        /// Render a scene without lights black, instead of under the default white dome.
+        #[arg(long)]
+        no_default_light: bool,
         /// Firefly clamp: limit each indirect contribution's largest component to this value
         /// (off by default; it darkens what it clamps, and the render reports it).
         #[arg(long)]
@@ -228,6 +231,7 @@ async fn real_main() -> Result<()> {
             sampler,
             caustics,
             force_all_effects,
+            no_default_light,
             clamp,
             noise_threshold,
             quality,
@@ -260,7 +264,7 @@ async fn real_main() -> Result<()> {
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             let output = output.expect("clap requires --output unless --explain-plan");
-            run(&RenderJob { scene, output, options, server, progress, frame }).await?;
+            run(&RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light }).await?;
         }
     }
     Ok(())

@@ -124,6 +124,22 @@ impl Connection {
         Ok(self.client.sync(tokio_stream::iter(reqs)).await.map_err(status_error)?.into_inner())
     }
 
+    /// Syncs a whole translation, uploading only the texture files the server does not
+    /// already hold.
+    pub async fn sync_scene(&mut self, t: &crate::usd::Translation) -> Result<pb::SyncResponse> {
+        let missing = self.missing_textures(t.textures.keys().cloned().collect()).await?;
+        self.sync(crate::sync::scene_sync(t, |h| missing.iter().any(|m| m == h))).await
+    }
+
+    /// Those of the texture content hashes the server does not hold.
+    pub async fn missing_textures(&mut self, hashes: Vec<String>) -> Result<Vec<String>> {
+        if hashes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let req = pb::MissingTexturesRequest { content_hashes: hashes };
+        Ok(self.client.missing_textures(req).await.map_err(status_error)?.into_inner().content_hashes)
+    }
+
     /// Asks the server to stop this session's render.
     pub async fn cancel(&mut self) -> Result<bool> {
         Ok(self

@@ -1,7 +1,7 @@
 //! Translation to Hydra-style wire deltas. Large arrays travel as chunks so that no message
 //! comes near gRPC's 4 MiB default limit, whatever the mesh size.
 
-use render_core::geometry::Normals;
+use render_core::geometry::{Normals, Uvs};
 use tessera_proto::v1 as pb;
 use tessera_server::convert;
 
@@ -27,9 +27,32 @@ fn chunks<T: Copy>(
         .collect()
 }
 
-/// Every prim of a translation as a full (all-dirty) delta, arrays chunked.
+/// Bytes of a texture file per chunk.
+pub const TEXTURE_CHUNK_BYTES: usize = 1 << 20;
+
+/// Every prim of a translation as a full (all-dirty) delta, arrays chunked, with every
+/// texture file it names.
 pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
+    scene_sync(t, |_| true)
+}
+
+/// [`full_sync`], sending only the textures `upload` selects (those the server lacks).
+pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::sync_request::Item> {
     let mut items = Vec::new();
+    // Textures first: the server decodes them when the transaction commits.
+    for (hash, tex) in t.textures.iter().filter(|(h, _)| upload(h)) {
+        let prim = pb::TexturePrim { source: tex.source.clone(), bytes_len: tex.bytes.len() as u64 };
+        items.push(delta(hash, pb::PrimKind::Texture, pb::prim_delta::Payload::Texture(prim)));
+        for (i, c) in tex.bytes.chunks(TEXTURE_CHUNK_BYTES).enumerate() {
+            items.push(pb::sync_request::Item::Chunk(pb::ArrayChunk {
+                path: hash.clone(),
+                field: pb::ArrayField::TextureBytes as i32,
+                offset: (i * TEXTURE_CHUNK_BYTES) as u64,
+                data: c.to_vec(),
+                ..Default::default()
+            }));
+        }
+    }
     for (path, m) in &t.materials {
         items.push(delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(convert::material_to_wire(m))));
     }
@@ -47,6 +70,11 @@ pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
             Normals::Vertex(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsVertex),
             Normals::FaceVarying(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsFaceVarying),
         };
+        let (uvs, uv_interp): (Vec<f32>, _) = match &m.mesh.uvs {
+            Uvs::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
+            Uvs::Vertex(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsVertex),
+            Uvs::FaceVarying(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsFaceVarying),
+        };
         let prim = pb::MeshPrim {
             transform: Some(convert::matrix(&m.transform)),
             points_len: points.len() as u64,
@@ -56,11 +84,14 @@ pub fn full_sync(t: &Translation) -> Vec<pb::sync_request::Item> {
             material_path: m.material.clone(),
             double_sided: true,
             visible: m.visible,
+            uvs_len: uvs.len() as u64,
+            uv_interpolation: uv_interp as i32,
         };
         items.push(delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim)));
         items.extend(chunks(path, pb::ArrayField::Points, &points, |c, v| c.floats = v));
         items.extend(chunks(path, pb::ArrayField::TriangleIndices, &indices, |c, v| c.uints = v));
         items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| c.floats = v));
+        items.extend(chunks(path, pb::ArrayField::Uvs, &uvs, |c, v| c.floats = v));
     }
     // Instancers after meshes: the server resolves each prototype by path at commit.
     for (path, inst) in &t.instancers {

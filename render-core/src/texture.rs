@@ -142,7 +142,7 @@ impl Texels {
 }
 
 impl Image {
-    /// Decodes PNG, JPEG, OpenEXR, Radiance HDR or TIFF bytes; `name` is used in errors.
+    /// Decodes PNG, JPEG, OpenEXR, Radiance HDR, TIFF or TGA bytes; `name` is used in errors.
     pub fn decode(bytes: &[u8], name: &str) -> Result<Image, TextureError> {
         use image::DynamicImage as D;
         let err = |reason: String| TextureError::Decode { name: name.to_string(), reason };

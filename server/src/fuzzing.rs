@@ -31,7 +31,7 @@ pub fn encode_stream(items: &[pb::sync_request::Item]) -> Vec<u8> {
 /// scene version or the first error status's message.
 pub fn sync_bytes(data: &[u8]) -> Result<u64, String> {
     let session = Session::new("fuzz".into());
-    let mut tx = session.begin(fuzz_limits());
+    let mut tx = session.begin(fuzz_limits(), std::sync::Arc::new(crate::textures::TextureStore::new(1 << 20)));
     let mut buf = data;
     for _ in 0..MAX_MESSAGES {
         if buf.is_empty() {

@@ -7,6 +7,7 @@ pub mod fuzzing;
 pub mod limits;
 pub mod service;
 pub mod session;
+pub mod textures;
 
 use std::net::SocketAddr;
 

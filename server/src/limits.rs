@@ -20,6 +20,10 @@ pub struct Limits {
     pub max_array_chunk_elements: u64,
     /// Instances in one instancer.
     pub max_instances: u64,
+    /// Decoded texture bytes kept for reuse across sessions.
+    pub texture_cache_bytes: u64,
+    /// Encoded bytes of one texture file.
+    pub max_texture_file_bytes: u64,
 }
 
 impl Default for Limits {
@@ -33,6 +37,8 @@ impl Default for Limits {
             // 1 Mi floats = 4 MiB would hit gRPC's default limit; stay well under it.
             max_array_chunk_elements: 256 * 1024,
             max_instances: 10_000_000,
+            texture_cache_bytes: 4 << 30,
+            max_texture_file_bytes: 2 << 30,
         }
     }
 }
@@ -47,6 +53,8 @@ impl Limits {
             max_spp: self.max_spp,
             max_sessions: self.max_sessions,
             max_array_chunk_elements: self.max_array_chunk_elements,
+            texture_cache_bytes: self.texture_cache_bytes,
+            max_texture_file_bytes: self.max_texture_file_bytes,
         }
     }
 }

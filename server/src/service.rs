@@ -18,6 +18,7 @@ use tonic::{Request, Response, Status, Streaming};
 use crate::convert;
 use crate::limits::Limits;
 use crate::session::Session;
+use crate::textures::TextureStore;
 
 /// The service state shared by all connections.
 #[derive(Clone)]
@@ -25,6 +26,7 @@ pub struct RenderService {
     sessions: Arc<Mutex<HashMap<String, Arc<Session>>>>,
     limits: Limits,
     next_id: Arc<std::sync::atomic::AtomicU64>,
+    textures: Arc<TextureStore>,
 }
 
 impl Default for RenderService {
@@ -36,7 +38,12 @@ impl Default for RenderService {
 impl RenderService {
     /// A service with the given limits.
     pub fn new(limits: Limits) -> Self {
-        RenderService { sessions: Arc::default(), limits, next_id: Arc::new(std::sync::atomic::AtomicU64::new(1)) }
+        RenderService {
+            sessions: Arc::default(),
+            limits,
+            next_id: Arc::new(std::sync::atomic::AtomicU64::new(1)),
+            textures: Arc::new(TextureStore::new(usize::try_from(limits.texture_cache_bytes).unwrap_or(usize::MAX))),
+        }
     }
 
     fn session(&self, id: &str) -> Result<Arc<Session>, Status> {
@@ -53,8 +60,19 @@ impl RenderService {
 pub fn capabilities(limits: &Limits) -> pb::Capabilities {
     pb::Capabilities {
         version: env!("CARGO_PKG_VERSION").into(),
-        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "remove"].map(String::from).to_vec(),
-        node_types: vec!["UsdPreviewSurface".into()],
+        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "texture", "remove"].map(String::from).to_vec(),
+        node_types: [
+            "UsdPreviewSurface",
+            "UsdUVTexture",
+            "UsdPrimvarReader_float2",
+            "UsdTransform2d",
+            "tessera:Principled",
+            "tessera:Layer",
+        ]
+        .into_iter()
+        .chain(render_core::material::native::SHADERS.iter().map(|s| s.id))
+        .map(String::from)
+        .collect(),
         aovs: Aov::ALL.iter().map(|a| a.name().to_string()).collect(),
         limits: Some(limits.to_wire()),
     }
@@ -96,7 +114,7 @@ impl pb::render_server::Render for RenderService {
             let msg = msg?;
             if session.is_none() {
                 let s = self.session(&msg.session_id)?;
-                tx = Some(s.begin(self.limits));
+                tx = Some(s.begin(self.limits, Arc::clone(&self.textures)));
                 session = Some(s);
             }
             let Some(item) = msg.item else { continue };
@@ -114,6 +132,14 @@ impl pb::render_server::Render for RenderService {
         .await
         .map_err(|e| Status::internal(format!("commit task failed: {e}")))??;
         Ok(Response::new(pb::SyncResponse { scene_version: version, prims_applied: applied, warnings }))
+    }
+
+    async fn missing_textures(&self, req: Request<pb::MissingTexturesRequest>) -> Result<Response<pb::MissingTexturesResponse>, Status> {
+        let req = req.into_inner();
+        if req.content_hashes.len() > 1 << 20 {
+            return Err(Status::resource_exhausted("more than 2^20 texture hashes in one request"));
+        }
+        Ok(Response::new(pb::MissingTexturesResponse { content_hashes: self.textures.missing(&req.content_hashes) }))
     }
 
     type RenderStream = EventStream;

@@ -6,13 +6,14 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
-use render_core::geometry::{Mesh, Normals};
+use render_core::geometry::{Mesh, Normals, Uvs};
 use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
 use tessera_proto::v1 as pb;
 use tonic::Status;
 
 use crate::convert::{self, invalid};
 use crate::limits::Limits;
+use crate::textures::{TextureStore, content_hash, is_content_hash};
 
 /// A session's committed state.
 pub struct Committed {
@@ -42,12 +43,22 @@ struct StagedMesh {
     points: Vec<f32>,
     indices: Vec<u32>,
     normals: Vec<f32>,
-    filled: [u64; 3],
+    uvs: Vec<f32>,
+    filled: [u64; 4],
+}
+
+/// A texture file arriving in chunks.
+struct StagedTexture {
+    source: String,
+    declared: u64,
+    bytes: Vec<u8>,
 }
 
 /// Deltas of one `Sync` stream, applied to a copy of the scene description.
 pub struct Transaction {
     desc: SceneDesc,
+    textures: HashMap<String, StagedTexture>,
+    store: Arc<TextureStore>,
     meshes: HashMap<String, StagedMesh>,
     instancers: HashMap<String, (String, Vec<f64>, u64)>,
     /// Prims applied.
@@ -78,9 +89,9 @@ impl Session {
     }
 
     /// Starts a transaction on a copy of the current description.
-    pub fn begin(&self, limits: Limits) -> Transaction {
+    pub fn begin(&self, limits: Limits, store: Arc<TextureStore>) -> Transaction {
         let desc = self.state.lock().unwrap().as_ref().map(|c| c.desc.clone()).unwrap_or_default();
-        Transaction { desc, meshes: HashMap::new(), instancers: HashMap::new(), applied: 0, limits }
+        Transaction { desc, textures: HashMap::new(), store, meshes: HashMap::new(), instancers: HashMap::new(), applied: 0, limits }
     }
 
     /// Commits a transaction: validates, builds what changed, and swaps it in. Blocking
@@ -144,6 +155,9 @@ impl Transaction {
     }
 
     fn apply_prim(&mut self, d: pb::PrimDelta) -> Result<(), Status> {
+        if let Some(pb::prim_delta::Payload::Texture(t)) = &d.payload {
+            return self.apply_texture(&d.path, t);
+        }
         let path = d.path.clone();
         if !path.starts_with('/') {
             return Err(Status::invalid_argument(format!("prim path '{path}' is not an absolute USD path")));
@@ -175,6 +189,12 @@ impl Transaction {
                     let cap = 9 * self.limits.max_triangles_per_mesh;
                     if m.points_len > cap || m.normals_len > cap {
                         return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+                    }
+                    if m.uvs_len > cap {
+                        return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+                    }
+                    if m.uvs_len % 2 != 0 {
+                        return Err(invalid(&path, "uvs", "length must be a multiple of 2"));
                     }
                     if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
                         return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
@@ -221,8 +241,29 @@ impl Transaction {
         Ok(())
     }
 
+    /// A texture file's header: its content hash (the delta's path) and length.
+    fn apply_texture(&mut self, hash: &str, t: &pb::TexturePrim) -> Result<(), Status> {
+        if !is_content_hash(hash) {
+            return Err(invalid(&t.source, "texture path", format!("'{hash}' is not a content hash (sha256: and 64 hex digits)")));
+        }
+        if t.bytes_len > self.limits.max_texture_file_bytes {
+            return Err(Status::resource_exhausted(format!(
+                "texture '{}' is {} bytes, over the limit of {}",
+                t.source, t.bytes_len, self.limits.max_texture_file_bytes
+            )));
+        }
+        self.applied += 1;
+        self.textures.insert(hash.to_string(), StagedTexture { source: t.source.clone(), declared: t.bytes_len, bytes: Vec::new() });
+        Ok(())
+    }
+
     fn apply_chunk(&mut self, c: pb::ArrayChunk) -> Result<(), Status> {
         let field = pb::ArrayField::try_from(c.field).unwrap_or(pb::ArrayField::Unspecified);
+        if field == pb::ArrayField::TextureBytes {
+            let t = self.textures.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no texture delta precedes this chunk"))?;
+            let mut filled = 0;
+            return fill(&t.source, "texture bytes", &mut t.bytes, t.declared, c.offset, &c.data, &mut filled);
+        }
         if field == pb::ArrayField::InstanceTransforms {
             let (_, data, declared) =
                 self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
@@ -249,18 +290,60 @@ impl Transaction {
             pb::ArrayField::Normals => {
                 fill(&c.path, "normals", &mut staged.normals, staged.prim.normals_len, c.offset, &c.floats, &mut staged.filled[2])
             }
+            pb::ArrayField::Uvs => fill(&c.path, "uvs", &mut staged.uvs, staged.prim.uvs_len, c.offset, &c.floats, &mut staged.filled[3]),
             _ => Err(invalid(&c.path, "chunk.field", format!("unknown array field {}", c.field))),
         }
     }
 
+    /// Decodes the uploaded textures (checking each against its hash) into the store, then
+    /// gives the description exactly the textures its materials name: from this upload, or
+    /// from the store when an earlier sync (of any session) brought them.
+    fn finish_textures(&mut self) -> Result<(), Status> {
+        for (hash, t) in std::mem::take(&mut self.textures) {
+            if t.bytes.len() as u64 != t.declared {
+                return Err(invalid(&t.source, "texture bytes", format!("received {} of {} declared bytes", t.bytes.len(), t.declared)));
+            }
+            if content_hash(&t.bytes) != hash {
+                return Err(invalid(&t.source, "texture", format!("the bytes do not hash to {hash}")));
+            }
+            let image = render_core::texture::Image::decode(&t.bytes, &t.source).map_err(|e| Status::invalid_argument(e.to_string()))?;
+            let image = Arc::new(image);
+            self.store.insert(&hash, Arc::clone(&image));
+            self.desc.textures.insert(hash, image);
+        }
+        let mut named = std::collections::BTreeSet::new();
+        for (material, network) in &self.desc.materials {
+            for node in &network.nodes {
+                for (input, value) in &node.parameters {
+                    let render_core::material::ParamValue::Texture { hash, source } = value else { continue };
+                    named.insert(hash.clone());
+                    if self.desc.textures.contains_key(hash) {
+                        continue;
+                    }
+                    let image = self.store.get(hash).ok_or_else(|| {
+                        Status::failed_precondition(format!(
+                            "{material}: {}: input '{input}' names texture '{source}' ({hash}), which was not uploaded; send it as a TexturePrim",
+                            node.path
+                        ))
+                    })?;
+                    self.desc.textures.insert(hash.clone(), image);
+                }
+            }
+        }
+        self.desc.textures.retain(|h, _| named.contains(h));
+        Ok(())
+    }
+
     /// Assembles staged arrays into the final description.
     fn finish(mut self) -> Result<SceneDesc, Status> {
+        self.finish_textures()?;
         for (path, s) in self.meshes {
             let p = &s.prim;
             for (name, got, want) in [
                 ("points", s.filled[0], p.points_len),
                 ("triangle_indices", s.filled[1], p.triangle_indices_len),
                 ("normals", s.filled[2], p.normals_len),
+                ("uvs", s.filled[3], p.uvs_len),
             ] {
                 if got != want {
                     return Err(invalid(&path, name, format!("received {got} of {want} declared values")));
@@ -274,7 +357,13 @@ impl Transaction {
                 pb::NormalInterpolation::NormalsVertex => Normals::Vertex(nrm),
                 pb::NormalInterpolation::NormalsFaceVarying => Normals::FaceVarying(nrm),
             };
-            let mesh = Mesh { positions, indices, normals };
+            let st: Vec<glam::Vec2> = s.uvs.chunks_exact(2).map(|v| glam::Vec2::new(v[0], v[1])).collect();
+            let uvs = match pb::NormalInterpolation::try_from(p.uv_interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
+                pb::NormalInterpolation::NormalsNone => Uvs::None,
+                pb::NormalInterpolation::NormalsVertex => Uvs::Vertex(st),
+                pb::NormalInterpolation::NormalsFaceVarying => Uvs::FaceVarying(st),
+            };
+            let mesh = Mesh { positions, indices, normals, uvs };
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
             self.desc

@@ -41,7 +41,7 @@ pub fn load(rel: &str) -> Translation {
 pub async fn session_with(translation: &Translation) -> (EmbeddedServer, Connection) {
     let server = EmbeddedServer::start().await.expect("embedded server starts");
     let mut conn = Connection::connect(&server.url(), "e2e").await.expect("connects");
-    conn.sync(tessera::sync::full_sync(translation)).await.expect("scene syncs");
+    conn.sync_scene(translation).await.expect("scene syncs");
     (server, conn)
 }
 

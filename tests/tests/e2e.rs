@@ -13,4 +13,5 @@ mod images;
 mod light_units;
 mod materials;
 mod sampling;
+mod textures;
 mod usd;

@@ -43,10 +43,17 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
     let out = dir.join("cornell.exr");
     let mut options = small(40, 30, 4);
     options.aovs = vec!["albedo".into(), "normal".into(), "depth".into()];
-    let report =
-        run(&RenderJob { scene: fixture("cornell_box.usda"), output: out.clone(), options, server: None, progress: false, frame: None })
-            .await
-            .expect("renders");
+    let report = run(&RenderJob {
+        scene: fixture("cornell_box.usda"),
+        output: out.clone(),
+        options,
+        server: None,
+        progress: false,
+        frame: None,
+        default_light: true,
+    })
+    .await
+    .expect("renders");
     let back = tessera::output::read_exr(&out).expect("reads back");
     assert_eq!((back.width, back.height), (40, 30));
     for aov in ["beauty", "albedo", "normal", "depth"] {

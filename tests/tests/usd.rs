@@ -227,6 +227,7 @@ async fn render_settings_supply_camera_and_resolution_and_flags_override_them() 
         server: None,
         progress: false,
         frame: None,
+        default_light: true,
     };
     // Nothing on the command line: /Render/Settings says CamB (the red quad), 64 x 32.
     let r = run(&job(0, 0, "")).await.expect("renders");

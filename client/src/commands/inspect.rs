@@ -25,6 +25,10 @@ fn param(v: &ParamValue) -> Value {
         ParamValue::Int(i) => json!(i),
         ParamValue::Bool(b) => json!(b),
         ParamValue::String(s) | ParamValue::Asset(s) => json!(s),
+        ParamValue::Float2(c) => json!([c.x, c.y]),
+        ParamValue::Float4(c) => json!([c.x, c.y, c.z, c.w]),
+        // The authored path, as usd-core reports the asset; the hash says it was read.
+        ParamValue::Texture { source, .. } => json!(source),
     }
 }
 

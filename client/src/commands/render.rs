@@ -26,6 +26,9 @@ pub struct RenderJob {
     pub progress: bool,
     /// Time code for animated attributes; `None` for the stage's default.
     pub frame: Option<f64>,
+    /// Light a scene that has no lights with a white dome (see
+    /// [`crate::usd::Translation::add_default_light`]).
+    pub default_light: bool,
 }
 
 /// Reads the scene, renders it and writes the outputs. Returns the report for callers
@@ -33,7 +36,10 @@ pub struct RenderJob {
 pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     let t0 = Instant::now();
     let (scene, frame) = (job.scene.clone(), job.frame);
-    let translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
+    let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
+    if job.default_light && translation.add_default_light() {
+        eprintln!("note: the scene has no lights; it renders under a white dome of radiance 1 (--no-default-light renders it black)");
+    }
     for w in &translation.warnings {
         eprintln!("warning: {w}");
     }
@@ -48,10 +54,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     };
     let url = job.server.clone().unwrap_or_else(|| embedded.as_ref().expect("started above").url());
     let mut conn = Connection::connect(&url, "tessera-cli").await?;
-    let sync = conn
-        .sync(crate::sync::full_sync(&translation))
-        .await
-        .with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
+    let sync = conn.sync_scene(&translation).await.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
     for w in &sync.warnings {
         eprintln!("warning: {w}");
     }

@@ -45,9 +45,20 @@ pub struct Translation {
     pub warnings: Vec<String>,
     /// Prims that exist but are not rendered (unsupported types), by path.
     pub skipped: Vec<String>,
+    /// Texture files the materials name, by content hash.
+    pub textures: std::collections::BTreeMap<String, TextureFile>,
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
     /// first one), which supply defaults the command line overrides.
     pub render_settings: Option<RenderSettingsDesc>,
+}
+
+/// A texture file read by the client, sent to the server once per content.
+#[derive(Clone, Debug)]
+pub struct TextureFile {
+    /// The path as authored, for messages.
+    pub source: String,
+    /// The encoded file.
+    pub bytes: Arc<Vec<u8>>,
 }
 
 /// What a `RenderSettings` prim asks for.
@@ -62,6 +73,33 @@ pub struct RenderSettingsDesc {
 }
 
 impl Translation {
+    /// Path of the light [`Self::add_default_light`] adds.
+    pub const DEFAULT_LIGHT: &'static str = "/TesseraDefaultDome";
+
+    /// Adds a white `DomeLight` of radiance 1 when the stage has no light and no emissive
+    /// material, as viewers do (usdview's default lighting): conformance assets and models
+    /// exported without lights render lit instead of black. Returns whether it did.
+    pub fn add_default_light(&mut self) -> bool {
+        let emissive = self.materials.iter().any(|(path, net)| net.resolve(path).0.is_emissive());
+        if !self.lights.is_empty() || emissive {
+            return false;
+        }
+        let dome = LightDesc {
+            kind: LightKind::Dome,
+            transform: Affine3A::IDENTITY,
+            intensity: 1.0,
+            exposure: 0.0,
+            color: Vec3::ONE,
+            normalize: false,
+            visible_to_camera: true,
+            shaping: None,
+            diffuse: 1.0,
+            specular: 1.0,
+        };
+        self.lights.push((Self::DEFAULT_LIGHT.to_string(), dome));
+        true
+    }
+
     /// The scene description, for rendering in-process without the server.
     pub fn to_scene_desc(&self) -> SceneDesc {
         let mut d = SceneDesc::default();
@@ -70,6 +108,15 @@ impl Translation {
         d.materials.extend(self.materials.iter().cloned());
         d.lights.extend(self.lights.iter().cloned());
         d.cameras.extend(self.cameras.iter().cloned());
+        for (hash, t) in &self.textures {
+            match render_core::texture::Image::decode(&t.bytes, &t.source) {
+                Ok(image) => {
+                    d.textures.insert(hash.clone(), Arc::new(image));
+                }
+                // Commit then reports the texture as missing, naming the node.
+                Err(e) => tracing::warn!("{e}"),
+            }
+        }
         d
     }
 }
@@ -275,7 +322,8 @@ impl Reader<'_> {
         // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
         let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
         let face_count = counts.len();
-        let src = MeshSource { points, counts, indices, normals, left_handed, smooth };
+        let uvs = self.uvs(prim, p)?;
+        let src = MeshSource { points, counts, indices, normals, uvs, left_handed, smooth };
         let mut warnings = Vec::new();
         let (mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
@@ -572,6 +620,66 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// The float2 primvar the mesh's materials read through `UsdPrimvarReader_float2`
+    /// (`st` when none names one), de-indexed, with its interpolation.
+    fn uvs(&mut self, prim: &Prim, p: &str) -> Result<Option<(String, Vec<glam::Vec2>, String)>> {
+        let time = self.time;
+        let mut bound = Vec::new();
+        if let Some(m) = self.bound_material(prim)? {
+            bound.push(m);
+        }
+        for child in prim.children()? {
+            if child.type_name()?.is_some_and(|t| t.as_str() == "GeomSubset")
+                && let Some(m) = self.bound_material(&child)?
+            {
+                bound.push(m);
+            }
+        }
+        let mut names: Vec<String> = Vec::new();
+        for m in &bound {
+            self.material(m)?;
+            let Some((_, net)) = self.out.materials.iter().find(|(path, _)| path == m) else { continue };
+            for n in net.nodes.iter().filter(|n| n.node_type_id == "UsdPrimvarReader_float2") {
+                if let Some(ParamValue::String(v)) = n.parameters.get("varname")
+                    && !names.contains(v)
+                {
+                    names.push(v.clone());
+                }
+            }
+        }
+        if names.len() > 1 {
+            self.out.warnings.push(format!(
+                "{p}: its materials read several texture coordinate sets ({}); only '{}' is sent",
+                names.join(", "),
+                names[0]
+            ));
+        }
+        let name = names.into_iter().next().unwrap_or_else(|| "st".to_string());
+        let attr_name = format!("primvars:{name}");
+        let Some(v) = get(prim, &attr_name, time)? else { return Ok(None) };
+        let Some(st) = values::vec2_array(&v) else {
+            self.out.warnings.push(format!("{p}: {attr_name} has type {}, not texCoord2f[]; no texture coordinates", values::type_of(&v)));
+            return Ok(None);
+        };
+        let st = match get(prim, &format!("{attr_name}:indices"), time)?.as_ref().and_then(values::int_array) {
+            Some(idx) => {
+                if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= st.len()) {
+                    anyhow::bail!("{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values", st.len());
+                }
+                idx.iter().map(|&k| st[k as usize]).collect()
+            }
+            None => st,
+        };
+        let interp = prim
+            .attribute(attr_name.as_str())
+            .get_metadata::<openusd::tf::Token>("interpolation")
+            .ok()
+            .flatten()
+            .map(|t| t.as_str().to_string())
+            .unwrap_or_else(|| "constant".to_string());
+        Ok(Some((attr_name, st, interp)))
+    }
+
     fn normals(&self, prim: &Prim, p: &str) -> Result<Option<(Vec<Vec3>, String)>> {
         let time = self.time;
         let interp = |name: &str, default: &str| -> String {
@@ -702,7 +810,27 @@ impl Reader<'_> {
                         ));
                         continue;
                     }
-                    let (up_prim, up_output) = (src.prim_path(), src.name().unwrap_or_default().trim_start_matches("outputs:").to_string());
+                    // The property part of `/Material/Node.outputs:rgb`.
+                    let property = src.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+                    let (up_prim, up_output) = (src.prim_path(), property.trim_start_matches("outputs:").to_string());
+                    // A connection to the material's own interface (`inputs:` on the
+                    // Material or a NodeGraph) passes that input's value down.
+                    let up = self.stage.prim(up_prim.clone());
+                    if up.type_name()?.is_some_and(|t| t.as_str() == "Material" || t.as_str() == "NodeGraph")
+                        && property.starts_with("inputs:")
+                    {
+                        match up.attribute(property.as_str()).get_at::<Value>(time)?.as_ref().and_then(param) {
+                            Some(pv) => {
+                                node.parameters.insert(input.to_string(), pv);
+                            }
+                            None => self.out.warnings.push(format!(
+                                "{}: input '{input}' connects to {}, which has no value; its own value is used",
+                                node.path,
+                                src.as_str()
+                            )),
+                        }
+                        continue;
+                    }
                     network.connections.push(MaterialConnection {
                         downstream_node: node.path.clone(),
                         downstream_input: input.to_string(),
@@ -711,7 +839,15 @@ impl Reader<'_> {
                     });
                     stack.push(up_prim);
                 }
+                if node.parameters.contains_key(input) {
+                    continue; // set through the material interface above
+                }
                 if let Some(v) = attr.get_at::<Value>(time)? {
+                    if let Value::AssetPath(a) = &v {
+                        let pv = self.texture_param(&node.path, input, a);
+                        node.parameters.insert(input.to_string(), pv);
+                        continue;
+                    }
                     match param(&v) {
                         Some(pv) => {
                             node.parameters.insert(input.to_string(), pv);
@@ -726,6 +862,25 @@ impl Reader<'_> {
         }
         self.out.materials.push((path.to_string(), network));
         Ok(())
+    }
+
+    /// An asset input of a shader: the file's content hash once its bytes are read (and kept
+    /// for upload), else the authored path with a warning naming the node and input.
+    fn texture_param(&mut self, node: &str, input: &str, a: &openusd::sdf::AssetPath) -> ParamValue {
+        if a.is_empty() {
+            return ParamValue::Asset(String::new());
+        }
+        match read_asset(a) {
+            Ok(bytes) => {
+                let hash = tessera_server::textures::content_hash(&bytes);
+                self.out.textures.entry(hash.clone()).or_insert(TextureFile { source: a.as_str().to_string(), bytes: Arc::new(bytes) });
+                ParamValue::Texture { hash, source: a.as_str().to_string() }
+            }
+            Err(e) => {
+                self.out.warnings.push(format!("{node}: input '{input}': cannot read '{}': {e}", a.as_str()));
+                ParamValue::Asset(a.as_str().to_string())
+            }
+        }
     }
 
     fn light(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
@@ -839,7 +994,25 @@ fn param(v: &Value) -> Option<ParamValue> {
         Value::Int(i) => ParamValue::Int(*i),
         Value::Bool(b) => ParamValue::Bool(*b),
         Value::Token(_) | Value::String(_) => ParamValue::String(values::token(v)?),
-        Value::AssetPath(a) => ParamValue::Asset(format!("{a:?}")),
+        Value::AssetPath(a) => ParamValue::Asset(a.as_str().to_string()),
+        Value::Vec2f(_) | Value::Vec2d(_) | Value::Vec2h(_) => {
+            let [x, y] = values::vec2(v)?;
+            ParamValue::Float2(glam::Vec2::new(x as f32, y as f32))
+        }
+        Value::Vec4f(_) | Value::Vec4d(_) => ParamValue::Float4(values::vec4(v)?),
         _ => ParamValue::Float3(values::vec3(v)?),
     })
+}
+
+/// The bytes of an asset as the stage resolved it: a file, or a member of a `.usdz` package
+/// (`scene.usdz[textures/wood.png]`).
+fn read_asset(a: &openusd::sdf::AssetPath) -> std::io::Result<Vec<u8>> {
+    use openusd::ar::Resolver;
+    let resolved = a.resolved_path().filter(|r| !r.is_empty()).ok_or_else(|| {
+        std::io::Error::new(std::io::ErrorKind::NotFound, "the path does not resolve (no such file next to the layer that authored it)")
+    })?;
+    let mut asset = openusd::ar::DefaultResolver::new().open_asset(&openusd::ar::ResolvedPath::new(resolved))?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut asset, &mut bytes)?;
+    Ok(bytes)
 }

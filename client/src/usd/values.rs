@@ -98,3 +98,22 @@ pub fn quat_array(v: &Value) -> Option<Vec<glam::DQuat>> {
         _ => return None,
     })
 }
+
+/// A 4-vector from any precision.
+pub fn vec4(v: &Value) -> Option<glam::Vec4> {
+    Some(match v {
+        Value::Vec4f(p) => glam::Vec4::new(p.x, p.y, p.z, p.w),
+        Value::Vec4d(p) => glam::Vec4::new(p.x as f32, p.y as f32, p.z as f32, p.w as f32),
+        _ => return None,
+    })
+}
+
+/// A 2-vector array from any precision.
+pub fn vec2_array(v: &Value) -> Option<Vec<glam::Vec2>> {
+    Some(match v {
+        Value::Vec2fVec(a) => a.iter().map(|p| glam::Vec2::new(p.x, p.y)).collect(),
+        Value::Vec2dVec(a) => a.iter().map(|p| glam::Vec2::new(p.x as f32, p.y as f32)).collect(),
+        Value::Vec2hVec(a) => a.iter().map(|p| glam::Vec2::new(p.x.to_f32(), p.y.to_f32())).collect(),
+        _ => return None,
+    })
+}

@@ -1,0 +1,146 @@
+//! Textures end to end: the client reads the files (beside the layer, or inside a `.usdz`),
+//! uploads each content once per server, and the renderer reads them with USD's st
+//! orientation, wrap modes and colour spaces. The fixtures are `fixtures/textures/`; the sRGB
+//! codes of the quadrant texture are `QUADRANTS` in make_fixtures.py.
+
+use render_core::texture::srgb_to_linear;
+use tessera::output::Image;
+use tessera::remote::Connection;
+use tessera_server::EmbeddedServer;
+use tessera_tests::{assert_all_finite, load, render_fixture, small};
+
+/// sRGB codes of the quadrant texture: top-left, top-right, bottom-left, bottom-right.
+const TL: [u8; 3] = [200, 40, 40];
+const TR: [u8; 3] = [40, 200, 40];
+const BL: [u8; 3] = [40, 40, 200];
+const BR: [u8; 3] = [230, 230, 230];
+const BLACK: [u8; 3] = [0, 0, 0];
+
+/// The linear albedo a code stands for: under a white dome of radiance 1, a Lambertian
+/// surface without specular shows exactly its albedo.
+fn linear(code: [u8; 3]) -> [f64; 3] {
+    code.map(|c| srgb_to_linear(c as f32 / 255.0) as f64)
+}
+
+/// Mean beauty over the pixels whose centres fall in the world rectangle [x0, x1] × [y0, y1]
+/// of an orthographic view whose window starts at (`left`, `top`) with `pixel` units per pixel.
+fn mean_in(img: &Image, (left, top, pixel): (f64, f64, f64), (x0, x1, y0, y1): (f64, f64, f64, f64)) -> [f64; 3] {
+    let mut sum = [0.0; 3];
+    let mut n = 0;
+    for py in 0..img.height {
+        for px in 0..img.width {
+            let (x, y) = (left + (px as f64 + 0.5) * pixel, top - (py as f64 + 0.5) * pixel);
+            if (x0..=x1).contains(&x) && (y0..=y1).contains(&y) {
+                let p = img.pixel("beauty", px, py);
+                (0..3).for_each(|c| sum[c] += p[c] as f64);
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 16, "region {x0}..{x1} x {y0}..{y1} covers only {n} pixels");
+    sum.map(|s| s / n as f64)
+}
+
+fn assert_color(got: [f64; 3], code: [u8; 3], what: &str) {
+    let want = linear(code);
+    for c in 0..3 {
+        assert!(
+            (got[c] - want[c]).abs() <= 0.01 + 0.03 * want[c],
+            "{what}: channel {c} is {:.4}, expected {:.4} (sRGB {code:?})",
+            got[c],
+            want[c]
+        );
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn st_orientation_wrap_modes_and_srgb_decoding_match_the_specification() {
+    // 280 x 100 pixels over 7 x 2.5 units: the window's top-left is (-3.5, 1.25).
+    let report = render_fixture("textures/wrap_and_orientation.usda", &small(280, 100, 32)).await;
+    assert_all_finite(&report.image);
+    let view = (-3.5, 1.25, 0.025);
+    let at = |rect| mean_in(&report.image, view, rect);
+    // /World/Orientation: st (0, 0) is the image's bottom-left.
+    assert_color(at((-3.1, -2.3, 0.1, 0.9)), TL, "orientation, top-left");
+    assert_color(at((-2.1, -1.3, 0.1, 0.9)), TR, "orientation, top-right");
+    assert_color(at((-3.1, -2.3, -0.9, -0.1)), BL, "orientation, bottom-left");
+    assert_color(at((-2.1, -1.3, -0.9, -0.1)), BR, "orientation, bottom-right");
+    // /World/BlackClamp: st from -0.5 to 1.5; black outside s in [0, 1], edge rows beyond t.
+    assert_color(at((-0.95, -0.55, -0.9, 0.9)), BLACK, "wrapS black, left of the image");
+    assert_color(at((0.55, 0.95, -0.9, 0.9)), BLACK, "wrapS black, right of the image");
+    assert_color(at((-0.4, -0.1, 0.6, 0.95)), TL, "wrapT clamp above the image: its top row");
+    assert_color(at((-0.4, -0.1, -0.95, -0.6)), BL, "wrapT clamp below the image: its bottom row");
+    // /World/RepeatMirror: s repeats (right of the image is its left column again), t mirrors
+    // (above the image is its top row again, below it its bottom row).
+    assert_color(at((2.8, 3.1, 0.6, 0.95)), TL, "repeat right, mirror above");
+    assert_color(at((1.3, 1.6, -0.95, -0.6)), BR, "repeat left, mirror below");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_usdz_package_supplies_its_own_texture() {
+    // 64 x 64 pixels over 2.5 x 2.5 units, the quad spans [-1, 1]².
+    let report = render_fixture("textures/packed.usdz", &small(64, 64, 16)).await;
+    let view = (-1.25, 1.25, 2.5 / 64.0);
+    let at = |rect| mean_in(&report.image, view, rect);
+    assert_color(at((-0.9, -0.1, 0.1, 0.9)), TL, "packed, top-left");
+    assert_color(at((0.1, 0.9, -0.9, -0.1)), BR, "packed, bottom-right");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_texture_crosses_the_wire_once_per_server() {
+    let t = load("textures/wrap_and_orientation.usda");
+    assert_eq!(t.textures.len(), 1, "three materials read one file");
+    let hashes: Vec<String> = t.textures.keys().cloned().collect();
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut first = Connection::connect(&server.url(), "first").await.unwrap();
+    assert_eq!(first.missing_textures(hashes.clone()).await.unwrap(), hashes, "a new server holds nothing");
+    first.sync_scene(&t).await.unwrap();
+    // Another session on the same server finds it there and uploads nothing.
+    let mut second = Connection::connect(&server.url(), "second").await.unwrap();
+    assert!(second.missing_textures(hashes).await.unwrap().is_empty());
+    let without_textures = tessera::sync::scene_sync(&t, |_| false);
+    second.sync(without_textures).await.expect("the texture comes from the server's cache");
+    let report = second.render(&small(28, 10, 4), |_| {}).await.unwrap();
+    assert!(report.image.pixel("beauty", 3, 2)[0] > 0.3, "the top-left quadrant is red");
+    server.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn missing_or_corrupt_texture_uploads_are_errors_naming_the_file() {
+    let t = load("textures/wrap_and_orientation.usda");
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut conn = Connection::connect(&server.url(), "e2e").await.unwrap();
+    // Never uploaded: the error names the material, the node and the file.
+    let e = conn.sync(tessera::sync::scene_sync(&t, |_| false)).await.unwrap_err().to_string();
+    assert!(e.contains("/World/Looks/") && e.contains("/Texture") && e.contains("maps/quadrants.png"), "{e}");
+    // Bytes that do not match their hash.
+    let mut tampered = t.clone();
+    let file = tampered.textures.values_mut().next().unwrap();
+    let mut bytes = (*file.bytes).clone();
+    bytes[40] ^= 0xff;
+    file.bytes = std::sync::Arc::new(bytes);
+    let e = conn.sync(tessera::sync::full_sync(&tampered)).await.unwrap_err().to_string();
+    assert!(e.contains("maps/quadrants.png") && e.contains("do not hash"), "{e}");
+    // Bytes that hash right but are no image.
+    let mut garbage = t.clone();
+    let (hash, mut file) = garbage.textures.pop_first().unwrap();
+    file.bytes = std::sync::Arc::new(b"not a png".to_vec());
+    let new_hash = tessera_server::textures::content_hash(&file.bytes);
+    garbage.textures.insert(new_hash.clone(), file);
+    for (_, net) in &mut garbage.materials {
+        for n in &mut net.nodes {
+            for v in n.parameters.values_mut() {
+                if let render_core::material::ParamValue::Texture { hash: h, .. } = v
+                    && *h == hash
+                {
+                    *h = new_hash.clone();
+                }
+            }
+        }
+    }
+    let e = conn.sync(tessera::sync::full_sync(&garbage)).await.unwrap_err().to_string();
+    assert!(e.contains("cannot decode 'maps/quadrants.png'"), "{e}");
+    // The session still works.
+    conn.sync_scene(&t).await.expect("a good upload after bad ones");
+    server.stop().await.unwrap();
+}
