@@ -66,9 +66,11 @@ impl Wrap {
 /// How a texture's values are encoded (UsdUVTexture `sourceColorSpace`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum ColorSpace {
-    /// sRGB for 8-bit images of three or more channels, linear otherwise: a single-channel
-    /// or 16-bit image is data (roughness, masks), a colour photo is sRGB. (This is the rule
-    /// Hydra's Storm and MoonRay apply to `auto`.)
+    /// sRGB for integer-coded (8- or 16-bit) images of three or more channels, linear
+    /// otherwise: a single-channel image is data (roughness, masks), a colour picture is sRGB
+    /// whatever its bit depth, and float images (EXR, HDR) are linear. This is MoonRay's rule
+    /// ("gamma if not single channel"), and what usdrecord 24.03 shows for the USD-WG
+    /// TextureFileFormatTests (8- and 16-bit PNGs alike).
     #[default]
     Auto,
     /// Linear values.
@@ -124,6 +126,8 @@ pub struct Image {
     height: u32,
     channels: usize,
     texels: Texels,
+    /// The file stored integer codes (8 or 16 bits), which may be sRGB-encoded.
+    integer_coded: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -146,20 +150,28 @@ impl Image {
     pub fn decode(bytes: &[u8], name: &str) -> Result<Image, TextureError> {
         use image::DynamicImage as D;
         let err = |reason: String| TextureError::Decode { name: name.to_string(), reason };
-        let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| err(e.to_string()))?;
-        let mut reader = reader;
-        reader.no_limits();
-        let (w, h) = reader.into_dimensions().map_err(|e| err(e.to_string()))?;
+        // Formats without a signature (TGA) are known by the file's extension.
+        let open = || -> Result<_, TextureError> {
+            let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| err(e.to_string()))?;
+            if reader.format().is_none()
+                && let Ok(f) = image::ImageFormat::from_path(name)
+            {
+                reader.set_format(f);
+            }
+            reader.no_limits();
+            Ok(reader)
+        };
+        let (w, h) = open()?.into_dimensions().map_err(|e| err(e.to_string()))?;
         if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
             return Err(TextureError::TooLarge { name: name.to_string(), width: w, height: h, limit: MAX_TEXTURE_SIDE });
         }
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| err(e.to_string()))?;
-        reader.no_limits();
+        let reader = open()?;
         let img = reader.decode().map_err(|e| err(e.to_string()))?;
         let (width, height) = (img.width(), img.height());
         if width == 0 || height == 0 {
             return Err(err("the image is empty".into()));
         }
+        let integer_coded = !matches!(img, D::ImageRgb32F(_) | D::ImageRgba32F(_));
         let (channels, texels) = match img {
             D::ImageLuma8(b) => (1, Texels::U8(b.into_raw())),
             D::ImageLumaA8(b) => (2, Texels::U8(b.into_raw())),
@@ -176,19 +188,19 @@ impl Image {
                 (c.min(4), Texels::F16(floats.into_iter().map(|x| f16::from_f32(if x.is_finite() { x } else { 0.0 })).collect()))
             }
         };
-        Ok(Image { width, height, channels, texels })
+        Ok(Image { width, height, channels, texels, integer_coded })
     }
 
     /// An image from linear float texels, row-major from the top row, `channels` per texel.
     pub fn from_f32(width: u32, height: u32, channels: usize, texels: &[f32]) -> Image {
         assert!((1..=4).contains(&channels) && texels.len() == width as usize * height as usize * channels);
-        Image { width, height, channels, texels: Texels::F16(texels.iter().map(|&x| f16::from_f32(x)).collect()) }
+        Image { width, height, channels, texels: Texels::F16(texels.iter().map(|&x| f16::from_f32(x)).collect()), integer_coded: false }
     }
 
     /// An image from 8-bit texels, row-major from the top row.
     pub fn from_u8(width: u32, height: u32, channels: usize, texels: Vec<u8>) -> Image {
         assert!((1..=4).contains(&channels) && texels.len() == width as usize * height as usize * channels);
-        Image { width, height, channels, texels: Texels::U8(texels) }
+        Image { width, height, channels, texels: Texels::U8(texels), integer_coded: true }
     }
 
     /// Width and height in texels.
@@ -211,7 +223,7 @@ impl Image {
         match space {
             ColorSpace::Raw => false,
             ColorSpace::Srgb => true,
-            ColorSpace::Auto => matches!(self.texels, Texels::U8(_)) && self.channels >= 3,
+            ColorSpace::Auto => self.integer_coded && self.channels >= 3,
         }
     }
 }
@@ -256,7 +268,18 @@ impl Texture {
     /// seen from far away keeps its mean colour.
     pub fn new(image: &Image, space: ColorSpace) -> Texture {
         let srgb = image.is_srgb(space);
-        let mut levels = vec![Level { width: image.width as usize, height: image.height as usize, texels: image.texels.clone() }];
+        // Half-float texels are linearised once here; 8-bit ones through a table at lookup.
+        let base = match &image.texels {
+            Texels::F16(v) if srgb => Texels::F16(
+                v.iter()
+                    .enumerate()
+                    .map(|(i, x)| if is_colour_channel(i % image.channels, image.channels) { f16::from_f32(srgb_to_linear(x.to_f32())) } else { *x })
+                    .collect(),
+            ),
+            other => other.clone(),
+        };
+        let srgb = srgb && matches!(base, Texels::U8(_));
+        let mut levels = vec![Level { width: image.width as usize, height: image.height as usize, texels: base }];
         let c = image.channels;
         while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
             let (w, h) = (last.width.div_ceil(2), last.height.div_ceil(2));
@@ -460,6 +483,7 @@ mod tests {
         assert!((v(&rgb, ColorSpace::Auto) - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
         assert!((v(&rgb, ColorSpace::Raw) - 128.0 / 255.0).abs() < 1e-6);
         assert!((v(&float, ColorSpace::Auto) - 0.5).abs() < 1e-3);
+        assert!((v(&float, ColorSpace::Srgb) - srgb_to_linear(0.5)).abs() < 1e-3, "explicit sRGB applies to floats too");
         assert!((v(&grey, ColorSpace::Srgb) - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
     }
 

@@ -3,6 +3,7 @@
 
 mod aovs;
 mod caustics;
+mod conformance;
 mod energy;
 mod errors;
 mod furnace;

@@ -73,6 +73,33 @@ pub struct RenderSettingsDesc {
 }
 
 impl Translation {
+    /// Path of the camera a Z-up stage without cameras gets.
+    pub const DEFAULT_CAMERA: &'static str = "/TesseraDefaultCamera";
+
+    /// A Z-up stage without cameras: the renderer's default view (from +Z, Y up) would look
+    /// down on it, so the client frames it as viewers do, from −Y with Z up, the bounding
+    /// sphere filling the default field of view.
+    fn add_z_up_camera(&mut self) {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for (_, m) in &self.meshes {
+            for p in &m.mesh.positions {
+                let w = m.transform.transform_point3(*p);
+                (lo, hi) = (lo.min(w), hi.max(w));
+            }
+        }
+        if !(lo.x <= hi.x) {
+            return;
+        }
+        let (center, radius) = (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-3));
+        let d = CameraDesc::default();
+        let half = (0.5 * d.vertical_aperture / d.focal_length).atan();
+        let dist = radius / half.sin();
+        // Camera looks down its local −Z: local +Z points back along −Y, local +Y is world +Z.
+        let rotation = glam::Mat3::from_cols(Vec3::X, Vec3::Z, -Vec3::Y);
+        let transform = Affine3A::from_mat3_translation(rotation, center - Vec3::Y * dist);
+        self.cameras.push((Self::DEFAULT_CAMERA.to_string(), CameraDesc { transform, near: (dist - radius).max(1e-3) * 0.5, ..d }));
+    }
+
     /// Path of the light [`Self::add_default_light`] adds.
     pub const DEFAULT_LIGHT: &'static str = "/TesseraDefaultDome";
 
@@ -179,6 +206,10 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     reader.all_paths = paths.clone();
     for p in paths {
         reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
+    }
+    let z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
+    if z_up && reader.out.cameras.is_empty() {
+        reader.out.add_z_up_camera();
     }
     Ok(reader.out)
 }
