@@ -255,6 +255,16 @@ impl Distribution1D {
         self.pmf[i]
     }
 
+    /// An item drawn with `u` in [0, 1), where `u` fell within its CDF step (in [0, 1), for
+    /// continuous positions inside the item), and its probability.
+    #[inline]
+    pub fn sample_continuous(&self, u: f32) -> (usize, f32, f32) {
+        let (i, p) = self.sample(u);
+        let start = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let frac = if p > 0.0 { ((u - start) / p).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.5 };
+        (i, frac, p)
+    }
+
     /// An item index drawn with `u` in [0, 1), and its probability.
     #[inline]
     pub fn sample(&self, u: f32) -> (usize, f32) {

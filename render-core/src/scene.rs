@@ -273,6 +273,18 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         materials.push(m);
         textured.push(varying.map(Arc::new));
     }
+    // Dome light maps, read as the materials' textures are (linear for float files).
+    let mut environments: HashMap<&str, Arc<crate::texture::Texture>> = HashMap::new();
+    for (path, l) in &desc.lights {
+        if let Some(t) = &l.texture {
+            match source(&t.hash, crate::texture::ColorSpace::Auto) {
+                Some(tex) => {
+                    environments.insert(path.as_str(), tex);
+                }
+                None => warnings.push(format!("{path}: texture '{}' is not on the server; the dome is its constant colour", t.source)),
+            }
+        }
+    }
     // Keep exactly the pyramids this scene reads.
     cache.textures = pyramids.into_inner();
 
@@ -405,7 +417,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let mut lights: Vec<Light> = Vec::new();
     let mut light_prims = Vec::new();
     for (path, l) in &desc.lights {
-        match l.commit() {
+        match l.commit_with(environments.get(path.as_str()).cloned()) {
             Some(light) => {
                 lights.push(light);
                 light_prims.push(path.clone());
@@ -452,6 +464,14 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             "lights",
             format!("{} UsdLux light(s), chosen through a light tree with adaptive splitting, MIS (power heuristic)", light_prims.len()),
             light_prims.clone(),
+        );
+    }
+    let mapped_domes: Vec<String> = environments.keys().map(|p| p.to_string()).collect();
+    if !mapped_domes.is_empty() {
+        plan.enable(
+            "environment-map",
+            "DomeLight texture, importance-sampled by luminance × sin θ (2D piecewise-constant) with MIS".to_string(),
+            mapped_domes,
         );
     }
     if emissive_triangles > 0 {

@@ -116,6 +116,15 @@ pub enum TextureError {
     },
 }
 
+/// A texture file named by content: what a material input or a dome light holds.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TextureRef {
+    /// `sha256:` and 64 hex digits.
+    pub hash: String,
+    /// The authored path, for messages.
+    pub source: String,
+}
+
 /// The largest side accepted: 16k textures are the largest common production maps.
 pub const MAX_TEXTURE_SIDE: u32 = 16384;
 
@@ -269,15 +278,22 @@ impl Texture {
     pub fn new(image: &Image, space: ColorSpace) -> Texture {
         let srgb = image.is_srgb(space);
         // Half-float texels are linearised once here; 8-bit ones through a table at lookup.
-        let base = match &image.texels {
-            Texels::F16(v) if srgb => Texels::F16(
-                v.iter()
-                    .enumerate()
-                    .map(|(i, x)| if is_colour_channel(i % image.channels, image.channels) { f16::from_f32(srgb_to_linear(x.to_f32())) } else { *x })
-                    .collect(),
-            ),
-            other => other.clone(),
-        };
+        let base =
+            match &image.texels {
+                Texels::F16(v) if srgb => Texels::F16(
+                    v.iter()
+                        .enumerate()
+                        .map(|(i, x)| {
+                            if is_colour_channel(i % image.channels, image.channels) {
+                                f16::from_f32(srgb_to_linear(x.to_f32()))
+                            } else {
+                                *x
+                            }
+                        })
+                        .collect(),
+                ),
+                other => other.clone(),
+            };
         let srgb = srgb && matches!(base, Texels::U8(_));
         let mut levels = vec![Level { width: image.width as usize, height: image.height as usize, texels: base }];
         let c = image.channels;

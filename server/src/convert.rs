@@ -78,6 +78,7 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         visible_to_camera: l.visible,
         diffuse: l.diffuse.unwrap_or(1.0),
         specular: l.specular.unwrap_or(1.0),
+        texture: l.texture.as_ref().map(|t| render_core::texture::TextureRef { hash: t.content_hash.clone(), source: t.source.clone() }),
         shaping: match &l.shaping {
             None => None,
             Some(s) => {
@@ -116,6 +117,7 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
             focus: s.focus,
             focus_tint: Some(float3(s.focus_tint)),
         }),
+        texture: l.texture.as_ref().map(|t| pb::TextureRef { content_hash: t.hash.clone(), source: t.source.clone() }),
         ..Default::default()
     };
     match l.kind {

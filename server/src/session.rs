@@ -330,6 +330,19 @@ impl Transaction {
                 }
             }
         }
+        for (light, l) in &self.desc.lights {
+            let Some(t) = &l.texture else { continue };
+            named.insert(t.hash.clone());
+            if !self.desc.textures.contains_key(&t.hash) {
+                let image = self.store.get(&t.hash).ok_or_else(|| {
+                    Status::failed_precondition(format!(
+                        "{light}: texture:file '{}' ({}) was not uploaded; send it as a TexturePrim",
+                        t.source, t.hash
+                    ))
+                })?;
+                self.desc.textures.insert(t.hash.clone(), image);
+            }
+        }
         self.desc.textures.retain(|h, _| named.contains(h));
         Ok(())
     }

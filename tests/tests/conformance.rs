@@ -154,7 +154,10 @@ fn texture_file_formats_read_alike() {
     for (kind, name) in [("png", "png_grayscale_8bit"), ("png", "png_grayscale_16bit"), ("jpeg", "jpeg_grayscale_8bit")] {
         let (m, _) = plane(kind, name);
         // Within the tint of light bounced off the magenta frame around each card.
-        assert!((m[0] - m[1]).abs() < 0.03 * m[1] && (m[2] - m[1]).abs() < 0.03 * m[1] && (m[0] - m[2]).abs() < 0.005 * m[1], "{name} is grey: {m:?}");
+        assert!(
+            (m[0] - m[1]).abs() < 0.03 * m[1] && (m[2] - m[1]).abs() < 0.03 * m[1] && (m[0] - m[2]).abs() < 0.005 * m[1],
+            "{name} is grey: {m:?}"
+        );
     }
     let (g8, _) = plane("png", "png_grayscale_8bit");
     let (g16, _) = plane("png", "png_grayscale_16bit");
@@ -217,10 +220,15 @@ fn textured_roughness_matches_constant_roughness() {
         shaping: None,
         diffuse: 1.0,
         specular: 1.0,
+        texture: None,
     };
     t.lights.push(("/Sun".into(), sun));
     let r = render(t, (240, 160), 32);
-    for (tex, konst) in [("Tex/Tex000/Mesh", "Const/Const000/Mesh_001"), ("Tex/Tex033/Mesh_002", "Const/Const033/Mesh_003"), ("Tex/Tex066/Mesh_004", "Const/Const066/Mesh_005")] {
+    for (tex, konst) in [
+        ("Tex/Tex000/Mesh", "Const/Const000/Mesh_001"),
+        ("Tex/Tex033/Mesh_002", "Const/Const033/Mesh_003"),
+        ("Tex/Tex066/Mesh_004", "Const/Const066/Mesh_005"),
+    ] {
         let (a, na) = r.mean_of(&format!("/Roughness/{tex}"));
         let (b, nb) = r.mean_of(&format!("/Roughness/{konst}"));
         assert!(na > 50 && nb > 50, "{tex}: {na} and {nb} px");

@@ -5,6 +5,7 @@ mod aovs;
 mod caustics;
 mod conformance;
 mod energy;
+mod environment;
 mod errors;
 mod furnace;
 mod fuzz;

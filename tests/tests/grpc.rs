@@ -67,6 +67,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
             color: Vec3::ONE,
             normalize: false,
             visible_to_camera: true,
+            texture: None,
             shaping: None,
             diffuse: 1.0,
             specular: 1.0,

@@ -261,3 +261,11 @@ async fn light_diffuse_and_specular_multipliers_select_the_lobes_they_light() {
         assert!(l > 0.01, "{fixture_name}: the {lit} quad must be lit ({l})");
     }
 }
+
+#[test]
+fn skinned_meshes_render_in_rest_pose_with_a_warning() {
+    let t = load("usd/skinned.usda");
+    assert!(t.meshes.iter().any(|(p, m)| p == "/World/Character/Body" && m.mesh.indices.len() == 2), "the bound mesh is kept");
+    assert!(t.warnings.iter().any(|w| w.contains("/World/Character") && w.contains("rest pose")), "{:?}", t.warnings);
+    assert_eq!(t.skipped, vec!["/World/Character/Skel".to_string()]);
+}

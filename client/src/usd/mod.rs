@@ -122,6 +122,7 @@ impl Translation {
             shaping: None,
             diffuse: 1.0,
             specular: 1.0,
+            texture: None,
         };
         self.lights.push((Self::DEFAULT_LIGHT.to_string(), dome));
         true
@@ -293,6 +294,17 @@ impl Reader<'_> {
             }
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
+            // UsdSkel: the meshes under a SkelRoot are ordinary meshes in their rest pose.
+            "SkelRoot" => {
+                self.out
+                    .warnings
+                    .push(format!("{p}: skinning (UsdSkel) is not supported yet: the meshes under it render in their rest pose"));
+                Ok(())
+            }
+            "Skeleton" | "SkelAnimation" | "BlendShape" => {
+                self.out.skipped.push(p);
+                Ok(())
+            }
             other => {
                 self.out.warnings.push(format!("{p}: prim type '{other}' is not supported yet and is not rendered"));
                 self.out.skipped.push(p);
@@ -933,10 +945,24 @@ impl Reader<'_> {
             "DistantLight" => LightKind::Distant { angle_degrees: float("angle", 0.53)? },
             _ => LightKind::Dome,
         };
-        if type_name == "RectLight" || type_name == "DomeLight" {
-            if input("texture:file")?.is_some() {
-                self.out.warnings.push(format!("{p}: inputs:texture:file is not supported yet; the light's constant colour is used"));
+        let mut texture = None;
+        match (type_name, input("texture:file")?) {
+            ("DomeLight", Some(Value::AssetPath(a))) if !a.is_empty() => {
+                let format = input("texture:format")?.as_ref().and_then(values::token).unwrap_or_else(|| "automatic".into());
+                if format != "automatic" && format != "latlong" {
+                    self.out.warnings.push(format!(
+                        "{p}: texture:format '{format}' is not supported (only latlong); the map is read as latitude-longitude"
+                    ));
+                }
+                if let ParamValue::Texture { hash, source } = self.texture_param(p, "texture:file", &a) {
+                    texture = Some(render_core::texture::TextureRef { hash, source });
+                }
             }
+            ("RectLight", Some(_)) => self
+                .out
+                .warnings
+                .push(format!("{p}: inputs:texture:file on a RectLight is not supported yet; the light's constant colour is used")),
+            _ => {}
         }
         // UsdLux: the colour temperature multiplies `color` when enabled (default 6500 K).
         let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
@@ -955,6 +981,7 @@ impl Reader<'_> {
             shaping: self.shaping(prim, p, type_name)?,
             diffuse: float("diffuse", 1.0)?,
             specular: float("specular", 1.0)?,
+            texture,
         };
         if !visible {
             return Ok(());

@@ -9,6 +9,7 @@
 //! lights outward); they are emitters only and do not cast shadows on each other.
 
 pub mod blackbody;
+pub mod environment;
 mod shapes;
 pub mod tree;
 
@@ -42,6 +43,8 @@ pub struct LightDesc {
     pub diffuse: f32,
     /// `inputs:specular`: scales what specular and transmission lobes receive.
     pub specular: f32,
+    /// `DomeLight` `inputs:texture:file` (latitude-longitude), by content.
+    pub texture: Option<crate::texture::TextureRef>,
 }
 
 /// UsdLux `ShapingAPI` controls. The schema leaves the exact falloff to renderers ("TODO:
@@ -219,11 +222,22 @@ impl LightDesc {
     /// Commits to world space. `None` for lights that cannot emit (degenerate transform,
     /// zero size with normalisation off, non-finite values).
     pub fn commit(&self) -> Option<Light> {
+        self.commit_with(None)
+    }
+
+    /// [`Self::commit`], a `DomeLight` reading `environment` (its `texture:file`) if given.
+    pub fn commit_with(&self, environment: Option<std::sync::Arc<crate::texture::Texture>>) -> Option<Light> {
         let l = self.base_radiance();
         if !crate::math::is_finite(l) || !self.transform.is_finite() {
             return None;
         }
-        let shape = shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?;
+        let shape = match (self.kind, environment) {
+            (LightKind::Dome, Some(texture)) => {
+                let rotation = glam::Mat3::from(self.transform.matrix3);
+                shapes::Shape::Environment { l, map: std::sync::Arc::new(environment::EnvironmentMap::new(texture, rotation)) }
+            }
+            _ => shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?,
+        };
         let axis = (-Vec3::from(self.transform.matrix3.z_axis)).normalize_or_zero();
         let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| s.around(axis));
         let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };

@@ -113,6 +113,13 @@ pub enum Shape {
         /// Radiance.
         l: Vec3,
     },
+    /// Environment from a latitude-longitude map, importance-sampled.
+    Environment {
+        /// Radiance scale (colour × intensity × 2^exposure).
+        l: Vec3,
+        /// The map and its distribution.
+        map: std::sync::Arc<super::environment::EnvironmentMap>,
+    },
     /// One emissive triangle of a mesh (emits from both faces).
     Triangle {
         /// World-space vertices.
@@ -221,12 +228,13 @@ impl Shape {
                 e * disk
             }
             Shape::Dome { l } => *l * (4.0 * PI * disk),
+            Shape::Environment { l, map } => *l * map.mean() * (4.0 * PI * disk),
         }
     }
 
     /// True for lights at infinity.
     pub fn is_infinite(&self) -> bool {
-        matches!(self, Shape::Distant { .. } | Shape::Dome { .. })
+        matches!(self, Shape::Distant { .. } | Shape::Dome { .. } | Shape::Environment { .. })
     }
 
     /// Samples a direction towards the light from `ctx` (pdf excludes light selection).
@@ -272,6 +280,12 @@ impl Shape {
                 let pdf = self.pdf(ctx, wi, f32::INFINITY);
                 (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf, delta: false })
             }
+            Shape::Environment { l, map } => {
+                let (wi, pdf) = map.sample(u)?;
+                // Directions behind an opaque surface carry nothing; keep them (pdf > 0) so
+                // that the estimator stays the one pdf() describes.
+                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: *l * map.lookup(wi), pdf, delta: false })
+            }
         }
     }
 
@@ -313,6 +327,7 @@ impl Shape {
             }
             Shape::Dome { .. } if ctx.both_sides => 0.5 * wi.dot(ctx.n).abs() / PI,
             Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
+            Shape::Environment { map, .. } => map.pdf(wi),
         }
     }
 
@@ -382,6 +397,7 @@ impl Shape {
     pub fn escaped(&self, d: Vec3) -> Vec3 {
         match self {
             Shape::Dome { l } => *l,
+            Shape::Environment { l, map } => *l * map.lookup(d),
             Shape::Distant { dir, cos_half, one_minus_cos_half, l, .. } if *one_minus_cos_half > 0.0 => {
                 let c = d.dot(*dir);
                 // Compare 1 − cos for precision at the sun's 0.53° angle.
@@ -401,6 +417,7 @@ impl Shape {
             | Shape::Cylinder { l, .. }
             | Shape::Distant { l, .. }
             | Shape::Dome { l }
+            | Shape::Environment { l, .. }
             | Shape::Triangle { l, .. } => *l,
         }
     }

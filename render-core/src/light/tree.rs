@@ -70,7 +70,7 @@ impl LightBounds {
                 all(center - e, center + e)
             }
             Shape::Triangle { p, n, .. } => facing(p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]), n, true),
-            Shape::Distant { .. } | Shape::Dome { .. } => return None,
+            Shape::Distant { .. } | Shape::Dome { .. } | Shape::Environment { .. } => return None,
         })
     }
 
