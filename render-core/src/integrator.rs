@@ -47,6 +47,9 @@ pub struct IntegratorSettings {
     /// A camera ray's footprint as a cone, (width, spread angle), for texture filtering;
     /// the renderer sets it from the camera. (0, 0) fetches the finest texture level.
     pub pixel_footprint: (f32, f32),
+    /// Filter textures over the ray's footprint (mip-mapping by ray cones); off, every lookup
+    /// reads the finest level and only pixel supersampling filters (the reference's way).
+    pub texture_filtering: bool,
 }
 
 impl Default for IntegratorSettings {
@@ -61,6 +64,7 @@ impl Default for IntegratorSettings {
             force_all_effects: false,
             strategy: LightStrategy::Mis,
             pixel_footprint: (0.0, 0.0),
+            texture_filtering: true,
         }
     }
 }
@@ -301,8 +305,11 @@ pub fn trace_path(
             // there the facet decides.
             if wo.dot(ng) * wo.dot(s.ns) > 0.0 { (s.ns, ng) } else { (ng, ng) }
         } else {
-            let ns = if s.ns.dot(wo) < 0.0 { -s.ns } else { s.ns };
-            (ns, if s.ng.dot(ns) < 0.0 { -s.ng } else { s.ng })
+            // Both normals on the viewer's side of the facet, the shading normal bent back
+            // where it would leave the viewer below its horizon.
+            let ng = if s.ng.dot(wo) < 0.0 { -s.ng } else { s.ng };
+            let ns = if s.ns.dot(ng) < 0.0 { -s.ns } else { s.ns };
+            (crate::math::valid_shading_normal(ng, wo, ns), ng)
         };
         // Where an interpolated normal and the facet disagree about which side a direction is
         // on, following it would reflect into the surface or refract out of the wrong side

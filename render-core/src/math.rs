@@ -52,6 +52,32 @@ impl Frame {
     }
 }
 
+/// A shading normal `n` bent towards the geometric normal `ng` (both on the viewer's side)
+/// just enough that the mirror reflection of the view direction `wo` about it stays above the
+/// surface. Far-tilted shading normals (normal maps, coarse smooth meshes) otherwise leave the
+/// viewer below their own horizon and the surface renders black in stripes. The criterion
+/// and threshold are Blender Cycles' `ensure_valid_specular_reflection` (reflection at least
+/// min(0.9·(wo·ng), 0.01) above the surface); the bend here is found by bisection along the
+/// arc from `ng` to `n` rather than in closed form.
+pub fn valid_shading_normal(ng: Vec3, wo: Vec3, n: Vec3) -> Vec3 {
+    let threshold = (0.9 * wo.dot(ng)).min(0.01);
+    let reflects_above = |m: Vec3| (2.0 * wo.dot(m) * m - wo).dot(ng) >= threshold;
+    if reflects_above(n) || wo.dot(ng) <= 0.0 {
+        return n;
+    }
+    // ng itself reflects wo to wo·ng ≥ threshold above the surface; move from it towards n.
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    for _ in 0..20 {
+        let mid = 0.5 * (lo + hi);
+        if reflects_above(ng.lerp(n, mid).normalize_or(ng)) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    ng.lerp(n, lo).normalize_or(ng)
+}
+
 /// Rec.709 relative luminance of a linear RGB colour.
 #[inline]
 pub fn luminance(c: Vec3) -> f32 {

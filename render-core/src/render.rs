@@ -214,7 +214,8 @@ fn render_tile(
     counters: &mut PathCounters,
 ) {
     let r = tile.rect;
-    let integrator = IntegratorSettings { pixel_footprint: camera.pixel_footprint(), ..settings.integrator };
+    let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
+    let integrator = IntegratorSettings { pixel_footprint: footprint, ..settings.integrator };
     for py in 0..r.height {
         for px in 0..r.width {
             let (x, y) = (r.x + px, r.y + py);

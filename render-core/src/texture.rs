@@ -201,9 +201,11 @@ impl Image {
     }
 
     /// An image from linear float texels, row-major from the top row, `channels` per texel.
+    /// NaN and infinite texels read as 0, as decoded files' do.
     pub fn from_f32(width: u32, height: u32, channels: usize, texels: &[f32]) -> Image {
         assert!((1..=4).contains(&channels) && texels.len() == width as usize * height as usize * channels);
-        Image { width, height, channels, texels: Texels::F16(texels.iter().map(|&x| f16::from_f32(x)).collect()), integer_coded: false }
+        let texels = texels.iter().map(|&x| f16::from_f32(if x.is_finite() { x } else { 0.0 })).collect();
+        Image { width, height, channels, texels: Texels::F16(texels), integer_coded: false }
     }
 
     /// An image from 8-bit texels, row-major from the top row.
@@ -526,6 +528,38 @@ mod tests {
         assert!((ray_cone_lod(1.0 / 1024.0, 0.5, 1.0, size) - 1.0).abs() < 1e-4);
         assert_eq!(ray_cone_lod(0.0, 0.0, 1.0, size), 0.0);
         assert!(ray_cone_lod(f32::NAN, 1.0, 1.0, size) == 0.0);
+    }
+
+    #[test]
+    fn nan_and_infinite_texels_read_as_zero_at_every_level() {
+        // Hard case (issue 7): a NaN texel must not poison lookups, mips or the dome's sums.
+        let t = Texture::new(&Image::from_f32(2, 2, 1, &[f32::NAN, 1.0, f32::INFINITY, 1.0]), ColorSpace::Raw);
+        assert_eq!(t.texel(0, 0).x, 0.0);
+        assert_eq!(t.texel(0, 1).x, 0.0);
+        for lod in [0.0, 0.5, 1.0, 30.0] {
+            let v = t.lookup(Vec2::new(0.3, 0.6), lod, [Wrap::Repeat; 2]);
+            assert!(v.is_finite(), "lod {lod}: {v}");
+        }
+        assert!((t.lookup(Vec2::splat(0.5), 10.0, [Wrap::Repeat; 2]).x - 0.5).abs() < 1e-3);
+        // Non-finite coordinates and levels give finite values too.
+        assert!(t.lookup(Vec2::new(f32::NAN, 0.5), 0.0, [Wrap::Repeat; 2]).is_finite());
+        assert!(t.lookup(Vec2::new(1e30, -1e30), f32::NAN, [Wrap::Mirror; 2]).is_finite());
+    }
+
+    #[test]
+    fn a_one_texel_texture_is_that_texel_everywhere() {
+        let t = Texture::new(&Image::from_u8(1, 1, 3, vec![255, 128, 0]), ColorSpace::Raw);
+        assert_eq!(t.level_count(), 1);
+        for st in [Vec2::ZERO, Vec2::splat(0.5), Vec2::new(7.3, -2.2)] {
+            for wrap in [Wrap::Repeat, Wrap::Mirror, Wrap::Clamp] {
+                for lod in [0.0, 3.0] {
+                    let v = t.lookup(st, lod, [wrap; 2]);
+                    assert!((v - Vec4::new(1.0, 128.0 / 255.0, 0.0, 1.0)).abs().max_element() < 1e-6, "{st} {wrap:?}: {v}");
+                }
+            }
+        }
+        // Black wrap outside [0, 1]: half the bilinear footprint falls outside at the edge.
+        assert_eq!(t.lookup(Vec2::new(2.5, 0.5), 0.0, [Wrap::Black, Wrap::Clamp]).truncate(), glam::Vec3::ZERO);
     }
 
     #[test]

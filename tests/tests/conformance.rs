@@ -81,6 +81,7 @@ impl Render {
 /// first camera or a framing one).
 fn render(mut t: Translation, size: (u32, u32), spp: u32) -> Render {
     t.add_default_light();
+    t.add_default_camera();
     let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
     let camera = Camera::new(&scene.camera("").expect("camera"), size.0, size.1);
     let settings = RenderSettings { width: size.0, height: size.1, spp, ..Default::default() };

@@ -37,6 +37,9 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     let t0 = Instant::now();
     let (scene, frame) = (job.scene.clone(), job.frame);
     let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
+    if translation.add_default_camera() {
+        eprintln!("note: the Z-up stage has no camera; it is framed from -Y with Z up");
+    }
     if job.default_light && translation.add_default_light() {
         eprintln!("note: the scene has no lights; it renders under a white dome of radiance 1 (--no-default-light renders it black)");
     }

@@ -45,6 +45,8 @@ pub struct Translation {
     pub warnings: Vec<String>,
     /// Prims that exist but are not rendered (unsupported types), by path.
     pub skipped: Vec<String>,
+    /// The stage's `upAxis` is Z.
+    pub z_up: bool,
     /// Texture files the materials name, by content hash.
     pub textures: std::collections::BTreeMap<String, TextureFile>,
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
@@ -78,7 +80,15 @@ impl Translation {
 
     /// A Z-up stage without cameras: the renderer's default view (from +Z, Y up) would look
     /// down on it, so the client frames it as viewers do, from −Y with Z up, the bounding
-    /// sphere filling the default field of view.
+    /// sphere filling the default field of view. Returns whether it added one.
+    pub fn add_default_camera(&mut self) -> bool {
+        if !self.z_up || !self.cameras.is_empty() {
+            return false;
+        }
+        self.add_z_up_camera();
+        !self.cameras.is_empty()
+    }
+
     fn add_z_up_camera(&mut self) {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for (_, m) in &self.meshes {
@@ -208,10 +218,7 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     for p in paths {
         reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
     }
-    let z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
-    if z_up && reader.out.cameras.is_empty() {
-        reader.out.add_z_up_camera();
-    }
+    reader.out.z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
     Ok(reader.out)
 }
 

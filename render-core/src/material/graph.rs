@@ -153,6 +153,12 @@ impl TexturedMaterial {
                 ));
                 continue;
             };
+            if matches!(c.downstream_input.as_str(), "emissiveColor" | "emission") {
+                report.warnings.push(format!(
+                    "{}: input '{}' is textured; the surface emits the texture's mean colour (per-texel emission is not supported yet)",
+                    c.downstream_node, c.downstream_input
+                ));
+            }
             let expr = compile_node(network, up, textures, report, 0);
             let placeholder = output.value(expr.eval(&ShadingPoint::whole_texture()).0);
             if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
