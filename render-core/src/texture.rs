@@ -103,7 +103,7 @@ pub enum TextureError {
         reason: String,
     },
     /// The image is larger than the limit.
-    #[error("'{name}' is {width}×{height}, above the limit of {limit} texels per side")]
+    #[error("'{name}' is {width}×{height}, above the limit of {limit} texels per side (or of the server's texel budget)")]
     TooLarge {
         /// The file name.
         name: String,
@@ -157,6 +157,12 @@ impl Texels {
 impl Image {
     /// Decodes PNG, JPEG, OpenEXR, Radiance HDR, TIFF or TGA bytes; `name` is used in errors.
     pub fn decode(bytes: &[u8], name: &str) -> Result<Image, TextureError> {
+        Self::decode_within(bytes, name, u64::from(MAX_TEXTURE_SIDE) * u64::from(MAX_TEXTURE_SIDE))
+    }
+
+    /// [`Self::decode`], refusing images of more than `max_texels` texels before decoding
+    /// them: a few bytes of header can claim gigabytes of pixels.
+    pub fn decode_within(bytes: &[u8], name: &str, max_texels: u64) -> Result<Image, TextureError> {
         use image::DynamicImage as D;
         let err = |reason: String| TextureError::Decode { name: name.to_string(), reason };
         // Formats without a signature (TGA) are known by the file's extension.
@@ -171,7 +177,7 @@ impl Image {
             Ok(reader)
         };
         let (w, h) = open()?.into_dimensions().map_err(|e| err(e.to_string()))?;
-        if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
+        if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE || u64::from(w) * u64::from(h) > max_texels {
             return Err(TextureError::TooLarge { name: name.to_string(), width: w, height: h, limit: MAX_TEXTURE_SIDE });
         }
         let reader = open()?;
@@ -572,5 +578,8 @@ mod tests {
             .unwrap();
         let i = Image::decode(&png, "a.png").unwrap();
         assert_eq!((i.size(), i.channels()), ((3, 2), 3));
+        // A header claiming more texels than the budget is refused before decoding.
+        let e = Image::decode_within(&png, "a.png", 5).unwrap_err();
+        assert!(matches!(e, TextureError::TooLarge { width: 3, height: 2, .. }), "{e}");
     }
 }

@@ -12,7 +12,14 @@ use crate::session::Session;
 
 /// Limits small enough that a fuzzer's commits stay fast, as a server may configure them.
 pub fn fuzz_limits() -> Limits {
-    Limits { max_triangles_per_mesh: 200_000, max_total_triangles: 1_000_000, max_instances: 100_000, ..Limits::default() }
+    Limits {
+        max_triangles_per_mesh: 200_000,
+        max_total_triangles: 1_000_000,
+        max_instances: 100_000,
+        max_texture_file_bytes: 1 << 20,
+        max_texture_texels: 1 << 20,
+        ..Limits::default()
+    }
 }
 
 /// Most messages one input may hold.

@@ -24,6 +24,8 @@ pub struct Limits {
     pub texture_cache_bytes: u64,
     /// Encoded bytes of one texture file.
     pub max_texture_file_bytes: u64,
+    /// Texels of one decoded texture (checked from its header, before decoding).
+    pub max_texture_texels: u64,
 }
 
 impl Default for Limits {
@@ -39,6 +41,7 @@ impl Default for Limits {
             max_instances: 10_000_000,
             texture_cache_bytes: 4 << 30,
             max_texture_file_bytes: 2 << 30,
+            max_texture_texels: 16384 * 16384,
         }
     }
 }
@@ -55,6 +58,7 @@ impl Limits {
             max_array_chunk_elements: self.max_array_chunk_elements,
             texture_cache_bytes: self.texture_cache_bytes,
             max_texture_file_bytes: self.max_texture_file_bytes,
+            max_texture_texels: self.max_texture_texels,
         }
     }
 }

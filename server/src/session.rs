@@ -306,7 +306,8 @@ impl Transaction {
             if content_hash(&t.bytes) != hash {
                 return Err(invalid(&t.source, "texture", format!("the bytes do not hash to {hash}")));
             }
-            let image = render_core::texture::Image::decode(&t.bytes, &t.source).map_err(|e| Status::invalid_argument(e.to_string()))?;
+            let image = render_core::texture::Image::decode_within(&t.bytes, &t.source, self.limits.max_texture_texels)
+                .map_err(|e| Status::invalid_argument(e.to_string()))?;
             let image = Arc::new(image);
             self.store.insert(&hash, Arc::clone(&image));
             self.desc.textures.insert(hash, image);

@@ -313,15 +313,8 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::network::tests::node;
     use crate::texture::Image;
-
-    fn node(path: &str, id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
-        MaterialNode {
-            path: path.into(),
-            node_type_id: id.into(),
-            parameters: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
-        }
-    }
 
     fn connect(down: &str, input: &str, up: &str, output: &str) -> MaterialConnection {
         MaterialConnection {

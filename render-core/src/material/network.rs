@@ -70,6 +70,14 @@ pub struct MaterialNetwork {
     pub surface_node: String,
 }
 
+/// One resolution's state: what it has visited and reported, and the point's varying inputs.
+struct Walk<'a> {
+    material_path: &'a str,
+    used: Vec<String>,
+    report: ResolveReport,
+    overrides: Overrides<'a>,
+}
+
 /// Values of connected inputs evaluated at one shading point: `keys[i]` is (node path,
 /// input name) of `values[i]`. Empty at commit time.
 #[derive(Clone, Copy, Default)]
@@ -159,8 +167,9 @@ impl MaterialNetwork {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (Material::preview_surface_default(), report);
         }
-        let mut used = vec![self.surface_node.clone()];
-        let m = self.resolve_node(&self.surface_node, material_path, 0, &mut used, &mut report, overrides);
+        let mut walk = Walk { material_path, used: vec![self.surface_node.clone()], report, overrides };
+        let m = self.resolve_node(&self.surface_node, 0, &mut walk);
+        let Walk { used, mut report, .. } = walk;
         if !report_unused {
             return (m, report);
         }
@@ -172,27 +181,24 @@ impl MaterialNetwork {
         (m, report)
     }
 
-    fn resolve_node(
-        &self,
-        path: &str,
-        material_path: &str,
-        depth: usize,
-        used: &mut Vec<String>,
-        report: &mut ResolveReport,
-        overrides: Overrides,
-    ) -> Material {
+    fn resolve_node(&self, path: &str, depth: usize, walk: &mut Walk) -> Material {
+        let (material_path, overrides) = (walk.material_path, walk.overrides);
         let Some(node) = self.node(path) else {
+            let report = &mut walk.report;
             report.warnings.push(format!("{path}: connected shader is missing from {material_path}; using the UsdPreviewSurface defaults"));
             return Material::preview_surface_default();
         };
-        if !used.iter().any(|u| u == path) {
-            used.push(path.to_string());
+        if !walk.used.iter().any(|u| u == path) {
+            walk.used.push(path.to_string());
         }
         let id = node.node_type_id.as_str();
         let inputs = Inputs { node, overrides };
+        if id == "tessera:Layer" {
+            return self.resolve_layer(inputs, depth, walk);
+        }
+        let report = &mut walk.report;
         let m = match id {
             "UsdPreviewSurface" | "tessera:Principled" => super::preview::resolve(inputs, report),
-            "tessera:Layer" => return self.resolve_layer(inputs, material_path, depth, used, report, overrides),
             _ => match super::native::resolve(inputs, report) {
                 Some(m) => m,
                 None => {
@@ -219,15 +225,8 @@ impl MaterialNetwork {
 
     /// `tessera:Layer`: A over B with one mask (`000_...`, section 2.2). A sub-material is
     /// evaluated only when the mask shows it.
-    fn resolve_layer(
-        &self,
-        node: Inputs,
-        material_path: &str,
-        depth: usize,
-        used: &mut Vec<String>,
-        report: &mut ResolveReport,
-        overrides: Overrides,
-    ) -> Material {
+    fn resolve_layer(&self, node: Inputs, depth: usize, walk: &mut Walk) -> Material {
+        let report = &mut walk.report;
         let mask = match node.get("mask") {
             None => 1.0,
             Some(ParamValue::Float(x)) if x.is_finite() => x.clamp(0.0, 1.0),
@@ -245,38 +244,41 @@ impl MaterialNetwork {
                 node.path, c.upstream_node
             ));
         }
-        let side = |input: &str, shown: bool, used: &mut Vec<String>, report: &mut ResolveReport| -> Material {
+        let side = |input: &str, shown: bool, walk: &mut Walk| -> Material {
             let Some(c) = self.upstream(&node.path, input) else {
                 if shown {
-                    report.warnings.push(format!("{}: input '{input}' is not connected; using the UsdPreviewSurface defaults", node.path));
+                    walk.report
+                        .warnings
+                        .push(format!("{}: input '{input}' is not connected; using the UsdPreviewSurface defaults", node.path));
                 }
                 return Material::preview_surface_default();
             };
             if !shown {
-                used.push(c.upstream_node.clone());
+                walk.used.push(c.upstream_node.clone());
                 return Material::preview_surface_default();
             }
             if depth >= MAX_LAYER_DEPTH {
-                report
+                walk.report
                     .warnings
                     .push(format!("{}: layers nest deeper than {MAX_LAYER_DEPTH} (a cycle?); '{input}' is not followed", node.path));
                 return Material::preview_surface_default();
             }
-            self.resolve_node(&c.upstream_node, material_path, depth + 1, used, report, overrides)
+            self.resolve_node(&c.upstream_node, depth + 1, walk)
         };
-        let a = side("a", mask > 0.0, used, report);
-        let b = side("b", mask < 1.0, used, report);
+        let a = side("a", mask > 0.0, walk);
+        let b = side("b", mask < 1.0, walk);
         b.layered_under(&a, mask)
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::material::preview::tests::preview;
     use glam::Vec3;
 
-    fn node(path: &str, id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
+    /// A node from (input, value) pairs.
+    pub(crate) fn node(path: &str, id: &str, params: &[(&str, ParamValue)]) -> MaterialNode {
         MaterialNode {
             path: path.into(),
             node_type_id: id.into(),
