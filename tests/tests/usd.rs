@@ -269,3 +269,21 @@ fn skinned_meshes_render_in_rest_pose_with_a_warning() {
     assert!(t.warnings.iter().any(|w| w.contains("/World/Character") && w.contains("rest pose")), "{:?}", t.warnings);
     assert_eq!(t.skipped, vec!["/World/Character/Skel".to_string()]);
 }
+
+#[test]
+fn instanceable_prims_share_one_mesh_per_prototype_and_material() {
+    // 60 instanceable references of a two-mesh tree, half re-bound to red on the instance root
+    // (strongerThanDescendants), one invisible: four shared meshes, 59 instances each way.
+    let t = load("usd/instancing/forest.usda");
+    assert_eq!(t.meshes.len(), 4, "{:?}", t.meshes.iter().map(|(p, _)| p).collect::<Vec<_>>());
+    assert!(t.meshes.iter().all(|(_, m)| !m.visible), "prototypes are drawn only through their instancers");
+    let drawn: usize = t.instancers.iter().map(|(_, i)| i.transforms.len()).sum();
+    assert_eq!(drawn, 2 * 59);
+    assert_eq!(t.native_instances.len(), 120);
+    let red = t.native_instances.iter().filter(|n| n.material == "/World/Looks/Red").count();
+    assert_eq!(red, 60, "the instance root's stronger binding wins over the asset's own");
+    let mut cache = render_core::scene::BlasCache::default();
+    let scene = render_core::scene::commit(&t.to_scene_desc(), &mut cache).expect("commits");
+    assert_eq!(cache.last_builds, 4, "one BLAS per shared mesh");
+    assert_eq!(scene.instances.len(), 2 * 59);
+}

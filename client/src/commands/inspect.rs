@@ -36,8 +36,18 @@ fn param(v: &ParamValue) -> Value {
 /// instancers (one per prototype mesh: the instances' world matrices), lights, cameras and
 /// the material networks' surface shaders.
 pub fn to_json(t: &Translation) -> Value {
+    // Native instancing is how we render instanceable prims, not what the stage says: list
+    // each instance proxy as the mesh a flattened stage has, and hide the shared prototypes.
+    let native: std::collections::HashSet<usize> = t.native_instances.iter().map(|n| n.instancer).collect();
+    let prototypes: std::collections::HashSet<&str> = native.iter().map(|&i| t.instancers[i].1.prototype.as_str()).collect();
     let mut meshes = Map::new();
-    for (path, m) in &t.meshes {
+    for n in &t.native_instances {
+        meshes.insert(
+            n.path.clone(),
+            json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible }),
+        );
+    }
+    for (path, m) in t.meshes.iter().filter(|(p, _)| !prototypes.contains(p.as_str())) {
         meshes.insert(
             path.clone(),
             json!({
@@ -49,7 +59,7 @@ pub fn to_json(t: &Translation) -> Value {
         );
     }
     let mut instancers = Map::new();
-    for (path, i) in &t.instancers {
+    for (path, i) in t.instancers.iter().enumerate().filter(|(k, _)| !native.contains(k)).map(|(_, x)| x) {
         instancers.insert(
             path.clone(),
             json!({ "prototype": i.prototype, "instances": i.transforms.iter().map(usd_matrix).collect::<Vec<_>>() }),

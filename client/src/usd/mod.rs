@@ -47,11 +47,31 @@ pub struct Translation {
     pub skipped: Vec<String>,
     /// The stage's `upAxis` is Z.
     pub z_up: bool,
+    /// Meshes inside instanceable prims: each renders as an instance of one prototype mesh
+    /// (one BLAS per prototype and material), listed here for `inspect`.
+    pub native_instances: Vec<NativeInstance>,
     /// Texture files the materials name, by content hash.
     pub textures: std::collections::BTreeMap<String, TextureFile>,
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
     /// first one), which supply defaults the command line overrides.
     pub render_settings: Option<RenderSettingsDesc>,
+}
+
+/// A mesh under an instanceable prim (an instance proxy), rendered through an instancer.
+#[derive(Clone, Debug)]
+pub struct NativeInstance {
+    /// The proxy's path, as a flattened stage would name the mesh.
+    pub path: String,
+    /// Index into [`Translation::instancers`] of the instancer that draws it.
+    pub instancer: usize,
+    /// World transform.
+    pub world: Affine3A,
+    /// Bound material.
+    pub material: String,
+    /// Triangles of the shared mesh.
+    pub triangles: usize,
+    /// Visible (invisible instances are listed but not drawn).
+    pub visible: bool,
 }
 
 /// A texture file read by the client, sent to the server once per content.
@@ -206,6 +226,7 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         materials_seen: HashMap::new(),
         all_paths: Vec::new(),
         instancer_roots: Vec::new(),
+        native: HashMap::new(),
     };
     for e in stage.composition_errors() {
         reader.out.warnings.push(format!("composition: {e}"));
@@ -233,6 +254,8 @@ struct Reader<'s> {
     all_paths: Vec<sdf::Path>,
     /// PointInstancers seen so far: prims beneath them render only through them.
     instancer_roots: Vec<String>,
+    /// Native instancing: (prototype mesh path, material) → index of its instancer.
+    native: HashMap<(String, String), usize>,
 }
 
 /// A double-precision world matrix as the renderer's affine transform.
@@ -355,29 +378,12 @@ impl Reader<'_> {
     }
 
     fn mesh(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
-        let time = self.time;
-        let req = |name: &str| -> Result<Value> { get(prim, name, time)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
-        let points = req("points")?;
-        let points = values::vec3_array(&points)
-            .with_context(|| format!("{p}: attribute 'points' has type {}, expected point3f[]", values::type_of(&points)))?;
-        if let Some((i, v)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            anyhow::bail!("{p}: attribute 'points': point {i} is {v} (NaN or Inf)");
+        if let Some(shared) = prim.prim_in_prototype()?
+            && self.native_instance(prim, p, visible, shared.path().as_str())?
+        {
+            return Ok(());
         }
-        let counts = req("faceVertexCounts")?;
-        let counts = values::int_array(&counts).with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
-        let indices = req("faceVertexIndices")?;
-        let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
-        let normals = self.normals(prim, p)?;
-        let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
-        // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
-        let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
-        let face_count = counts.len();
-        let uvs = self.uvs(prim, p)?;
-        let src = MeshSource { points, counts, indices, normals, uvs, left_handed, smooth };
-        let mut warnings = Vec::new();
-        let (mesh, face_of) =
-            triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
-        self.out.warnings.extend(warnings);
+        let (mesh, face_of, face_count) = self.read_mesh(prim, p)?;
         let subsets = self.material_subsets(prim, p, face_count)?;
         if subsets.is_empty() {
             return self.add_mesh(prim, p, mesh, visible);
@@ -406,6 +412,78 @@ impl Reader<'_> {
             return Ok(());
         }
         self.add_mesh(prim, p, rest, visible)
+    }
+
+    /// A mesh inside an instanceable prim (an instance proxy standing for `shared`, a mesh
+    /// in the stage's prototype): its geometry is read once per prototype and bound material
+    /// and every proxy becomes one more instance of it, so a forest of referenced instanceable
+    /// trees costs one BLAS. Proxies with GeomSubsets or without a bound material take the
+    /// flat path (returns false).
+    fn native_instance(&mut self, prim: &Prim, p: &str, visible: bool, shared: &str) -> Result<bool> {
+        for child in prim.children()? {
+            if child.type_name()?.is_some_and(|t| t.as_str() == "GeomSubset") {
+                return Ok(false);
+            }
+        }
+        let Some(material) = self.bound_material(prim)? else { return Ok(false) };
+        // A material inside the instance is one material for every instance: name it by its
+        // prim in the prototype.
+        let in_prototype = self.stage.prim(sdf::path(&material)?).prim_in_prototype()?;
+        let shared_material = in_prototype.map_or_else(|| material.clone(), |m| m.path().as_str().to_string());
+        self.material(&shared_material)?;
+        let key = (shared.to_string(), shared_material.clone());
+        let index = match self.native.get(&key) {
+            Some(&i) => i,
+            None => {
+                let (mesh, _, _) = self.read_mesh(prim, p)?;
+                let same_prototype = self.native.keys().filter(|(s, _)| s == shared).count();
+                let mesh_path = if same_prototype == 0 { shared.to_string() } else { format!("{shared}[{same_prototype}]") };
+                let desc = MeshDesc { mesh: Arc::new(mesh), transform: Affine3A::IDENTITY, material: shared_material, visible: false };
+                self.out.meshes.push((mesh_path.clone(), desc));
+                self.out
+                    .instancers
+                    .push((format!("{mesh_path}[instances]"), InstancerDesc { prototype: mesh_path, transforms: Vec::new() }));
+                self.native.insert(key.clone(), self.out.instancers.len() - 1);
+                self.out.instancers.len() - 1
+            }
+        };
+        let world = self.affine(prim, p)?;
+        let prototype = &self.out.instancers[index].1.prototype;
+        let triangles = self.out.meshes.iter().find(|(path, _)| path == prototype).map_or(0, |(_, m)| m.mesh.indices.len());
+        if visible {
+            self.out.instancers[index].1.transforms.push(world);
+        }
+        self.out.native_instances.push(NativeInstance { path: p.to_string(), instancer: index, world, material, triangles, visible });
+        Ok(true)
+    }
+
+    /// Reads and triangulates a mesh prim: the mesh, the authored face of each triangle, and
+    /// the number of authored faces.
+    fn read_mesh(&mut self, prim: &Prim, p: &str) -> Result<(render_core::geometry::Mesh, Vec<u32>, usize)> {
+        let time = self.time;
+        let req = |name: &str| -> Result<Value> { get(prim, name, time)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
+        let points = req("points")?;
+        let points = values::vec3_array(&points)
+            .with_context(|| format!("{p}: attribute 'points' has type {}, expected point3f[]", values::type_of(&points)))?;
+        if let Some((i, v)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            anyhow::bail!("{p}: attribute 'points': point {i} is {v} (NaN or Inf)");
+        }
+        let counts = req("faceVertexCounts")?;
+        let counts = values::int_array(&counts).with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
+        let indices = req("faceVertexIndices")?;
+        let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
+        let normals = self.normals(prim, p)?;
+        let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
+        // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
+        let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let face_count = counts.len();
+        let uvs = self.uvs(prim, p)?;
+        let src = MeshSource { points, counts, indices, normals, uvs, left_handed, smooth };
+        let mut warnings = Vec::new();
+        let (mesh, face_of) =
+            triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        self.out.warnings.extend(warnings);
+        Ok((mesh, face_of, face_count))
     }
 
     /// The mesh's `materialBind` GeomSubsets of faces that carry a material binding, with
@@ -760,6 +838,9 @@ impl Reader<'_> {
     /// The bound material: the prim's own binding, else the nearest ancestor's (purpose
     /// `full`, falling back to all-purpose).
     fn bound_material(&mut self, prim: &Prim) -> Result<Option<String>> {
+        if let Some(m) = self.stronger_ancestor_binding(prim)? {
+            return Ok(Some(m));
+        }
         let mut cur = Some(prim.path().clone());
         while let Some(path) = cur {
             if path.as_str() == "/" || path.as_str().is_empty() {
@@ -797,6 +878,39 @@ impl Reader<'_> {
                 }
             }
             cur = path.parent();
+        }
+        Ok(None)
+    }
+
+    /// The binding of the topmost ancestor whose `material:binding` is
+    /// `bindMaterialAs = "strongerThanDescendants"`: it overrides every binding beneath it.
+    /// openusd 0.6 reads that metadata only when it is a token, while usd-core writes it as a
+    /// string, so the strength is read here (through the property's metadata) and the crate's
+    /// own walk handles the rest.
+    fn stronger_ancestor_binding(&mut self, prim: &Prim) -> Result<Option<String>> {
+        let mut ancestors = Vec::new();
+        let mut cur = prim.path().parent();
+        while let Some(path) = cur {
+            if path.as_str() == "/" || path.as_str().is_empty() {
+                break;
+            }
+            cur = path.parent();
+            ancestors.push(path);
+        }
+        for path in ancestors.into_iter().rev() {
+            let here = self.stage.prim(path.clone());
+            for name in ["material:binding:full", "material:binding"] {
+                let strength = here.attribute(name).get_metadata::<Value>("bindMaterialAs").ok().flatten();
+                let stronger = strength.as_ref().and_then(values::token).is_some_and(|t| t == "strongerThanDescendants");
+                if !stronger {
+                    continue;
+                }
+                if let Some(t) = here.relationship(name).targets()?.into_iter().next()
+                    && well_formed_path(t.as_str())
+                {
+                    return Ok(Some(t.as_str().to_string()));
+                }
+            }
         }
         Ok(None)
     }
