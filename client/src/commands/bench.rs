@@ -388,7 +388,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     let reference = render(&scene, cres, Knobs { spp: b.reference_spp, max_depth: 2, texture_filtering: false, ..base }, 13).rgb;
     writeln!(
         md,
-        "\n## Texture filtering (`fixtures/textures/checker_plane.usda`, {}x{})\n\nA one-texel checker repeated to the horizon of a grazing view. The reference supersamples the finest level at {} spp (the pixel's true average); filtering by ray cones reads coarser mips where a pixel covers many texels: less noise (aliasing) at few samples, some blur (bias) at many.\n",
+        "\n## Texture filtering (`fixtures/textures/checker_plane.usda`, {}x{})\n\nA one-texel checker repeated to the horizon of a grazing view. The reference supersamples the finest level at {} spp (the pixel's true average); filtering by ray cones reads coarser mips where a pixel covers many texels: less noise (aliasing) at few samples, some blur (bias) at many. The last row renders the plane with no texture at all (the material's default grey), for the time a textured material costs per sample.\n",
         cres.0, cres.1, b.reference_spp
     )?;
     let mut filter_rows = Vec::new();
@@ -403,6 +403,18 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
             });
         }
     }
+    // What per-point texture evaluation costs: the same scene with each texture replaced by
+    // its mean (the inputs' connections cut), at 16 spp.
+    let mut flat = crate::usd::load(&b.fixtures.join("textures/checker_plane.usda"))?.to_scene_desc();
+    flat.materials.values_mut().for_each(|net| net.connections.clear());
+    let flat_scene = commit(&flat, &mut BlasCache::default())?;
+    let r = render(&flat_scene, cres, Knobs { spp: 16, max_depth: 2, ..base }, 7);
+    filter_rows.push(Row {
+        label: "16 spp, untextured (constant grey)".into(),
+        seconds: r.seconds,
+        rel_mse: rel_mse(&r.rgb, &reference),
+        mae: mean_abs(&r.rgb, &reference),
+    });
     summary.texture_filtering = filter_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
     table(&mut md, "Texture filtering (max depth 2)", &filter_rows)?;
 
