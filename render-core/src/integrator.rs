@@ -50,6 +50,10 @@ pub struct IntegratorSettings {
     /// Filter textures over the ray's footprint (mip-mapping by ray cones); off, every lookup
     /// reads the finest level and only pixel supersampling filters (the reference's way).
     pub texture_filtering: bool,
+    /// Adaptive splitting in the light tree: up to [`crate::light::tree::SPLIT_BUDGET`]
+    /// lights per shading point where one cannot represent the cluster (less noise, more
+    /// shadow rays); off, one light per point.
+    pub light_splitting: bool,
 }
 
 impl Default for IntegratorSettings {
@@ -65,6 +69,7 @@ impl Default for IntegratorSettings {
             strategy: LightStrategy::Mis,
             pixel_footprint: (0.0, 0.0),
             texture_filtering: true,
+            light_splitting: true,
         }
     }
 }
@@ -167,7 +172,7 @@ pub fn trace_path(
             Some(p) if p.delta => 1.0,
             Some(_) if settings.strategy == LightStrategy::BsdfOnly => 1.0,
             Some(_) if settings.strategy == LightStrategy::LightOnly => 0.0,
-            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize) * pdf_light),
+            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize, settings.light_splitting) * pdf_light),
         }
     };
 
@@ -349,7 +354,7 @@ pub fn trace_path(
         // Next-event estimation.
         if !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
             let u_light = Vec2::new(ul_x, ul_y);
-            lights.sample_each(&ctx, u_sel, u_light, |ls, light| {
+            lights.sample_each(&ctx, u_sel, u_light, settings.light_splitting, |ls, light| {
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
                     // A light with diffuse/specular multipliers weighs each kind of lobe apart.
