@@ -96,6 +96,12 @@ fn the_accuracy_report_measures_what_the_knobs_do() {
             assert!(*mean < 0.9, "{scene} without compensation: {mean}");
         }
     }
+    // Texture filtering buys less error at few samples; the subsurface and many-light rows
+    // are measured (their values are in docs/accuracy-vs-time.md).
+    let tf = |label: &str| s.texture_filtering.iter().find(|(l, ..)| l == label).unwrap_or_else(|| panic!("no row {label}")).2;
+    assert!(tf("4 spp, filtering on") < tf("4 spp, filtering off"), "{:?}", s.texture_filtering);
+    assert_eq!(s.subsurface.len(), 4);
+    assert!(s.many_lights.len() == 4 && s.many_lights.iter().all(|(_, spp, ratio)| *spp >= 1 && ratio.is_finite()), "{:?}", s.many_lights);
     std::fs::remove_dir_all(&dir).ok();
 }
 
