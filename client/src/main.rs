@@ -64,6 +64,14 @@ enum Command {
         /// and the diffuse-specular coupling).
         #[arg(long, value_enum, default_value_t = OnOff::On)]
         energy_compensation: OnOff,
+        /// Mip-map texture lookups by each ray's footprint (off: only pixel supersampling
+        /// filters textures; docs/accuracy-vs-time.md measures both).
+        #[arg(long, value_enum, default_value_t = OnOff::On)]
+        texture_filtering: OnOff,
+        /// Adaptive splitting in the light tree: up to 8 lights per shading point where one
+        /// cannot represent a cluster (off: one light per point, cheaper and noisier).
+        #[arg(long, value_enum, default_value_t = OnOff::On)]
+        light_splitting: OnOff,
         /// Time code at which to evaluate animated attributes (default: the stage's
         /// startTimeCode, else 0).
         #[arg(long)]
@@ -227,6 +235,8 @@ async fn real_main() -> Result<()> {
             server,
             threads,
             energy_compensation,
+            texture_filtering,
+            light_splitting,
             frame,
             sampler,
             caustics,
@@ -256,6 +266,8 @@ async fn real_main() -> Result<()> {
                 threads,
                 progressive_f16: true,
                 energy_compensation,
+                texture_filtering: texture_filtering == OnOff::On,
+                light_splitting: light_splitting == OnOff::On,
                 sobol: sampler == SamplerArg::Sobol,
                 clamp_indirect: clamp,
                 noise_threshold,

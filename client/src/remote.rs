@@ -40,6 +40,10 @@ pub struct RenderOptions {
     pub avoid_caustics: bool,
     /// Run every effect whether or not the scene calls for it (benchmarking the plan).
     pub force_all_effects: bool,
+    /// Mip-map textures by the ray's footprint.
+    pub texture_filtering: bool,
+    /// Adaptive splitting in the light tree.
+    pub light_splitting: bool,
 }
 
 impl Default for RenderOptions {
@@ -55,6 +59,8 @@ impl Default for RenderOptions {
             threads: 0,
             progressive_f16: true,
             energy_compensation: true,
+            texture_filtering: true,
+            light_splitting: true,
             sobol: true,
             clamp_indirect: None,
             noise_threshold: None,
@@ -170,6 +176,8 @@ impl Connection {
             noise_threshold: opts.noise_threshold.unwrap_or(0.0),
             caustics: if opts.avoid_caustics { pb::Caustics::Avoid } else { pb::Caustics::Full } as i32,
             force_all_effects: opts.force_all_effects,
+            disable_texture_filtering: !opts.texture_filtering,
+            disable_light_splitting: !opts.light_splitting,
         };
         let mut stream = self
             .client

@@ -201,6 +201,12 @@ impl RenderJob {
         if !self.settings.integrator.energy_compensation {
             w.push("energy compensation off: rough surfaces lose the energy of multiple scattering".into());
         }
+        if !self.settings.integrator.texture_filtering {
+            w.push("texture filtering off: textures alias unless many samples per pixel average them".into());
+        }
+        if !self.settings.integrator.light_splitting {
+            w.push("light splitting off: one light per shading point from the light tree (cheaper samples, more noise)".into());
+        }
         w
     }
 
@@ -257,6 +263,8 @@ impl RenderJob {
                         Err(_) => return Err(bad("caustics", format!("unknown caustics mode {}", s.caustics))),
                     },
                     force_all_effects: s.force_all_effects,
+                    texture_filtering: !s.disable_texture_filtering,
+                    light_splitting: !s.disable_light_splitting,
                     ..Default::default()
                 },
                 noise_threshold: match s.noise_threshold {

@@ -144,3 +144,25 @@ async fn missing_or_corrupt_texture_uploads_are_errors_naming_the_file() {
     conn.sync_scene(&t).await.expect("a good upload after bad ones");
     server.stop().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn texture_filtering_is_a_setting_the_render_reports() {
+    // The checker plane at 1 spp: filtering reads coarse mips towards the horizon, so the far
+    // half of the image is smoother (lower pixel-to-pixel contrast) than point sampling.
+    let contrast = |report: &tessera::remote::RenderReport| {
+        let img = &report.image;
+        let mut sum = 0.0f64;
+        for y in 0..img.height / 2 {
+            for x in 1..img.width {
+                sum += (img.pixel("beauty", x, y)[0] - img.pixel("beauty", x - 1, y)[0]).abs() as f64;
+            }
+        }
+        sum
+    };
+    let on = render_fixture("textures/checker_plane.usda", &small(64, 48, 1)).await;
+    let off_opts = tessera::remote::RenderOptions { texture_filtering: false, ..small(64, 48, 1) };
+    let off = render_fixture("textures/checker_plane.usda", &off_opts).await;
+    assert!(contrast(&on) < 0.5 * contrast(&off), "filtered {:.2} vs point-sampled {:.2}", contrast(&on), contrast(&off));
+    assert!(off.started.warnings.iter().any(|w| w.contains("texture filtering off")), "{:?}", off.started.warnings);
+    assert!(!on.started.warnings.iter().any(|w| w.contains("texture filtering")));
+}

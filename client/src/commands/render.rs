@@ -109,7 +109,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         (
             "settings".to_string(),
             format!(
-                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={} caustics={}",
+                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={} caustics={} texture_filtering={} light_splitting={}",
                 options.width,
                 options.height,
                 options.spp,
@@ -120,6 +120,8 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 options.clamp_indirect.map_or("off".to_string(), |c| c.to_string()),
                 options.noise_threshold.map_or("off".to_string(), |c| c.to_string()),
                 if options.avoid_caustics { "avoid" } else { "full" },
+                if options.texture_filtering { "on" } else { "off" },
+                if options.light_splitting { "on" } else { "off" },
             ),
         ),
         ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),
