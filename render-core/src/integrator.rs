@@ -324,7 +324,16 @@ pub fn trace_path(
         if let Some(li) = s.light {
             let light = &lights.lights[li as usize];
             let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, hit.t));
-            let c = clamped(beta * light.shape.radiance() * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
+            // A textured emitter's radiance is the material's here; the shape holds its mean.
+            // After a bounce it is read at the finest level, as light sampling reads it: MIS
+            // combines the two only if both estimate the same emission (a footprint-blurred
+            // lookup made BSDF-sampled light 20% off light-sampled light on a lit floor).
+            let le = match (&local, light.textured_emitter) {
+                (Some((m, _)), Some(_)) if depth == 0 => m.emission,
+                (_, Some((instance, triangle))) => scene.emission_at(instance, triangle, s.p),
+                _ => light.shape.radiance(),
+            };
+            let c = clamped(beta * le * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
             l += c;
             comp[if depth == 0 { EMISSION } else { first }] += c;
         }
@@ -354,7 +363,10 @@ pub fn trace_path(
         // Next-event estimation.
         if !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
             let u_light = Vec2::new(ul_x, ul_y);
-            lights.sample_each(&ctx, u_sel, u_light, settings.light_splitting, |ls, light| {
+            lights.sample_each(&ctx, u_sel, u_light, settings.light_splitting, |mut ls, light| {
+                if let Some((instance, triangle)) = light.textured_emitter {
+                    ls.li = scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist);
+                }
                 if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                     let wi_local = frame.to_local(ls.wi);
                     // A light with diffuse/specular multipliers weighs each kind of lobe apart.

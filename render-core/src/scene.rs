@@ -429,11 +429,12 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     }
     let mut emissive_prims = Vec::new();
     let mut emissive_triangles = 0usize;
-    for inst in &mut instances {
+    for (index, inst) in instances.iter_mut().enumerate() {
         let m = &materials[inst.material as usize];
         if !m.is_emissive() {
             continue;
         }
+        let varies = textured[inst.material as usize].as_ref().is_some_and(|t| t.emission_varies());
         inst.emitter_base = Some(lights.len() as u32);
         let mesh = &meshes[inst.mesh];
         for t in 0..mesh.triangle_count() {
@@ -445,7 +446,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
                 area: 0.0,
                 l: Vec3::ZERO,
             });
-            lights.push(Light::plain(shape, true));
+            let mut light = Light::plain(shape, true);
+            light.textured_emitter = varies.then_some((index as u32, t as u32));
+            lights.push(light);
         }
         emissive_triangles += mesh.triangle_count();
         emissive_prims.push(prim_paths[inst.prim as usize].clone());
@@ -632,6 +635,26 @@ impl CommittedScene {
     #[inline]
     pub fn textured(&self, index: u32) -> Option<&crate::material::TexturedMaterial> {
         self.textured.get(index as usize).and_then(|t| t.as_deref())
+    }
+
+    /// Emitted radiance at world point `p` on triangle `triangle` of instance `instance`, for
+    /// materials whose emission is textured (finest texture level: a light sample has no
+    /// footprint).
+    pub fn emission_at(&self, instance: u32, triangle: u32, p: Vec3) -> Vec3 {
+        let inst = &self.instances[instance as usize];
+        let Some(t) = self.textured(inst.material) else { return self.materials[inst.material as usize].emission };
+        let [a, b, c] = self.meshes[inst.mesh].triangle(triangle as usize).map(|v| inst.transform.to_world.transform_point3(v));
+        // Barycentrics of p by areas (p lies on the triangle up to rounding).
+        let n = (b - a).cross(c - a);
+        let nn = n.length_squared();
+        if nn <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let b1 = (p - a).cross(c - a).dot(n) / nn;
+        let b2 = (b - a).cross(p - a).dot(n) / nn;
+        let hit = Hit { t: 0.0, instance, triangle, bary: Vec2::new(b1, b2).clamp(Vec2::ZERO, Vec2::ONE) };
+        let s = self.surface(&hit);
+        t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.emission
     }
 
     /// True when the surface at `hit` is cut out there by a textured opacity, so rays pass

@@ -166,3 +166,56 @@ async fn texture_filtering_is_a_setting_the_render_reports() {
     assert!(off.started.warnings.iter().any(|w| w.contains("texture filtering off")), "{:?}", off.started.warnings);
     assert!(!on.started.warnings.iter().any(|w| w.contains("texture filtering")));
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn textured_emission_is_seen_per_texel() {
+    // A black quad emitting the quadrant texture, alone: the camera sees the texels.
+    let report = render_fixture("textures/emissive.usda", &small(64, 64, 16)).await;
+    let view = (-1.25, 1.25, 2.5 / 64.0);
+    let at = |rect| mean_in(&report.image, view, rect);
+    assert_color(at((-0.9, -0.1, 0.1, 0.9)), TL, "emission, top-left");
+    assert_color(at((0.1, 0.9, 0.1, 0.9)), TR, "emission, top-right");
+    assert_color(at((-0.9, -0.1, -0.9, -0.1)), BL, "emission, bottom-left");
+}
+
+#[test]
+fn light_sampling_reads_textured_emission_where_it_samples() {
+    // A ceiling glowing 20x the quadrant texture (red and blue texels on -X, green and white on
+    // +X) over a white floor: next-event estimation looks the emission up at each sampled
+    // point, so it agrees with BSDF sampling (which sees the texels it hits) on each half of
+    // the floor. With the texture's mean in light sampling the two would differ by side.
+    use render_core::camera::Camera;
+    use render_core::film::Aov;
+    use render_core::integrator::{IntegratorSettings, LightStrategy};
+    use render_core::render::{RenderSettings, render_to_framebuffer};
+    use render_core::scene::{BlasCache, commit};
+    let scene = commit(&load("textures/emissive_ceiling.usda").to_scene_desc(), &mut BlasCache::default()).unwrap();
+    let camera = Camera::new(&scene.camera("").unwrap(), 48, 36);
+    let halves = |strategy: LightStrategy, spp: u32| {
+        let settings = RenderSettings {
+            width: 48,
+            height: 36,
+            spp,
+            integrator: IntegratorSettings { strategy, max_depth: 1, light_path_aovs: true, ..Default::default() },
+            ..Default::default()
+        };
+        let (fb, _) = render_to_framebuffer(&scene, &camera, &settings);
+        let floor = scene.prim_paths.iter().position(|p| p == "/World/Floor").unwrap() as f32 + 1.0;
+        let (pos, beauty, ids) = (&fb.layers[&Aov::Position], &fb.layers[&Aov::Beauty], &fb.layers[&Aov::PrimId]);
+        let mut sums = [[0.0f64; 2]; 2];
+        for i in 0..ids.len() {
+            if ids[i] == floor && pos[3 * i].abs() > 0.3 {
+                let side = (pos[3 * i] > 0.0) as usize;
+                sums[side][0] += beauty[4 * i + 1] as f64;
+                sums[side][1] += 1.0;
+            }
+        }
+        [sums[0][0] / sums[0][1], sums[1][0] / sums[1][1]]
+    };
+    let light = halves(LightStrategy::LightOnly, 256);
+    let bsdf = halves(LightStrategy::BsdfOnly, 1024);
+    for side in 0..2 {
+        assert!((light[side] - bsdf[side]).abs() < 0.04 * bsdf[side], "side {side}: light sampling {light:?}, BSDF sampling {bsdf:?}");
+    }
+    assert!(light[1] > 1.5 * light[0], "the +X half of the floor, under the green and white texels, is greener: {light:?}");
+}

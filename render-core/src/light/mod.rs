@@ -168,12 +168,16 @@ pub struct Light {
     /// Multipliers of what diffuse and of what specular/transmission lobes receive
     /// (UsdLux `inputs:diffuse`, `inputs:specular`); (1, 1) for ordinary lights.
     pub multipliers: (f32, f32),
+    /// For a triangle of a mesh whose emission is textured: (instance, triangle), so that the
+    /// radiance at a point is looked up there (the shape holds the texture's mean, which only
+    /// weighs the light's selection).
+    pub textured_emitter: Option<(u32, u32)>,
 }
 
 impl Light {
     /// An unshaped light that lights every lobe alike.
     pub fn plain(shape: shapes::Shape, visible_to_camera: bool) -> Self {
-        Light { shape, visible_to_camera, shaping: None, multipliers: (1.0, 1.0) }
+        Light { shape, visible_to_camera, shaping: None, multipliers: (1.0, 1.0), textured_emitter: None }
     }
 
     /// True when the light treats diffuse and specular lobes differently.
@@ -241,7 +245,13 @@ impl LightDesc {
         let axis = (-Vec3::from(self.transform.matrix3.z_axis)).normalize_or_zero();
         let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| s.around(axis));
         let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };
-        Some(Light { shape, visible_to_camera: self.visible_to_camera, shaping, multipliers: (m(self.diffuse), m(self.specular)) })
+        Some(Light {
+            shape,
+            visible_to_camera: self.visible_to_camera,
+            shaping,
+            multipliers: (m(self.diffuse), m(self.specular)),
+            textured_emitter: None,
+        })
     }
 }
 

@@ -153,12 +153,6 @@ impl TexturedMaterial {
                 ));
                 continue;
             };
-            if matches!(c.downstream_input.as_str(), "emissiveColor" | "emission") {
-                report.warnings.push(format!(
-                    "{}: input '{}' is textured; the surface emits the texture's mean colour (per-texel emission is not supported yet)",
-                    c.downstream_node, c.downstream_input
-                ));
-            }
             let expr = compile_node(network, up, textures, report, 0);
             let placeholder = output.value(expr.eval(&ShadingPoint::whole_texture()).0);
             if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
@@ -176,6 +170,11 @@ impl TexturedMaterial {
             .and_then(|s| keys.iter().position(|(n, i)| *n == s.path && i == "normal"));
         let means = exprs.iter().map(|(e, o)| o.value(e.eval(&ShadingPoint::whole_texture()).0)).collect();
         Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, means, normal })
+    }
+
+    /// True when the emission varies over the surface (lights look it up per point).
+    pub fn emission_varies(&self) -> bool {
+        self.keys.iter().any(|(_, i)| matches!(i.as_str(), "emissiveColor" | "emission"))
     }
 
     /// True when opacity varies on a surface with a cut-out threshold, so some points may
