@@ -477,6 +477,21 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             mapped_domes,
         );
     }
+    // Texture machinery, with the materials that call for it: per-point material resolution,
+    // normal maps, cut-out tests on every ray, per-texel emission.
+    let textured_with = |pred: &dyn Fn(&crate::material::TexturedMaterial) -> bool| -> Vec<String> {
+        desc.materials.keys().filter(|m| textured[material_index[m.as_str()] as usize].as_deref().is_some_and(pred)).cloned().collect()
+    };
+    for (effect, reason, prims) in [
+        ("textures", "material inputs from textures, resolved per shading point and mip-mapped by ray cones", textured_with(&|_| true)),
+        ("normal-maps", "tangent-space normal maps", textured_with(&|t| t.has_normal_map())),
+        ("textured-cutouts", "opacity textures cut surfaces out per point, for every ray", textured_with(&|t| t.may_cut_out())),
+        ("textured-emission", "emission looked up per texel where light sampling lands", textured_with(&|t| t.emission_varies())),
+    ] {
+        if !prims.is_empty() {
+            plan.enable(effect, reason.to_string(), prims);
+        }
+    }
     if emissive_triangles > 0 {
         emissive_prims.dedup();
         plan.enable("emissive-meshes", format!("{emissive_triangles} emissive triangle(s) sampled by area with MIS"), emissive_prims);
@@ -522,12 +537,32 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if !desc.instancers.is_empty() {
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
-    plan.skipped = ["textures", "depth-of-field"].iter().map(|s| format!("{s}: not supported yet in this build")).collect();
     let subsurface: Vec<String> =
         desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].medium().is_some()).cloned().collect();
     if !subsurface.is_empty() {
         plan.enable("subsurface", "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)", subsurface);
     }
+    let thin_lens: Vec<String> =
+        desc.cameras.iter().filter(|(_, c)| !c.orthographic && c.f_stop > 0.0 && c.focus_distance > 0.0).map(|(p, _)| p.clone()).collect();
+    if !thin_lens.is_empty() {
+        plan.enable("depth-of-field", "thin-lens cameras (fStop, focusDistance): rays from points on the lens", thin_lens);
+    }
+    // What the renderer can do that this scene does not ask for, and so does not build.
+    plan.skipped = [
+        "subsurface",
+        "textures",
+        "normal-maps",
+        "textured-cutouts",
+        "textured-emission",
+        "environment-map",
+        "emissive-meshes",
+        "instancing",
+        "depth-of-field",
+    ]
+    .iter()
+    .filter(|e| !plan.has(e))
+    .map(|e| format!("{e}: not needed by this scene"))
+    .collect();
 
     let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
     let light_set = LightSet::new(lights, scene_radius);

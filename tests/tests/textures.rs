@@ -219,3 +219,18 @@ fn light_sampling_reads_textured_emission_where_it_samples() {
     }
     assert!(light[1] > 1.5 * light[0], "the +X half of the floor, under the green and white texels, is greener: {light:?}");
 }
+
+#[test]
+fn the_render_plan_names_the_texture_machinery_a_scene_needs() {
+    use tessera::commands::render::explain_plan;
+    use tessera_tests::fixture;
+    let wrap = explain_plan(&fixture("textures/wrap_and_orientation.usda"), None).unwrap();
+    assert!(wrap.contains("+ textures") && wrap.contains("/World/Looks/Plain"), "{wrap}");
+    assert!(wrap.contains("- normal-maps") && wrap.contains("- environment-map"), "{wrap}");
+    let bumpy = explain_plan(&fixture("hard/normal_map_furnace.usda"), None).unwrap();
+    assert!(bumpy.contains("+ normal-maps"), "{bumpy}");
+    let sky = explain_plan(&fixture("textures/dome.usda"), None).unwrap();
+    assert!(sky.contains("+ environment-map") && sky.contains("/World/Sky"), "{sky}");
+    let cornell = explain_plan(&fixture("cornell_box.usda"), None).unwrap();
+    assert!(cornell.contains("- textures") && !cornell.contains("+ textures"), "{cornell}");
+}

@@ -172,6 +172,11 @@ impl TexturedMaterial {
         Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, means, normal })
     }
 
+    /// True when a tangent-space normal map perturbs the shading normal.
+    pub fn has_normal_map(&self) -> bool {
+        self.normal.is_some()
+    }
+
     /// True when the emission varies over the surface (lights look it up per point).
     pub fn emission_varies(&self) -> bool {
         self.keys.iter().any(|(_, i)| matches!(i.as_str(), "emissiveColor" | "emission"))
