@@ -77,6 +77,7 @@ fn an_independent_reader_agrees_on_every_fixture() {
     let mut cases: Vec<(PathBuf, Option<f64>)> = fixtures.into_iter().map(|f| (f, None)).collect();
     cases.push((fixture("usd/animated.usda"), Some(5.5)));
     let mut problems = Vec::new();
+    let mut textures_compared = 0;
     for (scene, frame) in cases {
         let ours = tessera::commands::inspect::inspect(&scene, frame).unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
         let theirs = usd_core_reads(&scene, frame);
@@ -85,8 +86,17 @@ fn an_independent_reader_agrees_on_every_fixture() {
             differences(&theirs[section], &ours[section], section, &ours, &mut found);
             problems.extend(found.into_iter().map(|d| format!("{} (frame {frame:?}): {d}", scene.display())));
         }
+        // Resolved texture files: usd-core lists every shader's asset inputs, we those our
+        // materials reach; each of ours must resolve where usd-core resolves it.
+        for (key, path) in ours["textures"].as_object().expect("textures") {
+            textures_compared += 1;
+            if theirs["textures"].get(key) != Some(path) {
+                problems.push(format!("{} textures.{key}: usd-core {}, Tessera {path}", scene.display(), theirs["textures"][key]));
+            }
+        }
     }
     assert!(problems.is_empty(), "{} differences:\n{}", problems.len(), problems[..problems.len().min(30)].join("\n"));
+    assert!(textures_compared >= 20, "only {textures_compared} resolved texture paths compared");
 }
 
 #[test]

@@ -106,6 +106,7 @@ pub fn to_json(t: &Translation) -> Value {
         "lights": lights,
         "cameras": cameras,
         "materials": materials,
+        "textures": t.texture_paths.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<Map<String, Value>>(),
         "skipped": t.skipped,
     })
 }

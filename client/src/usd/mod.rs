@@ -50,6 +50,9 @@ pub struct Translation {
     /// Meshes inside instanceable prims: each renders as an instance of one prototype mesh
     /// (one BLAS per prototype and material), listed here for `inspect`.
     pub native_instances: Vec<NativeInstance>,
+    /// Where each texture input resolved: ("<node>.inputs:<input>", resolved path), for
+    /// `inspect` (a file path, or `package.usdz[member]`).
+    pub texture_paths: Vec<(String, String)>,
     /// Texture files the materials name, by content hash.
     pub textures: std::collections::BTreeMap<String, TextureFile>,
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
@@ -1033,6 +1036,9 @@ impl Reader<'_> {
     fn texture_param(&mut self, node: &str, input: &str, a: &openusd::sdf::AssetPath) -> ParamValue {
         if a.is_empty() {
             return ParamValue::Asset(String::new());
+        }
+        if let Some(resolved) = a.resolved_path() {
+            self.out.texture_paths.push((format!("{node}.inputs:{input}"), resolved.to_string()));
         }
         match read_asset(a) {
             Ok(bytes) => {
