@@ -69,8 +69,9 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         if count < 3 {
             degenerate_faces += 1;
         }
-        for k in 1..count.saturating_sub(1) {
-            let c = if src.left_handed { [base, base + k + 1, base + k] } else { [base, base + k, base + k + 1] };
+        let polygon: Vec<Vec3> = (0..count).map(|k| src.points[src.indices[base + k] as usize]).collect();
+        for [a, b, c] in polygon_triangles(&polygon) {
+            let c = if src.left_handed { [base + a, base + c, base + b] } else { [base + a, base + b, base + c] };
             tris.push(c.map(|i| src.indices[i] as u32));
             corners.push(c);
             uniform_of.push(face);
@@ -144,6 +145,58 @@ impl Layout<'_> {
     }
 }
 
+/// Triangles (corner indices into `polygon`) covering a planar polygon: a fan when it is
+/// convex, ear clipping in the polygon's own plane (Newell's normal) when it is not, so that
+/// concave n-gons (an L, a star) do not get triangles outside their outline. A polygon ear
+/// clipping cannot finish (self-intersecting, degenerate) falls back to the fan.
+fn polygon_triangles(polygon: &[Vec3]) -> Vec<[usize; 3]> {
+    let n = polygon.len();
+    let fan = || (1..n.saturating_sub(1)).map(|k| [0, k, k + 1]).collect::<Vec<_>>();
+    if n <= 3 {
+        return fan();
+    }
+    // Newell's normal: robust for any planar (or nearly planar) polygon.
+    let mut normal = Vec3::ZERO;
+    for i in 0..n {
+        let (p, q) = (polygon[i], polygon[(i + 1) % n]);
+        normal += Vec3::new((p.y - q.y) * (p.z + q.z), (p.z - q.z) * (p.x + q.x), (p.x - q.x) * (p.y + q.y));
+    }
+    let Some(normal) = normal.try_normalize() else { return fan() };
+    let turn = |a: Vec3, b: Vec3, c: Vec3| (b - a).cross(c - b).dot(normal);
+    if (0..n).all(|i| turn(polygon[i], polygon[(i + 1) % n], polygon[(i + 2) % n]) >= 0.0) {
+        return fan();
+    }
+    // Inside or on the boundary: a reflex vertex on an ear's edge blocks it too.
+    let inside = |p: Vec3, a: Vec3, b: Vec3, c: Vec3| {
+        p != a
+            && p != b
+            && p != c
+            && (b - a).cross(p - a).dot(normal) >= 0.0
+            && (c - b).cross(p - b).dot(normal) >= 0.0
+            && (a - c).cross(p - c).dot(normal) >= 0.0
+    };
+    let mut left: Vec<usize> = (0..n).collect();
+    let mut out = Vec::with_capacity(n - 2);
+    let mut guard = 0;
+    while left.len() > 3 {
+        let m = left.len();
+        let ear = (0..m).find(|&i| {
+            let (a, b, c) = (left[(i + m - 1) % m], left[i], left[(i + 1) % m]);
+            turn(polygon[a], polygon[b], polygon[c]) > 0.0
+                && !left.iter().any(|&k| k != a && k != b && k != c && inside(polygon[k], polygon[a], polygon[b], polygon[c]))
+        });
+        let Some(i) = ear else { return fan() };
+        out.push([left[(i + m - 1) % m], left[i], left[(i + 1) % m]]);
+        left.remove(i);
+        guard += 1;
+        if guard > n {
+            return fan();
+        }
+    }
+    out.push([left[0], left[1], left[2]]);
+    out
+}
+
 /// Area-weighted vertex normals.
 fn smooth_normals(points: &[Vec3], tris: &[[u32; 3]]) -> Vec<Vec3> {
     let mut n = vec![Vec3::ZERO; points.len()];
@@ -171,6 +224,37 @@ mod tests {
             left_handed,
             smooth: false,
         }
+    }
+
+    #[test]
+    fn concave_ngons_are_ear_clipped_inside_their_outline() {
+        // An L-shaped hexagon: a fan from vertex 0 would put a triangle across the notch.
+        let l = [(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (1.0, 1.0), (1.0, 2.0), (0.0, 2.0)];
+        let points: Vec<Vec3> = l.iter().map(|&(x, y)| Vec3::new(x, y, 0.0)).collect();
+        let src = MeshSource {
+            points: points.clone(),
+            counts: vec![6],
+            indices: (0..6).collect(),
+            normals: None,
+            uvs: None,
+            left_handed: false,
+            smooth: false,
+        };
+        let m = triangulate(&src, |_| {}).unwrap();
+        assert_eq!(m.indices.len(), 4);
+        let mut area = 0.0;
+        for t in &m.indices {
+            let [a, b, c] = t.map(|i| points[i as usize]);
+            let signed = 0.5 * (b - a).cross(c - a).z;
+            assert!(signed > 0.0, "every triangle keeps the winding: {t:?}");
+            // No triangle covers the notch's centre (1.5, 1.5).
+            let centroid = (a + b + c) / 3.0;
+            assert!(!(centroid.x > 1.0 && centroid.y > 1.0), "a triangle in the notch: {t:?}");
+            area += signed;
+        }
+        assert!((area - 3.0).abs() < 1e-6, "the triangles cover the L exactly: {area}");
+        // Convex polygons keep the fan.
+        assert_eq!(polygon_triangles(&points[..4].iter().map(|p| *p).collect::<Vec<_>>()).len(), 2);
     }
 
     #[test]
