@@ -1,7 +1,6 @@
 //! Translation to Hydra-style wire deltas. Large arrays travel as chunks so that no message
 //! comes near gRPC's 4 MiB default limit, whatever the mesh size.
 
-use render_core::geometry::{Normals, Uvs};
 use tessera_proto::v1 as pb;
 use tessera_server::convert;
 
@@ -65,16 +64,8 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
     for (path, m) in &t.meshes {
         let points: Vec<f32> = m.mesh.positions.iter().flat_map(|p| p.to_array()).collect();
         let indices: Vec<u32> = m.mesh.indices.iter().flatten().copied().collect();
-        let (normals, interp): (Vec<f32>, _) = match &m.mesh.normals {
-            Normals::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
-            Normals::Vertex(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsVertex),
-            Normals::FaceVarying(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsFaceVarying),
-        };
-        let (uvs, uv_interp): (Vec<f32>, _) = match &m.mesh.uvs {
-            Uvs::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
-            Uvs::Vertex(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsVertex),
-            Uvs::FaceVarying(n) => (n.iter().flat_map(|v| v.to_array()).collect(), pb::NormalInterpolation::NormalsFaceVarying),
-        };
+        let (normals, interp) = convert::attribute_to_wire(&m.mesh.normals, |v| v.to_array());
+        let (uvs, uv_interp) = convert::attribute_to_wire(&m.mesh.uvs, |v| v.to_array());
         let prim = pb::MeshPrim {
             transform: Some(convert::matrix(&m.transform)),
             points_len: points.len() as u64,

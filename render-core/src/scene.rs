@@ -692,12 +692,10 @@ impl CommittedScene {
         t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.emission
     }
 
-    /// True when the surface at `hit` is cut out there by a textured opacity, so rays pass
+    /// True when the surface `s` is cut out there by a textured opacity, so rays pass
     /// it untouched (lookups at the finest level: shadow rays carry no footprint).
-    pub fn cut_out_at(&self, hit: &Hit) -> bool {
-        let inst = &self.instances[hit.instance as usize];
-        let Some(t) = self.textured(inst.material).filter(|t| t.may_cut_out()) else { return false };
-        let s = self.surface(hit);
+    pub fn cut_out_at(&self, s: &SurfaceHit) -> bool {
+        let Some(t) = self.textured(s.material).filter(|t| t.may_cut_out()) else { return false };
         t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.cut_out
     }
 
@@ -716,10 +714,10 @@ impl CommittedScene {
         // Each step passes one cut-out surface; a stack of more than this is treated as opaque.
         for _ in 0..MAX_CUTOUT_CROSSINGS {
             let Some(hit) = self.tlas.intersect(&self.blases, &r) else { return false };
-            if !self.cut_out_at(&hit) {
+            let s = self.surface(&hit);
+            if !self.cut_out_at(&s) {
                 return true;
             }
-            let s = self.surface(&hit);
             let origin = crate::geometry::offset_ray_origin(s.p, if r.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale);
             let left = r.tmax - (origin - r.origin).dot(r.dir) / r.dir.length_squared();
             if left <= 0.0 {

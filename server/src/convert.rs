@@ -213,6 +213,30 @@ fn param_from_wire(v: &pb::ParamValue) -> Option<ParamValue> {
     })
 }
 
+/// A mesh attribute (normals, uvs) as flat floats and its interpolation on the wire.
+pub fn attribute_to_wire<T: Copy, const N: usize>(
+    a: &render_core::geometry::Attribute<T>,
+    flat: impl Fn(T) -> [f32; N],
+) -> (Vec<f32>, pb::NormalInterpolation) {
+    use render_core::geometry::Attribute;
+    match a {
+        Attribute::None => (Vec::new(), pb::NormalInterpolation::NormalsNone),
+        Attribute::Vertex(v) => (v.iter().flat_map(|&x| flat(x)).collect(), pb::NormalInterpolation::NormalsVertex),
+        Attribute::FaceVarying(v) => (v.iter().flat_map(|&x| flat(x)).collect(), pb::NormalInterpolation::NormalsFaceVarying),
+    }
+}
+
+/// The inverse of [`attribute_to_wire`]: values already grouped, laid out by `interpolation`
+/// (an unknown value reads as none).
+pub fn attribute_from_wire<T>(values: Vec<T>, interpolation: i32) -> render_core::geometry::Attribute<T> {
+    use render_core::geometry::Attribute;
+    match pb::NormalInterpolation::try_from(interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
+        pb::NormalInterpolation::NormalsNone => Attribute::None,
+        pb::NormalInterpolation::NormalsVertex => Attribute::Vertex(values),
+        pb::NormalInterpolation::NormalsFaceVarying => Attribute::FaceVarying(values),
+    }
+}
+
 /// render-core material network to wire.
 pub fn material_to_wire(m: &MaterialNetwork) -> pb::MaterialNetwork {
     use pb::param_value::Value as V;

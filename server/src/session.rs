@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
-use render_core::geometry::{Mesh, Normals, Uvs};
+use render_core::geometry::Mesh;
 use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
 use tessera_proto::v1 as pb;
 use tonic::Status;
@@ -366,17 +366,9 @@ impl Transaction {
             let positions = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
             let indices = s.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
             let nrm: Vec<glam::Vec3> = s.normals.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
-            let normals = match pb::NormalInterpolation::try_from(p.normal_interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
-                pb::NormalInterpolation::NormalsNone => Normals::None,
-                pb::NormalInterpolation::NormalsVertex => Normals::Vertex(nrm),
-                pb::NormalInterpolation::NormalsFaceVarying => Normals::FaceVarying(nrm),
-            };
+            let normals = convert::attribute_from_wire(nrm, p.normal_interpolation);
             let st: Vec<glam::Vec2> = s.uvs.chunks_exact(2).map(|v| glam::Vec2::new(v[0], v[1])).collect();
-            let uvs = match pb::NormalInterpolation::try_from(p.uv_interpolation).unwrap_or(pb::NormalInterpolation::NormalsNone) {
-                pb::NormalInterpolation::NormalsNone => Uvs::None,
-                pb::NormalInterpolation::NormalsVertex => Uvs::Vertex(st),
-                pb::NormalInterpolation::NormalsFaceVarying => Uvs::FaceVarying(st),
-            };
+            let uvs = convert::attribute_from_wire(st, p.uv_interpolation);
             let mesh = Mesh { positions, indices, normals, uvs };
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;

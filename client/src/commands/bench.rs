@@ -146,6 +146,13 @@ struct Row {
     mae: f64,
 }
 
+impl Row {
+    /// A row for render `r`, measured against `reference`.
+    fn of(label: String, r: &Rendered, reference: &[f64]) -> Row {
+        Row { label, seconds: r.seconds, rel_mse: rel_mse(&r.rgb, reference), mae: mean_abs(&r.rgb, reference) }
+    }
+}
+
 /// Options of `tessera bench accuracy`.
 #[derive(Clone, Debug)]
 pub struct AccuracyBench {
@@ -221,7 +228,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     let base = Knobs::default();
     let measure = |label: String, k: Knobs| -> Row {
         let r = render(&cornell, res, k, 7);
-        Row { label, seconds: r.seconds, rel_mse: rel_mse(&r.rgb, &reference), mae: mean_abs(&r.rgb, &reference) }
+        Row::of(label, &r, &reference)
     };
 
     // Samples per pixel and sampler: the convergence curves.
@@ -342,12 +349,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     for spp in [16u32, 64] {
         for avoid in [false, true] {
             let r = render(&scene, cres, Knobs { spp, max_depth: 12, avoid_caustics: avoid, ..base }, 5);
-            caustic_rows.push(Row {
-                label: format!("{} spp, caustics {}", spp, if avoid { "avoid" } else { "full" }),
-                seconds: r.seconds,
-                rel_mse: rel_mse(&r.rgb, &reference),
-                mae: mean_abs(&r.rgb, &reference),
-            });
+            caustic_rows.push(Row::of(format!("{} spp, caustics {}", spp, if avoid { "avoid" } else { "full" }), &r, &reference));
         }
     }
     summary.caustics = caustic_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
@@ -379,12 +381,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     for spp in [16u32, 64] {
         for (label, scene) in [("random walk", &walk_scene), ("diffuse fallback", &fallback_scene)] {
             let r = render(scene, sres, Knobs { spp, ..base }, 9);
-            sss_rows.push(Row {
-                label: format!("{spp} spp, {label}"),
-                seconds: r.seconds,
-                rel_mse: rel_mse(&r.rgb, &reference),
-                mae: mean_abs(&r.rgb, &reference),
-            });
+            sss_rows.push(Row::of(format!("{spp} spp, {label}"), &r, &reference));
         }
     }
     summary.subsurface = sss_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
@@ -402,12 +399,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     for spp in [1u32, 4, 16, 64] {
         for filtering in [false, true] {
             let r = render(&scene, cres, Knobs { spp, max_depth: 2, texture_filtering: filtering, ..base }, 7);
-            filter_rows.push(Row {
-                label: format!("{spp} spp, filtering {}", if filtering { "on" } else { "off" }),
-                seconds: r.seconds,
-                rel_mse: rel_mse(&r.rgb, &reference),
-                mae: mean_abs(&r.rgb, &reference),
-            });
+            filter_rows.push(Row::of(format!("{spp} spp, filtering {}", if filtering { "on" } else { "off" }), &r, &reference));
         }
     }
     // What per-point texture evaluation costs: the same scene with each texture replaced by
@@ -416,12 +408,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     flat.materials.values_mut().for_each(|net| net.connections.clear());
     let flat_scene = commit(&flat, &mut BlasCache::default())?;
     let r = render(&flat_scene, cres, Knobs { spp: 16, max_depth: 2, ..base }, 7);
-    filter_rows.push(Row {
-        label: "16 spp, untextured (constant grey)".into(),
-        seconds: r.seconds,
-        rel_mse: rel_mse(&r.rgb, &reference),
-        mae: mean_abs(&r.rgb, &reference),
-    });
+    filter_rows.push(Row::of("16 spp, untextured (constant grey)".into(), &r, &reference));
     summary.texture_filtering = filter_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
     table(&mut md, "Texture filtering (max depth 2)", &filter_rows)?;
 
