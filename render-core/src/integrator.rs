@@ -287,7 +287,12 @@ pub fn trace_path(
             }
         }
         let ec = settings.energy_compensation;
+        // Glitter flakes depend on the point and footprint: such materials build their lobes
+        // here, the flakes once the shading frame is known.
+        let uber_here = local.as_ref().map_or(&scene.materials[s.material as usize].surface, |(m, _)| &m.surface);
+        let glitter = uber_here.has_glitter().then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
         let mut bsdf = match &local {
+            _ if let Some(u) = &glitter => u.base_bsdf(ec, force),
             Some((m, _)) if force => m.surface.bsdf_with_every_lobe(ec),
             Some((m, _)) => m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
             None if force => scene.bsdf_with_every_lobe(s.material, ec).clone(),
@@ -339,6 +344,16 @@ pub fn trace_path(
         }
 
         let frame = if force || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
+        if let Some(u) = &glitter {
+            let t = &scene.instances[hit.instance as usize].transform;
+            let m3 = t.to_world.matrix3;
+            // Flakes live in object space (`000_...`, section 3.5); so does the footprint.
+            let n_obj = Vec3::from(m3.transpose() * glam::Vec3A::from(ns)).normalize_or_zero();
+            let radius = 0.5 * cone_here / m3.determinant().abs().cbrt();
+            let g = &u.glitter;
+            let flakes = g.params.flakes_at(t.to_object.transform_point3(s.p), n_obj, radius);
+            g.params.apply(g.weight, &flakes, &mut bsdf, |n| frame.to_local((t.normal_matrix * n).normalize_or(ns)));
+        }
         let wo_local = frame.to_local(wo);
         if depth == 0 {
             out.alpha = 1.0;

@@ -501,7 +501,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     }
     // Each effect the materials call for, with the materials that call for it.
     type Pred = fn(&crate::material::Uber) -> bool;
-    let effects: [(&str, &str, Pred); 11] = [
+    let effects: [(&str, &str, Pred); 12] = [
         ("diffuse", "diffuse reflection (Lambertian; Disney's for tessera:Principled)", |u| {
             u.plastic.weight > 0.0 || (u.fabric.weight > 0.0 && u.fabric.params.specular < 1.0)
         }),
@@ -516,6 +516,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             u.sheen.weight > 0.0 || (u.plastic.weight > 0.0 && u.plastic.params.disney_sheen.max_element() > 0.0)
         }),
         ("fabric", "the DreamWorks fabric cone", |u| u.fabric.weight > 0.0 && u.fabric.params.specular > 0.0),
+        ("glitter", "DreamWorks glitter: object-space Worley flakes found per shading point, GGX lobe per flake", |u| u.has_glitter()),
         ("thin-film", "thin-film interference coat (Airy, three wavelengths)", |u| u.thin_film.weight > 0.0 && u.specular_control > 0.0),
         ("double-specular", "two GGX roughnesses blended", |u| {
             (u.metal.weight > 0.0 && u.metal.params.mix2 > 0.0)
@@ -550,6 +551,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     // What the renderer can do that this scene does not ask for, and so does not build.
     plan.skipped = [
         "subsurface",
+        "glitter",
         "textures",
         "normal-maps",
         "textured-cutouts",

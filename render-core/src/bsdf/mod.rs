@@ -16,6 +16,7 @@ mod dielectric;
 pub mod disney;
 pub mod energy;
 pub mod fabric;
+pub mod flake;
 pub mod fresnel;
 mod lambert;
 pub mod microfacet;
@@ -28,6 +29,7 @@ pub use coat::{Coat, DielectricCoat};
 pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
+pub use flake::Flake;
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
 pub use thin::{ThinDielectric, sheet_series};
@@ -86,6 +88,8 @@ pub enum Lobe {
     ThinDielectric(ThinDielectric),
     /// The DreamWorks fabric cone.
     Fabric(Fabric),
+    /// One DreamWorks glitter flake.
+    Flake(Flake),
 }
 
 impl Lobe {
@@ -103,6 +107,7 @@ impl Lobe {
             Lobe::CharlieSheen(l) => l.eval(wo, wi),
             Lobe::ThinDielectric(l) => l.eval(wo, wi),
             Lobe::Fabric(l) => l.eval(wo, wi),
+            Lobe::Flake(l) => l.eval(wo, wi),
         }
     }
 
@@ -120,6 +125,7 @@ impl Lobe {
             Lobe::CharlieSheen(l) => l.sample(wo, uc, u),
             Lobe::ThinDielectric(l) => l.sample(wo, uc, u),
             Lobe::Fabric(l) => l.sample(wo, uc, u),
+            Lobe::Flake(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -137,6 +143,7 @@ impl Lobe {
             Lobe::CharlieSheen(l) => l.pdf(wo, wi),
             Lobe::ThinDielectric(l) => l.pdf(wo, wi),
             Lobe::Fabric(l) => l.pdf(wo, wi),
+            Lobe::Flake(l) => l.pdf(wo, wi),
         }
     }
 
@@ -154,6 +161,7 @@ impl Lobe {
             Lobe::CharlieSheen(l) => l.albedo(wo),
             Lobe::ThinDielectric(l) => l.albedo(wo),
             Lobe::Fabric(l) => l.albedo(wo),
+            Lobe::Flake(l) => l.albedo(wo),
         }
     }
 
@@ -171,6 +179,7 @@ impl Lobe {
             Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
             Lobe::ThinDielectric(t) => t.flags(),
             Lobe::Fabric(_) => Fabric::FLAGS,
+            Lobe::Flake(_) => Flake::FLAGS,
         }
     }
 
@@ -189,6 +198,7 @@ impl Lobe {
             Lobe::Dielectric(d) => r(d.ggx.ax.max(d.ggx.ay)),
             Lobe::ThinDielectric(t) => r(t.reflect.ax.max(t.reflect.ay)),
             Lobe::Clearcoat(c) => r(c.alpha),
+            Lobe::Flake(f) => r(f.alpha),
         }
     }
 
@@ -196,7 +206,7 @@ impl Lobe {
     pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
         match self {
             Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
-            Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) => PathKind::Specular,
+            Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) | Lobe::Flake(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) => PathKind::Transmission,
@@ -216,7 +226,7 @@ pub enum PathKind {
 }
 
 /// Most lobes one material instance may hold.
-pub const MAX_LOBES: usize = 14;
+pub const MAX_LOBES: usize = 16;
 /// Most coats one material instance may stack.
 pub const MAX_COATS: usize = 3;
 
@@ -262,6 +272,14 @@ impl Bsdf {
             *slot = Some((self.count, coat));
             self.push_weighted(lobe, weight);
         }
+    }
+
+    /// Covers a share `coverage` of the surface with something opaque (glitter flakes): every
+    /// lobe so far, coats included, keeps the uncovered rest. The lobes of the cover are
+    /// pushed after this call, with weights that sum to at most `coverage`.
+    pub fn cover(&mut self, coverage: f32) {
+        let keep = if coverage.is_finite() { 1.0 - coverage.clamp(0.0, 1.0) } else { 1.0 };
+        self.weights[..self.count].iter_mut().for_each(|w| *w *= keep);
     }
 
     /// The scale of lobe `i`: the attenuation of every coat above it.
@@ -445,7 +463,8 @@ mod finite_everywhere {
             (r.clone(), a.clone(), prop_oneof![Just(1.0f32), Just(1.0001f32), Just(3.0f32), 0.3f32..3.0], c.clone(), any::<bool>())
                 .prop_map(|(r, a, eta, c, comp)| Lobe::ThinDielectric(ThinDielectric::new(r, a, eta, c, comp))),
             (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::CharlieSheen(CharlieSheen::new(c, r))),
-            (c, r, a).prop_map(|(c, r, a)| Lobe::Fabric(Fabric::new(c, r, a * 3.0))),
+            (c.clone(), r.clone(), a).prop_map(|(c, r, a)| Lobe::Fabric(Fabric::new(c, r, a * 3.0))),
+            (dir(), r, c).prop_map(|(n, r, c)| Lobe::Flake(Flake::new(n, r, c))),
         ]
     }
 

@@ -7,6 +7,7 @@
 //! directly ([`native`]), and `tessera:Layer` by blending two resolved materials
 //! (`000_...`, section 2.2: parameter resolution, then closure creation).
 
+pub mod glitter;
 pub mod graph;
 pub mod native;
 mod network;
@@ -65,13 +66,21 @@ impl Material {
         }
     }
 
+    /// `self` beneath the flakes of `glitter` (a resolved `tessera:Glitter`): the glitter's
+    /// flakes over this material's families, coats and emission.
+    pub fn under_glitter(&self, glitter: &Material) -> Material {
+        let mut m = self.clone();
+        m.surface.glitter = glitter.surface.glitter;
+        m
+    }
+
     /// True when the material has no effect on light at all, so its surfaces can be left
     /// out of the scene: cut out, or clear glass whose IOR is exactly 1 (an index-matched
     /// interface neither reflects nor bends, so dropping it is exact, shadows included).
     pub fn is_invisible(&self) -> bool {
         let u = &self.surface;
         let clear_glass = u.glass.weight >= 1.0 && u.glass.params.ior == 1.0 && u.glass.params.color == Vec3::ONE;
-        self.cut_out || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !self.is_emissive())
+        self.cut_out || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !u.has_glitter() && !self.is_emissive())
     }
 
     /// The subsurface medium behind the surface, if any.

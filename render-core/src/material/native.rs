@@ -11,6 +11,7 @@ use glam::Vec3;
 
 use super::Material;
 use super::network::{Inputs, ParamValue, ResolveReport};
+use super::glitter::GlitterParams;
 use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 
@@ -63,6 +64,9 @@ pub struct Shader {
     pub inputs: &'static [Input],
     /// Whether it takes the shared coat / emission / specularControl inputs.
     pub shared: bool,
+    /// Inputs that take another material (a connection to its surface output), with what
+    /// each does.
+    pub materials: &'static [(&'static str, &'static str)],
 }
 
 /// Inputs every specialized material takes (`000_...`, section 2.3 "additional features"; the
@@ -98,6 +102,7 @@ pub const SHADERS: &[Shader] = &[
             float("anisotropy", 0.0, (-1.0, 1.0), "stretch along the tangent (−1) or bitangent (1)"),
         ],
         shared: true,
+        materials: &[],
     },
     Shader {
         id: "tessera:Refractive",
@@ -116,6 +121,7 @@ pub const SHADERS: &[Shader] = &[
             flag("thin", "a thin sheet: light crosses undeflected"),
         ],
         shared: true,
+        materials: &[],
     },
     Shader {
         id: "tessera:SolidDielectric",
@@ -141,6 +147,7 @@ pub const SHADERS: &[Shader] = &[
             ),
         ],
         shared: true,
+        materials: &[],
     },
     Shader {
         id: "tessera:Fabric",
@@ -153,6 +160,32 @@ pub const SHADERS: &[Shader] = &[
             color("diffuseColor", 0.5, "diffuse base colour"),
         ],
         shared: false,
+        materials: &[],
+    },
+    Shader {
+        id: "tessera:Glitter",
+        doc: "DreamWorks glitter: flakes (Worley feature spheres in object space) covering the material beneath, up to four GGX flake lobes per shading point weighted by coverage plus one lobe for the rest.",
+        inputs: &[
+            color("flakeColor", 0.9, "flake colour (Schlick F0)"),
+            float("flakeRandomColor", 0.0, (0.0, 1.0), "how much of a random hue each flake takes"),
+            float("flakeRoughness", 0.3, (0.0, 1.0), "spread of the flake normals around the surface normal (GGX roughness)"),
+            float(
+                "flakeSurfaceRoughness",
+                0.1,
+                (crate::bsdf::flake::MIN_FLAKE_ROUGHNESS, 1.0),
+                "each flake's own roughness (glossy at least, so small lights glint)",
+            ),
+            float(
+                "flakeDensity",
+                4000.0,
+                crate::material::glitter::DENSITY_RANGE,
+                "flakes per unit of object-space volume (cells of side density^(-1/3))",
+            ),
+            float("flakeSize", 1.0, (0.0, 2.0), "flake sphere radius in half cells; 1 covers about a third of the surface"),
+            color("baseColor", 0.1, "Lambertian colour between the flakes when `base` is not connected"),
+        ],
+        shared: false,
+        materials: &[("base", "the material between and beneath the flakes (any material's surface output)")],
     },
 ];
 
@@ -165,6 +198,9 @@ impl Values {
         let decl = || shader.inputs.iter().chain(shared.iter());
         let mut v: BTreeMap<&'static str, [f32; 3]> = decl().map(|i| (i.name, i.default)).collect();
         for (name, value) in node.iter() {
+            if shader.materials.iter().any(|(m, _)| *m == name) {
+                continue;
+            }
             let Some(input) = decl().find(|i| i.name == name) else {
                 report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
                 continue;
@@ -266,6 +302,21 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
             };
             u.fabric = Weighted { weight: 1.0, params: fabric };
         }
+        "tessera:Glitter" => {
+            let base = Plastic { diffuse: v.c("baseColor"), lambert: true, specular: None, ..Plastic::default() };
+            u.plastic = Weighted { weight: 1.0, params: base };
+            u.glitter = Weighted {
+                weight: 1.0,
+                params: GlitterParams {
+                    color: v.c("flakeColor"),
+                    random_color: v.f("flakeRandomColor"),
+                    spread: v.f("flakeRoughness"),
+                    roughness: v.f("flakeSurfaceRoughness"),
+                    density: v.f("flakeDensity"),
+                    size: v.f("flakeSize"),
+                },
+            };
+        }
         _ => unreachable!("every declared shader is mapped"),
     }
     let mut emission = Vec3::ZERO;
@@ -320,6 +371,9 @@ pub fn markdown_reference() -> String {
         for i in s.inputs {
             out += &row(i);
         }
+        for (name, doc) in s.materials {
+            out += &format!("| `{name}` | material | - | - | {doc} |\n");
+        }
         if s.shared {
             out += "| *(the shared inputs below)* | | | | |\n";
         }
@@ -357,7 +411,7 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 7] = [
+        let cases: [(&str, Vec<(&str, ParamValue)>); 8] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -367,6 +421,7 @@ mod tests {
             ),
             ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseTransmission", ParamValue::Float3(Vec3::splat(0.4)))]),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
+            ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
             (
                 "tessera:Metal",
                 vec![("reflectivity", white.clone()), ("iridescence", ParamValue::Float(1.0)), ("clearcoat", ParamValue::Float(1.0))],

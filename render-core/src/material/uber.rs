@@ -12,6 +12,7 @@
 
 use glam::Vec3;
 
+use super::glitter::GlitterParams;
 use crate::bsdf::{
     Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Lobe,
     Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
@@ -369,6 +370,8 @@ pub struct Uber {
     pub thin_film: Weighted<ThinFilmParams>,
     /// Charlie sheen over everything (and over the clearcoat).
     pub sheen: Weighted<SheenParams>,
+    /// Glitter flakes over everything, sheen included; the weight scales their coverage.
+    pub glitter: Weighted<GlitterParams>,
     /// DreamWorks `specularControl` in [0, 1]: scales every specular lobe (1: untouched).
     pub specular_control: f32,
 }
@@ -384,6 +387,7 @@ impl Default for Uber {
             clearcoat: Weighted { weight: 0.0, params: ClearcoatParams::Disney { gloss: 1.0 } },
             thin_film: Weighted { weight: 0.0, params: ThinFilmParams { ior: 1.33, thickness: 400.0, roughness: 0.1 } },
             sheen: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.3 } },
+            glitter: Weighted { weight: 0.0, params: GlitterParams::default() },
             specular_control: 1.0,
         }
     }
@@ -401,6 +405,7 @@ impl Uber {
             clearcoat: self.clearcoat.over(&a.clearcoat, m),
             thin_film: self.thin_film.over(&a.thin_film, m),
             sheen: self.sheen.over(&a.sheen, m),
+            glitter: self.glitter.over(&a.glitter, m),
             specular_control: self.specular_control.mix(1.0 - m, &a.specular_control, m),
         }
     }
@@ -420,6 +425,7 @@ impl Uber {
         }
         u.glass.params.roughness = u.glass.params.roughness.max(floor);
         u.thin_film.params.roughness = u.thin_film.params.roughness.max(floor);
+        u.glitter.params.roughness = u.glitter.params.roughness.max(floor);
         u.clearcoat.params = match u.clearcoat.params {
             // Disney's coat: α = lerp(0.1, 0.001, gloss); roughness r ↔ α = r², so cap the gloss.
             ClearcoatParams::Disney { gloss } => {
@@ -449,16 +455,39 @@ impl Uber {
     }
 
     /// The BSDF, holding only its non-zero lobes, in the order: plastic (diffuse, diffuse
-    /// transmission, specular, Disney sheen), metal, glass, fabric, then the coats.
+    /// transmission, specular, Disney sheen), metal, glass, fabric, then the coats. Glitter
+    /// is here as seen from far away ([`GlitterParams::far_field`]); a renderer that knows the
+    /// shading point uses [`Uber::base_bsdf`] and [`GlitterParams::apply`] there.
     pub fn bsdf(&self, compensate: bool) -> Bsdf {
-        self.build_bsdf(compensate, false)
+        let mut b = self.build_bsdf(compensate, false);
+        self.far_glitter(&mut b);
+        b
+    }
+
+    /// The BSDF without its glitter flakes.
+    pub fn base_bsdf(&self, compensate: bool, every_lobe: bool) -> Bsdf {
+        self.build_bsdf(compensate, every_lobe)
+    }
+
+    /// True when glitter flakes cover part of the surface.
+    pub fn has_glitter(&self) -> bool {
+        self.glitter.weight > 0.0
+    }
+
+    fn far_glitter(&self, b: &mut Bsdf) {
+        if self.has_glitter() {
+            let g = &self.glitter.params;
+            g.apply(self.glitter.weight, &g.far_field(), b, |n| n);
+        }
     }
 
     /// The BSDF with every lobe the uber-material can build, those the material does not use
     /// at weight 0: what an uber-shader without a render plan would evaluate. The image is
     /// the same; `tessera bench effects` measures what the plan saves.
     pub fn bsdf_with_every_lobe(&self, compensate: bool) -> Bsdf {
-        self.build_bsdf(compensate, true)
+        let mut b = self.build_bsdf(compensate, true);
+        self.far_glitter(&mut b);
+        b
     }
 
     fn build_bsdf(&self, compensate: bool, every: bool) -> Bsdf {
