@@ -101,7 +101,7 @@ pub fn shadow_transmittance(scene: &CommittedScene, ray: &Ray, tmax: f32) -> Opt
         }
         let s = scene.surface(&hit);
         // A point a textured opacity cuts out is no surface at all.
-        if !scene.cut_out_at(&s) {
+        if !scene.see_through_at(&s, r.dir) {
             let glass = scene.shadow_glass(s.material)?;
             pass.transmittance *= glass.transmission(s.ns.dot(r.dir).abs().min(1.0));
             pass.roughness = pass.roughness.max(glass.roughness);

@@ -271,26 +271,29 @@ pub fn trace_path(
             let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
             t.at(&ShadingPoint { st: s.st, width: cone_here, cos, uv_density: s.uv_density })
         });
-        if let Some((m, normal)) = &local {
-            if m.cut_out {
-                // Cut out here: the ray goes on as if the surface were not there.
-                cutouts_crossed += 1;
-                if cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
-                    break;
-                }
-                cone.width = cone_here;
-                ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
-                continue;
+        let pass_through = local.as_ref().map_or(scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
+        let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, ray.dir) < pass_through;
+        if absent || local.as_ref().is_some_and(|(m, _)| m.cut_out) {
+            // Cut out here, or not present for this ray: it goes on as if the surface were not
+            // there.
+            cutouts_crossed += 1;
+            if cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
+                break;
             }
-            if let Some(n) = normal {
-                s.ns = crate::material::graph::perturb_normal(s.ns, s.dpds, s.dpdt, *n);
-            }
+            cone.width = cone_here;
+            ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
+            continue;
+        }
+        if let Some((_, Some(n))) = &local {
+            s.ns = crate::material::graph::perturb_normal(s.ns, s.dpds, s.dpdt, *n);
         }
         let ec = settings.energy_compensation;
         // Glitter flakes depend on the point and footprint: such materials build their lobes
         // here, the flakes once the shading frame is known.
         let uber_here = local.as_ref().map_or(&scene.materials[s.material as usize].surface, |(m, _)| &m.surface);
-        let glitter = uber_here.has_glitter().then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
+        let glitter = uber_here
+            .has_glitter()
+            .then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
         let mut bsdf = match &local {
             _ if let Some(u) = &glitter => u.base_bsdf(ec, force),
             Some((m, _)) if force => m.surface.bsdf_with_every_lobe(ec),

@@ -156,9 +156,10 @@ pub struct CommittedScene {
     pub materials: Vec<Material>,
     /// Per material, its inputs that vary over the surface, if any.
     pub textured: Vec<Option<Arc<crate::material::TexturedMaterial>>>,
-    /// True when some textured material can be cut out at a point (opacity below its
-    /// threshold): rays then test the material where they hit it.
-    pub has_textured_cutouts: bool,
+    /// True when rays may pass some surface at some points: a textured material cut out
+    /// there (opacity below its threshold) or a partially present material. Rays then test
+    /// the material where they hit it.
+    pub has_see_through: bool,
     /// Each material's BSDF without and with energy compensation, built on first use of each
     /// setting (for a textured material, its mean).
     bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
@@ -223,6 +224,15 @@ pub struct SurfaceHit {
     pub dpds: Vec3,
     /// See [`Self::dpds`].
     pub dpdt: Vec3,
+}
+
+/// A uniform number in [0, 1) for a ray meeting a partially present surface at `p` along
+/// `dir`: a hash of the two, so the decision needs no sampler dimension and shadow rays make it
+/// as camera rays do. Positions differ from sample to sample, so the coins are independent.
+pub fn see_through_coin(p: Vec3, dir: Vec3) -> f32 {
+    let bits = |v: Vec3| ((v.x.to_bits() as u64) << 32 | v.y.to_bits() as u64) ^ (v.z.to_bits() as u64).rotate_left(17);
+    let h = crate::sampling::mix64(bits(p) ^ crate::sampling::mix64(bits(dir) ^ 0x5ee7_4409));
+    (h >> 40) as f32 * (1.0 / 16_777_216.0)
 }
 
 /// Cut-out surfaces a ray passes through before the rest counts as opaque.
@@ -360,7 +370,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     // surfaces altogether.
     // A textured material is cut out point by point, never as a whole.
     let cut_out = |m: u32| textured[m as usize].is_none() && materials[m as usize].is_invisible();
-    let has_textured_cutouts = textured.iter().flatten().any(|t| t.may_cut_out());
+    let has_see_through = textured.iter().flatten().any(|t| t.may_see_through()) || materials.iter().any(|m| m.pass_through > 0.0);
     for (path, m) in &desc.meshes {
         if !m.visible {
             continue;
@@ -485,7 +495,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     for (effect, reason, prims) in [
         ("textures", "material inputs from textures, resolved per shading point and mip-mapped by ray cones", textured_with(&|_| true)),
         ("normal-maps", "tangent-space normal maps", textured_with(&|t| t.has_normal_map())),
-        ("textured-cutouts", "opacity textures cut surfaces out per point, for every ray", textured_with(&|t| t.may_cut_out())),
+        ("textured-cutouts", "opacity textures cut surfaces out per point, for every ray", textured_with(&|t| t.may_see_through())),
         ("textured-emission", "emission looked up per texel where light sampling lands", textured_with(&|t| t.emission_varies())),
     ] {
         if !prims.is_empty() {
@@ -538,6 +548,15 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if !desc.instancers.is_empty() {
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
+    let partial: Vec<String> =
+        desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].pass_through > 0.0).cloned().collect();
+    if !partial.is_empty() {
+        plan.enable(
+            "partial-presence",
+            "opacityMode presence: rays pass the surface unbent in proportion to 1 - opacity, shadow rays too",
+            partial,
+        );
+    }
     let subsurface: Vec<String> =
         desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].medium().is_some()).cloned().collect();
     if !subsurface.is_empty() {
@@ -551,6 +570,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     // What the renderer can do that this scene does not ask for, and so does not build.
     plan.skipped = [
         "subsurface",
+        "partial-presence",
         "glitter",
         "textures",
         "normal-maps",
@@ -578,7 +598,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         tlas,
         materials,
         textured,
-        has_textured_cutouts,
+        has_see_through,
         bsdfs: Default::default(),
         floored_bsdfs: Default::default(),
         every_lobe_bsdfs: Default::default(),
@@ -696,15 +716,28 @@ impl CommittedScene {
 
     /// True when the surface `s` is cut out there by a textured opacity, so rays pass
     /// it untouched (lookups at the finest level: shadow rays carry no footprint).
-    pub fn cut_out_at(&self, s: &SurfaceHit) -> bool {
-        let Some(t) = self.textured(s.material).filter(|t| t.may_cut_out()) else { return false };
-        t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.cut_out
+    /// True when a ray along `dir` passes the surface `s` untouched: cut out there by a
+    /// textured opacity (lookups at the finest level: shadow rays carry no footprint), or
+    /// not present for this ray where the surface is partially present
+    /// ([`Material::pass_through`]: a coin with that chance, tossed by [`see_through_coin`]).
+    pub fn see_through_at(&self, s: &SurfaceHit, dir: Vec3) -> bool {
+        let pass = match self.textured(s.material).filter(|t| t.may_see_through()) {
+            Some(t) => {
+                let m = t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0;
+                if m.cut_out {
+                    return true;
+                }
+                m.pass_through
+            }
+            None => self.materials[s.material as usize].pass_through,
+        };
+        pass > 0.0 && see_through_coin(s.p, dir) < pass
     }
 
     /// True when a surface blocks the ray before `tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
-        if self.has_textured_cutouts {
+        if self.has_see_through {
             return self.occluded_past_cutouts(ray, tmax);
         }
         self.tlas.occluded(&self.blases, ray, tmax)
@@ -717,7 +750,7 @@ impl CommittedScene {
         for _ in 0..MAX_CUTOUT_CROSSINGS {
             let Some(hit) = self.tlas.intersect(&self.blases, &r) else { return false };
             let s = self.surface(&hit);
-            if !self.cut_out_at(&s) {
+            if !self.see_through_at(&s, r.dir) {
                 return true;
             }
             let origin = crate::geometry::offset_ray_origin(s.p, if r.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale);

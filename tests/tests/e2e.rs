@@ -14,6 +14,7 @@ mod hard;
 mod images;
 mod light_units;
 mod materials;
+mod preview_surface;
 mod sampling;
 mod textures;
 mod usd;

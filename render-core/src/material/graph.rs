@@ -182,13 +182,15 @@ impl TexturedMaterial {
         self.keys.iter().any(|(_, i)| matches!(i.as_str(), "emissiveColor" | "emission"))
     }
 
-    /// True when opacity varies on a surface with a cut-out threshold, so some points may
-    /// be cut out and others not.
-    pub fn may_cut_out(&self) -> bool {
+    /// True when opacity varies on a surface with a cut-out threshold or partial presence, so
+    /// rays may pass some points and not others.
+    pub fn may_see_through(&self) -> bool {
         self.keys.iter().any(|(n, i)| {
             i == "opacity"
                 && self.network.nodes.iter().any(|node| {
-                    node.path == *n && matches!(node.parameters.get("opacityThreshold"), Some(ParamValue::Float(t)) if *t > 0.0)
+                    node.path == *n
+                        && (matches!(node.parameters.get("opacityThreshold"), Some(ParamValue::Float(t)) if *t > 0.0)
+                            || matches!(node.parameters.get("opacityMode"), Some(ParamValue::String(m)) if m == "presence"))
                 })
         })
     }

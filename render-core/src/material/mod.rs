@@ -20,6 +20,8 @@ pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue,
 pub use principled::Principled;
 pub use uber::Uber;
 
+use uber::Mix;
+
 use glam::Vec3;
 
 use crate::bsdf::Bsdf;
@@ -35,6 +37,9 @@ pub struct Material {
     /// With constant inputs (textures are not supported yet) that removes the whole surface,
     /// which then neither renders nor shadows.
     pub cut_out: bool,
+    /// Share of rays that pass the surface unbent, as if it were not there: UsdPreviewSurface
+    /// `opacityMode` `presence` with `opacity` below 1 (partial coverage, like a sparse veil).
+    pub pass_through: f32,
 }
 
 impl Material {
@@ -42,12 +47,12 @@ impl Material {
     /// roughness 0.5, ior 1.5, no metal): the fallback of unbound meshes and of materials
     /// without a surface shader, as Hydra's fallback material is.
     pub fn preview_surface_default() -> Self {
-        Material { surface: Principled::preview_surface_default().uber(), emission: Vec3::ZERO, cut_out: false }
+        Material { surface: Principled::preview_surface_default().uber(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 }
     }
 
     /// A material of Disney principled parameters.
     pub fn principled(p: Principled) -> Self {
-        Material { surface: p.uber(), emission: Vec3::ZERO, cut_out: false }
+        Material { surface: p.uber(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 }
     }
 
     /// The lobes at a shading point; `energy_compensation` switches the Kulla-Conty layer.
@@ -63,6 +68,7 @@ impl Material {
             surface: self.surface.layered_under(&a.surface, m),
             emission: self.emission.lerp(a.emission, m),
             cut_out: if m > 0.5 { a.cut_out } else { self.cut_out },
+            pass_through: self.pass_through.mix(1.0 - m, &a.pass_through, m),
         }
     }
 
@@ -80,7 +86,9 @@ impl Material {
     pub fn is_invisible(&self) -> bool {
         let u = &self.surface;
         let clear_glass = u.glass.weight >= 1.0 && u.glass.params.ior == 1.0 && u.glass.params.color == Vec3::ONE;
-        self.cut_out || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !u.has_glitter() && !self.is_emissive())
+        self.cut_out
+            || self.pass_through >= 1.0
+            || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !u.has_glitter() && !self.is_emissive())
     }
 
     /// The subsurface medium behind the surface, if any.

@@ -10,8 +10,8 @@ use std::collections::BTreeMap;
 use glam::Vec3;
 
 use super::Material;
-use super::network::{Inputs, ParamValue, ResolveReport};
 use super::glitter::GlitterParams;
+use super::network::{Inputs, ParamValue, ResolveReport};
 use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 
@@ -342,7 +342,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         u.specular_control = v.f("specularControl");
         emission = v.c("emission");
     }
-    Some(Material { surface: u, emission, cut_out: false })
+    Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0 })
 }
 
 /// The reference table of every declared shader, as docs/materials.md holds it.

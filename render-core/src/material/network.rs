@@ -200,7 +200,9 @@ impl MaterialNetwork {
             if let Some(c) = self.upstream(&node.path, "base") {
                 let glitter = super::native::resolve(inputs, &mut walk.report).expect("tessera:Glitter is declared");
                 if depth >= MAX_LAYER_DEPTH {
-                    walk.report.warnings.push(format!("{}: materials nest deeper than {MAX_LAYER_DEPTH} (a cycle?); 'base' is not followed", node.path));
+                    walk.report
+                        .warnings
+                        .push(format!("{}: materials nest deeper than {MAX_LAYER_DEPTH} (a cycle?); 'base' is not followed", node.path));
                     return glitter;
                 }
                 let base = self.resolve_node(&c.upstream_node.clone(), depth + 1, walk);

@@ -20,12 +20,14 @@ pub struct Resolved {
     pub emission: Vec3,
     /// Cut out.
     pub cut_out: bool,
+    /// Share of rays passing unbent (`opacityMode` `presence`).
+    pub pass_through: f32,
 }
 
 /// The material of a UsdPreviewSurface or `tessera:Principled` node.
 pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Material {
     let r = principled_of(node, report);
-    Material { surface: r.principled.uber(), emission: r.emission, cut_out: r.cut_out }
+    Material { surface: r.principled.uber(), emission: r.emission, cut_out: r.cut_out, pass_through: r.pass_through }
 }
 
 /// The Disney parameters of a UsdPreviewSurface or `tessera:Principled` node.
@@ -33,7 +35,7 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
     if node.node_type_id == "tessera:Principled" {
         return native_principled(node, report);
     }
-    let mut m = Resolved { principled: Principled::preview_surface_default(), emission: Vec3::ZERO, cut_out: false };
+    let mut m = Resolved { principled: Principled::preview_surface_default(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 };
     let p = &mut m.principled;
     // UsdPreviewSurface: Lambertian diffuse under a dielectric specular whose F0 comes from
     // `ior` (default 1.5); `ior` 1 means no specular.
@@ -48,9 +50,24 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
     let specular_workflow = int("useSpecularWorkflow").unwrap_or(0) != 0;
     let opacity = float("opacity").unwrap_or(1.0);
     let threshold = float("opacityThreshold").unwrap_or(0.0);
+    let presence = match node.get("opacityMode") {
+        Some(ParamValue::String(mode)) if mode == "presence" => true,
+        Some(ParamValue::String(mode)) if mode == "transparent" => false,
+        Some(v) => {
+            report
+                .warnings
+                .push(format!("{}: input 'opacityMode' is {v:?}, not 'transparent' or 'presence'; using 'transparent'", node.path));
+            false
+        }
+        None => false,
+    };
     if threshold > 0.0 {
         // A cut-out: present where opacity ≥ threshold, absent elsewhere.
         m.cut_out = opacity < threshold;
+    } else if presence {
+        // Partial presence: the surface covers a share `opacity` of each point's
+        // neighbourhood; the rest lets rays through unbent.
+        m.pass_through = if opacity.is_finite() { 1.0 - opacity.clamp(0.0, 1.0) } else { 0.0 };
     } else if opacity < 1.0 {
         // "Transparent but lit, like clear glass": a smooth dielectric transmission of
         // weight 1 − opacity with the material's ior.
@@ -65,7 +82,7 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
             // The metallic workflow ignores specularColor, the specular one metallic.
             ("specularColor", ParamValue::Float3(_)) => {}
             ("metallic", ParamValue::Float(_)) if specular_workflow => {}
-            ("opacity" | "opacityThreshold", ParamValue::Float(_)) => {}
+            ("opacity" | "opacityThreshold", ParamValue::Float(_)) | ("opacityMode", ParamValue::String(_)) => {}
             // A tangent-space normal map, applied at shading time when the input is connected
             // (graph.rs); an unconnected (0, 0, 1) is the unperturbed normal.
             ("normal", ParamValue::Float3(n)) if *n == Vec3::Z => {}
@@ -97,7 +114,7 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
 
 /// `tessera:Principled`: Disney's names and defaults, not UsdPreviewSurface's.
 fn native_principled(node: Inputs, report: &mut ResolveReport) -> Resolved {
-    let mut m = Resolved { principled: Principled::default(), emission: Vec3::ZERO, cut_out: false };
+    let mut m = Resolved { principled: Principled::default(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 };
     let p = &mut m.principled;
     for (name, value) in node.iter() {
         let f = |v: &ParamValue| if let ParamValue::Float(x) = v { Some(*x) } else { None };
@@ -157,6 +174,41 @@ pub(crate) mod tests {
         }
     }
 
+    /// The metallic workflow is the layering, literally: `metallic` m resolves to the
+    /// same uber-material as a `tessera:Layer` of the fully metallic surface (a conductor with
+    /// F0 = diffuseColor) over the fully dielectric one with mask m, for opaque and
+    /// "transparent but lit" surfaces, clearcoated or not.
+    #[test]
+    fn metallic_is_a_metal_layered_over_the_dielectric_with_mask_metallic() {
+        let base = |metallic: f32, opacity: f32, coat: f32| {
+            let n = preview(&[
+                ("diffuseColor", ParamValue::Float3(Vec3::new(0.9, 0.6, 0.2))),
+                ("roughness", ParamValue::Float(0.35)),
+                ("ior", ParamValue::Float(1.7)),
+                ("clearcoat", ParamValue::Float(coat)),
+                ("opacity", ParamValue::Float(opacity)),
+                ("metallic", ParamValue::Float(metallic)),
+            ]);
+            n.resolve("/M").0.surface
+        };
+        for (opacity, coat) in [(1.0, 0.0), (0.4, 0.0), (1.0, 1.0)] {
+            for m in [0.0, 0.25, 0.5, 0.9, 1.0] {
+                let layered = base(0.0, opacity, coat).layered_under(&base(1.0, opacity, coat), m);
+                let direct = base(m, opacity, coat);
+                let (a, b) = (format!("{direct:?}"), format!("{layered:?}"));
+                let close = |x: &crate::material::Uber, y: &crate::material::Uber| {
+                    (x.metal.weight - y.metal.weight).abs() < 1e-6
+                        && (x.plastic.weight - y.plastic.weight).abs() < 1e-6
+                        && (x.glass.weight - y.glass.weight).abs() < 1e-6
+                        && x.metal.params == y.metal.params
+                        && x.glass.params == y.glass.params
+                        && x.clearcoat == y.clearcoat
+                };
+                assert!(close(&direct, &layered) && (m == 0.0 || direct.plastic.params == layered.plastic.params), "m = {m}:\n{a}\n{b}");
+            }
+        }
+    }
+
     #[test]
     fn maps_preview_surface_inputs_and_reports_the_rest() {
         let n = preview(&[
@@ -195,6 +247,19 @@ pub(crate) mod tests {
             assert_eq!(m.cut_out, gone, "opacity {opacity}");
             assert!(!m.bsdf(true).transmits());
         }
+        // Presence: no transmission lobe, a share 1 − opacity of rays passes unbent; a
+        // threshold still cuts out; an unknown mode is reported and read as transparent.
+        let mode = |m: &str| ("opacityMode", ParamValue::String(m.into()));
+        let (m, r) = preview(&[("opacity", ParamValue::Float(0.3)), mode("presence")]).resolve("/M");
+        assert!((m.pass_through - 0.7).abs() < 1e-6 && !m.cut_out && !m.bsdf(true).transmits() && r.warnings.is_empty(), "{r:?}");
+        let (m, _) =
+            preview(&[("opacity", ParamValue::Float(0.3)), ("opacityThreshold", ParamValue::Float(0.5)), mode("presence")]).resolve("/M");
+        assert!(m.cut_out && m.pass_through == 0.0);
+        let (m, _) = preview(&[("opacity", ParamValue::Float(0.0)), mode("presence")]).resolve("/M");
+        assert!(m.is_invisible(), "opacity 0 presence leaves nothing to render");
+        let (m, r) = preview(&[("opacity", ParamValue::Float(0.3)), mode("stencil")]).resolve("/M");
+        assert!(m.pass_through == 0.0 && m.bsdf(true).transmits());
+        assert!(r.warnings.iter().any(|w| w.contains("opacityMode") && w.contains("stencil")), "{r:?}");
     }
 
     #[test]
