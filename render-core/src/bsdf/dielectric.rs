@@ -27,8 +27,13 @@ use std::f32::consts::PI;
 pub struct Dielectric {
     /// Distribution.
     pub ggx: Ggx,
-    /// IOR below the surface over IOR above.
+    /// IOR below the surface over IOR above: how light bends.
     pub eta: f32,
+    /// The relative IOR of the Fresnel term: how much reflects. Equal to `eta` for real
+    /// glass; DreamWorks' `transmissionRefractiveIndex` (`000_...`, section 2.3, `Refractive`:
+    /// "decouple the bending of light from the reflectivity ... for certain objects, such as
+    /// eyeglasses") bends by another index than the one that reflects.
+    pub fresnel_eta: f32,
     /// Tint of transmitted light (1 for clear glass).
     pub transmittance: Vec3,
     /// Roughness driving the compensation tables.
@@ -48,7 +53,7 @@ pub struct GlassCompensation {
 }
 
 /// Fresnel reflectance for a direction on either side: cos < 0 means from inside.
-#[inline]
+#[cfg(test)]
 fn fr(cos: f32, eta: f32) -> f32 {
     if cos < 0.0 { fresnel::dielectric(-cos, 1.0 / eta) } else { fresnel::dielectric(cos, eta) }
 }
@@ -82,6 +87,7 @@ impl Dielectric {
         Dielectric {
             ggx,
             eta,
+            fresnel_eta: eta,
             transmittance: transmittance.clamp(Vec3::ZERO, Vec3::ONE),
             roughness: ggx.ax.sqrt().min(1.0),
             compensation: None,
@@ -95,7 +101,7 @@ impl Dielectric {
     /// driving it by one roughness, as the slides do for reflection, gained up to 9%. Losing
     /// energy is the conservative failure; a table over azimuth and η is future work.
     pub fn compensated(self, on: bool) -> Self {
-        let wanted = on && self.ggx.ax == self.ggx.ay && !self.smooth();
+        let wanted = on && self.ggx.ax == self.ggx.ay && !self.smooth() && !self.is_decoupled();
         let compensation = wanted.then(|| {
             let t = energy::glass();
             let e_avg = [t.e_avg_of_lookup(self.eta, self.roughness), t.e_avg_of_lookup(1.0 / self.eta, self.roughness)];
@@ -106,6 +112,38 @@ impl Dielectric {
             GlassCompensation { e_avg, ratio }
         });
         Dielectric { compensation, ..self }
+    }
+
+    /// The same interface reflecting as a dielectric of relative IOR `fresnel_eta` while
+    /// bending by its own `eta`. Not physical, so not reciprocal; energy is still conserved
+    /// (each microfacet reflects F and transmits 1 − F, and reflects everything where `eta`
+    /// allows no refraction). Decoupled interfaces go uncompensated: the glass tables assume
+    /// one index.
+    pub fn with_fresnel_eta(self, fresnel_eta: f32) -> Self {
+        let fresnel_eta = if fresnel_eta.is_finite() && fresnel_eta > 0.0 { fresnel_eta } else { self.eta };
+        let d = Dielectric { fresnel_eta, ..self };
+        if d.is_decoupled() { Dielectric { compensation: None, ..d } } else { d }
+    }
+
+    /// True when reflection and bending use different indices.
+    pub fn is_decoupled(&self) -> bool {
+        self.fresnel_eta != self.eta
+    }
+
+    /// Fresnel reflectance at a microfacet for cos = (direction on the outside)·h, negative
+    /// when seen from inside: the Fresnel index's, or 1 where the bending index refracts
+    /// nothing (total internal reflection).
+    #[inline]
+    fn fresnel(&self, cos: f64) -> f64 {
+        let (c, bend, refl) = if cos < 0.0 {
+            (-cos, 1.0 / self.eta as f64, 1.0 / self.fresnel_eta as f64)
+        } else {
+            (cos, self.eta as f64, self.fresnel_eta as f64)
+        };
+        if 1.0 - c * c >= bend * bend {
+            return 1.0;
+        }
+        fresnel::dielectric_f64(c, refl)
     }
 
     /// True when the compensation lobes are on.
@@ -200,8 +238,7 @@ impl Dielectric {
         // near the critical angle, where F's slope makes f32 rounding of h cost 0.3%.
         let outside = if wo.z > 0.0 { wo } else { wi };
         let cos = hd.dot(outside.as_dvec3());
-        let eta = self.eta as f64;
-        let f = if cos < 0.0 { fresnel::dielectric_f64(-cos, 1.0 / eta) } else { fresnel::dielectric_f64(cos, eta) } as f32;
+        let f = self.fresnel(cos) as f32;
         let value = if reflect {
             Vec3::splat(g.d(h) * g.g2(wo, wi) * f / (4.0 * (wo.z * wi.z).abs()))
         } else {
@@ -240,7 +277,7 @@ impl Dielectric {
         };
         let h = hd.as_vec3();
         let g = self.ggx.regularized();
-        let r = fr(wo.dot(h), self.eta);
+        let r = self.fresnel(wo.dot(h) as f64) as f32;
         // Visible-normal density with |wo·h|, seen from wo's side.
         let wo_up = if wo.z < 0.0 { -wo } else { wo };
         let d_vis = g.g1(wo_up) * g.d(h) * wo.dot(h).abs() / wo.z.abs();
@@ -260,7 +297,7 @@ impl Dielectric {
             return None;
         }
         if self.smooth() {
-            let r = fr(wo.z, self.eta);
+            let r = self.fresnel(wo.z as f64) as f32;
             if uc < r {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 return Some(LobeSample { wi, weight: Vec3::ONE, pdf: r, flags: self.flags(), eta: 1.0 });
@@ -285,7 +322,7 @@ impl Dielectric {
         let g = self.ggx.regularized();
         let wo_up = if wo.z < 0.0 { -wo } else { wo };
         let h = g.sample_visible(wo_up, u);
-        let r = fr(wo.dot(h), self.eta);
+        let r = self.fresnel(wo.dot(h) as f64) as f32;
         let wi = if uc < r {
             let wi = reflect(wo, h);
             if wi.z * wo.z <= 0.0 {
@@ -320,7 +357,7 @@ impl Dielectric {
     /// Albedo estimate at `wo` (for lobe selection): everything scatters, tinted where it
     /// transmits.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
-        let r = fr(wo.z, self.eta);
+        let r = self.fresnel(wo.z as f64) as f32;
         Vec3::splat(r) + (1.0 - r) * self.transmittance
     }
 }
@@ -426,6 +463,41 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `transmissionRefractiveIndex`: reflectance from one index, bending by another. A smooth
+    /// decoupled interface reflects ((η_f − 1)/(η_f + 1))² head-on and bends by Snell with
+    /// η_b; rough ones conserve energy from both sides (reflection + transmission ≤ 1, the
+    /// radiance scaling undone) and sample as their pdf says. Equal indices change nothing.
+    #[test]
+    fn decoupled_fresnel_and_bending_indices() {
+        let smooth = Dielectric::new(0.0, 0.0, 1.2, Vec3::ONE).with_fresnel_eta(1.8);
+        let head_on = Vec3::new(0.0, 0.0, 1.0);
+        let r = smooth.sample(head_on, 0.0, Vec2::ZERO).unwrap();
+        assert!((r.pdf - (0.8f32 / 2.8).powi(2)).abs() < 1e-5, "reflectance {}", r.pdf);
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let t = smooth.sample(wo, 0.999, Vec2::ZERO).unwrap();
+        assert!((t.wi.x.abs() - 0.6 / 1.2).abs() < 1e-5 && t.wi.z < 0.0, "bends by 1.2: {:?}", t.wi);
+        // Inside, beyond the bending index's critical angle, everything reflects, whatever the
+        // Fresnel index says.
+        let inside = Vec3::new(0.9, 0.0, -(1.0f32 - 0.81).sqrt());
+        assert!(smooth.sample(inside, 0.999, Vec2::ZERO).unwrap().wi.z < 0.0);
+        for (bend, refl) in [(1.2f32, 1.8f32), (1.8, 1.2), (1.5, 1.01)] {
+            for r in [0.1f32, 0.5, 1.0] {
+                let lobe = Lobe::Dielectric(Dielectric::new(r, 0.0, bend, Vec3::ONE).with_fresnel_eta(refl));
+                for wo in testing::probe_directions() {
+                    for wo in [wo, -wo] {
+                        let a = testing::albedo_estimate(&lobe, wo, 20_000);
+                        assert!(a.max_element() <= 1.0 + 1e-3 + 0.01, "bend {bend}, reflect {refl}, roughness {r}, wo {wo:?}: {a:?}");
+                    }
+                }
+            }
+        }
+        let lobe = Lobe::Dielectric(Dielectric::new(0.5, 0.0, 1.2, Vec3::ONE).with_fresnel_eta(1.8));
+        testing::assert_chi2_at(&lobe, 77, testing::probe_directions().into_iter().flat_map(|w| [w, -w]).collect());
+        testing::assert_weights_consistent(&lobe);
+        let (plain, same) = (Dielectric::new(0.4, 0.0, 1.5, Vec3::ONE), Dielectric::new(0.4, 0.0, 1.5, Vec3::ONE).with_fresnel_eta(1.5));
+        assert_eq!(plain, same);
     }
 
     #[test]

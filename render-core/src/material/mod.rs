@@ -85,7 +85,8 @@ impl Material {
     /// interface neither reflects nor bends, so dropping it is exact, shadows included).
     pub fn is_invisible(&self) -> bool {
         let u = &self.surface;
-        let clear_glass = u.glass.weight >= 1.0 && u.glass.params.ior == 1.0 && u.glass.params.color == Vec3::ONE;
+        let g = &u.glass.params;
+        let clear_glass = u.glass.weight >= 1.0 && g.ior == 1.0 && (g.bend_ior == 1.0 || g.thin) && g.color == Vec3::ONE;
         self.cut_out
             || self.pass_through >= 1.0
             || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !u.has_glitter() && !self.is_emissive())

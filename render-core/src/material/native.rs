@@ -116,7 +116,7 @@ pub const SHADERS: &[Shader] = &[
                 "transmissionRefractiveIndex",
                 0.0,
                 (0.0, 3.0),
-                "decoupled bending index (0: same as refractiveIndex); not supported yet, reported when set",
+                "the index light bends by, decoupled from the reflectance (0: refractiveIndex); not physical, so not reciprocal and not energy-compensated; thin sheets do not bend",
             ),
             flag("thin", "a thin sheet: light crosses undeflected"),
         ],
@@ -258,17 +258,12 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
             u.metal = Weighted { weight: 1.0, params: specular(fresnel, v.f("roughness"), v.f("anisotropy")) };
         }
         "tessera:Refractive" => {
-            if v.f("transmissionRefractiveIndex") > 0.0 && v.f("transmissionRefractiveIndex") != v.f("refractiveIndex") {
-                report.warnings.push(format!(
-                    "{}: input 'transmissionRefractiveIndex' is not supported yet; light bends by refractiveIndex {}",
-                    node.path,
-                    v.f("refractiveIndex")
-                ));
-            }
+            let bend = v.f("transmissionRefractiveIndex");
             let glass = Glass {
                 roughness: v.f("roughness"),
                 anisotropic: v.f("anisotropy"),
                 ior: v.f("refractiveIndex"),
+                bend_ior: if bend > 0.0 { bend } else { v.f("refractiveIndex") },
                 color: v.c("transmissionColor"),
                 thin: v.b("thin"),
             };
@@ -466,9 +461,8 @@ mod tests {
             ],
         );
         assert_eq!(m.surface.glass.params.ior, 3.0, "clamped to the declared range");
-        for needle in
-            ["'roughness' has the wrong type", "unknown tessera:Refractive input 'bogus'", "'transmissionRefractiveIndex' is not supported"]
-        {
+        assert_eq!(m.surface.glass.params.bend_ior, 1.2, "transmissionRefractiveIndex bends");
+        for needle in ["'roughness' has the wrong type", "unknown tessera:Refractive input 'bogus'"] {
             assert!(r.warnings.iter().any(|w| w.contains(needle) && w.contains("/M/S")), "{needle}: {:?}", r.warnings);
         }
         let (m, r) = resolved("tessera:SolidDielectric", &[("scatteringRadius", ParamValue::Float(0.1))]);

@@ -164,6 +164,7 @@ impl Principled {
             roughness: p.transmission_roughness.unwrap_or(p.roughness),
             anisotropic: p.anisotropic,
             ior: p.ior,
+            bend_ior: p.ior,
             color: if p.thin { tint.powf(0.5) } else { tint },
             thin: p.thin,
         };

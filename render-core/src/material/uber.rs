@@ -202,8 +202,11 @@ pub struct Glass {
     pub roughness: f32,
     /// Anisotropy.
     pub anisotropic: f32,
-    /// Refractive index.
+    /// Refractive index: how much reflects.
     pub ior: f32,
+    /// The index light bends by: `ior` for real glass; DreamWorks' `transmissionRefractiveIndex`
+    /// decouples it (`000_...`, section 2.3).
+    pub bend_ior: f32,
     /// Transmission tint (for a thin sheet, one crossing's colour).
     pub color: Vec3,
     /// A thin sheet rather than a solid's boundary.
@@ -212,7 +215,7 @@ pub struct Glass {
 
 impl Default for Glass {
     fn default() -> Self {
-        Glass { roughness: 0.0, anisotropic: 0.0, ior: 1.5, color: Vec3::ONE, thin: false }
+        Glass { roughness: 0.0, anisotropic: 0.0, ior: 1.5, bend_ior: 1.5, color: Vec3::ONE, thin: false }
     }
 }
 
@@ -222,6 +225,7 @@ impl Mix for Glass {
             roughness: self.roughness.mix(wa, &o.roughness, wb),
             anisotropic: self.anisotropic.mix(wa, &o.anisotropic, wb),
             ior: self.ior.mix(wa, &o.ior, wb),
+            bend_ior: self.bend_ior.mix(wa, &o.bend_ior, wb),
             color: self.color.mix(wa, &o.color, wb),
             thin: self.thin.mix(wa, &o.thin, wb),
         }
@@ -549,10 +553,8 @@ impl Uber {
             }
             if !g.thin || every {
                 let w = if g.thin { 0.0 } else { glass_w };
-                bsdf.push_weighted(
-                    Lobe::Dielectric(Dielectric::new(g.roughness, g.anisotropic, g.ior, g.color).compensated(compensate)),
-                    w,
-                );
+                let interface = Dielectric::new(g.roughness, g.anisotropic, g.bend_ior, g.color).with_fresnel_eta(g.ior);
+                bsdf.push_weighted(Lobe::Dielectric(interface.compensated(compensate)), w);
             }
         }
         let fabric_w = finite(self.fabric.weight);
