@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use super::network::{Inputs, ParamValue, ResolveReport};
+use super::uber::ClearcoatParams;
 use super::{Material, Principled};
 
 /// UsdPreviewSurface inputs that are known but not yet mapped.
@@ -27,7 +28,16 @@ pub struct Resolved {
 /// The material of a UsdPreviewSurface or `tessera:Principled` node.
 pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Material {
     let r = principled_of(node, report);
-    Material { surface: r.principled.uber(), emission: r.emission, cut_out: r.cut_out, pass_through: r.pass_through }
+    let mut surface = r.principled.uber();
+    if node.node_type_id == "UsdPreviewSurface" {
+        // The specification's clearcoat is a white dielectric coat of roughness
+        // clearcoatRoughness whose index is the material's `ior` (used "for all specular
+        // lobes"), not Disney's fixed-index GTR1 coat.
+        let p = r.principled.sanitized();
+        surface.clearcoat.params =
+            ClearcoatParams::Dielectric { ior: p.ior, roughness: 1.0 - p.clearcoat_gloss, color: Vec3::ONE, thickness: 0.0 };
+    }
+    Material { surface, emission: r.emission, cut_out: r.cut_out, pass_through: r.pass_through }
 }
 
 /// The Disney parameters of a UsdPreviewSurface or `tessera:Principled` node.
