@@ -77,12 +77,29 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             visible: m.visible,
             uvs_len: uvs.len() as u64,
             uv_interpolation: uv_interp as i32,
+            primvars: Vec::new(),
         };
+        let primvars: Vec<(pb::PrimvarInfo, Vec<f32>)> = m
+            .mesh
+            .primvars
+            .iter()
+            .map(|p| {
+                let (values, interp) = convert::attribute_to_wire(&p.values, |v| v.to_array());
+                (pb::PrimvarInfo { name: p.name.clone(), len: values.len() as u64, interpolation: interp as i32 }, values)
+            })
+            .collect();
+        let prim = pb::MeshPrim { primvars: primvars.iter().map(|(info, _)| info.clone()).collect(), ..prim };
         items.push(delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim)));
         items.extend(chunks(path, pb::ArrayField::Points, &points, |c, v| c.floats = v));
         items.extend(chunks(path, pb::ArrayField::TriangleIndices, &indices, |c, v| c.uints = v));
         items.extend(chunks(path, pb::ArrayField::Normals, &normals, |c, v| c.floats = v));
         items.extend(chunks(path, pb::ArrayField::Uvs, &uvs, |c, v| c.floats = v));
+        for (k, (_, values)) in primvars.iter().enumerate() {
+            items.extend(chunks(path, pb::ArrayField::Primvar, values, |c, v| {
+                c.floats = v;
+                c.primvar = k as u32;
+            }));
+        }
     }
     // Instancers after meshes: the server resolves each prototype by path at commit.
     for (path, inst) in &t.instancers {

@@ -129,6 +129,18 @@ pub struct Mesh {
     /// Texture coordinates: the float2 primvar the mesh's material reads (`st` unless a
     /// primvar reader names another).
     pub uvs: Uvs,
+    /// The other primvars the mesh's materials read (`UsdPrimvarReader_float`, `_float3`,
+    /// `_int`).
+    pub primvars: Vec<Primvar>,
+}
+
+/// A named primvar a material reads: float and int primvars in `x`, float3 in all three.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Primvar {
+    /// Name without `primvars:`.
+    pub name: String,
+    /// Values per vertex or per triangle corner.
+    pub values: Attribute<Vec3>,
 }
 
 impl Mesh {
@@ -144,6 +156,13 @@ impl Mesh {
     #[inline]
     pub fn shading_normal(&self, tri: usize, bary: Vec2) -> Option<Vec3> {
         self.normals.interpolate(tri, self.indices[tri], bary)
+    }
+
+    /// The primvar `name` interpolated at barycentrics (`b1`, `b2`) of triangle `tri`, if the
+    /// mesh has it.
+    #[inline]
+    pub fn primvar(&self, name: &str, tri: usize, bary: Vec2) -> Option<Vec3> {
+        self.primvars.iter().find(|p| p.name == name)?.values.interpolate(tri, self.indices[tri], bary)
     }
 
     /// Number of triangles.

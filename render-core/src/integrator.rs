@@ -12,7 +12,6 @@ use crate::caustics::{self, CausticMode, RoughnessFloor};
 use crate::film::PixelSample;
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::light::ShadingContext;
-use crate::material::ShadingPoint;
 use crate::math::{Frame, is_finite};
 use crate::sampling::{PathSampler, power_heuristic};
 use crate::scene::CommittedScene;
@@ -269,7 +268,7 @@ pub fn trace_path(
         // A textured material is resolved here, at this point and footprint.
         let local = scene.textured(s.material).map(|t| {
             let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
-            t.at(&ShadingPoint { st: s.st, width: cone_here, cos, uv_density: s.uv_density })
+            t.at(&scene.shading_point(&s, cone_here, cos))
         });
         let pass_through = local.as_ref().map_or(scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
         let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, ray.dir) < pass_through;

@@ -12,7 +12,7 @@ use glam::{Affine3A, Vec2, Vec3};
 
 use crate::bvh::{Blas, BuildQuality, Hit, Tlas, TlasInstance};
 use crate::camera::CameraDesc;
-use crate::geometry::{Mesh, Normals, Ray, Transform};
+use crate::geometry::{Mesh, Ray, Transform};
 use crate::light::{Light, LightDesc, LightSet};
 use crate::material::{Material, MaterialNetwork};
 use crate::plan::RenderPlan;
@@ -105,15 +105,20 @@ pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
             }
         }
     }
-    let expected = match &mesh.normals {
-        Normals::None => None,
-        Normals::Vertex(v) => Some((v.len(), mesh.positions.len(), "vertex")),
-        Normals::FaceVarying(v) => Some((v.len(), 3 * mesh.indices.len(), "faceVarying")),
-    };
-    if let Some((got, want, interp)) = expected {
-        if got != want {
-            return Err(invalid("normals", format!("{got} {interp} normals for {want} expected")));
-        }
+    // Per-corner data must match the layout it claims, or shading would index past its end.
+    fn check<T>(a: &crate::geometry::Attribute<T>, mesh: &Mesh) -> Result<(), String> {
+        use crate::geometry::Attribute;
+        let (got, want, interp) = match a {
+            Attribute::None => return Ok(()),
+            Attribute::Vertex(v) => (v.len(), mesh.positions.len(), "vertex"),
+            Attribute::FaceVarying(v) => (v.len(), 3 * mesh.indices.len(), "faceVarying"),
+        };
+        if got == want { Ok(()) } else { Err(format!("{got} {interp} values for {want} expected")) }
+    }
+    check(&mesh.normals, mesh).map_err(|e| invalid("normals", e))?;
+    check(&mesh.uvs, mesh).map_err(|e| invalid("uvs", e))?;
+    for p in &mesh.primvars {
+        check(&p.values, mesh).map_err(|e| invalid(&format!("primvars:{}", p.name), e))?;
     }
     Ok(())
 }
@@ -224,6 +229,12 @@ pub struct SurfaceHit {
     pub dpds: Vec3,
     /// See [`Self::dpds`].
     pub dpdt: Vec3,
+    /// The instance hit.
+    pub instance: u32,
+    /// The triangle hit, in its mesh.
+    pub triangle: u32,
+    /// Barycentrics (b1, b2) of the hit.
+    pub bary: Vec2,
 }
 
 /// A uniform number in [0, 1) for a ray meeting a partially present surface at `p` along
@@ -711,11 +722,23 @@ impl CommittedScene {
         let b2 = (b - a).cross(p - a).dot(n) / nn;
         let hit = Hit { t: 0.0, instance, triangle, bary: Vec2::new(b1, b2).clamp(Vec2::ZERO, Vec2::ONE) };
         let s = self.surface(&hit);
-        t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0.emission
+        t.at(&self.shading_point(&s, 0.0, 1.0)).0.emission
     }
 
     /// True when the surface `s` is cut out there by a textured opacity, so rays pass
     /// it untouched (lookups at the finest level: shadow rays carry no footprint).
+    /// What a textured material needs to know of the surface at `s`, seen by a ray whose
+    /// footprint is `width` wide at |cos| `cos` to the surface.
+    pub fn shading_point(&self, s: &SurfaceHit, width: f32, cos: f32) -> crate::material::ShadingPoint<'_> {
+        let mesh = &self.meshes[self.instances[s.instance as usize].mesh];
+        let primvars = (!mesh.primvars.is_empty()).then_some(crate::material::graph::PrimvarSource {
+            mesh,
+            triangle: s.triangle as usize,
+            bary: s.bary,
+        });
+        crate::material::ShadingPoint { st: s.st, primvars, width, cos, uv_density: s.uv_density }
+    }
+
     /// True when a ray along `dir` passes the surface `s` untouched: cut out there by a
     /// textured opacity (lookups at the finest level: shadow rays carry no footprint), or
     /// not present for this ray where the surface is partially present
@@ -723,7 +746,7 @@ impl CommittedScene {
     pub fn see_through_at(&self, s: &SurfaceHit, dir: Vec3) -> bool {
         let pass = match self.textured(s.material).filter(|t| t.may_see_through()) {
             Some(t) => {
-                let m = t.at(&crate::material::ShadingPoint { st: s.st, width: 0.0, cos: 1.0, uv_density: s.uv_density }).0;
+                let m = t.at(&self.shading_point(s, 0.0, 1.0)).0;
                 if m.cut_out {
                     return true;
                 }
@@ -795,6 +818,9 @@ impl CommittedScene {
             uv_density: 0.0,
             dpds: Vec3::ZERO,
             dpdt: Vec3::ZERO,
+            instance: hit.instance,
+            triangle: hit.triangle,
+            bary: w,
         };
         if let Some([ta, tb, tc]) = mesh.uvs.corners(tri, mesh.indices[tri]) {
             s.st = Some(ta * (1.0 - w.x - w.y) + tb * w.x + tc * w.y);
@@ -838,13 +864,14 @@ impl CommittedScene {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Normals;
 
     fn tri_mesh() -> Arc<Mesh> {
         Arc::new(Mesh {
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
             indices: vec![[0, 1, 2]],
             normals: Normals::None,
-            uvs: Default::default(),
+            ..Default::default()
         })
     }
 

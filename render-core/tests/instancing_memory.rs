@@ -35,7 +35,7 @@ fn prototype() -> Mesh {
             indices.push([a + 1, a + nx, a + nx + 1]);
         }
     }
-    Mesh { positions, indices, normals: Normals::None, uvs: Default::default() }
+    Mesh { positions, indices, normals: Normals::None, ..Default::default() }
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
-use render_core::geometry::Mesh;
+use render_core::geometry::{Mesh, Primvar};
 use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
 use tessera_proto::v1 as pb;
 use tonic::Status;
@@ -36,6 +36,9 @@ pub struct Session {
     pub render_cancel: Mutex<Option<Arc<AtomicBool>>>,
 }
 
+/// Most named primvars one mesh may carry (materials read a handful).
+const MAX_PRIMVARS_PER_MESH: usize = 64;
+
 /// Arrays of one mesh arriving in chunks.
 #[derive(Default)]
 struct StagedMesh {
@@ -45,6 +48,8 @@ struct StagedMesh {
     normals: Vec<f32>,
     uvs: Vec<f32>,
     filled: [u64; 4],
+    /// Values and received count of each declared primvar.
+    primvars: Vec<(Vec<f32>, u64)>,
 }
 
 /// A texture file arriving in chunks.
@@ -196,10 +201,26 @@ impl Transaction {
                     if m.uvs_len % 2 != 0 {
                         return Err(invalid(&path, "uvs", "length must be a multiple of 2"));
                     }
+                    if m.primvars.len() > MAX_PRIMVARS_PER_MESH {
+                        return Err(invalid(
+                            &path,
+                            "primvars",
+                            format!("{} primvars, more than {MAX_PRIMVARS_PER_MESH}", m.primvars.len()),
+                        ));
+                    }
+                    for pv in &m.primvars {
+                        if pv.len > cap {
+                            return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+                        }
+                        if pv.len % 3 != 0 {
+                            return Err(invalid(&path, &format!("primvars:{}", pv.name), "length must be a multiple of 3"));
+                        }
+                    }
                     if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
                         return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
                     }
-                    self.meshes.insert(path, StagedMesh { prim: m, ..Default::default() });
+                    let primvars = vec![(Vec::new(), 0); m.primvars.len()];
+                    self.meshes.insert(path, StagedMesh { prim: m, primvars, ..Default::default() });
                 } else {
                     // Transform, material or visibility only: keep the geometry.
                     let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| {
@@ -291,6 +312,13 @@ impl Transaction {
                 fill(&c.path, "normals", &mut staged.normals, staged.prim.normals_len, c.offset, &c.floats, &mut staged.filled[2])
             }
             pb::ArrayField::Uvs => fill(&c.path, "uvs", &mut staged.uvs, staged.prim.uvs_len, c.offset, &c.floats, &mut staged.filled[3]),
+            pb::ArrayField::Primvar => {
+                let k = c.primvar as usize;
+                let (Some(info), Some((values, filled))) = (staged.prim.primvars.get(k), staged.primvars.get_mut(k)) else {
+                    return Err(invalid(&c.path, "chunk.primvar", format!("no primvar {k} was declared")));
+                };
+                fill(&c.path, &format!("primvars:{}", info.name), values, info.len, c.offset, &c.floats, filled)
+            }
             _ => Err(invalid(&c.path, "chunk.field", format!("unknown array field {}", c.field))),
         }
     }
@@ -363,13 +391,34 @@ impl Transaction {
                     return Err(invalid(&path, name, format!("received {got} of {want} declared values")));
                 }
             }
+            for (info, (_, got)) in p.primvars.iter().zip(&s.primvars) {
+                if *got != info.len {
+                    return Err(invalid(
+                        &path,
+                        &format!("primvars:{}", info.name),
+                        format!("received {got} of {} declared values", info.len),
+                    ));
+                }
+            }
             let positions = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
             let indices = s.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
             let nrm: Vec<glam::Vec3> = s.normals.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
             let normals = convert::attribute_from_wire(nrm, p.normal_interpolation);
             let st: Vec<glam::Vec2> = s.uvs.chunks_exact(2).map(|v| glam::Vec2::new(v[0], v[1])).collect();
             let uvs = convert::attribute_from_wire(st, p.uv_interpolation);
-            let mesh = Mesh { positions, indices, normals, uvs };
+            let primvars = p
+                .primvars
+                .iter()
+                .zip(s.primvars)
+                .map(|(info, (v, _))| Primvar {
+                    name: info.name.clone(),
+                    values: convert::attribute_from_wire(
+                        v.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect(),
+                        info.interpolation,
+                    ),
+                })
+                .collect();
+            let mesh = Mesh { positions, indices, normals, uvs, primvars };
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
             self.desc

@@ -67,6 +67,28 @@ async fn the_server_rejects_bad_deltas_by_name_and_keeps_serving_others() {
     }
     let e = bad.sync(past_end).await.unwrap_err().to_string();
     assert!(e.contains("/Evil/PastEnd") && e.contains("runs past the declared length"), "{e}");
+    // Primvars: a chunk for one that was not declared, a declared one left short, and one whose
+    // length does not match its interpolation.
+    let with_primvar = |len: u64, chunk_for: u32, values: Vec<f32>| {
+        let mut items = raw_mesh("/Evil/Primvar", vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], vec![0, 1, 2]);
+        if let pb::sync_request::Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
+            m.primvars = vec![pb::PrimvarInfo { name: "tint".into(), len, interpolation: pb::NormalInterpolation::NormalsVertex as i32 }];
+        }
+        items.push(pb::sync_request::Item::Chunk(pb::ArrayChunk {
+            path: "/Evil/Primvar".into(),
+            field: pb::ArrayField::Primvar as i32,
+            primvar: chunk_for,
+            floats: values,
+            ..Default::default()
+        }));
+        items
+    };
+    let e = bad.sync(with_primvar(9, 1, vec![0.0; 9])).await.unwrap_err().to_string();
+    assert!(e.contains("/Evil/Primvar") && e.contains("chunk.primvar") && e.contains("no primvar 1"), "{e}");
+    let e = bad.sync(with_primvar(9, 0, vec![0.0; 6])).await.unwrap_err().to_string();
+    assert!(e.contains("/Evil/Primvar") && e.contains("primvars:tint") && e.contains("received 6 of 9"), "{e}");
+    let e = bad.sync(with_primvar(6, 0, vec![0.0; 6])).await.unwrap_err().to_string();
+    assert!(e.contains("/Evil/Primvar") && e.contains("primvars:tint") && e.contains("2 vertex values for 3 expected"), "{e}");
     let e = bad.render(&small(8, 8, 1), |_| {}).await.unwrap_err().to_string();
     assert!(e.contains("no scene yet"), "a failed sync commits nothing: {e}");
     let e = good

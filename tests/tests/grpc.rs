@@ -43,7 +43,7 @@ fn grid(n: u32) -> Mesh {
         }
     }
     let normals = Normals::Vertex(vec![Vec3::Z; positions.len()]);
-    Mesh { positions, indices, normals, uvs: Default::default() }
+    Mesh { positions, indices, normals, ..Default::default() }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

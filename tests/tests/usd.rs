@@ -297,3 +297,29 @@ fn instanceable_prims_share_one_mesh_per_prototype_and_material() {
     assert_eq!(cache.last_builds, 4, "one BLAS per shared mesh");
     assert_eq!(scene.instances.len(), 2 * 59);
 }
+
+/// `UsdPrimvarReader_float3`, `_float` and `_int` read the primvars they name, in every
+/// interpolation and indexed, and fall back where the mesh lacks one
+/// (`fixtures/usd/primvar_readers.usda` documents the layout; each pixel is its emission).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn primvar_readers_read_float_float3_and_int_primvars() {
+    let t = load("usd/primvar_readers.usda");
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let report = render_fixture("usd/primvar_readers.usda", &small(120, 160, 4)).await;
+    let img = &report.image;
+    assert_all_finite(img);
+    // World (x, y) on the z = 0 plane to its pixel: 0.05 units per pixel, (−3, 4) top-left.
+    let at = |x: f32, y: f32| img.pixel("beauty", ((x + 3.0) / 0.05) as u32, ((4.0 - y) / 0.05) as u32);
+    let close = |p: &[f32], want: [f32; 4], what: &str| {
+        assert!(p.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-4), "{what}: {p:?}, expected {want:?}");
+    };
+    close(at(-1.0, 2.5), [1.0, 0.5, 0.25, 1.0], "indexed uniform displayColor, left face");
+    close(at(1.0, 2.5), [0.2, 0.4, 0.8, 1.0], "indexed uniform displayColor, right face");
+    close(at(-1.5, 0.0), [0.0, 0.0, 0.0, 0.0], "float ramp below the threshold: cut out");
+    close(at(-0.3, 0.0), [0.0, 0.0, 0.0, 0.0], "float ramp just below 0.5");
+    close(at(0.3, 0.0), [0.0, 1.0, 0.0, 1.0], "float ramp just above 0.5");
+    close(at(1.5, 0.0), [0.0, 1.0, 0.0, 1.0], "float ramp above the threshold");
+    close(at(-1.5, -2.5), [0.3, 0.3, 0.3, 1.0], "mesh without the primvar: the reader's fallback");
+    close(at(0.8, -2.5), [1.0, 1.0, 0.0, 1.0], "int primvar 1: kept");
+    close(at(2.2, -2.5), [0.0, 0.0, 0.0, 0.0], "int primvar 0: cut out");
+}

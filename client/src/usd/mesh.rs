@@ -3,7 +3,7 @@
 
 use glam::Vec2;
 use glam::Vec3;
-use render_core::geometry::{Attribute, Mesh, Normals, Uvs};
+use render_core::geometry::{Attribute, Mesh, Normals, Primvar, Uvs};
 
 /// Authored mesh data, straight from the stage.
 pub struct MeshSource {
@@ -17,6 +17,9 @@ pub struct MeshSource {
     pub normals: Option<(Vec<Vec3>, String)>,
     /// A float2 primvar for texture coordinates: its name, values (de-indexed) and interpolation.
     pub uvs: Option<(String, Vec<Vec2>, String)>,
+    /// Other primvars the materials read by name (float and int in x, float3 in xyz): name
+    /// without `primvars:`, values (de-indexed) and interpolation.
+    pub primvars: Vec<(String, Vec<Vec3>, String)>,
     /// `orientation == leftHanded`.
     pub left_handed: bool,
     /// `subdivisionScheme != none`: smooth normals are computed when none are authored.
@@ -45,6 +48,7 @@ pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) ->
         indices: kept.iter().map(|&t| mesh.indices[t]).collect(),
         normals: keep_corners(&mesh.normals, &kept),
         uvs: keep_corners(&mesh.uvs, &kept),
+        primvars: mesh.primvars.iter().map(|p| Primvar { name: p.name.clone(), values: keep_corners(&p.values, &kept) }).collect(),
     }
 }
 
@@ -92,6 +96,12 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         None => Uvs::None,
         Some((name, uv, interp)) => layout.expand(name, uv, interp, &mut warn),
     };
+    let primvars = src
+        .primvars
+        .iter()
+        .map(|(name, v, interp)| Primvar { name: name.clone(), values: layout.expand(&format!("primvars:{name}"), v, interp, &mut warn) })
+        .filter(|p| !p.values.is_empty())
+        .collect();
     let normals = match normals {
         // Bad normals (zero length, NaN) are repaired to the geometric normal at shading
         // time; say so once.
@@ -102,7 +112,7 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         other => other,
     };
     let face_of = uniform_of.iter().map(|&f| f as u32).collect();
-    Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs }, face_of))
+    Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs, primvars }, face_of))
 }
 
 /// Where each triangle corner came from, to lay out primvars of any interpolation.
@@ -221,6 +231,7 @@ mod tests {
             indices: vec![0, 1, 2, 3],
             normals,
             uvs: None,
+            primvars: Vec::new(),
             left_handed,
             smooth: false,
         }
@@ -237,6 +248,7 @@ mod tests {
             indices: (0..6).collect(),
             normals: None,
             uvs: None,
+            primvars: Vec::new(),
             left_handed: false,
             smooth: false,
         };

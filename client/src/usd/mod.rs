@@ -481,7 +481,8 @@ impl Reader<'_> {
         let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
         let face_count = counts.len();
         let uvs = self.uvs(prim, p)?;
-        let src = MeshSource { points, counts, indices, normals, uvs, left_handed, smooth };
+        let primvars = self.primvars(prim, p)?;
+        let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth };
         let mut warnings = Vec::new();
         let (mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
@@ -751,10 +752,9 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// The float2 primvar the mesh's materials read through `UsdPrimvarReader_float2`
-    /// (`st` when none names one), de-indexed, with its interpolation.
-    fn uvs(&mut self, prim: &Prim, p: &str) -> Result<Option<(String, Vec<glam::Vec2>, String)>> {
-        let time = self.time;
+    /// The `varname`s that the materials bound to `prim` (and to its GeomSubsets) read
+    /// through nodes of the given ids, in order of first use.
+    fn reader_varnames(&mut self, prim: &Prim, ids: &[&str]) -> Result<Vec<String>> {
         let mut bound = Vec::new();
         if let Some(m) = self.bound_material(prim)? {
             bound.push(m);
@@ -770,7 +770,7 @@ impl Reader<'_> {
         for m in &bound {
             self.material(m)?;
             let Some((_, net)) = self.out.materials.iter().find(|(path, _)| path == m) else { continue };
-            for n in net.nodes.iter().filter(|n| n.node_type_id == "UsdPrimvarReader_float2") {
+            for n in net.nodes.iter().filter(|n| ids.contains(&n.node_type_id.as_str())) {
                 if let Some(ParamValue::String(v)) = n.parameters.get("varname")
                     && !names.contains(v)
                 {
@@ -778,6 +778,59 @@ impl Reader<'_> {
                 }
             }
         }
+        Ok(names)
+    }
+
+    /// The float, float3 and int primvars the mesh's materials read through
+    /// `UsdPrimvarReader_float`, `_float3` and `_int`, de-indexed, with their interpolations.
+    /// A primvar the mesh lacks is left out (the readers' fallbacks apply, as USD says); one of
+    /// a type no reader can read is a warning.
+    fn primvars(&mut self, prim: &Prim, p: &str) -> Result<Vec<(String, Vec<Vec3>, String)>> {
+        let names = self.reader_varnames(prim, &["UsdPrimvarReader_float", "UsdPrimvarReader_float3", "UsdPrimvarReader_int"])?;
+        let mut out = Vec::new();
+        for name in names {
+            let attr_name = format!("primvars:{name}");
+            let Some(v) = get(prim, &attr_name, self.time)? else { continue };
+            let values: Option<Vec<Vec3>> = values::vec3_array(&v)
+                .or_else(|| values::float_array(&v).map(|a| a.into_iter().map(|x| Vec3::new(x, 0.0, 0.0)).collect()))
+                .or_else(|| values::vec3(&v).map(|x| vec![x]))
+                .or_else(|| values::scalar(&v).map(|x| vec![Vec3::new(x as f32, 0.0, 0.0)]));
+            let Some(values) = values else {
+                self.out.warnings.push(format!(
+                    "{p}: {attr_name} has type {}, which no primvar reader reads; readers use their fallbacks",
+                    values::type_of(&v)
+                ));
+                continue;
+            };
+            let values = match get(prim, &format!("{attr_name}:indices"), self.time)?.as_ref().and_then(values::int_array) {
+                Some(idx) => {
+                    if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= values.len()) {
+                        anyhow::bail!(
+                            "{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values",
+                            values.len()
+                        );
+                    }
+                    idx.iter().map(|&k| values[k as usize]).collect()
+                }
+                None => values,
+            };
+            let interp = prim
+                .attribute(attr_name.as_str())
+                .get_metadata::<openusd::tf::Token>("interpolation")
+                .ok()
+                .flatten()
+                .map(|t| t.as_str().to_string())
+                .unwrap_or_else(|| "constant".to_string());
+            out.push((name, values, interp));
+        }
+        Ok(out)
+    }
+
+    /// The float2 primvar the mesh's materials read through `UsdPrimvarReader_float2`
+    /// (`st` when none names one), de-indexed, with its interpolation.
+    fn uvs(&mut self, prim: &Prim, p: &str) -> Result<Option<(String, Vec<glam::Vec2>, String)>> {
+        let time = self.time;
+        let names = self.reader_varnames(prim, &["UsdPrimvarReader_float2"])?;
         if names.len() > 1 {
             self.out.warnings.push(format!(
                 "{p}: its materials read several texture coordinate sets ({}); only '{}' is sent",

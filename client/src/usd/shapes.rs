@@ -126,7 +126,7 @@ impl Builder {
         for n in &mut self.normals {
             *n = axis.orient(*n);
         }
-        Mesh { positions: self.positions, indices: self.indices, normals: Normals::Vertex(self.normals), uvs: Default::default() }
+        Mesh { positions: self.positions, indices: self.indices, normals: Normals::Vertex(self.normals), ..Default::default() }
     }
 }
 

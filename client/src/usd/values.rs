@@ -25,6 +25,16 @@ pub fn int_array(v: &Value) -> Option<Vec<i64>> {
     })
 }
 
+/// A float array from any numeric array type (ints too: `UsdPrimvarReader_int` reads them).
+pub fn float_array(v: &Value) -> Option<Vec<f32>> {
+    Some(match v {
+        Value::FloatVec(a) => a.clone(),
+        Value::DoubleVec(a) => a.iter().map(|&x| x as f32).collect(),
+        Value::HalfVec(a) => a.iter().map(|x| x.to_f32()).collect(),
+        _ => int_array(v)?.into_iter().map(|x| x as f32).collect(),
+    })
+}
+
 /// A scalar from any numeric type.
 pub fn scalar(v: &Value) -> Option<f64> {
     Some(match v {

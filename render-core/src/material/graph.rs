@@ -12,7 +12,14 @@ use super::network::{MaterialConnection, MaterialNetwork, MaterialNode, Override
 use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod};
 
 /// Node ids whose outputs this module evaluates.
-const EVALUATED: &[&str] = &["UsdUVTexture", "UsdPrimvarReader_float2", "UsdTransform2d"];
+const EVALUATED: &[&str] = &[
+    "UsdUVTexture",
+    "UsdPrimvarReader_float2",
+    "UsdPrimvarReader_float",
+    "UsdPrimvarReader_float3",
+    "UsdPrimvarReader_int",
+    "UsdTransform2d",
+];
 
 /// True when the upstream node of `c` is one this module evaluates.
 pub(crate) fn evaluable(net: &MaterialNetwork, c: &MaterialConnection) -> bool {
@@ -21,9 +28,11 @@ pub(crate) fn evaluable(net: &MaterialNetwork, c: &MaterialConnection) -> bool {
 
 /// What a texture lookup needs to know about the point it shades.
 #[derive(Clone, Copy, Debug)]
-pub struct ShadingPoint {
+pub struct ShadingPoint<'a> {
     /// The mesh's texture coordinates here, if it has any.
     pub st: Option<Vec2>,
+    /// Where primvar readers read the mesh's other primvars; None reads their fallbacks.
+    pub primvars: Option<PrimvarSource<'a>>,
     /// World-space width of the ray's footprint (its cone) at the point.
     pub width: f32,
     /// |cos| between the ray and the surface normal.
@@ -32,11 +41,23 @@ pub struct ShadingPoint {
     pub uv_density: f32,
 }
 
-impl ShadingPoint {
-    /// A footprint covering the whole texture: lookups return its mean (the coarsest mip).
+impl ShadingPoint<'_> {
+    /// A footprint covering the whole texture: lookups return its mean (the coarsest mip);
+    /// primvar readers give their fallbacks.
     pub fn whole_texture() -> Self {
-        ShadingPoint { st: Some(Vec2::splat(0.5)), width: f32::INFINITY, cos: 1.0, uv_density: 1.0 }
+        ShadingPoint { st: Some(Vec2::splat(0.5)), primvars: None, width: f32::INFINITY, cos: 1.0, uv_density: 1.0 }
     }
+}
+
+/// A point on a mesh, for primvar readers.
+#[derive(Clone, Copy, Debug)]
+pub struct PrimvarSource<'a> {
+    /// The mesh.
+    pub mesh: &'a crate::geometry::Mesh,
+    /// Triangle index.
+    pub triangle: usize,
+    /// Barycentrics (b1, b2).
+    pub bary: Vec2,
 }
 
 /// A compiled node output.
@@ -46,6 +67,12 @@ enum Expr {
     /// The mesh's texture coordinates, or the reader's fallback where the mesh has none.
     St {
         fallback: Vec2,
+    },
+    /// A float, float3 or int primvar of the mesh (the client sends those readers name), or
+    /// the reader's fallback where the mesh lacks it.
+    Primvar {
+        name: String,
+        fallback: Vec4,
     },
     Texture {
         texture: Arc<Texture>,
@@ -68,6 +95,10 @@ impl Expr {
         match self {
             Expr::Const(v) => (*v, 1.0),
             Expr::St { fallback } => (sp.st.unwrap_or(*fallback).extend(0.0).extend(0.0), 1.0),
+            Expr::Primvar { name, fallback } => {
+                let v = sp.primvars.and_then(|p| p.mesh.primvar(name, p.triangle, p.bary));
+                (v.map_or(*fallback, |v| v.extend(0.0)), 1.0)
+            }
             Expr::Texture { texture, st, wrap, scale, bias } => {
                 let (st, stretch) = st.eval(sp);
                 let lod = if sp.width.is_infinite() {
@@ -103,6 +134,8 @@ impl Output {
             ("UsdUVTexture", "a") => Output::Float(3),
             ("UsdUVTexture", "rgb") => Output::Float3,
             ("UsdPrimvarReader_float2" | "UsdTransform2d", "result") => Output::Float2,
+            ("UsdPrimvarReader_float" | "UsdPrimvarReader_int", "result") => Output::Float(0),
+            ("UsdPrimvarReader_float3", "result") => Output::Float3,
             _ => return None,
         })
     }
@@ -259,6 +292,21 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
         "UsdPrimvarReader_float2" => {
             // The client sends the float2 primvar the readers name as the mesh's st.
             Expr::St { fallback: float2("fallback", Vec2::ZERO) }
+        }
+        id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => {
+            let fallback = match p("fallback") {
+                Some(ParamValue::Float(x)) => Vec4::new(*x, 0.0, 0.0, 0.0),
+                Some(ParamValue::Int(i)) => Vec4::new(*i as f32, 0.0, 0.0, 0.0),
+                Some(ParamValue::Float3(v)) => v.extend(0.0),
+                _ => Vec4::ZERO,
+            };
+            match p("varname") {
+                Some(ParamValue::String(name)) if !name.is_empty() => Expr::Primvar { name: name.clone(), fallback },
+                _ => {
+                    report.warnings.push(format!("{}: {id} has no varname; its fallback is used", node.path));
+                    Expr::Const(fallback)
+                }
+            }
         }
         "UsdTransform2d" => {
             let input = upstream("in", report).unwrap_or(Expr::Const(float2("in", Vec2::ZERO).extend(0.0).extend(0.0)));
