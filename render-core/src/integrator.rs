@@ -284,7 +284,9 @@ pub fn trace_path(
             continue;
         }
         if let Some((_, Some(n))) = &local {
-            s.ns = crate::material::graph::perturb_normal(s.ns, s.dpds, s.dpdt, *n);
+            // MikkTSpace's welded tangent where the mesh has one, else the triangle's own.
+            let mikk = (s.tangent != glam::Vec4::ZERO).then(|| crate::tangents::perturb(s.ns, s.tangent.truncate(), s.tangent.w, *n));
+            s.ns = mikk.flatten().unwrap_or_else(|| crate::material::graph::perturb_normal(s.ns, s.dpds, s.dpdt, *n));
         }
         let ec = settings.energy_compensation;
         // Glitter flakes depend on the point and footprint: such materials build their lobes

@@ -34,6 +34,7 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod subsurface;
+pub mod tangents;
 pub mod texture;
 
 pub use glam;

@@ -131,6 +131,8 @@ pub struct BlasCache {
     textures: HashMap<(String, crate::texture::ColorSpace), Arc<crate::texture::Texture>>,
     /// BLAS builds done by the last commit (for tests and logs).
     pub last_builds: usize,
+    /// MikkTSpace tangents of normal-mapped meshes, by mesh geometry.
+    tangents: Vec<(Arc<Mesh>, Arc<Vec<glam::Vec4>>)>,
 }
 
 /// Per-instance data the integrator needs at a hit.
@@ -152,6 +154,8 @@ pub struct InstanceData {
 pub struct CommittedScene {
     /// Geometry per distinct mesh.
     pub meshes: Vec<Arc<Mesh>>,
+    /// Per mesh, its MikkTSpace tangents (3 per triangle) when a normal map is drawn on it.
+    tangents: Vec<Option<Arc<Vec<glam::Vec4>>>>,
     blases: Vec<Arc<Blas>>,
     /// Instances in the TLAS.
     pub instances: Vec<InstanceData>,
@@ -235,6 +239,9 @@ pub struct SurfaceHit {
     pub triangle: u32,
     /// Barycentrics (b1, b2) of the hit.
     pub bary: Vec2,
+    /// World-space MikkTSpace tangent (xyz, interpolated) and bitangent sign (w) where the
+    /// mesh is normal-mapped; zero elsewhere.
+    pub tangent: glam::Vec4,
 }
 
 /// A uniform number in [0, 1) for a ray meeting a partially present surface at `p` along
@@ -409,6 +416,29 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             push_instance(&mut prim_paths, &mut instances, path, slot, xf, material)?;
         }
     }
+
+    // MikkTSpace tangents for the meshes drawn with a normal map, each computed once per
+    // geometry and kept between commits.
+    let mut tangents: Vec<Option<Arc<Vec<glam::Vec4>>>> = vec![None; meshes.len()];
+    let mut kept_tangents = Vec::new();
+    let mut tried = vec![false; meshes.len()];
+    for inst in &instances {
+        let mesh = &meshes[inst.mesh];
+        let normal_mapped = textured[inst.material as usize].as_deref().is_some_and(|t| t.has_normal_map());
+        if tried[inst.mesh] || !normal_mapped || mesh.uvs.is_empty() {
+            continue;
+        }
+        tried[inst.mesh] = true;
+        let t = match cache.tangents.iter().find(|(m, _)| Arc::ptr_eq(m, mesh)) {
+            Some((_, t)) => Some(t.clone()),
+            None => crate::tangents::mikktspace(mesh).map(Arc::new),
+        };
+        if let Some(t) = &t {
+            kept_tangents.push((mesh.clone(), t.clone()));
+        }
+        tangents[inst.mesh] = t;
+    }
+    cache.tangents = kept_tangents;
 
     // Bounds, for sizing infinite lights and the default camera; an instance whose transform
     // carries its geometry beyond what f32 holds is an error naming it.
@@ -604,6 +634,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let media = materials.iter().map(|m| m.medium()).collect();
     Ok(CommittedScene {
         meshes,
+        tangents,
         blases,
         instances,
         tlas,
@@ -821,7 +852,13 @@ impl CommittedScene {
             instance: hit.instance,
             triangle: hit.triangle,
             bary: w,
+            tangent: glam::Vec4::ZERO,
         };
+        if let Some(t) = &self.tangents[inst.mesh] {
+            let (ta, tb, tc) = (t[3 * tri], t[3 * tri + 1], t[3 * tri + 2]);
+            let v = ta * (1.0 - w.x - w.y) + tb * w.x + tc * w.y;
+            s.tangent = Vec3::from(m * glam::Vec3A::from(v.truncate())).extend(if v.w < 0.0 { -1.0 } else { 1.0 });
+        }
         if let Some([ta, tb, tc]) = mesh.uvs.corners(tri, mesh.indices[tri]) {
             s.st = Some(ta * (1.0 - w.x - w.y) + tb * w.x + tc * w.y);
             let (d1, d2) = (tb - ta, tc - ta);

@@ -405,7 +405,7 @@ mod tests {
     }
 
     fn diffuse_at(m: &TexturedMaterial, st: Vec2) -> Vec3 {
-        let sp = ShadingPoint { st: Some(st), width: 0.0, cos: 1.0, uv_density: 1.0 };
+        let sp = ShadingPoint { st: Some(st), primvars: None, width: 0.0, cos: 1.0, uv_density: 1.0 };
         m.at(&sp).0.surface.plastic.params.diffuse
     }
 

@@ -1,0 +1,173 @@
+//! MikkTSpace tangents (Mikkelsen, "Simulation of Wrinkled Surfaces Revisited", 2008), the
+//! tangent space normal maps are baked in by Blender, Substance, xNormal and most of the
+//! pipeline: per-vertex tangents welded across the triangles that share a position, normal
+//! and texture coordinate, with the bitangent's sign per vertex. `bevy_mikktspace` is a
+//! byte-identical port of the reference implementation.
+//!
+//! At a shading point the tangent is interpolated like the normal, and the map's vector
+//! (x, y, z) becomes x·T + y·B + z·N with B = sign·(N × T), as the reference's pixel shader
+//! does; per-triangle tangents (from ∂p/∂s) stand in where a mesh has none.
+
+use bevy_mikktspace::{Geometry, TangentSpace, generate_tangents};
+use glam::{Vec3, Vec4};
+
+use crate::geometry::{Attribute, Mesh};
+
+struct Corners<'a> {
+    mesh: &'a Mesh,
+    out: Vec<Vec4>,
+}
+
+impl Corners<'_> {
+    fn face_normal(&self, face: usize) -> Vec3 {
+        let [a, b, c] = self.mesh.triangle(face);
+        (b - a).cross(c - a).normalize_or(Vec3::Z)
+    }
+}
+
+impl Geometry for Corners<'_> {
+    fn num_faces(&self) -> usize {
+        self.mesh.indices.len()
+    }
+
+    fn num_vertices_of_face(&self, _face: usize) -> usize {
+        3
+    }
+
+    fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+        self.mesh.triangle(face)[vert].to_array()
+    }
+
+    fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+        let n = self.mesh.normals.corners(face, self.mesh.indices[face]).map(|c| c[vert]).unwrap_or_else(|| self.face_normal(face));
+        n.normalize_or(self.face_normal(face)).to_array()
+    }
+
+    fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+        self.mesh.uvs.corners(face, self.mesh.indices[face]).map_or([0.0; 2], |c| c[vert].to_array())
+    }
+
+    fn set_tangent(&mut self, tangent_space: Option<TangentSpace>, face: usize, vert: usize) {
+        // A corner MikkTSpace cannot give a tangent (a degenerate island) keeps zero, and
+        // shading falls back to the triangle's own tangent there.
+        self.out[3 * face + vert] = tangent_space.map_or(Vec4::ZERO, |t| Vec4::from_array(t.tangent_encoded()));
+    }
+}
+
+/// Per-corner tangents of `mesh` (3 per triangle: xyz the unit tangent in object space, w the
+/// bitangent sign), or None when it has no texture coordinates or MikkTSpace fails.
+pub fn mikktspace(mesh: &Mesh) -> Option<Vec<Vec4>> {
+    if matches!(mesh.uvs, Attribute::None) || mesh.indices.is_empty() {
+        return None;
+    }
+    let mut corners = Corners { mesh, out: vec![Vec4::ZERO; 3 * mesh.indices.len()] };
+    generate_tangents(&mut corners).ok()?;
+    Some(corners.out)
+}
+
+/// The shading normal a tangent-space normal map gives with an interpolated MikkTSpace
+/// tangent `t` (world space, any length) and bitangent sign `sign` around the shading normal
+/// `ns`: normalize(x·T + y·B + z·N) with B = sign·(N × T) and T made orthogonal to N. None when
+/// the tangent is degenerate (the caller falls back to the triangle's tangent).
+pub fn perturb(ns: Vec3, t: Vec3, sign: f32, n_ts: Vec3) -> Option<Vec3> {
+    let t = (t - ns * ns.dot(t)).try_normalize()?;
+    if !n_ts.is_finite() {
+        return None;
+    }
+    let b = ns.cross(t) * if sign < 0.0 { -1.0 } else { 1.0 };
+    (t * n_ts.x + b * n_ts.y + ns * n_ts.z).try_normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Uvs;
+    use glam::Vec2;
+
+    /// A unit square in the xy plane, two triangles sharing a diagonal, st = (x, y).
+    fn square(uvs: impl Fn(Vec2) -> Vec2) -> Mesh {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        Mesh {
+            positions: p.to_vec(),
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            normals: Attribute::Vertex(vec![Vec3::Z; 4]),
+            uvs: Uvs::Vertex(p.iter().map(|q| uvs(q.truncate())).collect()),
+            ..Default::default()
+        }
+    }
+
+    /// st along xy: the tangent is +x and the bitangent +y (sign +1) at every corner; st
+    /// mirrored in s: the tangent is −x and the sign flips so the bitangent stays +y.
+    #[test]
+    fn tangents_follow_the_texture_axes_and_mirroring_flips_the_sign() {
+        for t in mikktspace(&square(|p| p)).unwrap() {
+            assert!((t - Vec4::new(1.0, 0.0, 0.0, 1.0)).abs().max_element() < 1e-5, "{t:?}");
+        }
+        for t in mikktspace(&square(|p| Vec2::new(1.0 - p.x, p.y))).unwrap() {
+            assert!((t - Vec4::new(-1.0, 0.0, 0.0, -1.0)).abs().max_element() < 1e-5, "{t:?}");
+        }
+        let b = |t: Vec4| Vec3::Z.cross(t.truncate()) * t.w;
+        assert!((b(mikktspace(&square(|p| Vec2::new(1.0 - p.x, p.y))).unwrap()[0]) - Vec3::Y).length() < 1e-5);
+    }
+
+    /// Welding: on a curved strip whose triangles meet at an angle, each shared vertex gets
+    /// one tangent for all its triangles (per-triangle tangents would differ across the edge).
+    #[test]
+    fn shared_vertices_get_one_welded_tangent() {
+        // A bent strip: two quads folded 40° along x = 1, st running along the fold's normal.
+        let fold = |x: f32| if x <= 1.0 { Vec3::new(x, 0.0, 0.0) } else { Vec3::new(1.0 + (x - 1.0) * 0.766, 0.0, -(x - 1.0) * 0.643) };
+        let mut positions = Vec::new();
+        let mut st = Vec::new();
+        for &x in &[0.0f32, 1.0, 2.0] {
+            for &y in &[0.0f32, 1.0] {
+                positions.push(fold(x) + Vec3::Y * y);
+                st.push(Vec2::new(x, y));
+            }
+        }
+        // Vertex (x index i, y index j) is 2i + j.
+        let indices = vec![[0, 2, 3], [0, 3, 1], [2, 4, 5], [2, 5, 3]];
+        let normals: Vec<Vec3> = positions
+            .iter()
+            .map(|p| {
+                if p.x < 0.5 {
+                    Vec3::Z
+                } else if p.x < 1.5 {
+                    (Vec3::Z + Vec3::new(0.643, 0.0, 0.766)).normalize()
+                } else {
+                    Vec3::new(0.643, 0.0, 0.766)
+                }
+            })
+            .collect();
+        let mesh =
+            Mesh { positions, indices: indices.clone(), normals: Attribute::Vertex(normals), uvs: Uvs::Vertex(st), ..Default::default() };
+        let t = mikktspace(&mesh).unwrap();
+        // Vertex 2 (on the fold) appears in triangles 0, 2 and 3: one tangent for all.
+        let at = |v: u32| -> Vec<Vec4> {
+            let mut found = Vec::new();
+            for (f, tri) in indices.iter().enumerate() {
+                for (k, &i) in tri.iter().enumerate() {
+                    if i == v {
+                        found.push(t[3 * f + k]);
+                    }
+                }
+            }
+            found
+        };
+        let shared = at(2);
+        assert!(shared.len() == 3 && shared.iter().all(|x| (*x - shared[0]).abs().max_element() < 1e-6), "{shared:?}");
+        // It lies between the two faces' own tangents.
+        let mid = (Vec3::X + Vec3::new(0.766, 0.0, -0.643)).normalize();
+        assert!(shared[0].truncate().dot(mid) > 0.99, "{shared:?}");
+    }
+
+    #[test]
+    fn perturbing_with_a_flat_map_keeps_the_normal_and_a_tilted_map_follows_the_tangent() {
+        let ns = Vec3::Z;
+        assert_eq!(perturb(ns, Vec3::X, 1.0, Vec3::Z), Some(Vec3::Z));
+        let tilted = perturb(ns, Vec3::X * 3.0 + Vec3::Z, 1.0, Vec3::new(0.5, 0.0, 0.866)).unwrap();
+        assert!((tilted - Vec3::new(0.5, 0.0, 0.866).normalize()).length() < 1e-4, "{tilted:?}");
+        let mirrored = perturb(ns, Vec3::X, -1.0, Vec3::new(0.0, 0.5, 0.866)).unwrap();
+        assert!(mirrored.y < 0.0, "sign −1 flips the bitangent: {mirrored:?}");
+        assert_eq!(perturb(ns, Vec3::Z, 1.0, Vec3::X), None, "a tangent along the normal is degenerate");
+    }
+}
