@@ -101,6 +101,7 @@ pub fn to_json(t: &Translation) -> Value {
         materials.insert(path.clone(), json!({ "surface": surface.map_or("", |s| s.node_type_id.as_str()), "inputs": inputs }));
     }
     json!({
+        "stage": { "metersPerUnit": t.meters_per_unit, "upAxis": if t.z_up { "Z" } else { "Y" } },
         "meshes": meshes,
         "instancers": instancers,
         "lights": lights,

@@ -125,6 +125,9 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
             ),
         ),
         ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),
+        // Positions and depths are in scene units: what one is worth, and which way is up.
+        ("metersPerUnit".to_string(), translation.meters_per_unit.to_string()),
+        ("upAxis".to_string(), if translation.z_up { "Z" } else { "Y" }.to_string()),
         // The primId AOV's table: line k names id k + 1.
         ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),

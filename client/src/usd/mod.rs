@@ -47,6 +47,10 @@ pub struct Translation {
     pub skipped: Vec<String>,
     /// The stage's `upAxis` is Z.
     pub z_up: bool,
+    /// The stage's `metersPerUnit` (0.01, centimetres, when not authored, as USD's fallback
+    /// says). USD composes without converting units, so geometry, positions and depths are in
+    /// these units; the EXR header records them for compositing.
+    pub meters_per_unit: f64,
     /// Meshes inside instanceable prims: each renders as an instance of one prototype mesh
     /// (one BLAS per prototype and material), listed here for `inspect`.
     pub native_instances: Vec<NativeInstance>,
@@ -197,7 +201,7 @@ impl Xformable for AnyXformable {}
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
 const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
 const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane"];
-const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "CylinderLight", "DistantLight", "DomeLight"];
+const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "CylinderLight", "DistantLight", "DomeLight", "DomeLight_1"];
 
 /// Reads and translates the stage at `path` at its default frame.
 pub fn load(path: &std::path::Path) -> Result<Translation> {
@@ -231,6 +235,16 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         instancer_roots: Vec::new(),
         native: HashMap::new(),
     };
+    // Stage metrics first: DomeLight_1's pole follows the up axis.
+    reader.out.z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
+    reader.out.meters_per_unit = stage
+        .stage_metadata("metersPerUnit")
+        .ok()
+        .flatten()
+        .as_ref()
+        .and_then(values::scalar)
+        .filter(|m| m.is_finite() && *m > 0.0)
+        .unwrap_or(0.01);
     for e in stage.composition_errors() {
         reader.out.warnings.push(format!("composition: {e}"));
     }
@@ -242,7 +256,6 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     for p in paths {
         reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
     }
-    reader.out.z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
     Ok(reader.out)
 }
 
@@ -1127,7 +1140,7 @@ impl Reader<'_> {
         };
         let mut texture = None;
         match (type_name, input("texture:file")?) {
-            ("DomeLight", Some(Value::AssetPath(a))) if !a.is_empty() => {
+            ("DomeLight" | "DomeLight_1", Some(Value::AssetPath(a))) if !a.is_empty() => {
                 let format = input("texture:format")?.as_ref().and_then(values::token).unwrap_or_else(|| "automatic".into());
                 if format != "automatic" && format != "latlong" {
                     self.out.warnings.push(format!(
@@ -1148,9 +1161,28 @@ impl Reader<'_> {
         let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
             .then(|| float("colorTemperature", 6500.0))
             .transpose()?;
+        let mut transform = self.affine(prim, p)?;
+        if type_name == "DomeLight_1" {
+            // `poleAxis` (UsdLux DomeLight_1): the dome's top pole starts along the stage's up
+            // axis ("scene", the fallback), +Y or +Z; a Z pole is the +Y pole turned 90° about
+            // +X, applied to the dome alone.
+            let pole = get(prim, "poleAxis", time)?.as_ref().and_then(values::token).unwrap_or_else(|| "scene".into());
+            let z_pole = match pole.as_str() {
+                "Z" => true,
+                "Y" => false,
+                "scene" => self.out.z_up,
+                other => {
+                    self.out.warnings.push(format!("{p}: poleAxis '{other}' is not scene, Y or Z; using scene"));
+                    self.out.z_up
+                }
+            };
+            if z_pole {
+                transform *= glam::Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2);
+            }
+        }
         let desc = LightDesc {
             kind,
-            transform: self.affine(prim, p)?,
+            transform,
             // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
             intensity: float("intensity", if type_name == "DistantLight" { 50000.0 } else { 1.0 })?,
             exposure: float("exposure", 0.0)?,
@@ -1182,7 +1214,7 @@ impl Reader<'_> {
         if angle.is_none() && softness.is_none() && focus.is_none() && tint.is_none() {
             return Ok(None);
         }
-        if matches!(type_name, "DomeLight" | "DistantLight") {
+        if matches!(type_name, "DomeLight" | "DomeLight_1" | "DistantLight") {
             self.out.warnings.push(format!("{p}: ShapingAPI has no meaning for a {type_name} and is ignored"));
             return Ok(None);
         }
