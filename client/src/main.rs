@@ -22,8 +22,9 @@ enum Command {
     Render {
         /// The scene.
         scene: PathBuf,
-        /// Output EXR path; a PNG preview is written beside it.
-        #[arg(short, long, required_unless_present = "explain_plan")]
+        /// Output EXR path; a PNG preview is written beside it (default: the `productName` of
+        /// the stage's RenderSettings' first RenderProduct).
+        #[arg(short, long)]
         output: Option<PathBuf>,
         /// Quality preset: sets --spp, --max-depth and --clamp unless given (see
         /// docs/accuracy-vs-time.md for what each costs and reaches).
@@ -35,6 +36,10 @@ enum Command {
         /// Resolution as WIDTHxHEIGHT (default: the stage's RenderSettings, else 512x512).
         #[arg(long)]
         res: Option<String>,
+        /// Pixel width over height (default: the stage's RenderSettings pixelAspectRatio,
+        /// else 1).
+        #[arg(long)]
+        pixel_aspect: Option<f32>,
         /// Camera prim path (default: the stage RenderSettings camera, else the first camera).
         #[arg(long, default_value = "")]
         camera: String,
@@ -228,6 +233,7 @@ async fn real_main() -> Result<()> {
             output,
             spp,
             res,
+            pixel_aspect,
             camera,
             max_depth,
             seed,
@@ -273,9 +279,11 @@ async fn real_main() -> Result<()> {
                 noise_threshold,
                 avoid_caustics: caustics == CausticsArg::Avoid,
                 force_all_effects,
+                pixel_aspect: pixel_aspect.unwrap_or(0.0),
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-            let output = output.expect("clap requires --output unless --explain-plan");
+            // Empty: the scene's RenderProduct names the file (RenderJob::run).
+            let output = output.unwrap_or_default();
             run(&RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light }).await?;
         }
     }

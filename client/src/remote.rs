@@ -44,6 +44,8 @@ pub struct RenderOptions {
     pub texture_filtering: bool,
     /// Adaptive splitting in the light tree.
     pub light_splitting: bool,
+    /// Width over height of a pixel; 0 for the scene's RenderSettings, else square.
+    pub pixel_aspect: f32,
 }
 
 impl Default for RenderOptions {
@@ -66,6 +68,7 @@ impl Default for RenderOptions {
             noise_threshold: None,
             avoid_caustics: false,
             force_all_effects: false,
+            pixel_aspect: 0.0,
         }
     }
 }
@@ -178,6 +181,7 @@ impl Connection {
             force_all_effects: opts.force_all_effects,
             disable_texture_filtering: !opts.texture_filtering,
             disable_light_splitting: !opts.light_splitting,
+            pixel_aspect: opts.pixel_aspect,
         };
         let mut stream = self
             .client

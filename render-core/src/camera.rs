@@ -37,6 +37,11 @@ pub struct CameraDesc {
     pub f_stop: f32,
     /// `focusDistance`, in scene units.
     pub focus_distance: f32,
+    /// `shutter:open`, in frames relative to the frame rendered. Kept for motion blur,
+    /// which is not simulated yet: every ray sees the frame's own time.
+    pub shutter_open: f32,
+    /// `shutter:close`; see [`Self::shutter_open`].
+    pub shutter_close: f32,
 }
 
 impl Default for CameraDesc {
@@ -54,6 +59,8 @@ impl Default for CameraDesc {
             orthographic: false,
             f_stop: 0.0,
             focus_distance: 0.0,
+            shutter_open: 0.0,
+            shutter_close: 0.0,
         }
     }
 }
@@ -82,15 +89,23 @@ impl Camera {
     /// with UsdRender's default policy, `expandAperture`: the aperture grows in one
     /// dimension so the image shows at least what the aperture frames.
     pub fn new(desc: &CameraDesc, width: u32, height: u32) -> Self {
+        Self::with_pixel_aspect(desc, width, height, 1.0)
+    }
+
+    /// [`Camera::new`] for pixels `pixel_aspect` times wider than tall (UsdRender
+    /// `pixelAspectRatio`): the image's aspect is then width·pixel_aspect/height, and the
+    /// aperture is conformed to that.
+    pub fn with_pixel_aspect(desc: &CameraDesc, width: u32, height: u32, pixel_aspect: f32) -> Self {
+        let pixel_aspect = if pixel_aspect.is_finite() && pixel_aspect > 0.0 { pixel_aspect } else { 1.0 };
         let f = if desc.focal_length > 0.0 { desc.focal_length } else { 50.0 };
         let (mut ha, mut va) = (desc.horizontal_aperture.abs(), desc.vertical_aperture.abs());
         if !(ha > 0.0) {
             ha = 20.955;
         }
+        let image_aspect = width as f32 * pixel_aspect / height as f32;
         if !(va > 0.0) {
-            va = ha * height as f32 / width as f32;
+            va = ha / image_aspect;
         }
-        let image_aspect = width as f32 / height as f32;
         if ha / va < image_aspect {
             ha = va * image_aspect;
         } else {
@@ -173,6 +188,26 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// pixelAspectRatio 2 on a 50x100 image of a square aperture: the image is as wide as it
+    /// is tall in the scene, so the edges see what a 100x100 image of square pixels sees.
+    #[test]
+    fn wide_pixels_widen_the_image_not_the_pixels_count() {
+        let desc = CameraDesc { focal_length: 10.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, near: 0.0, ..Default::default() };
+        let square = Camera::new(&desc, 100, 100);
+        let wide = Camera::with_pixel_aspect(&desc, 50, 100, 2.0);
+        let slope = |c: &Camera, x: f32, y: f32| {
+            let (r, _) = c.ray(x, y);
+            Vec2::new(r.dir.x, r.dir.y) / -r.dir.z
+        };
+        assert!((slope(&square, 0.0, 0.0) - slope(&wide, 0.0, 0.0)).length() < 1e-5);
+        assert!((slope(&square, 100.0, 30.0) - slope(&wide, 50.0, 30.0)).length() < 1e-5);
+        // Square pixels on the same 50x100 image make a tall image: expandAperture keeps the
+        // width and doubles the height the camera sees.
+        let narrow = Camera::new(&desc, 50, 100);
+        assert!((slope(&narrow, 0.0, 50.0).x - slope(&square, 0.0, 50.0).x).abs() < 1e-5);
+        assert!((slope(&narrow, 25.0, 0.0).y - 2.0 * slope(&square, 50.0, 0.0).y).abs() < 1e-5);
+    }
 
     #[test]
     fn centre_ray_looks_down_minus_z_and_fov_follows_aperture() {

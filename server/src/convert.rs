@@ -152,6 +152,8 @@ pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, St
         orthographic: c.orthographic,
         f_stop: c.f_stop,
         focus_distance: c.focus_distance,
+        shutter_open: c.shutter_open,
+        shutter_close: c.shutter_close,
     })
 }
 
@@ -169,6 +171,8 @@ pub fn camera_to_wire(c: &CameraDesc) -> pb::CameraPrim {
         orthographic: c.orthographic,
         f_stop: c.f_stop,
         focus_distance: c.focus_distance,
+        shutter_open: c.shutter_open,
+        shutter_close: c.shutter_close,
     }
 }
 

@@ -182,6 +182,8 @@ impl pb::render_server::Render for RenderService {
 /// A validated render request.
 struct RenderJob {
     settings: RenderSettings,
+    /// Width over height of a pixel.
+    pixel_aspect: f32,
     aovs: Vec<Aov>,
     camera_path: String,
     progressive_format: pb::PixelFormat,
@@ -241,7 +243,13 @@ impl RenderJob {
         if threads > 1024 {
             return Err(bad("threads", format!("{threads} is too many")));
         }
+        let pixel_aspect = match s.pixel_aspect {
+            0.0 => 1.0,
+            a if a.is_finite() && (1e-3..=1e3).contains(&a) => a,
+            a => return Err(bad("pixel_aspect", format!("{a} must be within [0.001, 1000] (0 = square)"))),
+        };
         Ok(RenderJob {
+            pixel_aspect,
             settings: RenderSettings {
                 width: w,
                 height: h,
@@ -312,7 +320,7 @@ impl RenderJob {
                 return;
             };
             let camera = match scene.camera(&self.camera_path) {
-                Ok(c) => Camera::new(&c, self.settings.width, self.settings.height),
+                Ok(c) => Camera::with_pixel_aspect(&c, self.settings.width, self.settings.height, self.pixel_aspect),
                 Err(e) => {
                     let _ = tx.blocking_send(Err(Status::invalid_argument(e.to_string())));
                     return;

@@ -323,3 +323,46 @@ async fn primvar_readers_read_float_float3_and_int_primvars() {
     close(at(0.8, -2.5), [1.0, 1.0, 0.0, 1.0], "int primvar 1: kept");
     close(at(2.2, -2.5), [0.0, 0.0, 0.0, 0.0], "int primvar 0: cut out");
 }
+
+/// A `RenderProduct` decides what `-o`, `--camera`, `--res` and `--aov` leave open: its
+/// `productName` is the file, its own camera and resolution win over the settings', its
+/// RenderVars become AOVs (an unknown `sourceName` is a warning naming the RenderVar), and the
+/// settings' `pixelAspectRatio` reaches the camera. The render runs end to end with them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn render_products_name_the_file_camera_resolution_and_aovs() {
+    use tessera::commands::render::{RenderJob, output_of, resolve_options, run};
+    let t = load("usd/render_products.usda");
+    assert!(t.warnings.iter().any(|w| w.contains("/Render/Vars/Matte") && w.contains("cryptomatte")), "{:?}", t.warnings);
+    let cam = &t.cameras.iter().find(|(p, _)| p == "/World/CamA").expect("CamA").1;
+    assert_eq!((cam.shutter_open, cam.shutter_close), (-0.25, 0.25));
+    assert!(t.warnings.iter().any(|w| w.contains("/World/CamA") && w.contains("motion blur")), "{:?}", t.warnings);
+    let o = resolve_options(&tessera::remote::RenderOptions { width: 0, height: 0, ..Default::default() }, &t);
+    assert_eq!((o.camera.as_str(), o.width, o.height, o.pixel_aspect), ("/World/CamA", 40, 20, 2.0));
+    assert_eq!(o.aovs, ["normal", "depth"]);
+    assert_eq!(output_of(Path::new(""), &t).unwrap(), PathBuf::from("renders/product.exr"));
+    assert_eq!(output_of(Path::new("mine.exr"), &t).unwrap(), PathBuf::from("mine.exr"));
+    let e = output_of(Path::new(""), &load("usd/render_settings.usda")).unwrap_err().to_string();
+    assert!(e.contains("-o") && e.contains("RenderProduct"), "{e}");
+    // Flags still win.
+    let given =
+        tessera::remote::RenderOptions { width: 8, height: 8, aovs: vec!["albedo".into()], pixel_aspect: 1.0, ..Default::default() };
+    let o = resolve_options(&given, &t);
+    assert_eq!((o.width, o.height, o.pixel_aspect, o.aovs.as_slice()), (8, 8, 1.0, &["albedo".to_string()][..]));
+
+    let dir = std::env::temp_dir().join(format!("tessera-products-{}", std::process::id()));
+    let job = RenderJob {
+        scene: fixture("usd/render_products.usda"),
+        output: dir.join("product.exr"),
+        options: tessera::remote::RenderOptions { width: 0, height: 0, ..small(0, 0, 2) },
+        server: None,
+        progress: false,
+        frame: None,
+        default_light: true,
+    };
+    let r = run(&job).await.expect("renders");
+    assert_eq!((r.image.width, r.image.height), (40, 20));
+    assert!(r.image.layers.contains_key("normal") && r.image.layers.contains_key("depth"));
+    let centre = r.image.pixel("beauty", 20, 10);
+    assert!(centre[1] > 2.0 * centre[0], "CamA sees the green quad: {centre:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}

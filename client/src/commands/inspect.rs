@@ -90,6 +90,8 @@ pub fn to_json(t: &Translation) -> Value {
                 "projection": if c.orthographic { "orthographic" } else { "perspective" },
                 "fStop": c.f_stop,
                 "focusDistance": c.focus_distance,
+                "shutterOpen": c.shutter_open,
+                "shutterClose": c.shutter_close,
             }),
         );
     }

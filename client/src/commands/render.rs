@@ -16,7 +16,7 @@ use crate::remote::{Connection, RenderOptions, RenderReport};
 pub struct RenderJob {
     /// Scene file.
     pub scene: PathBuf,
-    /// Output EXR.
+    /// Output EXR; empty for the `productName` of the stage's RenderProduct.
     pub output: PathBuf,
     /// Render options.
     pub options: RenderOptions,
@@ -50,6 +50,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
     }
     let options = &resolve_options(&job.options, &translation);
+    let output_path = output_of(&job.output, &translation)?;
 
     let embedded = match &job.server {
         Some(_) => None,
@@ -132,7 +133,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
     ];
-    write_outputs(&job.output, &report, &metadata)?;
+    write_outputs(&output_path, &report, &metadata)?;
     eprint!("{}", convergence_table(&report.progress));
     if let Some(t) = options.noise_threshold {
         eprintln!("{}", adaptive_summary(&report, t));
@@ -148,32 +149,55 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         f.rays_per_second / 1e6,
         f.paths_per_second / 1e6,
         100.0 * f.estimated_noise,
-        job.output.display(),
-        output::preview_path(&job.output).display()
+        output_path.display(),
+        output::preview_path(&output_path).display()
     );
     Ok(report)
 }
 
-/// Options the command line left open, from the stage's RenderSettings: the camera (when no
-/// `--camera`) and the resolution (width 0 means no `--res`), else 512x512.
+/// Options the command line left open, from the stage's RenderSettings and its first
+/// RenderProduct (whose own camera and resolution win over the settings', as UsdRender says):
+/// the camera (when no `--camera`), the resolution (width 0 means no `--res`; else 512x512),
+/// the pixel aspect (0 means no `--pixel-aspect`) and the AOVs of the product's RenderVars
+/// (when no `--aov`).
 pub fn resolve_options(given: &RenderOptions, translation: &crate::usd::Translation) -> RenderOptions {
     let mut o = given.clone();
     if let Some(rs) = &translation.render_settings {
+        let product = rs.products.first();
         if o.camera.is_empty() {
-            if let Some(c) = &rs.camera {
+            if let Some(c) = product.and_then(|p| p.camera.as_ref()).or(rs.camera.as_ref()) {
                 o.camera = c.clone();
             }
         }
         if o.width == 0 {
-            if let Some((w, h)) = rs.resolution {
+            if let Some((w, h)) = product.and_then(|p| p.resolution).or(rs.resolution) {
                 (o.width, o.height) = (w, h);
             }
+        }
+        if o.pixel_aspect == 0.0 {
+            o.pixel_aspect = rs.pixel_aspect.unwrap_or(0.0);
+        }
+        if o.aovs.is_empty() {
+            o.aovs = product.map(|p| p.aovs.clone()).unwrap_or_default();
         }
     }
     if o.width == 0 || o.height == 0 {
         (o.width, o.height) = (512, 512);
     }
     o
+}
+
+/// The EXR to write: `given` (`-o`), else the `productName` of the stage's first
+/// RenderProduct; neither is an error saying so.
+pub fn output_of(given: &Path, translation: &crate::usd::Translation) -> Result<PathBuf> {
+    if !given.as_os_str().is_empty() {
+        return Ok(given.to_path_buf());
+    }
+    let product = translation.render_settings.as_ref().and_then(|rs| rs.products.first());
+    match product.and_then(|p| p.name.as_ref()) {
+        Some(name) => Ok(PathBuf::from(name)),
+        None => anyhow::bail!("no output file: give -o/--output, or a RenderSettings with a RenderProduct that has a productName"),
+    }
 }
 
 /// The render plan of a scene: what the renderer will simulate and which prims call for it,

@@ -99,6 +99,45 @@ pub struct RenderSettingsDesc {
     pub camera: Option<String>,
     /// `resolution`.
     pub resolution: Option<(u32, u32)>,
+    /// `pixelAspectRatio`, when authored.
+    pub pixel_aspect: Option<f32>,
+    /// The `products` it names, in order.
+    pub products: Vec<RenderProductDesc>,
+}
+
+/// A `UsdRender` `RenderProduct`: an output file and the AOVs (`RenderVar`s) it holds.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderProductDesc {
+    /// The prim's path.
+    pub path: String,
+    /// `productName`: the file to write.
+    pub name: Option<String>,
+    /// Its own `camera`, overriding the settings'.
+    pub camera: Option<String>,
+    /// Its own `resolution`, overriding the settings'.
+    pub resolution: Option<(u32, u32)>,
+    /// Our AOV names for its `orderedVars`' `sourceName`s (beauty is always written).
+    pub aovs: Vec<String>,
+}
+
+/// Tessera's AOV for a `RenderVar` `sourceName` (Hydra's names, and ours).
+fn aov_of_source(source: &str) -> Option<&'static str> {
+    Some(match source {
+        "color" | "Ci" | "beauty" => "beauty",
+        "albedo" => "albedo",
+        "normal" | "N" => "normal",
+        "depth" | "z" | "Z" => "depth",
+        "position" | "P" => "position",
+        "primId" => "primId",
+        "diffuse" => "diffuse",
+        "specular" => "specular",
+        "transmission" => "transmission",
+        "subsurface" => "subsurface",
+        "emission" => "emission",
+        "sampleCount" => "sampleCount",
+        "variance" => "variance",
+        _ => return None,
+    })
 }
 
 impl Translation {
@@ -332,12 +371,8 @@ impl Reader<'_> {
             t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
             "PointInstancer" => self.point_instancer(&prim, &p, visible),
             "RenderSettings" => self.render_settings(&prim, &p),
-            "RenderProduct" | "RenderVar" => {
-                self.out.warnings.push(format!(
-                    "{p}: {type_name} is not supported: the client writes one multi-layer EXR with the AOVs asked for on the command line"
-                ));
-                Ok(())
-            }
+            // Read through the RenderSettings that names them.
+            "RenderProduct" | "RenderVar" => Ok(()),
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
             // UsdSkel: the meshes under a SkelRoot are ordinary meshes in their rest pose.
@@ -630,13 +665,67 @@ impl Reader<'_> {
             return Ok(());
         }
         let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t));
-        let resolution = match get(prim, "resolution", self.time)? {
+        let resolution = self.resolution(prim, p)?;
+        let pixel_aspect = match get(prim, "pixelAspectRatio", self.time)?.as_ref().and_then(values::scalar) {
+            Some(a) if a.is_finite() && a > 0.0 => Some(a as f32),
+            Some(a) => anyhow::bail!("{p}: attribute 'pixelAspectRatio' is {a}; expected a positive number"),
+            None => None,
+        };
+        let mut products = Vec::new();
+        for target in prim.relationship("products").targets()? {
+            let tp = target.as_str().to_string();
+            if !well_formed_path(&tp) {
+                anyhow::bail!("{p}: relationship 'products' targets '{tp}', which is not a valid path");
+            }
+            let product = self.stage.prim(target.clone());
+            if product.type_name()?.is_none_or(|t| t.as_str() != "RenderProduct") {
+                self.out.warnings.push(format!("{p}: products target {tp}, which is not a RenderProduct; ignored"));
+                continue;
+            }
+            products.push(self.render_product(&product, &tp)?);
+        }
+        if products.len() > 1 {
+            self.out.warnings.push(format!(
+                "{p}: {} render products; only the first ({}) is written (one EXR per render)",
+                products.len(),
+                products[0].path
+            ));
+        }
+        self.out.render_settings = Some(RenderSettingsDesc { path: p.to_string(), camera, resolution, pixel_aspect, products });
+        Ok(())
+    }
+
+    /// `resolution` of a RenderSettings or RenderProduct prim.
+    fn resolution(&self, prim: &Prim, p: &str) -> Result<Option<(u32, u32)>> {
+        Ok(match get(prim, "resolution", self.time)? {
             Some(Value::Vec2i(r)) if r.x > 0 && r.y > 0 => Some((r.x as u32, r.y as u32)),
             Some(v) => anyhow::bail!("{p}: attribute 'resolution' is {v:?}; expected two positive integers"),
             None => None,
-        };
-        self.out.render_settings = Some(RenderSettingsDesc { path: p.to_string(), camera, resolution });
-        Ok(())
+        })
+    }
+
+    /// A `RenderProduct`: `productName`, its own camera and resolution, and the AOVs of its
+    /// `orderedVars` (a `sourceName` we do not produce is a warning naming the RenderVar).
+    fn render_product(&mut self, prim: &Prim, p: &str) -> Result<RenderProductDesc> {
+        let name = get(prim, "productName", self.time)?.as_ref().and_then(values::token).filter(|n| !n.is_empty());
+        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t));
+        let resolution = self.resolution(prim, p)?;
+        let mut aovs = Vec::new();
+        for target in prim.relationship("orderedVars").targets()? {
+            let vp = target.as_str().to_string();
+            if !well_formed_path(&vp) {
+                anyhow::bail!("{p}: relationship 'orderedVars' targets '{vp}', which is not a valid path");
+            }
+            let var = self.stage.prim(target.clone());
+            let source = get(&var, "sourceName", self.time)?.as_ref().and_then(values::token).unwrap_or_default();
+            match aov_of_source(&source) {
+                Some("beauty") => {}
+                Some(aov) if !aovs.iter().any(|a| a == aov) => aovs.push(aov.to_string()),
+                Some(_) => {}
+                None => self.out.warnings.push(format!("{vp}: RenderVar sourceName '{source}' is not an AOV Tessera renders; skipped")),
+            }
+        }
+        Ok(RenderProductDesc { path: p.to_string(), name, camera, resolution, aovs })
     }
 
     /// A `PointInstancer`: each mesh (or implicit prim) of each prototype becomes one
@@ -1252,7 +1341,15 @@ impl Reader<'_> {
             orthographic,
             f_stop,
             focus_distance: float("focusDistance", 0.0)?,
+            shutter_open: float("shutter:open", 0.0)?,
+            shutter_close: float("shutter:close", 0.0)?,
         };
+        if desc.shutter_close > desc.shutter_open {
+            self.out.warnings.push(format!(
+                "{p}: the shutter is open from {} to {} frames; motion blur is not simulated yet, so the frame's own time is rendered",
+                desc.shutter_open, desc.shutter_close
+            ));
+        }
         self.out.cameras.push((p.to_string(), desc));
         Ok(())
     }
