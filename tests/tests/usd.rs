@@ -121,11 +121,16 @@ fn time_samples_are_read_at_the_frame() {
 /// (loaded by default), the selected variant's geometry only, and an inherited class's child.
 /// (The field-by-field comparison with usd-core covers this fixture too.)
 #[test]
-fn sublayers_references_payloads_variants_and_inherits_are_composed() {
+fn sublayers_references_payloads_variants_inherits_and_specializes_are_composed() {
     let t = load("usd/composition/scene.usda");
     let mut meshes: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
     meshes.sort();
-    assert_eq!(meshes, vec!["/World/Chair/Seat", "/World/Floor", "/World/Marker/Dot", "/World/Prop/Geom_crate"]);
+    assert_eq!(meshes, vec!["/World/Chair/Seat", "/World/Floor", "/World/Marker/Dot", "/World/Pedestal", "/World/Prop/Geom_crate"]);
+    // The specialized base's size (0.5) and translate reach the cube.
+    let pedestal = &t.meshes.iter().find(|(p, _)| p == "/World/Pedestal").unwrap().1;
+    assert!((pedestal.transform.translation - glam::Vec3A::new(-1.5, 0.25, 1.0)).length() < 1e-6, "{:?}", pedestal.transform.translation);
+    let extent = pedestal.mesh.positions.iter().fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+    assert!((extent - 0.25).abs() < 1e-6, "half of size 0.5: {extent}");
     let mut lights: Vec<&str> = t.lights.iter().map(|(p, _)| p.as_str()).collect();
     lights.sort();
     assert_eq!(lights, vec!["/World/Lamp/Bulb", "/World/Sky"]);
