@@ -273,6 +273,7 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         all_paths: Vec::new(),
         instancer_roots: Vec::new(),
         native: HashMap::new(),
+        bindings: HashMap::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     reader.out.z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
@@ -311,6 +312,9 @@ struct Reader<'s> {
     instancer_roots: Vec<String>,
     /// Native instancing: (prototype mesh path, material) → index of its instancer.
     native: HashMap<(String, String), usize>,
+    /// Each prim's resolved material binding: a mesh asks for its own and its subsets' several
+    /// times (material, texture coordinates, primvars), and a broken binding is reported once.
+    bindings: HashMap<String, Option<String>>,
 }
 
 /// A double-precision world matrix as the renderer's affine transform.
@@ -996,6 +1000,17 @@ impl Reader<'_> {
     /// The bound material: the prim's own binding, else the nearest ancestor's (purpose
     /// `full`, falling back to all-purpose).
     fn bound_material(&mut self, prim: &Prim) -> Result<Option<String>> {
+        let key = prim.path().as_str().to_string();
+        if let Some(m) = self.bindings.get(&key) {
+            return Ok(m.clone());
+        }
+        let m = self.resolve_binding(prim)?;
+        self.bindings.insert(key, m.clone());
+        Ok(m)
+    }
+
+    /// [`Self::bound_material`] without the cache.
+    fn resolve_binding(&mut self, prim: &Prim) -> Result<Option<String>> {
         if let Some(m) = self.stronger_ancestor_binding(prim)? {
             return Ok(Some(m));
         }
