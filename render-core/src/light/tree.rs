@@ -35,6 +35,11 @@ pub struct LightBounds {
     cos_e: f32,
     /// Emits from both faces.
     two_sided: bool,
+    /// Derived once, read by every importance evaluation (the sampling walk's hot loop):
+    /// the box's centre, its half-diagonal, and sin θo.
+    center: Vec3,
+    radius: f32,
+    sin_o: f32,
 }
 
 /// cos(max(0, a − b)) from the sines and cosines of a and b.
@@ -55,10 +60,16 @@ fn sin_of(cos: f32) -> f32 {
 }
 
 impl LightBounds {
+    #[allow(clippy::too_many_arguments)]
+    fn new(lo: Vec3, hi: Vec3, phi: f32, w: Vec3, cos_o: f32, cos_e: f32, two_sided: bool) -> Self {
+        let (center, radius) = (0.5 * (lo + hi), 0.5 * (hi - lo).length());
+        LightBounds { lo, hi, phi, w, cos_o, cos_e, two_sided, center, radius, sin_o: sin_of(cos_o) }
+    }
+
     /// The bounds of one finite light of power `phi`; None for lights at infinity.
     pub fn of(shape: &Shape, phi: f32) -> Option<Self> {
-        let all = |lo: Vec3, hi: Vec3| LightBounds { lo, hi, phi, w: Vec3::Z, cos_o: -1.0, cos_e: 0.0, two_sided: false };
-        let facing = |lo: Vec3, hi: Vec3, n: Vec3, two_sided: bool| LightBounds { lo, hi, phi, w: n, cos_o: 1.0, cos_e: 0.0, two_sided };
+        let all = |lo: Vec3, hi: Vec3| LightBounds::new(lo, hi, phi, Vec3::Z, -1.0, 0.0, false);
+        let facing = |lo: Vec3, hi: Vec3, n: Vec3, two_sided: bool| LightBounds::new(lo, hi, phi, n, 1.0, 0.0, two_sided);
         Some(match *shape {
             Shape::Sphere { center, radius, .. } => all(center - Vec3::splat(radius), center + Vec3::splat(radius)),
             Shape::Rect { center, u, v, n, .. } | Shape::Disk { center, u, v, n, .. } => {
@@ -75,7 +86,7 @@ impl LightBounds {
     }
 
     fn centroid(&self) -> Vec3 {
-        0.5 * (self.lo + self.hi)
+        self.center
     }
 
     /// The union: boxes and powers add, normal cones merge (the smallest cone holding both).
@@ -87,15 +98,15 @@ impl LightBounds {
             return *self;
         }
         let (w, cos_o) = cone_union((self.w, self.cos_o), (o.w, o.cos_o));
-        LightBounds {
-            lo: self.lo.min(o.lo),
-            hi: self.hi.max(o.hi),
-            phi: self.phi + o.phi,
+        LightBounds::new(
+            self.lo.min(o.lo),
+            self.hi.max(o.hi),
+            self.phi + o.phi,
             w,
             cos_o,
-            cos_e: self.cos_e.min(o.cos_e),
-            two_sided: self.two_sided || o.two_sided,
-        }
+            self.cos_e.min(o.cos_e),
+            self.two_sided || o.two_sided,
+        )
     }
 
     /// An upper bound of what these lights deliver to a point `p` with normal `n` (zero
@@ -104,20 +115,24 @@ impl LightBounds {
         if self.phi <= 0.0 {
             return 0.0;
         }
-        let pc = self.centroid();
-        let half_diag = 0.5 * (self.hi - self.lo).length();
-        let d2 = (p - pc).length_squared().max(half_diag);
-        let wi = (p - pc).normalize_or_zero();
+        let v = p - self.center;
+        let dist2 = v.length_squared();
+        let d2 = dist2.max(self.radius);
+        let wi = if dist2 > 0.0 { v * dist2.sqrt().recip() } else { Vec3::ZERO };
         let mut cos_w = self.w.dot(wi);
         if self.two_sided {
             cos_w = cos_w.abs();
         }
         let sin_w = sin_of(cos_w);
         // Directions the box subtends from p: inside its bounding sphere, all of them.
-        let r2 = half_diag * half_diag;
-        let dist2 = (p - pc).length_squared();
-        let (sin_b, cos_b) = if dist2 <= r2 { (0.0, -1.0) } else { ((r2 / dist2).sqrt(), (1.0 - r2 / dist2).max(0.0).sqrt()) };
-        let (sin_o, cos_o) = (sin_of(self.cos_o), self.cos_o);
+        let r2 = self.radius * self.radius;
+        let (sin_b, cos_b) = if dist2 <= r2 {
+            (0.0, -1.0)
+        } else {
+            let s2 = r2 / dist2;
+            (s2.sqrt(), (1.0 - s2).max(0.0).sqrt())
+        };
+        let (sin_o, cos_o) = (self.sin_o, self.cos_o);
         let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
         let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
         let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
@@ -283,8 +298,7 @@ impl LightTree {
         while split && k < n_front && n_front < SPLIT_BUDGET {
             let at = frontier[k] as usize;
             if let Node::Interior { right, bounds } = self.nodes[at] {
-                let half_diag = 0.5 * (bounds.hi - bounds.lo).length();
-                if (p - bounds.centroid()).length_squared() < (SPLIT_DISTANCE * half_diag).powi(2) {
+                if (p - bounds.center).length_squared() < (SPLIT_DISTANCE * bounds.radius).powi(2) {
                     splits[n_splits] = at as u32;
                     n_splits += 1;
                     // Replace the node by its children in the frontier.
