@@ -908,28 +908,32 @@ impl Reader<'_> {
                 ));
                 continue;
             };
-            let values = match get(prim, &format!("{attr_name}:indices"), self.time)?.as_ref().and_then(values::int_array) {
-                Some(idx) => {
-                    if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= values.len()) {
-                        anyhow::bail!(
-                            "{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values",
-                            values.len()
-                        );
-                    }
-                    idx.iter().map(|&k| values[k as usize]).collect()
-                }
-                None => values,
-            };
-            let interp = prim
-                .attribute(attr_name.as_str())
-                .get_metadata::<openusd::tf::Token>("interpolation")
-                .ok()
-                .flatten()
-                .map(|t| t.as_str().to_string())
-                .unwrap_or_else(|| "constant".to_string());
+            let (values, interp) = self.flatten_primvar(prim, p, &attr_name, values)?;
             out.push((name, values, interp));
         }
         Ok(out)
+    }
+
+    /// `data` of the primvar `attr_name` de-indexed by its `:indices` (an index out of range
+    /// is an error naming the entry), with its interpolation (USD's fallback: constant).
+    fn flatten_primvar<T: Copy>(&self, prim: &Prim, p: &str, attr_name: &str, data: Vec<T>) -> Result<(Vec<T>, String)> {
+        let data = match get(prim, &format!("{attr_name}:indices"), self.time)?.as_ref().and_then(values::int_array) {
+            Some(idx) => {
+                if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= data.len()) {
+                    anyhow::bail!("{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values", data.len());
+                }
+                idx.iter().map(|&k| data[k as usize]).collect()
+            }
+            None => data,
+        };
+        let interp = prim
+            .attribute(attr_name)
+            .get_metadata::<openusd::tf::Token>("interpolation")
+            .ok()
+            .flatten()
+            .map(|t| t.as_str().to_string())
+            .unwrap_or_else(|| "constant".to_string());
+        Ok((data, interp))
     }
 
     /// The float2 primvar the mesh's materials read through `UsdPrimvarReader_float2`
@@ -951,22 +955,7 @@ impl Reader<'_> {
             self.out.warnings.push(format!("{p}: {attr_name} has type {}, not texCoord2f[]; no texture coordinates", values::type_of(&v)));
             return Ok(None);
         };
-        let st = match get(prim, &format!("{attr_name}:indices"), time)?.as_ref().and_then(values::int_array) {
-            Some(idx) => {
-                if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= st.len()) {
-                    anyhow::bail!("{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values", st.len());
-                }
-                idx.iter().map(|&k| st[k as usize]).collect()
-            }
-            None => st,
-        };
-        let interp = prim
-            .attribute(attr_name.as_str())
-            .get_metadata::<openusd::tf::Token>("interpolation")
-            .ok()
-            .flatten()
-            .map(|t| t.as_str().to_string())
-            .unwrap_or_else(|| "constant".to_string());
+        let (st, interp) = self.flatten_primvar(prim, p, &attr_name, st)?;
         Ok(Some((attr_name, st, interp)))
     }
 
