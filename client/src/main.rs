@@ -77,6 +77,10 @@ enum Command {
         /// cannot represent a cluster (off: one light per point, cheaper and noisier).
         #[arg(long, value_enum, default_value_t = OnOff::On)]
         light_splitting: OnOff,
+        /// With light splitting on, the most lights one shading point samples (1-8, default 8;
+        /// docs/accuracy-vs-time.md measures each budget at equal time).
+        #[arg(long)]
+        light_split_budget: Option<u32>,
         /// Time code at which to evaluate animated attributes (default: the stage's
         /// startTimeCode, else 0).
         #[arg(long)]
@@ -243,6 +247,7 @@ async fn real_main() -> Result<()> {
             energy_compensation,
             texture_filtering,
             light_splitting,
+            light_split_budget,
             frame,
             sampler,
             caustics,
@@ -274,6 +279,7 @@ async fn real_main() -> Result<()> {
                 energy_compensation,
                 texture_filtering: texture_filtering == OnOff::On,
                 light_splitting: light_splitting == OnOff::On,
+                light_split_budget: light_split_budget.unwrap_or(0),
                 sobol: sampler == SamplerArg::Sobol,
                 clamp_indirect: clamp,
                 noise_threshold,

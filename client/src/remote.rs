@@ -44,6 +44,8 @@ pub struct RenderOptions {
     pub texture_filtering: bool,
     /// Adaptive splitting in the light tree.
     pub light_splitting: bool,
+    /// Most lights per shading point when splitting (0: the server's default, 8).
+    pub light_split_budget: u32,
     /// Width over height of a pixel; 0 for the scene's RenderSettings, else square.
     pub pixel_aspect: f32,
 }
@@ -63,6 +65,7 @@ impl Default for RenderOptions {
             energy_compensation: true,
             texture_filtering: true,
             light_splitting: true,
+            light_split_budget: 0,
             sobol: true,
             clamp_indirect: None,
             noise_threshold: None,
@@ -182,6 +185,7 @@ impl Connection {
             disable_texture_filtering: !opts.texture_filtering,
             disable_light_splitting: !opts.light_splitting,
             pixel_aspect: opts.pixel_aspect,
+            light_split_budget: opts.light_split_budget,
         };
         let mut stream = self
             .client

@@ -49,10 +49,10 @@ pub struct IntegratorSettings {
     /// Filter textures over the ray's footprint (mip-mapping by ray cones); off, every lookup
     /// reads the finest level and only pixel supersampling filters (the reference's way).
     pub texture_filtering: bool,
-    /// Adaptive splitting in the light tree: up to [`crate::light::tree::SPLIT_BUDGET`]
-    /// lights per shading point where one cannot represent the cluster (less noise, more
-    /// shadow rays); off, one light per point.
-    pub light_splitting: bool,
+    /// Adaptive splitting in the light tree: up to this many lights per shading point where
+    /// one cannot represent the cluster (less noise, more shadow rays), at most
+    /// [`crate::light::tree::SPLIT_BUDGET`]; 1, one light per point.
+    pub light_split_budget: usize,
 }
 
 impl Default for IntegratorSettings {
@@ -68,7 +68,7 @@ impl Default for IntegratorSettings {
             strategy: LightStrategy::Mis,
             pixel_footprint: (0.0, 0.0),
             texture_filtering: true,
-            light_splitting: true,
+            light_split_budget: crate::light::tree::SPLIT_BUDGET,
         }
     }
 }
@@ -171,7 +171,7 @@ pub fn trace_path(
             Some(p) if p.delta => 1.0,
             Some(_) if settings.strategy == LightStrategy::BsdfOnly => 1.0,
             Some(_) if settings.strategy == LightStrategy::LightOnly => 0.0,
-            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize, settings.light_splitting) * pdf_light),
+            Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize, settings.light_split_budget) * pdf_light),
         }
     };
 
@@ -382,7 +382,7 @@ pub fn trace_path(
         // Next-event estimation.
         if !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
             let u_light = Vec2::new(ul_x, ul_y);
-            lights.sample_each(&ctx, u_sel, u_light, settings.light_splitting, |mut ls, light| {
+            lights.sample_each(&ctx, u_sel, u_light, settings.light_split_budget, |mut ls, light| {
                 if let Some((instance, triangle)) = light.textured_emitter {
                     ls.li = scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist);
                 }

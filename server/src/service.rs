@@ -206,7 +206,7 @@ impl RenderJob {
         if !self.settings.integrator.texture_filtering {
             w.push("texture filtering off: textures alias unless many samples per pixel average them".into());
         }
-        if !self.settings.integrator.light_splitting {
+        if self.settings.integrator.light_split_budget == 1 {
             w.push("light splitting off: one light per shading point from the light tree (cheaper samples, more noise)".into());
         }
         w
@@ -272,7 +272,17 @@ impl RenderJob {
                     },
                     force_all_effects: s.force_all_effects,
                     texture_filtering: !s.disable_texture_filtering,
-                    light_splitting: !s.disable_light_splitting,
+                    light_split_budget: match (s.disable_light_splitting, s.light_split_budget) {
+                        (true, _) => 1,
+                        (false, 0) => render_core::light::tree::SPLIT_BUDGET,
+                        (false, b) if b as usize <= render_core::light::tree::SPLIT_BUDGET => b as usize,
+                        (false, b) => {
+                            return Err(bad(
+                                "light_split_budget",
+                                format!("{b} exceeds {} (0 = the default)", render_core::light::tree::SPLIT_BUDGET),
+                            ));
+                        }
+                    },
                     ..Default::default()
                 },
                 noise_threshold: match s.noise_threshold {

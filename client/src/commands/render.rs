@@ -110,7 +110,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         (
             "settings".to_string(),
             format!(
-                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={} caustics={} texture_filtering={} light_splitting={}",
+                "{}x{} spp={} max_depth={} seed={} sampler={} energy_compensation={} clamp={} noise_threshold={} caustics={} texture_filtering={} light_split_budget={}",
                 options.width,
                 options.height,
                 options.spp,
@@ -122,7 +122,11 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 options.noise_threshold.map_or("off".to_string(), |c| c.to_string()),
                 if options.avoid_caustics { "avoid" } else { "full" },
                 if options.texture_filtering { "on" } else { "off" },
-                if options.light_splitting { "on" } else { "off" },
+                match (options.light_splitting, options.light_split_budget) {
+                    (false, _) => 1,
+                    (true, 0) => 8,
+                    (true, b) => b,
+                },
             ),
         ),
         ("mean_spp".to_string(), format!("{:.2}", f.mean_spp)),

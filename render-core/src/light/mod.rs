@@ -304,9 +304,17 @@ impl LightSet {
 
     /// Picks lights with `u_select` for the shading point and samples a direction on each:
     /// one light at infinity, or the finite lights the tree's walks reach (one per cluster
-    /// of its adaptive split, [`tree::SPLIT_BUDGET`] at most). Each sample's pdf includes the
-    /// chance of its light being picked, so their contributions add.
-    pub fn sample_each(&self, ctx: &ShadingContext, u_select: f32, u: glam::Vec2, split: bool, mut visit: impl FnMut(LightSample, &Light)) {
+    /// of its adaptive split, `budget` at most, up to [`tree::SPLIT_BUDGET`]; 1: no split).
+    /// Each sample's pdf includes the chance of its light being picked, so their
+    /// contributions add.
+    pub fn sample_each(
+        &self,
+        ctx: &ShadingContext,
+        u_select: f32,
+        u: glam::Vec2,
+        budget: usize,
+        mut visit: impl FnMut(LightSample, &Light),
+    ) {
         let mut emit = |i: usize, p: f32| {
             let light = &self.lights[i];
             if let Some(mut s) = light.shape.sample(ctx, u) {
@@ -320,15 +328,15 @@ impl LightSet {
             emit(self.infinite[k] as usize, p * self.p_infinite);
         } else {
             let u = ((u_select - self.p_infinite) / (1.0 - self.p_infinite)).clamp(0.0, 1.0 - f32::EPSILON);
-            self.tree.sample_split(ctx.p, ctx.n, u, split, |i, p| emit(i as usize, p * (1.0 - self.p_infinite)));
+            self.tree.sample_split(ctx.p, ctx.n, u, budget, |i, p| emit(i as usize, p * (1.0 - self.p_infinite)));
         }
     }
 
     /// The probability that [`LightSet::sample_each`] picks light `i` at the shading point `ctx`.
-    pub fn pmf(&self, ctx: &ShadingContext, i: usize, split: bool) -> f32 {
+    pub fn pmf(&self, ctx: &ShadingContext, i: usize, budget: usize) -> f32 {
         match self.infinite_slot.get(i) {
             Some(Some(k)) => self.p_infinite * self.infinite_selection.pmf(*k as usize),
-            Some(None) => (1.0 - self.p_infinite) * self.tree.pmf(ctx.p, ctx.n, i, split),
+            Some(None) => (1.0 - self.p_infinite) * self.tree.pmf(ctx.p, ctx.n, i, budget),
             None => 0.0,
         }
     }

@@ -291,11 +291,12 @@ impl LightTree {
 
     /// The nodes that split at `p` (breadth first from the root, while the budget lasts) and
     /// the cut below them: the nodes each stochastic walk starts from.
-    fn cut(&self, p: Vec3, split: bool) -> ([u32; SPLIT_BUDGET], usize, [u32; SPLIT_BUDGET], usize) {
+    fn cut(&self, p: Vec3, budget: usize) -> ([u32; SPLIT_BUDGET], usize, [u32; SPLIT_BUDGET], usize) {
+        let budget = budget.clamp(1, SPLIT_BUDGET);
         let (mut splits, mut n_splits) = ([0u32; SPLIT_BUDGET], 0usize);
         let (mut frontier, mut n_front) = ([0u32; SPLIT_BUDGET], 1usize);
         let mut k = 0;
-        while split && k < n_front && n_front < SPLIT_BUDGET {
+        while k < n_front && n_front < budget {
             let at = frontier[k] as usize;
             if let Node::Interior { right, bounds } = self.nodes[at] {
                 if (p - bounds.center).length_squared() < (SPLIT_DISTANCE * bounds.radius).powi(2) {
@@ -313,13 +314,13 @@ impl LightTree {
         (splits, n_splits, frontier, n_front)
     }
 
-    /// Picks lights for point `p` with normal `n`: with `split`, one per cluster of the cut
-    /// (at most [`SPLIT_BUDGET`]), else one; each with its probability.
-    pub fn sample_split(&self, p: Vec3, n: Vec3, u: f32, split: bool, mut visit: impl FnMut(u32, f32)) {
+    /// Picks lights for point `p` with normal `n`: one per cluster of the cut, at most
+    /// `budget` (up to [`SPLIT_BUDGET`]; 1: no splitting), each with its probability.
+    pub fn sample_split(&self, p: Vec3, n: Vec3, u: f32, budget: usize, mut visit: impl FnMut(u32, f32)) {
         if self.nodes.is_empty() {
             return;
         }
-        let (_, _, frontier, n_front) = self.cut(p, split);
+        let (_, _, frontier, n_front) = self.cut(p, budget);
         for &start in &frontier[..n_front] {
             if let Some((light, pmf)) = self.walk(start as usize, p, n, u) {
                 visit(light, pmf);
@@ -362,11 +363,11 @@ impl LightTree {
         }
     }
 
-    /// The probability that [`LightTree::sample_split`] (or, without `split`,
+    /// The probability that [`LightTree::sample_split`] with `budget` (with 1,
     /// [`LightTree::sample`]) picks `light` for `p`, `n`.
-    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize, split: bool) -> f32 {
+    pub fn pmf(&self, p: Vec3, n: Vec3, light: usize, budget: usize) -> f32 {
         let Some(Some((bits, depth))) = self.trails.get(light) else { return 0.0 };
-        let (splits, n_splits, _, _) = self.cut(p, split);
+        let (splits, n_splits, _, _) = self.cut(p, budget);
         let (mut at, mut pmf) = (0usize, 1.0f32);
         let mut walking = false;
         for level in 0..*depth {
@@ -430,17 +431,17 @@ mod tests {
             .collect();
         let t = tree_of(&lights);
         for (p, n) in [(Vec3::new(5.0, 0.0, 5.0), Vec3::Y), (Vec3::new(-3.0, 0.0, 1.0), Vec3::Y), (Vec3::new(5.0, 2.5, 5.0), Vec3::ZERO)] {
-            let total: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, false)).sum();
+            let total: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, 1)).sum();
             assert!((total - 1.0).abs() < 1e-4, "Σ pmf = {total}");
             let mut counts = vec![0u32; lights.len()];
             let n_samples = 200_000;
             for k in 0..n_samples {
                 let (i, pmf) = t.sample(p, n, (k as f32 + 0.5) / n_samples as f32).unwrap();
-                assert!((pmf - t.pmf(p, n, i as usize, false)).abs() < 1e-5 * pmf.max(1e-3));
+                assert!((pmf - t.pmf(p, n, i as usize, 1)).abs() < 1e-5 * pmf.max(1e-3));
                 counts[i as usize] += 1;
             }
             for (i, c) in counts.iter().enumerate() {
-                let expected = t.pmf(p, n, i, false) * n_samples as f32;
+                let expected = t.pmf(p, n, i, 1) * n_samples as f32;
                 assert!((*c as f32 - expected).abs() <= 2.0 + 1e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
             }
         }
@@ -456,21 +457,23 @@ mod tests {
             .collect();
         let t = tree_of(&lights);
         let (p, n) = (Vec3::new(2.0, 0.0, 2.0), Vec3::Y);
-        let expected_count: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, true)).sum();
-        let (_, _, _, n_front) = t.cut(p, true);
-        assert!(n_front > 1, "the point sits under the lights: the tree should split");
-        assert!((expected_count - n_front as f32).abs() < 1e-3, "Σ pmf {expected_count} vs {n_front} walks");
-        let mut counts = vec![0u32; lights.len()];
-        let n_samples = 100_000;
-        for k in 0..n_samples {
-            t.sample_split(p, n, (k as f32 + 0.5) / n_samples as f32, true, |i, pmf| {
-                assert!((pmf - t.pmf(p, n, i as usize, true)).abs() < 1e-5 * pmf.max(1e-3));
-                counts[i as usize] += 1;
-            });
-        }
-        for (i, c) in counts.iter().enumerate() {
-            let expected = t.pmf(p, n, i, true) * n_samples as f32;
-            assert!((*c as f32 - expected).abs() <= 2.0 + 2e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
+        for budget in [2, 4, SPLIT_BUDGET] {
+            let expected_count: f32 = (0..lights.len()).map(|i| t.pmf(p, n, i, budget)).sum();
+            let (_, _, _, n_front) = t.cut(p, budget);
+            assert!(n_front > 1 && n_front <= budget, "the point sits under the lights: the tree should split within {budget}");
+            assert!((expected_count - n_front as f32).abs() < 1e-3, "Σ pmf {expected_count} vs {n_front} walks");
+            let mut counts = vec![0u32; lights.len()];
+            let n_samples = 100_000;
+            for k in 0..n_samples {
+                t.sample_split(p, n, (k as f32 + 0.5) / n_samples as f32, budget, |i, pmf| {
+                    assert!((pmf - t.pmf(p, n, i as usize, budget)).abs() < 1e-5 * pmf.max(1e-3));
+                    counts[i as usize] += 1;
+                });
+            }
+            for (i, c) in counts.iter().enumerate() {
+                let expected = t.pmf(p, n, i, budget) * n_samples as f32;
+                assert!((*c as f32 - expected).abs() <= 2.0 + 2e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
+            }
         }
     }
 
