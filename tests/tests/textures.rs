@@ -234,3 +234,99 @@ fn the_render_plan_names_the_texture_machinery_a_scene_needs() {
     let cornell = explain_plan(&fixture("cornell_box.usda"), None).unwrap();
     assert!(cornell.contains("- textures") && !cornell.contains("+ textures"), "{cornell}");
 }
+
+/// Hard case (issue 7), end to end: a 16 384 x 16 384 texture, the largest side accepted, goes
+/// from the client through the server (uploaded, hash-checked, decoded, mip-mapped) onto a
+/// quad seen head-on: its bright top-left 1/16 corner and grey rest land where st puts them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_16k_texture_renders_through_the_server() {
+    let side = render_core::texture::MAX_TEXTURE_SIDE;
+    let dir = std::env::temp_dir().join(format!("tessera-16k-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut img = image::GrayImage::from_pixel(side, side, image::Luma([64u8]));
+    for y in 0..side / 4 {
+        for x in 0..side / 4 {
+            img.put_pixel(x, y, image::Luma([255]));
+        }
+    }
+    img.save(dir.join("huge.png")).expect("writes the PNG");
+    drop(img);
+    // A unit quad facing +Z with st from its corners, under a white dome, seen by an
+    // orthographic camera framing it exactly; raw colour space, no specular: pixel = texel.
+    let usda = r#"#usda 1.0
+(
+    defaultPrim = "World"
+    metersPerUnit = 1
+    upAxis = "Y"
+)
+def Xform "World"
+{
+    def DomeLight "Dome"
+    {
+        float inputs:intensity = 1
+    }
+    def Material "Huge"
+    {
+        token outputs:surface.connect = </World/Huge/Surface.outputs:surface>
+        def Shader "Surface"
+        {
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor.connect = </World/Huge/Texture.outputs:rgb>
+            float inputs:ior = 1
+            token outputs:surface
+        }
+        def Shader "St"
+        {
+            uniform token info:id = "UsdPrimvarReader_float2"
+            token inputs:varname = "st"
+            float2 outputs:result
+        }
+        def Shader "Texture"
+        {
+            uniform token info:id = "UsdUVTexture"
+            asset inputs:file = @huge.png@
+            token inputs:sourceColorSpace = "raw"
+            float2 inputs:st.connect = </World/Huge/St.outputs:result>
+            color3f outputs:rgb
+        }
+    }
+    def Mesh "Quad" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        rel material:binding = </World/Huge>
+        point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (
+            interpolation = "vertex"
+        )
+        uniform token subdivisionScheme = "none"
+    }
+    def Camera "Camera"
+    {
+        token projection = "orthographic"
+        float horizontalAperture = 20
+        float verticalAperture = 20
+        double3 xformOp:translate = (0, 0, 5)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+}
+"#;
+    std::fs::write(dir.join("huge.usda"), usda).unwrap();
+    let translation = tessera::usd::load(&dir.join("huge.usda")).expect("reads");
+    assert_eq!(translation.textures.len(), 1, "{:?}", translation.warnings);
+    let server = EmbeddedServer::start().await.expect("server");
+    let mut conn = Connection::connect(&server.url(), "16k").await.expect("connects");
+    conn.sync_scene(&translation).await.expect("a 16k texture is within the server's limits");
+    let report = conn.render(&small(32, 32, 4), |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    std::fs::remove_dir_all(&dir).ok();
+    let img = &report.image;
+    assert_all_finite(img);
+    // The quad fills the frame: pixel (x, y) covers st ((x + 0.5)/32, 1 − (y + 0.5)/32).
+    let bright = img.pixel("beauty", 2, 2)[0];
+    let grey = img.pixel("beauty", 20, 20)[0];
+    assert!((bright - 1.0).abs() < 0.02, "top-left corner {bright}");
+    assert!((grey - 64.0 / 255.0).abs() < 0.01, "grey rest {grey}");
+}
