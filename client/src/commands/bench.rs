@@ -334,6 +334,28 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
             )?;
         }
     }
+    // The same knob in a shaded scene: the roughness grid (metal, glass, plastic, sheen, fabric
+    // and glitter from smooth to rough) under its key light. Its reference keeps compensation
+    // on; compensation off converges to another image, and that difference is its bias.
+    let grid = load(&b.fixtures, "materials/roughness_grid.usda")?;
+    let gres = (res.0 / 2, res.1 / 2);
+    let gknobs = Knobs { max_depth: 16, ..base };
+    eprintln!("roughness grid reference: {} spp ...", b.reference_spp / 4);
+    let grid_ref = render(&grid, gres, Knobs { spp: b.reference_spp / 4, ..gknobs }, 13).rgb;
+    writeln!(
+        md,
+        "\n### Energy compensation in a shaded scene (`fixtures/materials/roughness_grid.usda`, {}x{}, max depth 16)\n\nAgainst a {}-spp reference with compensation on. Off at the reference's spp is the bias that more samples do not remove.\n",
+        gres.0,
+        gres.1,
+        b.reference_spp / 4
+    )?;
+    let mut grid_rows = Vec::new();
+    for (spp, on) in [(64, true), (64, false), (b.reference_spp / 4, false)] {
+        let r = render(&grid, gres, Knobs { spp, energy_compensation: on, ..gknobs }, 17);
+        grid_rows.push(Row::of(format!("{spp} spp, compensation {}", if on { "on" } else { "off" }), &r, &grid_ref));
+    }
+    table(&mut md, "Energy compensation, roughness grid", &grid_rows)?;
+
     // ------------------------------------------------------------ caustics
     let scene = load(&b.fixtures, "caustics/glass_on_floor.usda")?;
     let cres = (res.0, res.1 * 3 / 4);
