@@ -69,6 +69,19 @@ async fn total_internal_reflection_stays_finite_and_near_one() {
     assert!(n > 300 && mean > 0.95 && mean < 1.01, "TIR furnace: mean {mean}");
 }
 
+/// Dielectric extremes in the furnace, all smooth: IOR 1.0001 (F ≈ 1e-9 head-on, and a
+/// critical angle of 0.8° from inside), IOR 3.0, a sphere nested in a larger one (the inner
+/// interface is taken as glass against air: its energy still balances) and two coincident
+/// identical spheres (each crossing meets both surfaces). Finite, no energy gain, no firefly.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn extreme_nested_and_coincident_dielectrics_stay_finite_and_near_one() {
+    let (report, mean, n) = furnace("hard/dielectric_extremes.usda", 160, 80).await;
+    let peak = rgb(&report).into_iter().fold(0.0f64, f64::max);
+    println!("dielectric extremes furnace: mean {mean} over {n} pixels, peak {peak}");
+    assert!(n > 300 && mean > 0.95 && mean < 1.01, "dielectric extremes furnace: mean {mean}");
+    assert!(peak < 3.0, "a firefly of {peak}");
+}
+
 /// Scene scale: the Cornell box at 1e-4 and 1e5 of its size, camera and light alike, renders
 /// the same image (ray offsets and traversal limits scale with the scene: at 1e-4 the boxes
 /// went black, at 1e5 the floor shadowed itself).
