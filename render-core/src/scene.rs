@@ -132,7 +132,7 @@ pub struct BlasCache {
     /// BLAS builds done by the last commit (for tests and logs).
     pub last_builds: usize,
     /// MikkTSpace tangents of normal-mapped meshes, by mesh geometry.
-    tangents: Vec<(Arc<Mesh>, Arc<Vec<glam::Vec4>>)>,
+    tangents: Vec<(Arc<Mesh>, Arc<crate::geometry::Attribute<glam::Vec4>>)>,
 }
 
 /// Per-instance data the integrator needs at a hit.
@@ -154,8 +154,8 @@ pub struct InstanceData {
 pub struct CommittedScene {
     /// Geometry per distinct mesh.
     pub meshes: Vec<Arc<Mesh>>,
-    /// Per mesh, its MikkTSpace tangents (3 per triangle) when a normal map is drawn on it.
-    tangents: Vec<Option<Arc<Vec<glam::Vec4>>>>,
+    /// Per mesh, its MikkTSpace tangents (per corner) when a normal map is drawn on it.
+    tangents: Vec<Option<Arc<crate::geometry::Attribute<glam::Vec4>>>>,
     blases: Vec<Arc<Blas>>,
     /// Instances in the TLAS.
     pub instances: Vec<InstanceData>,
@@ -419,7 +419,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
 
     // MikkTSpace tangents for the meshes drawn with a normal map, each computed once per
     // geometry and kept between commits.
-    let mut tangents: Vec<Option<Arc<Vec<glam::Vec4>>>> = vec![None; meshes.len()];
+    let mut tangents: Vec<Option<Arc<crate::geometry::Attribute<glam::Vec4>>>> = vec![None; meshes.len()];
     let mut kept_tangents = Vec::new();
     let mut tried = vec![false; meshes.len()];
     for inst in &instances {
@@ -551,6 +551,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
     // Each effect the materials call for, with the materials that call for it.
+    let materials_where = |pred: &dyn Fn(&Material) -> bool| -> Vec<String> {
+        desc.materials.keys().filter(|m| pred(&materials[material_index[m.as_str()] as usize])).cloned().collect()
+    };
     type Pred = fn(&crate::material::Uber) -> bool;
     let effects: [(&str, &str, Pred); 12] = [
         ("diffuse", "diffuse reflection (Lambertian; Disney's for tessera:Principled)", |u| {
@@ -580,8 +583,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         }),
     ];
     for (effect, reason, pred) in effects {
-        let who: Vec<String> =
-            desc.materials.keys().filter(|m| pred(&materials[material_index[m.as_str()] as usize].surface)).cloned().collect();
+        let who = materials_where(&|m| pred(&m.surface));
         if !who.is_empty() {
             plan.enable(effect, reason, who);
         }
@@ -589,8 +591,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     if !desc.instancers.is_empty() {
         plan.enable("instancing", "instances share one BLAS per prototype under a TLAS", desc.instancers.keys().cloned());
     }
-    let partial: Vec<String> =
-        desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].pass_through > 0.0).cloned().collect();
+    let partial = materials_where(&|m| m.pass_through > 0.0);
     if !partial.is_empty() {
         plan.enable(
             "partial-presence",
@@ -598,8 +599,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             partial,
         );
     }
-    let subsurface: Vec<String> =
-        desc.materials.keys().filter(|m| materials[material_index[m.as_str()] as usize].medium().is_some()).cloned().collect();
+    let subsurface = materials_where(&|m| m.medium().is_some());
     if !subsurface.is_empty() {
         plan.enable("subsurface", "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)", subsurface);
     }
@@ -751,23 +751,26 @@ impl CommittedScene {
         }
         let b1 = (p - a).cross(c - a).dot(n) / nn;
         let b2 = (b - a).cross(p - a).dot(n) / nn;
-        let hit = Hit { t: 0.0, instance, triangle, bary: Vec2::new(b1, b2).clamp(Vec2::ZERO, Vec2::ONE) };
-        let s = self.surface(&hit);
-        t.at(&self.shading_point(&s, 0.0, 1.0)).0.emission
+        // Only what the lookup reads: no full surface (normals, tangents) per light sample.
+        t.at(&self.point_on(instance, triangle, Vec2::new(b1, b2).clamp(Vec2::ZERO, Vec2::ONE))).0.emission
     }
 
-    /// True when the surface `s` is cut out there by a textured opacity, so rays pass
-    /// it untouched (lookups at the finest level: shadow rays carry no footprint).
     /// What a textured material needs to know of the surface at `s`, seen by a ray whose
     /// footprint is `width` wide at |cos| `cos` to the surface.
     pub fn shading_point(&self, s: &SurfaceHit, width: f32, cos: f32) -> crate::material::ShadingPoint<'_> {
-        let mesh = &self.meshes[self.instances[s.instance as usize].mesh];
-        let primvars = (!mesh.primvars.is_empty()).then_some(crate::material::graph::PrimvarSource {
-            mesh,
-            triangle: s.triangle as usize,
-            bary: s.bary,
-        });
-        crate::material::ShadingPoint { st: s.st, primvars, width, cos, uv_density: s.uv_density }
+        let mut sp = self.point_on(s.instance, s.triangle, s.bary);
+        (sp.st, sp.width, sp.cos, sp.uv_density) = (s.st, width, cos, s.uv_density);
+        sp
+    }
+
+    /// The shading point at barycentrics `bary` of `triangle` of `instance` for a lookup without
+    /// footprint (the finest texture level): texture coordinates and primvars only.
+    fn point_on(&self, instance: u32, triangle: u32, bary: Vec2) -> crate::material::ShadingPoint<'_> {
+        let mesh = &self.meshes[self.instances[instance as usize].mesh];
+        let tri = triangle as usize;
+        let primvars = (!mesh.primvars.is_empty()).then_some(crate::material::graph::PrimvarSource { mesh, triangle: tri, bary });
+        let st = mesh.uvs.interpolate(tri, mesh.indices[tri], bary);
+        crate::material::ShadingPoint { st, primvars, width: 0.0, cos: 1.0, uv_density: 0.0 }
     }
 
     /// True when a ray along `dir` passes the surface `s` untouched: cut out there by a
@@ -854,9 +857,7 @@ impl CommittedScene {
             bary: w,
             tangent: glam::Vec4::ZERO,
         };
-        if let Some(t) = &self.tangents[inst.mesh] {
-            let (ta, tb, tc) = (t[3 * tri], t[3 * tri + 1], t[3 * tri + 2]);
-            let v = ta * (1.0 - w.x - w.y) + tb * w.x + tc * w.y;
+        if let Some(v) = self.tangents[inst.mesh].as_ref().and_then(|t| t.interpolate(tri, mesh.indices[tri], w)) {
             s.tangent = Vec3::from(m * glam::Vec3A::from(v.truncate())).extend(if v.w < 0.0 { -1.0 } else { 1.0 });
         }
         if let Some([ta, tb, tc]) = mesh.uvs.corners(tri, mesh.indices[tri]) {

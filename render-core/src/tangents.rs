@@ -54,15 +54,15 @@ impl Geometry for Corners<'_> {
     }
 }
 
-/// Per-corner tangents of `mesh` (3 per triangle: xyz the unit tangent in object space, w the
+/// Per-corner tangents of `mesh` (face-varying: xyz the unit tangent in object space, w the
 /// bitangent sign), or None when it has no texture coordinates or MikkTSpace fails.
-pub fn mikktspace(mesh: &Mesh) -> Option<Vec<Vec4>> {
+pub fn mikktspace(mesh: &Mesh) -> Option<Attribute<Vec4>> {
     if matches!(mesh.uvs, Attribute::None) || mesh.indices.is_empty() {
         return None;
     }
     let mut corners = Corners { mesh, out: vec![Vec4::ZERO; 3 * mesh.indices.len()] };
     generate_tangents(&mut corners).ok()?;
-    Some(corners.out)
+    Some(Attribute::FaceVarying(corners.out))
 }
 
 /// The shading normal a tangent-space normal map gives with an interpolated MikkTSpace
@@ -84,6 +84,14 @@ mod tests {
     use crate::geometry::Uvs;
     use glam::Vec2;
 
+    /// The per-corner tangents as a plain list.
+    fn corners(mesh: &Mesh) -> Vec<Vec4> {
+        match mikktspace(mesh) {
+            Some(Attribute::FaceVarying(v)) => v,
+            other => panic!("{other:?}"),
+        }
+    }
+
     /// A unit square in the xy plane, two triangles sharing a diagonal, st = (x, y).
     fn square(uvs: impl Fn(Vec2) -> Vec2) -> Mesh {
         let p = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
@@ -100,14 +108,14 @@ mod tests {
     /// mirrored in s: the tangent is −x and the sign flips so the bitangent stays +y.
     #[test]
     fn tangents_follow_the_texture_axes_and_mirroring_flips_the_sign() {
-        for t in mikktspace(&square(|p| p)).unwrap() {
+        for t in corners(&square(|p| p)) {
             assert!((t - Vec4::new(1.0, 0.0, 0.0, 1.0)).abs().max_element() < 1e-5, "{t:?}");
         }
-        for t in mikktspace(&square(|p| Vec2::new(1.0 - p.x, p.y))).unwrap() {
+        for t in corners(&square(|p| Vec2::new(1.0 - p.x, p.y))) {
             assert!((t - Vec4::new(-1.0, 0.0, 0.0, -1.0)).abs().max_element() < 1e-5, "{t:?}");
         }
         let b = |t: Vec4| Vec3::Z.cross(t.truncate()) * t.w;
-        assert!((b(mikktspace(&square(|p| Vec2::new(1.0 - p.x, p.y))).unwrap()[0]) - Vec3::Y).length() < 1e-5);
+        assert!((b(corners(&square(|p| Vec2::new(1.0 - p.x, p.y)))[0]) - Vec3::Y).length() < 1e-5);
     }
 
     /// Welding: on a curved strip whose triangles meet at an angle, each shared vertex gets
@@ -140,7 +148,7 @@ mod tests {
             .collect();
         let mesh =
             Mesh { positions, indices: indices.clone(), normals: Attribute::Vertex(normals), uvs: Uvs::Vertex(st), ..Default::default() };
-        let t = mikktspace(&mesh).unwrap();
+        let t = corners(&mesh);
         // Vertex 2 (on the fold) appears in triangles 0, 2 and 3: one tangent for all.
         let at = |v: u32| -> Vec<Vec4> {
             let mut found = Vec::new();

@@ -120,6 +120,21 @@ pub struct RenderProductDesc {
     pub aovs: Vec<String>,
 }
 
+/// The targets of relationship `rel` of `prim` (at `p`); a malformed one is an error naming
+/// the relationship (openusd recurses without end on some, see [`well_formed_path`]).
+fn valid_targets(prim: &Prim, p: &str, rel: &str) -> Result<Vec<sdf::Path>> {
+    let targets = prim.relationship(rel).targets()?;
+    if let Some(bad) = targets.iter().find(|t| !well_formed_path(t.as_str())) {
+        anyhow::bail!("{p}: relationship '{rel}' targets '{}', which is not a valid path", bad.as_str());
+    }
+    Ok(targets)
+}
+
+/// The first well-formed target of a RenderSettings' or RenderProduct's `camera`.
+fn camera_target(prim: &Prim) -> Result<Option<String>> {
+    Ok(prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t)))
+}
+
 /// Tessera's AOV for a `RenderVar` `sourceName` (Hydra's names, and ours).
 fn aov_of_source(source: &str) -> Option<&'static str> {
     Some(match source {
@@ -668,7 +683,7 @@ impl Reader<'_> {
         if !chosen {
             return Ok(());
         }
-        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t));
+        let camera = camera_target(prim)?;
         let resolution = self.resolution(prim, p)?;
         let pixel_aspect = match get(prim, "pixelAspectRatio", self.time)?.as_ref().and_then(values::scalar) {
             Some(a) if a.is_finite() && a > 0.0 => Some(a as f32),
@@ -676,12 +691,9 @@ impl Reader<'_> {
             None => None,
         };
         let mut products = Vec::new();
-        for target in prim.relationship("products").targets()? {
+        for target in valid_targets(prim, p, "products")? {
             let tp = target.as_str().to_string();
-            if !well_formed_path(&tp) {
-                anyhow::bail!("{p}: relationship 'products' targets '{tp}', which is not a valid path");
-            }
-            let product = self.stage.prim(target.clone());
+            let product = self.stage.prim(target);
             if product.type_name()?.is_none_or(|t| t.as_str() != "RenderProduct") {
                 self.out.warnings.push(format!("{p}: products target {tp}, which is not a RenderProduct; ignored"));
                 continue;
@@ -712,15 +724,12 @@ impl Reader<'_> {
     /// `orderedVars` (a `sourceName` we do not produce is a warning naming the RenderVar).
     fn render_product(&mut self, prim: &Prim, p: &str) -> Result<RenderProductDesc> {
         let name = get(prim, "productName", self.time)?.as_ref().and_then(values::token).filter(|n| !n.is_empty());
-        let camera = prim.relationship("camera").targets()?.first().map(|t| t.as_str().to_string()).filter(|t| well_formed_path(t));
+        let camera = camera_target(prim)?;
         let resolution = self.resolution(prim, p)?;
         let mut aovs = Vec::new();
-        for target in prim.relationship("orderedVars").targets()? {
+        for target in valid_targets(prim, p, "orderedVars")? {
             let vp = target.as_str().to_string();
-            if !well_formed_path(&vp) {
-                anyhow::bail!("{p}: relationship 'orderedVars' targets '{vp}', which is not a valid path");
-            }
-            let var = self.stage.prim(target.clone());
+            let var = self.stage.prim(target);
             let source = get(&var, "sourceName", self.time)?.as_ref().and_then(values::token).unwrap_or_default();
             match aov_of_source(&source) {
                 Some("beauty") => {}
@@ -747,10 +756,7 @@ impl Reader<'_> {
                 Some(v) => Ok(Some(values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array"))?)),
             }
         };
-        let prototypes = prim.relationship("prototypes").targets()?;
-        if let Some(bad) = prototypes.iter().find(|t| !well_formed_path(t.as_str())) {
-            anyhow::bail!("{p}: relationship 'prototypes' targets '{}', which is not a valid path", bad.as_str());
-        }
+        let prototypes = valid_targets(prim, p, "prototypes")?;
         let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
         let n = proto_indices.len();
         let positions = match get(prim, "positions", time)? {

@@ -241,14 +241,14 @@ impl GlitterParams {
         let rfs = 0.5 * self.size();
         let reach = rs + rfs;
         let (lo, hi) = ((pc - reach).floor(), (pc + reach).floor());
-        // (distance on the plane, coverage, cell) of each visible flake; a footprint of 1.5 cells
-        // meets about 20, so more than 64 never show beside the 4 nearest.
-        let mut seen = [(0.0f32, 0.0f32, [0i32; 3]); 64];
+        // (distance on the plane, coverage, random numbers) of each visible flake; a footprint
+        // of 1.5 cells meets about 20, so more than 64 never show beside the 4 nearest.
+        let mut seen = [(0.0f32, 0.0f32, [0.0f32; 3]); 64];
         let mut found = 0;
         for z in lo.z as i32..=hi.z as i32 {
             for y in lo.y as i32..=hi.y as i32 {
                 for x in lo.x as i32..=hi.x as i32 {
-                    let (c, _) = feature([x, y, z]);
+                    let (c, random) = feature([x, y, z]);
                     let dist = (pc - c).dot(n);
                     if dist.abs() >= rfs {
                         continue;
@@ -257,7 +257,7 @@ impl GlitterParams {
                     let d = (c + dist * n).distance(pc);
                     let cov = disk_coverage(rs, rf, d);
                     if cov > 0.0 && found < seen.len() {
-                        seen[found] = (d, cov, [x, y, z]);
+                        seen[found] = (d, cov, random);
                         found += 1;
                     }
                 }
@@ -268,11 +268,10 @@ impl GlitterParams {
         let (mut left, mut near, mut rest, mut count) = (1.0f32, [None; MAX_FLAKE_LOBES], 0.0f32, 0);
         let frame = Frame::from_normal(n);
         let alpha = self.spread.clamp(0.0, 1.0).powi(2);
-        for &(_, cov, cell) in seen.iter() {
+        for &(_, cov, [u1, u2, u3]) in seen.iter() {
             let share = cov.min(left);
             left -= share;
             if count < MAX_FLAKE_LOBES {
-                let (_, [u1, u2, u3]) = feature(cell);
                 // GGX-distributed normal around the shading normal (tan²θ = α²u/(1 − u)).
                 let tan = alpha * (u1 / (1.0 - u1)).sqrt();
                 let cos = 1.0 / (1.0 + tan * tan).sqrt();

@@ -10,7 +10,7 @@ use super::{Material, Principled};
 
 /// UsdPreviewSurface inputs that are known but not yet mapped.
 const PREVIEW_SURFACE_KNOWN: &[&str] =
-    &["useSpecularWorkflow", "specularColor", "opacity", "opacityMode", "opacityThreshold", "displacement", "occlusion"];
+    &["useSpecularWorkflow", "specularColor", "opacity", "opacityThreshold", "displacement", "occlusion"];
 
 /// What a Disney-parameter front-end resolves to.
 #[derive(Clone, Debug, PartialEq)]
@@ -92,7 +92,9 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
             // The metallic workflow ignores specularColor, the specular one metallic.
             ("specularColor", ParamValue::Float3(_)) => {}
             ("metallic", ParamValue::Float(_)) if specular_workflow => {}
-            ("opacity" | "opacityThreshold", ParamValue::Float(_)) | ("opacityMode", ParamValue::String(_)) => {}
+            ("opacity" | "opacityThreshold", ParamValue::Float(_)) => {}
+            // Read (and, if malformed, reported) above.
+            ("opacityMode", _) => {}
             // A tangent-space normal map, applied at shading time when the input is connected
             // (graph.rs); an unconnected (0, 0, 1) is the unperturbed normal.
             ("normal", ParamValue::Float3(n)) if *n == Vec3::Z => {}
