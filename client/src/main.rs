@@ -148,6 +148,22 @@ enum BenchCommand {
         #[arg(long, default_value_t = 8192)]
         reference_spp: u32,
     },
+    /// 10 000 lights against one light of the same total power at equal time, per split
+    /// budget; prints the table (docs/accuracy-vs-time.md carries it too).
+    Lights {
+        /// The fixtures directory.
+        #[arg(long, default_value = "fixtures")]
+        fixtures: PathBuf,
+        /// Image edge.
+        #[arg(long, default_value_t = 32)]
+        size: u32,
+        /// Samples per pixel of the references.
+        #[arg(long, default_value_t = 2048)]
+        reference_spp: u32,
+        /// Also write the table here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// What the render plan saves: each fixture rendered as planned and with every effect
     /// forced on; prints the speed-up and the difference between the images (equal within
     /// noise). Writes docs/render-plan.md.
@@ -224,6 +240,12 @@ async fn real_main() -> Result<()> {
             let (report, _) = tessera::commands::effects::effects(&bench)?;
             print!("{report}");
             eprintln!("wrote {}", out.display());
+        }
+        Command::Bench { what: BenchCommand::Lights { fixtures, size, reference_spp, out } } => {
+            let bench =
+                tessera::commands::lights::LightsBench { fixtures, out, size, reference_spp, spp: vec![16, 64], budgets: vec![8, 4, 2, 1] };
+            let (report, _) = tessera::commands::lights::lights(&bench)?;
+            print!("{report}");
         }
         Command::Inspect { scene, json: _, frame } => {
             // A closed pipe (`| head`) is not an error worth a panic.

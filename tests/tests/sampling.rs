@@ -101,7 +101,7 @@ fn the_accuracy_report_measures_what_the_knobs_do() {
     let tf = |label: &str| s.texture_filtering.iter().find(|(l, ..)| l == label).unwrap_or_else(|| panic!("no row {label}")).2;
     assert!(tf("4 spp, filtering on") < tf("4 spp, filtering off"), "{:?}", s.texture_filtering);
     assert_eq!(s.subsurface.len(), 4);
-    assert!(s.many_lights.len() == 8 && s.many_lights.iter().all(|(_, spp, ratio)| *spp >= 1 && ratio.is_finite()), "{:?}", s.many_lights);
+    assert!(s.many_lights.len() == 16 && s.many_lights.iter().all(|r| r.many_spp >= 1 && r.ratio.is_finite()), "{:?}", s.many_lights);
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -183,9 +183,9 @@ pub struct AccuracySummary {
     pub caustics: Vec<(String, f64, f64)>,
     /// (setting, seconds, relMSE) with the subsurface random walk and its diffuse fallback.
     pub subsurface: Vec<(String, f64, f64)>,
-    /// (one-light spp, 10 000-light spp at equal time, RMS error ratio many / one), for split
-    /// budgets 8, 4, 2 and 1 (no splitting).
-    pub many_lights: Vec<(u32, u32, f64)>,
+    /// 10 000 lights against each one-light scene at equal time, for split budgets 8, 4, 2
+    /// and 1 (no splitting).
+    pub many_lights: Vec<super::lights::LightsRow>,
     /// (setting, seconds, relMSE) with texture filtering on and off.
     pub texture_filtering: Vec<(String, f64, f64)>,
 }
@@ -435,34 +435,17 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     table(&mut md, "Texture filtering (max depth 2)", &filter_rows)?;
 
     // ------------------------------------------------------------ many lights, equal time
-    let many = load(&b.fixtures, "hard/many_lights.usdc")?;
-    let one = load(&b.fixtures, "hard/one_light.usda")?;
-    let lres = (32, 32);
-    let lknobs = Knobs { max_depth: 2, ..base };
-    let many_ref = render(&many, lres, Knobs { spp: b.reference_spp / 4, ..lknobs }, 21).rgb;
-    let one_ref = render(&one, lres, Knobs { spp: b.reference_spp / 4, ..lknobs }, 21).rgb;
-    writeln!(
-        md,
-        "\n## Many lights at equal time (`fixtures/hard/many_lights.usdc` against `hard/one_light.usda`, {}x{})\n\n10 000 small sphere lights in a grid over a plane, against one light of the same total power. The 10 000-light render gets the samples that fit in the time the one-light render took (per-sample cost measured at 16 spp in the same run); each is compared with its own reference ({} spp). Adaptive splitting with budgets of 8 (the default), 4 and 2 lights per shading point, and 1 (no splitting: `--light-splitting off`).\n\n| split budget | one light spp | one light s | one light relMSE | 10 000 lights spp | 10 000 lights s | 10 000 lights relMSE | RMS error ratio |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
-        lres.0,
-        lres.1,
-        b.reference_spp / 4
-    )?;
-    for budget in [8usize, 4, 2, 1] {
-        let k = Knobs { light_split_budget: budget, ..lknobs };
-        let probe = render(&many, lres, Knobs { spp: 16, ..k }, 3);
-        let many_per_spp = probe.seconds / 16.0;
-        for spp in [16u32, 64] {
-            let o = render(&one, lres, Knobs { spp, ..lknobs }, 5);
-            let equal = ((o.seconds / many_per_spp).floor() as u32).max(1);
-            let m = render(&many, lres, Knobs { spp: equal, ..k }, 5);
-            let (eo, em) = (rel_mse(&o.rgb, &one_ref), rel_mse(&m.rgb, &many_ref));
-            // relMSE is a squared error: the ratio of RMS errors is its square root.
-            let ratio = (em / eo).sqrt();
-            summary.many_lights.push((spp, equal, ratio));
-            writeln!(md, "| {budget} | {spp} | {:.3} | {eo:.2e} | {equal} | {:.3} | {em:.2e} | {ratio:.2}x |", o.seconds, m.seconds)?;
-        }
-    }
+    let lights = super::lights::LightsBench {
+        fixtures: b.fixtures.clone(),
+        out: None,
+        size: 32,
+        reference_spp: b.reference_spp / 4,
+        spp: vec![16, 64],
+        budgets: vec![8, 4, 2, 1],
+    };
+    let (lights_md, rows) = super::lights::lights(&lights)?;
+    writeln!(md, "\n{lights_md}")?;
+    summary.many_lights = rows;
 
     std::fs::write(&b.out, &md).with_context(|| format!("cannot write {}", b.out.display()))?;
     Ok((md, summary))

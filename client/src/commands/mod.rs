@@ -3,4 +3,5 @@
 pub mod bench;
 pub mod effects;
 pub mod inspect;
+pub mod lights;
 pub mod render;

@@ -11,6 +11,7 @@
 pub mod blackbody;
 pub mod environment;
 mod shapes;
+pub mod spherical_rect;
 pub mod tree;
 
 pub use shapes::{LightHit, LightSample, Shape};

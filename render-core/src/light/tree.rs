@@ -42,6 +42,18 @@ pub struct LightBounds {
     sin_o: f32,
 }
 
+/// sin and cos of the half-angle of the cone of directions a bounding sphere of squared
+/// radius `r2` subtends from squared distance `dist2`; inside the sphere, every direction.
+#[inline]
+fn bounding_cone(dist2: f32, r2: f32) -> (f32, f32) {
+    if dist2 <= r2 {
+        (0.0, -1.0)
+    } else {
+        let s2 = r2 / dist2;
+        (s2.sqrt(), (1.0 - s2).max(0.0).sqrt())
+    }
+}
+
 /// cos(max(0, a − b)) from the sines and cosines of a and b.
 #[inline]
 fn cos_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
@@ -119,19 +131,18 @@ impl LightBounds {
         let dist2 = v.length_squared();
         let d2 = dist2.max(self.radius);
         let wi = if dist2 > 0.0 { v * dist2.sqrt().recip() } else { Vec3::ZERO };
+        let r2 = self.radius * self.radius;
+        if self.cos_o <= -1.0 && self.cos_e <= 0.0 {
+            // Emitters facing every way (spheres, cylinders): the emitter's cosine bound is 1
+            // and only the receiver's remains. The hot case of many point-like lights.
+            return self.phi / d2 * self.receiver_cos(wi, n, dist2, r2);
+        }
         let mut cos_w = self.w.dot(wi);
         if self.two_sided {
             cos_w = cos_w.abs();
         }
         let sin_w = sin_of(cos_w);
-        // Directions the box subtends from p: inside its bounding sphere, all of them.
-        let r2 = self.radius * self.radius;
-        let (sin_b, cos_b) = if dist2 <= r2 {
-            (0.0, -1.0)
-        } else {
-            let s2 = r2 / dist2;
-            (s2.sqrt(), (1.0 - s2).max(0.0).sqrt())
-        };
+        let (sin_b, cos_b) = bounding_cone(dist2, r2);
         let (sin_o, cos_o) = (self.sin_o, self.cos_o);
         let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
         let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
@@ -139,12 +150,19 @@ impl LightBounds {
         if cos_p <= self.cos_e {
             return 0.0;
         }
-        let mut importance = self.phi * cos_p / d2;
-        if n != Vec3::ZERO {
-            let cos_i = wi.dot(n).abs();
-            importance *= cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b);
+        (self.phi * cos_p / d2 * self.receiver_cos(wi, n, dist2, r2)).max(0.0)
+    }
+
+    /// The best-case cosine at a receiver with normal `n` (zero: a point in a medium, 1) of
+    /// light from the box, whose bounding sphere lies towards `wi`.
+    #[inline]
+    fn receiver_cos(&self, wi: Vec3, n: Vec3, dist2: f32, r2: f32) -> f32 {
+        if n == Vec3::ZERO {
+            return 1.0;
         }
-        importance.max(0.0)
+        let (sin_b, cos_b) = bounding_cone(dist2, r2);
+        let cos_i = wi.dot(n).abs();
+        cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).max(0.0)
     }
 }
 
@@ -289,27 +307,34 @@ impl LightTree {
         (total > 0.0 && total.is_finite()).then(|| (il / total, ir / total))
     }
 
-    /// The nodes that split at `p` (breadth first from the root, while the budget lasts) and
-    /// the cut below them: the nodes each stochastic walk starts from.
+    /// The nodes that split at `p` and the cut below them: the nodes each stochastic walk
+    /// starts from. While the budget lasts, the cluster of the cut that is largest for its
+    /// distance (the one whose importance bound is loosest) splits, if it is close enough.
     fn cut(&self, p: Vec3, budget: usize) -> ([u32; SPLIT_BUDGET], usize, [u32; SPLIT_BUDGET], usize) {
         let budget = budget.clamp(1, SPLIT_BUDGET);
         let (mut splits, mut n_splits) = ([0u32; SPLIT_BUDGET], 0usize);
         let (mut frontier, mut n_front) = ([0u32; SPLIT_BUDGET], 1usize);
-        let mut k = 0;
-        while k < n_front && n_front < budget {
-            let at = frontier[k] as usize;
-            if let Node::Interior { right, bounds } = self.nodes[at] {
-                if (p - bounds.center).length_squared() < (SPLIT_DISTANCE * bounds.radius).powi(2) {
-                    splits[n_splits] = at as u32;
-                    n_splits += 1;
-                    // Replace the node by its children in the frontier.
-                    frontier[k] = at as u32 + 1;
-                    frontier[n_front] = right;
-                    n_front += 1;
-                    continue;
+        while n_front < budget {
+            // The loosest cluster: largest radius² / distance², among those within reach.
+            let mut best: Option<(usize, f32)> = None;
+            for (k, &at) in frontier[..n_front].iter().enumerate() {
+                if let Node::Interior { bounds, .. } = &self.nodes[at as usize] {
+                    let (d2, r2) = ((p - bounds.center).length_squared(), bounds.radius * bounds.radius);
+                    let looseness = r2 / d2.max(f32::MIN_POSITIVE);
+                    if d2 < SPLIT_DISTANCE * SPLIT_DISTANCE * r2 && best.is_none_or(|(_, l)| looseness > l) {
+                        best = Some((k, looseness));
+                    }
                 }
             }
-            k += 1;
+            let Some((k, _)) = best else { break };
+            let at = frontier[k];
+            let Node::Interior { right, .. } = self.nodes[at as usize] else { break };
+            splits[n_splits] = at;
+            n_splits += 1;
+            // Replace the node by its children in the cut.
+            frontier[k] = at + 1;
+            frontier[n_front] = right;
+            n_front += 1;
         }
         (splits, n_splits, frontier, n_front)
     }

@@ -1,0 +1,111 @@
+//! `tessera bench lights`: 10 000 lights against one light of the same total power, at equal
+//! time.
+//!
+//! The 10 000-light grid (`hard/many_lights.usdc`) is compared with two one-light scenes of
+//! the grid's power: one sphere at the grid's centre (`hard/one_light.usda`), and one
+//! RectLight covering the grid (`hard/one_rect_light.usda`), whose light arrives from the
+//! same spread of directions and distances as the grid's. Per-sample cost is measured on
+//! long renders (the best of three), so that fixed per-render costs do not enter it; the
+//! many-light render then gets the samples that fit in the one-light render's time, and each
+//! image is compared with its own reference.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use render_core::scene::CommittedScene;
+
+use super::bench::{Knobs, load, machine_description, rel_mse, render, today};
+
+/// Options of `tessera bench lights`.
+#[derive(Clone, Debug)]
+pub struct LightsBench {
+    /// `fixtures/` directory.
+    pub fixtures: PathBuf,
+    /// Report to append the table to (None: print only).
+    pub out: Option<PathBuf>,
+    /// Image edge.
+    pub size: u32,
+    /// Samples per pixel of the references.
+    pub reference_spp: u32,
+    /// One-light sample counts to compare at.
+    pub spp: Vec<u32>,
+    /// Split budgets to measure.
+    pub budgets: Vec<usize>,
+}
+
+/// One row: a one-light scene and a split budget at one sample count.
+#[derive(Clone, Debug)]
+pub struct LightsRow {
+    /// Which one-light scene.
+    pub counterpart: &'static str,
+    /// Split budget of the 10 000-light render.
+    pub budget: usize,
+    /// One-light samples per pixel.
+    pub one_spp: u32,
+    /// Its relative MSE.
+    pub one_rel_mse: f64,
+    /// 10 000-light samples per pixel at equal time.
+    pub many_spp: u32,
+    /// Its relative MSE.
+    pub many_rel_mse: f64,
+    /// Ratio of RMS errors, many / one.
+    pub ratio: f64,
+    /// Cost of a 10 000-light sample over a one-light one.
+    pub cost_ratio: f64,
+}
+
+/// Seconds per sample per pixel: the best of three renders at `spp`.
+fn seconds_per_spp(scene: &CommittedScene, res: (u32, u32), k: Knobs) -> f64 {
+    (0..3).map(|s| render(scene, res, k, 100 + s).seconds).fold(f64::INFINITY, f64::min) / k.spp as f64
+}
+
+/// Runs the comparison; returns the markdown and the rows.
+pub fn lights(b: &LightsBench) -> Result<(String, Vec<LightsRow>)> {
+    let many = load(&b.fixtures, "hard/many_lights.usdc")?;
+    let counterparts = [("sphere", load(&b.fixtures, "hard/one_light.usda")?), ("rect", load(&b.fixtures, "hard/one_rect_light.usda")?)];
+    let res = (b.size, b.size);
+    let base = Knobs { max_depth: 2, ..Knobs::default() };
+    let reference = |scene: &CommittedScene| render(scene, res, Knobs { spp: b.reference_spp, ..base }, 21).rgb;
+    let many_ref = reference(&many);
+    let mut md = String::new();
+    writeln!(
+        md,
+        "## Many lights at equal time ({}x{}, {}, {})\n\nOne-light scenes: `sphere` is one sphere of the grid's power at its centre, `rect` one RectLight covering the grid. Per-sample cost is the best of three renders at 64 spp (one light) or 16 spp (10 000 lights). References: {} spp.\n\n| one light | split budget | cost per sample, many / one | one light spp | one light relMSE | 10 000 lights spp | 10 000 lights relMSE | RMS error ratio |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+        b.size,
+        b.size,
+        today(),
+        machine_description(),
+        b.reference_spp
+    )?;
+    let mut rows = Vec::new();
+    for (name, one) in &counterparts {
+        let one_ref = reference(one);
+        let one_cost = seconds_per_spp(one, res, Knobs { spp: 64, ..base });
+        for &budget in &b.budgets {
+            let k = Knobs { light_split_budget: budget, ..base };
+            let many_cost = seconds_per_spp(&many, res, Knobs { spp: 16, ..k });
+            for &spp in &b.spp {
+                let equal = ((spp as f64 * one_cost / many_cost).floor() as u32).max(1);
+                let eo = rel_mse(&render(one, res, Knobs { spp, ..base }, 5).rgb, &one_ref);
+                let em = rel_mse(&render(&many, res, Knobs { spp: equal, ..k }, 5).rgb, &many_ref);
+                let row = LightsRow {
+                    counterpart: name,
+                    budget,
+                    one_spp: spp,
+                    one_rel_mse: eo,
+                    many_spp: equal,
+                    many_rel_mse: em,
+                    ratio: (em / eo).sqrt(),
+                    cost_ratio: many_cost / one_cost,
+                };
+                writeln!(md, "| {name} | {budget} | {:.1} | {spp} | {eo:.2e} | {equal} | {em:.2e} | {:.2}x |", row.cost_ratio, row.ratio)?;
+                rows.push(row);
+            }
+        }
+    }
+    if let Some(out) = &b.out {
+        std::fs::write(out, &md)?;
+    }
+    Ok((md, rows))
+}
