@@ -242,8 +242,10 @@ async fn real_main() -> Result<()> {
             eprintln!("wrote {}", out.display());
         }
         Command::Bench { what: BenchCommand::Lights { fixtures, size, reference_spp, out } } => {
-            let bench =
-                tessera::commands::lights::LightsBench { fixtures, out, size, reference_spp, spp: vec![16, 64], budgets: vec![8, 4, 2, 1] };
+            let bench = tessera::commands::lights::LightsBench {
+                out,
+                ..tessera::commands::lights::LightsBench::new(fixtures, size, reference_spp)
+            };
             let (report, _) = tessera::commands::lights::lights(&bench)?;
             print!("{report}");
         }

@@ -187,19 +187,14 @@ fn grid_radiance(lights: &[(f64, f64, f64)]) -> f64 {
 /// the irradiance of a polygon of radiance L is L/2 Σ γᵢ cos βᵢ over its edges (γ the edge's
 /// angle seen from the point, βᵢ between the edge's plane normal and the surface normal).
 fn panel_radiance() -> f64 {
+    use glam::DVec3;
     use std::f64::consts::PI;
     let radiance = 32.0 * 4.0 * PI * PI * 0.005f64.powi(2) * 1e4 / (PI * 100.0);
-    let corners = [[-5.0, 2.0, -5.0], [5.0, 2.0, -5.0], [5.0, 2.0, 5.0], [-5.0, 2.0, 5.0]].map(|c: [f64; 3]| {
-        let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-        [c[0] / l, c[1] / l, c[2] / l]
-    });
+    let corners = [(-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0)].map(|(x, z)| DVec3::new(x, 2.0, z).normalize());
     let e: f64 = (0..4)
         .map(|i| {
             let (a, b) = (corners[i], corners[(i + 1) % 4]);
-            let cross = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-            let len = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
-            let gamma = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0).acos();
-            0.5 * gamma * cross[1] / len
+            0.5 * a.angle_between(b) * a.cross(b).normalize().dot(DVec3::Y)
         })
         .sum::<f64>()
         .abs()

@@ -435,15 +435,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     table(&mut md, "Texture filtering (max depth 2)", &filter_rows)?;
 
     // ------------------------------------------------------------ many lights, equal time
-    let lights = super::lights::LightsBench {
-        fixtures: b.fixtures.clone(),
-        out: None,
-        size: 32,
-        reference_spp: b.reference_spp / 4,
-        spp: vec![16, 64],
-        budgets: vec![8, 4, 2, 1],
-    };
-    let (lights_md, rows) = super::lights::lights(&lights)?;
+    let (lights_md, rows) = super::lights::lights(&super::lights::LightsBench::new(b.fixtures.clone(), 32, b.reference_spp / 4))?;
     writeln!(md, "\n{lights_md}")?;
     summary.many_lights = rows;
 

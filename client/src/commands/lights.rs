@@ -22,7 +22,7 @@ use super::bench::{Knobs, load, machine_description, rel_mse, render, today};
 pub struct LightsBench {
     /// `fixtures/` directory.
     pub fixtures: PathBuf,
-    /// Report to append the table to (None: print only).
+    /// Also write the table here (None: only return it).
     pub out: Option<PathBuf>,
     /// Image edge.
     pub size: u32,
@@ -32,6 +32,14 @@ pub struct LightsBench {
     pub spp: Vec<u32>,
     /// Split budgets to measure.
     pub budgets: Vec<usize>,
+}
+
+impl LightsBench {
+    /// The standard comparison: one-light renders at 16 and 64 spp, split budgets 8, 4, 2
+    /// and 1 (no splitting).
+    pub fn new(fixtures: PathBuf, size: u32, reference_spp: u32) -> Self {
+        LightsBench { fixtures, out: None, size, reference_spp, spp: vec![16, 64], budgets: vec![8, 4, 2, 1] }
+    }
 }
 
 /// One row: a one-light scene and a split budget at one sample count.
@@ -82,12 +90,13 @@ pub fn lights(b: &LightsBench) -> Result<(String, Vec<LightsRow>)> {
     for (name, one) in &counterparts {
         let one_ref = reference(one);
         let one_cost = seconds_per_spp(one, res, Knobs { spp: 256, ..base });
+        // The one-light errors do not depend on the budget: rendered once per sample count.
+        let one_errors: Vec<f64> = b.spp.iter().map(|&spp| rel_mse(&render(one, res, Knobs { spp, ..base }, 5).rgb, &one_ref)).collect();
         for &budget in &b.budgets {
             let k = Knobs { light_split_budget: budget, ..base };
             let many_cost = seconds_per_spp(&many, res, Knobs { spp: 64, ..k });
-            for &spp in &b.spp {
+            for (&spp, &eo) in b.spp.iter().zip(&one_errors) {
                 let equal = ((spp as f64 * one_cost / many_cost).floor() as u32).max(1);
-                let eo = rel_mse(&render(one, res, Knobs { spp, ..base }, 5).rgb, &one_ref);
                 let em = rel_mse(&render(&many, res, Knobs { spp: equal, ..k }, 5).rgb, &many_ref);
                 let row = LightsRow {
                     counterpart: name,

@@ -316,8 +316,9 @@ impl Shape {
                 cone_pdf(sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt()))
             }
             Shape::Rect { center, u, v, n, area, .. } => {
+                // A ray meeting the emitting face comes from the front: only the angle matters.
                 let cos = n.dot(-wi);
-                if cos <= 0.0 || n.dot(ctx.p - *center) <= 0.0 {
+                if cos <= 0.0 {
                     return 0.0;
                 }
                 match rect_by_solid_angle(ctx.p, *center, *u, *v) {

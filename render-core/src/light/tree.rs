@@ -131,18 +131,18 @@ impl LightBounds {
         let dist2 = v.length_squared();
         let d2 = dist2.max(self.radius);
         let wi = if dist2 > 0.0 { v * dist2.sqrt().recip() } else { Vec3::ZERO };
-        let r2 = self.radius * self.radius;
+        // Directions the box subtends from p.
+        let (sin_b, cos_b) = bounding_cone(dist2, self.radius * self.radius);
         if self.cos_o <= -1.0 && self.cos_e <= 0.0 {
             // Emitters facing every way (spheres, cylinders): the emitter's cosine bound is 1
             // and only the receiver's remains. The hot case of many point-like lights.
-            return self.phi / d2 * self.receiver_cos(wi, n, dist2, r2);
+            return self.phi / d2 * receiver_cos(wi, n, sin_b, cos_b);
         }
         let mut cos_w = self.w.dot(wi);
         if self.two_sided {
             cos_w = cos_w.abs();
         }
         let sin_w = sin_of(cos_w);
-        let (sin_b, cos_b) = bounding_cone(dist2, r2);
         let (sin_o, cos_o) = (self.sin_o, self.cos_o);
         let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
         let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
@@ -150,20 +150,19 @@ impl LightBounds {
         if cos_p <= self.cos_e {
             return 0.0;
         }
-        (self.phi * cos_p / d2 * self.receiver_cos(wi, n, dist2, r2)).max(0.0)
+        (self.phi * cos_p / d2 * receiver_cos(wi, n, sin_b, cos_b)).max(0.0)
     }
+}
 
-    /// The best-case cosine at a receiver with normal `n` (zero: a point in a medium, 1) of
-    /// light from the box, whose bounding sphere lies towards `wi`.
-    #[inline]
-    fn receiver_cos(&self, wi: Vec3, n: Vec3, dist2: f32, r2: f32) -> f32 {
-        if n == Vec3::ZERO {
-            return 1.0;
-        }
-        let (sin_b, cos_b) = bounding_cone(dist2, r2);
-        let cos_i = wi.dot(n).abs();
-        cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).max(0.0)
+/// The best-case cosine at a receiver with normal `n` (zero: a point in a medium, 1) of light
+/// from a bounding sphere towards `wi` that subtends the cone (sin_b, cos_b).
+#[inline]
+fn receiver_cos(wi: Vec3, n: Vec3, sin_b: f32, cos_b: f32) -> f32 {
+    if n == Vec3::ZERO {
+        return 1.0;
     }
+    let cos_i = wi.dot(n).abs();
+    cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).max(0.0)
 }
 
 /// The smallest cone holding cones a and b, as (axis, cos of the half-angle).
@@ -316,19 +315,18 @@ impl LightTree {
         let (mut frontier, mut n_front) = ([0u32; SPLIT_BUDGET], 1usize);
         while n_front < budget {
             // The loosest cluster: largest radius² / distance², among those within reach.
-            let mut best: Option<(usize, f32)> = None;
+            let mut best: Option<(usize, u32, f32)> = None;
             for (k, &at) in frontier[..n_front].iter().enumerate() {
-                if let Node::Interior { bounds, .. } = &self.nodes[at as usize] {
+                if let Node::Interior { right, bounds } = &self.nodes[at as usize] {
                     let (d2, r2) = ((p - bounds.center).length_squared(), bounds.radius * bounds.radius);
                     let looseness = r2 / d2.max(f32::MIN_POSITIVE);
-                    if d2 < SPLIT_DISTANCE * SPLIT_DISTANCE * r2 && best.is_none_or(|(_, l)| looseness > l) {
-                        best = Some((k, looseness));
+                    if d2 < SPLIT_DISTANCE * SPLIT_DISTANCE * r2 && best.is_none_or(|(.., l)| looseness > l) {
+                        best = Some((k, *right, looseness));
                     }
                 }
             }
-            let Some((k, _)) = best else { break };
+            let Some((k, right, _)) = best else { break };
             let at = frontier[k];
-            let Node::Interior { right, .. } = self.nodes[at as usize] else { break };
             splits[n_splits] = at;
             n_splits += 1;
             // Replace the node by its children in the cut.
@@ -500,6 +498,19 @@ mod tests {
                 assert!((*c as f32 - expected).abs() <= 2.0 + 2e-3 * n_samples as f32, "light {i}: {c} vs {expected}");
             }
         }
+    }
+
+    /// Splitting spends its budget where the bounds are loosest: under the middle of a
+    /// square grid, once the root splits, its two halves are equally close and both split
+    /// (not the first half again and again).
+    #[test]
+    fn the_loosest_cluster_splits_first() {
+        let lights: Vec<_> = (0..256).map(|k| sphere(Vec3::new((k % 16) as f32 - 7.5, 1.0, (k / 16) as f32 - 7.5), 1.0)).collect();
+        let t = tree_of(&lights);
+        let Node::Interior { right, .. } = t.nodes[0] else { panic!("the root is interior") };
+        let (splits, n_splits, _, n_front) = t.cut(Vec3::ZERO, 4);
+        assert_eq!(n_front, 4);
+        assert_eq!(&splits[..n_splits], &[0, 1, right], "the root, then each of its halves");
     }
 
     /// Lights behind a one-sided emitter's back, or below the receiver, get no probability.
