@@ -20,6 +20,7 @@ use glam::Vec3;
 
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::scene::CommittedScene;
+use crate::subsurface::Medium;
 
 /// How the integrator treats caustic paths.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -70,6 +71,15 @@ pub fn transparent_weight(r_a: f32, r_b: f32) -> f32 {
     if r_b > SMOOTH_GLASS {
         return 0.0;
     }
+    roughness_weight(r_a, r_b)
+}
+
+/// The slides' roughness heuristic itself, for any roughness of B: [`transparent_weight`]
+/// without the cut-off for rough glass. A subsurface boundary uses it whole ("for rough
+/// interfaces ... this is what our transparency/indirect weighting produces"): a random walk
+/// arrives at its exit from a random direction, so connecting to a small light through even a
+/// moderately glossy boundary is noisy (docs/accuracy-vs-time.md measures it at roughness 0.4).
+pub fn roughness_weight(r_a: f32, r_b: f32) -> f32 {
     // w(B_t) + w(B_p) = 1, so the power heuristic's denominator is at least 1/2.
     let wt = (r_a - r_b).clamp(0.0, 1.0);
     let wp = 1.0 - wt;
@@ -91,6 +101,16 @@ pub struct ShadowPass {
 /// glass) blocks it, else the glass's transmittance without refraction, (1 − F) and the tint
 /// per interface, a thin sheet's series weight once.
 pub fn shadow_transmittance(scene: &CommittedScene, ray: &Ray, tmax: f32) -> Option<ShadowPass> {
+    shadow_transmittance_from(scene, ray, tmax, None)
+}
+
+/// [`shadow_transmittance`] for a shadow ray that starts inside the subsurface medium `inside`
+/// ("Brute-force subsurface scattering": with a smooth interface, lighting inside the medium
+/// comes through transparent shadows). The medium attenuates by e^(−σ_t d) up to its
+/// boundary, which passes as smooth glass would (1 − F, no bending) when it is smooth enough.
+/// Without the refraction's η² there is nothing to undo: inside, the light's radiance is η²
+/// higher over a solid angle η² smaller, which leaves its in-scattered radiance as it is.
+pub fn shadow_transmittance_from(scene: &CommittedScene, ray: &Ray, tmax: f32, mut inside: Option<Medium>) -> Option<ShadowPass> {
     let mut pass = ShadowPass { transmittance: Vec3::ONE, roughness: 0.0, crossings: 0 };
     let mut r = *ray;
     let mut left = tmax;
@@ -102,7 +122,13 @@ pub fn shadow_transmittance(scene: &CommittedScene, ray: &Ray, tmax: f32) -> Opt
         let s = scene.surface(&hit);
         // A point a textured opacity cuts out is no surface at all.
         if !scene.see_through_at(&s, r.dir) {
-            let glass = scene.shadow_glass(s.material)?;
+            let glass = match inside.take() {
+                Some(m) => {
+                    pass.transmittance *= m.transmittance((s.p - ray.origin).length());
+                    scene.medium_boundary(s.material)?
+                }
+                None => scene.shadow_glass(s.material)?,
+            };
             pass.transmittance *= glass.transmission(s.ns.dot(r.dir).abs().min(1.0));
             pass.roughness = pass.roughness.max(glass.roughness);
             pass.crossings += 1;
@@ -150,6 +176,23 @@ impl ShadowGlass {
         })
     }
 
+    /// The boundary of `m`'s subsurface medium as transparent shadows from inside see it: a
+    /// clear interface of the plastic's index and roughness, weighted by [`roughness_weight`]
+    /// (None at roughness 1, where that weight is 0).
+    pub fn of_medium_boundary(m: &crate::material::Material) -> Option<Self> {
+        m.medium()?;
+        let p = &m.surface.plastic;
+        let r = p.params.specular.map_or(0.0, |s| s.roughness);
+        let r = if r.is_finite() { r.clamp(0.0, 1.0) } else { 1.0 };
+        (r < 1.0 && !m.cut_out).then(|| ShadowGlass {
+            weight: p.weight.clamp(0.0, 1.0),
+            color: Vec3::ONE,
+            eta: p.params.coupling_eta.max(1.0),
+            thin: false,
+            roughness: r,
+        })
+    }
+
     /// Transmission of one crossing at incidence cosine `cos`.
     pub fn transmission(&self, cos: f32) -> Vec3 {
         let eta = if self.eta < 1.0 { 1.0 / self.eta } else { self.eta };
@@ -177,6 +220,10 @@ mod tests {
         assert!((transparent_weight(0.7, 0.1) - 0.36 / 0.52).abs() < 1e-6);
         // Rough glass is never crossed by shadows.
         assert_eq!(transparent_weight(1.0, 0.5), 0.0);
+        // A subsurface boundary takes the heuristic whole: a walk's scattering event (rough 1)
+        // behind a boundary of roughness 0.4 gives shadows (0.6², 0.4²) normalised.
+        assert!((roughness_weight(1.0, 0.4) - 0.36 / 0.52).abs() < 1e-6);
+        assert_eq!(roughness_weight(1.0, 1.0), 0.0);
     }
 
     #[test]

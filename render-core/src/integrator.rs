@@ -143,6 +143,27 @@ struct PrevVertex {
     kind: PathKind,
     /// The roughest lobe there, for caustic avoidance's weighting.
     roughness: f32,
+    /// A scattering event inside a subsurface medium: no next-event estimation there finds a
+    /// light this direction can hit (only lights outside, through transparent shadows).
+    in_medium: bool,
+}
+
+/// Roughness of a scattering event in a medium for caustic avoidance's weighting: a phase
+/// function scatters like the roughest surface.
+const MEDIUM_ROUGHNESS: f32 = 1.0;
+
+/// A shadow ray from `origin` towards the light point `ls` sampled from `p`: aimed at the
+/// point and stopped just short of it. An offset origin (which scales with the surface) can
+/// exceed a fixed margin, and a ray along the original direction then met an emitting
+/// mesh's own surface before tmax.
+fn shadow_ray(origin: Vec3, p: Vec3, ls: &crate::light::LightSample) -> Ray {
+    if ls.dist.is_finite() {
+        let to = p + ls.wi * ls.dist - origin;
+        let d = to.length();
+        Ray::new(origin, to / d).with_tmax(d * (1.0 - 1e-4))
+    } else {
+        Ray::new(origin, ls.wi)
+    }
 }
 
 /// Radiance and first-hit AOVs along a camera ray.
@@ -168,7 +189,7 @@ pub fn trace_path(
     let weight = |prev: &Option<PrevVertex>, light: u32, pdf_light: f32| -> f32 {
         match prev {
             None => 1.0,
-            Some(p) if p.delta => 1.0,
+            Some(p) if p.delta || p.in_medium => 1.0,
             Some(_) if settings.strategy == LightStrategy::BsdfOnly => 1.0,
             Some(_) if settings.strategy == LightStrategy::LightOnly => 0.0,
             Some(p) => power_heuristic(p.bsdf_pdf, lights.pmf(&p.ctx, light as usize, settings.light_split_budget) * pdf_light),
@@ -181,10 +202,16 @@ pub fn trace_path(
     let mut depth = 0u32;
     // Subsurface: the medium the path is inside, and the scattering events taken in it.
     let mut medium: Option<Medium> = None;
+    // Its boundary is smooth enough for transparent shadows from inside.
+    let mut medium_shadows = false;
     let mut medium_steps = 0u32;
     // The ray's footprint, for texture filtering.
     let mut cone = RayCone { width: settings.pixel_footprint.0, spread: settings.pixel_footprint.1 };
     let mut cutouts_crossed = 0usize;
+    // Caustic avoidance after a path leaves a subsurface medium: the share of the direct
+    // light it finds next that transparent shadows from inside did not already take.
+    let mut exit_share = 1.0f32;
+    let avoid = settings.caustics == CausticMode::Avoid;
     loop {
         counters.rays += 1;
         let hit = scene.intersect(&ray);
@@ -209,14 +236,47 @@ pub fn trace_path(
                         beta /= 1.0 - q;
                     }
                     let p = ray.origin + ray.dir * t;
-                    let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
                     let kind = prev.map_or(PathKind::Transmission, |p| p.kind);
+                    if avoid && medium_shadows && !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
+                        // "Brute-force subsurface scattering": behind a smooth boundary, light
+                        // reaches the medium through transparent shadows from inside, weighted
+                        // against the paths that refract out to it.
+                        let [ul_x, ul_y, u_sel, _] = rng.next_4d();
+                        let ctx = ShadingContext { p, n: Vec3::ZERO, both_sides: true };
+                        lights.sample_each(&ctx, u_sel, Vec2::new(ul_x, ul_y), settings.light_split_budget, |mut ls, light| {
+                            if let Some((instance, triangle)) = light.textured_emitter {
+                                ls.li = scene.emission_at(instance, triangle, p + ls.wi * ls.dist);
+                            }
+                            if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
+                                return;
+                            }
+                            let shadow = shadow_ray(p, p, &ls);
+                            counters.rays += 1;
+                            // A light inside the medium (no crossing) is left to phase sampling.
+                            let Some(pass) =
+                                caustics::shadow_transmittance_from(scene, &shadow, shadow.tmax, Some(m)).filter(|pass| pass.crossings > 0)
+                            else {
+                                return;
+                            };
+                            let w = caustics::roughness_weight(MEDIUM_ROUGHNESS, pass.roughness);
+                            let phase = m.phase_pdf(ray.dir, ls.wi);
+                            let c = clamped(
+                                beta * ls.li * pass.transmittance * (phase * w * light.multiplier(kind) / ls.pdf),
+                                true,
+                                settings.clamp_indirect,
+                            );
+                            l += c;
+                            comp[first] += c;
+                        });
+                    }
+                    let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
                     prev = Some(PrevVertex {
                         ctx: ShadingContext { p, n: Vec3::ZERO, both_sides: true },
                         bsdf_pdf: m.phase_pdf(ray.dir, wi),
                         delta: false,
                         kind,
-                        roughness: 1.0,
+                        roughness: MEDIUM_ROUGHNESS,
+                        in_medium: true,
                     });
                     ray = Ray::new(p, wi);
                     continue;
@@ -225,6 +285,7 @@ pub fn trace_path(
             }
         }
         let t_hit = hit.map_or(ray.tmax, |h| h.t);
+        let share = std::mem::replace(&mut exit_share, 1.0);
 
         // Area lights crossed before the surface (they do not occlude).
         scene.crossable_lights.visit_crossed(ray.origin, ray.dir, t_hit, |i| {
@@ -235,7 +296,11 @@ pub fn trace_path(
             if let Some(lh) = light.shape.intersect(ray.origin, ray.dir, t_hit) {
                 let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, lh.t));
                 let m = prev.map_or(1.0, |p| light.multiplier(p.kind));
-                let c = clamped(beta * lh.le * light.shaped(ray.dir) * (m * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
+                let c = clamped(
+                    beta * lh.le * light.shaped(ray.dir) * (m * share * weight(&prev, i, pdf)),
+                    depth >= 2,
+                    settings.clamp_indirect,
+                );
                 l += c;
                 comp[if depth == 0 { EMISSION } else { first }] += c;
             }
@@ -251,7 +316,7 @@ pub fn trace_path(
                 if le != Vec3::ZERO {
                     let pdf = prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, ray.dir, f32::INFINITY));
                     let m = prev.map_or(1.0, |p| light.multiplier(p.kind));
-                    let c = clamped(beta * le * (m * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
+                    let c = clamped(beta * le * (m * share * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
                     l += c;
                     comp[if depth == 0 { EMISSION } else { first }] += c;
                 }
@@ -261,7 +326,6 @@ pub fn trace_path(
 
         let mut s = scene.surface(&hit);
         let wo = -ray.dir;
-        let avoid = settings.caustics == CausticMode::Avoid;
         let level = if avoid { floor.level() } else { 0 };
         let force = settings.force_all_effects;
         let cone_here = cone.width_at(hit.t);
@@ -280,6 +344,7 @@ pub fn trace_path(
                 break;
             }
             cone.width = cone_here;
+            exit_share = share;
             ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
             continue;
         }
@@ -342,7 +407,7 @@ pub fn trace_path(
                 (_, Some((instance, triangle))) => scene.emission_at(instance, triangle, s.p),
                 _ => light.shape.radiance(),
             };
-            let c = clamped(beta * le * weight(&prev, li, pdf), depth >= 2, settings.clamp_indirect);
+            let c = clamped(beta * le * (share * weight(&prev, li, pdf)), depth >= 2, settings.clamp_indirect);
             l += c;
             comp[if depth == 0 { EMISSION } else { first }] += c;
         }
@@ -378,6 +443,14 @@ pub fn trace_path(
         // best-stratified first two dimensions.
         let [ul_x, ul_y, u_sel, u_rr] = rng.next_4d();
         let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
+        // Caustic avoidance at a subsurface boundary seen from inside: what light the path
+        // finds by leaving the medium here, transparent shadows from the scattering event
+        // before already found w'(B_t) of ("lighting at the exit point will be weighted down
+        // and replaced by lighting in the interior"). Indirect light beyond stays whole.
+        let leaving_share = match (&prev, medium.and(scene.medium_boundary(s.material))) {
+            (Some(p), Some(boundary)) if avoid => 1.0 - caustics::roughness_weight(p.roughness, boundary.roughness),
+            _ => 1.0,
+        };
 
         // Next-event estimation.
         if !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
@@ -406,17 +479,7 @@ pub fn trace_path(
                     };
                     if f != Vec3::ZERO {
                         let origin = offset_ray_origin(s.p, if ls.wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale);
-                        // Aim from the offset origin at the sampled light point and stop just
-                        // short of it: the offset (which scales with the surface) can exceed
-                        // the 1e-4 margin, and a shadow ray along the original direction then
-                        // met an emitting mesh's own surface before tmax.
-                        let shadow = if ls.dist.is_finite() {
-                            let to = s.p + ls.wi * ls.dist - origin;
-                            let d = to.length();
-                            Ray::new(origin, to / d).with_tmax(d * (1.0 - 1e-4))
-                        } else {
-                            Ray::new(origin, ls.wi)
-                        };
+                        let shadow = shadow_ray(origin, s.p, &ls);
                         counters.rays += 1;
                         // With caustic avoidance, shadows pass through smooth glass, weighted
                         // against the paths that refract through it; nothing else samples that
@@ -438,6 +501,9 @@ pub fn trace_path(
                                 None if ls.delta || settings.strategy == LightStrategy::LightOnly => 1.0,
                                 None => power_heuristic(ls.pdf, bsdf.pdf(wo_local, wi_local)),
                             };
+                            // Light out of a medium through its boundary: transparent shadows
+                            // from inside took their share of it.
+                            let w = if wi_local.z * wo_local.z < 0.0 { w * leaving_share } else { w };
                             let scale = beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (w / ls.pdf);
                             let c = clamped(f * scale, depth >= 1, settings.clamp_indirect);
                             l += c;
@@ -471,7 +537,11 @@ pub fn trace_path(
             // Crossing a subsurface material's boundary: inwards enters its medium (against
             // the outward geometric normal), outwards leaves it.
             if let Some(m) = local.as_ref().map_or_else(|| scene.medium(s.material), |(m, _)| m.medium()) {
+                if medium.is_some() && wi.dot(ng) > 0.0 {
+                    exit_share = leaving_share;
+                }
                 medium = (wi.dot(ng) < 0.0).then_some(m);
+                medium_shadows = scene.medium_boundary(s.material).is_some();
             }
         }
         if avoid {
@@ -487,7 +557,7 @@ pub fn trace_path(
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
         }
-        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: a_roughness });
+        prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: a_roughness, in_medium: false });
         cone = cone.after_bounce(cone_here, if bs.flags.delta { 0.0 } else { lobe_roughness });
         ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
         depth += 1;

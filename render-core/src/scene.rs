@@ -181,6 +181,8 @@ pub struct CommittedScene {
     media: Vec<Option<crate::subsurface::Medium>>,
     /// Each material's smooth glass as transparent shadows see it.
     shadow_glass: Vec<Option<crate::caustics::ShadowGlass>>,
+    /// Per material, its subsurface medium's boundary as shadows from inside see it.
+    medium_boundary: Vec<Option<crate::caustics::ShadowGlass>>,
     /// Materials some instance uses: only their lobes' energy tables are built.
     used_materials: Vec<u32>,
     /// Lights and their selection distribution.
@@ -631,6 +633,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let light_set = LightSet::new(lights, scene_radius);
     tracing::info!(instances = instances.len(), blas_builds = builds, lights = light_set.lights.len(), "scene committed");
     let shadow_glass = materials.iter().map(crate::caustics::ShadowGlass::of).collect();
+    let medium_boundary = materials.iter().map(crate::caustics::ShadowGlass::of_medium_boundary).collect();
     let media = materials.iter().map(|m| m.medium()).collect();
     Ok(CommittedScene {
         meshes,
@@ -645,6 +648,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         floored_bsdfs: Default::default(),
         every_lobe_bsdfs: Default::default(),
         shadow_glass,
+        medium_boundary,
         media,
         used_materials,
         lights: light_set,
@@ -716,6 +720,13 @@ impl CommittedScene {
     #[inline]
     pub fn shadow_glass(&self, index: u32) -> Option<crate::caustics::ShadowGlass> {
         self.shadow_glass.get(index as usize).copied().flatten()
+    }
+
+    /// Material `index`'s subsurface boundary as transparent shadows from inside its medium
+    /// see it (None: no medium, or too rough to cross).
+    #[inline]
+    pub fn medium_boundary(&self, index: u32) -> Option<crate::caustics::ShadowGlass> {
+        self.medium_boundary.get(index as usize).copied().flatten()
     }
 
     /// The BSDF of material `index` (unprepared), with or without energy compensation.

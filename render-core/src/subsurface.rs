@@ -91,6 +91,11 @@ impl Medium {
         }
     }
 
+    /// Transmittance along a straight segment of length `d`, e^(−σ_t d) per channel.
+    pub fn transmittance(&self, d: f32) -> Vec3 {
+        (-self.sigma_t * d.max(0.0)).exp()
+    }
+
     /// Samples a new direction after scattering of a ray travelling along `dir`
     /// (Henyey-Greenstein by inversion; g > 0 scatters forward, along `dir`).
     pub fn sample_phase(&self, dir: Vec3, u: Vec2) -> Vec3 {

@@ -198,7 +198,7 @@ impl RenderJob {
             w.push(format!("firefly clamp on: indirect contributions above {c} are scaled down (biased, darker)"));
         }
         if self.settings.integrator.caustics == render_core::caustics::CausticMode::Avoid {
-            w.push("caustics avoided: light through smooth glass arrives unfocused and unbent (biased, far less noisy)".into());
+            w.push("caustics avoided: light through smooth glass and smooth subsurface boundaries arrives unfocused and unbent (biased, far less noisy)".into());
         }
         if !self.settings.integrator.energy_compensation {
             w.push("energy compensation off: rough surfaces lose the energy of multiple scattering".into());

@@ -100,7 +100,12 @@ fn the_accuracy_report_measures_what_the_knobs_do() {
     // are measured (their values are in docs/accuracy-vs-time.md).
     let tf = |label: &str| s.texture_filtering.iter().find(|(l, ..)| l == label).unwrap_or_else(|| panic!("no row {label}")).2;
     assert!(tf("4 spp, filtering on") < tf("4 spp, filtering off"), "{:?}", s.texture_filtering);
-    assert_eq!(s.subsurface.len(), 4);
+    assert_eq!(s.subsurface.len(), 6);
+    // Behind a smooth boundary, avoidance's transparent shadows cut the noise by far more than
+    // their bias (within 10% where full path tracing converges).
+    let smooth = |label: &str| s.subsurface_smooth.iter().find(|(l, ..)| l == label).unwrap_or_else(|| panic!("no row {label}")).2;
+    assert!(smooth("64 spp, caustics avoid") < smooth("64 spp, caustics full") / 10.0, "{:?}", s.subsurface_smooth);
+    assert!(s.subsurface_smooth_bias.iter().all(|r| (0.95..1.10).contains(r)), "{:?}", s.subsurface_smooth_bias);
     assert!(s.many_lights.len() == 16 && s.many_lights.iter().all(|r| r.many_spp >= 1 && r.ratio.is_finite()), "{:?}", s.many_lights);
     std::fs::remove_dir_all(&dir).ok();
 }

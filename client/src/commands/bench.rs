@@ -181,8 +181,15 @@ pub struct AccuracySummary {
     pub adaptive: Vec<(String, f64, f64)>,
     /// (setting, seconds, relMSE) with caustics full and avoided.
     pub caustics: Vec<(String, f64, f64)>,
-    /// (setting, seconds, relMSE) with the subsurface random walk and its diffuse fallback.
+    /// (setting, seconds, relMSE) with the subsurface random walk (caustics full and
+    /// avoided) and its diffuse fallback.
     pub subsurface: Vec<(String, f64, f64)>,
+    /// (setting, seconds, relMSE) behind a smooth boundary, caustics full and avoided,
+    /// against the avoided walk's own reference.
+    pub subsurface_smooth: Vec<(String, f64, f64)>,
+    /// The smooth-boundary medium under the white dome: mean of the avoided render over the
+    /// full one's, per channel (avoidance's bias where full path tracing converges).
+    pub subsurface_smooth_bias: [f64; 3],
     /// 10 000 lights against each one-light scene at equal time, for split budgets 8, 4, 2
     /// and 1 (no splitting).
     pub many_lights: Vec<super::lights::LightsRow>,
@@ -394,20 +401,66 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     let reference = render(&walk_scene, sres, Knobs { spp: b.reference_spp / 4, ..base }, 17).rgb;
     writeln!(
         md,
-        "\n## Subsurface: random walk against its diffuse fallback (`fixtures/materials/subsurface_lit.usda`, {}x{})\n\nA translucent sphere (scatteringRadius 0.1 of its radius, boundary roughness 0.4) lit from the upper left. The reference is the random walk at {} spp. The fallback renders the same material with scatteringRadius 0, a Lambertian of the same albedo: faster, and biased by exactly what translucency adds (softened shading, light bled into the shadowed side); its error stays at that bias however many samples it takes, while the walk's is noise (light reaches the medium only through the boundary, so bright paths are rare) that has to fall below the fallback's floor.\n",
+        "\n## Subsurface: random walk against its diffuse fallback (`fixtures/materials/subsurface_lit.usda`, {}x{})\n\nA translucent sphere (scatteringRadius 0.1 of its radius, boundary roughness 0.4) lit from the upper left. The reference is the random walk at {} spp, caustics full. The fallback renders the same material with scatteringRadius 0, a Lambertian of the same albedo: faster, and biased by exactly what translucency adds (softened shading, light bled into the shadowed side); its error stays at that bias however many samples it takes. The full walk's error is noise: light reaches the medium only where a walk leaves it towards the light, through a glossy boundary from a random direction. With caustics avoided, every scattering event inside also connects to the light through a transparent shadow, weighted by the slides' roughness heuristic against the walks that leave (at roughness 0.4, shadows take 69%): less noise for more shadow rays per sample, and a bias small next to the reference's own noise (the next section measures it where full path tracing converges).\n",
         sres.0,
         sres.1,
         b.reference_spp / 4
     )?;
     let mut sss_rows = Vec::new();
     for spp in [16u32, 64] {
-        for (label, scene) in [("random walk", &walk_scene), ("diffuse fallback", &fallback_scene)] {
-            let r = render(scene, sres, Knobs { spp, ..base }, 9);
+        for (label, scene, avoid) in [
+            ("random walk", &walk_scene, false),
+            ("random walk, caustics avoid", &walk_scene, true),
+            ("diffuse fallback", &fallback_scene, false),
+        ] {
+            let r = render(scene, sres, Knobs { spp, avoid_caustics: avoid, ..base }, 9);
             sss_rows.push(Row::of(format!("{spp} spp, {label}"), &r, &reference));
         }
     }
     summary.subsurface = sss_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
     table(&mut md, "Subsurface (max depth 7)", &sss_rows)?;
+
+    // ------------------------------------------------------------ subsurface, smooth boundary
+    let smooth = load(&b.fixtures, "materials/subsurface_smooth.usda")?;
+    eprintln!("smooth subsurface reference: {} spp ...", b.reference_spp / 4);
+    let avoided = Knobs { avoid_caustics: true, ..base };
+    let reference = render(&smooth, sres, Knobs { spp: b.reference_spp / 4, ..avoided }, 17).rgb;
+    // Avoidance's bias where full path tracing converges: the same medium under the white dome.
+    let dome = load(&b.fixtures, "materials/furnace_subsurface_smooth.usda")?;
+    let dome_spp = Knobs { spp: (b.reference_spp / 16).max(16), max_depth: 64, ..base };
+    let dome_full = render(&dome, sres, dome_spp, 21).rgb;
+    let dome_avoid = render(&dome, sres, Knobs { avoid_caustics: true, ..dome_spp }, 21).rgb;
+    // The sphere's pixels: the dome behind it is exactly 1.
+    let sphere_mean = |img: &[f64]| {
+        let covered = dome_full.chunks(3).map(|p| p.iter().any(|&c| c < 0.999));
+        let (sum, n) = img
+            .chunks(3)
+            .zip(covered)
+            .filter(|(_, c)| *c)
+            .fold(([0.0; 3], 0), |(s, n), (p, _)| ([s[0] + p[0], s[1] + p[1], s[2] + p[2]], n + 1));
+        sum.map(|x| x / n.max(1) as f64)
+    };
+    let (full_mean, avoid_mean) = (sphere_mean(&dome_full), sphere_mean(&dome_avoid));
+    summary.subsurface_smooth_bias = [0, 1, 2].map(|c| avoid_mean[c] / full_mean[c]);
+    let bias = summary.subsurface_smooth_bias.map(|r| format!("{:+.1}%", 100.0 * (r - 1.0)));
+    writeln!(
+        md,
+        "\n## Subsurface behind a smooth boundary (`fixtures/materials/subsurface_smooth.usda`, {}x{})\n\nThe same sphere with boundary roughness 0: full path tracing lights the medium only where a walk happens to leave through the mirror-smooth boundary towards the small light, so its error is almost all fireflies. Caustic avoidance lights every scattering event inside through a transparent shadow, and weights the leaving walks' direct light down to nothing (\"Brute-force subsurface scattering\" in `004_...`). The reference is the avoided walk at {} spp, so the avoided rows measure its noise alone and the full rows their noise plus avoidance's bias. That bias, measured where full path tracing converges (the same medium under the white dome, `fixtures/materials/furnace_subsurface_smooth.usda`, {} spp each, the sphere's mean with avoidance over without): {} in r, g, b. Unbent light reaches the medium from every direction, bent light only from within the critical angle.\n",
+        sres.0,
+        sres.1,
+        b.reference_spp / 4,
+        dome_spp.spp,
+        bias.join(", ")
+    )?;
+    let mut smooth_rows = Vec::new();
+    for spp in [16u32, 64] {
+        for avoid in [false, true] {
+            let r = render(&smooth, sres, Knobs { spp, avoid_caustics: avoid, ..base }, 9);
+            smooth_rows.push(Row::of(format!("{spp} spp, caustics {}", if avoid { "avoid" } else { "full" }), &r, &reference));
+        }
+    }
+    summary.subsurface_smooth = smooth_rows.iter().map(|r| (r.label.clone(), r.seconds, r.rel_mse)).collect();
+    table(&mut md, "Subsurface behind a smooth boundary (max depth 7)", &smooth_rows)?;
 
     // ------------------------------------------------------------ texture filtering
     let scene = load(&b.fixtures, "textures/checker_plane.usda")?;

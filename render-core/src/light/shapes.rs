@@ -280,7 +280,11 @@ impl Shape {
             Shape::Dome { l } => {
                 // Cosine-weighted around the normal: exact importance for diffuse under a
                 // constant dome. A transmitting surface splits the samples between the two
-                // hemispheres; for others, directions below get pdf 0 (BSDF sampling's).
+                // hemispheres; for others, directions below get pdf 0 (BSDF sampling's). A
+                // point in a medium (no normal) samples the whole sphere uniformly.
+                if ctx.n == Vec3::ZERO {
+                    return Some(LightSample { wi: uniform_sphere(u), dist: f32::INFINITY, li: *l, pdf: 0.25 / PI, delta: false });
+                }
                 let (n, u) = if ctx.both_sides {
                     if u.x < 0.5 { (ctx.n, Vec2::new(2.0 * u.x, u.y)) } else { (-ctx.n, Vec2::new(2.0 * u.x - 1.0, u.y)) }
                 } else {
@@ -346,6 +350,7 @@ impl Shape {
                     cone_pdf(*one_minus_cos_half)
                 }
             }
+            Shape::Dome { .. } if ctx.n == Vec3::ZERO => 0.25 / PI,
             Shape::Dome { .. } if ctx.both_sides => 0.5 * wi.dot(ctx.n).abs() / PI,
             Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
             Shape::Environment { map, .. } => map.pdf(wi),
@@ -571,6 +576,24 @@ mod tests {
                 .unwrap();
         let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 1000);
         assert!(e.is_finite() && e > 0.0);
+    }
+
+    /// A point in a subsurface medium has no normal: a constant dome is sampled over the whole
+    /// sphere, with the pdf `pdf` reports, and its fluence (∫ L dω = 4πL) comes out exact.
+    #[test]
+    fn a_dome_seen_from_inside_a_medium_is_sampled_over_the_sphere() {
+        let dome = Shape::Dome { l: Vec3::splat(2.0) };
+        let c = ShadingContext { p: Vec3::ZERO, n: Vec3::ZERO, both_sides: true };
+        let mut rng = Pcg32::new(5, 5);
+        let (mut fluence, mut below, n) = (0.0f64, 0u32, 20_000);
+        for _ in 0..n {
+            let s = dome.sample(&c, rng.next_2d()).expect("every direction is lit");
+            assert!(s.wi.is_normalized() && (s.pdf - dome.pdf(&c, s.wi, f32::INFINITY)).abs() < 1e-7);
+            fluence += (s.li.x / s.pdf) as f64;
+            below += u32::from(s.wi.y < 0.0);
+        }
+        assert!((fluence / n as f64 - 8.0 * std::f64::consts::PI).abs() < 1e-3, "{}", fluence / n as f64);
+        assert!((below as f32 / n as f32 - 0.5).abs() < 0.02, "{below} of {n} below");
     }
 
     #[test]
