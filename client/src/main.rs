@@ -51,7 +51,8 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         seed: u64,
         /// Extra AOVs, comma-separated: albedo, normal, depth, position, and the light-path
-        /// components diffuse, specular, transmission, emission (which sum to the beauty).
+        /// components diffuse, specular, transmission, subsurface, emission (which sum to the
+        /// beauty).
         #[arg(long, value_delimiter = ',')]
         aov: Vec<String>,
         /// Render server URL (e.g. http://127.0.0.1:50051). Without it an embedded server

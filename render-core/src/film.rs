@@ -29,6 +29,10 @@ pub enum Aov {
     Transmission,
     /// Light the camera sees directly: emitters and the environment.
     Emission,
+    /// Light that entered the first surface's subsurface medium and left it after a random
+    /// walk inside, directly or after further bounces (what a transmission into a medium
+    /// becomes; light only refracted through a boundary stays `Transmission`).
+    Subsurface,
     /// Camera samples the pixel received (fewer than asked where adaptive sampling stopped).
     SampleCount,
     /// Estimated variance of the pixel's mean luminance (the square of its standard error).
@@ -41,7 +45,7 @@ pub enum Aov {
 
 impl Aov {
     /// All AOVs.
-    pub const ALL: [Aov; 12] = [
+    pub const ALL: [Aov; 13] = [
         Aov::Beauty,
         Aov::Albedo,
         Aov::Normal,
@@ -50,6 +54,7 @@ impl Aov {
         Aov::Diffuse,
         Aov::Specular,
         Aov::Transmission,
+        Aov::Subsurface,
         Aov::Emission,
         Aov::SampleCount,
         Aov::Variance,
@@ -57,7 +62,7 @@ impl Aov {
     ];
 
     /// The light-path components: their sum is the beauty's RGB.
-    pub const COMPONENTS: [Aov; 4] = [Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission];
+    pub const COMPONENTS: [Aov; 5] = [Aov::Diffuse, Aov::Specular, Aov::Transmission, Aov::Emission, Aov::Subsurface];
 
     /// The AOV's wire and file name.
     pub fn name(self) -> &'static str {
@@ -71,6 +76,7 @@ impl Aov {
             Aov::Specular => "specular",
             Aov::Transmission => "transmission",
             Aov::Emission => "emission",
+            Aov::Subsurface => "subsurface",
             Aov::SampleCount => "sampleCount",
             Aov::Variance => "variance",
             Aov::PrimId => "primId",
@@ -114,13 +120,14 @@ impl Aov {
             Aov::Specular => VALUES + 6,
             Aov::Transmission => VALUES + 9,
             Aov::Emission => VALUES + 12,
+            Aov::Subsurface => VALUES + 15,
             Aov::SampleCount | Aov::Variance | Aov::PrimId => usize::MAX,
         }
     }
 }
 
 const VALUES: usize = 11;
-const EXTRA: usize = 15;
+const EXTRA: usize = 18;
 
 /// One camera sample's contribution to every AOV.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -138,8 +145,8 @@ pub struct PixelSample {
     /// First-hit position.
     pub position: Vec3,
     /// The radiance split by what the first surface did: diffuse, specular, transmission,
-    /// emission (the order of [`Aov::COMPONENTS`]); they sum to `radiance`.
-    pub components: [Vec3; 4],
+    /// emission, subsurface (the order of [`Aov::COMPONENTS`]); they sum to `radiance`.
+    pub components: [Vec3; 5],
     /// 1 + the index of the prim the camera ray hit first, 0 for none.
     pub prim_id: u32,
 }

@@ -92,6 +92,9 @@ const MAX_MEDIUM_STEPS: u32 = 4096;
 /// Index of the emission component in [`PixelSample::components`].
 const EMISSION: usize = 3;
 
+/// Index of the subsurface component in [`PixelSample::components`].
+const SUBSURFACE: usize = 4;
+
 /// A contribution, clamped when it is indirect and a clamp is set.
 #[inline]
 fn clamped(c: Vec3, indirect: bool, clamp: Option<f32>) -> Vec3 {
@@ -197,12 +200,12 @@ pub fn trace_path(
     };
 
     // The light-path components, and the one the first scattering event chose.
-    let mut comp = [Vec3::ZERO; 4];
+    let mut comp = [Vec3::ZERO; 5];
     let mut first = EMISSION;
     let mut depth = 0u32;
     // Subsurface: the medium the path is inside, and the scattering events taken in it.
     let mut medium: Option<Medium> = None;
-    // Its boundary is smooth enough for transparent shadows from inside.
+    // Transparent shadows from inside cross its boundary (any roughness below 1).
     let mut medium_shadows = false;
     let mut medium_steps = 0u32;
     // The ray's footprint, for texture filtering.
@@ -238,9 +241,9 @@ pub fn trace_path(
                     let p = ray.origin + ray.dir * t;
                     let kind = prev.map_or(PathKind::Transmission, |p| p.kind);
                     if avoid && medium_shadows && !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
-                        // "Brute-force subsurface scattering": behind a smooth boundary, light
-                        // reaches the medium through transparent shadows from inside, weighted
-                        // against the paths that refract out to it.
+                        // "Brute-force subsurface scattering": light reaches the medium through
+                        // transparent shadows from inside, weighted against the walks that
+                        // leave towards it (all of it behind a smooth boundary).
                         let [ul_x, ul_y, u_sel, _] = rng.next_4d();
                         let ctx = ShadingContext { p, n: Vec3::ZERO, both_sides: true };
                         lights.sample_each(&ctx, u_sel, Vec2::new(ul_x, ul_y), settings.light_split_budget, |mut ls, light| {
@@ -542,6 +545,9 @@ pub fn trace_path(
                 }
                 medium = (wi.dot(ng) < 0.0).then_some(m);
                 medium_shadows = scene.medium_boundary(s.material).is_some();
+                if depth == 0 && medium.is_some() {
+                    first = SUBSURFACE;
+                }
             }
         }
         if avoid {
@@ -574,7 +580,7 @@ pub fn trace_path(
     if !is_finite(l) {
         counters.non_finite += 1;
         l = Vec3::ZERO;
-        comp = [Vec3::ZERO; 4];
+        comp = [Vec3::ZERO; 5];
     }
     out.radiance = l;
     out.components = comp;

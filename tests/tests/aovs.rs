@@ -1,10 +1,10 @@
-//! AOVs: the light-path components (diffuse, specular, transmission, emission) sum to the
+//! AOVs: the light-path components (diffuse, specular, transmission, subsurface, emission) sum to the
 //! beauty in every pixel, each holds what its name says, and every AOV is finite.
 
 use tessera::remote::RenderOptions;
 use tessera_tests::*;
 
-const COMPONENTS: [&str; 4] = ["diffuse", "specular", "transmission", "emission"];
+const COMPONENTS: [&str; 5] = ["diffuse", "specular", "transmission", "subsurface", "emission"];
 
 async fn render_with_components(fixture_name: &str) -> tessera::remote::RenderReport {
     let aovs = COMPONENTS.iter().map(|s| s.to_string()).chain(["position".to_string(), "albedo".to_string()]).collect();
@@ -20,7 +20,7 @@ fn total(report: &tessera::remote::RenderReport, aov: &str) -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn light_path_components_sum_to_the_beauty() {
-    for fixture_name in ["usd/implicit_shapes.usda", "furnace_lowpoly_glass.usda", "cornell_box.usda"] {
+    for fixture_name in ["usd/implicit_shapes.usda", "furnace_lowpoly_glass.usda", "cornell_box.usda", "materials/subsurface_lit.usda"] {
         let report = render_with_components(fixture_name).await;
         let img = &report.image;
         for y in 0..img.height {
@@ -50,10 +50,18 @@ async fn each_component_holds_what_its_name_says() {
     let shapes = render_with_components("usd/implicit_shapes.usda").await;
     assert!(total(&shapes, "diffuse") > 5.0 * total(&shapes, "specular") && total(&shapes, "specular") > 0.0);
     assert_eq!(total(&shapes, "transmission"), 0.0);
+    assert_eq!(total(&shapes, "subsurface"), 0.0);
     // Clear glass: no diffuse at all; most light it shows is transmitted.
     let glass = render_with_components("furnace_lowpoly_glass.usda").await;
     assert_eq!(total(&glass, "diffuse"), 0.0);
+    assert_eq!(total(&glass, "subsurface"), 0.0);
     assert!(total(&glass, "transmission") > total(&glass, "specular") && total(&glass, "specular") > 0.0);
+    // A subsurface sphere on a grey floor: what the sphere transmits enters its medium, so its
+    // light is subsurface (far above its reflection), hardly any plain transmission; the
+    // floor is diffuse.
+    let sss = render_with_components("materials/subsurface_lit.usda").await;
+    assert!(total(&sss, "subsurface") > 2.0 * total(&sss, "specular") && total(&sss, "diffuse") > 0.0);
+    assert!(total(&sss, "transmission") < 0.01 * total(&sss, "subsurface"));
     // The Cornell box: its light is the only emission the camera sees, so emission is bright
     // where the light is and zero elsewhere.
     let cornell = render_with_components("cornell_box.usda").await;
