@@ -40,6 +40,10 @@ enum Command {
         /// else 1).
         #[arg(long)]
         pixel_aspect: Option<f32>,
+        /// Edge of the render tiles in pixels, 8-512 (default 64): the units progressive
+        /// updates stream in and the regions the final per-region sample counts describe.
+        #[arg(long)]
+        tile_size: Option<u32>,
         /// Camera prim path (default: the stage RenderSettings camera, else the first camera).
         #[arg(long, default_value = "")]
         camera: String,
@@ -263,6 +267,7 @@ async fn real_main() -> Result<()> {
             spp,
             res,
             pixel_aspect,
+            tile_size,
             camera,
             max_depth,
             seed,
@@ -311,6 +316,7 @@ async fn real_main() -> Result<()> {
                 avoid_caustics: caustics == CausticsArg::Avoid,
                 force_all_effects,
                 pixel_aspect: pixel_aspect.unwrap_or(0.0),
+                tile_size: tile_size.unwrap_or(0),
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).

@@ -48,6 +48,9 @@ pub struct RenderOptions {
     pub light_split_budget: u32,
     /// Width over height of a pixel; 0 for the scene's RenderSettings, else square.
     pub pixel_aspect: f32,
+    /// Edge of the server's render tiles (the regions the final stats count samples in); 0
+    /// for the server's default, 64.
+    pub tile_size: u32,
 }
 
 impl Default for RenderOptions {
@@ -72,6 +75,7 @@ impl Default for RenderOptions {
             avoid_caustics: false,
             force_all_effects: false,
             pixel_aspect: 0.0,
+            tile_size: 0,
         }
     }
 }
@@ -173,7 +177,7 @@ impl Connection {
             seed: opts.seed,
             camera_path: opts.camera.clone(),
             aovs: opts.aovs.clone(),
-            tile_size: 0,
+            tile_size: opts.tile_size,
             progressive_format: if opts.progressive_f16 { pb::PixelFormat::F16 } else { pb::PixelFormat::F32 } as i32,
             threads: opts.threads,
             disable_energy_compensation: !opts.energy_compensation,

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::Instant;
 
 use crate::camera::Camera;
-use crate::film::{Aov, TileFilm, tiles_centre_out};
+use crate::film::{Aov, Rect, TileFilm, tiles_centre_out};
 use crate::integrator::{IntegratorSettings, PathCounters, trace_path};
 use crate::sampling::{PathSampler, SamplerKind};
 use crate::scene::CommittedScene;
@@ -107,8 +107,17 @@ pub trait RenderSink: Sync {
     fn should_stop(&self) -> Option<StopReason>;
 }
 
+/// Camera samples one region of the image (a tile) took.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RegionSamples {
+    /// The region.
+    pub rect: Rect,
+    /// Camera samples taken over all its pixels.
+    pub samples: u64,
+}
+
 /// How a render ended.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct RenderOutcome {
     /// Last completed pass's figures.
     pub stats: PassStats,
@@ -118,6 +127,8 @@ pub struct RenderOutcome {
     pub non_finite: u64,
     /// `Some` when the render stopped early.
     pub stopped: Option<StopReason>,
+    /// Samples per tile, for the final stats (where adaptive sampling spent its budget).
+    pub regions: Vec<RegionSamples>,
 }
 
 /// Renders `scene` through `camera` progressively on the current rayon pool.
@@ -168,7 +179,14 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             }
         });
         if let Some(reason) = *stopped.lock().unwrap() {
-            return RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: Some(reason) };
+            let regions = regions_of(&tiles);
+            return RenderOutcome {
+                stats: last,
+                paths: paths.into_inner(),
+                non_finite: non_finite.into_inner(),
+                stopped: Some(reason),
+                regions,
+            };
         }
         spp_done += pass_spp;
         let (mut var, mut mean, mut active, mut taken) = (0.0, 0.0, 0u64, 0u64);
@@ -201,7 +219,18 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             break;
         }
     }
-    RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None }
+    let regions = regions_of(&tiles);
+    RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None, regions }
+}
+
+fn regions_of(tiles: &[Mutex<TileFilm>]) -> Vec<RegionSamples> {
+    tiles
+        .iter()
+        .map(|t| {
+            let t = t.lock().unwrap();
+            RegionSamples { rect: t.rect, samples: t.sample_totals().1 }
+        })
+        .collect()
 }
 
 fn render_tile(

@@ -381,6 +381,17 @@ impl RenderJob {
                         cancelled: stopped.is_some(),
                         skipped_prims: Vec::new(),
                         mean_spp: s.samples_taken as f64 / (self.settings.width as f64 * self.settings.height as f64).max(1.0),
+                        regions: outcome
+                            .regions
+                            .iter()
+                            .map(|r| pb::RegionSamples {
+                                x: r.rect.x,
+                                y: r.rect.y,
+                                width: r.rect.width,
+                                height: r.rect.height,
+                                mean_spp: r.samples as f64 / (r.rect.width as f64 * r.rect.height as f64).max(1.0),
+                            })
+                            .collect(),
                     }));
                     return;
                 }

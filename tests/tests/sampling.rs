@@ -139,7 +139,8 @@ async fn adaptive_sampling_retires_converged_pixels_without_bias() {
     let threshold = 0.1f32;
     let (w, h) = (32, 32);
     let aovs = vec!["sampleCount".to_string(), "variance".to_string()];
-    let base = RenderOptions { max_depth: 7, aovs, ..small(w, h, 256) };
+    // 8-px tiles: the final stats count samples per tile, 16 regions here.
+    let base = RenderOptions { max_depth: 7, aovs, tile_size: 8, ..small(w, h, 256) };
     let (server, mut conn) = session_with(&load("cornell_box.usda")).await;
     let uniform = conn.render(&base, |_| {}).await.unwrap();
     let adaptive = conn.render(&RenderOptions { noise_threshold: Some(threshold), ..base.clone() }, |_| {}).await.unwrap();
@@ -153,6 +154,19 @@ async fn adaptive_sampling_retires_converged_pixels_without_bias() {
     );
     assert!(lo >= 16.0 && hi <= 256.0 && lo < hi, "sample counts {lo}..{hi}");
     assert!(adaptive.finished.mean_spp < 0.9 * 256.0, "adaptive sampling saved nothing: {}", adaptive.finished.mean_spp);
+    // The final stats say where the samples went: the regions tile the image, each one's count
+    // is its pixels' sampleCount, and the easy regions took fewer than the hard ones.
+    let regions = &adaptive.finished.regions;
+    assert_eq!(regions.iter().map(|r| r.width * r.height).sum::<u32>(), w * h);
+    for r in regions {
+        let counted: f64 = (r.y..r.y + r.height)
+            .flat_map(|y| (r.x..r.x + r.width).map(move |x| (x, y)))
+            .map(|(x, y)| counts[(y * w + x) as usize] as f64)
+            .sum();
+        assert_eq!(r.mean_spp * (r.width * r.height) as f64, counted, "region {r:?}");
+    }
+    let (least, most) = regions.iter().fold((f64::MAX, 0.0f64), |(lo, hi), r| (lo.min(r.mean_spp), hi.max(r.mean_spp)));
+    assert!(least < 0.75 * most, "regions took {least}..{most} spp");
     // Every retired pixel's own relative standard error is below the target.
     let beauty = &img.layers["beauty"].1;
     let variance = &img.layers["variance"].1;

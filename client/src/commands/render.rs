@@ -249,6 +249,39 @@ pub fn adaptive_summary(report: &RenderReport, threshold: f32) -> String {
         let (lo, hi) = counts.iter().fold((f32::MAX, 0.0f32), |(lo, hi), &c| (lo.min(c), hi.max(c)));
         out += &format!("; per pixel {lo:.0} to {hi:.0}");
     }
+    out + &region_map(&f.regions, report.image.width, report.image.height)
+}
+
+/// Most cells across and down in the printed map of samples per region.
+const MAP_CELLS: (u32, u32) = (8, 6);
+
+/// The samples per pixel of the render's regions (tiles) on a coarse grid of the image, at most
+/// [`MAP_CELLS`]; a cell averages the tiles whose centres fall in it, weighted by their pixels.
+/// Empty without regions.
+pub fn region_map(regions: &[pb::RegionSamples], width: u32, height: u32) -> String {
+    let tile = regions.iter().fold((0, 0), |(w, h), r| (r.width.max(w), r.height.max(h)));
+    if regions.is_empty() || tile.0 == 0 || tile.1 == 0 {
+        return String::new();
+    }
+    let cols = width.div_ceil(tile.0).clamp(1, MAP_CELLS.0);
+    let rows = height.div_ceil(tile.1).clamp(1, MAP_CELLS.1);
+    // (samples, pixels) per cell.
+    let mut cells = vec![(0.0f64, 0.0f64); (cols * rows) as usize];
+    for r in regions {
+        let area = r.width as f64 * r.height as f64;
+        let cx = ((r.x as f64 + 0.5 * r.width as f64) / width.max(1) as f64 * cols as f64) as u32;
+        let cy = ((r.y as f64 + 0.5 * r.height as f64) / height.max(1) as f64 * rows as f64) as u32;
+        let cell = &mut cells[(cy.min(rows - 1) * cols + cx.min(cols - 1)) as usize];
+        cell.0 += r.mean_spp * area;
+        cell.1 += area;
+    }
+    let mut out = format!("\nsamples per pixel by region ({cols}x{rows}, top row first):");
+    for row in cells.chunks(cols as usize) {
+        out.push_str("\n ");
+        for &(samples, pixels) in row {
+            out += &if pixels > 0.0 { format!(" {:>6.0}", samples / pixels) } else { format!(" {:>6}", "-") };
+        }
+    }
     out
 }
 
@@ -259,4 +292,42 @@ pub fn write_outputs(exr: &Path, report: &RenderReport, metadata: &[(String, Str
     }
     output::write_exr(exr, &report.image, metadata)?;
     output::write_png(&output::preview_path(exr), &report.image)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn region(x: u32, y: u32, size: u32, mean_spp: f64) -> pb::RegionSamples {
+        pb::RegionSamples { x, y, width: size, height: size, mean_spp }
+    }
+
+    /// One tile per cell prints each tile's own count, in rows from the top.
+    #[test]
+    fn a_small_image_maps_each_tile() {
+        let regions = [region(0, 0, 16, 16.0), region(16, 0, 16, 32.0), region(0, 16, 16, 64.0), region(16, 16, 16, 256.0)];
+        let map = region_map(&regions, 32, 32);
+        let rows: Vec<Vec<f64>> = map.lines().skip(2).map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect()).collect();
+        assert!(map.contains("(2x2, top row first)"), "{map}");
+        assert_eq!(rows, vec![vec![16.0, 32.0], vec![64.0, 256.0]], "{map}");
+    }
+
+    /// More tiles than cells: a cell is the pixel-weighted mean of its tiles (a narrow edge
+    /// tile counts for its few pixels), and the cells keep the total number of samples.
+    #[test]
+    fn many_tiles_merge_into_cells_by_their_pixels() {
+        // 20 x 1 tiles of 8 px across a 156-px-wide image: the last one is 4 px wide.
+        let regions: Vec<pb::RegionSamples> = (0..20)
+            .map(|i| pb::RegionSamples { x: 8 * i, y: 0, width: if i == 19 { 4 } else { 8 }, height: 8, mean_spp: (i + 1) as f64 })
+            .collect();
+        let map = region_map(&regions, 156, 8);
+        let cells: Vec<f64> = map.lines().nth(2).unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect();
+        assert_eq!(cells.len(), 8, "{map}");
+        // Cells are 19.5 px wide and tile centres 8 px apart from 4 px: cell 0 holds tiles 0
+        // and 1, (1 + 2) / 2 = 1.5, printed as 2; the last cell tiles 17 to 19, the narrow
+        // one at half weight: (18·8 + 19·8 + 20·4) / 20 = 18.8, printed as 19.
+        assert_eq!((cells[0], cells[7]), (2.0, 19.0), "{map}");
+        assert!(cells.windows(2).all(|w| w[0] <= w[1]), "{map}");
+        assert!(region_map(&[], 10, 10).is_empty());
+    }
 }
