@@ -265,32 +265,38 @@ impl TileFilm {
         (mean, var / n)
     }
 
-    /// Adaptive sampling: turns off the pixels whose relative standard error, the worst over
-    /// their 3×3 neighbourhood within the tile (one pixel's estimate alone is itself noisy,
-    /// and a pixel that has not yet met a rare bright path looks converged), is below
-    /// `threshold`. The error is relative to the mean luminance plus 1e-3, so black pixels
-    /// converge at once and very dark ones by their absolute error.
-    pub fn retire_converged(&mut self, threshold: f32) {
-        let (w, h) = (self.rect.width as i64, self.rect.height as i64);
-        let rel: Vec<f64> = (0..self.counts.len())
+    /// Relative standard error of each pixel's mean luminance, row-major over the tile: against
+    /// the mean plus 1e-3, so black pixels converge at once and very dark ones by their
+    /// absolute error.
+    pub fn relative_errors(&self) -> Vec<f64> {
+        (0..self.counts.len())
             .map(|i| {
                 let (mean, var) = self.luminance_stats(i);
                 var.sqrt() / (mean + 1e-3)
             })
-            .collect();
-        for y in 0..h {
-            for x in 0..w {
+            .collect()
+    }
+
+    /// Adaptive sampling: turns off the pixels whose relative error, the worst over their 3×3
+    /// neighbourhood in the image, is below `threshold` (one pixel's estimate alone is itself
+    /// noisy, and a pixel that has not yet met a rare bright path looks converged). `errors`
+    /// holds every pixel's [`Self::relative_errors`], row-major over an image `width` wide, so
+    /// pixels on a tile's edge see their neighbours in the next tile, and the image does not
+    /// depend on the tile size.
+    pub fn retire_converged(&mut self, errors: &[f64], width: u32, threshold: f32) {
+        let (w, h) = (width as i64, (errors.len() / width.max(1) as usize) as i64);
+        let r = self.rect;
+        for py in 0..r.height {
+            for px in 0..r.width {
+                let (x, y) = ((r.x + px) as i64, (r.y + py) as i64);
                 let mut worst = 0.0f64;
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let (nx, ny) = (x + dx, y + dy);
-                        if nx >= 0 && ny >= 0 && nx < w && ny < h {
-                            worst = worst.max(rel[(ny * w + nx) as usize]);
-                        }
+                for ny in (y - 1).max(0)..=(y + 1).min(h - 1) {
+                    for nx in (x - 1).max(0)..=(x + 1).min(w - 1) {
+                        worst = worst.max(errors[(ny * w + nx) as usize]);
                     }
                 }
                 if worst < threshold as f64 {
-                    self.active[(y * w + x) as usize] = false;
+                    self.active[(py * r.width + px) as usize] = false;
                 }
             }
         }
@@ -404,7 +410,7 @@ mod tests {
             }
         }
         f.samples = 16;
-        f.retire_converged(0.01);
+        f.retire_converged(&f.relative_errors(), 5, 0.01);
         assert_eq!((0..5).map(|i| f.is_active(i)).collect::<Vec<_>>(), vec![true, true, false, false, false]);
         for _ in 0..16 {
             f.add(0, &PixelSample { radiance: Vec3::splat(1.0), ..Default::default() });
@@ -413,5 +419,27 @@ mod tests {
         let beauty = f.resolve(Aov::Beauty);
         assert!((beauty[0] - 0.75).abs() < 1e-6 && (beauty[4] - 0.5).abs() < 1e-6, "{beauty:?}");
         assert_eq!(f.resolve(Aov::SampleCount), vec![32.0, 16.0, 16.0, 16.0, 16.0]);
+    }
+
+    /// Neighbourhoods cross tile edges: a noisy pixel on the right edge of one tile keeps the
+    /// left edge of the next one sampling, as it would inside a single tile.
+    #[test]
+    fn neighbourhoods_reach_into_the_next_tile() {
+        let mut tiles = [0, 3].map(|x| TileFilm::new(Rect { x, y: 0, width: 3, height: 1 }, false));
+        for k in 0..16 {
+            for (t, tile) in tiles.iter_mut().enumerate() {
+                for i in 0..3 {
+                    // Pixel 2 of the first tile (image column 2) is noisy.
+                    let v = if t == 0 && i == 2 { (k % 2) as f32 } else { 0.5 };
+                    tile.add(i, &PixelSample { radiance: Vec3::splat(v), ..Default::default() });
+                }
+            }
+        }
+        let errors: Vec<f64> = tiles.iter().flat_map(|t| t.relative_errors()).collect();
+        for tile in &mut tiles {
+            tile.retire_converged(&errors, 6, 0.01);
+        }
+        let active: Vec<bool> = tiles.iter().flat_map(|t| (0..3).map(|i| t.is_active(i))).collect();
+        assert_eq!(active, vec![false, true, true, true, false, false]);
     }
 }

@@ -189,11 +189,25 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             };
         }
         spp_done += pass_spp;
+        let adaptive = settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP;
+        // Every pixel's relative error over the whole image, so neighbourhoods cross tiles.
+        let errors = adaptive.then(|| {
+            let mut errors = vec![0.0f64; (settings.width * settings.height) as usize];
+            for t in &tiles {
+                let t = t.lock().unwrap();
+                let r = t.rect;
+                for (i, e) in t.relative_errors().into_iter().enumerate() {
+                    let (x, y) = (r.x + i as u32 % r.width, r.y + i as u32 / r.width);
+                    errors[(y * settings.width + x) as usize] = e;
+                }
+            }
+            errors
+        });
         let (mut var, mut mean, mut active, mut taken) = (0.0, 0.0, 0u64, 0u64);
         for t in &tiles {
             let mut t = t.lock().unwrap();
-            if settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP {
-                t.retire_converged(settings.noise_threshold);
+            if let Some(errors) = &errors {
+                t.retire_converged(errors, settings.width, settings.noise_threshold);
             }
             let (v, m) = t.noise_terms();
             var += v;

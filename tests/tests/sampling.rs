@@ -167,6 +167,11 @@ async fn adaptive_sampling_retires_converged_pixels_without_bias() {
     }
     let (least, most) = regions.iter().fold((f64::MAX, 0.0f64), |(lo, hi), r| (lo.min(r.mean_spp), hi.max(r.mean_spp)));
     assert!(least < 0.75 * most, "regions took {least}..{most} spp");
+    // Neighbourhoods cross tile edges, so the tile size changes nothing: one 32-px tile gives
+    // the same pixels, sample for sample.
+    let one_tile = conn.render(&RenderOptions { noise_threshold: Some(threshold), tile_size: 32, ..base.clone() }, |_| {}).await.unwrap();
+    assert_eq!(one_tile.image.layers["beauty"].1, img.layers["beauty"].1);
+    assert_eq!(&one_tile.image.layers["sampleCount"].1, counts);
     // Every retired pixel's own relative standard error is below the target.
     let beauty = &img.layers["beauty"].1;
     let variance = &img.layers["variance"].1;
