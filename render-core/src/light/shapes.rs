@@ -5,7 +5,7 @@ use std::f32::consts::PI;
 
 use glam::{Affine3A, Vec2, Vec3};
 
-use super::spherical_rect::SphericalRect;
+use super::spherical_rect::{SphericalRect, bilinear_pdf, sample_bilinear};
 use super::{LightKind, ShadingContext};
 use crate::math::Frame;
 use crate::sampling::{concentric_disk, cosine_hemisphere, uniform_sphere};
@@ -247,9 +247,16 @@ impl Shape {
                     return None;
                 }
                 if let Some(sr) = rect_by_solid_angle(ctx.p, *center, *a, *b) {
+                    let (u, warp) = match corner_cosines(ctx, *center, *a, *b) {
+                        Some(w) => {
+                            let uw = sample_bilinear(u, w);
+                            (uw, bilinear_pdf(uw, w))
+                        }
+                        None => (u, 1.0),
+                    };
                     let to = sr.sample(u) - ctx.p;
                     let dist = to.length();
-                    let pdf = 1.0 / sr.solid_angle;
+                    let pdf = warp / sr.solid_angle;
                     return (dist > 0.0 && pdf.is_finite()).then(|| LightSample { wi: to / dist, dist, li: *l, pdf, delta: false });
                 }
                 let q = *center + (2.0 * u.x - 1.0) * *a + (2.0 * u.y - 1.0) * *b;
@@ -326,7 +333,10 @@ impl Shape {
                     return 0.0;
                 }
                 match rect_by_solid_angle(ctx.p, *center, *u, *v) {
-                    Some(sr) => 1.0 / sr.solid_angle,
+                    Some(sr) => {
+                        let warp = corner_cosines(ctx, *center, *u, *v).map_or(1.0, |w| bilinear_pdf(sr.invert(ctx.p + wi * t), w));
+                        warp / sr.solid_angle
+                    }
                     None => t * t / (cos * area),
                 }
             }
@@ -461,6 +471,19 @@ const SOLID_ANGLE_MIN_SIZE: f32 = 0.5;
 fn rect_by_solid_angle(p: Vec3, center: Vec3, u: Vec3, v: Vec3) -> Option<SphericalRect> {
     let looks_large = u.length_squared() + v.length_squared() > SOLID_ANGLE_MIN_SIZE * SOLID_ANGLE_MIN_SIZE * (p - center).length_squared();
     looks_large.then(|| SphericalRect::new(p, center - u - v, 2.0 * u, 2.0 * v)).flatten()
+}
+
+/// Weights of the bilinear warp that makes solid-angle samples of a rect follow the
+/// receiver's cosine (pbrt-v4's rect lights): the cosine towards each corner, in the order
+/// `sample_bilinear` takes them, at least 0.01 so that no part of the light goes unsampled.
+/// None for a point in a medium, which has no cosine to follow.
+fn corner_cosines(ctx: &ShadingContext, center: Vec3, u: Vec3, v: Vec3) -> Option<[f32; 4]> {
+    (ctx.n != Vec3::ZERO).then(|| {
+        [center - u - v, center + u - v, center - u + v, center + u + v].map(|q| {
+            let cos = ctx.n.dot((q - ctx.p).normalize_or_zero());
+            (if ctx.both_sides { cos.abs() } else { cos }).max(0.01)
+        })
+    })
 }
 
 fn plane_hit(o: Vec3, d: Vec3, c: Vec3, n: Vec3) -> Option<f32> {
@@ -653,6 +676,9 @@ mod tests {
     /// A ceiling panel 10 × 10 at height 2 (the many-lights grid's extent): solid-angle
     /// sampling reproduces Lambert's closed form, and with far less spread per sample than
     /// sampling by area (whose density ignores that the corners are far and oblique).
+    /// Measured spreads (relative standard deviation per sample) at the three points: 0.29,
+    /// 0.23, 0.10 by solid angle with the cosine warp; 0.29, 0.32, 0.28 without; 1.5-2.2 by
+    /// area.
     #[test]
     fn large_rect_sampled_by_solid_angle_matches_lamberts_formula_with_less_noise() {
         let xf = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(-std::f32::consts::FRAC_PI_2);
@@ -677,16 +703,28 @@ mod tests {
             let (solid, solid_spread) = moments(&|u| s.sample(&c, u));
             let (by_area, area_spread) =
                 moments(&|uv| area_sample(p, center + (2.0 * uv.x - 1.0) * u + (2.0 * uv.y - 1.0) * v, n, area, l, false));
+            let sr = rect_by_solid_angle(p, center, u, v).unwrap();
+            let (_, uniform_spread) = moments(&|uv| {
+                let to = sr.sample(uv) - p;
+                Some(LightSample { wi: to.normalize(), dist: to.length(), li: l, pdf: 1.0 / sr.solid_angle, delta: false })
+            });
             println!(
-                "{p}: Lambert {exact:.5}, by solid angle {solid:.5} (spread {solid_spread:.3}), by area {by_area:.5} (spread {area_spread:.3})"
+                "{p}: Lambert {exact:.5}, by solid angle {solid:.5} (spread {solid_spread:.3}; {uniform_spread:.3} without the cosine warp), by area {by_area:.5} (spread {area_spread:.3})"
             );
             assert!((solid / exact - 1.0).abs() < 0.01, "{p}: {solid} vs Lambert {exact}");
             assert!((by_area / exact - 1.0).abs() < 0.05, "{p}: by area {by_area} vs Lambert {exact}");
             assert!(solid_spread < 0.5 * area_spread, "{p}: relative spread {solid_spread} by solid angle, {area_spread} by area");
+            // The bilinear warp follows the cosine's gradient across the panel: no gain right
+            // under its centre (equal corners), less noise off it.
+            let gain = if p == Vec3::ZERO { 1.01 } else { 0.8 };
+            assert!(solid_spread < gain * uniform_spread, "{p}: spread {solid_spread} warped, {uniform_spread} uniform");
             // The density sampling reports is the one MIS computes for the same direction.
-            let smp = s.sample(&c, Vec2::new(0.3, 0.8)).unwrap();
-            let hit = s.intersect(p, smp.wi, f32::INFINITY).expect("the sampled direction hits the panel");
-            assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 1e-5);
+            let mut rng = Pcg32::new(1, 7);
+            for _ in 0..1000 {
+                let smp = s.sample(&c, rng.next_2d()).unwrap();
+                let hit = s.intersect(p, smp.wi, f32::INFINITY).expect("the sampled direction hits the panel");
+                assert!((s.pdf(&c, smp.wi, hit.t) / smp.pdf - 1.0).abs() < 2e-3, "{p}: {} vs {}", s.pdf(&c, smp.wi, hit.t), smp.pdf);
+            }
         }
     }
 

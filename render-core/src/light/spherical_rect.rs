@@ -102,6 +102,52 @@ impl SphericalRect {
         let yv = if hv2 < 1.0 - 1e-6 { (hv * dist / (1.0 - hv2).sqrt()).clamp(self.y0, self.y1) } else { self.y1 };
         self.o + xu * self.x + yv * self.y + self.z0 * self.z
     }
+
+    /// The unit-square point [`Self::sample`] maps to the rect point `p` (its inverse, for the
+    /// density of a warp applied before it): u is the solid angle of the sub-rectangle left
+    /// of `p` over the whole, v where `p` lies between the column's sines of elevation.
+    pub fn invert(&self, p: Vec3) -> Vec2 {
+        let d = p - self.o;
+        let (xu, yv) = (d.dot(self.x).clamp(self.x0, self.x1), d.dot(self.y).clamp(self.y0, self.y1));
+        let n0 = Vec3::new(0.0, self.z0, -self.y0).normalize();
+        let n1 = Vec3::new(-self.z0, 0.0, xu).normalize();
+        let n2 = Vec3::new(0.0, -self.z0, self.y1).normalize();
+        let angle = |a: Vec3, b: Vec3| (-a.dot(b)).clamp(-1.0, 1.0).acos();
+        let left = angle(n0, n1) + angle(n1, n2) - self.k;
+        let dist2 = xu * xu + self.z0 * self.z0;
+        let h = |y: f32| y / (dist2 + y * y).sqrt();
+        let (h0, h1) = (h(self.y0), h(self.y1));
+        let v = if h1 > h0 { (h(yv) - h0) / (h1 - h0) } else { 0.5 };
+        Vec2::new((left / self.solid_angle).clamp(0.0, 1.0), v.clamp(0.0, 1.0))
+    }
+}
+
+/// A sample of the bilinear density over the unit square whose corner values are `w`
+/// ((0, 0), (1, 0), (0, 1), (1, 1)), by inversion: y from the marginal, then x given y. pbrt-v4
+/// warps rect-light samples with it to follow the receiver's cosine across the light.
+pub fn sample_bilinear(u: Vec2, w: [f32; 4]) -> Vec2 {
+    let y = sample_linear(u.y, w[0] + w[1], w[2] + w[3]);
+    let x = sample_linear(u.x, w[0] + (w[2] - w[0]) * y, w[1] + (w[3] - w[1]) * y);
+    Vec2::new(x, y)
+}
+
+/// The density of [`sample_bilinear`] at `p` (1 when every weight is 0: uniform).
+pub fn bilinear_pdf(p: Vec2, w: [f32; 4]) -> f32 {
+    let sum = w[0] + w[1] + w[2] + w[3];
+    if sum <= 0.0 {
+        return 1.0;
+    }
+    let (x, y) = (p.x, p.y);
+    4.0 * ((1.0 - x) * (1.0 - y) * w[0] + x * (1.0 - y) * w[1] + (1.0 - x) * y * w[2] + x * y * w[3]) / sum
+}
+
+/// A sample of the density on [0, 1] linear from `a` at 0 to `b` at 1.
+fn sample_linear(u: f32, a: f32, b: f32) -> f32 {
+    if u == 0.0 && a == 0.0 {
+        return 0.0;
+    }
+    let x = u * (a + b) / (a + (a * a + u * (b * b - a * a)).max(0.0).sqrt());
+    x.min(1.0 - f32::EPSILON)
 }
 
 #[cfg(test)]
@@ -151,6 +197,42 @@ mod tests {
         }
         // 15 degrees of freedom: the 99.9th percentile is 37.7.
         assert!(chi2 < 37.7, "chi-square {chi2}: {counts:?}");
+    }
+
+    /// `invert` undoes `sample` across the square, including near its edges.
+    #[test]
+    fn inverting_a_sample_gives_back_its_square_point() {
+        let o = Vec3::new(0.3, -0.2, 0.0);
+        let r = SphericalRect::new(o, Vec3::new(-2.0, -1.0, 0.7), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0)).unwrap();
+        let mut rng = Pcg32::new(8, 3);
+        for k in 0..2000 {
+            let u = if k < 4 { Vec2::new((k % 2) as f32 * 0.999 + 5e-4, (k / 2) as f32 * 0.999 + 5e-4) } else { rng.next_2d() };
+            let back = r.invert(r.sample(u));
+            assert!((back - u).abs().max_element() < 2e-3, "{u} -> {back}");
+        }
+    }
+
+    /// The bilinear warp's samples follow its density: chi-square over a 4 × 4 grid against
+    /// the density integrated over each cell.
+    #[test]
+    fn bilinear_samples_follow_their_density() {
+        let w = [0.05f32, 1.0, 0.4, 2.0];
+        let n = 200_000;
+        let mut counts = [0u32; 16];
+        let mut rng = Pcg32::new(4, 4);
+        for _ in 0..n {
+            let p = sample_bilinear(rng.next_2d(), w);
+            counts[((p.x * 4.0) as usize).min(3) * 4 + ((p.y * 4.0) as usize).min(3)] += 1;
+        }
+        let mut chi2 = 0.0;
+        for (cell, &c) in counts.iter().enumerate() {
+            let (i, j) = ((cell / 4) as f32, (cell % 4) as f32);
+            // The density is bilinear: its mean over a cell is its value at the cell's centre.
+            let expected = n as f64 * (bilinear_pdf(Vec2::new((i + 0.5) / 4.0, (j + 0.5) / 4.0), w) / 16.0) as f64;
+            chi2 += (c as f64 - expected).powi(2) / expected;
+        }
+        assert!(chi2 < 37.7, "chi-square {chi2}: {counts:?}");
+        assert_eq!(bilinear_pdf(Vec2::splat(0.3), [0.0; 4]), 1.0);
     }
 
     #[test]
