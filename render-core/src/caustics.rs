@@ -1,6 +1,7 @@
 //! Caustic path avoidance (`004_...`, "Caustic path avoidance"): the `caustics = avoid` render
 //! setting. Unidirectional path tracing finds light focused by smooth glass and mirrors only
-//! by chance, as fireflies. Imageworks trade that noise for a bias in three steps:
+//! by chance, as fireflies. Imageworks trade that noise for a bias in three steps, and light
+//! subsurface media the same way:
 //!
 //! 1. **Roughness clamping**: roughness never decreases along a path, so after a rough bounce
 //!    every later lobe is at least that rough ([`RoughnessFloor`], BSDFs pre-built per level).
@@ -11,6 +12,11 @@
 //!    recalculated by the power heuristic ([`transparent_weight`]). Shadows through glass carry
 //!    w'(B_t); a path refracting into glass carries w'(B_p) from then on (total internal
 //!    reflection inside included, as the slides do).
+//! 4. **Subsurface** ("Brute-force subsurface scattering"): every scattering event of a random
+//!    walk connects to the lights through a transparent shadow across its medium's boundary
+//!    ([`shadow_transmittance_from`]), weighted by [`roughness_weight`] of a phase function
+//!    (roughness 1) against the boundary's; the direct light a walk finds by leaving keeps
+//!    w'(B_p), the indirect light beyond the exit all of it.
 //!
 //! The bias: light through glass arrives unfocused and unbent, and the indirect light that a
 //! rough surface sees through glass is scaled by w'(B_p). `caustics = full` renders without
@@ -107,7 +113,7 @@ pub fn shadow_transmittance(scene: &CommittedScene, ray: &Ray, tmax: f32) -> Opt
 /// [`shadow_transmittance`] for a shadow ray that starts inside the subsurface medium `inside`
 /// ("Brute-force subsurface scattering": with a smooth interface, lighting inside the medium
 /// comes through transparent shadows). The medium attenuates by e^(−σ_t d) up to its
-/// boundary, which passes as smooth glass would (1 − F, no bending) when it is smooth enough.
+/// boundary, which passes as smooth glass would (1 − F, no bending) unless it is fully rough.
 /// Without the refraction's η² there is nothing to undo: inside, the light's radiance is η²
 /// higher over a solid angle η² smaller, which leaves its in-scattered radiance as it is.
 pub fn shadow_transmittance_from(scene: &CommittedScene, ray: &Ray, tmax: f32, mut inside: Option<Medium>) -> Option<ShadowPass> {
@@ -184,8 +190,9 @@ impl ShadowGlass {
         let p = &m.surface.plastic;
         let r = p.params.specular.map_or(0.0, |s| s.roughness);
         let r = if r.is_finite() { r.clamp(0.0, 1.0) } else { 1.0 };
-        (r < 1.0 && !m.cut_out).then(|| ShadowGlass {
-            weight: p.weight.clamp(0.0, 1.0),
+        let w = if p.weight.is_finite() { p.weight.clamp(0.0, 1.0) } else { 0.0 };
+        (r < 1.0 && w > 0.0 && !m.cut_out).then(|| ShadowGlass {
+            weight: w,
             color: Vec3::ONE,
             eta: p.params.coupling_eta.max(1.0),
             thin: false,

@@ -268,11 +268,11 @@ impl TileFilm {
     /// Relative standard error of each pixel's mean luminance, row-major over the tile: against
     /// the mean plus 1e-3, so black pixels converge at once and very dark ones by their
     /// absolute error.
-    pub fn relative_errors(&self) -> Vec<f64> {
+    pub fn relative_errors(&self) -> Vec<f32> {
         (0..self.counts.len())
             .map(|i| {
                 let (mean, var) = self.luminance_stats(i);
-                var.sqrt() / (mean + 1e-3)
+                (var.sqrt() / (mean + 1e-3)) as f32
             })
             .collect()
     }
@@ -283,19 +283,19 @@ impl TileFilm {
     /// holds every pixel's [`Self::relative_errors`], row-major over an image `width` wide, so
     /// pixels on a tile's edge see their neighbours in the next tile, and the image does not
     /// depend on the tile size.
-    pub fn retire_converged(&mut self, errors: &[f64], width: u32, threshold: f32) {
+    pub fn retire_converged(&mut self, errors: &[f32], width: u32, threshold: f32) {
         let (w, h) = (width as i64, (errors.len() / width.max(1) as usize) as i64);
         let r = self.rect;
         for py in 0..r.height {
             for px in 0..r.width {
                 let (x, y) = ((r.x + px) as i64, (r.y + py) as i64);
-                let mut worst = 0.0f64;
+                let mut worst = 0.0f32;
                 for ny in (y - 1).max(0)..=(y + 1).min(h - 1) {
                     for nx in (x - 1).max(0)..=(x + 1).min(w - 1) {
                         worst = worst.max(errors[(ny * w + nx) as usize]);
                     }
                 }
-                if worst < threshold as f64 {
+                if worst < threshold {
                     self.active[(py * r.width + px) as usize] = false;
                 }
             }
@@ -435,7 +435,7 @@ mod tests {
                 }
             }
         }
-        let errors: Vec<f64> = tiles.iter().flat_map(|t| t.relative_errors()).collect();
+        let errors: Vec<f32> = tiles.iter().flat_map(|t| t.relative_errors()).collect();
         for tile in &mut tiles {
             tile.retire_converged(&errors, 6, 0.01);
         }

@@ -192,7 +192,7 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
         let adaptive = settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP;
         // Every pixel's relative error over the whole image, so neighbourhoods cross tiles.
         let errors = adaptive.then(|| {
-            let mut errors = vec![0.0f64; (settings.width * settings.height) as usize];
+            let mut errors = vec![0.0f32; (settings.width * settings.height) as usize];
             for t in &tiles {
                 let t = t.lock().unwrap();
                 let r = t.rect;
