@@ -56,7 +56,7 @@ enum Command {
         seed: u64,
         /// Extra AOVs, comma-separated: albedo, normal, depth, position, and the light-path
         /// components diffuse, specular, transmission, subsurface, emission (which sum to the
-        /// beauty).
+        /// beauty), each but emission also split as <name>_direct and <name>_indirect.
         #[arg(long, value_delimiter = ',')]
         aov: Vec<String>,
         /// Render server URL (e.g. http://127.0.0.1:50051). Without it an embedded server

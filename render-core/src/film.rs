@@ -33,6 +33,24 @@ pub enum Aov {
     /// walk inside, directly or after further bounces (what a transmission into a medium
     /// becomes; light only refracted through a boundary stays `Transmission`).
     Subsurface,
+    /// The part of `Diffuse` that came straight from an emitter to the first surface (next-event
+    /// estimation there, or the first bounce's ray meeting an emitter).
+    DiffuseDirect,
+    /// The part of `Specular` straight from an emitter.
+    SpecularDirect,
+    /// The part of `Transmission` straight from an emitter.
+    TransmissionDirect,
+    /// The part of `Subsurface` that reached the medium straight from an emitter: lighting at
+    /// its scattering events and at the walk's exit, before the path meets another surface.
+    SubsurfaceDirect,
+    /// `Diffuse` minus `DiffuseDirect`: light that met at least one more surface.
+    DiffuseIndirect,
+    /// `Specular` minus `SpecularDirect`.
+    SpecularIndirect,
+    /// `Transmission` minus `TransmissionDirect`.
+    TransmissionIndirect,
+    /// `Subsurface` minus `SubsurfaceDirect`.
+    SubsurfaceIndirect,
     /// Camera samples the pixel received (fewer than asked where adaptive sampling stopped).
     SampleCount,
     /// Estimated variance of the pixel's mean luminance (the square of its standard error).
@@ -45,7 +63,7 @@ pub enum Aov {
 
 impl Aov {
     /// All AOVs.
-    pub const ALL: [Aov; 13] = [
+    pub const ALL: [Aov; 21] = [
         Aov::Beauty,
         Aov::Albedo,
         Aov::Normal,
@@ -56,6 +74,14 @@ impl Aov {
         Aov::Transmission,
         Aov::Subsurface,
         Aov::Emission,
+        Aov::DiffuseDirect,
+        Aov::SpecularDirect,
+        Aov::TransmissionDirect,
+        Aov::SubsurfaceDirect,
+        Aov::DiffuseIndirect,
+        Aov::SpecularIndirect,
+        Aov::TransmissionIndirect,
+        Aov::SubsurfaceIndirect,
         Aov::SampleCount,
         Aov::Variance,
         Aov::PrimId,
@@ -77,6 +103,14 @@ impl Aov {
             Aov::Transmission => "transmission",
             Aov::Emission => "emission",
             Aov::Subsurface => "subsurface",
+            Aov::DiffuseDirect => "diffuse_direct",
+            Aov::SpecularDirect => "specular_direct",
+            Aov::TransmissionDirect => "transmission_direct",
+            Aov::SubsurfaceDirect => "subsurface_direct",
+            Aov::DiffuseIndirect => "diffuse_indirect",
+            Aov::SpecularIndirect => "specular_indirect",
+            Aov::TransmissionIndirect => "transmission_indirect",
+            Aov::SubsurfaceIndirect => "subsurface_indirect",
             Aov::SampleCount => "sampleCount",
             Aov::Variance => "variance",
             Aov::PrimId => "primId",
@@ -92,6 +126,17 @@ impl Aov {
     /// True for the AOVs computed from the sample statistics rather than accumulated.
     pub fn is_statistic(self) -> bool {
         matches!(self, Aov::SampleCount | Aov::Variance | Aov::PrimId)
+    }
+
+    /// For an indirect part, the total and the direct part it is the difference of.
+    pub fn indirect_parts(self) -> Option<(Aov, Aov)> {
+        match self {
+            Aov::DiffuseIndirect => Some((Aov::Diffuse, Aov::DiffuseDirect)),
+            Aov::SpecularIndirect => Some((Aov::Specular, Aov::SpecularDirect)),
+            Aov::TransmissionIndirect => Some((Aov::Transmission, Aov::TransmissionDirect)),
+            Aov::SubsurfaceIndirect => Some((Aov::Subsurface, Aov::SubsurfaceDirect)),
+            _ => None,
+        }
     }
 
     /// Parses a wire name.
@@ -121,13 +166,21 @@ impl Aov {
             Aov::Transmission => VALUES + 9,
             Aov::Emission => VALUES + 12,
             Aov::Subsurface => VALUES + 15,
+            Aov::DiffuseDirect => VALUES + 18,
+            Aov::SpecularDirect => VALUES + 21,
+            Aov::TransmissionDirect => VALUES + 24,
+            Aov::SubsurfaceDirect => VALUES + 27,
+            // Resolved as the total minus the direct part.
+            Aov::DiffuseIndirect | Aov::SpecularIndirect | Aov::TransmissionIndirect | Aov::SubsurfaceIndirect => {
+                self.indirect_parts().map_or(usize::MAX, |(total, _)| total.offset())
+            }
             Aov::SampleCount | Aov::Variance | Aov::PrimId => usize::MAX,
         }
     }
 }
 
 const VALUES: usize = 11;
-const EXTRA: usize = 18;
+const EXTRA: usize = 30;
 
 /// One camera sample's contribution to every AOV.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -147,6 +200,8 @@ pub struct PixelSample {
     /// The radiance split by what the first surface did: diffuse, specular, transmission,
     /// emission, subsurface (the order of [`Aov::COMPONENTS`]); they sum to `radiance`.
     pub components: [Vec3; 5],
+    /// The direct parts of diffuse, specular, transmission and subsurface.
+    pub direct: [Vec3; 4],
     /// 1 + the index of the prim the camera ray hit first, 0 for none.
     pub prim_id: u32,
 }
@@ -233,7 +288,7 @@ impl TileFilm {
         }
         self.counts[i] += 1;
         if let Some(extra) = self.extra.get_mut(i) {
-            let vs = std::iter::once(s.position).chain(s.components);
+            let vs = std::iter::once(s.position).chain(s.components).chain(s.direct);
             for (k, v) in vs.enumerate() {
                 extra[3 * k] += v.x as f64;
                 extra[3 * k + 1] += v.y as f64;
@@ -315,9 +370,16 @@ impl TileFilm {
         let count = |i: usize| self.counts[i].max(1) as f64;
         if aov.is_extra() {
             let o = o - VALUES;
+            // An indirect part subtracts its direct part from the total.
+            let d = aov.indirect_parts().map(|(_, direct)| direct.offset() - VALUES);
             return match self.extra.is_empty() {
                 true => vec![0.0; self.sums.len() * c],
-                false => self.extra.iter().enumerate().flat_map(|(i, s)| (0..c).map(move |k| (s[o + k] / count(i)) as f32)).collect(),
+                false => self
+                    .extra
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, s)| (0..c).map(move |k| ((s[o + k] - d.map_or(0.0, |d| s[d + k])) / count(i)) as f32))
+                    .collect(),
             };
         }
         let mut out = Vec::with_capacity(self.sums.len() * c);

@@ -95,6 +95,20 @@ const EMISSION: usize = 3;
 /// Index of the subsurface component in [`PixelSample::components`].
 const SUBSURFACE: usize = 4;
 
+/// Adds a contribution to light-path component `k`, and to its direct part when it came
+/// straight from an emitter (emission has none: the camera sees it directly).
+#[inline]
+fn record(comp: &mut [Vec3; 5], direct: &mut [Vec3; 4], k: usize, c: Vec3, is_direct: bool) {
+    comp[k] += c;
+    if is_direct {
+        match k {
+            0..=2 => direct[k] += c,
+            SUBSURFACE => direct[3] += c,
+            _ => {}
+        }
+    }
+}
+
 /// A contribution, clamped when it is indirect and a clamp is set.
 #[inline]
 fn clamped(c: Vec3, indirect: bool, clamp: Option<f32>) -> Vec3 {
@@ -201,7 +215,13 @@ pub fn trace_path(
 
     // The light-path components, and the one the first scattering event chose.
     let mut comp = [Vec3::ZERO; 5];
+    let mut direct = [Vec3::ZERO; 4];
     let mut first = EMISSION;
+    // Light the current ray finds comes straight from an emitter to the first surface (or to
+    // the medium behind it); `in_walk`: the path is still in the random walk the first
+    // surface started, before meeting any other surface.
+    let mut seg_direct = false;
+    let mut in_walk = false;
     let mut depth = 0u32;
     // Subsurface: the medium the path is inside, and the scattering events taken in it.
     let mut medium: Option<Medium> = None;
@@ -269,7 +289,7 @@ pub fn trace_path(
                                 settings.clamp_indirect,
                             );
                             l += c;
-                            comp[first] += c;
+                            record(&mut comp, &mut direct, first, c, in_walk);
                         });
                     }
                     let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
@@ -305,7 +325,7 @@ pub fn trace_path(
                     settings.clamp_indirect,
                 );
                 l += c;
-                comp[if depth == 0 { EMISSION } else { first }] += c;
+                record(&mut comp, &mut direct, if depth == 0 { EMISSION } else { first }, c, seg_direct);
             }
         });
 
@@ -321,7 +341,7 @@ pub fn trace_path(
                     let m = prev.map_or(1.0, |p| light.multiplier(p.kind));
                     let c = clamped(beta * le * (m * share * weight(&prev, i, pdf)), depth >= 2, settings.clamp_indirect);
                     l += c;
-                    comp[if depth == 0 { EMISSION } else { first }] += c;
+                    record(&mut comp, &mut direct, if depth == 0 { EMISSION } else { first }, c, seg_direct);
                 }
             }
             break;
@@ -412,7 +432,7 @@ pub fn trace_path(
             };
             let c = clamped(beta * le * (share * weight(&prev, li, pdf)), depth >= 2, settings.clamp_indirect);
             l += c;
-            comp[if depth == 0 { EMISSION } else { first }] += c;
+            record(&mut comp, &mut direct, if depth == 0 { EMISSION } else { first }, c, seg_direct);
         }
 
         let frame = if force || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
@@ -446,6 +466,10 @@ pub fn trace_path(
         // best-stratified first two dimensions.
         let [ul_x, ul_y, u_sel, u_rr] = rng.next_4d();
         let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
+        // Next-event estimation here finds direct light at the first surface, or at the exit
+        // of the walk it started.
+        let inside_here = medium.is_some();
+        let vertex_direct = depth == 0 || (in_walk && inside_here);
         // Caustic avoidance at a subsurface boundary seen from inside: what light the path
         // finds by leaving the medium here, transparent shadows from the scattering event
         // before already found w'(B_t) of ("lighting at the exit point will be weighted down
@@ -513,10 +537,10 @@ pub fn trace_path(
                             if depth == 0 && (settings.light_path_aovs || force) {
                                 // Direct light at the first surface, split by the lobes that reflect it.
                                 for (k, part) in parts.unwrap_or_default().into_iter().enumerate() {
-                                    comp[k] += part * scale;
+                                    record(&mut comp, &mut direct, k, part * scale, true);
                                 }
                             } else {
-                                comp[first] += c;
+                                record(&mut comp, &mut direct, first, c, vertex_direct);
                             }
                         }
                     }
@@ -563,6 +587,13 @@ pub fn trace_path(
         if beta == Vec3::ZERO || !is_finite(beta) {
             break;
         }
+        // What the next ray finds is direct after the first surface, and after the walk's own
+        // boundary (internal reflection or the exit); the walk ends when the path leaves.
+        (seg_direct, in_walk) = match depth {
+            0 => (true, first == SUBSURFACE),
+            _ if in_walk && inside_here => (true, medium.is_some()),
+            _ => (false, false),
+        };
         prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: a_roughness, in_medium: false });
         cone = cone.after_bounce(cone_here, if bs.flags.delta { 0.0 } else { lobe_roughness });
         ray = Ray::new(offset_ray_origin(s.p, if wi.dot(ng) > 0.0 { ng } else { -ng }, s.offset_scale), wi);
@@ -581,8 +612,10 @@ pub fn trace_path(
         counters.non_finite += 1;
         l = Vec3::ZERO;
         comp = [Vec3::ZERO; 5];
+        direct = [Vec3::ZERO; 4];
     }
     out.radiance = l;
     out.components = comp;
+    out.direct = direct;
     out
 }

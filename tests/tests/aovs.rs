@@ -6,9 +6,17 @@ use tessera_tests::*;
 
 const COMPONENTS: [&str; 5] = ["diffuse", "specular", "transmission", "subsurface", "emission"];
 
+/// The components that split into direct and indirect parts.
+const SPLIT: [&str; 4] = ["diffuse", "specular", "transmission", "subsurface"];
+
+/// Every light-path AOV, direct and indirect parts included.
+fn light_path_aovs() -> Vec<String> {
+    let parts = SPLIT.iter().flat_map(|c| [format!("{c}_direct"), format!("{c}_indirect")]);
+    COMPONENTS.iter().map(|s| s.to_string()).chain(parts).chain(["position".to_string(), "albedo".to_string()]).collect()
+}
+
 async fn render_with_components(fixture_name: &str) -> tessera::remote::RenderReport {
-    let aovs = COMPONENTS.iter().map(|s| s.to_string()).chain(["position".to_string(), "albedo".to_string()]).collect();
-    let report = render_fixture(fixture_name, &RenderOptions { aovs, max_depth: 16, ..small(40, 40, 16) }).await;
+    let report = render_fixture(fixture_name, &RenderOptions { aovs: light_path_aovs(), max_depth: 16, ..small(40, 40, 16) }).await;
     assert_all_finite(&report.image);
     report
 }
@@ -33,6 +41,16 @@ async fn light_path_components_sum_to_the_beauty() {
                         (sum - b).abs() <= 1e-4 * b.abs().max(1.0),
                         "{fixture_name} ({x}, {y}) channel {c}: components sum to {sum}, beauty {b}"
                     );
+                    // Each splits into its direct and indirect parts, neither negative.
+                    for name in SPLIT {
+                        let total = img.pixel(name, x, y)[c] as f64;
+                        let d = img.pixel(&format!("{name}_direct"), x, y)[c] as f64;
+                        let i = img.pixel(&format!("{name}_indirect"), x, y)[c] as f64;
+                        assert!(
+                            (d + i - total).abs() <= 1e-5 * total.max(1.0) && d >= 0.0 && i >= -1e-6 * total.max(1.0),
+                            "{fixture_name} ({x}, {y}) {name}: {d} + {i} vs {total}"
+                        );
+                    }
                 }
                 // Background pixels are all emission (the dome seen directly).
                 if beauty[3] == 0.0 {
@@ -76,6 +94,36 @@ async fn each_component_holds_what_its_name_says() {
             }
         }
     }
+}
+
+/// Direct light is what one bounce finds: the Cornell box's diffuse_direct at depth 16 is, pixel
+/// for pixel, its diffuse at depth 1 (the same samples reach the first surface either way),
+/// and the indirect part is what the deeper paths add. Behind a subsurface boundary, direct
+/// light is what reaches the medium from the light before the path meets another surface.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn direct_parts_are_what_one_bounce_finds() {
+    let (server, mut conn) = session_with(&load("cornell_box.usda")).await;
+    let opts = |max_depth| RenderOptions { aovs: light_path_aovs(), max_depth, ..small(24, 24, 16) };
+    let deep = conn.render(&opts(16), |_| {}).await.unwrap();
+    let one = conn.render(&opts(1), |_| {}).await.unwrap();
+    let (direct, single) = (&deep.image.layers["diffuse_direct"].1, &one.image.layers["diffuse"].1);
+    for (k, (d, s)) in direct.iter().zip(single).enumerate() {
+        assert!((d - s).abs() <= 1e-5 * s.max(1.0), "value {k}: direct {d} at depth 16, diffuse {s} at depth 1");
+    }
+    assert_eq!(total(&one, "diffuse_indirect"), 0.0);
+    let (d, i) = (total(&deep, "diffuse_direct"), total(&deep, "diffuse_indirect"));
+    println!("cornell box: diffuse direct {d:.1}, indirect {i:.1}");
+    assert!(i > 0.2 * d && i < d, "diffuse direct {d}, indirect {i}");
+    conn.close().await.ok();
+    server.stop().await.unwrap();
+    let sss = render_fixture(
+        "materials/subsurface_lit.usda",
+        &RenderOptions { aovs: light_path_aovs(), avoid_caustics: true, max_depth: 16, ..small(40, 30, 16) },
+    )
+    .await;
+    let (d, i) = (total(&sss, "subsurface_direct"), total(&sss, "subsurface_indirect"));
+    println!("subsurface sphere: direct {d:.2}, indirect {i:.2}");
+    assert!(d > i && i > 0.0, "subsurface direct {d}, indirect {i}");
 }
 
 /// Every AOV is finite everywhere on every fixture (a NaN anywhere would poison a compositor).
