@@ -1,5 +1,7 @@
 //! The film: per-pixel sums of every AOV in f64 (as pbrt-v4's `RGBFilm` does), kept per
-//! tile so each tile is owned by one worker at a time.
+//! tile so each tile is owned by one worker at a time. The main sums take 11 f64 per pixel;
+//! position and the light-path components (with their direct parts) 30 more, allocated only
+//! when a render asks for one of them (240 B per pixel: 500 MB at 1920x1080).
 
 use glam::Vec3;
 
