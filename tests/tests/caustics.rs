@@ -133,3 +133,21 @@ async fn transparent_shadows_from_inside_a_medium_cost_a_small_bias() {
     conn.close().await.ok();
     server.stop().await.unwrap();
 }
+
+/// Where the boundary bends nothing (index 1, as the furnace's subsurface sphere has), light
+/// pretending not to bend is exact: transparent shadows from inside the medium and the walks
+/// that leave must then agree with full path tracing, which they only do if neither lights the
+/// medium twice nor drops what the other took.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn transparent_shadows_through_an_index_matched_boundary_are_exact() {
+    let (server, mut conn) = session_with(&load("materials/furnace_subsurface.usda")).await;
+    let opts = |avoid_caustics| RenderOptions { avoid_caustics, max_depth: 64, ..small(32, 32, 256) };
+    let full = covered_rgb(&conn.render(&opts(false), |_| {}).await.unwrap());
+    let avoid = covered_rgb(&conn.render(&opts(true), |_| {}).await.unwrap());
+    println!("index-matched subsurface sphere in the furnace: full {full:.4?}, avoid {avoid:.4?}");
+    for c in 0..3 {
+        assert!((avoid[c] / full[c] - 1.0).abs() < 0.01, "channel {c}: avoid {} vs full {}", avoid[c], full[c]);
+    }
+    conn.close().await.ok();
+    server.stop().await.unwrap();
+}
