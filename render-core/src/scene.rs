@@ -202,6 +202,9 @@ pub struct CommittedScene {
     pub plan: RenderPlan,
     /// What commit could not honour, by prim.
     pub warnings: Vec<String>,
+    /// Materials whose subsurface medium lies behind a smooth boundary (roughness up to
+    /// [`crate::caustics::SMOOTH_GLASS`]): full path tracing lights them only by chance.
+    pub smooth_subsurface: Vec<String>,
 }
 
 /// Surface data at a ray hit, in world space.
@@ -602,6 +605,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         );
     }
     let subsurface = materials_where(&|m| m.medium().is_some());
+    let smooth_subsurface = materials_where(&|m| {
+        crate::caustics::ShadowGlass::of_medium_boundary(m).is_some_and(|b| b.roughness <= crate::caustics::SMOOTH_GLASS)
+    });
     if !subsurface.is_empty() {
         plan.enable("subsurface", "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)", subsurface);
     }
@@ -649,6 +655,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         every_lobe_bsdfs: Default::default(),
         shadow_glass,
         medium_boundary,
+        smooth_subsurface,
         media,
         used_materials,
         lights: light_set,

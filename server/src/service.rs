@@ -192,6 +192,19 @@ struct RenderJob {
 
 impl RenderJob {
     /// What the settings cost in accuracy, said where every client sees it.
+    /// What these settings will do badly on this scene, and the setting that would not.
+    fn scene_hints(&self, scene: &render_core::scene::CommittedScene) -> Vec<String> {
+        let full = self.settings.integrator.caustics == render_core::caustics::CausticMode::Full;
+        let mut w = Vec::new();
+        if full && !scene.smooth_subsurface.is_empty() {
+            w.push(format!(
+                "{}: subsurface behind a smooth boundary is lit only where a random walk happens to leave towards a light (fireflies); --caustics avoid lights the medium from inside (biased, far less noisy)",
+                scene.smooth_subsurface.join(", ")
+            ));
+        }
+        w
+    }
+
     fn settings_warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
         if let Some(c) = self.settings.integrator.clamp_indirect {
@@ -349,7 +362,7 @@ impl RenderJob {
                         .collect(),
                     aovs: self.aovs.iter().map(|a| a.name().to_string()).collect(),
                     scene_version: version,
-                    warnings: scene.warnings.iter().cloned().chain(self.settings_warnings()).collect(),
+                    warnings: scene.warnings.iter().cloned().chain(self.settings_warnings()).chain(self.scene_hints(&scene)).collect(),
                     prim_paths: if self.aovs.contains(&Aov::PrimId) { scene.prim_paths.clone() } else { Vec::new() },
                 }));
                 first = false;
