@@ -68,18 +68,21 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} spp  {msg}  ETA {eta}").expect("valid template"),
     );
+    // Above the bar on a terminal; a hidden bar (stderr piped, as on a farm) prints nothing,
+    // so the plan and the warnings go to stderr directly.
+    let say = |line: String| if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) };
     let mut tiles_this_pass = 0u32;
     let report = conn
         .render(options, |e| match e {
             pb::render_event::Event::Started(s) => {
                 if !s.plan.is_empty() {
-                    bar.println("render plan:");
+                    say("render plan:".to_string());
                     for p in &s.plan {
-                        bar.println(format!("  + {:<16} {}", p.effect, p.reason));
+                        say(format!("  + {:<16} {}", p.effect, p.reason));
                     }
                 }
                 for w in &s.warnings {
-                    bar.println(format!("warning: {w}"));
+                    say(format!("warning: {w}"));
                 }
             }
             pb::render_event::Event::Tile(t) if t.aov == "beauty" => {
@@ -91,7 +94,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 bar.set_position(p.spp as u64);
                 bar.set_message(format!("{:.1} Mrays/s  noise {:.2}%", p.rays_per_second / 1e6, 100.0 * p.estimated_noise));
             }
-            pb::render_event::Event::Restarted(r) => bar.println(format!("scene changed (version {}): restarting", r.scene_version)),
+            pb::render_event::Event::Restarted(r) => say(format!("scene changed (version {}): restarting", r.scene_version)),
             _ => {}
         })
         .await?;
