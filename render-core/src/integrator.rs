@@ -183,6 +183,54 @@ fn shadow_ray(origin: Vec3, p: Vec3, ls: &crate::light::LightSample) -> Ray {
     }
 }
 
+/// A scattering event in a subsurface medium.
+struct MediumPoint {
+    medium: Medium,
+    p: Vec3,
+    /// The direction the path arrived along.
+    dir: Vec3,
+    /// The path's throughput there.
+    beta: Vec3,
+    /// The kind of lobe that led into the medium, for lights' multipliers.
+    kind: PathKind,
+}
+
+/// Caustic avoidance's light at a scattering event in a medium ("Brute-force subsurface
+/// scattering"): lights reached by transparent shadows across the medium's boundary, weighted
+/// against the walks that leave towards them (all of it behind a smooth boundary). `u`: the
+/// light position and the light choice. A light inside the medium (no crossing) is left to
+/// phase sampling.
+fn light_through_boundary(
+    scene: &CommittedScene,
+    settings: &IntegratorSettings,
+    at: &MediumPoint,
+    u: [f32; 3],
+    counters: &mut PathCounters,
+) -> Vec3 {
+    let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+    let mut total = Vec3::ZERO;
+    scene.lights.sample_each(&ctx, u[2], Vec2::new(u[0], u[1]), settings.light_split_budget, |mut ls, light| {
+        if let Some((instance, triangle)) = light.textured_emitter {
+            ls.li = scene.emission_at(instance, triangle, at.p + ls.wi * ls.dist);
+        }
+        if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
+            return;
+        }
+        let shadow = shadow_ray(at.p, at.p, &ls);
+        counters.rays += 1;
+        let Some(pass) =
+            caustics::shadow_transmittance_from(scene, &shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)
+        else {
+            return;
+        };
+        let w = caustics::roughness_weight(MEDIUM_ROUGHNESS, pass.roughness);
+        let phase = at.medium.phase_pdf(at.dir, ls.wi);
+        total +=
+            clamped(at.beta * ls.li * pass.transmittance * (phase * w * light.multiplier(at.kind) / ls.pdf), true, settings.clamp_indirect);
+    });
+    total
+}
+
 /// Radiance and first-hit AOVs along a camera ray.
 pub fn trace_path(
     scene: &CommittedScene,
@@ -261,36 +309,11 @@ pub fn trace_path(
                     let p = ray.origin + ray.dir * t;
                     let kind = prev.map_or(PathKind::Transmission, |p| p.kind);
                     if avoid && medium_shadows && !lights.is_empty() && settings.strategy != LightStrategy::BsdfOnly {
-                        // "Brute-force subsurface scattering": light reaches the medium through
-                        // transparent shadows from inside, weighted against the walks that
-                        // leave towards it (all of it behind a smooth boundary).
                         let [ul_x, ul_y, u_sel, _] = rng.next_4d();
-                        let ctx = ShadingContext { p, n: Vec3::ZERO, both_sides: true };
-                        lights.sample_each(&ctx, u_sel, Vec2::new(ul_x, ul_y), settings.light_split_budget, |mut ls, light| {
-                            if let Some((instance, triangle)) = light.textured_emitter {
-                                ls.li = scene.emission_at(instance, triangle, p + ls.wi * ls.dist);
-                            }
-                            if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
-                                return;
-                            }
-                            let shadow = shadow_ray(p, p, &ls);
-                            counters.rays += 1;
-                            // A light inside the medium (no crossing) is left to phase sampling.
-                            let Some(pass) =
-                                caustics::shadow_transmittance_from(scene, &shadow, shadow.tmax, Some(m)).filter(|pass| pass.crossings > 0)
-                            else {
-                                return;
-                            };
-                            let w = caustics::roughness_weight(MEDIUM_ROUGHNESS, pass.roughness);
-                            let phase = m.phase_pdf(ray.dir, ls.wi);
-                            let c = clamped(
-                                beta * ls.li * pass.transmittance * (phase * w * light.multiplier(kind) / ls.pdf),
-                                true,
-                                settings.clamp_indirect,
-                            );
-                            l += c;
-                            record(&mut comp, &mut direct, first, c, in_walk);
-                        });
+                        let at = MediumPoint { medium: m, p, dir: ray.dir, beta, kind };
+                        let c = light_through_boundary(scene, settings, &at, [ul_x, ul_y, u_sel], counters);
+                        l += c;
+                        record(&mut comp, &mut direct, first, c, in_walk);
                     }
                     let wi = m.sample_phase(ray.dir, Vec2::new(u_x, u_y));
                     prev = Some(PrevVertex {
