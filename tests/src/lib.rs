@@ -82,14 +82,22 @@ pub fn mean_where(image: &Image, aov: &str, c: usize, keep: impl Fn(u32, u32) ->
     (sum / n.max(1) as f64, n)
 }
 
+/// Mean of each beauty channel over the pixels where the camera hit geometry (alpha 1), and
+/// how many there are.
+pub fn covered_rgb(report: &RenderReport) -> ([f64; 3], usize) {
+    let img = &report.image;
+    let covered = |x, y| img.pixel("beauty", x, y)[3] == 1.0;
+    let means = [0, 1, 2].map(|c| mean_where(img, "beauty", c, covered));
+    (means.map(|(m, _)| m), means[0].1)
+}
+
 /// Renders a furnace fixture (32x32, 64 spp, max depth 64) and returns the mean red value over
 /// the pixels where the camera sees geometry, after checking every AOV is finite.
 pub async fn furnace_sphere_mean(fixture_name: &str, energy_compensation: bool) -> f64 {
     let opts = RenderOptions { max_depth: 64, energy_compensation, ..small(32, 32, 64) };
     let report = render_fixture(fixture_name, &opts).await;
     assert_all_finite(&report.image);
-    let img = &report.image;
-    let (mean, n) = mean_where(img, "beauty", 0, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
+    let ([mean, ..], n) = covered_rgb(&report);
     assert!(n > 100, "{fixture_name}: the sphere covers {n} pixels");
     mean
 }

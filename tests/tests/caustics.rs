@@ -81,13 +81,6 @@ async fn transparent_shadows_and_paths_do_not_light_twice() {
     assert!(worst < 1.5, "brightest pixel {worst}");
 }
 
-/// Mean of each channel of the beauty over the pixels an object covers (alpha 1).
-fn covered_rgb(report: &RenderReport) -> [f64; 3] {
-    let img = &report.image;
-    let covered = |x, y| img.pixel("beauty", x, y)[3] == 1.0;
-    [0, 1, 2].map(|c| mean_where(img, "beauty", c, covered).0)
-}
-
 /// Subsurface behind a boundary ("Brute-force subsurface scattering"): full path tracing
 /// lights the medium only where a random walk leaves it towards the small light, through a
 /// mirror-smooth boundary by chance alone; avoidance lights every scattering event inside
@@ -127,8 +120,8 @@ async fn transparent_shadows_light_subsurface_media_behind_smooth_boundaries() {
 async fn transparent_shadows_from_inside_a_medium_cost_a_small_bias() {
     let (server, mut conn) = session_with(&load("materials/furnace_subsurface_smooth.usda")).await;
     let opts = |avoid_caustics| RenderOptions { avoid_caustics, max_depth: 64, ..small(32, 32, 64) };
-    let full = covered_rgb(&conn.render(&opts(false), |_| {}).await.unwrap());
-    let avoid = covered_rgb(&conn.render(&opts(true), |_| {}).await.unwrap());
+    let full = covered_rgb(&conn.render(&opts(false), |_| {}).await.unwrap()).0;
+    let avoid = covered_rgb(&conn.render(&opts(true), |_| {}).await.unwrap()).0;
     println!("smooth subsurface sphere under the dome: full {full:.4?}, avoid {avoid:.4?}");
     for c in 0..3 {
         let ratio = avoid[c] / full[c];
@@ -146,8 +139,8 @@ async fn transparent_shadows_from_inside_a_medium_cost_a_small_bias() {
 async fn transparent_shadows_through_an_index_matched_boundary_are_exact() {
     let (server, mut conn) = session_with(&load("materials/furnace_subsurface.usda")).await;
     let opts = |avoid_caustics| RenderOptions { avoid_caustics, max_depth: 64, ..small(32, 32, 256) };
-    let full = covered_rgb(&conn.render(&opts(false), |_| {}).await.unwrap());
-    let avoid = covered_rgb(&conn.render(&opts(true), |_| {}).await.unwrap());
+    let full = covered_rgb(&conn.render(&opts(false), |_| {}).await.unwrap()).0;
+    let avoid = covered_rgb(&conn.render(&opts(true), |_| {}).await.unwrap()).0;
     println!("index-matched subsurface sphere in the furnace: full {full:.4?}, avoid {avoid:.4?}");
     for c in 0..3 {
         assert!((avoid[c] / full[c] - 1.0).abs() < 0.01, "channel {c}: avoid {} vs full {}", avoid[c], full[c]);

@@ -15,10 +15,7 @@ fn rgb(report: &RenderReport) -> Vec<f64> {
 
 /// Mean of every channel over pixels where the camera hit geometry.
 fn covered_mean(report: &RenderReport) -> (f64, usize) {
-    let img = &report.image;
-    let (r, n) = mean_where(img, "beauty", 0, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
-    let (g, _) = mean_where(img, "beauty", 1, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
-    let (b, _) = mean_where(img, "beauty", 2, |x, y| img.pixel("beauty", x, y)[3] == 1.0);
+    let ([r, g, b], n) = covered_rgb(report);
     ((r + g + b) / 3.0, n)
 }
 
