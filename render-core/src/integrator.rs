@@ -497,8 +497,10 @@ pub fn trace_path(
         // finds by leaving the medium here, transparent shadows from the scattering event
         // before already found w'(B_t) of ("lighting at the exit point will be weighted down
         // and replaced by lighting in the interior"). Indirect light beyond stays whole.
-        let leaving_share = match (&prev, medium.and(scene.medium_boundary(s.material))) {
-            (Some(p), Some(boundary)) if avoid => 1.0 - caustics::roughness_weight(p.roughness, boundary.roughness),
+        let leaving_share = match (&prev, inside_here) {
+            (Some(p), true) if avoid => {
+                scene.medium_boundary(s.material).map_or(1.0, |b| 1.0 - caustics::roughness_weight(p.roughness, b.roughness))
+            }
             _ => 1.0,
         };
 
