@@ -119,6 +119,12 @@ pub(crate) fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed:
     Rendered { rgb, seconds }
 }
 
+/// A reference image, announced on stderr: references are the slow part of a run.
+pub(crate) fn reference_image(what: &str, scene: &CommittedScene, res: (u32, u32), k: Knobs, seed: u64) -> Vec<f64> {
+    eprintln!("{what} reference: {} spp ...", k.spp);
+    render(scene, res, k, seed).rgb
+}
+
 /// Relative MSE against a reference, with Rousselle's ε = 0.01.
 pub(crate) fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
     img.iter().zip(reference).map(|(a, r)| (a - r).powi(2) / (r * r + 0.01)).sum::<f64>() / img.len() as f64
@@ -347,8 +353,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     let grid = load(&b.fixtures, "materials/roughness_grid.usda")?;
     let gres = (res.0 / 2, res.1 / 2);
     let gknobs = Knobs { max_depth: 16, ..base };
-    eprintln!("roughness grid reference: {} spp ...", b.reference_spp / 4);
-    let grid_ref = render(&grid, gres, Knobs { spp: b.reference_spp / 4, ..gknobs }, 13).rgb;
+    let grid_ref = reference_image("roughness grid", &grid, gres, Knobs { spp: b.reference_spp / 4, ..gknobs }, 13);
     writeln!(
         md,
         "\n### Energy compensation in a shaded scene (`fixtures/materials/roughness_grid.usda`, {}x{}, max depth 16)\n\nAgainst a {}-spp reference with compensation on. Off at the reference's spp is the bias that more samples do not remove.\n",
@@ -367,8 +372,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     let scene = load(&b.fixtures, "caustics/glass_on_floor.usda")?;
     let cres = (res.0, res.1 * 3 / 4);
     let full = Knobs { spp: b.reference_spp, max_depth: 12, ..base };
-    eprintln!("caustics reference: {} spp ...", b.reference_spp);
-    let reference = render(&scene, cres, full, 11).rgb;
+    let reference = reference_image("caustics", &scene, cres, full, 11);
     writeln!(
         md,
         "## Caustics: full path tracing against avoidance (`fixtures/caustics/glass_on_floor.usda`, {}x{})\n\nA smooth glass ball on a white floor under a small sphere light. The reference is full path tracing at {} spp (max depth 12); its own noise in the shadow is large, since the focused caustic is exactly what unidirectional path tracing finds rarely, so part of avoidance's error below is the reference's.\n",
@@ -397,8 +401,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     }
     let fallback_scene = commit(&fallback_desc, &mut BlasCache::default())?;
     let sres = (res.0, res.1 * 3 / 4);
-    eprintln!("subsurface reference: {} spp ...", b.reference_spp / 4);
-    let reference = render(&walk_scene, sres, Knobs { spp: b.reference_spp / 4, ..base }, 17).rgb;
+    let reference = reference_image("subsurface", &walk_scene, sres, Knobs { spp: b.reference_spp / 4, ..base }, 17);
     writeln!(
         md,
         "\n## Subsurface: random walk against its diffuse fallback (`fixtures/materials/subsurface_lit.usda`, {}x{})\n\nA translucent sphere (scatteringRadius 0.1 of its radius, boundary roughness 0.4) lit from the upper left. The reference is the random walk at {} spp, caustics full. The fallback renders the same material with scatteringRadius 0, a Lambertian of the same albedo: faster, and biased by exactly what translucency adds (softened shading, light bled into the shadowed side); its error stays at that bias however many samples it takes. The full walk's error is noise: light reaches the medium only where a walk leaves it towards the light, through a glossy boundary from a random direction. With caustics avoided, every scattering event inside also connects to the light through a transparent shadow, weighted by the slides' roughness heuristic against the walks that leave (at roughness 0.4, shadows take 69%): less noise for more shadow rays per sample, and a bias small next to the reference's own noise (the next section measures it where full path tracing converges).\n",
@@ -422,9 +425,8 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
 
     // ------------------------------------------------------------ subsurface, smooth boundary
     let smooth = load(&b.fixtures, "materials/subsurface_smooth.usda")?;
-    eprintln!("smooth subsurface reference: {} spp ...", b.reference_spp / 4);
     let avoided = Knobs { avoid_caustics: true, ..base };
-    let reference = render(&smooth, sres, Knobs { spp: b.reference_spp / 4, ..avoided }, 17).rgb;
+    let reference = reference_image("smooth subsurface", &smooth, sres, Knobs { spp: b.reference_spp / 4, ..avoided }, 17);
     // Avoidance's bias where full path tracing converges: the same medium under the white dome.
     let dome = load(&b.fixtures, "materials/furnace_subsurface_smooth.usda")?;
     let dome_spp = Knobs { spp: (b.reference_spp / 16).max(16), max_depth: 64, ..base };

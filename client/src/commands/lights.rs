@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use render_core::scene::CommittedScene;
 
-use super::bench::{Knobs, load, machine_description, rel_mse, render, today};
+use super::bench::{Knobs, load, machine_description, reference_image, rel_mse, render, today};
 
 /// Options of `tessera bench lights`.
 #[derive(Clone, Debug)]
@@ -74,8 +74,8 @@ pub fn lights(b: &LightsBench) -> Result<(String, Vec<LightsRow>)> {
     let counterparts = [("sphere", load(&b.fixtures, "hard/one_light.usda")?), ("rect", load(&b.fixtures, "hard/one_rect_light.usda")?)];
     let res = (b.size, b.size);
     let base = Knobs { max_depth: 2, ..Knobs::default() };
-    let reference = |scene: &CommittedScene| render(scene, res, Knobs { spp: b.reference_spp, ..base }, 21).rgb;
-    let many_ref = reference(&many);
+    let reference = |what: &str, scene: &CommittedScene| reference_image(what, scene, res, Knobs { spp: b.reference_spp, ..base }, 21);
+    let many_ref = reference("10 000 lights", &many);
     let mut md = String::new();
     writeln!(
         md,
@@ -92,7 +92,7 @@ pub fn lights(b: &LightsBench) -> Result<(String, Vec<LightsRow>)> {
         b.budgets.iter().map(|&budget| seconds_per_spp(&many, res, Knobs { spp: 64, light_split_budget: budget, ..base })).collect();
     let mut rows = Vec::new();
     for (name, one) in &counterparts {
-        let one_ref = reference(one);
+        let one_ref = reference(name, one);
         let one_cost = seconds_per_spp(one, res, Knobs { spp: 256, ..base });
         // The one-light errors do not depend on the budget: rendered once per sample count.
         let one_errors: Vec<f64> = b.spp.iter().map(|&spp| rel_mse(&render(one, res, Knobs { spp, ..base }, 5).rgb, &one_ref)).collect();
