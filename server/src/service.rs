@@ -191,7 +191,6 @@ struct RenderJob {
 }
 
 impl RenderJob {
-    /// What the settings cost in accuracy, said where every client sees it.
     /// What these settings will do badly on this scene, and the setting that would not.
     fn scene_hints(&self, scene: &render_core::scene::CommittedScene) -> Vec<String> {
         let full = self.settings.integrator.caustics == render_core::caustics::CausticMode::Full;
@@ -205,6 +204,7 @@ impl RenderJob {
         w
     }
 
+    /// What the settings cost in accuracy, said where every client sees it.
     fn settings_warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
         if let Some(c) = self.settings.integrator.clamp_indirect {

@@ -316,7 +316,7 @@ mod tests {
     }
 
     /// More tiles than cells: a cell is the pixel-weighted mean of its tiles (a narrow edge
-    /// tile counts for its few pixels), and the cells keep the total number of samples.
+    /// tile counts for its few pixels).
     #[test]
     fn many_tiles_merge_into_cells_by_their_pixels() {
         // 20 x 1 tiles of 8 px across a 156-px-wide image: the last one is 4 px wide.
