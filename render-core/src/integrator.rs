@@ -246,6 +246,8 @@ pub fn trace_path(
     let mut beta = Vec3::ONE;
     let mut ray = camera_ray;
     let mut prev: Option<PrevVertex> = None;
+    // The BSDF at the current vertex; one buffer for the whole path (see `Bsdf::clone_from`).
+    let mut bsdf = crate::bsdf::Bsdf::default();
     // Caustic avoidance: the roughness every later lobe is clamped to.
     let mut floor = RoughnessFloor::default();
     let lights = &scene.lights;
@@ -406,13 +408,13 @@ pub fn trace_path(
         let glitter = uber_here
             .has_glitter()
             .then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
-        let mut bsdf = match &local {
-            _ if let Some(u) = &glitter => u.base_bsdf(ec, force),
-            Some((m, _)) if force => m.surface.bsdf_with_every_lobe(ec),
-            Some((m, _)) => m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
-            None if force => scene.bsdf_with_every_lobe(s.material, ec).clone(),
-            None => scene.bsdf_floored(s.material, ec, level).clone(),
-        };
+        match &local {
+            _ if let Some(u) = &glitter => bsdf = u.base_bsdf(ec, force),
+            Some((m, _)) if force => bsdf = m.surface.bsdf_with_every_lobe(ec),
+            Some((m, _)) => bsdf = m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
+            None if force => bsdf.clone_from(scene.bsdf_with_every_lobe(s.material, ec)),
+            None => bsdf.clone_from(scene.bsdf_floored(s.material, ec, level)),
+        }
         // The surface's own roughness (before clamping) weighs transparent shadows against
         // paths through glass, on both sides of the comparison.
         let a_roughness = match &local {
