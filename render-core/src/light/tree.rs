@@ -366,6 +366,9 @@ impl LightTree {
         if self.nodes.is_empty() {
             return;
         }
+        if let Some(light) = self.only_light() {
+            return visit(light, 1.0);
+        }
         let (_, _, frontier, n_front) = self.cut(p, budget);
         for &start in &frontier[..n_front] {
             if let Some((light, pmf)) = self.walk(start as usize, p, n, u) {
@@ -380,7 +383,21 @@ impl LightTree {
         if self.nodes.is_empty() {
             return None;
         }
+        if let Some(light) = self.only_light() {
+            return Some((light, 1.0));
+        }
         self.walk(0, p, n, u)
+    }
+
+    /// The light of a tree of one light. It is picked at every point, without weighing its
+    /// importance: a light that faces away delivers nothing through its own sampling, and
+    /// scenes with one light (most look-development scenes) skip the bound at every vertex.
+    #[inline]
+    fn only_light(&self) -> Option<u32> {
+        match self.nodes[..] {
+            [Node::Leaf { light, .. }] => Some(light),
+            _ => None,
+        }
     }
 
     /// The stochastic walk from node `at` down to a leaf.
@@ -422,6 +439,9 @@ impl LightTree {
     /// [`LightTree::sample`]) picks `light` for `p`, `n`.
     pub fn pmf(&self, p: Vec3, n: Vec3, light: usize, budget: usize) -> f32 {
         let Some(Some((bits, depth))) = self.trails.get(light) else { return 0.0 };
+        if self.only_light().is_some() {
+            return 1.0;
+        }
         let (splits, n_splits, _, _) = self.cut(p, budget);
         let (mut at, mut pmf) = (0usize, 1.0f32);
         let mut walking = false;
@@ -543,6 +563,23 @@ mod tests {
         let (splits, n_splits, _, n_front) = t.cut(Vec3::ZERO, 4);
         assert_eq!(n_front, 4);
         assert_eq!(&splits[..n_splits], &[0, 1, right], "the root, then each of its halves");
+    }
+
+    /// A tree of one light picks it everywhere, facing the point or not, and its pmf agrees:
+    /// MIS sees the density sampling used.
+    #[test]
+    fn one_light_is_always_picked_and_its_pmf_agrees() {
+        let rect = Shape::Rect { center: Vec3::ZERO, u: Vec3::X, v: Vec3::Z, n: Vec3::Y, area: 4.0, l: Vec3::ONE };
+        let t = tree_of(&[(rect, 1.0)]);
+        for p in [Vec3::new(0.3, 1.0, 0.0), Vec3::new(0.3, -1.0, 0.0)] {
+            assert_eq!(t.sample(p, Vec3::Y, 0.7), Some((0, 1.0)));
+            for budget in [1, SPLIT_BUDGET] {
+                let mut picked = Vec::new();
+                t.sample_split(p, Vec3::Y, 0.7, budget, |i, pmf| picked.push((i, pmf)));
+                assert_eq!(picked, [(0, 1.0)]);
+                assert_eq!(t.pmf(p, Vec3::Y, 0, budget), 1.0);
+            }
+        }
     }
 
     /// Lights behind a one-sided emitter's back, or below the receiver, get no probability.
