@@ -297,6 +297,13 @@ impl LightTree {
             let exit = far.min_element().min(tmax);
             !(enter > exit * (1.0 + 2.0 * f32::EPSILON))
         };
+        // One light (a Cornell box's): no stack to set up for every ray.
+        if let Node::Leaf { light, bounds } = &self.nodes[0] {
+            if crosses(bounds) {
+                visit(*light);
+            }
+            return;
+        }
         let mut stack = [0u32; 64];
         let mut top = 1;
         while top > 0 {
@@ -606,10 +613,24 @@ mod tests {
                 _ => unreachable!(),
             })
             .collect();
-        let t = tree_of(&fat);
-        for _ in 0..200 {
+        // Many lights, and one (the root is a leaf).
+        for fat in [&fat[..], &fat[..1]] {
+            visits_match_brute_force(fat, &mut rng);
+        }
+    }
+
+    fn visits_match_brute_force(fat: &[(Shape, f32)], rng: &mut Pcg32) {
+        let t = tree_of(fat);
+        let mut crossings = 0;
+        for k in 0..200 {
             let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 20.0;
-            let d = crate::sampling::uniform_sphere(rng.next_2d());
+            // Every other ray aimed near a light, so boxes are crossed as well as missed.
+            let d = if k % 2 == 0 {
+                let b = LightBounds::of(&fat[k % fat.len()].0, 1.0).unwrap();
+                (0.5 * (b.lo + b.hi) + crate::sampling::uniform_sphere(rng.next_2d()) - o).normalize()
+            } else {
+                crate::sampling::uniform_sphere(rng.next_2d())
+            };
             let tmax = 5.0 + 20.0 * rng.next_f32();
             let mut found = Vec::new();
             t.visit_crossed(o, d, tmax, |i| found.push(i));
@@ -622,7 +643,9 @@ mod tests {
                 })
                 .collect();
             assert_eq!(found, expected);
+            crossings += found.len();
         }
+        assert!(crossings > 20, "only {crossings} crossings among {} lights", fat.len());
     }
 
     /// The hot loop's bound for spheres without normalising is the general bound: the same
