@@ -3,7 +3,8 @@
 //!
 //! obvhs has no built-in instancing, so the TLAS leaf callback transforms the ray into the
 //! instance's object space and traverses that mesh's BLAS. The direction is not
-//! renormalised, so hit distances stay in world units.
+//! renormalised, so hit distances stay in world units. Scenes of few triangles in all skip
+//! the second level: one BVH over their triangles placed in the world ([`FLAT_TRIANGLES`]).
 
 use std::time::Duration;
 
@@ -176,9 +177,7 @@ pub struct Hit {
 
 /// The top-level acceleration structure over instances of shared BLASes.
 pub struct Tlas {
-    bvh: Option<CwBvh>,
-    /// Instances in BVH order, with their original index.
-    ordered: Vec<(u32, usize, Transform)>,
+    accel: Option<Accel>,
     /// Rays enter traversal with their direction scaled by this power of two (≤ 1):
     /// obvhs's CWBVH node test clamps the entry distance to an absolute 1e-4 (`node.rs`,
     /// `EPSILON`), which culled every box closer than 1e-4 units, i.e. most of a scene
@@ -188,11 +187,40 @@ pub struct Tlas {
     ray_scale: f32,
 }
 
+/// How a [`Tlas`] finds triangles.
+enum Accel {
+    /// A BVH over instance bounds whose leaves send the ray, moved into object space, down
+    /// the instance's BLAS. `ordered`: instances in BVH order (original index, BLAS,
+    /// placement).
+    Instances { bvh: CwBvh, ordered: Vec<(u32, usize, Transform)> },
+    /// One BVH over every instance's triangles placed in the world, with the (instance,
+    /// triangle) of each in BVH order: no second traversal and no ray transform per
+    /// instance. Built for scenes of few triangles in all (see [`FLAT_TRIANGLES`]).
+    Flat { bvh: CwBvh, tris: Vec<RtTriangle>, ids: Vec<(u32, u32)> },
+}
+
+/// Scenes with at most this many triangles over all instances are traced through one
+/// world-space BVH ([`Accel::Flat`]), as Embree-based renderers merge non-instanced meshes
+/// into one scene. Small scenes are where the hop from the instance BVH to each BLAS weighs
+/// most (a Cornell box's walls are BLASes of two triangles); the cap keeps the rebuild that
+/// every commit pays, transform edits included, to a few milliseconds.
+pub const FLAT_TRIANGLES: usize = 16_384;
+
 impl Tlas {
-    /// Builds over `instances`, whose `blas` indices refer into `blases`.
+    /// Builds over `instances`, whose `blas` indices refer into `blases`: one flat BVH when
+    /// they hold at most [`FLAT_TRIANGLES`] triangles in all, else two levels.
     pub fn build(blases: &[std::sync::Arc<Blas>], instances: &[TlasInstance]) -> Self {
+        Self::build_with_flat_limit(blases, instances, FLAT_TRIANGLES)
+    }
+
+    /// [`Tlas::build`] with the flat BVH's triangle cap given (tests build both kinds).
+    pub fn build_with_flat_limit(blases: &[std::sync::Arc<Blas>], instances: &[TlasInstance], flat_limit: usize) -> Self {
         if instances.is_empty() {
-            return Tlas { bvh: None, ordered: Vec::new(), ray_scale: 1.0 };
+            return Tlas { accel: None, ray_scale: 1.0 };
+        }
+        let total: usize = instances.iter().map(|i| blases[i.blas].tris.len()).sum();
+        if total <= flat_limit {
+            return Self::build_flat(blases, instances);
         }
         let bounds: Vec<InstanceBounds> = instances
             .iter()
@@ -212,20 +240,69 @@ impl Tlas {
             .collect();
         let bvh = build_cwbvh(&bounds, BuildQuality::Medium.params(), &mut Duration::default());
         let ordered = bvh.primitive_indices.iter().map(|&i| (i, instances[i as usize].blas, instances[i as usize].transform)).collect();
-        let extent = (bvh.total_aabb.max - bvh.total_aabb.min).max_element();
-        let ray_scale = if extent.is_finite() && extent > 0.0 && extent < 1.0 { 2f32.powi(extent.log2().floor() as i32) } else { 1.0 };
-        Tlas { bvh: Some(bvh), ordered, ray_scale }
+        let ray_scale = ray_scale(&bvh.total_aabb);
+        Tlas { accel: Some(Accel::Instances { bvh, ordered }), ray_scale }
+    }
+
+    /// One BVH over the instances' triangles in world space. Affine placements keep
+    /// barycentrics, so hits report the same (instance, triangle, barycentrics) as the
+    /// two-level walk, to rounding.
+    fn build_flat(blases: &[std::sync::Arc<Blas>], instances: &[TlasInstance]) -> Self {
+        let mut tris = Vec::new();
+        let mut ids = Vec::new();
+        for (i, inst) in instances.iter().enumerate() {
+            let blas = &blases[inst.blas];
+            let m = &inst.transform.to_world;
+            for (t, &id) in blas.tris.iter().zip(&blas.tri_ids) {
+                let v0 = m.transform_point3a(t.v0);
+                let (v1, v2) = (v0 + m.transform_vector3a(t.e1), v0 + m.transform_vector3a(t.e2));
+                tris.push(Triangle { v0, v1, v2 });
+                ids.push((i as u32, id));
+            }
+        }
+        let bvh = build_cwbvh_from_tris(&tris, BuildQuality::Medium.params(), &mut Duration::default());
+        let (rt, ids) = bvh
+            .primitive_indices
+            .iter()
+            .map(|&k| {
+                let t = &tris[k as usize];
+                (RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }, ids[k as usize])
+            })
+            .unzip();
+        let ray_scale = ray_scale(&bvh.total_aabb);
+        Tlas { accel: Some(Accel::Flat { bvh, tris: rt, ids }), ray_scale }
+    }
+
+    /// True when the scene is traced through one flat BVH.
+    pub fn is_flat(&self) -> bool {
+        matches!(self.accel, Some(Accel::Flat { .. }))
     }
 
     /// Closest hit along `ray` before `ray.tmax`.
     pub fn intersect(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
         let k = self.ray_scale;
         let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, ray.tmax / k);
         let mut rh = RayHit::none();
         let mut best: Option<Hit> = None;
+        let (bvh, ordered) = match self.accel.as_ref()? {
+            Accel::Instances { bvh, ordered } => (bvh, ordered),
+            Accel::Flat { bvh, tris, ids } => {
+                let mut bary = Vec2::ZERO;
+                let found = bvh.ray_traverse(wray, &mut rh, |r, id| match tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
+                    Some((t, u, v)) => {
+                        bary = Vec2::new(u, v);
+                        t
+                    }
+                    None => f32::INFINITY,
+                });
+                return found.then(|| {
+                    let (instance, triangle) = ids[rh.primitive_id as usize];
+                    Hit { t: rh.t * k, instance, triangle, bary }
+                });
+            }
+        };
         bvh.ray_traverse(wray, &mut rh, |r, id| {
-            let (inst, blas, xf) = &self.ordered[id];
+            let (inst, blas, xf) = &ordered[id];
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
             match blases[*blas].intersect(o, d, r.tmax) {
@@ -241,13 +318,19 @@ impl Tlas {
 
     /// True when anything blocks the segment from `ray.origin` to `ray.at(tmax)`.
     pub fn occluded(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray, tmax: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
         let k = self.ray_scale;
         let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, tmax / k);
+        let (bvh, ordered) = match &self.accel {
+            None => return false,
+            Some(Accel::Instances { bvh, ordered }) => (bvh, ordered),
+            Some(Accel::Flat { bvh, tris, .. }) => {
+                return !bvh.ray_traverse_miss(wray, |r, id| {
+                    tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0)
+                });
+            }
+        };
         !bvh.ray_traverse_miss(wray, |r, id| {
-            let (_, blas, xf) = &self.ordered[id];
+            let (_, blas, xf) = &ordered[id];
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
             // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
@@ -257,11 +340,20 @@ impl Tlas {
     }
 }
 
+/// The direction scale of [`Tlas::ray_scale`] for a scene with these bounds.
+fn ray_scale(bounds: &Aabb) -> f32 {
+    let extent = (bounds.max - bounds.min).max_element();
+    if extent.is_finite() && extent > 0.0 && extent < 1.0 { 2f32.powi(extent.log2().floor() as i32) } else { 1.0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::Affine3A;
     use std::sync::Arc;
+
+    /// Flat-BVH caps that build each kind of [`Tlas`]: two levels, then flat.
+    const BOTH_KINDS: [usize; 2] = [0, usize::MAX];
 
     fn quad() -> Mesh {
         Mesh {
@@ -277,21 +369,25 @@ mod tests {
         // obvhs clamps node entry distances to 1e-4.
         let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
         let xf = Transform::new(Affine3A::from_scale(Vec3::splat(1e-4))).unwrap();
-        let tlas = Tlas::build(&blas, &[TlasInstance { blas: 0, transform: xf }]);
-        let ray = Ray::new(Vec3::new(2e-5, -3e-5, 5e-5), -Vec3::Z);
-        let hit = tlas.intersect(&blas, &ray).expect("a hit 5e-5 away");
-        assert!((hit.t - 5e-5).abs() < 1e-9, "t = {}", hit.t);
-        assert!(tlas.occluded(&blas, &ray, 1e-4));
-        assert!(!tlas.occluded(&blas, &ray, 4e-5));
+        for flat_limit in BOTH_KINDS {
+            let tlas = Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: xf }], flat_limit);
+            let ray = Ray::new(Vec3::new(2e-5, -3e-5, 5e-5), -Vec3::Z);
+            let hit = tlas.intersect(&blas, &ray).expect("a hit 5e-5 away");
+            assert!((hit.t - 5e-5).abs() < 1e-9, "t = {}, flat {}", hit.t, tlas.is_flat());
+            assert!(tlas.occluded(&blas, &ray, 1e-4));
+            assert!(!tlas.occluded(&blas, &ray, 4e-5));
+        }
     }
 
     #[test]
     fn a_lone_triangle_and_a_lone_instance_are_found() {
         let m = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]], ..Default::default() };
         let blas = vec![Arc::new(Blas::build(&m, BuildQuality::Medium))];
-        let tlas = Tlas::build(&blas, &[TlasInstance { blas: 0, transform: Transform::identity() }]);
-        let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).expect("hit");
-        assert_eq!((hit.instance, hit.triangle), (0, 0));
+        for flat_limit in BOTH_KINDS {
+            let tlas = Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: Transform::identity() }], flat_limit);
+            let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).expect("hit");
+            assert_eq!((hit.instance, hit.triangle), (0, 0));
+        }
     }
 
     #[test]
@@ -300,15 +396,19 @@ mod tests {
         let xf =
             Transform::new(Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::IDENTITY, Vec3::new(0.0, 0.0, -5.0)))
                 .unwrap();
-        let tlas = Tlas::build(
-            &blas,
-            &[
-                TlasInstance { blas: 0, transform: xf },
-                TlasInstance { blas: 0, transform: Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0))).unwrap() },
-            ],
-        );
+        let instances = [
+            TlasInstance { blas: 0, transform: xf },
+            TlasInstance { blas: 0, transform: Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0))).unwrap() },
+        ];
+        for flat_limit in BOTH_KINDS {
+            let tlas = Tlas::build_with_flat_limit(&blas, &instances, flat_limit);
+            hits_report_world_distance_and_barycentrics(&tlas, &blas);
+        }
+    }
+
+    fn hits_report_world_distance_and_barycentrics(tlas: &Tlas, blas: &[Arc<Blas>]) {
         let ray = Ray::new(Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.0, 0.0, -1.0));
-        let hit = tlas.intersect(&blas, &ray).expect("hit");
+        let hit = tlas.intersect(blas, &ray).expect("hit");
         assert!((hit.t - 5.0).abs() < 1e-5);
         assert_eq!(hit.instance, 0);
         // object-space point (0.5, 0.25, 0): in triangle 0 (0,1,2)
@@ -316,10 +416,69 @@ mod tests {
         let [a, b, c] = quad().triangle(0);
         let p = a * (1.0 - hit.bary.x - hit.bary.y) + b * hit.bary.x + c * hit.bary.y;
         assert!((p - Vec3::new(0.5, 0.25, 0.0)).length() < 1e-5);
-        assert!(tlas.occluded(&blas, &ray, 6.0));
-        assert!(!tlas.occluded(&blas, &ray, 4.0));
-        assert!(tlas.occluded(&blas, &ray, f32::INFINITY), "an unbounded shadow ray is blocked too");
+        assert!(tlas.occluded(blas, &ray, 6.0));
+        assert!(!tlas.occluded(blas, &ray, 4.0));
+        assert!(tlas.occluded(blas, &ray, f32::INFINITY), "an unbounded shadow ray is blocked too");
         let miss = Ray::new(Vec3::new(5.0, 5.0, 0.0), Vec3::new(0.0, 0.0, -1.0));
-        assert!(tlas.intersect(&blas, &miss).is_none());
+        assert!(tlas.intersect(blas, &miss).is_none());
+    }
+
+    /// The flat BVH finds what the two-level walk finds: the same instance, triangle,
+    /// distance and barycentrics for rays through rotated, scaled and shared meshes, and the
+    /// same occlusion.
+    #[test]
+    fn flat_and_two_level_tracing_agree() {
+        let sphere = Mesh {
+            positions: (0..40)
+                .map(|k| crate::sampling::uniform_sphere(Vec2::new((k as f32 * 0.618) % 1.0, (k as f32 + 0.5) / 40.0)))
+                .collect(),
+            indices: (0..38).map(|k| [0, k + 1, k + 2]).collect(),
+            ..Default::default()
+        };
+        let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium)), Arc::new(Blas::build(&sphere, BuildQuality::Medium))];
+        let mut rng = crate::sampling::Pcg32::new(3, 5);
+        let instances: Vec<TlasInstance> = (0..12)
+            .map(|i| {
+                let r = glam::Quat::from_axis_angle(crate::sampling::uniform_sphere(rng.next_2d()), 6.0 * rng.next_f32());
+                let t = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+                let xf = Affine3A::from_scale_rotation_translation(Vec3::new(0.5, 1.0, 1.5) * (0.5 + rng.next_f32()), r, t);
+                TlasInstance { blas: i % 2, transform: Transform::new(xf).unwrap() }
+            })
+            .collect();
+        let two_level = Tlas::build_with_flat_limit(&blas, &instances, 0);
+        let flat = Tlas::build_with_flat_limit(&blas, &instances, usize::MAX);
+        assert!(flat.is_flat() && !two_level.is_flat());
+        let (mut hits, mut disagreements) = (0, 0);
+        for k in 0..4000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - 6.0;
+            // Most rays aimed near an instance, the rest anywhere.
+            let target = Vec3::from(instances[k % instances.len()].transform.to_world.translation);
+            let d = match k % 4 {
+                0 => crate::sampling::uniform_sphere(rng.next_2d()),
+                _ => (target + 0.7 * crate::sampling::uniform_sphere(rng.next_2d()) - o).normalize(),
+            };
+            let ray = Ray::new(o, d);
+            match (two_level.intersect(&blas, &ray), flat.intersect(&blas, &ray)) {
+                (Some(a), Some(b)) => {
+                    hits += 1;
+                    assert!((a.t - b.t).abs() <= 1e-4 * a.t.max(1.0), "t {} vs {}", a.t, b.t);
+                    if (a.instance, a.triangle) == (b.instance, b.triangle) {
+                        assert!((a.bary - b.bary).abs().max_element() < 1e-4, "barycentrics {} vs {}", a.bary, b.bary);
+                    } else {
+                        // Two triangles at the same distance: an edge or a corner they share.
+                        disagreements += 1;
+                    }
+                }
+                (None, None) => {}
+                _ => disagreements += 1,
+            }
+            let tmax = 10.0 * rng.next_f32();
+            if two_level.occluded(&blas, &ray, tmax) != flat.occluded(&blas, &ray, tmax) {
+                disagreements += 1;
+            }
+        }
+        assert!(hits > 2000, "only {hits} hits");
+        // Rays within rounding of an edge may go either way.
+        assert!(disagreements <= 4, "{disagreements} disagreements in {hits} hits");
     }
 }
