@@ -1,13 +1,15 @@
 //! Ray throughput on a 1-million-triangle mesh: BVH build time, closest-hit and occlusion
 //! Mrays/s for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one thread)
-//! measured in the same run on the same data. Run: `cargo bench -p render-core --bench rays`.
+//! measured in the same run on the same data; then, at the flat BVH's triangle cap, what a
+//! commit's rebuild costs and what tracing gains against two levels. Run:
+//! `cargo bench -p render-core --bench rays`.
 
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use render_core::bvh::{Blas, BuildQuality};
-use render_core::geometry::Mesh;
+use render_core::bvh::{Blas, BuildQuality, FLAT_TRIANGLES, Tlas, TlasInstance};
+use render_core::geometry::{Mesh, Ray, Transform};
 use render_core::sampling::{Pcg32, uniform_sphere};
 
 /// A UV sphere of `rings`×`segments`×2 triangles.
@@ -127,6 +129,50 @@ fn main() {
             println!("  agreement ({threads} thr): closest hits {hc} vs embree {ec}, occluded {ho} vs embree {eo}");
         }
     }
+    flat_at_the_cap(&rays[..n_rays / 4]);
+}
+
+/// The flat BVH at its cap: a scene of [`FLAT_TRIANGLES`] triangles in four instances, built
+/// (as every commit rebuilds it) and traced both ways on one thread. The two-level build's
+/// time is the TLAS alone: commits reuse BLASes.
+fn flat_at_the_cap(rays: &[TestRay]) {
+    let rings = (FLAT_TRIANGLES / 4 / 2 / 64) as u32;
+    let mesh = sphere(rings, 64);
+    let blas = vec![std::sync::Arc::new(Blas::build(&mesh, BuildQuality::Medium))];
+    let instances: Vec<TlasInstance> = (0..4)
+        .map(|i| {
+            let xf = glam::Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.5),
+                glam::Quat::from_rotation_y(i as f32),
+                Vec3::new(if i % 2 == 0 { -0.6 } else { 0.6 }, if i < 2 { -0.6 } else { 0.6 }, 0.0),
+            );
+            TlasInstance { blas: 0, transform: Transform::new(xf).unwrap() }
+        })
+        .collect();
+    let measure = |flat_limit: usize| {
+        let (mut build, mut trace) = (f64::INFINITY, f64::INFINITY);
+        let mut tlas = None;
+        for _ in 0..5 {
+            let t = Instant::now();
+            tlas = Some(Tlas::build_with_flat_limit(&blas, &instances, flat_limit));
+            build = build.min(t.elapsed().as_secs_f64());
+        }
+        let tlas = tlas.unwrap();
+        let mut hits = 0;
+        for _ in 0..3 {
+            let t = Instant::now();
+            hits = rays.iter().filter(|r| tlas.intersect(&blas, &Ray::new(r.o, r.d)).is_some()).count();
+            trace = trace.min(t.elapsed().as_secs_f64());
+        }
+        (build, rays.len() as f64 / trace / 1e6, hits)
+    };
+    let (flat_build, flat_mrays, flat_hits) = measure(usize::MAX);
+    let (two_build, two_mrays, two_hits) = measure(0);
+    println!("\nflat BVH at its cap: 4 instances, {} triangles, {} rays, 1 thread", 4 * mesh.indices.len(), rays.len());
+    println!("{:<34} {:>12} {:>14} {:>10}", "measure", "flat", "two levels", "ratio");
+    println!("{:<34} {:>12.2} {:>14.3} {:>10}", "rebuild per commit (ms)", flat_build * 1e3, two_build * 1e3, "-");
+    println!("{:<34} {:>12.3} {:>14.3} {:>9.2}x", "closest-hit Mrays/s", flat_mrays, two_mrays, flat_mrays / two_mrays);
+    println!("  agreement: closest hits {flat_hits} flat vs {two_hits} two levels");
 }
 
 /// Reads the flat `{"key": number, ...}` object the anchor script prints.
