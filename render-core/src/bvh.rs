@@ -101,7 +101,12 @@ impl Blas {
                 Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
-        let bvh = build_cwbvh_from_tris(&tris, quality.params(), &mut Duration::default());
+        Self::of_triangles(&tris, quality)
+    }
+
+    /// Builds the BVH of `tris` (at least one); hits report indices into `tris`.
+    fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
+        let bvh = build_cwbvh_from_tris(tris, quality.params(), &mut Duration::default());
         let rt = bvh
             .primitive_indices
             .iter()
@@ -194,9 +199,10 @@ enum Accel {
     /// placement).
     Instances { bvh: CwBvh, ordered: Vec<(u32, usize, Transform)> },
     /// One BVH over every instance's triangles placed in the world, with the (instance,
-    /// triangle) of each in BVH order: no second traversal and no ray transform per
-    /// instance. Built for scenes of few triangles in all (see [`FLAT_TRIANGLES`]).
-    Flat { bvh: CwBvh, tris: Vec<RtTriangle>, ids: Vec<(u32, u32)> },
+    /// triangle) of each, by the index the BVH reports: no second traversal and no ray
+    /// transform per instance. Built for scenes of few triangles in all (see
+    /// [`FLAT_TRIANGLES`]).
+    Flat { world: Blas, ids: Vec<(u32, u32)> },
 }
 
 /// Scenes with at most this many triangles over all instances are traced through one
@@ -260,17 +266,9 @@ impl Tlas {
                 ids.push((i as u32, id));
             }
         }
-        let bvh = build_cwbvh_from_tris(&tris, BuildQuality::Medium.params(), &mut Duration::default());
-        let (rt, ids) = bvh
-            .primitive_indices
-            .iter()
-            .map(|&k| {
-                let t = &tris[k as usize];
-                (RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }, ids[k as usize])
-            })
-            .unzip();
-        let ray_scale = ray_scale(&bvh.total_aabb);
-        Tlas { accel: Some(Accel::Flat { bvh, tris: rt, ids }), ray_scale }
+        let world = Blas::of_triangles(&tris, BuildQuality::Medium);
+        let ray_scale = ray_scale(&world.bounds);
+        Tlas { accel: Some(Accel::Flat { world, ids }), ray_scale }
     }
 
     /// True when the scene is traced through one flat BVH.
@@ -286,18 +284,10 @@ impl Tlas {
         let mut best: Option<Hit> = None;
         let (bvh, ordered) = match self.accel.as_ref()? {
             Accel::Instances { bvh, ordered } => (bvh, ordered),
-            Accel::Flat { bvh, tris, ids } => {
-                let mut bary = Vec2::ZERO;
-                let found = bvh.ray_traverse(wray, &mut rh, |r, id| match tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
-                    Some((t, u, v)) => {
-                        bary = Vec2::new(u, v);
-                        t
-                    }
-                    None => f32::INFINITY,
-                });
-                return found.then(|| {
-                    let (instance, triangle) = ids[rh.primitive_id as usize];
-                    Hit { t: rh.t * k, instance, triangle, bary }
+            Accel::Flat { world, ids } => {
+                return world.intersect(wray.origin, wray.direction, wray.tmax).map(|(t, id, bary)| {
+                    let (instance, triangle) = ids[id as usize];
+                    Hit { t: t * k, instance, triangle, bary }
                 });
             }
         };
@@ -323,11 +313,7 @@ impl Tlas {
         let (bvh, ordered) = match &self.accel {
             None => return false,
             Some(Accel::Instances { bvh, ordered }) => (bvh, ordered),
-            Some(Accel::Flat { bvh, tris, .. }) => {
-                return !bvh.ray_traverse_miss(wray, |r, id| {
-                    tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0)
-                });
-            }
+            Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax),
         };
         !bvh.ray_traverse_miss(wray, |r, id| {
             let (_, blas, xf) = &ordered[id];
