@@ -326,14 +326,15 @@ impl LightTree {
         }
     }
 
-    /// Probabilities of the two children of interior node `at` (which sits at index `at`,
-    /// its left child at `at + 1`).
-    #[inline]
-    fn child_probs(&self, at: usize, right: usize, p: Vec3, n: Vec3) -> Option<(f32, f32)> {
+    /// Importances of the two children of interior node `at` (which sits at index `at`, its
+    /// left child at `at + 1`) and their sum, when it can be split by: (left, right, total).
+    /// A child's probability is its importance over the total.
+    #[inline(always)]
+    fn child_importances(&self, at: usize, right: usize, p: Vec3, n: Vec3) -> Option<(f32, f32, f32)> {
         let il = self.nodes[at + 1].bounds().importance(p, n);
         let ir = self.nodes[right].bounds().importance(p, n);
         let total = il + ir;
-        (total > 0.0 && total.is_finite()).then(|| (il / total, ir / total))
+        (total > 0.0 && total.is_finite()).then_some((il, ir, total))
     }
 
     /// The nodes that split at `p` and the cut below them: the nodes each stochastic walk
@@ -418,12 +419,7 @@ impl LightTree {
             match self.nodes[at] {
                 Node::Leaf { light, .. } => return (pmf > 0.0).then_some((light, pmf)),
                 Node::Interior { right, .. } => {
-                    let il = self.nodes[at + 1].bounds().importance(p, n);
-                    let ir = self.nodes[right as usize].bounds().importance(p, n);
-                    let total = il + ir;
-                    if !(total > 0.0 && total.is_finite()) {
-                        return None;
-                    }
+                    let (il, ir, total) = self.child_importances(at, right as usize, p, n)?;
                     // Decide without dividing, which keeps the divisions off the chain from one
                     // level to the next (u·total can round up to il + ir: never pick an empty
                     // right child then).
@@ -466,12 +462,12 @@ impl LightTree {
                 }
                 walking = true;
             }
-            let Some((pl, pr)) = self.child_probs(at, right as usize, p, n) else { return 0.0 };
+            let Some((il, ir, total)) = self.child_importances(at, right as usize, p, n) else { return 0.0 };
             if right_taken {
-                pmf *= pr;
+                pmf *= ir / total;
                 at = right as usize;
             } else {
-                pmf *= pl;
+                pmf *= il / total;
                 at += 1;
             }
         }
