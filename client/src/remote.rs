@@ -3,7 +3,8 @@
 use anyhow::{Context, Result};
 use tessera_proto::v1 as pb;
 use tessera_proto::v1::render_client::RenderClient;
-use tonic::transport::Channel;
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::{Certificate, Channel, ClientTlsConfig};
 
 use crate::output::Image;
 
@@ -102,18 +103,79 @@ pub fn status_error(s: tonic::Status) -> anyhow::Error {
     anyhow::anyhow!("server: {}", s.message())
 }
 
+/// How a client proves who it is: a bearer token, and for `https://` URLs the certificate
+/// authority that signed the server's certificate.
+#[derive(Clone, Debug, Default)]
+pub struct Credentials {
+    /// Sent as `authorization: Bearer TOKEN` on every call.
+    pub token: Option<String>,
+    /// PEM certificate of the authority to trust (`None`: the system's roots are not built
+    /// in, so an `https://` URL needs one).
+    pub ca_pem: Option<Vec<u8>>,
+}
+
+impl Credentials {
+    /// From the environment: `TESSERA_TOKEN` and `TESSERA_TLS_CA` (a PEM file).
+    pub fn from_env() -> Result<Self> {
+        let token = std::env::var("TESSERA_TOKEN").ok().filter(|t| !t.is_empty());
+        let ca_pem = match std::env::var_os("TESSERA_TLS_CA") {
+            Some(p) => Some(std::fs::read(&p).with_context(|| format!("TESSERA_TLS_CA: cannot read {}", p.to_string_lossy()))?),
+            None => None,
+        };
+        Ok(Credentials { token, ca_pem })
+    }
+}
+
+/// Puts the bearer token on every call.
+#[derive(Clone)]
+pub struct BearerToken(Option<tonic::metadata::MetadataValue<tonic::metadata::Ascii>>);
+
+impl tonic::service::Interceptor for BearerToken {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        if let Some(v) = &self.0 {
+            req.metadata_mut().insert("authorization", v.clone());
+        }
+        Ok(req)
+    }
+}
+
+type Client = RenderClient<InterceptedService<Channel, BearerToken>>;
+
+/// Connects to `url` with `creds`.
+async fn client(url: &str, creds: &Credentials) -> Result<Client> {
+    let mut endpoint = Channel::from_shared(url.to_string())?;
+    if url.starts_with("https://") {
+        let mut tls = ClientTlsConfig::new();
+        if let Some(ca) = &creds.ca_pem {
+            tls = tls.ca_certificate(Certificate::from_pem(ca));
+        }
+        endpoint = endpoint.tls_config(tls)?;
+    }
+    let channel = endpoint.connect().await.with_context(|| format!("cannot connect to {url}"))?;
+    let token = match &creds.token {
+        Some(t) => Some(format!("Bearer {t}").parse().context("the token must be printable ASCII")?),
+        None => None,
+    };
+    Ok(RenderClient::with_interceptor(channel, BearerToken(token)).max_decoding_message_size(64 << 20))
+}
+
 /// A session on a render server.
 pub struct Connection {
-    client: RenderClient<Channel>,
+    client: Client,
     /// The session id.
     pub session: String,
 }
 
 impl Connection {
-    /// Connects and opens a session.
+    /// Connects and opens a session, with credentials from the environment
+    /// ([`Credentials::from_env`]).
     pub async fn connect(url: &str, client_name: &str) -> Result<Self> {
-        let channel = Channel::from_shared(url.to_string())?.connect().await.with_context(|| format!("cannot connect to {url}"))?;
-        let mut client = RenderClient::new(channel).max_decoding_message_size(64 << 20);
+        Self::connect_with(url, client_name, &Credentials::from_env()?).await
+    }
+
+    /// Connects with `creds` and opens a session.
+    pub async fn connect_with(url: &str, client_name: &str, creds: &Credentials) -> Result<Self> {
+        let mut client = client(url, creds).await?;
         let session = client
             .create_session(pb::CreateSessionRequest { client_name: client_name.into() })
             .await
@@ -125,8 +187,18 @@ impl Connection {
 
     /// Joins an existing session (a second connection, e.g. to edit while rendering).
     pub async fn attach(url: &str, session: &str) -> Result<Self> {
-        let channel = Channel::from_shared(url.to_string())?.connect().await.with_context(|| format!("cannot connect to {url}"))?;
-        Ok(Connection { client: RenderClient::new(channel).max_decoding_message_size(64 << 20), session: session.to_string() })
+        Self::attach_with(url, session, &Credentials::from_env()?).await
+    }
+
+    /// [`Self::attach`] with `creds`.
+    pub async fn attach_with(url: &str, session: &str, creds: &Credentials) -> Result<Self> {
+        Ok(Connection { client: client(url, creds).await?, session: session.to_string() })
+    }
+
+    /// What the session holds and has done.
+    pub async fn stats(&mut self) -> Result<pb::SessionStats> {
+        let req = pb::GetSessionStatsRequest { session_id: self.session.clone() };
+        Ok(self.client.get_session_stats(req).await.map_err(status_error)?.into_inner())
     }
 
     /// The server's capabilities.

@@ -6,13 +6,13 @@
 //! renormalised, so hit distances stay in world units. Scenes of few triangles in all skip
 //! the second level: one BVH over their triangles placed in the world ([`FLAT_TRIANGLES`]).
 
-use std::time::Duration;
-
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{
     Boundable, BvhBuildParams,
     aabb::Aabb,
-    cwbvh::{CwBvh, builder::build_cwbvh, builder::build_cwbvh_from_tris},
+    bvh2::{Bvh2, node::Bvh2Node, reinsertion::ReinsertionOptimizer},
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    ploc::PlocBuilder,
     ray::{Ray as BvhRay, RayHit},
     triangle::Triangle,
 };
@@ -106,7 +106,8 @@ impl Blas {
 
     /// Builds the BVH of `tris` (at least one); hits report indices into `tris`.
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
-        let bvh = build_cwbvh_from_tris(tris, quality.params(), &mut Duration::default());
+        let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
+        let bvh = build_bounded(&aabbs, quality.params());
         let rt = bvh
             .primitive_indices
             .iter()
@@ -151,20 +152,120 @@ impl Blas {
     }
 }
 
+/// Deepest binary BVH [`build_bounded`] keeps from PLOC. obvhs's CWBVH traversal stack holds
+/// 32 node groups (`cwbvh/mod.rs`, `TRAVERSAL_STACK_SIZE`; a deeper tree silently drops
+/// nodes) and its BVH2-to-CWBVH conversion recurses once per level; PLOC trees of real meshes
+/// stay well under this (a 1M-triangle sphere: 40).
+const MAX_BVH2_DEPTH: usize = 64;
+
+/// A CWBVH over `aabbs` (at least one) whose depth is bounded whatever the input. PLOC merges
+/// nearest clusters; when thousands of boxes coincide (copies of one triangle, identical
+/// instances), every merge ties and the tree degenerates into a chain as deep as the input,
+/// which overflowed the thread's stack in the CWBVH conversion. Such trees are rebuilt by
+/// median splits, at most ⌈log2 n⌉ + 1 deep.
+fn build_bounded(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
+    if has_coincident_cluster(aabbs) {
+        tracing::debug!(primitives = aabbs.len(), "coincident primitives: BVH built by median splits");
+        return bvh2_to_cwbvh(&median_split_bvh2(aabbs), params.max_prims_per_leaf.clamp(1, 3), true, false);
+    }
+    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+        params.ploc_search_distance,
+        aabbs,
+        (0..aabbs.len() as u32).collect(),
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    if bvh2_depth(&bvh2) <= MAX_BVH2_DEPTH {
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    }
+    if bvh2_depth(&bvh2) > MAX_BVH2_DEPTH {
+        tracing::debug!(primitives = aabbs.len(), "degenerate PLOC tree: rebuilt by median splits");
+        bvh2 = median_split_bvh2(aabbs);
+    }
+    bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false)
+}
+
+/// Most primitives sharing one cell of a 2²¹-per-axis grid over the centroids before the
+/// input counts as degenerate. PLOC merges mutual nearest neighbours; among boxes at equal
+/// distance hardly any pair is mutual, so a cluster of k coincident boxes takes about k
+/// passes over the input (30 000 copies of a triangle: 19 s, then a chain 21 700 deep). Real
+/// meshes put a handful of triangles in a cell that small.
+const MAX_PRIMITIVES_PER_CELL: usize = 256;
+
+/// True when more than [`MAX_PRIMITIVES_PER_CELL`] centroids fall in one fine grid cell.
+fn has_coincident_cluster(aabbs: &[Aabb]) -> bool {
+    if aabbs.len() <= MAX_PRIMITIVES_PER_CELL {
+        return false;
+    }
+    let mut centres = Aabb::empty();
+    for a in aabbs {
+        centres.extend(a.center());
+    }
+    let scale = (Vec3A::splat((1u32 << 21) as f32 - 1.0) / centres.diagonal().max(Vec3A::splat(f32::MIN_POSITIVE))).min(Vec3A::splat(1e30));
+    let mut cells: Vec<u64> = aabbs
+        .iter()
+        .map(|a| {
+            let q = ((a.center() - centres.min) * scale).clamp(Vec3A::ZERO, Vec3A::splat((1u32 << 21) as f32 - 1.0));
+            (q.x as u64) | ((q.y as u64) << 21) | ((q.z as u64) << 42)
+        })
+        .collect();
+    cells.sort_unstable();
+    cells.chunk_by(|a, b| a == b).any(|run| run.len() > MAX_PRIMITIVES_PER_CELL)
+}
+
+/// Levels of a binary BVH, walked without recursion.
+fn bvh2_depth(bvh: &Bvh2) -> usize {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((node, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        let n = &bvh.nodes[node];
+        if n.prim_count == 0 {
+            stack.push((n.first_index as usize, depth + 1));
+            stack.push((n.first_index as usize + 1, depth + 1));
+        }
+    }
+    deepest
+}
+
+/// A binary BVH that splits each node's primitives at the median centroid along the node's
+/// widest centroid axis (ties by index), one primitive per leaf.
+fn median_split_bvh2(aabbs: &[Aabb]) -> Bvh2 {
+    let n = aabbs.len();
+    let mut indices: Vec<u32> = (0..n as u32).collect();
+    let mut nodes = vec![Bvh2Node::default(); 2 * n - 1];
+    let centroid = |i: u32| aabbs[i as usize].center();
+    let mut next = 1;
+    let mut stack = vec![(0usize, 0usize, n)];
+    while let Some((node, start, end)) = stack.pop() {
+        let span = &mut indices[start..end];
+        let mut aabb = Aabb::empty();
+        let mut centres = Aabb::empty();
+        for &i in span.iter() {
+            aabb = aabb.union(&aabbs[i as usize]);
+            centres.extend(centroid(i));
+        }
+        if span.len() == 1 {
+            nodes[node] = Bvh2Node { aabb, prim_count: 1, first_index: start as u32, ..Default::default() };
+            continue;
+        }
+        let axis = centres.diagonal().max_position();
+        let mid = span.len() / 2;
+        span.select_nth_unstable_by(mid, |&a, &b| centroid(a)[axis].total_cmp(&centroid(b)[axis]).then(a.cmp(&b)));
+        nodes[node] = Bvh2Node { aabb, prim_count: 0, first_index: next as u32, ..Default::default() };
+        stack.push((next, start, start + mid));
+        stack.push((next + 1, start + mid, end));
+        next += 2;
+    }
+    Bvh2 { nodes, primitive_indices: indices, ..Default::default() }
+}
+
 /// An instance of a BLAS placed in the world.
 pub struct TlasInstance {
     /// Index of the BLAS (mesh) this instance references.
     pub blas: usize,
     /// Placement.
     pub transform: Transform,
-}
-
-struct InstanceBounds(Aabb);
-
-impl Boundable for InstanceBounds {
-    fn aabb(&self) -> Aabb {
-        self.0
-    }
 }
 
 /// A closest hit.
@@ -228,7 +329,7 @@ impl Tlas {
         if total <= flat_limit {
             return Self::build_flat(blases, instances);
         }
-        let bounds: Vec<InstanceBounds> = instances
+        let bounds: Vec<Aabb> = instances
             .iter()
             .map(|inst| {
                 let (lo, hi) = blases[inst.blas].bounds();
@@ -241,10 +342,10 @@ impl Tlas {
                     );
                     aabb.extend(inst.transform.to_world.transform_point3(corner).into());
                 }
-                InstanceBounds(aabb)
+                aabb
             })
             .collect();
-        let bvh = build_cwbvh(&bounds, BuildQuality::Medium.params(), &mut Duration::default());
+        let bvh = build_bounded(&bounds, BuildQuality::Medium.params());
         let ordered = bvh.primitive_indices.iter().map(|&i| (i, instances[i as usize].blas, instances[i as usize].transform)).collect();
         let ray_scale = ray_scale(&bvh.total_aabb);
         Tlas { accel: Some(Accel::Instances { bvh, ordered }), ray_scale }
@@ -363,6 +464,40 @@ mod tests {
             assert!(tlas.occluded(&blas, &ray, 1e-4));
             assert!(!tlas.occluded(&blas, &ray, 4e-5));
         }
+    }
+
+    /// Hostile input: 100 000 copies of one triangle made PLOC build a chain 100 000 deep, and
+    /// the CWBVH conversion overflowed the stack. The tree is now bounded and still finds hits.
+    #[test]
+    fn coincident_triangles_build_a_shallow_bvh() {
+        let n = 100_000u32;
+        let m = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]; n as usize], ..Default::default() };
+        let aabbs: Vec<Aabb> = (0..m.triangle_count())
+            .map(|i| {
+                let [a, b, c] = m.triangle(i);
+                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }.aabb()
+            })
+            .collect();
+        let depth = bvh2_depth(&median_split_bvh2(&aabbs));
+        assert_eq!(depth, 18, "ceil(log2 100000) + 1 levels");
+        let blas = Blas::build(&m, BuildQuality::Medium);
+        let (t, tri, _) = blas.intersect(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, f32::INFINITY).expect("hit");
+        assert!((t - 1.0).abs() < 1e-6 && tri < n);
+        assert!(blas.occluded(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, 2.0));
+        assert!(blas.intersect(Vec3A::new(0.8, 0.8, 1.0), Vec3A::NEG_Z, f32::INFINITY).is_none(), "outside the triangle");
+    }
+
+    /// The same through the top level: 100 000 instances with one transform.
+    #[test]
+    fn identical_instances_build_a_shallow_tlas() {
+        let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
+        let xf = Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -5.0))).unwrap();
+        let instances: Vec<TlasInstance> = (0..100_000).map(|_| TlasInstance { blas: 0, transform: xf }).collect();
+        let tlas = Tlas::build(&blas, &instances);
+        assert!(!tlas.is_flat());
+        let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.5, 0.5, 0.0), -Vec3::Z)).expect("hit");
+        assert!((hit.t - 5.0).abs() < 1e-5 && (hit.instance as usize) < instances.len());
+        assert!(tlas.intersect(&blas, &Ray::new(Vec3::new(3.0, 0.5, 0.0), -Vec3::Z)).is_none());
     }
 
     #[test]

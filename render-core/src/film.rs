@@ -257,6 +257,13 @@ impl TileFilm {
         }
     }
 
+    /// Bytes one pixel of a tile holds (the server's memory budget reserves a film's
+    /// `width × height ×` this before allocating it).
+    pub const fn bytes_per_pixel(extra: bool) -> u64 {
+        let extra = if extra { EXTRA * 8 } else { 0 };
+        (VALUES * 8 + extra + 8 + 4 + 4 + 1) as u64
+    }
+
     /// True when the tile records the position and light-path AOVs.
     pub fn has_extra(&self) -> bool {
         !self.extra.is_empty()

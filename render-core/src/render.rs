@@ -33,6 +33,12 @@ pub struct RenderSettings {
     pub noise_threshold: f32,
 }
 
+/// Camera samples a worker traces between two polls of [`RenderSink::should_stop`]. A
+/// Cornell-box path costs about 1 µs and the worst a client can ask (depth 1024 through
+/// glass and media) about 1 ms, so a stop is seen within milliseconds whatever the tile
+/// costs, for an atomic load or two per 64 paths.
+pub const STOP_POLL_SAMPLES: u32 = 64;
+
 /// Samples every pixel takes before adaptive sampling may retire it: fewer make the
 /// variance estimate itself too noisy to trust.
 pub const ADAPTIVE_MIN_SPP: u32 = 16;
@@ -103,7 +109,8 @@ pub trait RenderSink: Sync {
     fn tile(&self, tile: &TileFilm, pass: u32);
     /// A pass finished.
     fn pass_done(&self, stats: &PassStats);
-    /// Polled before every tile: `Some` stops the render.
+    /// Polled before every tile and every [`STOP_POLL_SAMPLES`] samples within one: `Some`
+    /// stops the render (a tile stopped part-way is dropped, never sent). Keep it cheap.
     fn should_stop(&self) -> Option<StopReason>;
 }
 
@@ -169,10 +176,14 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
                         let mut tile = tile.lock().unwrap();
                         let mut counters = PathCounters::default();
                         let before = tile.sample_totals().1;
-                        render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters);
+                        let interrupted = render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters, sink);
                         rays.fetch_add(counters.rays, Ordering::Relaxed);
                         non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
                         paths.fetch_add(tile.sample_totals().1 - before, Ordering::Relaxed);
+                        if let Some(reason) = interrupted {
+                            *stopped.lock().unwrap() = Some(reason);
+                            return;
+                        }
                         sink.tile(&tile, pass as u32);
                     }
                 });
@@ -247,6 +258,9 @@ fn regions_of(tiles: &[Mutex<TileFilm>]) -> Vec<RegionSamples> {
         .collect()
 }
 
+/// Adds `count` samples from `first_sample` to every active pixel of `tile`, or stops part-way
+/// when the sink says so (then the tile is incomplete and returns the reason).
+#[allow(clippy::too_many_arguments)]
 fn render_tile(
     scene: &CommittedScene,
     camera: &Camera,
@@ -255,8 +269,10 @@ fn render_tile(
     first_sample: u32,
     count: u32,
     counters: &mut PathCounters,
-) {
+    sink: &dyn RenderSink,
+) -> Option<StopReason> {
     let r = tile.rect;
+    let mut until_poll = STOP_POLL_SAMPLES;
     let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
     let integrator = IntegratorSettings { pixel_footprint: footprint, ..settings.integrator };
     for py in 0..r.height {
@@ -267,6 +283,13 @@ fn render_tile(
                 continue;
             }
             for k in first_sample..first_sample + count {
+                until_poll -= 1;
+                if until_poll == 0 {
+                    until_poll = STOP_POLL_SAMPLES;
+                    if let Some(reason) = sink.should_stop() {
+                        return Some(reason);
+                    }
+                }
                 let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
                 // The camera's 4D set: pixel jitter and the lens point.
                 let [jx, jy, lx, ly] = rng.next_4d();
@@ -277,6 +300,7 @@ fn render_tile(
         }
     }
     tile.samples = first_sample + count;
+    None
 }
 
 /// A whole-image framebuffer, for callers that render in-process (tests, benchmarks).

@@ -102,6 +102,20 @@ pub enum TextureError {
         /// The decoder's explanation.
         reason: String,
     },
+    /// Decoding the image would need more memory than the budget has free.
+    #[error("'{name}' is {width}×{height}: decoding it needs {bytes} bytes, over the {budget} the memory budget has free")]
+    OverBudget {
+        /// The file name.
+        name: String,
+        /// Width in texels.
+        width: u32,
+        /// Height in texels.
+        height: u32,
+        /// Peak bytes decoding would hold.
+        bytes: u64,
+        /// Bytes free.
+        budget: u64,
+    },
     /// The image is larger than the limit.
     #[error("'{name}' is {width}×{height}, above the limit of {limit} texels per side (or of the server's texel budget)")]
     TooLarge {
@@ -154,16 +168,39 @@ impl Texels {
     }
 }
 
+/// A decoded image's texels as stored: 8-bit as they are, deeper ones as half floats (16-bit
+/// codes scaled to [0, 1]), each converted in one pass without a float copy between.
+fn texels_of(img: image::DynamicImage) -> (usize, Texels) {
+    use image::DynamicImage as D;
+    let half = |v: &[f32]| v.iter().map(|&x| f16::from_f32(if x.is_finite() { x } else { 0.0 })).collect();
+    let unorm16 = |v: &[u16]| v.iter().map(|&x| f16::from_f32(f32::from(x) / 65535.0)).collect();
+    match img {
+        D::ImageLuma8(b) => (1, Texels::U8(b.into_raw())),
+        D::ImageLumaA8(b) => (2, Texels::U8(b.into_raw())),
+        D::ImageRgb8(b) => (3, Texels::U8(b.into_raw())),
+        D::ImageRgba8(b) => (4, Texels::U8(b.into_raw())),
+        D::ImageLuma16(b) => (1, Texels::F16(unorm16(b.as_raw()))),
+        D::ImageLumaA16(b) => (2, Texels::F16(unorm16(b.as_raw()))),
+        D::ImageRgb16(b) => (3, Texels::F16(unorm16(b.as_raw()))),
+        D::ImageRgba16(b) => (4, Texels::F16(unorm16(b.as_raw()))),
+        D::ImageRgb32F(b) => (3, Texels::F16(half(b.as_raw()))),
+        D::ImageRgba32F(b) => (4, Texels::F16(half(b.as_raw()))),
+        other => (4, Texels::F16(half(other.to_rgba32f().as_raw()))),
+    }
+}
+
 impl Image {
     /// Decodes PNG, JPEG, OpenEXR, Radiance HDR, TIFF or TGA bytes; `name` is used in errors.
     pub fn decode(bytes: &[u8], name: &str) -> Result<Image, TextureError> {
-        Self::decode_within(bytes, name, u64::from(MAX_TEXTURE_SIDE) * u64::from(MAX_TEXTURE_SIDE))
+        Self::decode_within(bytes, name, u64::from(MAX_TEXTURE_SIDE) * u64::from(MAX_TEXTURE_SIDE), u64::MAX)
     }
 
-    /// [`Self::decode`], refusing images of more than `max_texels` texels before decoding
-    /// them: a few bytes of header can claim gigabytes of pixels.
-    pub fn decode_within(bytes: &[u8], name: &str, max_texels: u64) -> Result<Image, TextureError> {
-        use image::DynamicImage as D;
+    /// [`Self::decode`], refusing before decoding an image of more than `max_texels` texels or
+    /// whose decoding would hold more than `max_bytes` at its peak (the decoder's own buffer
+    /// and the converted texels together): a few bytes of header can claim gigabytes. A
+    /// decoder failure of any kind, a panic included, is an error.
+    pub fn decode_within(bytes: &[u8], name: &str, max_texels: u64, max_bytes: u64) -> Result<Image, TextureError> {
+        use image::{DynamicImage as D, ImageDecoder};
         let err = |reason: String| TextureError::Decode { name: name.to_string(), reason };
         // Formats without a signature (TGA) are known by the file's extension.
         let open = || -> Result<_, TextureError> {
@@ -173,36 +210,34 @@ impl Image {
             {
                 reader.set_format(f);
             }
-            reader.no_limits();
+            let mut limits = image::Limits::default();
+            limits.max_alloc = Some(max_bytes);
+            reader.limits(limits);
             Ok(reader)
         };
-        let (w, h) = open()?.into_dimensions().map_err(|e| err(e.to_string()))?;
+        let decoder = open()?.into_decoder().map_err(|e| err(e.to_string()))?;
+        let (w, h) = decoder.dimensions();
         if w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE || u64::from(w) * u64::from(h) > max_texels {
             return Err(TextureError::TooLarge { name: name.to_string(), width: w, height: h, limit: MAX_TEXTURE_SIDE });
         }
+        let color = decoder.color_type();
+        let (channels, depth) = (u64::from(color.channel_count()), u64::from(color.bytes_per_pixel()) / u64::from(color.channel_count()));
+        // 8-bit texels are kept as decoded; deeper ones are converted to half floats beside them.
+        let peak = decoder.total_bytes().saturating_add(if depth == 1 { 0 } else { u64::from(w) * u64::from(h) * channels * 2 });
+        if peak > max_bytes {
+            return Err(TextureError::OverBudget { name: name.to_string(), width: w, height: h, bytes: peak, budget: max_bytes });
+        }
+        drop(decoder);
         let reader = open()?;
-        let img = reader.decode().map_err(|e| err(e.to_string()))?;
+        let img = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
+            .map_err(|_| err("the decoder failed (panicked)".into()))?
+            .map_err(|e| err(e.to_string()))?;
         let (width, height) = (img.width(), img.height());
         if width == 0 || height == 0 {
             return Err(err("the image is empty".into()));
         }
         let integer_coded = !matches!(img, D::ImageRgb32F(_) | D::ImageRgba32F(_));
-        let (channels, texels) = match img {
-            D::ImageLuma8(b) => (1, Texels::U8(b.into_raw())),
-            D::ImageLumaA8(b) => (2, Texels::U8(b.into_raw())),
-            D::ImageRgb8(b) => (3, Texels::U8(b.into_raw())),
-            D::ImageRgba8(b) => (4, Texels::U8(b.into_raw())),
-            other => {
-                let c = other.color().channel_count() as usize;
-                let floats: Vec<f32> = match c {
-                    1 => other.to_luma32f().into_raw(),
-                    2 => other.to_luma_alpha32f().into_raw(),
-                    3 => other.to_rgb32f().into_raw(),
-                    _ => other.to_rgba32f().into_raw(),
-                };
-                (c.min(4), Texels::F16(floats.into_iter().map(|x| f16::from_f32(if x.is_finite() { x } else { 0.0 })).collect()))
-            }
-        };
+        let (channels, texels) = texels_of(img);
         Ok(Image { width, height, channels, texels, integer_coded })
     }
 
@@ -579,7 +614,7 @@ mod tests {
         let i = Image::decode(&png, "a.png").unwrap();
         assert_eq!((i.size(), i.channels()), ((3, 2), 3));
         // A header claiming more texels than the budget is refused before decoding.
-        let e = Image::decode_within(&png, "a.png", 5).unwrap_err();
+        let e = Image::decode_within(&png, "a.png", 5, u64::MAX).unwrap_err();
         assert!(matches!(e, TextureError::TooLarge { width: 3, height: 2, .. }), "{e}");
     }
 }

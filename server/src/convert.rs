@@ -68,6 +68,16 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
             return Err(invalid(prim, name, format!("{v} is not finite")));
         }
     }
+    for (name, v) in [("radius", l.radius), ("width", l.width), ("height", l.height), ("angle", l.angle), ("length", l.length)] {
+        if v < 0.0 {
+            return Err(invalid(prim, name, format!("{v} is negative; sizes are zero or more")));
+        }
+    }
+    if let Some(c) = &l.color
+        && !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite() && c.x >= 0.0 && c.y >= 0.0 && c.z >= 0.0)
+    {
+        return Err(invalid(prim, "color", format!("({}, {}, {}) must be finite and not negative", c.x, c.y, c.z)));
+    }
     Ok(LightDesc {
         kind,
         transform: affine(prim, "transform", &l.transform)?,

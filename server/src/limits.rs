@@ -14,8 +14,10 @@ pub struct Limits {
     pub max_resolution: u32,
     /// Samples per pixel.
     pub max_spp: u32,
-    /// Concurrent sessions.
+    /// Concurrent sessions, all tenants together.
     pub max_sessions: u32,
+    /// Concurrent sessions of one tenant.
+    pub max_sessions_per_tenant: u32,
     /// Scalar elements in one array chunk.
     pub max_array_chunk_elements: u64,
     /// Instances in one instancer.
@@ -36,6 +38,7 @@ impl Default for Limits {
             max_resolution: 16_384,
             max_spp: 1 << 20,
             max_sessions: 64,
+            max_sessions_per_tenant: 16,
             // 1 Mi floats = 4 MiB would hit gRPC's default limit; stay well under it.
             max_array_chunk_elements: 256 * 1024,
             max_instances: 10_000_000,
@@ -47,9 +50,20 @@ impl Default for Limits {
 }
 
 impl Limits {
-    /// As a wire message.
-    pub fn to_wire(&self) -> pb::Limits {
+    /// As a wire message, with the configuration's budgets and timeouts.
+    pub fn to_wire(&self, config: &crate::config::ServerConfig) -> pb::Limits {
+        use render_core::material::network;
         pb::Limits {
+            max_instances: self.max_instances,
+            max_sessions_per_tenant: self.max_sessions_per_tenant,
+            memory_budget: config.memory_budget,
+            session_memory_budget: config.session_memory_budget,
+            max_material_nodes: network::MAX_NODES as u32,
+            max_material_connections: network::MAX_CONNECTIONS as u32,
+            max_material_depth: network::MAX_CHAIN_DEPTH as u32,
+            max_prim_path_bytes: crate::session::MAX_PRIM_PATH_BYTES as u32,
+            session_idle_timeout_seconds: config.session_idle_timeout.as_secs_f64(),
+            stall_timeout_seconds: config.stall_timeout.as_secs_f64(),
             max_triangles_per_mesh: self.max_triangles_per_mesh,
             max_total_triangles: self.max_total_triangles,
             max_resolution: self.max_resolution,

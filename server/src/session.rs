@@ -3,14 +3,17 @@
 //! of the description and committed together, or not at all.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use render_core::geometry::{Mesh, Primvar};
 use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
 use tessera_proto::v1 as pb;
 use tonic::Status;
 
+use crate::auth::Tenant;
+use crate::budget::{Budget, Reservation};
 use crate::convert::{self, invalid};
 use crate::limits::Limits;
 use crate::textures::{TextureStore, content_hash, is_content_hash};
@@ -23,17 +26,65 @@ pub struct Committed {
     pub scene: Arc<CommittedScene>,
     /// Bumped by every successful sync.
     pub version: u64,
+    /// The memory the scene is estimated to hold, reserved against the budgets.
+    memory: Reservation,
+}
+
+/// Figures a session's owner and the operator can read (`GetSessionStats`).
+#[derive(Debug, Default)]
+pub struct SessionCounters {
+    /// Successful syncs.
+    pub syncs: AtomicU64,
+    /// Renders started.
+    pub renders: AtomicU64,
+    /// Camera samples taken over all renders.
+    pub samples: AtomicU64,
+    /// Seconds spent rendering, in microseconds.
+    pub render_micros: AtomicU64,
+    /// Bytes of array and texture data received.
+    pub bytes_received: AtomicU64,
 }
 
 /// A client's session.
 pub struct Session {
-    /// Session id.
+    /// Session id: 128 random bits, so no client can guess another's.
     pub id: String,
+    /// The tenant that created it; invisible to every other.
+    pub tenant: Tenant,
     state: Mutex<Option<Committed>>,
     cache: Mutex<BlasCache>,
     version: AtomicU64,
     /// Cancel flag of the render in progress, if any.
     pub render_cancel: Mutex<Option<Arc<AtomicBool>>>,
+    /// This session's budget, then the server's.
+    budgets: Vec<Arc<Budget>>,
+    /// True while a Sync is being applied (one at a time).
+    syncing: AtomicBool,
+    /// Open Render and Sync streams; a session with one is never idle.
+    open_streams: AtomicUsize,
+    last_active: Mutex<Instant>,
+    /// Figures for `GetSessionStats`.
+    pub counters: SessionCounters,
+}
+
+/// Held while a stream (Render or Sync) is open on a session: it keeps the session from being
+/// reaped as idle, and marks it active again when it ends.
+pub struct StreamGuard(Arc<Session>);
+
+impl Drop for StreamGuard {
+    fn drop(&mut self) {
+        self.0.open_streams.fetch_sub(1, Ordering::AcqRel);
+        self.0.touch();
+    }
+}
+
+/// Held by the one Sync applying to a session.
+pub struct SyncGuard(Arc<Session>);
+
+impl Drop for SyncGuard {
+    fn drop(&mut self) {
+        self.0.syncing.store(false, Ordering::Release);
+    }
 }
 
 /// Most named primvars one mesh may carry (materials read a handful).
@@ -69,18 +120,142 @@ pub struct Transaction {
     /// Prims applied.
     pub applied: u32,
     limits: Limits,
+    /// What the staged arrays hold, reserved as they arrive.
+    memory: Reservation,
+    budgets: Vec<Arc<Budget>>,
+    /// Bytes of array data received.
+    pub bytes_received: u64,
+    /// Textures this sync decoded, for the shared store once it commits.
+    decoded: Vec<(String, Arc<render_core::texture::Image>)>,
+}
+
+/// A transaction's result before the commit: the description, the reservation of its staged
+/// arrays, and the textures it decoded.
+struct Finished {
+    desc: SceneDesc,
+    staged: Reservation,
+    decoded: Vec<(String, Arc<render_core::texture::Image>)>,
+}
+
+/// Bytes a committed triangle is estimated to hold: 12 of indices, 48 of ray-tracing
+/// triangle, 4 of id and the CWBVH nodes (measured 123 in all on a 1M-triangle mesh,
+/// `docs/benchmarks.md`), plus the transient of its build (PLOC's binary tree and boxes),
+/// rounded up.
+pub const BYTES_PER_TRIANGLE: u64 = 256;
+/// Bytes per instance: two affine maps, its bounds and its BVH share.
+pub const BYTES_PER_INSTANCE: u64 = 160;
+
+/// The memory a description is estimated to hold once committed.
+pub fn scene_bytes(desc: &SceneDesc) -> u64 {
+    let meshes: u64 = desc
+        .meshes
+        .values()
+        .map(|m| {
+            let mesh = &m.mesh;
+            mesh.indices.len() as u64 * BYTES_PER_TRIANGLE + mesh.positions.len() as u64 * 12 + attribute_bytes(mesh)
+        })
+        .sum();
+    let instances: u64 = desc.instancers.values().map(|i| i.transforms.len() as u64 * BYTES_PER_INSTANCE).sum();
+    // Mip levels add a third; the environment's importance map and tangents stay below that.
+    let textures: u64 = desc.textures.values().map(|t| t.bytes() as u64 * 2).sum();
+    meshes + instances + textures
+}
+
+fn attribute_bytes(mesh: &Mesh) -> u64 {
+    use render_core::geometry::Attribute;
+    let len = |a: &Attribute<glam::Vec3>| match a {
+        Attribute::None => 0,
+        Attribute::Vertex(v) | Attribute::FaceVarying(v) => v.len() as u64 * 12,
+    };
+    let uvs = match &mesh.uvs {
+        Attribute::None => 0,
+        Attribute::Vertex(v) | Attribute::FaceVarying(v) => v.len() as u64 * 8,
+    };
+    len(&mesh.normals) + uvs + mesh.primvars.iter().map(|p| len(&p.values)).sum::<u64>()
+}
+
+/// A fresh session id: `s-` and 128 random bits in hex.
+pub fn random_id() -> String {
+    let mut bits = [0u8; 16];
+    getrandom::fill(&mut bits).expect("the OS random source is available");
+    let mut id = String::with_capacity(2 + 32);
+    id.push_str("s-");
+    for b in bits {
+        id.push_str(&format!("{b:02x}"));
+    }
+    id
 }
 
 impl Session {
-    /// A new, empty session.
+    /// A new, empty session with no owner or budget beyond the defaults (tests, fuzzing).
     pub fn new(id: String) -> Self {
+        Self::owned(id, Tenant(Arc::from(crate::auth::LOCAL)), Vec::new())
+    }
+
+    /// A new, empty session of `tenant`, its memory held against `budgets` (its own, then the
+    /// server's).
+    pub fn owned(id: String, tenant: Tenant, budgets: Vec<Arc<Budget>>) -> Self {
         Session {
             id,
+            tenant,
             state: Mutex::new(None),
             cache: Mutex::new(BlasCache::default()),
             version: AtomicU64::new(0),
             render_cancel: Mutex::new(None),
+            budgets,
+            syncing: AtomicBool::new(false),
+            open_streams: AtomicUsize::new(0),
+            last_active: Mutex::new(Instant::now()),
+            counters: SessionCounters::default(),
         }
+    }
+
+    /// The budgets this session's memory is held against.
+    pub fn budgets(&self) -> &[Arc<Budget>] {
+        &self.budgets
+    }
+
+    /// Marks the session as used now.
+    pub fn touch(&self) {
+        *self.last_active.lock().unwrap() = Instant::now();
+    }
+
+    /// How long since the session was last used, or zero while a stream is open on it.
+    pub fn idle_for(&self) -> std::time::Duration {
+        if self.open_streams.load(Ordering::Acquire) > 0 {
+            return std::time::Duration::ZERO;
+        }
+        self.last_active.lock().unwrap().elapsed()
+    }
+
+    /// Counts an open stream until the guard drops.
+    pub fn open_stream(self: &Arc<Self>) -> StreamGuard {
+        self.open_streams.fetch_add(1, Ordering::AcqRel);
+        self.touch();
+        StreamGuard(Arc::clone(self))
+    }
+
+    /// Claims the session's one Sync slot; `ABORTED` while another Sync holds it (the client
+    /// retries after that one returns, so no update is lost silently).
+    #[allow(clippy::result_large_err)]
+    pub fn claim_sync(self: &Arc<Self>) -> Result<SyncGuard, Status> {
+        if self.syncing.swap(true, Ordering::AcqRel) {
+            return Err(Status::aborted(format!(
+                "session '{}' is already applying a Sync; send one Sync at a time (retry after the other returns)",
+                self.id
+            )));
+        }
+        Ok(SyncGuard(Arc::clone(self)))
+    }
+
+    /// Bytes the committed scene is estimated to hold.
+    pub fn scene_bytes(&self) -> u64 {
+        self.state.lock().unwrap().as_ref().map_or(0, |c| c.memory.bytes())
+    }
+
+    /// Triangles in the committed scene's meshes.
+    pub fn triangles(&self) -> u64 {
+        self.state.lock().unwrap().as_ref().map_or(0, |c| c.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum())
     }
 
     /// The current scene version (0 before the first sync).
@@ -96,13 +271,34 @@ impl Session {
     /// Starts a transaction on a copy of the current description.
     pub fn begin(&self, limits: Limits, store: Arc<TextureStore>) -> Transaction {
         let desc = self.state.lock().unwrap().as_ref().map(|c| c.desc.clone()).unwrap_or_default();
-        Transaction { desc, textures: HashMap::new(), store, meshes: HashMap::new(), instancers: HashMap::new(), applied: 0, limits }
+        let memory = Reservation::take(&self.budgets, 0, "a sync").expect("nothing fits");
+        Transaction {
+            desc,
+            textures: HashMap::new(),
+            store,
+            meshes: HashMap::new(),
+            instancers: HashMap::new(),
+            applied: 0,
+            limits,
+            memory,
+            budgets: self.budgets.clone(),
+            bytes_received: 0,
+            decoded: Vec::new(),
+        }
     }
 
-    /// Commits a transaction: validates, builds what changed, and swaps it in. Blocking
-    /// (BVH builds): call from a blocking thread.
+    /// Commits a transaction: validates, reserves the new scene's memory, builds what
+    /// changed, and swaps it in. Blocking (BVH builds): call from a blocking thread.
     pub fn commit(&self, tx: Transaction) -> Result<(u64, Vec<String>), Status> {
-        let desc = tx.finish()?;
+        let received = tx.bytes_received;
+        let store = Arc::clone(&tx.store);
+        let Finished { desc, staged, decoded } = tx.finish()?;
+        let bytes = scene_bytes(&desc);
+        // The old scene stays live (renders hold it) until the new one replaces it: reserve
+        // the larger of the two now, and settle on the new size after the swap.
+        let old = self.scene_bytes();
+        let mut memory = Reservation::take(&self.budgets, bytes.saturating_sub(old), &format!("the scene of session '{}'", self.id))?;
+        drop(staged);
         let scene = {
             let mut cache = self.cache.lock().unwrap();
             commit(&desc, &mut cache).map_err(|e| Status::invalid_argument(e.to_string()))?
@@ -110,9 +306,26 @@ impl Session {
         let warnings = scene.warnings.clone();
         let mut state = self.state.lock().unwrap();
         let version = self.version.load(Ordering::Acquire) + 1;
-        *state = Some(Committed { desc, scene: Arc::new(scene), version });
+        let previous = state.take().map(|c| c.memory);
+        if let Some(previous) = previous {
+            memory.absorb(previous);
+        }
+        memory.resize(bytes, "").expect("shrinking always succeeds");
+        *state = Some(Committed { desc, scene: Arc::new(scene), version, memory });
         self.version.store(version, Ordering::Release);
+        self.counters.syncs.fetch_add(1, Ordering::Relaxed);
+        self.counters.bytes_received.fetch_add(received, Ordering::Relaxed);
+        drop(state);
+        for (hash, image) in decoded {
+            store.insert(&hash, image);
+        }
         Ok((version, warnings))
+    }
+
+    /// Drops the committed scene and its memory (the session is closing).
+    pub fn clear(&self) {
+        *self.state.lock().unwrap() = None;
+        *self.cache.lock().unwrap() = BlasCache::default();
     }
 
     /// Flags the render in progress to stop; returns whether there was one.
@@ -155,8 +368,35 @@ impl Transaction {
     pub fn apply(&mut self, item: pb::sync_request::Item) -> Result<(), Status> {
         match item {
             pb::sync_request::Item::Prim(delta) => self.apply_prim(delta),
-            pb::sync_request::Item::Chunk(chunk) => self.apply_chunk(chunk),
+            pb::sync_request::Item::Chunk(chunk) => {
+                self.reserve_chunk(&chunk)?;
+                self.apply_chunk(chunk)
+            }
         }
+    }
+
+    /// Enforces the advertised chunk size and reserves what the chunk will hold.
+    fn reserve_chunk(&mut self, c: &pb::ArrayChunk) -> Result<(), Status> {
+        // Texture bytes count four to an element, as floats do.
+        let elements = c.floats.len() as u64 + c.uints.len() as u64 + c.doubles.len() as u64 + (c.data.len() as u64).div_ceil(4);
+        if elements > self.limits.max_array_chunk_elements {
+            return Err(invalid(
+                &c.path,
+                "chunk",
+                format!("{elements} elements in one chunk, over the limit of {}", self.limits.max_array_chunk_elements),
+            ));
+        }
+        let bytes = 4 * (c.floats.len() + c.uints.len()) as u64 + 8 * c.doubles.len() as u64 + c.data.len() as u64;
+        self.bytes_received += bytes;
+        self.memory.grow(bytes, &format!("{}: the arrays of this sync", c.path))
+    }
+
+    /// Refuses a mesh whose declared arrays and BVH could not fit in the memory free now,
+    /// before any of its data arrives.
+    fn check_declared_mesh(&self, path: &str, m: &pb::MeshPrim) -> Result<(), Status> {
+        let floats = m.points_len + m.triangle_indices_len + m.normals_len + m.uvs_len + m.primvars.iter().map(|p| p.len).sum::<u64>();
+        let bytes = floats.saturating_mul(4).saturating_add((m.triangle_indices_len / 3).saturating_mul(BYTES_PER_TRIANGLE));
+        Budget::check_fits(&self.budgets, bytes, &format!("{path}: {} triangles as declared", m.triangle_indices_len / 3))
     }
 
     fn apply_prim(&mut self, d: pb::PrimDelta) -> Result<(), Status> {
@@ -164,9 +404,7 @@ impl Transaction {
             return self.apply_texture(&d.path, t);
         }
         let path = d.path.clone();
-        if !path.starts_with('/') {
-            return Err(Status::invalid_argument(format!("prim path '{path}' is not an absolute USD path")));
-        }
+        check_prim_path(&path)?;
         self.applied += 1;
         let kind = pb::PrimKind::try_from(d.kind).unwrap_or(pb::PrimKind::Unspecified);
         use pb::prim_delta::Payload;
@@ -219,6 +457,7 @@ impl Transaction {
                     if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
                         return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
                     }
+                    self.check_declared_mesh(&path, &m)?;
                     let primvars = vec![(Vec::new(), 0); m.primvars.len()];
                     self.meshes.insert(path, StagedMesh { prim: m, primvars, ..Default::default() });
                 } else {
@@ -238,10 +477,19 @@ impl Transaction {
                 if i.transforms_len % 16 != 0 {
                     return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
                 }
+                check_prim_path(&i.prototype_path)?;
+                let instances = i.transforms_len / 16;
+                Budget::check_fits(
+                    &self.budgets,
+                    instances.saturating_mul(BYTES_PER_INSTANCE + 128),
+                    &format!("{path}: {instances} instances as declared"),
+                )?;
                 self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
             }
             (pb::PrimKind::Material, Some(Payload::Material(m))) => {
-                self.desc.materials.insert(path, convert::material_from_wire(&m));
+                let network = convert::material_from_wire(&m);
+                network.validate(&path).map_err(|e| Status::invalid_argument(e.to_string()))?;
+                self.desc.materials.insert(path, network);
             }
             (pb::PrimKind::Light, Some(Payload::Light(l))) => {
                 let l = convert::light_from_wire(&path, &l)?;
@@ -334,10 +582,16 @@ impl Transaction {
             if content_hash(&t.bytes) != hash {
                 return Err(invalid(&t.source, "texture", format!("the bytes do not hash to {hash}")));
             }
-            let image = render_core::texture::Image::decode_within(&t.bytes, &t.source, self.limits.max_texture_texels)
-                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+            let free = self.budgets.iter().map(|b| b.available()).min().unwrap_or(u64::MAX);
+            let image = render_core::texture::Image::decode_within(&t.bytes, &t.source, self.limits.max_texture_texels, free).map_err(
+                |e| match e {
+                    render_core::texture::TextureError::OverBudget { .. } => Status::resource_exhausted(e.to_string()),
+                    e => Status::invalid_argument(e.to_string()),
+                },
+            )?;
             let image = Arc::new(image);
-            self.store.insert(&hash, Arc::clone(&image));
+            // Into the shared store only once the whole sync has committed.
+            self.decoded.push((hash.clone(), Arc::clone(&image)));
             self.desc.textures.insert(hash, image);
         }
         let mut named = std::collections::BTreeSet::new();
@@ -376,8 +630,9 @@ impl Transaction {
         Ok(())
     }
 
-    /// Assembles staged arrays into the final description.
-    fn finish(mut self) -> Result<SceneDesc, Status> {
+    /// Assembles staged arrays into the final description, and hands back the reservation of
+    /// the staged arrays (dropped once the scene's own is taken).
+    fn finish(mut self) -> Result<Finished, Status> {
         self.finish_textures()?;
         for (path, s) in self.meshes {
             let p = &s.prim;
@@ -439,6 +694,29 @@ impl Transaction {
                 self.limits.max_total_triangles
             )));
         }
-        Ok(self.desc)
+        Ok(Finished { desc: self.desc, staged: self.memory, decoded: self.decoded })
     }
+}
+
+/// Longest prim path accepted. USD paths of real scenes stay under a few hundred bytes.
+pub const MAX_PRIM_PATH_BYTES: usize = 4096;
+
+/// A prim path as the wire carries it: absolute, bounded, printable (no NUL or other control
+/// characters, which would corrupt every message that names the prim).
+#[allow(clippy::result_large_err)]
+pub fn check_prim_path(path: &str) -> Result<(), Status> {
+    let shown: String = path.chars().take(80).collect::<String>().escape_debug().to_string();
+    if !path.starts_with('/') {
+        return Err(Status::invalid_argument(format!("prim path \"{shown}\" is not an absolute USD path")));
+    }
+    if path.len() > MAX_PRIM_PATH_BYTES {
+        return Err(Status::invalid_argument(format!(
+            "prim path \"{shown}...\" is {} bytes, over the limit of {MAX_PRIM_PATH_BYTES}",
+            path.len()
+        )));
+    }
+    if path.chars().any(char::is_control) {
+        return Err(Status::invalid_argument(format!("prim path \"{shown}\" holds a control character (NUL, newline, ...)")));
+    }
+    Ok(())
 }

@@ -11,6 +11,7 @@ mod furnace;
 mod fuzz;
 mod grpc;
 mod hard;
+mod hostile;
 mod images;
 mod light_units;
 mod materials;

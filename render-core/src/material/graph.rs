@@ -174,6 +174,8 @@ impl TexturedMaterial {
         let mut keys = Vec::new();
         let mut exprs = Vec::new();
         let mut compiled = network.clone();
+        // A node feeding several inputs compiles once.
+        let mut cache = std::collections::HashMap::<String, Expr>::new();
         for c in &network.connections {
             let Some(up) = network.nodes.iter().find(|n| n.path == c.upstream_node) else { continue };
             if !EVALUATED.contains(&up.node_type_id.as_str()) {
@@ -186,7 +188,14 @@ impl TexturedMaterial {
                 ));
                 continue;
             };
-            let expr = compile_node(network, up, textures, report, 0);
+            let expr = match cache.get(&up.path) {
+                Some(e) => e.clone(),
+                None => {
+                    let e = compile_node(network, up, textures, report, 0);
+                    cache.insert(up.path.clone(), e.clone());
+                    e
+                }
+            };
             let placeholder = output.value(expr.eval(&ShadingPoint::whole_texture()).0);
             if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
                 node.parameters.insert(c.downstream_input.clone(), placeholder);

@@ -10,7 +10,7 @@
 pub mod glitter;
 pub mod graph;
 pub mod native;
-mod network;
+pub mod network;
 mod preview;
 mod principled;
 pub mod uber;

@@ -74,6 +74,9 @@ pub struct MaterialNetwork {
 struct Walk<'a> {
     material_path: &'a str,
     used: Vec<String>,
+    /// Each node's material, resolved once: a node shared by many layers (a "diamond")
+    /// costs one resolution, not one per path to it.
+    memo: std::collections::HashMap<String, Material>,
     report: ResolveReport,
     overrides: Overrides<'a>,
 }
@@ -142,7 +145,118 @@ pub struct ResolveReport {
 /// Deepest chain of `tessera:Layer` nodes followed (a cycle is reported, not followed).
 const MAX_LAYER_DEPTH: usize = 32;
 
+/// Most nodes one network may hold: production materials have tens to a few hundred; a
+/// limit keeps resolution, which runs per shading point for textured materials, bounded.
+pub const MAX_NODES: usize = 1024;
+/// Most connections one network may hold.
+pub const MAX_CONNECTIONS: usize = 4 * MAX_NODES;
+/// Longest chain of connections from the surface node upstream.
+pub const MAX_CHAIN_DEPTH: usize = 64;
+/// Longest node path, input or output name.
+const MAX_NAME_BYTES: usize = 4096;
+
+/// Why a network is refused before any resolution: the message names the material, the node
+/// or input at fault, and the limit.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct NetworkError(pub String);
+
 impl MaterialNetwork {
+    /// Checks what a client controls before anything walks the network: sizes and names, no
+    /// duplicate nodes, no cycles and no chain deeper than [`MAX_CHAIN_DEPTH`] (so every walk
+    /// is bounded), and finite parameters. Linear in the network's size.
+    pub fn validate(&self, material: &str) -> Result<(), NetworkError> {
+        let too_large = |what, count, limit| NetworkError(format!("{material}: {count} {what} exceed the limit of {limit}"));
+        if self.nodes.len() > MAX_NODES {
+            return Err(too_large("nodes", self.nodes.len(), MAX_NODES));
+        }
+        if self.connections.len() > MAX_CONNECTIONS {
+            return Err(too_large("connections", self.connections.len(), MAX_CONNECTIONS));
+        }
+        let bad_name = |what, name: &str| {
+            let shown: String = name.chars().take(80).collect();
+            NetworkError(format!(
+                "{material}: {what} \"{}\" is not a valid name (empty, longer than {MAX_NAME_BYTES} bytes, or with a control character)",
+                shown.escape_debug()
+            ))
+        };
+        let check = |what, name: &str| {
+            if name.is_empty() || name.len() > MAX_NAME_BYTES || name.chars().any(char::is_control) {
+                Err(bad_name(what, name))
+            } else {
+                Ok(())
+            }
+        };
+        let mut index = std::collections::HashMap::with_capacity(self.nodes.len());
+        for (i, n) in self.nodes.iter().enumerate() {
+            check("node path", &n.path)?;
+            if index.insert(n.path.as_str(), i).is_some() {
+                return Err(NetworkError(format!("{material}: node path {} appears twice", n.path)));
+            }
+            for (input, value) in &n.parameters {
+                check("input name", input)?;
+                if let Some(v) = non_finite(value) {
+                    return Err(NetworkError(format!("{material}: {}: input '{input}' is not finite or beyond ±1e18 ({v})", n.path)));
+                }
+            }
+        }
+        let mut upstream: Vec<Vec<usize>> = vec![Vec::new(); self.nodes.len()];
+        for c in &self.connections {
+            check("connection input", &c.downstream_input)?;
+            check("connection output", &c.upstream_output)?;
+            // Connections to nodes the network lacks are reported by resolution.
+            if let (Some(&down), Some(&up)) = (index.get(c.downstream_node.as_str()), index.get(c.upstream_node.as_str())) {
+                upstream[down].push(up);
+            }
+        }
+        self.check_acyclic_and_shallow(material, &upstream)
+    }
+
+    /// Depth-first over the upstream edges, without recursion: a node met again while on the
+    /// current path is a cycle; otherwise each node's depth is computed once.
+    fn check_acyclic_and_shallow(&self, material: &str, upstream: &[Vec<usize>]) -> Result<(), NetworkError> {
+        const NEW: u32 = 0;
+        const ON_PATH: u32 = u32::MAX;
+        // 0: not visited; ON_PATH: on the current path; otherwise 1 + the depth below it.
+        let mut depth = vec![NEW; self.nodes.len()];
+        for root in 0..self.nodes.len() {
+            if depth[root] != NEW {
+                continue;
+            }
+            let mut stack = vec![(root, 0usize)];
+            depth[root] = ON_PATH;
+            while let Some(&mut (node, ref mut next)) = stack.last_mut() {
+                if let Some(&up) = upstream[node].get(*next) {
+                    *next += 1;
+                    match depth[up] {
+                        ON_PATH => {
+                            let start = stack.iter().position(|&(n, _)| n == up).expect("on the path");
+                            let mut cycle: Vec<String> = stack[start..].iter().map(|&(n, _)| self.nodes[n].path.clone()).collect();
+                            cycle.push(self.nodes[up].path.clone());
+                            return Err(NetworkError(format!("{material}: connections form a cycle: {}", cycle.join(" -> "))));
+                        }
+                        NEW => {
+                            depth[up] = ON_PATH;
+                            stack.push((up, 0));
+                        }
+                        _ => {}
+                    }
+                    continue;
+                }
+                stack.pop();
+                let d = 1 + upstream[node].iter().map(|&u| depth[u] as usize).max().unwrap_or(0);
+                if d > MAX_CHAIN_DEPTH {
+                    return Err(NetworkError(format!(
+                        "{material}: {}: connections chain {d} nodes deep, more than {MAX_CHAIN_DEPTH}",
+                        self.nodes[node].path
+                    )));
+                }
+                depth[node] = d as u32;
+            }
+        }
+        Ok(())
+    }
+
     fn node(&self, path: &str) -> Option<&MaterialNode> {
         self.nodes.iter().find(|n| n.path == path)
     }
@@ -167,7 +281,7 @@ impl MaterialNetwork {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (Material::preview_surface_default(), report);
         }
-        let mut walk = Walk { material_path, used: vec![self.surface_node.clone()], report, overrides };
+        let mut walk = Walk { material_path, used: vec![self.surface_node.clone()], memo: Default::default(), report, overrides };
         let m = self.resolve_node(&self.surface_node, 0, &mut walk);
         let Walk { used, mut report, .. } = walk;
         if !report_unused {
@@ -182,6 +296,15 @@ impl MaterialNetwork {
     }
 
     fn resolve_node(&self, path: &str, depth: usize, walk: &mut Walk) -> Material {
+        if let Some(m) = walk.memo.get(path) {
+            return m.clone();
+        }
+        let m = self.resolve_node_once(path, depth, walk);
+        walk.memo.insert(path.to_string(), m.clone());
+        m
+    }
+
+    fn resolve_node_once(&self, path: &str, depth: usize, walk: &mut Walk) -> Material {
         let (material_path, overrides) = (walk.material_path, walk.overrides);
         let Some(node) = self.node(path) else {
             let report = &mut walk.report;
@@ -282,6 +405,23 @@ impl MaterialNetwork {
         let b = side("b", mask < 1.0, walk);
         b.layered_under(&a, mask)
     }
+}
+
+/// Largest parameter magnitude accepted: beyond any physical value (emission in nits, IOR,
+/// scales), and far enough below f32's 3.4e38 that products of a few parameters stay finite.
+const MAX_PARAM_MAGNITUDE: f32 = 1e18;
+
+/// The printed value of a parameter with a NaN, infinite or absurdly large component.
+fn non_finite(v: &ParamValue) -> Option<String> {
+    let ok = |x: &[f32]| x.iter().all(|c| c.is_finite() && c.abs() <= MAX_PARAM_MAGNITUDE);
+    let finite = match v {
+        ParamValue::Float(x) => ok(&[*x]),
+        ParamValue::Float2(x) => ok(&x.to_array()),
+        ParamValue::Float3(x) => ok(&x.to_array()),
+        ParamValue::Float4(x) => ok(&x.to_array()),
+        _ => true,
+    };
+    (!finite).then(|| format!("{v:?}"))
 }
 
 #[cfg(test)]

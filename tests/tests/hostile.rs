@@ -1,0 +1,742 @@
+//! Hostile clients: every size, depth and count a client controls, sent at its worst over
+//! loopback to the real server. Each case expects a clear status naming the prim or field (or
+//! a bounded, correct result), and a second session that keeps rendering meanwhile.
+
+use std::time::{Duration, Instant};
+
+use tessera_proto::v1 as pb;
+use tessera_proto::v1::render_client::RenderClient;
+use tessera_server::auth::Auth;
+use tessera_server::{EmbeddedServer, ServerConfig};
+use tessera_tests::*;
+use tonic::transport::Channel;
+use tonic::{Code, Status};
+
+type Item = pb::sync_request::Item;
+
+/// A raw protocol client (no USD, no helpers), as a hostile grpcio script would be.
+struct Raw {
+    client: RenderClient<Channel>,
+    token: Option<String>,
+}
+
+impl Raw {
+    async fn connect(server: &EmbeddedServer) -> Raw {
+        let channel = Channel::from_shared(server.url()).unwrap().connect().await.unwrap();
+        Raw { client: RenderClient::new(channel).max_decoding_message_size(64 << 20), token: None }
+    }
+
+    async fn as_tenant(server: &EmbeddedServer, token: &str) -> Raw {
+        Raw { token: Some(token.into()), ..Raw::connect(server).await }
+    }
+
+    fn req<T>(&self, msg: T) -> tonic::Request<T> {
+        let mut r = tonic::Request::new(msg);
+        if let Some(t) = &self.token {
+            r.metadata_mut().insert("authorization", format!("Bearer {t}").parse().unwrap());
+        }
+        r
+    }
+
+    async fn session(&mut self) -> Result<String, Status> {
+        let r = self.req(pb::CreateSessionRequest { client_name: "hostile".into() });
+        Ok(self.client.create_session(r).await?.into_inner().session_id)
+    }
+
+    async fn sync(&mut self, session: &str, items: Vec<Item>) -> Result<pb::SyncResponse, Status> {
+        let reqs = tessera::sync::requests(session, items);
+        let r = self.req(tokio_stream::iter(reqs));
+        Ok(self.client.sync(r).await?.into_inner())
+    }
+
+    async fn render_stream(&mut self, session: &str, settings: pb::RenderSettings) -> Result<tonic::Streaming<pb::RenderEvent>, Status> {
+        let r = self.req(pb::RenderRequest { session_id: session.into(), settings: Some(settings) });
+        Ok(self.client.render(r).await?.into_inner())
+    }
+
+    /// Renders to the end; the `Finished` event.
+    async fn render(&mut self, session: &str, settings: pb::RenderSettings) -> Result<pb::Finished, Status> {
+        let mut stream = self.render_stream(session, settings).await?;
+        while let Some(e) = stream.message().await? {
+            if let Some(pb::render_event::Event::Finished(f)) = e.event {
+                return Ok(f);
+            }
+        }
+        Err(Status::internal("stream ended without Finished"))
+    }
+
+    async fn cancel(&mut self, session: &str) -> Result<bool, Status> {
+        let r = self.req(pb::CancelRequest { session_id: session.into() });
+        Ok(self.client.cancel(r).await?.into_inner().was_rendering)
+    }
+
+    async fn close(&mut self, session: &str) -> Result<(), Status> {
+        let r = self.req(pb::CloseSessionRequest { session_id: session.into() });
+        self.client.close_session(r).await.map(|_| ())
+    }
+
+    async fn stats(&mut self, session: &str) -> Result<pb::SessionStats, Status> {
+        let r = self.req(pb::GetSessionStatsRequest { session_id: session.into() });
+        Ok(self.client.get_session_stats(r).await?.into_inner())
+    }
+}
+
+fn tiny(width: u32, spp: u32) -> pb::RenderSettings {
+    pb::RenderSettings { width, height: width, spp, max_depth: 2, ..Default::default() }
+}
+
+/// A bystander: its own session with the Cornell box, which must keep rendering whatever the
+/// hostile client did.
+async fn bystander_renders(server: &EmbeddedServer) {
+    let mut raw = Raw::connect(server).await;
+    let s = raw.session().await.expect("a bystander gets a session");
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.expect("the bystander's scene syncs");
+    let f = raw.render(&s, tiny(16, 2)).await.expect("the bystander renders");
+    assert!(!f.cancelled && f.spp == 2, "{f:?}");
+    raw.close(&s).await.unwrap();
+}
+
+fn assert_status(r: Result<impl std::fmt::Debug, Status>, code: Code, needles: &[&str]) {
+    let e = r.expect_err("the server must refuse this");
+    assert_eq!(e.code(), code, "{e:?}");
+    for n in needles {
+        assert!(e.message().contains(n), "'{n}' missing from: {}", e.message());
+    }
+}
+
+/// A mesh delta with its arrays in single chunks.
+fn mesh(path: &str, points: Vec<f32>, indices: Vec<u32>) -> Vec<Item> {
+    let prim =
+        pb::MeshPrim { points_len: points.len() as u64, triangle_indices_len: indices.len() as u64, visible: true, ..Default::default() };
+    let mut items = vec![tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim))];
+    for (field, floats, uints) in [(pb::ArrayField::Points, points, vec![]), (pb::ArrayField::TriangleIndices, vec![], indices)] {
+        for (k, (f, u)) in chunked(&floats, &uints).into_iter().enumerate() {
+            let offset = (k * tessera::sync::CHUNK_ELEMENTS) as u64;
+            items.push(Item::Chunk(pb::ArrayChunk {
+                path: path.into(),
+                field: field as i32,
+                offset,
+                floats: f,
+                uints: u,
+                ..Default::default()
+            }));
+        }
+    }
+    items
+}
+
+fn chunked(floats: &[f32], uints: &[u32]) -> Vec<(Vec<f32>, Vec<u32>)> {
+    let n = tessera::sync::CHUNK_ELEMENTS;
+    if !floats.is_empty() {
+        floats.chunks(n).map(|c| (c.to_vec(), vec![])).collect()
+    } else {
+        uints.chunks(n).map(|c| (vec![], c.to_vec())).collect()
+    }
+}
+
+/// A camera looking down -Z at the unit triangle from z = 3, and a dome.
+fn camera_and_light() -> Vec<Item> {
+    let mut m = vec![1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.3, 0.3, 3.0, 1.0];
+    m.truncate(16);
+    let camera = pb::CameraPrim {
+        transform: Some(pb::Matrix4 { m }),
+        focal_length: 50.0,
+        horizontal_aperture: 20.0,
+        vertical_aperture: 20.0,
+        near_clip: 0.01,
+        far_clip: 100.0,
+        ..Default::default()
+    };
+    let dome = pb::LightPrim { light_type: pb::LightType::Dome as i32, intensity: 1.0, visible: true, ..Default::default() };
+    vec![
+        tessera::sync::delta("/Cam", pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(camera)),
+        tessera::sync::delta("/Dome", pb::PrimKind::Light, pb::prim_delta::Payload::Light(dome)),
+    ]
+}
+
+const TRIANGLE: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+// ------------------------------------------------------------------ bounded work
+
+/// obvhs built a chain 30 000 deep from coincident triangles and overflowed the stack (the
+/// server aborted after 19 s). Now it commits and renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn thirty_thousand_copies_of_one_triangle_render() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let n = 30_000u32;
+    let indices: Vec<u32> = (0..n).flat_map(|_| [0, 1, 2]).collect();
+    let mut items = mesh("/Evil/Coincident", TRIANGLE.to_vec(), indices);
+    items.extend(camera_and_light());
+    raw.sync(&s, items).await.expect("coincident triangles commit");
+    let f = raw.render(&s, tiny(8, 1)).await.expect("and render");
+    assert_eq!(f.spp, 1);
+    bystander_renders(&server).await;
+}
+
+/// The same through the top level: 100 000 instances with one transform.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_hundred_thousand_identical_instances_render() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let mut items = mesh("/Proto", TRIANGLE.to_vec(), vec![0, 1, 2]);
+    let n = 100_000usize;
+    let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    let transforms: Vec<f64> = (0..n).flat_map(|_| identity).collect();
+    let inst = pb::InstancerPrim { prototype_path: "/Proto".into(), transforms_len: transforms.len() as u64 };
+    items.push(tessera::sync::delta("/Evil/Instancer", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(inst)));
+    for (k, c) in transforms.chunks(tessera::sync::CHUNK_ELEMENTS).enumerate() {
+        items.push(Item::Chunk(pb::ArrayChunk {
+            path: "/Evil/Instancer".into(),
+            field: pb::ArrayField::InstanceTransforms as i32,
+            offset: (k * tessera::sync::CHUNK_ELEMENTS) as u64,
+            doubles: c.to_vec(),
+            ..Default::default()
+        }));
+    }
+    items.extend(camera_and_light());
+    raw.sync(&s, items).await.expect("identical instances commit");
+    raw.render(&s, tiny(8, 1)).await.expect("and render");
+    bystander_renders(&server).await;
+}
+
+fn node(path: &str, id: &str, params: &[(&str, pb::param_value::Value)]) -> pb::MaterialNode {
+    pb::MaterialNode {
+        path: path.into(),
+        node_type_id: id.into(),
+        parameters: params.iter().map(|(k, v)| (k.to_string(), pb::ParamValue { value: Some(v.clone()) })).collect(),
+    }
+}
+
+fn link(down: &str, input: &str, up: &str, output: &str) -> pb::MaterialConnection {
+    pb::MaterialConnection {
+        downstream_node: down.into(),
+        downstream_input: input.into(),
+        upstream_node: up.into(),
+        upstream_output: output.into(),
+    }
+}
+
+fn material(path: &str, net: pb::MaterialNetwork) -> Item {
+    tessera::sync::delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(net))
+}
+
+/// The 126-byte material that grew memory by 180 MB/s until the process aborted: a Layer
+/// whose two inputs connect to itself. Refused, naming the cycle.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_layer_connected_to_itself_is_refused_naming_the_cycle() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let net = pb::MaterialNetwork {
+        nodes: vec![node("/M/L", "tessera:Layer", &[])],
+        connections: vec![link("/M/L", "a", "/M/L", "surface"), link("/M/L", "b", "/M/L", "surface")],
+        surface_node: "/M/L".into(),
+    };
+    assert_status(
+        raw.sync(&s, vec![material("/Evil/SelfLayer", net)]).await,
+        Code::InvalidArgument,
+        &["/Evil/SelfLayer", "cycle", "/M/L -> /M/L"],
+    );
+    // A longer cycle through a texture chain is found too.
+    let net = pb::MaterialNetwork {
+        nodes: vec![
+            node("/M/S", "UsdPreviewSurface", &[]),
+            node("/M/T1", "UsdTransform2d", &[]),
+            node("/M/T2", "UsdTransform2d", &[]),
+            node("/M/Tex", "UsdUVTexture", &[]),
+        ],
+        connections: vec![
+            link("/M/S", "diffuseColor", "/M/Tex", "rgb"),
+            link("/M/Tex", "st", "/M/T1", "result"),
+            link("/M/T1", "in", "/M/T2", "result"),
+            link("/M/T2", "in", "/M/T1", "result"),
+        ],
+        surface_node: "/M/S".into(),
+    };
+    assert_status(raw.sync(&s, vec![material("/Evil/Loop", net)]).await, Code::InvalidArgument, &["/Evil/Loop", "cycle", "/M/T1", "/M/T2"]);
+    bystander_renders(&server).await;
+}
+
+/// A Layer "diamond" of depth 24 (each level's a and b both the next level) doubled its
+/// commit time per level (7 s); resolved once per node it commits and renders at once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_layer_diamond_resolves_each_node_once() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let depth = 24;
+    let mut nodes = Vec::new();
+    let mut connections = Vec::new();
+    for k in 0..depth {
+        nodes.push(node(&format!("/M/L{k}"), "tessera:Layer", &[("mask", pb::param_value::Value::FloatValue(0.5))]));
+        let next = if k + 1 == depth { "/M/Metal".to_string() } else { format!("/M/L{}", k + 1) };
+        connections.push(link(&format!("/M/L{k}"), "a", &next, "surface"));
+        connections.push(link(&format!("/M/L{k}"), "b", &next, "surface"));
+    }
+    nodes.push(node("/M/Metal", "tessera:Metal", &[]));
+    let net = pb::MaterialNetwork { nodes, connections, surface_node: "/M/L0".into() };
+    let mut items = vec![material("/Evil/Diamond", net)];
+    let mut m = mesh("/Tri", TRIANGLE.to_vec(), vec![0, 1, 2]);
+    if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(mp)), .. }) = &mut m[0] {
+        mp.material_path = "/Evil/Diamond".into();
+    }
+    items.extend(m);
+    items.extend(camera_and_light());
+    let started = Instant::now();
+    raw.sync(&s, items).await.expect("a diamond is no cycle");
+    raw.render(&s, tiny(8, 1)).await.unwrap();
+    // 2^24 resolutions took minutes; 25 take microseconds. Generous for a loaded CI machine.
+    assert!(started.elapsed() < Duration::from_secs(20), "{:?}", started.elapsed());
+    bystander_renders(&server).await;
+}
+
+/// A 40 000-node UsdTransform2d chain (2.8 MB) took 64 s to commit; networks are now
+/// limited in nodes and depth, and refused naming the limit.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn huge_and_deep_material_networks_are_refused_by_their_limits() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let chain = |n: usize| {
+        let mut nodes = vec![node("/M/S", "UsdPreviewSurface", &[]), node("/M/Tex", "UsdUVTexture", &[])];
+        let mut connections = vec![link("/M/S", "diffuseColor", "/M/Tex", "rgb"), link("/M/Tex", "st", "/M/T0", "result")];
+        for k in 0..n {
+            nodes.push(node(&format!("/M/T{k}"), "UsdTransform2d", &[]));
+            if k + 1 < n {
+                connections.push(link(&format!("/M/T{k}"), "in", &format!("/M/T{}", k + 1), "result"));
+            }
+        }
+        pb::MaterialNetwork { nodes, connections, surface_node: "/M/S".into() }
+    };
+    assert_status(
+        raw.sync(&s, vec![material("/Evil/Chain", chain(40_000))]).await,
+        Code::InvalidArgument,
+        &["/Evil/Chain", "nodes", "limit of 1024"],
+    );
+    assert_status(raw.sync(&s, vec![material("/Evil/Deep", chain(100))]).await, Code::InvalidArgument, &["/Evil/Deep", "more than 64"]);
+    bystander_renders(&server).await;
+}
+
+// ------------------------------------------------------------------ memory
+
+/// A server with a 2 GiB budget, as the memory test and an operator's small box would run it.
+fn budgeted(bytes: u64) -> ServerConfig {
+    ServerConfig { memory_budget: bytes, session_memory_budget: bytes, ..ServerConfig::default() }
+}
+
+/// A PNG whose header claims `width`×`height` RGBA16 and whose data is a few bytes: what the
+/// 2 MB "bomb" looks like to a decoder before it allocates.
+pub fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+        out.extend((data.len() as u32).to_be_bytes());
+        let start = out.len();
+        out.extend(kind);
+        out.extend(data);
+        let crc = crc32(&out[start..]);
+        out.extend(crc.to_be_bytes());
+    }
+    let mut ihdr = Vec::new();
+    ihdr.extend(width.to_be_bytes());
+    ihdr.extend(height.to_be_bytes());
+    ihdr.extend([16, 6, 0, 0, 0]); // 16 bits, RGBA, deflate, adaptive filter, no interlace
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    chunk(&mut png, b"IHDR", &ihdr);
+    chunk(&mut png, b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    chunk(&mut png, b"IEND", &[]);
+    png
+}
+
+/// CRC-32 (ISO-HDLC), as PNG chunks carry it.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
+/// A material using the texture with `hash`, and the texture's upload.
+fn textured(hash: &str, bytes: &[u8]) -> Vec<Item> {
+    let tex = pb::TexturePrim { source: "bomb.png".into(), bytes_len: bytes.len() as u64 };
+    let texture = pb::param_value::Value::TextureValue(pb::TextureRef { content_hash: hash.into(), source: "bomb.png".into() });
+    let net = pb::MaterialNetwork {
+        nodes: vec![node("/M/S", "UsdPreviewSurface", &[]), node("/M/Tex", "UsdUVTexture", &[("file", texture)])],
+        connections: vec![link("/M/S", "diffuseColor", "/M/Tex", "rgb")],
+        surface_node: "/M/S".into(),
+    };
+    vec![
+        tessera::sync::delta(hash, pb::PrimKind::Texture, pb::prim_delta::Payload::Texture(tex)),
+        Item::Chunk(pb::ArrayChunk {
+            path: hash.into(),
+            field: pb::ArrayField::TextureBytes as i32,
+            data: bytes.to_vec(),
+            ..Default::default()
+        }),
+        material("/Evil/Bomb", net),
+    ]
+}
+
+/// Under a 2 GiB budget: the 16384² all-AOV render (92 GiB of film), the 16-bit PNG bomb (4
+/// GiB to decode) and a 200M-triangle declaration are each refused with RESOURCE_EXHAUSTED
+/// naming what and how much, before anything is allocated.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_beyond_the_memory_budget_are_resource_exhausted() {
+    let server = EmbeddedServer::start_with(budgeted(2 << 30)).await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+
+    let all: Vec<String> = render_core::film::Aov::ALL.iter().skip(1).map(|a| a.name().to_string()).collect();
+    let huge = pb::RenderSettings { width: 16384, height: 16384, aovs: all, ..Default::default() };
+    assert_status(raw.render(&s, huge).await, Code::ResourceExhausted, &["16384x16384 film", "memory budget", "GiB"]);
+
+    let png = png_claiming(16384, 16384);
+    let hash = tessera_server::textures::content_hash(&png);
+    assert_status(raw.sync(&s, textured(&hash, &png)).await, Code::ResourceExhausted, &["bomb.png", "16384×16384", "memory budget"]);
+
+    // 200 M triangles in one mesh are over the per-mesh limit; 40 M, within it, are over the
+    // budget (10 GB of BVH and arrays as declared).
+    let declare = |tris: u64| {
+        let m = pb::MeshPrim { points_len: 3 * tris / 2, triangle_indices_len: 3 * tris, visible: true, ..Default::default() };
+        vec![tessera::sync::delta("/Evil/Huge", pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(m))]
+    };
+    assert_status(raw.sync(&s, declare(200_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "200000000 triangles", "limit"]);
+    assert_status(raw.sync(&s, declare(40_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "40000000 triangles", "memory budget"]);
+
+    // Nothing stayed reserved: the session still holds just its Cornell box.
+    let st = raw.stats(&s).await.unwrap();
+    assert_eq!(st.session_memory_used, st.scene_bytes, "{st:?}");
+    assert!(st.scene_bytes > 0 && st.scene_bytes < 1 << 20, "{st:?}");
+    raw.render(&s, tiny(16, 1)).await.expect("the session itself still renders");
+    bystander_renders(&server).await;
+}
+
+/// Within the budget, a decodable-sized claim still fails as a decode error (the data is not
+/// there), and a failed Sync leaves nothing in the shared texture cache.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn failed_syncs_leave_the_texture_cache_as_it_was() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    // A valid 2x2 PNG in a sync that then fails on a bad mesh.
+    let mut png = Vec::new();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([200, 10, 10]))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let hash = tessera_server::textures::content_hash(&png);
+    let mut items = textured(&hash, &png);
+    items.extend(mesh("/Evil/OutOfRange", TRIANGLE.to_vec(), vec![0, 1, 7]));
+    assert_status(raw.sync(&s, items).await, Code::InvalidArgument, &["/Evil/OutOfRange"]);
+    let missing =
+        raw.client.missing_textures(pb::MissingTexturesRequest { content_hashes: vec![hash.clone()] }).await.unwrap().into_inner();
+    assert_eq!(missing.content_hashes, vec![hash], "the failed sync's texture must not be cached");
+    let png = png_claiming(64, 64);
+    let hash = tessera_server::textures::content_hash(&png);
+    assert_status(raw.sync(&s, textured(&hash, &png)).await, Code::InvalidArgument, &["bomb.png"]);
+    bystander_renders(&server).await;
+}
+
+// ------------------------------------------------------------------ sessions and tenants
+
+const ALICE: &str = "alice-0123456789abcdef0123456789";
+const BOB: &str = "bob-fedcba9876543210fedcba987654";
+
+fn two_tenants() -> ServerConfig {
+    let auth = Auth::from_file_contents(&format!("alice {ALICE}\nbob {BOB}\n")).unwrap();
+    ServerConfig { auth, ..ServerConfig::default() }
+}
+
+/// Ids were s1, s2, ...: any client could drive any other's session. Now they are 128 random
+/// bits, a token names a tenant, and another tenant's session does not exist for it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sessions_belong_to_their_tenant() {
+    let server = EmbeddedServer::start_with(two_tenants()).await.unwrap();
+    let mut alice = Raw::as_tenant(&server, ALICE).await;
+    let mut bob = Raw::as_tenant(&server, BOB).await;
+    let a = alice.session().await.unwrap();
+    let a2 = alice.session().await.unwrap();
+    assert!(a.len() == 34 && a.starts_with("s-") && a != a2, "{a} {a2}");
+    alice.sync(&a, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+
+    // Everything Bob tries on Alice's session reads as absent.
+    let absent = |r: Result<_, Status>| assert_status(r.map(|_: ()| ()), Code::NotFound, &["does not exist"]);
+    absent(bob.sync(&a, camera_and_light()).await.map(|_| ()));
+    absent(bob.render(&a, tiny(8, 1)).await.map(|_| ()));
+    absent(bob.cancel(&a).await.map(|_| ()));
+    absent(bob.stats(&a).await.map(|_| ()));
+    absent(bob.close(&a).await);
+    // Without a token, or with a wrong one, nothing at all.
+    let mut anonymous = Raw::connect(&server).await;
+    assert_status(anonymous.session().await, Code::Unauthenticated, &["token"]);
+    let mut forger = Raw::as_tenant(&server, "alice-0123456789abcdef0123456780").await;
+    assert_status(forger.render(&a, tiny(8, 1)).await, Code::Unauthenticated, &["not known"]);
+
+    // Alice's own session is untouched and renders.
+    let f = alice.render(&a, tiny(16, 2)).await.unwrap();
+    assert_eq!(f.spp, 2);
+    alice.close(&a).await.unwrap();
+}
+
+/// 64 sessions left open locked every new client out until a restart. Idle sessions are now
+/// reaped, and one tenant cannot take every slot.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idle_sessions_are_reaped_and_tenants_have_their_own_limit() {
+    let config = ServerConfig {
+        session_idle_timeout: Duration::from_millis(300),
+        limits: tessera_server::limits::Limits { max_sessions: 6, max_sessions_per_tenant: 3, ..Default::default() },
+        ..two_tenants()
+    };
+    let server = EmbeddedServer::start_with(config).await.unwrap();
+    let mut alice = Raw::as_tenant(&server, ALICE).await;
+    let mut bob = Raw::as_tenant(&server, BOB).await;
+    let mut held = Vec::new();
+    for _ in 0..3 {
+        held.push(alice.session().await.unwrap());
+    }
+    assert_status(alice.session().await, Code::ResourceExhausted, &["tenant 'alice'", "3 sessions"]);
+    let b = bob.session().await.expect("Bob still gets a session");
+    // Alice's clients leave without closing; Bob keeps using his.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut reaped = false;
+    while Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        bob.stats(&b).await.expect("a used session is not idle");
+        // Asking about Alice's sessions would use them; a new one is refused until they go.
+        if alice.session().await.is_ok() {
+            reaped = true;
+            break;
+        }
+    }
+    assert!(reaped, "idle sessions were never reaped");
+    // They go one reaper pass after each reaches the timeout: give the last one three passes.
+    for _ in 0..6 {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        bob.stats(&b).await.expect("a used session is not idle");
+    }
+    for s in &held {
+        assert_status(alice.stats(s).await, Code::NotFound, &["does not exist"]);
+    }
+    bob.stats(&b).await.expect("Bob's session survived");
+}
+
+/// Two concurrent Syncs on one session both returned OK and one update was lost. The second
+/// now gets ABORTED while the first is open, and succeeds after it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_concurrent_sync_is_aborted_not_lost() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    // The first Sync: one message sent, the stream held open.
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    tx.send(pb::SyncRequest { session_id: s.clone(), item: Some(camera_and_light().remove(0)) }).await.unwrap();
+    let mut first_client = raw.client.clone();
+    let first = tokio::spawn(async move { first_client.sync(tokio_stream::wrappers::ReceiverStream::new(rx)).await });
+    // Wait until the server holds the first one (bounded).
+    let mut aborted = None;
+    for _ in 0..100 {
+        match raw.sync(&s, vec![camera_and_light().remove(1)]).await {
+            Err(e) if e.code() == Code::Aborted => {
+                aborted = Some(e);
+                break;
+            }
+            _ => tokio::time::sleep(Duration::from_millis(20)).await,
+        }
+    }
+    let e = aborted.expect("a concurrent Sync is refused while the first is open");
+    assert!(e.message().contains("one Sync at a time"), "{e:?}");
+    drop(tx);
+    let v1 = first.await.unwrap().expect("the first Sync commits").into_inner().scene_version;
+    let v2 = raw.sync(&s, vec![camera_and_light().remove(1)]).await.expect("then the second commits").scene_version;
+    assert!(v2 > v1);
+}
+
+// ------------------------------------------------------------------ cancellation and streams
+
+/// One tile holding the whole 64×64 image and a pass of thousands of samples per pixel: the
+/// expensive tile that kept the CPU busy for 240 s after the client left. Cancel must stop it
+/// inside the tile: the render's path count stays far below the tile's pass.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cancel_reaches_into_an_expensive_tile() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+    let settings = pb::RenderSettings { width: 64, height: 64, tile_size: 64, spp: 1 << 16, max_depth: 8, ..Default::default() };
+    let mut stream = raw.render_stream(&s, settings).await.unwrap();
+    // After the pass of 64 spp ends, the next (128 spp, 0.5 M paths) is under way.
+    let mut done_spp = 0;
+    while let Some(e) = stream.message().await.unwrap() {
+        if let Some(pb::render_event::Event::Progress(p)) = e.event {
+            done_spp = p.spp;
+            if p.spp >= 64 {
+                break;
+            }
+        }
+    }
+    assert!(raw.cancel(&s).await.unwrap(), "the render was running");
+    let finished = loop {
+        match stream.message().await.unwrap().and_then(|e| e.event) {
+            Some(pb::render_event::Event::Finished(f)) => break f,
+            Some(_) => continue,
+            None => panic!("no Finished"),
+        }
+    };
+    assert!(finished.cancelled);
+    // Paths of the completed passes plus at most part of the next; the passes after it (256,
+    // 512, ... spp) never start. Polling every 64 samples leaves the tile within ~a pixel's work.
+    let pixels = 64 * 64;
+    let next_pass = u64::from(done_spp) * pixels;
+    assert!(finished.paths < u64::from(done_spp) * pixels + next_pass, "{} paths after {done_spp} spp", finished.paths);
+    bystander_renders(&server).await;
+}
+
+/// A client that disconnects mid-render frees the render thread (the session stops
+/// rendering) within a bounded wait, whatever the tile costs.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_leaves_frees_its_render() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+    let settings = pb::RenderSettings { width: 64, height: 64, tile_size: 64, spp: 1 << 16, ..Default::default() };
+    let mut stream = raw.render_stream(&s, settings).await.unwrap();
+    stream.message().await.unwrap();
+    drop(stream);
+    wait_until_idle(&mut raw, &s).await;
+    bystander_renders(&server).await;
+}
+
+async fn wait_until_idle(raw: &mut Raw, s: &str) {
+    for _ in 0..200 {
+        if !raw.stats(s).await.unwrap().rendering {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(25)).await;
+    }
+    panic!("the render is still running 5 s later");
+}
+
+/// A client that opens a Render and never reads it pinned the render thread and the scene,
+/// even after Cancel. With a stall timeout it is dropped; Cancel frees it at once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_render_nobody_reads_is_dropped() {
+    let config = ServerConfig { stall_timeout: Duration::from_millis(500), ..ServerConfig::default() };
+    let server = EmbeddedServer::start_with(config).await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+    // 1024 tiles of f32 per pass: more than the event buffer and the HTTP/2 windows hold.
+    let settings = pb::RenderSettings { width: 1024, height: 1024, tile_size: 32, spp: 64, max_depth: 1, ..Default::default() };
+    let _unread = raw.render_stream(&s, settings.clone()).await.unwrap();
+    wait_until_idle(&mut raw, &s).await;
+    // And with Cancel, without waiting for the stall.
+    let _unread_too = raw.render_stream(&s, settings).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    raw.cancel(&s).await.unwrap();
+    wait_until_idle(&mut raw, &s).await;
+    raw.close(&s).await.unwrap();
+    bystander_renders(&server).await;
+}
+
+/// `threads = 1024` built a 1024-thread pool per render. Thread counts are capped at the
+/// machine's cores and pools are shared; renders still complete and agree.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn absurd_thread_counts_share_a_pool_of_the_machine_size() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    raw.sync(&s, tessera::sync::full_sync(&load("cornell_box.usda"))).await.unwrap();
+    let threads_now = || {
+        let status = std::fs::read_to_string("/proc/self/status").unwrap();
+        status.lines().find_map(|l| l.strip_prefix("Threads:")).unwrap().trim().parse::<usize>().unwrap()
+    };
+    for _ in 0..4 {
+        let f = raw.render(&s, pb::RenderSettings { threads: 1024, ..tiny(16, 2) }).await.unwrap();
+        assert_eq!(f.spp, 2);
+    }
+    // Other tests run in this process too, so only a bound: far from 4 x 1024.
+    assert!(threads_now() < 512, "{} threads", threads_now());
+}
+
+// ------------------------------------------------------------------ input hygiene
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_paths_parameters_and_chunks_are_refused_by_name() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    // A NUL in a prim path, and a 1 MB path.
+    assert_status(
+        raw.sync(&s, mesh("/Evil/Nul\0Byte", TRIANGLE.to_vec(), vec![0, 1, 2])).await,
+        Code::InvalidArgument,
+        &["/Evil/Nul\\0Byte", "control character"],
+    );
+    let long = format!("/{}", "a".repeat(1 << 20));
+    assert_status(
+        raw.sync(&s, mesh(&long, TRIANGLE.to_vec(), vec![0, 1, 2])).await,
+        Code::InvalidArgument,
+        &["1048577 bytes", "limit of 4096"],
+    );
+    // NaN and 1e38 material parameters, naming the material, node and input.
+    for (value, shown) in [(f32::NAN, "NaN"), (1e38, "1e38")] {
+        let net = pb::MaterialNetwork {
+            nodes: vec![node("/M/S", "UsdPreviewSurface", &[("roughness", pb::param_value::Value::FloatValue(value))])],
+            connections: vec![],
+            surface_node: "/M/S".into(),
+        };
+        assert_status(
+            raw.sync(&s, vec![material("/Evil/Param", net)]).await,
+            Code::InvalidArgument,
+            &["/Evil/Param", "/M/S", "'roughness'", shown],
+        );
+    }
+    // A negative light radius and a NaN colour, each by its own name.
+    let light = |radius: f32, color: pb::Float3| {
+        let l =
+            pb::LightPrim { light_type: pb::LightType::Sphere as i32, intensity: 1.0, radius, color: Some(color), ..Default::default() };
+        vec![tessera::sync::delta("/Evil/Light", pb::PrimKind::Light, pb::prim_delta::Payload::Light(l))]
+    };
+    let white = pb::Float3 { x: 1.0, y: 1.0, z: 1.0 };
+    assert_status(raw.sync(&s, light(-1.0, white)).await, Code::InvalidArgument, &["/Evil/Light", "radius", "negative"]);
+    let nan = pb::Float3 { x: f32::NAN, y: 1.0, z: 1.0 };
+    assert_status(raw.sync(&s, light(1.0, nan)).await, Code::InvalidArgument, &["/Evil/Light", "color", "finite"]);
+    // A chunk over the advertised element limit.
+    let limit = tessera_server::limits::Limits::default().max_array_chunk_elements as usize;
+    let prim = pb::MeshPrim { points_len: 3 * (limit as u64 + 3), triangle_indices_len: 3, visible: true, ..Default::default() };
+    let items = vec![
+        tessera::sync::delta("/Evil/BigChunk", pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim)),
+        Item::Chunk(pb::ArrayChunk {
+            path: "/Evil/BigChunk".into(),
+            field: pb::ArrayField::Points as i32,
+            floats: vec![0.0; 3 * limit + 9],
+            ..Default::default()
+        }),
+    ];
+    assert_status(raw.sync(&s, items).await, Code::InvalidArgument, &["/Evil/BigChunk", "chunk", "over the limit"]);
+    bystander_renders(&server).await;
+}
+
+/// 100 000 small meshes in one Sync stream: every message small, many of them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_hundred_thousand_small_prims_sync_in_one_stream() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let n = 100_000;
+    let mut items = Vec::with_capacity(3 * n);
+    for k in 0..n {
+        let dx = (k % 1000) as f32 * 1.5;
+        let dy = (k / 1000) as f32 * 1.5;
+        let pts = TRIANGLE.chunks(3).flat_map(|p| [p[0] + dx, p[1] + dy, p[2]]).collect();
+        items.extend(mesh(&format!("/Many/M{k}"), pts, vec![0, 1, 2]));
+    }
+    let r = raw.sync(&s, items).await.expect("a large sync from a conforming client goes through");
+    assert_eq!(r.prims_applied, n as u32);
+    assert_eq!(raw.stats(&s).await.unwrap().triangles, n as u64);
+}
