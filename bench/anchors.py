@@ -14,7 +14,12 @@ import os
 import sys
 import time
 
-import numpy as np
+if __name__ == "__main__" and (len(sys.argv) < 3 or sys.argv[1] not in ("rays", "cornell")):
+    # Without a workload, say how the benches call it (before needing numpy).
+    print(__doc__.strip())
+    sys.exit(0 if len(sys.argv) < 2 or sys.argv[1] in ("-h", "--help") else 2)
+
+import numpy as np  # noqa: E402
 
 
 def rays(d):

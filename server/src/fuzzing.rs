@@ -51,3 +51,27 @@ pub fn sync_bytes(data: &[u8]) -> Result<u64, String> {
     }
     session.commit(tx).map(|(v, _)| v).map_err(|s| s.message().to_string())
 }
+
+/// Limits of the texture entry point: a fuzzer's inputs claim any size in their headers.
+const FUZZ_TEXELS: u64 = 1 << 20;
+const FUZZ_DECODE_BYTES: u64 = 64 << 20;
+
+/// Decodes `data` as a texture file, as an upload is decoded: any format the decoders know,
+/// refused by its header when it claims more than the limits. Errors are expected; a panic
+/// or an allocation beyond the limits is a bug.
+pub fn texture_bytes(data: &[u8]) -> Result<(u32, u32), String> {
+    for name in ["upload.png", "upload.tga"] {
+        if let Ok(image) = render_core::texture::Image::decode_within(data, name, FUZZ_TEXELS, FUZZ_DECODE_BYTES) {
+            return Ok(image.size());
+        }
+    }
+    render_core::texture::Image::decode_within(data, "upload", FUZZ_TEXELS, FUZZ_DECODE_BYTES).map(|i| i.size()).map_err(|e| e.to_string())
+}
+
+/// Decodes `data` as a `RenderSettings` message and validates it as a Render request would,
+/// down to the film reservation's size. Returns the film's bytes or the refusal.
+pub fn render_settings_bytes(data: &[u8]) -> Result<u64, String> {
+    let settings = pb::RenderSettings::decode(data).map_err(|e| format!("decode: {e}"))?;
+    let job = crate::render_job::RenderJob::new(&settings, &fuzz_limits()).map_err(|s| s.message().to_string())?;
+    Ok(job.film_bytes())
+}

@@ -38,7 +38,7 @@ impl Default for Limits {
             max_resolution: 16_384,
             max_spp: 1 << 20,
             max_sessions: 64,
-            max_sessions_per_tenant: 16,
+            max_sessions_per_tenant: 64,
             // 1 Mi floats = 4 MiB would hit gRPC's default limit; stay well under it.
             max_array_chunk_elements: 256 * 1024,
             max_instances: 10_000_000,

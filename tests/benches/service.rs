@@ -82,6 +82,7 @@ async fn cancel_latency(server: &EmbeddedServer) {
             to_idle.push(t.elapsed().as_secs_f64() * 1e3);
         }
     }
+    c.close_session(pb::CloseSessionRequest { session_id: s }).await.unwrap();
     for v in [&mut to_finished, &mut to_idle] {
         v.sort_by(f64::total_cmp);
     }
@@ -154,7 +155,8 @@ fn main() {
     // `cargo bench` passes --bench; run only when asked for all benches or this one.
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
     rt.block_on(async {
-        let server = EmbeddedServer::start().await.unwrap();
+        let limits = tessera_server::limits::Limits { max_sessions: 80, ..Default::default() };
+        let server = EmbeddedServer::start_with(tessera_server::ServerConfig { limits, ..Default::default() }).await.unwrap();
         println!("service bench, {} cores", std::thread::available_parallelism().map_or(1, |n| n.get()));
         cancel_latency(&server).await;
         let one = load(&server, 1).await;

@@ -101,3 +101,84 @@ pub async fn furnace_sphere_mean(fixture_name: &str, energy_compensation: bool) 
     assert!(n > 100, "{fixture_name}: the sphere covers {n} pixels");
     mean
 }
+
+/// Inputs a hostile client sends, shared by the hostile-client and memory tests.
+pub mod hostile_inputs {
+    use tessera_proto::v1 as pb;
+
+    type Item = pb::sync_request::Item;
+
+    /// A PNG whose header claims `width`×`height` RGBA16 and whose data is a few bytes: what the
+    /// 2 MB "bomb" looks like to a decoder before it allocates.
+    pub fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+        fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+            out.extend((data.len() as u32).to_be_bytes());
+            let start = out.len();
+            out.extend(kind);
+            out.extend(data);
+            let crc = crc32(&out[start..]);
+            out.extend(crc.to_be_bytes());
+        }
+        let mut ihdr = Vec::new();
+        ihdr.extend(width.to_be_bytes());
+        ihdr.extend(height.to_be_bytes());
+        ihdr.extend([16, 6, 0, 0, 0]); // 16 bits, RGBA, deflate, adaptive filter, no interlace
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        chunk(&mut png, b"IHDR", &ihdr);
+        chunk(&mut png, b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+        chunk(&mut png, b"IEND", &[]);
+        png
+    }
+
+    /// CRC-32 (ISO-HDLC), as PNG chunks carry it.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in bytes {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            }
+        }
+        !crc
+    }
+
+    fn node(path: &str, id: &str, params: Vec<(&str, pb::param_value::Value)>) -> pb::MaterialNode {
+        pb::MaterialNode {
+            path: path.into(),
+            node_type_id: id.into(),
+            parameters: params.into_iter().map(|(k, v)| (k.to_string(), pb::ParamValue { value: Some(v) })).collect(),
+        }
+    }
+
+    /// A material using the texture with `hash`, and the texture's upload.
+    pub fn textured(hash: &str, bytes: &[u8]) -> Vec<Item> {
+        let tex = pb::TexturePrim { source: "bomb.png".into(), bytes_len: bytes.len() as u64 };
+        let texture = pb::param_value::Value::TextureValue(pb::TextureRef { content_hash: hash.into(), source: "bomb.png".into() });
+        let net = pb::MaterialNetwork {
+            nodes: vec![node("/M/S", "UsdPreviewSurface", vec![]), node("/M/Tex", "UsdUVTexture", vec![("file", texture)])],
+            connections: vec![pb::MaterialConnection {
+                downstream_node: "/M/S".into(),
+                downstream_input: "diffuseColor".into(),
+                upstream_node: "/M/Tex".into(),
+                upstream_output: "rgb".into(),
+            }],
+            surface_node: "/M/S".into(),
+        };
+        vec![
+            tessera::sync::delta(hash, pb::PrimKind::Texture, pb::prim_delta::Payload::Texture(tex)),
+            Item::Chunk(pb::ArrayChunk {
+                path: hash.into(),
+                field: pb::ArrayField::TextureBytes as i32,
+                data: bytes.to_vec(),
+                ..Default::default()
+            }),
+            tessera::sync::delta("/Evil/Bomb", pb::PrimKind::Material, pb::prim_delta::Payload::Material(net)),
+        ]
+    }
+
+    /// A mesh delta declaring `triangles` triangles (and half as many points), with no data.
+    pub fn declared_mesh(path: &str, triangles: u64) -> Vec<Item> {
+        let m = pb::MeshPrim { points_len: 3 * triangles / 2, triangle_indices_len: 3 * triangles, visible: true, ..Default::default() };
+        vec![tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(m))]
+    }
+}

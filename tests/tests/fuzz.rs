@@ -139,3 +139,58 @@ fn replay() {
     let result = if sync { tessera_server::fuzzing::sync_bytes(&data).map(|_| ()) } else { tessera::fuzzing::usd_text(&data) };
     println!("{result:?}");
 }
+
+/// The fixtures' texture files (under 200 KB), mutated, through the server's decoding.
+#[test]
+fn mutated_texture_files_never_panic_the_decoder() {
+    fn walk(dir: &std::path::Path, out: &mut Vec<Vec<u8>>) {
+        for entry in std::fs::read_dir(dir).unwrap().flatten() {
+            let p = entry.path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|e| ["png", "jpg", "jpeg", "exr", "hdr", "tga", "tif"].contains(&&*e.to_string_lossy()))
+                && std::fs::metadata(&p).is_ok_and(|m| m.len() < 200_000)
+            {
+                out.push(std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    let mut seeds = Vec::new();
+    walk(&fixture(""), &mut seeds);
+    seeds.push(hostile_inputs::png_claiming(16384, 16384));
+    assert!(seeds.len() >= 5, "{} texture seeds", seeds.len());
+    let failures = run("texture", &seeds, 40, |d| {
+        let _ = tessera_server::fuzzing::texture_bytes(d);
+    });
+    assert!(failures.is_empty(), "inputs that panicked texture decoding: {failures:?}");
+}
+
+/// Render settings, from the defaults and from every knob at an extreme, mutated as bytes.
+#[test]
+fn mutated_render_settings_never_panic_the_server() {
+    use prost::Message;
+    use tessera_proto::v1 as pb;
+    let extremes = [
+        pb::RenderSettings::default(),
+        pb::RenderSettings { width: 16384, height: 16384, spp: u32::MAX, max_depth: u32::MAX, tile_size: 1, ..Default::default() },
+        pb::RenderSettings {
+            threads: u32::MAX,
+            noise_threshold: f32::NAN,
+            clamp_indirect: -1.0,
+            pixel_aspect: f32::INFINITY,
+            ..Default::default()
+        },
+        pb::RenderSettings {
+            aovs: vec!["albedo".into(), "nonsense".into()],
+            caustics: 99,
+            sampler: -1,
+            light_split_budget: 1 << 30,
+            ..Default::default()
+        },
+    ];
+    let seeds: Vec<Vec<u8>> = extremes.iter().map(|s| s.encode_to_vec()).collect();
+    let failures = run("settings", &seeds, 300, |d| {
+        let _ = tessera_server::fuzzing::render_settings_bytes(d);
+    });
+    assert!(failures.is_empty(), "inputs that panicked render-settings validation: {failures:?}");
+}

@@ -327,61 +327,6 @@ fn budgeted(bytes: u64) -> ServerConfig {
     ServerConfig { memory_budget: bytes, session_memory_budget: bytes, ..ServerConfig::default() }
 }
 
-/// A PNG whose header claims `width`×`height` RGBA16 and whose data is a few bytes: what the
-/// 2 MB "bomb" looks like to a decoder before it allocates.
-pub fn png_claiming(width: u32, height: u32) -> Vec<u8> {
-    fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
-        out.extend((data.len() as u32).to_be_bytes());
-        let start = out.len();
-        out.extend(kind);
-        out.extend(data);
-        let crc = crc32(&out[start..]);
-        out.extend(crc.to_be_bytes());
-    }
-    let mut ihdr = Vec::new();
-    ihdr.extend(width.to_be_bytes());
-    ihdr.extend(height.to_be_bytes());
-    ihdr.extend([16, 6, 0, 0, 0]); // 16 bits, RGBA, deflate, adaptive filter, no interlace
-    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
-    chunk(&mut png, b"IHDR", &ihdr);
-    chunk(&mut png, b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
-    chunk(&mut png, b"IEND", &[]);
-    png
-}
-
-/// CRC-32 (ISO-HDLC), as PNG chunks carry it.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
-        }
-    }
-    !crc
-}
-
-/// A material using the texture with `hash`, and the texture's upload.
-fn textured(hash: &str, bytes: &[u8]) -> Vec<Item> {
-    let tex = pb::TexturePrim { source: "bomb.png".into(), bytes_len: bytes.len() as u64 };
-    let texture = pb::param_value::Value::TextureValue(pb::TextureRef { content_hash: hash.into(), source: "bomb.png".into() });
-    let net = pb::MaterialNetwork {
-        nodes: vec![node("/M/S", "UsdPreviewSurface", &[]), node("/M/Tex", "UsdUVTexture", &[("file", texture)])],
-        connections: vec![link("/M/S", "diffuseColor", "/M/Tex", "rgb")],
-        surface_node: "/M/S".into(),
-    };
-    vec![
-        tessera::sync::delta(hash, pb::PrimKind::Texture, pb::prim_delta::Payload::Texture(tex)),
-        Item::Chunk(pb::ArrayChunk {
-            path: hash.into(),
-            field: pb::ArrayField::TextureBytes as i32,
-            data: bytes.to_vec(),
-            ..Default::default()
-        }),
-        material("/Evil/Bomb", net),
-    ]
-}
-
 /// Under a 2 GiB budget: the 16384² all-AOV render (92 GiB of film), the 16-bit PNG bomb (4
 /// GiB to decode) and a 200M-triangle declaration are each refused with RESOURCE_EXHAUSTED
 /// naming what and how much, before anything is allocated.
@@ -396,16 +341,17 @@ async fn requests_beyond_the_memory_budget_are_resource_exhausted() {
     let huge = pb::RenderSettings { width: 16384, height: 16384, aovs: all, ..Default::default() };
     assert_status(raw.render(&s, huge).await, Code::ResourceExhausted, &["16384x16384 film", "memory budget", "GiB"]);
 
-    let png = png_claiming(16384, 16384);
+    let png = hostile_inputs::png_claiming(16384, 16384);
     let hash = tessera_server::textures::content_hash(&png);
-    assert_status(raw.sync(&s, textured(&hash, &png)).await, Code::ResourceExhausted, &["bomb.png", "16384×16384", "memory budget"]);
+    assert_status(
+        raw.sync(&s, hostile_inputs::textured(&hash, &png)).await,
+        Code::ResourceExhausted,
+        &["bomb.png", "16384×16384", "memory budget"],
+    );
 
     // 200 M triangles in one mesh are over the per-mesh limit; 40 M, within it, are over the
     // budget (10 GB of BVH and arrays as declared).
-    let declare = |tris: u64| {
-        let m = pb::MeshPrim { points_len: 3 * tris / 2, triangle_indices_len: 3 * tris, visible: true, ..Default::default() };
-        vec![tessera::sync::delta("/Evil/Huge", pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(m))]
-    };
+    let declare = |tris| hostile_inputs::declared_mesh("/Evil/Huge", tris);
     assert_status(raw.sync(&s, declare(200_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "200000000 triangles", "limit"]);
     assert_status(raw.sync(&s, declare(40_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "40000000 triangles", "memory budget"]);
 
@@ -430,15 +376,15 @@ async fn failed_syncs_leave_the_texture_cache_as_it_was() {
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .unwrap();
     let hash = tessera_server::textures::content_hash(&png);
-    let mut items = textured(&hash, &png);
+    let mut items = hostile_inputs::textured(&hash, &png);
     items.extend(mesh("/Evil/OutOfRange", TRIANGLE.to_vec(), vec![0, 1, 7]));
     assert_status(raw.sync(&s, items).await, Code::InvalidArgument, &["/Evil/OutOfRange"]);
     let missing =
         raw.client.missing_textures(pb::MissingTexturesRequest { content_hashes: vec![hash.clone()] }).await.unwrap().into_inner();
     assert_eq!(missing.content_hashes, vec![hash], "the failed sync's texture must not be cached");
-    let png = png_claiming(64, 64);
+    let png = hostile_inputs::png_claiming(64, 64);
     let hash = tessera_server::textures::content_hash(&png);
-    assert_status(raw.sync(&s, textured(&hash, &png)).await, Code::InvalidArgument, &["bomb.png"]);
+    assert_status(raw.sync(&s, hostile_inputs::textured(&hash, &png)).await, Code::InvalidArgument, &["bomb.png"]);
     bystander_renders(&server).await;
 }
 
@@ -539,7 +485,7 @@ async fn a_second_concurrent_sync_is_aborted_not_lost() {
     let first = tokio::spawn(async move { first_client.sync(tokio_stream::wrappers::ReceiverStream::new(rx)).await });
     // Wait until the server holds the first one (bounded).
     let mut aborted = None;
-    for _ in 0..100 {
+    for _ in 0..500 {
         match raw.sync(&s, vec![camera_and_light().remove(1)]).await {
             Err(e) if e.code() == Code::Aborted => {
                 aborted = Some(e);
