@@ -200,33 +200,7 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             };
         }
         spp_done += pass_spp;
-        let adaptive = settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP;
-        // Every pixel's relative error over the whole image, so neighbourhoods cross tiles.
-        let errors = adaptive.then(|| {
-            let mut errors = vec![0.0f32; (settings.width * settings.height) as usize];
-            for t in &tiles {
-                let t = t.lock().unwrap();
-                let r = t.rect;
-                for (i, e) in t.relative_errors().into_iter().enumerate() {
-                    let (x, y) = (r.x + i as u32 % r.width, r.y + i as u32 / r.width);
-                    errors[(y * settings.width + x) as usize] = e;
-                }
-            }
-            errors
-        });
-        let (mut var, mut mean, mut active, mut taken) = (0.0, 0.0, 0u64, 0u64);
-        for t in &tiles {
-            let mut t = t.lock().unwrap();
-            if let Some(errors) = &errors {
-                t.retire_converged(errors, settings.width, settings.noise_threshold);
-            }
-            let (v, m) = t.noise_terms();
-            var += v;
-            mean += m;
-            let (a, n) = t.sample_totals();
-            active += a as u64;
-            taken += n;
-        }
+        let (var, mean, active, taken) = settle_pass(&tiles, settings, spp_done);
         let pixels = (settings.width * settings.height).max(1) as f64;
         let noise = if mean > 0.0 { ((var / pixels).sqrt() / (mean / pixels)) as f32 } else { 0.0 };
         last = PassStats {
@@ -246,6 +220,40 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
     }
     let regions = regions_of(&tiles);
     RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None, regions }
+}
+
+/// After a pass: retires the pixels adaptive sampling finds converged (once every pixel has
+/// [`ADAPTIVE_MIN_SPP`]), and sums the noise terms and sample counts over the tiles as
+/// (variance, mean, active pixels, samples taken).
+fn settle_pass(tiles: &[Mutex<TileFilm>], settings: &RenderSettings, spp_done: u32) -> (f64, f64, u64, u64) {
+    let adaptive = settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP;
+    // Every pixel's relative error over the whole image, so neighbourhoods cross tiles.
+    let errors = adaptive.then(|| {
+        let mut errors = vec![0.0f32; (settings.width * settings.height) as usize];
+        for t in tiles {
+            let t = t.lock().unwrap();
+            let r = t.rect;
+            for (i, e) in t.relative_errors().into_iter().enumerate() {
+                let (x, y) = (r.x + i as u32 % r.width, r.y + i as u32 / r.width);
+                errors[(y * settings.width + x) as usize] = e;
+            }
+        }
+        errors
+    });
+    let (mut var, mut mean, mut active, mut taken) = (0.0, 0.0, 0u64, 0u64);
+    for t in tiles {
+        let mut t = t.lock().unwrap();
+        if let Some(errors) = &errors {
+            t.retire_converged(errors, settings.width, settings.noise_threshold);
+        }
+        let (v, m) = t.noise_terms();
+        var += v;
+        mean += m;
+        let (a, n) = t.sample_totals();
+        active += a as u64;
+        taken += n;
+    }
+    (var, mean, active, taken)
 }
 
 fn regions_of(tiles: &[Mutex<TileFilm>]) -> Vec<RegionSamples> {

@@ -417,75 +417,8 @@ impl Transaction {
                 self.desc.instancers.remove(&path);
                 self.meshes.remove(&path);
             }
-            (pb::PrimKind::Mesh, Some(Payload::Mesh(m))) => {
-                let geometry_dirty = d.dirty
-                    & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32)
-                    != 0;
-                if geometry_dirty {
-                    let tris = m.triangle_indices_len / 3;
-                    if tris > self.limits.max_triangles_per_mesh {
-                        return Err(Status::resource_exhausted(format!(
-                            "{path}: {tris} triangles exceed the limit of {} per mesh",
-                            self.limits.max_triangles_per_mesh
-                        )));
-                    }
-                    let cap = 9 * self.limits.max_triangles_per_mesh;
-                    if m.points_len > cap || m.normals_len > cap {
-                        return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
-                    }
-                    if m.uvs_len > cap {
-                        return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
-                    }
-                    if m.uvs_len % 2 != 0 {
-                        return Err(invalid(&path, "uvs", "length must be a multiple of 2"));
-                    }
-                    if m.primvars.len() > MAX_PRIMVARS_PER_MESH {
-                        return Err(invalid(
-                            &path,
-                            "primvars",
-                            format!("{} primvars, more than {MAX_PRIMVARS_PER_MESH}", m.primvars.len()),
-                        ));
-                    }
-                    for pv in &m.primvars {
-                        if pv.len > cap {
-                            return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
-                        }
-                        if pv.len % 3 != 0 {
-                            return Err(invalid(&path, &format!("primvars:{}", pv.name), "length must be a multiple of 3"));
-                        }
-                    }
-                    if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
-                        return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
-                    }
-                    self.check_declared_mesh(&path, &m)?;
-                    let primvars = vec![(Vec::new(), 0); m.primvars.len()];
-                    self.meshes.insert(path, StagedMesh { prim: m, primvars, ..Default::default() });
-                } else {
-                    // Transform, material or visibility only: keep the geometry.
-                    let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| {
-                        invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY")
-                    })?;
-                    existing.transform = convert::affine(&path, "transform", &m.transform)?;
-                    existing.material = m.material_path;
-                    existing.visible = m.visible;
-                }
-            }
-            (pb::PrimKind::Instancer, Some(Payload::Instancer(i))) => {
-                if i.transforms_len > 16 * self.limits.max_instances {
-                    return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
-                }
-                if i.transforms_len % 16 != 0 {
-                    return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
-                }
-                check_prim_path(&i.prototype_path)?;
-                let instances = i.transforms_len / 16;
-                Budget::check_fits(
-                    &self.budgets,
-                    instances.saturating_mul(BYTES_PER_INSTANCE + 128),
-                    &format!("{path}: {instances} instances as declared"),
-                )?;
-                self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
-            }
+            (pb::PrimKind::Mesh, Some(Payload::Mesh(m))) => self.apply_mesh(path, d.dirty, m)?,
+            (pb::PrimKind::Instancer, Some(Payload::Instancer(i))) => self.apply_instancer(path, i)?,
             (pb::PrimKind::Material, Some(Payload::Material(m))) => {
                 let network = convert::material_from_wire(&m);
                 network.validate(&path).map_err(|e| Status::invalid_argument(e.to_string()))?;
@@ -507,6 +440,78 @@ impl Transaction {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// A mesh delta: with dirty geometry, its declared arrays (checked against the limits and
+    /// the budget) are staged for the chunks that follow; otherwise only its placement,
+    /// material and visibility change.
+    fn apply_mesh(&mut self, path: String, dirty: u32, m: pb::MeshPrim) -> Result<(), Status> {
+        let geometry_dirty =
+            dirty & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32) != 0;
+        if geometry_dirty {
+            let tris = m.triangle_indices_len / 3;
+            if tris > self.limits.max_triangles_per_mesh {
+                return Err(Status::resource_exhausted(format!(
+                    "{path}: {tris} triangles exceed the limit of {} per mesh",
+                    self.limits.max_triangles_per_mesh
+                )));
+            }
+            let cap = 9 * self.limits.max_triangles_per_mesh;
+            if m.points_len > cap || m.normals_len > cap {
+                return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+            }
+            if m.uvs_len > cap {
+                return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+            }
+            if m.uvs_len % 2 != 0 {
+                return Err(invalid(&path, "uvs", "length must be a multiple of 2"));
+            }
+            if m.primvars.len() > MAX_PRIMVARS_PER_MESH {
+                return Err(invalid(&path, "primvars", format!("{} primvars, more than {MAX_PRIMVARS_PER_MESH}", m.primvars.len())));
+            }
+            for pv in &m.primvars {
+                if pv.len > cap {
+                    return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
+                }
+                if pv.len % 3 != 0 {
+                    return Err(invalid(&path, &format!("primvars:{}", pv.name), "length must be a multiple of 3"));
+                }
+            }
+            if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
+                return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
+            }
+            self.check_declared_mesh(&path, &m)?;
+            let primvars = vec![(Vec::new(), 0); m.primvars.len()];
+            self.meshes.insert(path, StagedMesh { prim: m, primvars, ..Default::default() });
+        } else {
+            // Transform, material or visibility only: keep the geometry.
+            let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| {
+                invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY")
+            })?;
+            existing.transform = convert::affine(&path, "transform", &m.transform)?;
+            existing.material = m.material_path;
+            existing.visible = m.visible;
+        }
+        Ok(())
+    }
+
+    /// An instancer delta: its transforms follow as chunks.
+    fn apply_instancer(&mut self, path: String, i: pb::InstancerPrim) -> Result<(), Status> {
+        if i.transforms_len > 16 * self.limits.max_instances {
+            return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
+        }
+        if i.transforms_len % 16 != 0 {
+            return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
+        }
+        check_prim_path(&i.prototype_path)?;
+        let instances = i.transforms_len / 16;
+        Budget::check_fits(
+            &self.budgets,
+            instances.saturating_mul(BYTES_PER_INSTANCE + 128),
+            &format!("{path}: {instances} instances as declared"),
+        )?;
+        self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
         Ok(())
     }
 

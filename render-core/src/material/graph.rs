@@ -270,6 +270,24 @@ pub fn perturb_normal(ns: Vec3, dpds: Vec3, dpdt: Vec3, n_ts: Vec3) -> Vec3 {
 /// Deepest chain of texture nodes followed (a cycle is cut there).
 const MAX_CHAIN: usize = 16;
 
+/// A float, float3 or int primvar reader: the mesh's primvar its `varname` names, or its
+/// fallback where it names none.
+fn primvar_reader(node: &MaterialNode, id: &str, report: &mut ResolveReport) -> Expr {
+    let fallback = match node.parameters.get("fallback") {
+        Some(ParamValue::Float(x)) => Vec4::new(*x, 0.0, 0.0, 0.0),
+        Some(ParamValue::Int(i)) => Vec4::new(*i as f32, 0.0, 0.0, 0.0),
+        Some(ParamValue::Float3(v)) => v.extend(0.0),
+        _ => Vec4::ZERO,
+    };
+    match node.parameters.get("varname") {
+        Some(ParamValue::String(name)) if !name.is_empty() => Expr::Primvar { name: name.clone(), fallback },
+        _ => {
+            report.warnings.push(format!("{}: {id} has no varname; its fallback is used", node.path));
+            Expr::Const(fallback)
+        }
+    }
+}
+
 fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSource, report: &mut ResolveReport, depth: usize) -> Expr {
     let p = |name: &str| node.parameters.get(name);
     let float2 = |name: &str, default: Vec2| match p(name) {
@@ -302,21 +320,7 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
             // The client sends the float2 primvar the readers name as the mesh's st.
             Expr::St { fallback: float2("fallback", Vec2::ZERO) }
         }
-        id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => {
-            let fallback = match p("fallback") {
-                Some(ParamValue::Float(x)) => Vec4::new(*x, 0.0, 0.0, 0.0),
-                Some(ParamValue::Int(i)) => Vec4::new(*i as f32, 0.0, 0.0, 0.0),
-                Some(ParamValue::Float3(v)) => v.extend(0.0),
-                _ => Vec4::ZERO,
-            };
-            match p("varname") {
-                Some(ParamValue::String(name)) if !name.is_empty() => Expr::Primvar { name: name.clone(), fallback },
-                _ => {
-                    report.warnings.push(format!("{}: {id} has no varname; its fallback is used", node.path));
-                    Expr::Const(fallback)
-                }
-            }
-        }
+        id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => primvar_reader(node, id, report),
         "UsdTransform2d" => {
             let input = upstream("in", report).unwrap_or(Expr::Const(float2("in", Vec2::ZERO).extend(0.0).extend(0.0)));
             let rotation = match p("rotation") {

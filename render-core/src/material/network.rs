@@ -74,8 +74,8 @@ pub struct MaterialNetwork {
 struct Walk<'a> {
     material_path: &'a str,
     used: Vec<String>,
-    /// Each node's material, resolved once: a node shared by many layers (a "diamond")
-    /// costs one resolution, not one per path to it.
+    /// The material of each node feeding several inputs, resolved once: a node shared by many
+    /// layers (a "diamond") costs one resolution, not one per path to it.
     memo: std::collections::HashMap<String, Material>,
     report: ResolveReport,
     overrides: Overrides<'a>,
@@ -296,11 +296,17 @@ impl MaterialNetwork {
     }
 
     fn resolve_node(&self, path: &str, depth: usize, walk: &mut Walk) -> Material {
-        if let Some(m) = walk.memo.get(path) {
+        if !walk.memo.is_empty()
+            && let Some(m) = walk.memo.get(path)
+        {
             return m.clone();
         }
         let m = self.resolve_node_once(path, depth, walk);
-        walk.memo.insert(path.to_string(), m.clone());
+        // Only nodes that feed more than one input can be met again: the rest (all of most
+        // networks, resolved per shading point when textured) skip the map entirely.
+        if self.connections.iter().filter(|c| c.upstream_node == path).nth(1).is_some() {
+            walk.memo.insert(path.to_string(), m.clone());
+        }
         m
     }
 
