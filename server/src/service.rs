@@ -235,6 +235,7 @@ impl pb::render_server::Render for RenderService {
             samples_per_second: if seconds > 0.0 { samples as f64 / seconds } else { 0.0 },
             bytes_received: c.bytes_received.load(Ordering::Relaxed),
             rendering: s.render_cancel.lock().unwrap().is_some(),
+            syncing: s.is_syncing(),
             session_memory_used: own.used(),
             session_memory_budget: own.limit(),
             server_memory_used: self.budget.used(),

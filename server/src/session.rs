@@ -248,6 +248,11 @@ impl Session {
         Ok(SyncGuard(Arc::clone(self)))
     }
 
+    /// Whether a Sync holds the session's Sync slot now.
+    pub fn is_syncing(&self) -> bool {
+        self.syncing.load(Ordering::Acquire)
+    }
+
     /// Bytes the committed scene is estimated to hold.
     pub fn scene_bytes(&self) -> u64 {
         self.state.lock().unwrap().as_ref().map_or(0, |c| c.memory.bytes())

@@ -483,18 +483,20 @@ async fn a_second_concurrent_sync_is_aborted_not_lost() {
     tx.send(pb::SyncRequest { session_id: s.clone(), item: Some(camera_and_light().remove(0)) }).await.unwrap();
     let mut first_client = raw.client.clone();
     let first = tokio::spawn(async move { first_client.sync(tokio_stream::wrappers::ReceiverStream::new(rx)).await });
-    // Wait until the server holds the first one (bounded).
-    let mut aborted = None;
-    for _ in 0..500 {
-        match raw.sync(&s, vec![camera_and_light().remove(1)]).await {
-            Err(e) if e.code() == Code::Aborted => {
-                aborted = Some(e);
-                break;
-            }
-            _ => tokio::time::sleep(Duration::from_millis(20)).await,
+    // Wait until the server holds the first one (bounded): probing with Syncs before then
+    // could let a probe take the slot and abort the first instead.
+    let mut held = false;
+    for _ in 0..1000 {
+        if raw.stats(&s).await.unwrap().syncing {
+            held = true;
+            break;
         }
+        tokio::time::sleep(Duration::from_millis(10)).await;
     }
+    assert!(held, "the first Sync reached the server within 10 s");
+    let aborted = raw.sync(&s, vec![camera_and_light().remove(1)]).await.err();
     let e = aborted.expect("a concurrent Sync is refused while the first is open");
+    assert_eq!(e.code(), Code::Aborted, "{e:?}");
     assert!(e.message().contains("one Sync at a time"), "{e:?}");
     drop(tx);
     let v1 = first.await.unwrap().expect("the first Sync commits").into_inner().scene_version;
