@@ -65,17 +65,37 @@ pub fn mikktspace(mesh: &Mesh) -> Option<Attribute<Vec4>> {
     Some(Attribute::FaceVarying(corners.out))
 }
 
-/// The shading normal a tangent-space normal map gives with an interpolated MikkTSpace
-/// tangent `t` (world space, any length) and bitangent sign `sign` around the shading normal
-/// `ns`: normalize(x·T + y·B + z·N) with B = sign·(N × T) and T made orthogonal to N. None when
-/// the tangent is degenerate (the caller falls back to the triangle's tangent).
-pub fn perturb(ns: Vec3, t: Vec3, sign: f32, n_ts: Vec3) -> Option<Vec3> {
+/// Which way a normal map's bitangent runs: MikkTSpace's sign, or the triangle's ∂p/∂t.
+#[derive(Clone, Copy, Debug)]
+pub enum Handedness {
+    /// MikkTSpace's bitangent sign (the tangent's w).
+    Sign(f32),
+    /// The bitangent is on the side of N × T that ∂p/∂t is.
+    Along(Vec3),
+}
+
+/// The shading normal a tangent-space normal map gives with tangent `t` (world space, any
+/// length) around the shading normal `ns`: normalize(x·T + y·B + z·N) with T made orthogonal
+/// to N and B = ±(N × T) by `handedness`. None when the tangent or the value is degenerate.
+pub fn perturb(ns: Vec3, t: Vec3, handedness: Handedness, n_ts: Vec3) -> Option<Vec3> {
     let t = (t - ns * ns.dot(t)).try_normalize()?;
     if !n_ts.is_finite() {
         return None;
     }
-    let b = ns.cross(t) * if sign < 0.0 { -1.0 } else { 1.0 };
+    let flip = match handedness {
+        Handedness::Sign(sign) => sign < 0.0,
+        Handedness::Along(dpdt) => ns.cross(t).dot(dpdt) < 0.0,
+    };
+    let b = ns.cross(t) * if flip { -1.0 } else { 1.0 };
     (t * n_ts.x + b * n_ts.y + ns * n_ts.z).try_normalize()
+}
+
+/// The normal-mapped shading normal: with the interpolated MikkTSpace tangent `mikk` (xyz
+/// and bitangent sign w) where the mesh has one, else with the triangle's own ∂p/∂s and
+/// ∂p/∂t (MikkTSpace's construction, per triangle); `ns` where both are degenerate.
+pub fn normal_mapped(ns: Vec3, mikk: Vec4, dpds: Vec3, dpdt: Vec3, n_ts: Vec3) -> Vec3 {
+    let welded = (mikk != Vec4::ZERO).then(|| perturb(ns, mikk.truncate(), Handedness::Sign(mikk.w), n_ts)).flatten();
+    welded.or_else(|| perturb(ns, dpds, Handedness::Along(dpdt), n_ts)).unwrap_or(ns)
 }
 
 #[cfg(test)]
@@ -171,11 +191,27 @@ mod tests {
     #[test]
     fn perturbing_with_a_flat_map_keeps_the_normal_and_a_tilted_map_follows_the_tangent() {
         let ns = Vec3::Z;
-        assert_eq!(perturb(ns, Vec3::X, 1.0, Vec3::Z), Some(Vec3::Z));
-        let tilted = perturb(ns, Vec3::X * 3.0 + Vec3::Z, 1.0, Vec3::new(0.5, 0.0, 0.866)).unwrap();
+        assert_eq!(perturb(ns, Vec3::X, Handedness::Sign(1.0), Vec3::Z), Some(Vec3::Z));
+        let tilted = perturb(ns, Vec3::X * 3.0 + Vec3::Z, Handedness::Sign(1.0), Vec3::new(0.5, 0.0, 0.866)).unwrap();
         assert!((tilted - Vec3::new(0.5, 0.0, 0.866).normalize()).length() < 1e-4, "{tilted:?}");
-        let mirrored = perturb(ns, Vec3::X, -1.0, Vec3::new(0.0, 0.5, 0.866)).unwrap();
+        let mirrored = perturb(ns, Vec3::X, Handedness::Sign(-1.0), Vec3::new(0.0, 0.5, 0.866)).unwrap();
         assert!(mirrored.y < 0.0, "sign −1 flips the bitangent: {mirrored:?}");
-        assert_eq!(perturb(ns, Vec3::Z, 1.0, Vec3::X), None, "a tangent along the normal is degenerate");
+        assert_eq!(perturb(ns, Vec3::Z, Handedness::Sign(1.0), Vec3::X), None, "a tangent along the normal is degenerate");
+    }
+
+    #[test]
+    fn normal_maps_tilt_along_the_texture_axes_and_keep_their_handedness() {
+        let (ns, dpds, dpdt) = (Vec3::Z, Vec3::X * 2.0, Vec3::Y * 3.0);
+        assert_eq!(normal_mapped(ns, Vec4::ZERO, dpds, dpdt, Vec3::Z), Vec3::Z, "a flat map is the shading normal");
+        let n = normal_mapped(ns, Vec4::ZERO, dpds, dpdt, Vec3::new(1.0, 0.0, 1.0));
+        assert!((n - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-6, "+x leans along ∂p/∂s: {n}");
+        // A mirrored texture (t running down) flips the bitangent, as MikkTSpace's sign does.
+        let up = normal_mapped(ns, Vec4::ZERO, dpds, dpdt, Vec3::new(0.0, 1.0, 1.0));
+        let mirrored = normal_mapped(ns, Vec4::ZERO, dpds, -dpdt, Vec3::new(0.0, 1.0, 1.0));
+        assert!(up.y > 0.0 && mirrored.y < 0.0, "{up} {mirrored}");
+        // Degenerate frames and values keep the normal.
+        assert_eq!(normal_mapped(ns, Vec4::ZERO, Vec3::Z, dpdt, Vec3::X), ns);
+        assert_eq!(normal_mapped(ns, Vec4::ZERO, dpds, dpdt, Vec3::NAN), ns);
+        assert_eq!(normal_mapped(ns, Vec4::ZERO, dpds, dpdt, Vec3::ZERO), ns);
     }
 }

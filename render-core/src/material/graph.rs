@@ -253,20 +253,6 @@ impl TexturedMaterial {
     }
 }
 
-/// The shading normal a tangent-space normal map gives: `n_ts` (+Z along the normal; x, y
-/// along ∂p/∂s and ∂p/∂t) in the frame of `ns`, with the tangent from `dpds` made orthogonal
-/// to `ns` and the bitangent's handedness from `dpdt`, as MikkTSpace builds it per vertex
-/// (here per triangle). Degenerate input keeps `ns`.
-pub fn perturb_normal(ns: Vec3, dpds: Vec3, dpdt: Vec3, n_ts: Vec3) -> Vec3 {
-    let t = (dpds - ns * ns.dot(dpds)).normalize_or_zero();
-    if t == Vec3::ZERO || !n_ts.is_finite() {
-        return ns;
-    }
-    let b = ns.cross(t) * if ns.cross(t).dot(dpdt) < 0.0 { -1.0 } else { 1.0 };
-    let n = (t * n_ts.x + b * n_ts.y + ns * n_ts.z).normalize_or_zero();
-    if n == Vec3::ZERO { ns } else { n }
-}
-
 /// Deepest chain of texture nodes followed (a cycle is cut there).
 const MAX_CHAIN: usize = 16;
 
@@ -472,22 +458,6 @@ mod tests {
         let m = TexturedMaterial::compile(&net, "/M", &|_: &str, _| None, &mut report).unwrap();
         assert!(report.warnings.iter().any(|w| w.contains("/M/T") && w.contains("rb.png")), "{:?}", report.warnings);
         assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Y);
-    }
-
-    #[test]
-    fn normal_maps_tilt_along_the_texture_axes_and_keep_their_handedness() {
-        let (ns, dpds, dpdt) = (Vec3::Z, Vec3::X * 2.0, Vec3::Y * 3.0);
-        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::Z), Vec3::Z, "a flat map is the shading normal");
-        let n = perturb_normal(ns, dpds, dpdt, Vec3::new(1.0, 0.0, 1.0));
-        assert!((n - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-6, "+x leans along ∂p/∂s: {n}");
-        // A mirrored texture (t running down) flips the bitangent, as MikkTSpace's sign does.
-        let up = perturb_normal(ns, dpds, dpdt, Vec3::new(0.0, 1.0, 1.0));
-        let mirrored = perturb_normal(ns, dpds, -dpdt, Vec3::new(0.0, 1.0, 1.0));
-        assert!(up.y > 0.0 && mirrored.y < 0.0, "{up} {mirrored}");
-        // Degenerate frames and values keep the normal.
-        assert_eq!(perturb_normal(ns, Vec3::Z, dpdt, Vec3::X), ns);
-        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::NAN), ns);
-        assert_eq!(perturb_normal(ns, dpds, dpdt, Vec3::ZERO), ns);
     }
 
     #[test]

@@ -1,0 +1,166 @@
+//! Unidirectional path tracing with next-event estimation and multiple importance sampling
+//! (Veach 1997, power heuristic), and Russian roulette.
+//!
+//! Depth counts scattering events (pbrt's convention): `max_depth = 1` is direct lighting
+//! only. Mitsuba's `max_depth` counts path vertices including the emitter, so its
+//! `max_depth = 8` equals our 7.
+
+//! The path loop ([`trace_path`]) calls parts with one job each, over a [`path::PathState`]:
+//! shading-point setup ([`shading`]), emission found by the path ([`emission`]), next-event
+//! estimation ([`direct`]), subsurface random walks ([`medium`]) and the next direction
+//! ([`scatter`]); the light-path AOVs are recorded as light is added ([`path::LightPaths`]).
+
+mod direct;
+mod emission;
+mod medium;
+mod path;
+mod scatter;
+mod settings;
+mod shading;
+
+pub use settings::{IntegratorSettings, LightStrategy};
+
+use crate::bsdf::Bsdf;
+use crate::caustics::{self, CausticMode};
+use crate::film::PixelSample;
+use crate::geometry::Ray;
+use crate::light::ShadingContext;
+use crate::math::is_finite;
+use crate::sampling::PathSampler;
+use crate::scene::CommittedScene;
+
+use direct::DirectLighting;
+use medium::WalkStep;
+use path::PathState;
+use shading::{Landing, Vertex};
+
+/// Counters of one path.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathCounters {
+    /// Rays traced (camera, bounce and shadow).
+    pub rays: u64,
+    /// Samples whose radiance was not finite (dropped; a bug indicator).
+    pub non_finite: u64,
+}
+
+/// The scene and settings a path is traced with, and the switches derived from them.
+struct Tracer<'a> {
+    scene: &'a CommittedScene,
+    settings: &'a IntegratorSettings,
+    /// Caustic avoidance is on.
+    avoid: bool,
+    /// Every piece of machinery runs ([`IntegratorSettings::force_all_effects`]).
+    force: bool,
+}
+
+/// Radiance and first-hit AOVs along a camera ray.
+pub fn trace_path(
+    scene: &CommittedScene,
+    camera_ray: Ray,
+    depth_of: impl Fn(f32) -> f32,
+    background_depth: f32,
+    rng: &mut PathSampler,
+    settings: &IntegratorSettings,
+    counters: &mut PathCounters,
+) -> PixelSample {
+    let tracer = Tracer { scene, settings, avoid: settings.caustics == CausticMode::Avoid, force: settings.force_all_effects };
+    let mut out = PixelSample { depth: background_depth, ..Default::default() };
+    let mut path = PathState::new(camera_ray, settings);
+    // The BSDF at the current vertex; one buffer for the whole path (see `Bsdf::clone_from`).
+    let mut bsdf = Bsdf::default();
+    loop {
+        counters.rays += 1;
+        let hit = scene.intersect(&path.ray);
+        if let Some(m) = path.walk.medium {
+            // Inside a subsurface medium: scatter before the boundary, or reach it.
+            match tracer.walk_step(&mut path, m, hit.map_or(f32::INFINITY, |h| h.t), rng, counters) {
+                WalkStep::Scattered => continue,
+                WalkStep::Ended => break,
+                WalkStep::Boundary => {}
+            }
+        }
+        let share = std::mem::replace(&mut path.exit_share, 1.0);
+        let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
+        tracer.add_crossed_lights(&mut path, t_hit, share);
+        let Some(hit) = hit else {
+            tracer.add_escaped(&mut path, share);
+            break;
+        };
+        let v = match tracer.land(&mut path, &hit, &mut bsdf) {
+            Landing::Surface(v) => v,
+            Landing::PassedThrough => {
+                path.exit_share = share;
+                continue;
+            }
+            Landing::Stopped => break,
+        };
+        tracer.add_surface_emission(&mut path, &v, &hit, share);
+        if path.depth == 0 {
+            record_first_hit(&mut out, scene, &v, &bsdf, depth_of(hit.t));
+        }
+        if path.depth >= settings.max_depth || bsdf.is_empty() {
+            break;
+        }
+        if !tracer.bounce(&mut path, &v, &mut bsdf, rng, counters) {
+            break;
+        }
+    }
+    finish(out, path.light, counters)
+}
+
+impl Tracer<'_> {
+    /// Direct light at `v`, then the next direction; false when the path ends there.
+    fn bounce(&self, path: &mut PathState, v: &Vertex, bsdf: &mut Bsdf, rng: &mut PathSampler, counters: &mut PathCounters) -> bool {
+        bsdf.prepare(v.wo_local);
+        // Light sampling context: the geometric normal on the viewer's side.
+        let ctx = ShadingContext { p: v.s.p, n: if v.ng.dot(v.wo) < 0.0 { -v.ng } else { v.ng }, both_sides: bsdf.transmits() };
+        // Each bounce draws two 4D sets, whatever happens along the path: (light position,
+        // light choice, roulette) and (BSDF direction, lobe choice), the 2D pairs on a set's
+        // best-stratified first two dimensions.
+        let [ul_x, ul_y, u_sel, u_rr] = rng.next_4d();
+        let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
+        let inside_here = path.walk.medium.is_some();
+        let leaving_share = self.leaving_share(path, v);
+        // Next-event estimation here finds direct light at the first surface, or at the exit
+        // of the walk it started.
+        let is_direct = path.depth == 0 || (path.light.in_walk && inside_here);
+        let direct = DirectLighting { v, bsdf, ctx, u: [ul_x, ul_y, u_sel], leaving_share, is_direct };
+        self.add_direct_light(path, &direct, counters);
+        self.scatter(path, v, bsdf, ctx, [ub_x, ub_y, u_lobe], leaving_share) && path.survives_roulette(self.settings.rr_start, u_rr)
+    }
+
+    /// Caustic avoidance at a subsurface boundary seen from inside: what light the path
+    /// finds by leaving the medium here, transparent shadows from the scattering event
+    /// before already found w'(B_t) of ("lighting at the exit point will be weighted down
+    /// and replaced by lighting in the interior"). Indirect light beyond stays whole.
+    fn leaving_share(&self, path: &PathState, v: &Vertex) -> f32 {
+        match (&path.prev, path.walk.medium.is_some()) {
+            (Some(p), true) if self.avoid => {
+                self.scene.medium_boundary(v.s.material).map_or(1.0, |b| 1.0 - caustics::roughness_weight(p.roughness, b.roughness))
+            }
+            _ => 1.0,
+        }
+    }
+}
+
+/// The first-hit AOVs: coverage, prim id, normal, depth, position and albedo.
+fn record_first_hit(out: &mut PixelSample, scene: &CommittedScene, v: &Vertex, bsdf: &Bsdf, depth: f32) {
+    out.alpha = 1.0;
+    out.prim_id = scene.instances[v.s.instance as usize].prim + 1;
+    out.normal = v.ns;
+    out.depth = depth;
+    out.position = v.s.p;
+    out.albedo = bsdf.albedo(v.wo_local.with_z(v.wo_local.z.abs()));
+}
+
+/// The sample the path gathered; a non-finite one is dropped and counted.
+fn finish(mut out: PixelSample, mut light: path::LightPaths, counters: &mut PathCounters) -> PixelSample {
+    if !is_finite(light.total) {
+        counters.non_finite += 1;
+        light.clear();
+    }
+    out.radiance = light.total;
+    out.components = light.components;
+    out.direct = light.direct;
+    out
+}

@@ -1,0 +1,173 @@
+//! Shading-point setup: the material where the ray landed (textures resolved at the ray's
+//! footprint), cut-outs and partial presence, normal maps, the BSDF and its frame.
+
+use glam::Vec3;
+
+use crate::bsdf::Bsdf;
+use crate::bvh::Hit;
+use crate::caustics::RoughnessFloor;
+use crate::geometry::{Ray, offset_ray_origin};
+use crate::material::{Material, Uber};
+use crate::math::Frame;
+use crate::scene::SurfaceHit;
+
+use super::Tracer;
+use super::path::PathState;
+
+/// A surface a path scatters at, set up for shading.
+pub(super) struct Vertex {
+    /// The surface, its shading normal normal-mapped.
+    pub s: SurfaceHit,
+    /// Towards the previous vertex.
+    pub wo: Vec3,
+    /// The material resolved here and its normal-map normal, for textured materials.
+    pub local: Option<(Material, Option<Vec3>)>,
+    /// Shading and geometric normals, oriented for the BSDF (see [`Tracer::orient`]).
+    pub ns: Vec3,
+    pub ng: Vec3,
+    pub frame: Frame,
+    pub wo_local: Vec3,
+    /// The surface's own roughness (before caustic avoidance clamps it).
+    pub a_roughness: f32,
+    /// The ray cone's width here.
+    pub cone_here: f32,
+}
+
+impl Vertex {
+    /// Where an interpolated normal and the facet disagree about which side a direction is
+    /// on, following it would reflect into the surface or refract out of the wrong side
+    /// (light leaks through tessellated glass); such directions carry no light instead.
+    #[inline]
+    pub fn sides_agree(&self, w: Vec3, local_z: f32) -> bool {
+        w.dot(self.ng) * local_z > 0.0
+    }
+
+    /// A ray leaving the surface along `dir`, its origin offset to the side `dir` is on.
+    #[inline]
+    pub fn leave(&self, dir: Vec3) -> Ray {
+        Ray::new(offset_ray_origin(self.s.p, if dir.dot(self.ng) > 0.0 { self.ng } else { -self.ng }, self.s.offset_scale), dir)
+    }
+}
+
+/// What the ray met.
+pub(super) enum Landing {
+    /// A surface to scatter at.
+    Surface(Box<Vertex>),
+    /// A surface cut out or absent here: the ray goes on (the path's ray is already updated).
+    PassedThrough,
+    /// More cut-outs than a ray crosses: the rest counts as opaque.
+    Stopped,
+}
+
+impl Tracer<'_> {
+    /// Sets up shading at `hit`, writing the BSDF into `bsdf` (one buffer for the whole path).
+    pub(super) fn land(&self, path: &mut PathState, hit: &Hit, bsdf: &mut Bsdf) -> Landing {
+        let scene = self.scene;
+        let mut s = scene.surface(hit);
+        let ray = path.ray;
+        let cone_here = path.cone.width_at(hit.t);
+        // A textured material is resolved here, at this point and footprint.
+        let local = scene.textured(s.material).map(|t| {
+            let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
+            t.at(&scene.shading_point(&s, cone_here, cos))
+        });
+        if self.passes_through(&s, ray.dir, &local) {
+            // It goes on as if the surface were not there.
+            path.cutouts_crossed += 1;
+            if path.cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
+                return Landing::Stopped;
+            }
+            path.cone.width = cone_here;
+            path.ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
+            return Landing::PassedThrough;
+        }
+        if let Some((_, Some(n))) = &local {
+            s.ns = crate::tangents::normal_mapped(s.ns, s.tangent, s.dpds, s.dpdt, *n);
+        }
+        let wo = -ray.dir;
+        let glitter = self.choose_bsdf(path, &s, &local, bsdf);
+        let a_roughness = self.own_roughness(&s, &local);
+        let (ns, ng) = orient(&s, wo, bsdf.transmits());
+        let frame = if self.force || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
+        if let Some(u) = &glitter {
+            self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
+        }
+        let wo_local = frame.to_local(wo);
+        Landing::Surface(Box::new(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here }))
+    }
+
+    /// True when the ray passes `s` untouched: cut out here, or not present for this ray
+    /// where the surface is partially present.
+    fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &Option<(Material, Option<Vec3>)>) -> bool {
+        let pass_through = local.as_ref().map_or(self.scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
+        let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, dir) < pass_through;
+        absent || local.as_ref().is_some_and(|(m, _)| m.cut_out)
+    }
+
+    /// Writes the BSDF at `s` into `bsdf`: the material's (at caustic avoidance's roughness
+    /// floor), with every lobe when forced, or a glitter material's base lobes, whose flakes
+    /// are added once the frame is known (returned).
+    fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>, bsdf: &mut Bsdf) -> Option<Uber> {
+        let (ec, force) = (self.settings.energy_compensation, self.force);
+        let level = if self.avoid { path.floor.level() } else { 0 };
+        // Glitter flakes depend on the point and footprint: such materials build their lobes
+        // here, the flakes once the shading frame is known.
+        let uber_here = local.as_ref().map_or(&self.scene.materials[s.material as usize].surface, |(m, _)| &m.surface);
+        let glitter = uber_here
+            .has_glitter()
+            .then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
+        match local {
+            _ if let Some(u) = &glitter => *bsdf = u.base_bsdf(ec, force),
+            Some((m, _)) if force => *bsdf = m.surface.bsdf_with_every_lobe(ec),
+            Some((m, _)) => *bsdf = m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
+            None if force => bsdf.clone_from(self.scene.bsdf_with_every_lobe(s.material, ec)),
+            None => bsdf.clone_from(self.scene.bsdf_floored(s.material, ec, level)),
+        }
+        glitter
+    }
+
+    /// The surface's own roughness (before clamping), which weighs transparent shadows
+    /// against paths through glass on both sides of the comparison; 0 without caustic
+    /// avoidance, which alone reads it.
+    fn own_roughness(&self, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>) -> f32 {
+        let ec = self.settings.energy_compensation;
+        match local {
+            Some((m, _)) if self.avoid => m.surface.bsdf(ec).roughness(),
+            None if self.avoid => self.scene.bsdf(s.material, ec).roughness(),
+            _ => 0.0,
+        }
+    }
+
+    /// Adds a glitter material's flakes at `s` to `bsdf`.
+    fn apply_glitter(&self, u: &Uber, s: &SurfaceHit, ns: Vec3, frame: &Frame, cone_here: f32, bsdf: &mut Bsdf) {
+        let t = &self.scene.instances[s.instance as usize].transform;
+        let m3 = t.to_world.matrix3;
+        // Flakes live in object space (Hery, Kass & Ling, "Physically Based Shading of
+        // Glitter", section 3.5); so does the footprint.
+        let n_obj = Vec3::from(m3.transpose() * glam::Vec3A::from(ns)).normalize_or_zero();
+        let radius = 0.5 * cone_here / m3.determinant().abs().cbrt();
+        let g = &u.glitter;
+        let flakes = g.params.flakes_at(t.to_object.transform_point3(s.p), n_obj, radius);
+        g.params.apply(g.weight, &flakes, bsdf, |n| frame.to_local((t.normal_matrix * n).normalize_or(ns)));
+    }
+}
+
+/// The shading and geometric normals the BSDF sees. Opaque surfaces are two-sided: both
+/// normals face the viewer. Transmissive ones keep their authored orientation (the shading
+/// normal's side is outside) so a ray inside glass sees its inside. The geometric normal is
+/// turned to the shading normal's side; a direction the two normals put on different sides
+/// is dropped ([`Vertex::sides_agree`]).
+fn orient(s: &SurfaceHit, wo: Vec3, transmits: bool) -> (Vec3, Vec3) {
+    if transmits {
+        let ng = if s.ng.dot(s.ns) < 0.0 { -s.ng } else { s.ng };
+        // Near silhouettes the viewer itself can be on different sides of the two normals:
+        // there the facet decides.
+        if wo.dot(ng) * wo.dot(s.ns) > 0.0 { (s.ns, ng) } else { (ng, ng) }
+    } else {
+        // Both normals on the viewer's side of the facet, the shading normal bent back where
+        // it would leave the viewer below its horizon.
+        let ng = if s.ng.dot(wo) < 0.0 { -s.ng } else { s.ng };
+        let ns = if s.ns.dot(ng) < 0.0 { -s.ns } else { s.ns };
+        (crate::math::valid_shading_normal(ng, wo, ns), ng)
+    }
+}
