@@ -280,7 +280,7 @@ impl Connection {
                     report.started = s;
                 }
                 Event::Tile(t) => {
-                    let data = tessera_server::convert::tile_pixels(&t).map_err(status_error)?;
+                    let data = tessera_wire::convert::tile_pixels(&t).map_err(status_error)?;
                     report.image.write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
                     report.tiles += 1;
                 }

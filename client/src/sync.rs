@@ -2,7 +2,7 @@
 //! comes near gRPC's 4 MiB default limit, whatever the mesh size.
 
 use tessera_proto::v1 as pb;
-use tessera_server::convert;
+use tessera_wire::convert;
 
 use crate::usd::Translation;
 

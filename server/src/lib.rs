@@ -5,7 +5,7 @@
 pub mod auth;
 pub mod budget;
 pub mod config;
-pub mod convert;
+pub use tessera_wire::convert;
 pub mod fuzzing;
 pub mod limits;
 pub mod registry;

@@ -242,12 +242,7 @@ impl RenderJob {
             width: self.settings.width,
             height: self.settings.height,
             pass_spp: pass_schedule(self.settings.spp),
-            plan: scene
-                .plan
-                .entries
-                .iter()
-                .map(|e| pb::PlanEntry { effect: e.effect.clone(), reason: e.reason.clone(), prims: e.prims.clone() })
-                .collect(),
+            plan: scene.plan.entries().into_iter().map(|e| pb::PlanEntry { effect: e.effect, reason: e.reason, prims: e.prims }).collect(),
             aovs: self.aovs.iter().map(|a| a.name().to_string()).collect(),
             scene_version: version,
             warnings: scene.warnings.iter().cloned().chain(self.settings_warnings()).chain(self.scene_hints(scene)).collect(),

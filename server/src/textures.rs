@@ -6,18 +6,8 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use render_core::texture::Image;
-use sha2::{Digest, Sha256};
 
-/// The key of a texture file: `sha256:` and the hex digest of its bytes.
-pub fn content_hash(bytes: &[u8]) -> String {
-    let digest = Sha256::digest(bytes);
-    let mut s = String::with_capacity(7 + 64);
-    s.push_str("sha256:");
-    for b in digest {
-        s.push_str(&format!("{b:02x}"));
-    }
-    s
-}
+pub use tessera_wire::content_hash;
 
 /// True when `key` has the shape of a [`content_hash`].
 pub fn is_content_hash(key: &str) -> bool {

@@ -59,7 +59,7 @@ fn importance_sampling_the_map_beats_bsdf_sampling_and_agrees_with_it() {
     // A white floor under the sky, whose sun (radiance 2000 over four texels) gives most of
     // the light: BSDF sampling finds it rarely, sampling the map finds it nearly always.
     let scene = scene();
-    assert!(scene.plan.entries.iter().any(|e| e.effect == "environment-map"), "the plan names the map");
+    assert!(scene.plan.has(render_core::plan::Feature::EnvironmentMap), "the plan names the map");
     let reference = beauty(&scene, "/World/FloorCam", 16, 1024, LightStrategy::Mis, 1);
     let mis = beauty(&scene, "/World/FloorCam", 16, 16, LightStrategy::Mis, 2);
     let bsdf = beauty(&scene, "/World/FloorCam", 16, 16, LightStrategy::BsdfOnly, 2);

@@ -60,7 +60,7 @@ pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
         let forced = render(&scene, res, Knobs { force_all_effects: true, ..knobs }, 3);
         rows.push(EffectsRow {
             fixture: name.clone(),
-            plan: scene.plan.entries.iter().map(|e| e.effect.clone()).collect(),
+            plan: scene.plan.features.iter().map(|f| f.name().to_string()).collect(),
             seconds: (planned.seconds, forced.seconds),
             difference: rel_mse(&forced.rgb, &planned.rgb),
             noise: rel_mse(&other_seed.rgb, &planned.rgb),

@@ -1215,7 +1215,7 @@ impl Reader<'_> {
         }
         match read_asset(a) {
             Ok(bytes) => {
-                let hash = tessera_server::textures::content_hash(&bytes);
+                let hash = tessera_wire::content_hash(&bytes);
                 self.out.textures.entry(hash.clone()).or_insert(TextureFile { source: a.as_str().to_string(), bytes: Arc::new(bytes) });
                 ParamValue::Texture { hash, source: a.as_str().to_string() }
             }

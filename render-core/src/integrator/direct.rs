@@ -117,13 +117,13 @@ impl Tracer<'_> {
     /// so no MIS weight). `a_roughness`: the roughness of the surface the shadow leaves.
     fn shadow_pass(&self, shadow: &Ray, a_roughness: f32) -> Option<Option<Vec3>> {
         if self.avoid {
-            caustics::shadow_transmittance(self.scene, shadow, shadow.tmax).map(|pass| match pass.crossings {
+            self.scene.shadow_transmittance(shadow, shadow.tmax).map(|pass| match pass.crossings {
                 0 => None,
                 _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
             })
         } else if self.force {
             // The transparent-shadow walk, with glass still opaque.
-            caustics::shadow_transmittance(self.scene, shadow, shadow.tmax).filter(|p| p.crossings == 0).map(|_| None)
+            self.scene.shadow_transmittance(shadow, shadow.tmax).filter(|p| p.crossings == 0).map(|_| None)
         } else {
             (!self.scene.occluded(shadow, shadow.tmax)).then_some(None)
         }

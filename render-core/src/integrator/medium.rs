@@ -123,8 +123,7 @@ impl Tracer<'_> {
             }
             let shadow = shadow_ray(at.p, at.p, &ls);
             counters.rays += 1;
-            let Some(pass) =
-                caustics::shadow_transmittance_from(scene, &shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)
+            let Some(pass) = scene.shadow_transmittance_from(&shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)
             else {
                 return;
             };

@@ -1,0 +1,413 @@
+//! Commit: the scene description turned into the structures the renderer traces against, as
+//! named steps — materials (and the textures they read), geometry, instances, features,
+//! tangents, bounds and the TLAS, lights — each building only what the features call for.
+
+use std::cell::RefCell;
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
+use std::sync::Arc;
+
+use glam::{Affine3A, Vec3};
+
+use super::features::plan_of;
+use super::{BlasCache, CommittedScene, InstanceData, MAX_COORDINATE, SceneDesc, SceneError, validate_mesh};
+use crate::bvh::{Blas, BuildQuality, Tlas, TlasInstance};
+use crate::caustics::ShadowGlass;
+use crate::geometry::{Attribute, Mesh, Transform};
+use crate::light::{Light, LightSet, Shape};
+use crate::material::{Material, ResolveReport, TexturedMaterial};
+use crate::plan::{Feature, RenderPlan};
+use crate::texture::{ColorSpace, Texture};
+
+/// Builds the renderable scene from its description, reusing cached BLASes.
+pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene, SceneError> {
+    let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
+    let mut warnings = Vec::new();
+    let materials = Materials::resolve(desc, cache, &mut warnings);
+    let geometry = Geometry::build(desc, cache, &mut warnings)?;
+    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
+    let mut plan = plan_of(desc, &materials);
+    let tangents = match plan.has(Feature::NormalMaps) {
+        true => tangents_of(&instances, &geometry.meshes, &materials, cache),
+        false => vec![None; geometry.meshes.len()],
+    };
+    let (lo, hi) = bounds_of(&instances, &geometry.blases, &prim_paths)?;
+    let tlas_instances: Vec<TlasInstance> = instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform }).collect();
+    let tlas = Tlas::build(&geometry.blases, &tlas_instances);
+    let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
+    let lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
+    lights.plan(&mut plan);
+    if lights.all.is_empty() {
+        warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
+    }
+    let used_materials: Vec<u32> = instances.iter().map(|i| i.material).collect::<BTreeSet<u32>>().into_iter().collect();
+    let per_material = |f: fn(&Material) -> Option<ShadowGlass>, on: bool| -> Vec<Option<ShadowGlass>> {
+        materials.list.iter().map(|m| if on { f(m) } else { None }).collect()
+    };
+    let subsurface = plan.has(Feature::Subsurface);
+    let shadow_glass = per_material(ShadowGlass::of, plan.features.has_any(&[Feature::Transmission, Feature::ThinTransmission]));
+    let medium_boundary = per_material(ShadowGlass::of_medium_boundary, subsurface);
+    let media = materials.list.iter().map(|m| if subsurface { m.medium() } else { None }).collect();
+    let smooth_subsurface = plan.prims(Feature::Subsurface).iter().filter(|m| materials.smooth_behind(m)).cloned().collect();
+    let light_set = LightSet::new(lights.all, scene_radius);
+    tracing::info!(instances = instances.len(), blas_builds = cache.last_builds, lights = light_set.lights.len(), "scene committed");
+    Ok(CommittedScene {
+        meshes: geometry.meshes,
+        tangents,
+        blases: geometry.blases,
+        instances,
+        tlas,
+        materials: materials.list,
+        textured: materials.textured,
+        bsdfs: Default::default(),
+        floored_bsdfs: Default::default(),
+        every_lobe_bsdfs: Default::default(),
+        shadow_glass,
+        medium_boundary,
+        smooth_subsurface,
+        media,
+        used_materials,
+        lights: light_set,
+        crossable_lights: lights.crossable,
+        infinite_lights: lights.infinite,
+        prim_paths,
+        cameras: desc.cameras.clone(),
+        bounds: (lo, hi),
+        plan,
+        warnings,
+    })
+}
+
+/// The materials resolved: index 0 is the fallback for unbound meshes.
+pub(super) struct Materials<'d> {
+    /// Each material as seen from afar (a textured one with each texture at its mean).
+    pub list: Vec<Material>,
+    /// Per material, its inputs that vary over the surface, if any.
+    pub textured: Vec<Option<Arc<TexturedMaterial>>>,
+    /// Index in [`Self::list`] by material path.
+    pub index: HashMap<&'d str, u32>,
+    /// Dome light maps by light path.
+    pub environments: BTreeMap<&'d str, Arc<Texture>>,
+}
+
+impl<'d> Materials<'d> {
+    /// Resolves every material network (compiling the textured ones) and reads the dome
+    /// lights' maps, building mip pyramids only for textures a material or dome reads; the
+    /// cache keeps exactly those.
+    fn resolve(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Self {
+        let pyramids = RefCell::new(HashMap::new());
+        let source = |hash: &str, space: ColorSpace| -> Option<Arc<Texture>> {
+            let key = (hash.to_string(), space);
+            let known = cache.textures.get(&key).cloned().or_else(|| pyramids.borrow().get(&key).cloned());
+            let t = match known {
+                Some(t) => t,
+                None => {
+                    let image = desc.textures.get(hash)?;
+                    let _span = tracing::info_span!("mipmap", hash, bytes = image.bytes()).entered();
+                    Arc::new(Texture::new(image, space))
+                }
+            };
+            pyramids.borrow_mut().insert(key, Arc::clone(&t));
+            Some(t)
+        };
+        let mut out = Materials {
+            list: vec![Material::preview_surface_default()],
+            textured: vec![None],
+            index: HashMap::new(),
+            environments: BTreeMap::new(),
+        };
+        for (path, network) in &desc.materials {
+            let mut report = ResolveReport::default();
+            let varying = TexturedMaterial::compile(network, path, &source, &mut report);
+            let (m, r) = match &varying {
+                Some(t) => t.mean(),
+                None => network.resolve(path),
+            };
+            report.warnings.extend(r.warnings);
+            warnings.extend(report.warnings);
+            out.index.insert(path.as_str(), out.list.len() as u32);
+            out.list.push(m);
+            out.textured.push(varying.map(Arc::new));
+        }
+        // Dome light maps, read as the materials' textures are (linear for float files).
+        for (path, l) in &desc.lights {
+            let Some(t) = &l.texture else { continue };
+            match source(&t.hash, ColorSpace::Auto) {
+                Some(tex) => {
+                    out.environments.insert(path.as_str(), tex);
+                }
+                None => warnings.push(format!("{path}: texture '{}' is not on the server; the dome is its constant colour", t.source)),
+            }
+        }
+        cache.textures = pyramids.into_inner();
+        out
+    }
+
+    /// The material bound at `path` for prim `prim`, or the default where it is missing.
+    fn of(&self, prim: &str, path: &str) -> u32 {
+        if path.is_empty() {
+            return 0;
+        }
+        match self.index.get(path) {
+            Some(&i) => i,
+            None => {
+                tracing::warn!(prim, material = path, "bound material is not in the scene; using the default");
+                0
+            }
+        }
+    }
+
+    /// The material at `path`.
+    pub fn at(&self, path: &str) -> &Material {
+        &self.list[self.index[path] as usize]
+    }
+
+    /// True when material `path`'s subsurface medium lies behind a smooth boundary
+    /// (roughness up to [`crate::caustics::SMOOTH_GLASS`]): full path tracing lights it only
+    /// by chance.
+    fn smooth_behind(&self, path: &str) -> bool {
+        ShadowGlass::of_medium_boundary(self.at(path)).is_some_and(|b| b.roughness <= crate::caustics::SMOOTH_GLASS)
+    }
+
+    /// Material `path`'s inputs that vary over the surface, if any.
+    pub fn textured_at(&self, path: &str) -> Option<&TexturedMaterial> {
+        self.textured[self.index[path] as usize].as_deref()
+    }
+
+    /// Materials with no effect on light (cut out, index-matched clear glass) remove their
+    /// surfaces altogether; a textured material is cut out point by point, never as a whole.
+    fn removes_its_surfaces(&self, m: u32) -> bool {
+        self.textured[m as usize].is_none() && self.list[m as usize].is_invisible()
+    }
+}
+
+/// One BLAS per distinct mesh prim that has triangles and renders (visible, or a prototype).
+pub(super) struct Geometry<'d> {
+    pub meshes: Vec<Arc<Mesh>>,
+    pub blases: Vec<Arc<Blas>>,
+    /// Index in [`Self::meshes`] by mesh path.
+    pub slot: HashMap<&'d str, usize>,
+}
+
+impl<'d> Geometry<'d> {
+    /// Validates the meshes and builds the BLASes whose geometry changed since the last commit.
+    fn build(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Result<Self, SceneError> {
+        let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
+        let mut builds = 0;
+        let mut fresh = HashMap::new();
+        let prototypes: HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
+        for (path, m) in &desc.meshes {
+            validate_mesh(path, &m.mesh)?;
+            if m.mesh.indices.is_empty() {
+                warnings.push(format!("{path}: mesh has no triangles and is skipped"));
+                continue;
+            }
+            if !(m.visible || prototypes.contains(path.as_str())) {
+                continue;
+            }
+            let blas = match cache.entries.get(path) {
+                Some((geom, blas)) if Arc::ptr_eq(geom, &m.mesh) => blas.clone(),
+                _ => {
+                    builds += 1;
+                    Arc::new(Blas::build(&m.mesh, BuildQuality::Medium))
+                }
+            };
+            fresh.insert(path.clone(), (m.mesh.clone(), blas.clone()));
+            out.slot.insert(path.as_str(), out.meshes.len());
+            out.meshes.push(m.mesh.clone());
+            out.blases.push(blas);
+        }
+        cache.entries = fresh;
+        cache.last_builds = builds;
+        Ok(out)
+    }
+}
+
+/// The instances in the TLAS: visible meshes, then instancer instances; and the prim path
+/// each comes from.
+fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials) -> Result<(Vec<InstanceData>, Vec<String>), SceneError> {
+    let mut instances = Vec::new();
+    let mut prim_paths: Vec<String> = Vec::new();
+    let mut push = |path: &str, mesh: usize, xf: &Affine3A, material: u32| -> Result<(), SceneError> {
+        let transform = Transform::new(*xf).ok_or_else(|| SceneError::Invalid {
+            prim: path.to_string(),
+            field: "transform".into(),
+            problem: "singular or not finite".into(),
+        })?;
+        if prim_paths.last().is_none_or(|p| p != path) {
+            prim_paths.push(path.to_string());
+        }
+        instances.push(InstanceData { mesh, transform, material, emitter_base: None, prim: prim_paths.len() as u32 - 1 });
+        Ok(())
+    };
+    for (path, m) in desc.meshes.iter().filter(|(_, m)| m.visible) {
+        if let Some(&slot) = geometry.slot.get(path.as_str()) {
+            let material = materials.of(path, &m.material);
+            if !materials.removes_its_surfaces(material) {
+                push(path, slot, &m.transform, material)?;
+            }
+        }
+    }
+    for (path, inst) in &desc.instancers {
+        let Some(&slot) = geometry.slot.get(inst.prototype.as_str()) else {
+            if desc.meshes.contains_key(&inst.prototype) {
+                continue; // an empty prototype was already reported
+            }
+            return Err(SceneError::Dangling { prim: path.clone(), field: "prototype".into(), target: inst.prototype.clone() });
+        };
+        let material = materials.of(path, &desc.meshes[&inst.prototype].material);
+        if materials.removes_its_surfaces(material) {
+            continue;
+        }
+        for xf in &inst.transforms {
+            push(path, slot, xf, material)?;
+        }
+    }
+    Ok((instances, prim_paths))
+}
+
+/// MikkTSpace tangents for the meshes drawn with a normal map, each computed once per
+/// geometry and kept between commits.
+fn tangents_of(
+    instances: &[InstanceData],
+    meshes: &[Arc<Mesh>],
+    materials: &Materials,
+    cache: &mut BlasCache,
+) -> Vec<Option<Arc<Attribute<glam::Vec4>>>> {
+    let mut tangents = vec![None; meshes.len()];
+    let mut kept = Vec::new();
+    let mut tried = vec![false; meshes.len()];
+    for inst in instances {
+        let mesh = &meshes[inst.mesh];
+        let normal_mapped = materials.textured[inst.material as usize].as_deref().is_some_and(|t| t.has_normal_map());
+        if tried[inst.mesh] || !normal_mapped || mesh.uvs.is_empty() {
+            continue;
+        }
+        tried[inst.mesh] = true;
+        let t = match cache.tangents.iter().find(|(m, _)| Arc::ptr_eq(m, mesh)) {
+            Some((_, t)) => Some(t.clone()),
+            None => crate::tangents::mikktspace(mesh).map(Arc::new),
+        };
+        if let Some(t) = &t {
+            kept.push((mesh.clone(), t.clone()));
+        }
+        tangents[inst.mesh] = t;
+    }
+    cache.tangents = kept;
+    tangents
+}
+
+/// World bounds of the instances, for sizing infinite lights and the default camera; an
+/// instance whose transform carries its geometry beyond what f32 holds is an error naming it.
+fn bounds_of(instances: &[InstanceData], blases: &[Arc<Blas>], prim_paths: &[String]) -> Result<(Vec3, Vec3), SceneError> {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for inst in instances {
+        let (a, b) = blases[inst.mesh].bounds();
+        for i in 0..8 {
+            let c = Vec3::new(if i & 1 == 0 { a.x } else { b.x }, if i & 2 == 0 { a.y } else { b.y }, if i & 4 == 0 { a.z } else { b.z });
+            let w = inst.transform.to_world.transform_point3(c);
+            if !w.is_finite() || w.abs().max_element() > MAX_COORDINATE {
+                return Err(SceneError::Invalid {
+                    prim: prim_paths[inst.prim as usize].clone(),
+                    field: "transform".into(),
+                    problem: format!("places the geometry at {w}, beyond ±{MAX_COORDINATE:e}"),
+                });
+            }
+            lo = lo.min(w);
+            hi = hi.max(w);
+        }
+    }
+    Ok((lo, hi))
+}
+
+/// The lights: UsdLux lights, then one per emissive triangle.
+struct Lights {
+    all: Vec<Light>,
+    /// Paths of the UsdLux lights (the first entries of [`Self::all`]).
+    usd_lights: Vec<String>,
+    /// Instances' prims whose material emits, and their triangle count.
+    emissive_prims: Vec<String>,
+    emissive_triangles: usize,
+    /// The UsdLux lights a ray can pass through, in a BVH: with thousands of them a linear
+    /// scan per ray would dominate the render.
+    crossable: crate::light::tree::LightTree,
+    /// Indices of the lights at infinity.
+    infinite: Vec<u32>,
+}
+
+impl Lights {
+    fn gather(
+        desc: &SceneDesc,
+        materials: &Materials,
+        meshes: &[Arc<Mesh>],
+        instances: &mut [InstanceData],
+        prim_paths: &[String],
+        warnings: &mut Vec<String>,
+    ) -> Lights {
+        let mut all: Vec<Light> = Vec::new();
+        let mut usd_lights = Vec::new();
+        for (path, l) in &desc.lights {
+            match l.commit_with(materials.environments.get(path.as_str()).cloned()) {
+                Some(light) => {
+                    all.push(light);
+                    usd_lights.push(path.clone());
+                }
+                None => {
+                    warnings.push(format!("{path}: light emits nothing (zero size, zero intensity or a singular transform) and is skipped"))
+                }
+            }
+        }
+        let (emissive_prims, emissive_triangles) = add_emitters(&mut all, materials, meshes, instances, prim_paths);
+        let n = usd_lights.len();
+        let crossable = crate::light::tree::LightTree::build(
+            (0..n).filter_map(|i| crate::light::tree::LightBounds::of(&all[i].shape, 1.0).map(|b| (i as u32, b))).collect(),
+            n,
+        );
+        let infinite = (0..n as u32).filter(|&i| all[i as usize].shape.is_infinite()).collect();
+        Lights { all, usd_lights, emissive_prims, emissive_triangles, crossable, infinite }
+    }
+
+    /// The light features, with the prims that call for them.
+    fn plan(&self, plan: &mut RenderPlan) {
+        let n = self.usd_lights.len();
+        let reason = format!("{n} UsdLux light(s), chosen through a light tree with adaptive splitting, MIS (power heuristic)");
+        plan.call_for_because(Feature::Lights, reason, self.usd_lights.iter().cloned());
+        let mut emissive = self.emissive_prims.clone();
+        emissive.dedup();
+        let reason = format!("{} emissive triangle(s) sampled by area with MIS", self.emissive_triangles);
+        plan.call_for_because(Feature::EmissiveMeshes, reason, emissive);
+    }
+}
+
+/// One triangle light per triangle of each instance whose material emits, appended to
+/// `lights`; returns the instances' prims and the triangle count.
+fn add_emitters(
+    lights: &mut Vec<Light>,
+    materials: &Materials,
+    meshes: &[Arc<Mesh>],
+    instances: &mut [InstanceData],
+    prim_paths: &[String],
+) -> (Vec<String>, usize) {
+    let mut prims = Vec::new();
+    let mut triangles = 0;
+    for (index, inst) in instances.iter_mut().enumerate() {
+        let m = &materials.list[inst.material as usize];
+        if !m.is_emissive() {
+            continue;
+        }
+        let varies = materials.textured[inst.material as usize].as_ref().is_some_and(|t| t.emission_varies());
+        inst.emitter_base = Some(lights.len() as u32);
+        let mesh = &meshes[inst.mesh];
+        for t in 0..mesh.triangle_count() {
+            let p = mesh.triangle(t).map(|v| inst.transform.to_world.transform_point3(v));
+            // Degenerate triangles keep their slot (indices must line up) but emit nothing.
+            let shape = Shape::triangle(p, m.emission).unwrap_or(Shape::Triangle { p, n: Vec3::Z, area: 0.0, l: Vec3::ZERO });
+            let mut light = Light::plain(shape, true);
+            light.textured_emitter = varies.then_some((index as u32, t as u32));
+            lights.push(light);
+        }
+        triangles += mesh.triangle_count();
+        prims.push(prim_paths[inst.prim as usize].clone());
+    }
+    (prims, triangles)
+}
