@@ -43,6 +43,8 @@ pub struct Knobs {
     pub strategy: LightStrategy,
     /// Run every effect whether or not the scene calls for it (`tessera bench effects`).
     pub force_all_effects: bool,
+    /// Run the general path loop whatever the scene's features (`tessera bench effects`).
+    pub general_loop: bool,
     /// Mip-map texture lookups by the ray's footprint.
     pub texture_filtering: bool,
     /// Most lights per shading point the light tree's splitting samples (1: no splitting).
@@ -62,6 +64,7 @@ impl Default for Knobs {
             avoid_caustics: false,
             strategy: LightStrategy::Mis,
             force_all_effects: false,
+            general_loop: false,
             texture_filtering: true,
             light_split_budget: render_core::light::tree::SPLIT_BUDGET,
         }
@@ -98,6 +101,7 @@ pub(crate) fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed:
             caustics: if k.avoid_caustics { CausticMode::Avoid } else { CausticMode::Full },
             strategy: k.strategy,
             force_all_effects: k.force_all_effects,
+            general_loop: k.general_loop,
             texture_filtering: k.texture_filtering,
             light_split_budget: k.light_split_budget,
             ..Default::default()

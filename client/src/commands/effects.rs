@@ -3,7 +3,9 @@
 //! lobe the uber-material can build at weight 0 with its energy tables, tangent frames,
 //! closest-hit shadow rays, the light-path AOVs). The images must agree within noise (forcing
 //! changes the sampling pattern, not the expectation); the times show the price of
-//! simulating effects a scene does not call for. Writes `docs/render-plan.md`.
+//! simulating effects a scene does not call for. A fourth render at the planned render's seed
+//! runs the general path loop: the image must be bit-identical, and the time shows what the
+//! specialised loop buys. Writes `docs/render-plan.md`.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -39,6 +41,11 @@ pub struct EffectsRow {
     pub plan: Vec<String>,
     /// Seconds as planned and forced.
     pub seconds: (f64, f64),
+    /// Seconds of the planned render in the general path loop, and whether the scene runs the
+    /// specialised loop at all.
+    pub general_seconds: f64,
+    /// The scene runs the specialised path loop (no media, cut-outs or glitter).
+    pub specialised: bool,
     /// relMSE between the planned and the forced image.
     pub difference: f64,
     /// relMSE between two planned images of different seeds: the noise level.
@@ -58,10 +65,17 @@ pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
         // A third seed: the forced image is an independent estimate, so "equal within noise"
         // means it differs from the planned one as much as another planned seed does.
         let forced = render(&scene, res, Knobs { force_all_effects: true, ..knobs }, 3);
+        // The same seed in the general loop: the same random numbers in the same order, so
+        // the same image to the bit; only the time may differ.
+        let general = render(&scene, res, Knobs { general_loop: true, ..knobs }, 1);
+        anyhow::ensure!(general.rgb == planned.rgb, "{name}: the general path loop changed the image");
+        let specialised = !render_core::integrator::needs_full_loop(scene.plan.features, &Default::default());
         rows.push(EffectsRow {
             fixture: name.clone(),
             plan: scene.plan.features.iter().map(|f| f.name().to_string()).collect(),
             seconds: (planned.seconds, forced.seconds),
+            general_seconds: general.seconds,
+            specialised,
             difference: rel_mse(&forced.rgb, &planned.rgb),
             noise: rel_mse(&other_seed.rgb, &planned.rgb),
         });
@@ -79,15 +93,18 @@ pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
     )?;
     writeln!(
         md,
-        "| fixture | plan | planned s | forced s | speed-up | relMSE planned vs forced | relMSE between seeds |\n| --- | --- | ---: | ---: | ---: | ---: | ---: |"
+        "| fixture | plan | planned s | path loop | general loop s | loop speed-up | forced s | speed-up | relMSE planned vs forced | relMSE between seeds |\n| --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |"
     )?;
     for r in &rows {
         writeln!(
             md,
-            "| `{}` | {} | {:.3} | {:.3} | {:.2}x | {:.2e} | {:.2e} |",
+            "| `{}` | {} | {:.3} | {} | {:.3} | {:.2}x | {:.3} | {:.2}x | {:.2e} | {:.2e} |",
             r.fixture,
             r.plan.join(", "),
             r.seconds.0,
+            if r.specialised { "specialised" } else { "general" },
+            r.general_seconds,
+            r.general_seconds / r.seconds.0.max(1e-9),
             r.seconds.1,
             r.seconds.1 / r.seconds.0.max(1e-9),
             r.difference,

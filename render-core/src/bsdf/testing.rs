@@ -141,35 +141,85 @@ pub fn assert_chi2_at(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
     chi2_over(lobe, seed, dirs);
 }
 
+/// The delta directions a sampler returned at one `wo`: each direction, the energy weight
+/// (f·cos/p, times η'² to undo radiance scaling) its samples carry, and how often it came.
+/// A delta sample's pdf is a convention (1 per lobe, times the lobe's selection), so the test
+/// is on weights: the same direction always carries the same weight, and the delta part's
+/// energy is what its frequency times its weight says.
+#[derive(Default)]
+pub struct DeltaTally(Vec<(Vec3, Vec3, u32)>, u32);
+
+impl DeltaTally {
+    fn add(&mut self, s: &LobeSample) {
+        assert!(crate::math::is_finite(s.weight) && s.weight.min_element() >= 0.0, "delta weight {:?}", s.weight);
+        let w = s.weight * s.eta * s.eta;
+        match self.0.iter_mut().find(|(d, _, _)| (*d - s.wi).length() < 1e-4) {
+            Some((d, seen, n)) => {
+                assert!(
+                    (*seen - w).abs().max_element() <= 1e-4 * seen.max_element().max(1e-6),
+                    "delta direction {d:?} carries weights {seen:?} and {w:?}"
+                );
+                *n += 1;
+            }
+            None => self.0.push((s.wi, w, 1)),
+        }
+        self.1 += 1;
+    }
+
+    /// The share of samples that were delta.
+    fn share(&self) -> f64 {
+        self.1 as f64 / SAMPLES as f64
+    }
+
+    /// The delta part's directional albedo: Σ frequency × energy weight.
+    pub fn energy(&self) -> Vec3 {
+        self.0.iter().fold(Vec3::ZERO, |acc, &(_, w, n)| acc + w * (n as f32 / SAMPLES as f32))
+    }
+}
+
+/// The delta part of `lobe`'s sampling at `wo`, tallied over the chi-square test's sample
+/// count.
+pub fn delta_part(lobe: &impl Scatter, wo: Vec3, seed: u64) -> DeltaTally {
+    let mut rng = Pcg32::new(seed, 0);
+    let mut deltas = DeltaTally::default();
+    for _ in 0..SAMPLES {
+        if let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()).filter(|s| s.flags.delta) {
+            deltas.add(&s);
+        }
+    }
+    deltas
+}
+
 fn chi2_over(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
     let alpha = 1.0 - (1.0 - ALPHA).powf(1.0 / dirs.len() as f64);
     for (k, wo) in dirs.into_iter().enumerate() {
         let mut rng = Pcg32::new(seed, k as u64);
         let mut observed = vec![0.0f64; THETA_BINS * PHI_BINS];
+        // Delta samples are tested apart: the pdf is the smooth part's density only.
+        let mut deltas = DeltaTally::default();
         for _ in 0..SAMPLES {
-            if let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
-                if s.flags.delta {
-                    return;
-                }
-                observed[bin_of(s.wi.normalize())] += 1.0;
+            match lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
+                Some(s) if s.flags.delta => deltas.add(&s),
+                Some(s) => observed[bin_of(s.wi.normalize())] += 1.0,
+                None => {}
             }
         }
+        let what = format!("{lobe:?} at wo={wo:?}");
         let expected = expected_counts(|wi| lobe.density(wo, wi));
-        // The pdf integrates to at most 1, and to the fraction of samples actually returned
-        // (to the integration's 0.5%, reached on grazing lobes a degree wide).
+        // The smooth pdf integrates to at most 1 less the delta part, and to the fraction of
+        // samples returned smooth (to the integration's 0.5%, reached on grazing lobes a
+        // degree wide).
         let mass = expected.iter().sum::<f64>() / SAMPLES as f64;
         let returned = observed.iter().sum::<f64>() / SAMPLES as f64;
-        assert!(mass <= 1.0 + 5e-3, "pdf of {lobe:?} at wo={wo:?} integrates to {mass}");
-        assert!(
-            (mass - returned).abs() <= 5e-3,
-            "pdf of {lobe:?} at wo={wo:?} integrates to {mass} but {returned} of samples were returned"
-        );
+        let delta_share = deltas.share();
+        assert!(mass + delta_share <= 1.0 + 5e-3, "pdf of {what} integrates to {mass} besides delta samples {delta_share}");
+        assert!((mass - returned).abs() <= 5e-3, "pdf of {what} integrates to {mass} but {returned} of samples were returned smooth");
         let (stat, dof) = chi2_statistic(&observed, &expected);
         if dof == 0 {
             continue;
         }
         let p = chi2_survival(stat, dof as f64);
-        assert!(p > alpha, "chi-square rejects sampling of {lobe:?} at wo={wo:?}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}");
+        assert!(p > alpha, "chi-square rejects sampling of {what}: stat={stat:.1}, dof={dof}, p={p:.3e} < {alpha:.3e}");
     }
 }
 
@@ -368,6 +418,41 @@ mod tests {
         assert!((chi2_survival(3.841, 1.0) - 0.05).abs() < 1e-3);
         assert!((chi2_survival(18.307, 10.0) - 0.05).abs() < 1e-3);
         assert!((chi2_survival(124.342, 100.0) - 0.05).abs() < 1e-3);
+    }
+
+    /// Half smooth glass (two delta directions) and half Lambert: the smooth part is tested
+    /// against its pdf, the delta part's directions against their claimed probabilities.
+    /// Before, the first delta sample ended the test and a mixed BSDF passed unexamined.
+    #[test]
+    fn mixed_delta_and_smooth_bsdfs_test_both_parts() {
+        use crate::bsdf::{Dielectric, Lambert};
+        let mut b = Bsdf::default();
+        b.push_weighted(Lobe::Dielectric(Dielectric::new(0.0, 0.0, 1.5, Vec3::ONE)), 0.5);
+        b.push_weighted(Lobe::Lambert(Lambert { r: Vec3::splat(0.8) }), 0.5);
+        let dirs: Vec<Vec3> = probe_directions().into_iter().filter(|w| w.z >= 1e-2).collect();
+        assert_chi2_at(&b, 31, dirs.clone());
+        // The delta part is half the BSDF, and clear glass loses nothing: its energy is 1/2 at
+        // every angle (binomial noise of the reflect/refract choice over 400k samples: σ ≈ 1e-3).
+        for wo in dirs {
+            let e = delta_part(&b, wo, 32).energy();
+            assert!((e - Vec3::splat(0.5)).abs().max_element() < 5e-3, "delta energy {e:?} at {wo:?}");
+        }
+        // A delta part whose weights vary for one direction is caught.
+        #[derive(Debug)]
+        struct Wobbly(Bsdf);
+        impl Scatter for Wobbly {
+            fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+                self.0.f(wo, wi)
+            }
+            fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
+                self.0.sample_dir(wo, uc, u).map(|s| if s.flags.delta { LobeSample { weight: s.weight * (1.0 + u.x), ..s } } else { s })
+            }
+            fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
+                self.0.density(wo, wi)
+            }
+        }
+        let wobbly = std::panic::catch_unwind(|| delta_part(&Wobbly(b.clone()), Vec3::Z, 33));
+        assert!(wobbly.is_err(), "a delta direction with varying weights must fail");
     }
 
     #[test]

@@ -42,7 +42,7 @@ pub(super) struct DirectLighting<'v> {
     pub is_direct: bool,
 }
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// Adds the direct light at vertex `d.v` to the path.
     pub(super) fn add_direct_light(&self, path: &mut PathState, d: &DirectLighting, counters: &mut PathCounters) {
         if self.scene.lights.is_empty() || self.settings.strategy == LightStrategy::BsdfOnly {
@@ -63,7 +63,7 @@ impl Tracer<'_> {
     /// Whether the first surface's light is split by lobe into the light-path AOVs.
     #[inline]
     fn splits_by_lobe(&self, depth: u32) -> bool {
-        depth == 0 && (self.settings.light_path_aovs || self.force)
+        depth == 0 && (self.light_path_aovs() || self.force())
     }
 
     /// One light sample's contribution through the BSDF, if its shadow ray gets through.
@@ -116,12 +116,12 @@ impl Tracer<'_> {
     /// that refract through it (caustic avoidance; nothing else samples that straight line,
     /// so no MIS weight). `a_roughness`: the roughness of the surface the shadow leaves.
     fn shadow_pass(&self, shadow: &Ray, a_roughness: f32) -> Option<Option<Vec3>> {
-        if self.avoid {
+        if self.avoid() {
             self.scene.shadow_transmittance(shadow, shadow.tmax).map(|pass| match pass.crossings {
                 0 => None,
                 _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
             })
-        } else if self.force {
+        } else if self.force() {
             // The transparent-shadow walk, with glass still opaque.
             self.scene.shadow_transmittance(shadow, shadow.tmax).filter(|p| p.crossings == 0).map(|_| None)
         } else {

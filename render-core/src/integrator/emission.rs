@@ -11,7 +11,7 @@ use super::path::{PathState, PrevVertex, clamped};
 use super::shading::Vertex;
 use super::{LightStrategy, Tracer};
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// MIS weight of light `light` found by BSDF sampling from `prev`, whose light-sampling
     /// density for this direction is `pdf_light`: 1 from the camera or after a delta lobe.
     fn found_light_weight(&self, prev: &Option<PrevVertex>, light: u32, pdf_light: f32) -> f32 {

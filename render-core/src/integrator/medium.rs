@@ -43,7 +43,7 @@ pub(super) enum WalkStep {
     Ended,
 }
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// One step of the walk in `medium` along the path's ray, whose surface lies at `t_surface`.
     pub(super) fn walk_step(
         &self,
@@ -69,7 +69,7 @@ impl Tracer<'_> {
         let ray = path.ray;
         let p = ray.origin + ray.dir * t;
         let kind = path.prev.map_or(PathKind::Transmission, |p| p.kind);
-        if self.avoid && path.walk.shadows && !self.scene.lights.is_empty() && self.settings.strategy != LightStrategy::BsdfOnly {
+        if self.avoid() && path.walk.shadows && !self.scene.lights.is_empty() && self.settings.strategy != LightStrategy::BsdfOnly {
             let [ul_x, ul_y, u_sel, _] = rng.next_4d();
             let at = MediumPoint { medium, p, dir: ray.dir, beta: path.beta, kind };
             let c = self.light_through_boundary(&at, [ul_x, ul_y, u_sel], counters);
@@ -89,13 +89,13 @@ impl Tracer<'_> {
         WalkStep::Scattered
     }
 
-    /// Russian roulette on the throughput after 8 steps: deep walks in bright media are long,
-    /// and most of their steps carry little.
+    /// Russian roulette on the energy throughput (see [`PathState::survives_roulette`]) after
+    /// 8 steps: deep walks in bright media are long, and most of their steps carry little.
     fn walk_survives(&self, path: &mut PathState, rng: &mut PathSampler) -> bool {
         if path.walk.steps <= 8 {
             return true;
         }
-        let q = (1.0 - path.beta.max_element()).clamp(0.0, 0.95);
+        let q = (1.0 - (path.beta * path.eta_scale).max_element()).clamp(0.0, 0.95);
         let [u_rr, ..] = rng.next_4d();
         if u_rr < q {
             return false;

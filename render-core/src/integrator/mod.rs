@@ -26,6 +26,7 @@ use crate::film::PixelSample;
 use crate::geometry::Ray;
 use crate::light::ShadingContext;
 use crate::math::is_finite;
+use crate::plan::{Feature, Features};
 use crate::sampling::PathSampler;
 use crate::scene::CommittedScene;
 
@@ -43,14 +44,45 @@ pub struct PathCounters {
     pub non_finite: u64,
 }
 
-/// The scene and settings a path is traced with, and the switches derived from them.
-struct Tracer<'a> {
+/// The scene and settings a path is traced with. `FULL` selects the general path loop; the
+/// specialised one (`FULL = false`) is compiled without the machinery of the features and
+/// settings [`needs_full_loop`] names, so a scene of opaque surfaces never tests for media,
+/// cut-outs, glitter, transparent shadows or light-path AOVs.
+struct Tracer<'a, const FULL: bool> {
     scene: &'a CommittedScene,
     settings: &'a IntegratorSettings,
+}
+
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// Caustic avoidance is on.
-    avoid: bool,
+    #[inline(always)]
+    fn avoid(&self) -> bool {
+        FULL && self.settings.caustics == CausticMode::Avoid
+    }
+
     /// Every piece of machinery runs ([`IntegratorSettings::force_all_effects`]).
-    force: bool,
+    #[inline(always)]
+    fn force(&self) -> bool {
+        FULL && self.settings.force_all_effects
+    }
+
+    /// The first surface's light is split into the light-path AOVs.
+    #[inline(always)]
+    fn light_path_aovs(&self) -> bool {
+        FULL && self.settings.light_path_aovs
+    }
+}
+
+/// Features whose machinery only the general path loop holds.
+const FULL_LOOP_FEATURES: [Feature; 4] = [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter];
+
+/// True when the scene's features or the render's settings need the general path loop.
+pub fn needs_full_loop(features: Features, settings: &IntegratorSettings) -> bool {
+    settings.general_loop
+        || settings.force_all_effects
+        || settings.light_path_aovs
+        || settings.caustics == CausticMode::Avoid
+        || features.has_any(&FULL_LOOP_FEATURES)
 }
 
 /// Radiance and first-hit AOVs along a camera ray.
@@ -63,52 +95,67 @@ pub fn trace_path(
     settings: &IntegratorSettings,
     counters: &mut PathCounters,
 ) -> PixelSample {
-    let tracer = Tracer { scene, settings, avoid: settings.caustics == CausticMode::Avoid, force: settings.force_all_effects };
-    let mut out = PixelSample { depth: background_depth, ..Default::default() };
-    let mut path = PathState::new(camera_ray, settings);
-    // The BSDF at the current vertex; one buffer for the whole path (see `Bsdf::clone_from`).
-    let mut bsdf = Bsdf::default();
-    loop {
-        counters.rays += 1;
-        let hit = scene.intersect(&path.ray);
-        if let Some(m) = path.walk.medium {
-            // Inside a subsurface medium: scatter before the boundary, or reach it.
-            match tracer.walk_step(&mut path, m, hit.map_or(f32::INFINITY, |h| h.t), rng, counters) {
-                WalkStep::Scattered => continue,
-                WalkStep::Ended => break,
-                WalkStep::Boundary => {}
-            }
-        }
-        let share = std::mem::replace(&mut path.exit_share, 1.0);
-        let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
-        tracer.add_crossed_lights(&mut path, t_hit, share);
-        let Some(hit) = hit else {
-            tracer.add_escaped(&mut path, share);
-            break;
-        };
-        let v = match tracer.land(&mut path, &hit, &mut bsdf) {
-            Landing::Surface(v) => v,
-            Landing::PassedThrough => {
-                path.exit_share = share;
-                continue;
-            }
-            Landing::Stopped => break,
-        };
-        tracer.add_surface_emission(&mut path, &v, &hit, share);
-        if path.depth == 0 {
-            record_first_hit(&mut out, scene, &v, &bsdf, depth_of(hit.t));
-        }
-        if path.depth >= settings.max_depth || bsdf.is_empty() {
-            break;
-        }
-        if !tracer.bounce(&mut path, &v, &mut bsdf, rng, counters) {
-            break;
-        }
+    match needs_full_loop(scene.plan.features, settings) {
+        true => Tracer::<true> { scene, settings }.trace(camera_ray, depth_of, background_depth, rng, counters),
+        false => Tracer::<false> { scene, settings }.trace(camera_ray, depth_of, background_depth, rng, counters),
     }
-    finish(out, path.light, counters)
 }
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
+    /// The path loop.
+    fn trace(
+        &self,
+        camera_ray: Ray,
+        depth_of: impl Fn(f32) -> f32,
+        background_depth: f32,
+        rng: &mut PathSampler,
+        counters: &mut PathCounters,
+    ) -> PixelSample {
+        let (scene, settings, tracer) = (self.scene, self.settings, self);
+        let mut out = PixelSample { depth: background_depth, ..Default::default() };
+        let mut path = PathState::new(camera_ray, settings);
+        // The BSDF at the current vertex; one buffer for the whole path (see `Bsdf::clone_from`).
+        let mut bsdf = Bsdf::default();
+        loop {
+            counters.rays += 1;
+            let hit = scene.intersect(&path.ray);
+            if let Some(m) = path.walk.medium.filter(|_| FULL) {
+                // Inside a subsurface medium: scatter before the boundary, or reach it.
+                match tracer.walk_step(&mut path, m, hit.map_or(f32::INFINITY, |h| h.t), rng, counters) {
+                    WalkStep::Scattered => continue,
+                    WalkStep::Ended => break,
+                    WalkStep::Boundary => {}
+                }
+            }
+            let share = std::mem::replace(&mut path.exit_share, 1.0);
+            let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
+            tracer.add_crossed_lights(&mut path, t_hit, share);
+            let Some(hit) = hit else {
+                tracer.add_escaped(&mut path, share);
+                break;
+            };
+            let v = match tracer.land(&mut path, &hit, &mut bsdf) {
+                Landing::Surface(v) => v,
+                Landing::PassedThrough => {
+                    path.exit_share = share;
+                    continue;
+                }
+                Landing::Stopped => break,
+            };
+            tracer.add_surface_emission(&mut path, &v, &hit, share);
+            if path.depth == 0 {
+                record_first_hit(&mut out, scene, &v, &bsdf, depth_of(hit.t));
+            }
+            if path.depth >= settings.max_depth || bsdf.is_empty() {
+                break;
+            }
+            if !tracer.bounce(&mut path, &v, &mut bsdf, rng, counters) {
+                break;
+            }
+        }
+        finish(out, path.light, counters)
+    }
+
     /// Direct light at `v`, then the next direction; false when the path ends there.
     fn bounce(&self, path: &mut PathState, v: &Vertex, bsdf: &mut Bsdf, rng: &mut PathSampler, counters: &mut PathCounters) -> bool {
         bsdf.prepare(v.wo_local);
@@ -135,7 +182,7 @@ impl Tracer<'_> {
     /// and replaced by lighting in the interior"). Indirect light beyond stays whole.
     fn leaving_share(&self, path: &PathState, v: &Vertex) -> f32 {
         match (&path.prev, path.walk.medium.is_some()) {
-            (Some(p), true) if self.avoid => {
+            (Some(p), true) if self.avoid() => {
                 self.scene.medium_boundary(v.s.material).map_or(1.0, |b| 1.0 - caustics::roughness_weight(p.roughness, b.roughness))
             }
             _ => 1.0,

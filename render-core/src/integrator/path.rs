@@ -136,6 +136,10 @@ pub(super) struct PathState {
     pub ray: Ray,
     /// Throughput.
     pub beta: Vec3,
+    /// The product of η'² over the refractions taken: radiance throughput drops by 1/η'² on
+    /// entering glass and regains it on leaving, which Russian roulette must not read as
+    /// lost energy (pbrt-v4's `etaScale`, Mitsuba 3's `eta`).
+    pub eta_scale: f32,
     /// Scattering events so far.
     pub depth: u32,
     pub prev: Option<PrevVertex>,
@@ -156,6 +160,7 @@ impl PathState {
         PathState {
             ray: camera_ray,
             beta: Vec3::ONE,
+            eta_scale: 1.0,
             depth: 0,
             prev: None,
             light: LightPaths::new(),
@@ -174,13 +179,15 @@ impl PathState {
     }
 
     /// Russian roulette after `rr_start` bounces: the path survives with probability
-    /// max(throughput, 0.05) and is reweighted by its inverse. False when it ends.
+    /// max(energy throughput, 0.05) and is reweighted by its inverse. The energy throughput is
+    /// the radiance throughput times [`Self::eta_scale`], so paths inside glass (whose radiance
+    /// throughput is 1/η² lower) are not killed for it. False when it ends.
     #[inline]
     pub fn survives_roulette(&mut self, rr_start: u32, u: f32) -> bool {
         if self.depth < rr_start {
             return true;
         }
-        let q = (1.0 - self.beta.max_element()).max(0.05);
+        let q = (1.0 - (self.beta * self.eta_scale).max_element()).max(0.05);
         if u < q {
             return false;
         }

@@ -12,7 +12,7 @@ use super::Tracer;
 use super::path::{PathState, PrevVertex, SUBSURFACE};
 use super::shading::Vertex;
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// Samples the next direction at `v` with `u` (direction, lobe choice) and moves the
     /// path's ray there. False when the path ends (no direction, a direction the normals
     /// disagree on, or no throughput left).
@@ -36,10 +36,11 @@ impl Tracer<'_> {
             return false;
         }
         path.beta *= bs.weight;
-        if kind == PathKind::Transmission {
+        path.eta_scale *= bs.eta * bs.eta;
+        if FULL && kind == PathKind::Transmission {
             self.cross_boundary(path, v, wi, leaving_share);
         }
-        if self.avoid {
+        if self.avoid() {
             // Refracting into smooth glass after a rougher vertex: transparent shadows from
             // that vertex carry w'(B_t) of this light, so the path keeps 1 − w'(B_t), for
             // everything inside (total internal reflection included).

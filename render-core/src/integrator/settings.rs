@@ -28,6 +28,9 @@ pub struct IntegratorSettings {
     /// weight 0, every energy table, tangent frames, closest-hit shadow rays, light-path
     /// AOVs), for the benchmark that measures what the render plan saves. Same image.
     pub force_all_effects: bool,
+    /// Run the general path loop whatever the scene's features (the benchmark of what the
+    /// specialised loop buys; same image).
+    pub general_loop: bool,
     /// A camera ray's footprint as a cone, (width, spread angle), for texture filtering;
     /// the renderer sets it from the camera. (0, 0) fetches the finest texture level.
     pub pixel_footprint: (f32, f32),
@@ -50,6 +53,7 @@ impl Default for IntegratorSettings {
             light_path_aovs: false,
             caustics: CausticMode::Full,
             force_all_effects: false,
+            general_loop: false,
             strategy: LightStrategy::Mis,
             pixel_footprint: (0.0, 0.0),
             texture_filtering: true,

@@ -59,7 +59,7 @@ pub(super) enum Landing {
     Stopped,
 }
 
-impl Tracer<'_> {
+impl<const FULL: bool> Tracer<'_, FULL> {
     /// Sets up shading at `hit`, writing the BSDF into `bsdf` (one buffer for the whole path).
     pub(super) fn land(&self, path: &mut PathState, hit: &Hit, bsdf: &mut Bsdf) -> Landing {
         let scene = self.scene;
@@ -71,7 +71,7 @@ impl Tracer<'_> {
             let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
             t.at(&scene.shading_point(&s, cone_here, cos))
         });
-        if self.passes_through(&s, ray.dir, &local) {
+        if FULL && self.passes_through(&s, ray.dir, &local) {
             // It goes on as if the surface were not there.
             path.cutouts_crossed += 1;
             if path.cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
@@ -88,7 +88,7 @@ impl Tracer<'_> {
         let glitter = self.choose_bsdf(path, &s, &local, bsdf);
         let a_roughness = self.own_roughness(&s, &local);
         let (ns, ng) = orient(&s, wo, bsdf.transmits());
-        let frame = if self.force || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
+        let frame = if self.force() || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
         if let Some(u) = &glitter {
             self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
         }
@@ -108,13 +108,12 @@ impl Tracer<'_> {
     /// floor), with every lobe when forced, or a glitter material's base lobes, whose flakes
     /// are added once the frame is known (returned).
     fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>, bsdf: &mut Bsdf) -> Option<Uber> {
-        let (ec, force) = (self.settings.energy_compensation, self.force);
-        let level = if self.avoid { path.floor.level() } else { 0 };
+        let (ec, force) = (self.settings.energy_compensation, self.force());
+        let level = if self.avoid() { path.floor.level() } else { 0 };
         // Glitter flakes depend on the point and footprint: such materials build their lobes
         // here, the flakes once the shading frame is known.
         let uber_here = local.as_ref().map_or(&self.scene.materials[s.material as usize].surface, |(m, _)| &m.surface);
-        let glitter = uber_here
-            .has_glitter()
+        let glitter = (FULL && uber_here.has_glitter())
             .then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
         match local {
             _ if let Some(u) = &glitter => *bsdf = u.base_bsdf(ec, force),
@@ -132,8 +131,8 @@ impl Tracer<'_> {
     fn own_roughness(&self, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>) -> f32 {
         let ec = self.settings.energy_compensation;
         match local {
-            Some((m, _)) if self.avoid => m.surface.bsdf(ec).roughness(),
-            None if self.avoid => self.scene.bsdf(s.material, ec).roughness(),
+            Some((m, _)) if self.avoid() => m.surface.bsdf(ec).roughness(),
+            None if self.avoid() => self.scene.bsdf(s.material, ec).roughness(),
             _ => 0.0,
         }
     }

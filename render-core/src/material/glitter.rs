@@ -38,7 +38,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use super::uber::Mix;
+use super::mix::Mix;
 use crate::bsdf::{Bsdf, Flake, GgxReflection, Lobe, SpecularFresnel};
 use crate::math::Frame;
 use crate::sampling::{Pcg32, mix64};

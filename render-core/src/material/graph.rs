@@ -8,23 +8,9 @@ use std::sync::Arc;
 use glam::{Mat2, Vec2, Vec3, Vec4};
 
 use super::Material;
-use super::network::{MaterialConnection, MaterialNetwork, MaterialNode, Overrides, ParamValue, ResolveReport};
+use super::desc::{MaterialNetwork, MaterialNode, ParamValue};
+use super::inputs::{EVALUATED, Overrides, ResolveReport};
 use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod};
-
-/// Node ids whose outputs this module evaluates.
-const EVALUATED: &[&str] = &[
-    "UsdUVTexture",
-    "UsdPrimvarReader_float2",
-    "UsdPrimvarReader_float",
-    "UsdPrimvarReader_float3",
-    "UsdPrimvarReader_int",
-    "UsdTransform2d",
-];
-
-/// True when the upstream node of `c` is one this module evaluates.
-pub(crate) fn evaluable(net: &MaterialNetwork, c: &MaterialConnection) -> bool {
-    net.nodes.iter().any(|n| n.path == c.upstream_node && EVALUATED.contains(&n.node_type_id.as_str()))
-}
 
 /// What a texture lookup needs to know about the point it shades.
 #[derive(Clone, Copy, Debug)]
@@ -366,6 +352,7 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::MaterialConnection;
     use crate::material::network::tests::node;
     use crate::texture::Image;
 

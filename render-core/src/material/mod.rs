@@ -7,8 +7,11 @@
 //! directly ([`native`]), and `tessera:Layer` by blending two resolved materials
 //! (`000_...`, section 2.2: parameter resolution, then closure creation).
 
+mod desc;
 pub mod glitter;
 pub mod graph;
+mod inputs;
+mod mix;
 pub mod native;
 pub mod network;
 mod preview;

@@ -10,8 +10,9 @@ use std::collections::BTreeMap;
 use glam::Vec3;
 
 use super::Material;
+use super::desc::ParamValue;
 use super::glitter::GlitterParams;
-use super::network::{Inputs, ParamValue, ResolveReport};
+use super::inputs::{Inputs, ResolveReport};
 use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 

@@ -1,74 +1,11 @@
 //! Material networks in the shape of Hydra's `HdMaterialNetwork`, and their resolution to
 //! a [`Material`].
 
-use std::collections::BTreeMap;
-
-use glam::Vec3;
-
 use super::Material;
-
-/// A parameter value on a node.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ParamValue {
-    /// A float.
-    Float(f32),
-    /// A colour or vector.
-    Float3(Vec3),
-    /// An integer.
-    Int(i32),
-    /// A boolean.
-    Bool(bool),
-    /// A string or token.
-    String(String),
-    /// An asset path, already resolved by the client.
-    Asset(String),
-    /// A texture coordinate or other pair.
-    Float2(glam::Vec2),
-    /// Four components (UsdUVTexture `scale`, `bias`, `fallback`).
-    Float4(glam::Vec4),
-    /// A texture file by content: its hash and where the client found it.
-    Texture {
-        /// `sha256:` and 64 hex digits.
-        hash: String,
-        /// The authored file, for messages.
-        source: String,
-    },
-}
-
-/// One shader node.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub struct MaterialNode {
-    /// The node's USD path.
-    pub path: String,
-    /// Shader id, e.g. `UsdPreviewSurface`.
-    pub node_type_id: String,
-    /// Authored input values by input name (without the `inputs:` prefix).
-    pub parameters: BTreeMap<String, ParamValue>,
-}
-
-/// An edge from an upstream output to a downstream input.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub struct MaterialConnection {
-    /// Downstream node path.
-    pub downstream_node: String,
-    /// Downstream input name.
-    pub downstream_input: String,
-    /// Upstream node path.
-    pub upstream_node: String,
-    /// Upstream output name.
-    pub upstream_output: String,
-}
-
-/// A whole material network.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub struct MaterialNetwork {
-    /// Nodes.
-    pub nodes: Vec<MaterialNode>,
-    /// Connections between node inputs and outputs.
-    pub connections: Vec<MaterialConnection>,
-    /// Path of the node connected to the material's surface terminal.
-    pub surface_node: String,
-}
+pub use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+pub(crate) use super::inputs::Inputs;
+pub use super::inputs::ResolveReport;
+use super::inputs::{Overrides, evaluable};
 
 /// One resolution's state: what it has visited and reported, and the point's varying inputs.
 struct Walk<'a> {
@@ -79,67 +16,6 @@ struct Walk<'a> {
     memo: std::collections::HashMap<String, Material>,
     report: ResolveReport,
     overrides: Overrides<'a>,
-}
-
-/// Values of connected inputs evaluated at one shading point: `keys[i]` is (node path,
-/// input name) of `values[i]`. Empty at commit time.
-#[derive(Clone, Copy, Default)]
-pub(crate) struct Overrides<'a> {
-    pub keys: &'a [(String, String)],
-    pub values: &'a [ParamValue],
-}
-
-impl<'a> Overrides<'a> {
-    fn get(&self, node: &str, input: &str) -> Option<&'a ParamValue> {
-        self.keys.iter().position(|(n, i)| n == node && i == input).map(|k| &self.values[k])
-    }
-}
-
-/// A node's inputs as resolution reads them: the authored values, with connected inputs
-/// replaced by their values at the shading point. A connected input is always present among
-/// the authored ones (compilation writes a placeholder), so iterating covers it.
-#[derive(Clone, Copy)]
-pub(crate) struct Inputs<'a> {
-    node: &'a MaterialNode,
-    overrides: Overrides<'a>,
-}
-
-impl<'a> Inputs<'a> {
-    /// The node's authored values only.
-    #[cfg(test)]
-    pub fn authored(node: &'a MaterialNode) -> Self {
-        Inputs { node, overrides: Overrides::default() }
-    }
-
-    /// The value of input `name`.
-    pub fn get(&self, name: &str) -> Option<&'a ParamValue> {
-        self.overrides.get(&self.node.path, name).or_else(|| self.node.parameters.get(name))
-    }
-
-    /// True when `name` is a connected input evaluated at the shading point.
-    pub fn is_overridden(&self, name: &str) -> bool {
-        self.overrides.get(&self.node.path, name).is_some()
-    }
-
-    /// Every input with a value.
-    pub fn iter(&self) -> impl Iterator<Item = (&'a String, &'a ParamValue)> + 'a {
-        let (node, overrides) = (self.node, self.overrides);
-        node.parameters.iter().map(move |(k, v)| (k, overrides.get(&node.path, k).unwrap_or(v)))
-    }
-}
-
-impl std::ops::Deref for Inputs<'_> {
-    type Target = MaterialNode;
-    fn deref(&self) -> &MaterialNode {
-        self.node
-    }
-}
-
-/// What resolution could not honour, each naming the node and input.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ResolveReport {
-    /// Human-readable warnings.
-    pub warnings: Vec<String>,
 }
 
 /// Deepest chain of `tessera:Layer` nodes followed (a cycle is reported, not followed).
@@ -353,7 +229,7 @@ impl MaterialNetwork {
             },
         };
         for c in self.connections.iter().filter(|c| c.downstream_node == node.path) {
-            if overrides.get(&node.path, &c.downstream_input).is_some() || super::graph::evaluable(self, c) {
+            if overrides.get(&node.path, &c.downstream_input).is_some() || evaluable(self, c) {
                 continue;
             }
             let upstream = self.node(&c.upstream_node).map_or("?", |n| n.node_type_id.as_str());
@@ -380,7 +256,7 @@ impl MaterialNetwork {
         for (name, _) in node.iter().filter(|(n, _)| !matches!(n.as_str(), "mask" | "a" | "b")) {
             report.warnings.push(format!("{}: unknown tessera:Layer input '{name}'", node.path));
         }
-        if let Some(c) = self.upstream(&node.path, "mask").filter(|c| !super::graph::evaluable(self, c)) {
+        if let Some(c) = self.upstream(&node.path, "mask").filter(|c| !evaluable(self, c)) {
             report.warnings.push(format!(
                 "{}: input 'mask' is connected to {}, which cannot be evaluated; its value {mask} is used",
                 node.path, c.upstream_node

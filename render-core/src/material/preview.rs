@@ -4,7 +4,8 @@
 
 use glam::Vec3;
 
-use super::network::{Inputs, ParamValue, ResolveReport};
+use super::desc::ParamValue;
+use super::inputs::{Inputs, ResolveReport};
 use super::uber::ClearcoatParams;
 use super::{Material, Principled};
 

@@ -13,16 +13,11 @@
 use glam::Vec3;
 
 use super::glitter::GlitterParams;
+pub use super::mix::Mix;
 use crate::bsdf::{
     Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Lobe,
     Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
 };
-
-/// Linear interpolation of parameters from `self` (weight `wa`) towards `other` (weight `wb`).
-pub trait Mix: Sized {
-    /// The blend; with `wa + wb = 0` it is `self`.
-    fn mix(&self, wa: f32, other: &Self, wb: f32) -> Self;
-}
 
 /// Share of `wb` in `wa + wb` (0 when both are 0).
 fn share(wa: f32, wb: f32) -> f32 {
