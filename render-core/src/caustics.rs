@@ -1,4 +1,4 @@
-//! Caustic path avoidance (`004_...`, "Caustic path avoidance"): the `caustics = avoid` render
+//! Caustic path avoidance (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Caustic path avoidance"): the `caustics = avoid` render
 //! setting. Unidirectional path tracing finds light focused by smooth glass and mirrors only
 //! by chance, as fireflies. Imageworks trade that noise for a bias in three steps, and light
 //! subsurface media the same way:

@@ -1,4 +1,4 @@
-//! Subsurface scattering as a brute-force random walk (`004_...`, "Subsurface scattering"): a
+//! Subsurface scattering as a brute-force random walk (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Subsurface scattering"): a
 //! homogeneous medium of constant density behind the dielectric boundary of a
 //! `SolidDielectric` with `scatteringRadius` > 0, σ_t = 1/mfp and σ_s = α/mfp.
 //!

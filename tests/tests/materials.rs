@@ -70,7 +70,7 @@ fn relative_rms(a: &tessera::output::Image, b: &tessera::output::Image) -> f64 {
     (diff / norm.max(1e-30)).sqrt()
 }
 
-/// Glitter flakes stick to their object (`000_...`, section 3.5): the sphere, its light and
+/// Glitter flakes stick to their object (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 3.5): the sphere, its light and
 /// the camera moved together by a fraction of a flake cell render the same image, pixel for
 /// pixel up to rounding, far closer than two renders of one scene with different seeds.
 /// Flakes placed in world space would all have moved across the sphere.

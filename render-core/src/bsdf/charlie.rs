@@ -1,11 +1,11 @@
-//! Imageworks' "Charlie" sheen (`004_...`, "Sheen", "Sheen shadowing/masking function"): a
+//! Imageworks' "Charlie" sheen (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Sheen", "Sheen shadowing/masking function"): a
 //! microfacet reflection whose normals lean towards the horizon like microcylinders standing
 //! on the surface, D(m) = (2 + 1/r)·sin^(1/r)θm / 2π, with no Fresnel term and the slides'
 //! fitted Λ in a height-correlated G2 = 1/(1 + Λ(μo) + Λ(μi)).
 //!
 //! It is a coating: its directional albedo E(r, μ), tabulated 16×16 over (r, μ) by
 //! integrating the lobe itself ([`sheen_energy`]), scales the layers beneath by
-//! min(1 − E(μo), 1 − E(μi)) (`004_...`, "Coatings"). The slides' terminator softening is
+//! min(1 − E(μo), 1 − E(μi)) (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"). The slides' terminator softening is
 //! not used: the reciprocal variant is "too dark" and the pleasing one is not reciprocal.
 
 use std::f32::consts::PI;
@@ -22,7 +22,7 @@ use crate::sampling::Pcg32;
 /// 1.27 at r = 0.03 and 0.97 at r = 0.07, so r is clamped where the lobe still conserves energy.
 const R_MIN: f32 = 0.07;
 
-/// The fit's coefficients (a, b, c, d, e) at r = 0 and r = 1 (`004_...`, "Sheen
+/// The fit's coefficients (a, b, c, d, e) at r = 0 and r = 1 (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Sheen
 /// shadowing/masking function", table).
 const FIT_R0: [f32; 5] = [25.3245, 3.32435, 0.16801, -1.27393, -4.85967];
 const FIT_R1: [f32; 5] = [21.5473, 3.82987, 0.19823, -1.97760, -4.32054];
@@ -101,7 +101,7 @@ impl CharlieSheen {
     }
 }
 
-/// Sheen table size in roughness (`004_...`: "a 16×16 2D table indexed by roughness and
+/// Sheen table size in roughness (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks": "a 16×16 2D table indexed by roughness and
 /// incident angle").
 pub const SHEEN_N: usize = 16;
 /// Sheen table size in √μ: 32 rather than 16, because the sheen's albedo climbs steeply at

@@ -1,4 +1,4 @@
-//! Coatings over any combination of lobes (`004_...`, "Coatings"): a clearcoat (Disney's GTR1
+//! Coatings over any combination of lobes (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"): a clearcoat (Disney's GTR1
 //! or Imageworks' dielectric layer with absorption) or the Charlie sheen, each taking from the
 //! layers beneath what it reflects itself.
 
@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::{CharlieSheen, Clearcoat, GgxReflection, Lobe, SpecularFresnel, ThinFilmCoat, charlie, energy};
 
 /// A layer over the lobes added before it, which takes from them what it reflects
-/// (`004_...`, "Coatings": f_s' = min(1 − E(μo), 1 − E(μi))·f_s, E the coat's directional
+/// (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings": f_s' = min(1 − E(μo), 1 − E(μi))·f_s, E the coat's directional
 /// albedo; coats can stack).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Coat {
@@ -21,7 +21,7 @@ pub enum Coat {
     ThinFilm(ThinFilmCoat),
 }
 
-/// Imageworks' clearcoat (`004_...`, "Clearcoat"; DreamWorks' `000_...` section 2.3 exposes
+/// Imageworks' clearcoat (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Clearcoat"; DreamWorks' Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation" section 2.3 exposes
 /// the same refractive index, thickness and attenuation colour): a compensated dielectric
 /// GGX reflection whose albedo comes from the 3D E(μ) table
 /// ([`energy::dielectric_specular`]), tinting the layers beneath by absorption along the

@@ -1,6 +1,6 @@
 //! The Disney lobes besides the specular ones: diffuse with the Fresnel shadow and
-//! retro-reflection (Burley 2012 `001_...` section 5.3, split as in 2015 and as Schutte 2018
-//! `002_...` "Diffuse" implements it, with the thin-surface Hanrahan-Krueger blend by
+//! retro-reflection (Burley 2012, "Physically Based Shading at Disney", section 5.3, split as in 2015 and as Schutte 2018
+//! Schutte 2018, "Rendering the Moana Island Scene Part 1: Implementing the Disney BSDF" "Diffuse" implements it, with the thin-surface Hanrahan-Krueger blend by
 //! `flatness`), diffuse transmission (`diffTrans`), sheen, and the clearcoat (GTR1,
 //! fixed-roughness G with α = 0.25, F0 = 0.04, `clearcoatGloss` mapping α = lerp(0.1, 0.001)).
 
@@ -58,7 +58,7 @@ pub struct DisneyDiffuse {
     /// Thin-surface flatness: blend from Lambert to Hanrahan-Krueger (0 for solids).
     pub flatness: f32,
     /// Under a dielectric specular of (η, roughness): the diffuse then reflects only what the
-    /// specular leaves, f·(1 − E_s(μo))(1 − E_s(μi))/(1 − E_s,avg) (`004_...`, "Microfacet
+    /// specular leaves, f·(1 − E_s(μo))(1 − E_s(μi))/(1 − E_s,avg) (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet
     /// dielectrics - diffuse term"), so specular + diffuse never exceeds 1.
     pub coupling: Option<(f32, f32)>,
     /// A plain Lambertian base (UsdPreviewSurface's diffuse): no Fresnel shadow, no
@@ -188,7 +188,7 @@ pub struct DiffuseTransmission {
     pub color: Vec3,
     /// Under a dielectric specular of (η, roughness): what crosses the surface is what the
     /// specular leaves, min(1 − E_s(|μo|), 1 − E_s(|μi|)) (the coats' reciprocal rule,
-    /// `004_...`, "Coatings"). Without it a white diffuse transmission under a specular
+    /// Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"). Without it a white diffuse transmission under a specular
     /// reflected and transmitted 1.03 of the light.
     pub coupling: Option<(f32, f32)>,
 }

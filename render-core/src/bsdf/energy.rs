@@ -1,4 +1,4 @@
-//! Directional albedo tables for Kulla-Conty energy compensation (`004_...`, "Microfacet
+//! Directional albedo tables for Kulla-Conty energy compensation (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet
 //! energy compensation"): E(μ, roughness) of single-scattering GGX with F = 1 on a 32×32
 //! grid, and E_avg(roughness) = 2∫E(μ)μ dμ on 32 entries, as the slides store them.
 //!
@@ -18,7 +18,7 @@ use glam::{Vec2, Vec3};
 use super::microfacet::{Ggx, reflect};
 use crate::sampling::Pcg32;
 
-/// Table resolution per dimension (`004_...`: "a 32^2 table is sufficient").
+/// Table resolution per dimension (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks": "a 32^2 table is sufficient").
 pub const N: usize = 32;
 /// Smallest tabulated cosine: μ = 0 itself has no well-defined single-scattering albedo.
 const MU_MIN: f32 = 1e-4;
@@ -144,7 +144,7 @@ const ANISO_RHO_MIN: f32 = 0.1;
 /// E(wo) of anisotropic GGX with F = 1, over (√α_max, α_min/α_max, azimuth of wo from the
 /// rough axis, √μo), and its hemispherical average E_avg(√α_max, α_min/α_max).
 ///
-/// The slides (`004_...`, "Microfacet energy compensation") drive anisotropic lobes by one
+/// The slides (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet energy compensation") drive anisotropic lobes by one
 /// roughness. With Disney's anisotropy mapping that gains energy near grazing angles: seen
 /// along its smooth axis an anisotropic lobe keeps more energy than any isotropic lobe in its
 /// α range (measured: 2.5% gain at roughness 0.1, cos θ = 1e-4), so the compensation lobe
@@ -247,7 +247,7 @@ pub fn ggx_anisotropic() -> &'static GgxAnisoEnergy {
 
 /// Directional albedo of the Disney clearcoat lobe at full strength (weight 1) over
 /// (gloss, √μ), 16×32, by stratified sampling of the lobe itself: what a coat reflects and
-/// therefore takes from the layers beneath it (`004_...`, "Coatings":
+/// therefore takes from the layers beneath it (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings":
 /// f_base' = min(1 − E(μo), 1 − E(μi))·f_base).
 pub struct ClearcoatEnergy {
     e: [[f32; N]; 16],
@@ -411,7 +411,7 @@ fn cosine_average(m: usize, f: impl Fn(f32) -> f32) -> f32 {
     (2.0 * acc / m as f64) as f32
 }
 
-/// Glass table resolution in η and roughness (`004_...`: "16^3 tables").
+/// Glass table resolution in η and roughness (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks": "16^3 tables").
 pub const GLASS_N: usize = 16;
 /// Glass table resolution in √μ: 32 rather than the slides' 16, because E changes steeply
 /// around the critical angle seen from inside, and 16 nodes left 2.2% of energy missing
@@ -539,7 +539,7 @@ pub fn glass() -> &'static GlassEnergy {
 }
 
 /// The share of the multiply-scattered energy reflected back to `wo`'s side, Ratio(η), solved
-/// for reciprocity as `004_...` ("Glass energy conservation - reciprocity") derives: with
+/// for reciprocity as Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks" ("Glass energy conservation - reciprocity") derives: with
 /// 1 − Ratio(η) = x(1 − F_avg(η)) and 1 − Ratio(1/η) = (1 − x)(1 − F_avg(1/η)),
 /// x(1 − F_avg(η))/(1 − E_avg(1/η)) = (1 − x)(1 − F_avg(1/η))η²/(1 − E_avg(η)).
 /// `ea` and `eb` are E_avg seen from the side of η and of 1/η.
@@ -553,7 +553,7 @@ pub fn glass_reflect_ratio(eta: f32, ea: f32, eb: f32) -> f32 {
 
 /// Directional albedo E_s(η, r, μ) of a dielectric's compensated specular reflection (f + f_ms)
 /// on a 16³ grid (η = 1 + 2(i/15)², r = j/15, √μ = k/15), and its cosine-weighted average:
-/// the missing energy 1 − E_s is what a diffuse base may reflect (`004_...`, "Microfacet
+/// the missing energy 1 − E_s is what a diffuse base may reflect (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet
 /// dielectrics - diffuse term", after Kelemen et al. 2001).
 pub struct DielectricSpecularEnergy {
     e: Vec<f32>,

@@ -1,4 +1,4 @@
-//! The DreamWorks fabric specular (`000_...`, section 4 and appendices A-B, after Glumac &
+//! The DreamWorks fabric specular (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 4 and appendices A-B, after Glumac &
 //! Doepf 2004): woven dielectric fibres reflect in a cone around the mirror direction with
 //! respect to the thread, S = (1 − |sin θh|)^n, θh = (θo + θi)/2, θ the latitude from the
 //! plane normal to the thread. n = ceil(1 + 29(1 − α)²) from the artist's roughness α

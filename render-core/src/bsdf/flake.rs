@@ -1,5 +1,5 @@
 //! One glitter flake: a GGX lobe whose microfacet normal is the flake's tilted normal
-//! (`000_...`, section 3.3: "each visible flake is instantiated as a GGX microfacet lobe, with a
+//! (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 3.3: "each visible flake is instantiated as a GGX microfacet lobe, with a
 //! Schlick Fresnel term, using the computed flake color as incident specular color, and flake
 //! normal as the microfacet normal").
 //!

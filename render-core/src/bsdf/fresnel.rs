@@ -2,10 +2,10 @@
 //! reflectivity / edge-tint parameterization, the artistic (r, g, p) form, and the
 //! hemispherical averages F_avg that energy compensation needs.
 //!
-//! Sources: Kulla & Conty 2017 (`004_...`, "Microfacet energy compensation - Fresnel": the
+//! Sources: Kulla & Conty 2017 ("Revisiting Physically Based Shading at Imageworks", "Microfacet energy compensation - Fresnel": the
 //! exact dielectric formula, the F_avg fits and their stated maximum errors, the artistic
 //! form and its closed-form average); Gulbrandsen, "Artist Friendly Metallic Fresnel", JCGT
-//! 2014 (r, g → n, k); Burley 2012 (`001_...`, section 5.5, Schlick).
+//! 2014 (r, g → n, k); Burley 2012 ("Physically Based Shading at Disney", section 5.5, Schlick).
 
 use glam::Vec3;
 
@@ -125,7 +125,7 @@ pub fn gulbrandsen(r: Vec3, g: Vec3, cos: f32) -> Vec3 {
     Vec3::new(f(r.x, g.x), f(r.y, g.y), f(r.z, g.z))
 }
 
-/// The artistic conductor Fresnel r + (g − r)(1 − μ)^(1/p) (`004_...`, "Artist Friendly").
+/// The artistic conductor Fresnel r + (g − r)(1 − μ)^(1/p) (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Artist Friendly").
 #[inline]
 pub fn artistic(r: Vec3, g: Vec3, p: f32, cos: f32) -> Vec3 {
     let w = (1.0 - cos.abs().min(1.0)).powf(1.0 / p.max(1e-3));
@@ -149,7 +149,7 @@ pub fn average(f: impl Fn(f32) -> f32) -> f32 {
     (2.0 * acc * 0.5 * h) as f32
 }
 
-/// F_avg of a dielectric: Kulla & Conty's fits (`004_...`, "Dielectric Fresnel"), for
+/// F_avg of a dielectric: Kulla & Conty's fits (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Dielectric Fresnel"), for
 /// 1 < η < 400 and 0 < η < 1, stated maximum errors ~0.65% and ~0.29%.
 #[inline]
 pub fn dielectric_avg_fit(eta: f32) -> f32 {
@@ -160,7 +160,7 @@ pub fn dielectric_avg_fit(eta: f32) -> f32 {
     }
 }
 
-/// F_avg of a Gulbrandsen conductor: Kulla & Conty's fit (`004_...`, "Conductor Fresnel"),
+/// F_avg of a Gulbrandsen conductor: Kulla & Conty's fit (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Conductor Fresnel"),
 /// stated maximum error ~2%, average ~0.25%.
 #[inline]
 pub fn gulbrandsen_avg_fit(r: Vec3, g: Vec3) -> Vec3 {

@@ -1,8 +1,8 @@
 //! The anisotropic GGX (GTR2) microfacet distribution with Heitz's Smith masking-shadowing
 //! and sampling of the distribution of visible normals; GTR1 for the Disney clearcoat.
 //!
-//! Sources: Burley 2012 (`001_...`, section 5.4: GTR, α = roughness²), Schutte 2018
-//! (`002_...`, "Specular BRDF": the anisotropic mapping and Heitz's anisotropic Λ), Heitz,
+//! Sources: Burley 2012 ("Physically Based Shading at Disney", section 5.4: GTR, α = roughness²), Schutte 2018
+//! ("Rendering the Moana Island Scene Part 1: Implementing the Disney BSDF", "Specular BRDF": the anisotropic mapping and Heitz's anisotropic Λ), Heitz,
 //! "Understanding the Masking-Shadowing Function", JCGT 2014 (height-correlated G2), and
 //! Heitz, "Sampling the GGX Distribution of Visible Normals", JCGT 2018.
 
@@ -107,7 +107,7 @@ impl Ggx {
     }
 }
 
-/// Burley's GTR1 distribution (`001_...`, section 5.4), used by the Disney clearcoat, for a
+/// Burley's GTR1 distribution (Burley 2012, "Physically Based Shading at Disney", section 5.4), used by the Disney clearcoat, for a
 /// unit microfacet normal `h` in the local frame. The denominator 1 + (α² − 1)cos²θ is formed
 /// as sin²θ + α²cos²θ from h's components: computed from cos θ in f32 it cancels near the peak
 /// of a gloss-1 coat (α² = 1e-6) and D came out up to 6% off there.

@@ -283,7 +283,7 @@ impl Bsdf {
     }
 
     /// Puts `coat` over every lobe added so far (coats included, so coats stack), layered as
-    /// Imageworks combines coats (`004_...`, "Coatings"): the lobes beneath are scaled by
+    /// Imageworks combines coats (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"): the lobes beneath are scaled by
     /// [`Coat::over`], so coat plus base never reflects more than 1 and the product stays
     /// reciprocal. `compensate` switches the coat lobe's own energy compensation.
     pub fn coat_with(&mut self, coat: Coat, compensate: bool) {

@@ -2,7 +2,7 @@
 //! Kulla-Conty's multiple-scattering compensation lobe. Metals use it alone; opaque dielectrics
 //! put it over a diffuse base coupled through [`super::energy::dielectric_specular`].
 //!
-//! f = D·G2·F / (4 μo μi) + f_ms, with (`004_...`, "Microfacet energy compensation")
+//! f = D·G2·F / (4 μo μi) + f_ms, with (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet energy compensation")
 //! f_ms = (1 − E(μo))(1 − E(μi)) / (π(1 − E_avg)) · F_avg² E_avg / (1 − F_avg(1 − E_avg)),
 //! the Fresnel factor in the appendix's corrected form. `sample` picks the specular lobe
 //! (VNDF) or the compensation lobe (cosine) in proportion to their albedos at `wo`.
@@ -20,7 +20,7 @@ use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 /// How a conductor's reflectance varies with angle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SpecularFresnel {
-    /// Gulbrandsen's reflectivity `r` and edge tint `g` (`004_...`, conductor Fresnel slide).
+    /// Gulbrandsen's reflectivity `r` and edge tint `g` (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", conductor Fresnel slide).
     Gulbrandsen {
         /// Normal-incidence colour.
         r: Vec3,

@@ -1,4 +1,4 @@
-//! A thin dielectric sheet modelled by one surface (`004_...`, "Thin surface"): windows,
+//! A thin dielectric sheet modelled by one surface (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Thin surface"): windows,
 //! leaves, soap bubbles. Light reflects off the front, or enters, bounces between the two
 //! faces losing A per crossing, and leaves on either side. Summing every exit:
 //!
@@ -12,7 +12,7 @@
 //! F and A are taken at the microfacet cosine, which keeps the lobe reciprocal.
 //!
 //! With `compensate`, each half gets Kulla & Conty's multiple-scattering lobe weighted by the
-//! cosine-average of its own series weight (`004_...`, "Microfacet energy compensation"), so a
+//! cosine-average of its own series weight (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet energy compensation"), so a
 //! rough clear sheet keeps its energy (measured bounds in the tests). Because each half
 //! weighs its series at its own half vector, the sum can exceed 1 at grazing angles; the
 //! lobe measures its largest albedo when built and scales itself below 1.

@@ -1,4 +1,4 @@
-//! Thin-film interference (iridescence), the third of Imageworks' coatings (`004_...`,
+//! Thin-film interference (iridescence), the third of Imageworks' coatings (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks",
 //! "Coatings": clearcoat, sheen, thin film; the slides leave the film model to the reader).
 //! The model here is the classical Airy summation for one film between air and a dielectric
 //! substrate (Born & Wolf, *Principles of Optics*, section 7.6; the form Belcour & Barla 2017

@@ -141,8 +141,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     fn apply_glitter(&self, u: &Uber, s: &SurfaceHit, ns: Vec3, frame: &Frame, cone_here: f32, bsdf: &mut Bsdf) {
         let t = &self.scene.instances[s.instance as usize].transform;
         let m3 = t.to_world.matrix3;
-        // Flakes live in object space (Hery, Kass & Ling, "Physically Based Shading of
-        // Glitter", section 3.5); so does the footprint.
+        // Flakes live in object space (Xie & Lanz 2017, "Physically Based Shading at DreamWorks
+        // Animation", section 3.5); so does the footprint.
         let n_obj = Vec3::from(m3.transpose() * glam::Vec3A::from(ns)).normalize_or_zero();
         let radius = 0.5 * cone_here / m3.determinant().abs().cbrt();
         let g = &u.glitter;

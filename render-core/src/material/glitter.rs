@@ -1,4 +1,4 @@
-//! DreamWorks glitter (`000_...`, section 3): flakes as Worley feature spheres in the object's
+//! DreamWorks glitter (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 3): flakes as Worley feature spheres in the object's
 //! own (reference) space, each flake's coverage of the shading footprint, up to four GGX flake
 //! lobes weighted by coverage, and one lobe standing in for the flakes beyond those four.
 //!

@@ -1,7 +1,7 @@
 //! Inputs that vary over a surface: the UsdPreviewSurface texture nodes (`UsdUVTexture`,
 //! `UsdPrimvarReader_float2`, `UsdTransform2d`) compiled at commit into small expressions and
 //! evaluated at each shading point, whose values then go through the same parameter
-//! resolution as constant inputs (`000_...`, section 2.2: parameters first, then closures).
+//! resolution as constant inputs (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2: parameters first, then closures).
 
 use std::sync::Arc;
 

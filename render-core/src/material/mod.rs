@@ -5,7 +5,7 @@
 //! `tessera:Principled` through Disney's parameters ([`Principled`]), the DreamWorks-style
 //! `tessera:Metal`, `tessera:Refractive`, `tessera:SolidDielectric` and `tessera:Fabric`
 //! directly ([`native`]), and `tessera:Layer` by blending two resolved materials
-//! (`000_...`, section 2.2: parameter resolution, then closure creation).
+//! (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2: parameter resolution, then closure creation).
 
 mod desc;
 pub mod glitter;

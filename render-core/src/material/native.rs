@@ -1,5 +1,5 @@
 //! Tessera's own shaders, reachable from any USD file by `info:id`: the DreamWorks-style
-//! specialized materials (`000_...`, section 2.3) `tessera:Metal`, `tessera:Refractive`,
+//! specialized materials (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.3) `tessera:Metal`, `tessera:Refractive`,
 //! `tessera:SolidDielectric`, and `tessera:Fabric` (section 4). Each is declared once here,
 //! inputs with types, defaults and ranges, and that declaration both reads a node and writes
 //! the reference table in docs/materials.md (a test checks the two agree; an ignored test
@@ -70,8 +70,8 @@ pub struct Shader {
     pub materials: &'static [(&'static str, &'static str)],
 }
 
-/// Inputs every specialized material takes (`000_...`, section 2.3 "additional features"; the
-/// sheen coat and double specular from `004_...`, "Coatings" and "Double specular").
+/// Inputs every specialized material takes (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.3 "additional features"; the
+/// sheen coat and double specular from Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings" and "Double specular").
 pub const SHARED: &[Input] = &[
     float("clearcoat", 0.0, (0.0, 1.0), "coverage of a dielectric clearcoat over the material"),
     float("clearcoatRefractiveIndex", 1.5, (1.0, 3.0), "the coat's refractive index"),

@@ -144,7 +144,7 @@ impl MaterialNetwork {
 
     /// Resolves the network into the uber-material, top-down from the surface node:
     /// a `tessera:Layer` evaluates its mask first and then only the sub-materials it shows
-    /// (`000_...`, section 2.2). Unknown nodes, unmapped inputs and connected inputs that
+    /// (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2). Unknown nodes, unmapped inputs and connected inputs that
     /// cannot be evaluated yet are reported, never silently dropped.
     pub fn resolve(&self, material_path: &str) -> (Material, ResolveReport) {
         self.resolve_with(material_path, Overrides::default(), true)
@@ -241,7 +241,7 @@ impl MaterialNetwork {
         m
     }
 
-    /// `tessera:Layer`: A over B with one mask (`000_...`, section 2.2). A sub-material is
+    /// `tessera:Layer`: A over B with one mask (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2). A sub-material is
     /// evaluated only when the mask shows it.
     fn resolve_layer(&self, node: Inputs, depth: usize, walk: &mut Walk) -> Material {
         let report = &mut walk.report;
@@ -350,7 +350,7 @@ pub(crate) mod tests {
     }
 
     /// Dirt over glass: the glass keeps its own IOR and roughness, the dirt's dielectric
-    /// parameters stay in the plastic family (`004_...`, "Putting it all together").
+    /// parameters stay in the plastic family (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Putting it all together").
     #[test]
     fn layers_blend_within_families_without_contaminating_glass() {
         let dirt = node(

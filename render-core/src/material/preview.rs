@@ -1,5 +1,5 @@
 //! The front-ends that speak Disney's parameters: UsdPreviewSurface (mapped as
-//! docs/materials.md explains) and `tessera:Principled` (Burley 2012 `001_...` section 5.1 and
+//! docs/materials.md explains) and `tessera:Principled` (Burley 2012, "Physically Based Shading at Disney", section 5.1 and
 //! the 2015 additions, with Disney's defaults).
 
 use glam::Vec3;

@@ -1,5 +1,5 @@
-//! The Disney principled parameters (Burley 2012 `001_...` section 5.1 plus the 2015
-//! `specTrans`, `diffTrans`, `flatness`, `thin`, as Schutte 2018 `002_...` implements them)
+//! The Disney principled parameters (Burley 2012, "Physically Based Shading at Disney", section 5.1 plus the 2015
+//! `specTrans`, `diffTrans`, `flatness`, `thin`, as Schutte 2018, "Rendering the Moana Island Scene Part 1: Implementing the Disney BSDF", implements them)
 //! as the front-end of UsdPreviewSurface and `tessera:Principled`, mapped onto the uber-material.
 
 use glam::Vec3;
@@ -281,7 +281,7 @@ mod tests {
     #[test]
     fn a_clearcoat_takes_its_energy_from_the_layers_beneath() {
         // Added on top, Disney's coat over a white base reflects more than it receives at
-        // grazing angles; layered (`004_...`, "Coatings") it never does, stays reciprocal and
+        // grazing angles; layered (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings") it never does, stays reciprocal and
         // samples its pdf.
         let coated =
             Principled { base_color: Vec3::ONE, roughness: 1.0, lambert: true, clearcoat: 1.0, clearcoat_gloss: 0.5, ..Default::default() };

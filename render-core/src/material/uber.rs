@@ -1,7 +1,7 @@
 //! The uber-material every front-end resolves to, and the parameter blending that layers
-//! materials (`000_...`, section 2.2: "parameter resolution, then closure creation").
+//! materials (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2: "parameter resolution, then closure creation").
 //!
-//! Parameters live in families, as Imageworks' shaders track them (`004_...`, "Putting it all
+//! Parameters live in families, as Imageworks' shaders track them (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Putting it all
 //! together": Metal, Plastic, Glass, "parameter blending within each lobe ... avoids
 //! contamination in cases like dirt on glass"), plus the DreamWorks fabric as a fourth family.
 //! Each family has a weight (the weights sum to at most 1) and its own parameters; blending
@@ -64,7 +64,7 @@ impl Mix for SpecularFresnel {
 }
 
 /// A microfacet specular: Fresnel, roughness, anisotropy, and Imageworks' double specular
-/// (`004_...`, "Double specular": a second roughness and its share, a linear combination of
+/// (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Double specular": a second roughness and its share, a linear combination of
 /// energy-preserving lobes).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Specular {
@@ -200,7 +200,7 @@ pub struct Glass {
     /// Refractive index: how much reflects.
     pub ior: f32,
     /// The index light bends by: `ior` for real glass; DreamWorks' `transmissionRefractiveIndex`
-    /// decouples it (`000_...`, section 2.3).
+    /// decouples it (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.3).
     pub bend_ior: f32,
     /// Transmission tint (for a thin sheet, one crossing's colour).
     pub color: Vec3,
@@ -393,7 +393,7 @@ impl Default for Uber {
 }
 
 impl Uber {
-    /// "A over B" with one mask (`000_...`, section 2.2): `self` is B.
+    /// "A over B" with one mask (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2): `self` is B.
     pub fn layered_under(&self, a: &Uber, mask: f32) -> Uber {
         let m = if mask.is_finite() { mask.clamp(0.0, 1.0) } else { 0.0 };
         Uber {
