@@ -2,7 +2,9 @@
 """Anchor measurements for Tessera's benchmarks, run by the Rust benches on the same data.
 
     python3 bench/anchors.py rays DIR        Embree (embreex) on DIR/{vertices,indices,rays}.bin
-    python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core)
+    python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core);
+        ARGS: USD W H SPP MAX_DEPTH REF_SPP OUT_DIR VARIANT [SAMPLER] (SAMPLER: independent,
+        the default, or multijitter / ldsampler / stratified / orthogonal)
 
 Each prints one JSON object on its last line. Needs: pip install embreex mitsuba usd-core numpy,
 and Debian's libllvm19 for Mitsuba's llvm variants.
@@ -54,7 +56,7 @@ def rays(d):
     }
 
 
-def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir):
+def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir, sampler="independent"):
     """The Cornell box fixture as a Mitsuba scene: same meshes, materials, light, camera."""
     import mitsuba as mi
     from pxr import Usd, UsdGeom, UsdShade, UsdLux, Gf
@@ -110,16 +112,16 @@ def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir):
                 "fov_axis": "x",
                 "to_world": mi.ScalarTransform4f().look_at(origin=list(eye), target=list(target), up=list(up)),
                 "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}},
-                "sampler": {"type": "independent", "sample_count": spp},
+                "sampler": {"type": sampler, "sample_count": spp},
             }
     return scene
 
 
-def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant):
+def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant, sampler="independent"):
     import mitsuba as mi
 
     mi.set_variant(variant)
-    scene = mi.load_dict(cornell_scene_dict(usd_path, width, height, max_depth, spp, out_dir))
+    scene = mi.load_dict(cornell_scene_dict(usd_path, width, height, max_depth, spp, out_dir, sampler))
     mi.render(scene, spp=1)  # JIT warm-up, not timed
     best = float("inf")
     for seed in range(3):
@@ -127,8 +129,8 @@ def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant):
         img = mi.render(scene, spp=spp, seed=seed)
         arr = np.array(img)  # forces evaluation
         best = min(best, time.perf_counter() - t0)
-    np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].astype(np.float32).tofile(os.path.join(out_dir, "mitsuba.bin"))
-    result = {"variant": variant, "seconds": best, "paths_per_s": width * height * spp / best}
+    np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].astype(np.float32).tofile(os.path.join(out_dir, f"mitsuba_{sampler}.bin"))
+    result = {"variant": variant, "sampler": sampler, "seconds": best, "paths_per_s": width * height * spp / best}
     if ref_spp > 0:
         t0 = time.perf_counter()
         ref = np.array(mi.render(scene, spp=ref_spp, seed=11))[:, :, :3]
@@ -142,6 +144,7 @@ if __name__ == "__main__":
         print(json.dumps(rays(sys.argv[2])))
     elif sys.argv[1] == "cornell":
         usd, w, h, spp, depth, ref_spp, out, variant = sys.argv[2:10]
-        print(json.dumps(cornell(usd, int(w), int(h), int(spp), int(depth), int(ref_spp), out, variant)))
+        sampler = sys.argv[10] if len(sys.argv) > 10 else "independent"
+        print(json.dumps(cornell(usd, int(w), int(h), int(spp), int(depth), int(ref_spp), out, variant, sampler)))
     else:
         sys.exit(__doc__)

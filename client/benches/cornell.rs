@@ -1,6 +1,8 @@
 //! Paths per second on the Cornell box fixture, 1 and 2 threads, beside Mitsuba 3 rendering
 //! the same scene (read from the same USD file) at equal resolution, spp and depth, in the
-//! same run; then error against a shared high-spp Mitsuba reference at equal spp.
+//! same run; then error against a shared high-spp Mitsuba reference at equal spp, like with
+//! like: Tessera's Sobol against Mitsuba's `multijitter` (both stratified), independent
+//! against independent, and error × time for each pair on the same threads.
 //! Run: `cargo bench -p tessera --bench cornell`. Environment: `REF_SPP` (default 1024, 0 to
 //! skip the reference).
 
@@ -64,7 +66,8 @@ fn read_f32(path: &Path) -> Option<Vec<f32>> {
     Some(bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
 }
 
-fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32) -> Option<(f64, f64)> {
+/// One Mitsuba run: (seconds, paths/s), its 64-spp image written to `out`.
+fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32, sampler: &str) -> Option<(f64, f64)> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/anchors.py");
     let args = [
         usd.to_str()?,
@@ -75,6 +78,7 @@ fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32) -> Option<(f64, 
         &ref_spp.to_string(),
         out.to_str()?,
         variant,
+        sampler,
     ];
     let o = std::process::Command::new("python3").arg(script).arg("cornell").args(args).output().ok()?;
     if !o.status.success() {
@@ -89,6 +93,13 @@ fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32) -> Option<(f64, 
     Some((num("seconds")?, num("paths_per_s")?))
 }
 
+/// Best of three renders on `threads` threads: (seconds, the last image).
+fn best_of_three(scene: &CommittedScene, threads: usize, sampler: SamplerKind) -> (f64, Vec<f32>) {
+    let runs: Vec<(Vec<f32>, f64)> = (0..3).map(|s| render_rgb_with(scene, threads, SPP, s, sampler)).collect();
+    let best = runs.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    (best, runs.into_iter().last().unwrap().0)
+}
+
 fn main() {
     let ref_spp: u32 = std::env::var("REF_SPP").ok().and_then(|s| s.parse().ok()).unwrap_or(1024);
     let usd = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/cornell_box.usda").canonicalize().unwrap();
@@ -98,58 +109,64 @@ fn main() {
 
     println!("cornell: {W}x{H}, {SPP} spp, max depth {} bounces (Mitsuba max_depth {MITSUBA_MAX_DEPTH})", MITSUBA_MAX_DEPTH - 1);
     render_rgb(&scene, 2, 1, 99); // warm caches
-    let mut ours = Vec::new();
-    for threads in [1, 2] {
-        let best = (0..3).map(|s| render_rgb(&scene, threads, SPP, s).1).fold(f64::INFINITY, f64::min);
-        ours.push((threads, best));
-    }
+    let ours: Vec<(usize, f64)> =
+        [1, 2].into_iter().map(|threads| (threads, best_of_three(&scene, threads, SamplerKind::Sobol).0)).collect();
     let out = std::env::temp_dir().join("tessera-bench-cornell");
     std::fs::create_dir_all(&out).unwrap();
-    let scalar = mitsuba(&usd, &out, "scalar_rgb", 0);
-    let llvm = mitsuba(&usd, &out, "llvm_ad_rgb", ref_spp);
+    let scalar = mitsuba(&usd, &out, "scalar_rgb", 0, "independent");
+    let llvm = mitsuba(&usd, &out, "llvm_ad_rgb", ref_spp, "independent");
+    let llvm_mj = mitsuba(&usd, &out, "llvm_ad_rgb", 0, "multijitter");
 
     println!("{:<30} {:>9} {:>13} {:>15} {:>15}", "renderer", "seconds", "Mpaths/s", "vs mitsuba llvm", "vs mitsuba scalar");
     let ratio = |a: Option<(f64, f64)>, ours: f64| a.map_or("-".to_string(), |(_, p)| format!("{:.2}x", ours / p));
     for &(threads, secs) in &ours {
         let pps = paths / secs;
-        println!(
-            "{:<30} {:>9.3} {:>13.3} {:>15} {:>15}",
-            format!("tessera, {threads} thread(s)"),
-            secs,
-            pps / 1e6,
-            ratio(llvm, pps),
-            ratio(scalar, pps)
-        );
+        let name = format!("tessera sobol, {threads} thread(s)");
+        println!("{:<30} {:>9.3} {:>13.3} {:>15} {:>15}", name, secs, pps / 1e6, ratio(llvm, pps), ratio(scalar, pps));
     }
-    for (name, r) in [("mitsuba llvm_ad_rgb (2 thr)", llvm), ("mitsuba scalar_rgb (2 thr)", scalar)] {
+    for (name, r) in
+        [("mitsuba llvm indep. (2 thr)", llvm), ("mitsuba llvm multijit. (2 thr)", llvm_mj), ("mitsuba scalar indep. (2 thr)", scalar)]
+    {
         if let Some((s, p)) = r {
             println!("{:<30} {:>9.3} {:>13.3}", name, s, p / 1e6);
         }
     }
-
-    // Equal-spp error against Mitsuba's high-spp reference of the same scene.
-    if let (Some(reference), Some(mits)) = (read_f32(&out.join("mitsuba_ref.bin")), read_f32(&out.join("mitsuba.bin"))) {
-        if ref_spp > 0 && reference.len() == (W * H * 3) as usize {
-            let (img, _) = render_rgb(&scene, 2, SPP, 7);
-            let (indep, _) = render_rgb_with(&scene, 2, SPP, 7, SamplerKind::Independent);
-            let (our_ref, ref_secs) = render_rgb(&scene, 2, ref_spp, 11);
-            println!(
-                "error vs Mitsuba {ref_spp}-spp reference (relMSE, equal {SPP} spp): tessera sobol {:.5}, tessera independent {:.5}, mitsuba {:.5}",
-                rel_mse(&img, &reference),
-                rel_mse(&indep, &reference),
-                rel_mse(&mits, &reference)
-            );
-            let (a, b) = (mean(&our_ref), mean(&reference));
-            println!(
-                "agreement at {ref_spp} spp ({ref_secs:.1} s): image means tessera [{:.4}, {:.4}, {:.4}] vs mitsuba [{:.4}, {:.4}, {:.4}]; relMSE between them {:.5}",
-                a[0],
-                a[1],
-                a[2],
-                b[0],
-                b[1],
-                b[2],
-                rel_mse(&our_ref, &reference)
-            );
-        }
+    if ref_spp > 0 {
+        let mitsuba_runs = [("independent", llvm), ("multijitter", llvm_mj)];
+        equal_error(&scene, &out, ref_spp, ours[1].1, &mitsuba_runs);
     }
+}
+
+/// Equal-spp error against Mitsuba's high-spp reference, like with like (stratified against
+/// stratified, independent against independent), with error × time on 2 threads: the figure
+/// that decides how long a clean image takes.
+fn equal_error(scene: &CommittedScene, out: &Path, ref_spp: u32, sobol_secs: f64, mitsuba_runs: &[(&str, Option<(f64, f64)>)]) {
+    let Some(reference) = read_f32(&out.join("mitsuba_ref.bin")).filter(|r| r.len() == (W * H * 3) as usize) else { return };
+    let (img, _) = render_rgb(scene, 2, SPP, 7);
+    let (indep_secs, indep) = best_of_three(scene, 2, SamplerKind::Independent);
+    let ours = [("sobol", rel_mse(&img, &reference), sobol_secs), ("independent", rel_mse(&indep, &reference), indep_secs)];
+    let theirs: Vec<(&str, f64, f64)> = mitsuba_runs
+        .iter()
+        .filter_map(|&(sampler, run)| Some((sampler, rel_mse(&read_f32(&out.join(format!("mitsuba_{sampler}.bin")))?, &reference), run?.0)))
+        .collect();
+    println!("error vs Mitsuba LLVM {ref_spp}-spp reference (relMSE at equal {SPP} spp, 2 threads), like with like:");
+    for ((ours_name, e, t), their_name) in ours.iter().zip(["multijitter", "independent"]) {
+        let Some(&(_, me, mt)) = theirs.iter().find(|r| r.0 == their_name) else { continue };
+        println!(
+            "  tessera {ours_name:<12} relMSE {e:.5} in {t:.3} s | mitsuba llvm {their_name:<12} relMSE {me:.5} in {mt:.3} s | error x time: tessera {:.2}x mitsuba's",
+            (e * t) / (me * mt)
+        );
+    }
+    let (our_ref, ref_secs) = render_rgb(scene, 2, ref_spp, 11);
+    let (a, b) = (mean(&our_ref), mean(&reference));
+    println!(
+        "agreement at {ref_spp} spp ({ref_secs:.1} s): image means tessera [{:.4}, {:.4}, {:.4}] vs mitsuba [{:.4}, {:.4}, {:.4}]; relMSE between them {:.5}",
+        a[0],
+        a[1],
+        a[2],
+        b[0],
+        b[1],
+        b[2],
+        rel_mse(&our_ref, &reference)
+    );
 }

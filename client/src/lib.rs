@@ -2,6 +2,7 @@
 //! the streamed tiles and writes EXR and PNG. The CLI (`tessera`) is a thin layer over it,
 //! and a DCC plugin embeds the same library.
 
+pub mod bench;
 pub mod commands;
 pub mod fuzzing;
 pub mod output;

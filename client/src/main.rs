@@ -230,7 +230,7 @@ async fn main() {
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what: BenchCommand::Accuracy { out, fixtures, size, reference_spp } } => {
-            let (report, _) = tessera::commands::bench::accuracy(&tessera::commands::bench::AccuracyBench {
+            let (report, _) = tessera::bench::accuracy::accuracy(&tessera::bench::accuracy::AccuracyBench {
                 fixtures,
                 out: out.clone(),
                 size,
@@ -240,18 +240,16 @@ async fn real_main() -> Result<()> {
             eprintln!("wrote {}", out.display());
         }
         Command::Bench { what: BenchCommand::Effects { out, fixtures, size, spp } } => {
-            let names = tessera::commands::effects::FIXTURES.iter().map(|s| s.to_string()).collect();
-            let bench = tessera::commands::effects::EffectsBench { fixtures, names, size, spp, out: Some(out.clone()) };
-            let (report, _) = tessera::commands::effects::effects(&bench)?;
+            let names = tessera::bench::effects::FIXTURES.iter().map(|s| s.to_string()).collect();
+            let bench = tessera::bench::effects::EffectsBench { fixtures, names, size, spp, out: Some(out.clone()) };
+            let (report, _) = tessera::bench::effects::effects(&bench)?;
             print!("{report}");
             eprintln!("wrote {}", out.display());
         }
         Command::Bench { what: BenchCommand::Lights { fixtures, size, reference_spp, out } } => {
-            let bench = tessera::commands::lights::LightsBench {
-                out,
-                ..tessera::commands::lights::LightsBench::new(fixtures, size, reference_spp)
-            };
-            let (report, _) = tessera::commands::lights::lights(&bench)?;
+            let bench =
+                tessera::bench::lights::LightsBench { out, ..tessera::bench::lights::LightsBench::new(fixtures, size, reference_spp) };
+            let (report, _) = tessera::bench::lights::lights(&bench)?;
             print!("{report}");
         }
         Command::Inspect { scene, json: _, frame } => {

@@ -89,14 +89,14 @@ fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
 /// differ no more than two planned renders of different seeds, with 50% slack).
 #[test]
 fn forcing_every_effect_changes_nothing_but_the_time() {
-    let bench = tessera::commands::effects::EffectsBench {
+    let bench = tessera::bench::effects::EffectsBench {
         fixtures: fixture(""),
         names: vec!["cornell_box.usda".into(), "materials/showcase.usda".into(), "furnace_rough_glass.usda".into()],
         size: 48,
         spp: 16,
         out: None,
     };
-    let (report, rows) = tessera::commands::effects::effects(&bench).expect("the benchmark runs");
+    let (report, rows) = tessera::bench::effects::effects(&bench).expect("the benchmark runs");
     println!("{report}");
     for r in &rows {
         assert!(

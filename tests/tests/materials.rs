@@ -14,8 +14,10 @@ async fn furnace_mean(rel: &str) -> f64 {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn layered_coated_and_thin_materials_never_gain_energy_in_the_furnace() {
     let layered = furnace_mean("materials/furnace_layered.usda").await;
+    println!("layered in the furnace: {layered}");
     assert!(layered <= 1.02 && layered > 0.85, "layered: {layered}");
     let thin = furnace_mean("materials/furnace_thin.usda").await;
+    println!("thin sheet in the furnace: {thin}");
     assert!(thin <= 1.02 && thin > 0.85, "thin sheet: {thin}");
 }
 

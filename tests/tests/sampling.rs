@@ -78,8 +78,8 @@ async fn the_firefly_clamp_trades_variance_for_a_reported_bias() {
 fn the_accuracy_report_measures_what_the_knobs_do() {
     let dir = std::env::temp_dir().join(format!("tessera-accuracy-{}", std::process::id()));
     let out = dir.join("accuracy.md");
-    let bench = tessera::commands::bench::AccuracyBench { fixtures: fixture(""), out: out.clone(), size: 24, reference_spp: 1024 };
-    let (md, s) = tessera::commands::bench::accuracy(&bench).expect("the benchmark runs");
+    let bench = tessera::bench::accuracy::AccuracyBench { fixtures: fixture(""), out: out.clone(), size: 24, reference_spp: 1024 };
+    let (md, s) = tessera::bench::accuracy::accuracy(&bench).expect("the benchmark runs");
     assert!(md.contains("Max depth") && std::fs::metadata(out.with_extension("svg")).is_ok_and(|m| m.len() > 1000));
     for (name, curve) in &s.spp_curves {
         let (first, last) = (curve.first().unwrap().2, curve.last().unwrap().2);

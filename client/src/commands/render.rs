@@ -35,20 +35,7 @@ pub struct RenderJob {
 /// (tests) that want the numbers.
 pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     let t0 = Instant::now();
-    let (scene, frame) = (job.scene.clone(), job.frame);
-    let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
-    if translation.add_default_camera() {
-        eprintln!("note: the Z-up stage has no camera; it is framed from -Y with Z up");
-    }
-    if job.default_light && translation.add_default_light() {
-        eprintln!("note: the scene has no lights; it renders under a white dome of radiance 1 (--no-default-light renders it black)");
-    }
-    for w in &translation.warnings {
-        eprintln!("warning: {w}");
-    }
-    if !translation.skipped.is_empty() {
-        eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
-    }
+    let translation = load_translation(job).await?;
     let options = &resolve_options(&job.options, &translation);
     let output_path = output_of(&job.output, &translation)?;
 
@@ -104,8 +91,59 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         server.stop().await?;
     }
 
+    write_outputs(&output_path, &report, &exr_metadata(job, options, &translation, &report))?;
+    eprint!("{}", convergence_table(&report.progress));
+    if let Some(t) = options.noise_threshold {
+        eprintln!("{}", adaptive_summary(&report, t));
+    }
     let f = &report.finished;
-    let metadata = vec![
+    println!(
+        "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
+        job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
+        options.width,
+        options.height,
+        f.spp,
+        f.seconds,
+        load_secs,
+        f.rays_per_second / 1e6,
+        f.paths_per_second / 1e6,
+        100.0 * f.estimated_noise,
+        output_path.display(),
+        output::preview_path(&output_path).display()
+    );
+    Ok(report)
+}
+
+/// The stage translated at the job's frame, with a default camera and light where it has
+/// none (each said once), and its warnings and unrendered prims reported.
+async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
+    let (scene, frame) = (job.scene.clone(), job.frame);
+    let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
+    if translation.add_default_camera() {
+        eprintln!("note: the Z-up stage has no camera; it is framed from -Y with Z up");
+    }
+    if job.default_light && translation.add_default_light() {
+        eprintln!("note: the scene has no lights; it renders under a white dome of radiance 1 (--no-default-light renders it black)");
+    }
+    for w in &translation.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !translation.skipped.is_empty() {
+        eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
+    }
+    Ok(translation)
+}
+
+/// The EXR header's `tessera/*` attributes: scene, samples, time, noise, settings, units,
+/// the primId table and the plan.
+fn exr_metadata(
+    job: &RenderJob,
+    options: &RenderOptions,
+    translation: &crate::usd::Translation,
+    report: &RenderReport,
+) -> Vec<(String, String)> {
+    let f = &report.finished;
+    vec![
         ("scene".to_string(), job.scene.display().to_string()),
         ("spp".to_string(), f.spp.to_string()),
         ("seconds".to_string(), format!("{:.3}", f.seconds)),
@@ -139,27 +177,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         // The primId AOV's table: line k names id k + 1.
         ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
         ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
-    ];
-    write_outputs(&output_path, &report, &metadata)?;
-    eprint!("{}", convergence_table(&report.progress));
-    if let Some(t) = options.noise_threshold {
-        eprintln!("{}", adaptive_summary(&report, t));
-    }
-    println!(
-        "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
-        job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
-        options.width,
-        options.height,
-        f.spp,
-        f.seconds,
-        load_secs,
-        f.rays_per_second / 1e6,
-        f.paths_per_second / 1e6,
-        100.0 * f.estimated_noise,
-        output_path.display(),
-        output::preview_path(&output_path).display()
-    );
-    Ok(report)
+    ]
 }
 
 /// Options the command line left open, from the stage's RenderSettings and its first

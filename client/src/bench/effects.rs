@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use crate::commands::bench::{Knobs, load, rel_mse, render};
+use super::harness::{Knobs, load, rel_mse, render};
 
 /// The fixtures the benchmark renders by default.
 pub const FIXTURES: &[&str] =
@@ -85,8 +85,8 @@ pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
     writeln!(
         md,
         "Written by `tessera bench effects` on {} ({}). Each fixture renders at {}x{}, {} spp, max depth 8, in-process, as planned and with every effect forced on (every lobe at weight 0 with its energy tables, tangent frames, closest-hit shadow rays, light-path AOVs). The images agree within noise: forced and planned use different seeds, and their difference is compared with the difference between two planned renders of different seeds.\n",
-        crate::commands::bench::today(),
-        crate::commands::bench::machine_description(),
+        super::harness::today(),
+        super::harness::machine_description(),
         b.size,
         b.size,
         b.spp

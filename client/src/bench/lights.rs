@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use render_core::scene::CommittedScene;
 
-use super::bench::{Knobs, load, machine_description, reference_image, rel_mse, render, today};
+use super::harness::{Knobs, load, machine_description, reference_image, rel_mse, render, today};
 
 /// Options of `tessera bench lights`.
 #[derive(Clone, Debug)]

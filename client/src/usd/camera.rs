@@ -1,0 +1,44 @@
+//! UsdGeom cameras.
+
+use anyhow::Result;
+
+use super::*;
+
+impl Reader<'_> {
+    pub(super) fn camera(&mut self, prim: &Prim, p: &str) -> Result<()> {
+        let time = self.time;
+        let d = CameraDesc::default();
+        let float = |name: &str, default: f32| -> Result<f32> {
+            Ok(get(prim, name, time)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
+        };
+        let orthographic = get(prim, "projection", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "orthographic");
+        let f_stop = float("fStop", 0.0)?;
+        if orthographic && f_stop > 0.0 {
+            self.out.warnings.push(format!("{p}: depth of field is not simulated for orthographic cameras; fStop is ignored"));
+        }
+        let clip = get(prim, "clippingRange", time)?.as_ref().and_then(values::vec2).unwrap_or([d.near as f64, d.far as f64]);
+        let desc = CameraDesc {
+            transform: self.affine(prim, p)?,
+            focal_length: float("focalLength", d.focal_length)?,
+            horizontal_aperture: float("horizontalAperture", d.horizontal_aperture)?,
+            vertical_aperture: float("verticalAperture", d.vertical_aperture)?,
+            horizontal_aperture_offset: float("horizontalApertureOffset", 0.0)?,
+            vertical_aperture_offset: float("verticalApertureOffset", 0.0)?,
+            near: clip[0] as f32,
+            far: clip[1] as f32,
+            orthographic,
+            f_stop,
+            focus_distance: float("focusDistance", 0.0)?,
+            shutter_open: float("shutter:open", 0.0)?,
+            shutter_close: float("shutter:close", 0.0)?,
+        };
+        if desc.shutter_close > desc.shutter_open {
+            self.out.warnings.push(format!(
+                "{p}: the shutter is open from {} to {} frames; motion blur is not simulated yet, so the frame's own time is rendered",
+                desc.shutter_open, desc.shutter_close
+            ));
+        }
+        self.out.cameras.push((p.to_string(), desc));
+        Ok(())
+    }
+}

@@ -1,0 +1,288 @@
+//! Meshes and implicit prims: points, faces, normals, texture coordinates, primvars, GeomSubsets, display colours.
+
+use anyhow::{Context, Result};
+
+use super::*;
+
+impl Reader<'_> {
+    pub(super) fn mesh(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
+        if let Some(shared) = prim.prim_in_prototype()?
+            && self.native_instance(prim, p, visible, shared.path().as_str())?
+        {
+            return Ok(());
+        }
+        let (mesh, face_of, face_count) = self.read_mesh(prim, p)?;
+        let subsets = self.material_subsets(prim, p, face_count)?;
+        if subsets.is_empty() {
+            return self.add_mesh(prim, p, mesh, visible);
+        }
+        // Faces in a bound GeomSubset render as a mesh of their own (named by the subset's
+        // path) with the subset's material; the rest keep the mesh's.
+        let mut claimed = vec![false; face_count];
+        for (subset, faces) in &subsets {
+            let set: std::collections::HashSet<u32> = faces.iter().copied().collect();
+            for &f in faces {
+                claimed[f as usize] = true;
+            }
+            let part = select_faces(&mesh, &face_of, |f| set.contains(&f));
+            let material = self.bound_material(subset)?;
+            let material = match material {
+                Some(m) => {
+                    self.material(&m)?;
+                    Some(m)
+                }
+                None => None,
+            };
+            self.add_mesh_with(prim, subset.path().as_str(), part, visible, material)?;
+        }
+        let rest = select_faces(&mesh, &face_of, |f| !claimed[f as usize]);
+        if rest.indices.is_empty() {
+            return Ok(());
+        }
+        self.add_mesh(prim, p, rest, visible)
+    }
+
+    /// Reads and triangulates a mesh prim: the mesh, the authored face of each triangle, and
+    /// the number of authored faces.
+    pub(super) fn read_mesh(&mut self, prim: &Prim, p: &str) -> Result<(render_core::geometry::Mesh, Vec<u32>, usize)> {
+        let time = self.time;
+        let req = |name: &str| -> Result<Value> { get(prim, name, time)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
+        let points = req("points")?;
+        let points = values::vec3_array(&points)
+            .with_context(|| format!("{p}: attribute 'points' has type {}, expected point3f[]", values::type_of(&points)))?;
+        if let Some((i, v)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            anyhow::bail!("{p}: attribute 'points': point {i} is {v} (NaN or Inf)");
+        }
+        let counts = req("faceVertexCounts")?;
+        let counts = values::int_array(&counts).with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
+        let indices = req("faceVertexIndices")?;
+        let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
+        let normals = self.normals(prim, p)?;
+        let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
+        // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
+        let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let face_count = counts.len();
+        let uvs = self.uvs(prim, p)?;
+        let primvars = self.primvars(prim, p)?;
+        let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth };
+        let mut warnings = Vec::new();
+        let (mesh, face_of) =
+            triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        self.out.warnings.extend(warnings);
+        Ok((mesh, face_of, face_count))
+    }
+
+    /// The mesh's `materialBind` GeomSubsets of faces that carry a material binding, with
+    /// their face indices (validated against `face_count`).
+    pub(super) fn material_subsets(&self, prim: &Prim, p: &str, face_count: usize) -> Result<Vec<(Prim, Vec<u32>)>> {
+        let time = self.time;
+        let mut out = Vec::new();
+        for child in prim.children()? {
+            if child.type_name()?.is_none_or(|t| t.as_str() != "GeomSubset") {
+                continue;
+            }
+            let c = child.path().as_str().to_string();
+            let family = get(&child, "familyName", time)?.as_ref().and_then(values::token).unwrap_or_default();
+            let element = get(&child, "elementType", time)?.as_ref().and_then(values::token).unwrap_or_else(|| "face".into());
+            if family != "materialBind" || element != "face" {
+                continue;
+            }
+            let indices = match get(&child, "indices", time)? {
+                Some(v) => values::int_array(&v).with_context(|| format!("{c}: attribute 'indices' is not an int array"))?,
+                None => Vec::new(),
+            };
+            if let Some((i, &f)) = indices.iter().enumerate().find(|(_, f)| **f < 0 || **f as usize >= face_count) {
+                anyhow::bail!("{c}: attribute 'indices': entry {i} is face {f}, but {p} has {face_count} faces");
+            }
+            if MaterialBindingAPI::get(self.stage, child.path().clone())?.is_none() {
+                continue; // an unbound subset keeps the mesh's material
+            }
+            out.push((child, indices.into_iter().map(|f| f as u32).collect()));
+        }
+        Ok(out)
+    }
+
+    /// Places a triangulated gprim: its world transform and its material (the bound one,
+    /// else a preview surface of its `displayColor`, else the renderer's fallback).
+    pub(super) fn add_mesh(&mut self, prim: &Prim, p: &str, mesh: render_core::geometry::Mesh, visible: bool) -> Result<()> {
+        let material = match self.bound_material(prim)? {
+            Some(m) => {
+                self.material(&m)?;
+                Some(m)
+            }
+            None => None,
+        };
+        self.add_mesh_with(prim, p, mesh, visible, material)
+    }
+
+    /// As [`Self::add_mesh`], with the material already resolved (`None`: the gprim's
+    /// displayColor, else the fallback).
+    pub(super) fn add_mesh_with(
+        &mut self,
+        prim: &Prim,
+        p: &str,
+        mesh: render_core::geometry::Mesh,
+        visible: bool,
+        material: Option<String>,
+    ) -> Result<()> {
+        let transform = self.affine(prim, p)?;
+        let material = match material {
+            Some(m) => m,
+            None => self.display_color_material(prim, p)?.unwrap_or_default(),
+        };
+        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, material, visible }));
+        Ok(())
+    }
+
+    /// UsdGeom: an unbound gprim shows its `primvars:displayColor` (or the older
+    /// `displayColor`). Per-vertex colours are averaged into one, with a warning, until
+    /// primvars reach the shading system.
+    pub(super) fn display_color_material(&mut self, prim: &Prim, p: &str) -> Result<Option<String>> {
+        let time = self.time;
+        let Some(v) = get(prim, "primvars:displayColor", time)?.or(get(prim, "displayColor", time)?) else {
+            return Ok(None);
+        };
+        let colors = values::vec3_array(&v).or_else(|| values::vec3(&v).map(|c| vec![c])).unwrap_or_default();
+        if colors.is_empty() || colors.iter().any(|c| !c.is_finite()) {
+            self.out.warnings.push(format!("{p}: primvars:displayColor is empty or not finite and is ignored"));
+            return Ok(None);
+        }
+        if colors.len() > 1 {
+            self.out.warnings.push(format!("{p}: primvars:displayColor varies over the surface; its average colour is used"));
+        }
+        let c = colors.iter().copied().sum::<Vec3>() / colors.len() as f32;
+        let path = format!("/__displayColor/c{:08x}{:08x}{:08x}", c.x.to_bits(), c.y.to_bits(), c.z.to_bits());
+        if !self.materials_seen.contains_key(&path) {
+            self.materials_seen.insert(path.clone(), ());
+            let shader = format!("{path}/PreviewSurface");
+            let mut node = MaterialNode { path: shader.clone(), node_type_id: "UsdPreviewSurface".into(), ..Default::default() };
+            node.parameters.insert("diffuseColor".into(), ParamValue::Float3(c.clamp(Vec3::ZERO, Vec3::ONE)));
+            self.out.materials.push((path.clone(), MaterialNetwork { nodes: vec![node], connections: Vec::new(), surface_node: shader }));
+        }
+        Ok(Some(path))
+    }
+
+    /// An implicit prim, tessellated with the schema's defaults for unauthored sizes.
+    pub(super) fn implicit(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
+        let time = self.time;
+        let size = |name: &str, default: f64| -> Result<f32> {
+            let v = get(prim, name, time)?.as_ref().and_then(values::scalar).unwrap_or(default);
+            if !(v.is_finite() && v > 0.0) {
+                anyhow::bail!("{p}: attribute '{name}' is {v}; it must be finite and positive");
+            }
+            Ok(v as f32)
+        };
+        let axis = match get(prim, "axis", time)?.as_ref().and_then(values::token) {
+            None => shapes::Axis::Z,
+            Some(t) => shapes::Axis::parse(&t).with_context(|| format!("{p}: attribute 'axis' is '{t}', expected X, Y or Z"))?,
+        };
+        let shape = match type_name {
+            "Sphere" => shapes::Shape::Sphere { radius: size("radius", 1.0)? },
+            "Cube" => shapes::Shape::Cube { size: size("size", 2.0)? },
+            "Cylinder" => shapes::Shape::Cylinder { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
+            "Cone" => shapes::Shape::Cone { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
+            "Capsule" => shapes::Shape::Capsule { radius: size("radius", 0.5)?, height: size("height", 1.0)?, axis },
+            _ => shapes::Shape::Plane { width: size("width", 2.0)?, length: size("length", 2.0)?, axis },
+        };
+        self.add_mesh(prim, p, shapes::tessellate(shape), visible)
+    }
+
+    /// The float, float3 and int primvars the mesh's materials read through
+    /// `UsdPrimvarReader_float`, `_float3` and `_int`, de-indexed, with their interpolations.
+    /// A primvar the mesh lacks is left out (the readers' fallbacks apply, as USD says); one of
+    /// a type no reader can read is a warning.
+    pub(super) fn primvars(&mut self, prim: &Prim, p: &str) -> Result<Vec<(String, Vec<Vec3>, String)>> {
+        let names = self.reader_varnames(prim, &["UsdPrimvarReader_float", "UsdPrimvarReader_float3", "UsdPrimvarReader_int"])?;
+        let mut out = Vec::new();
+        for name in names {
+            let attr_name = format!("primvars:{name}");
+            let Some(v) = get(prim, &attr_name, self.time)? else { continue };
+            let values: Option<Vec<Vec3>> = values::vec3_array(&v)
+                .or_else(|| values::float_array(&v).map(|a| a.into_iter().map(|x| Vec3::new(x, 0.0, 0.0)).collect()))
+                .or_else(|| values::vec3(&v).map(|x| vec![x]))
+                .or_else(|| values::scalar(&v).map(|x| vec![Vec3::new(x as f32, 0.0, 0.0)]));
+            let Some(values) = values else {
+                self.out.warnings.push(format!(
+                    "{p}: {attr_name} has type {}, which no primvar reader reads; readers use their fallbacks",
+                    values::type_of(&v)
+                ));
+                continue;
+            };
+            let (values, interp) = self.flatten_primvar(prim, p, &attr_name, values)?;
+            out.push((name, values, interp));
+        }
+        Ok(out)
+    }
+
+    /// `data` of the primvar `attr_name` de-indexed by its `:indices` (an index out of range
+    /// is an error naming the entry), with its interpolation (USD's fallback: constant).
+    pub(super) fn flatten_primvar<T: Copy>(&self, prim: &Prim, p: &str, attr_name: &str, data: Vec<T>) -> Result<(Vec<T>, String)> {
+        let data = match get(prim, &format!("{attr_name}:indices"), self.time)?.as_ref().and_then(values::int_array) {
+            Some(idx) => {
+                if let Some((i, k)) = idx.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= data.len()) {
+                    anyhow::bail!("{p}: attribute '{attr_name}:indices': entry {i} is {k}, but {attr_name} has {} values", data.len());
+                }
+                idx.iter().map(|&k| data[k as usize]).collect()
+            }
+            None => data,
+        };
+        let interp = prim
+            .attribute(attr_name)
+            .get_metadata::<openusd::tf::Token>("interpolation")
+            .ok()
+            .flatten()
+            .map(|t| t.as_str().to_string())
+            .unwrap_or_else(|| "constant".to_string());
+        Ok((data, interp))
+    }
+
+    /// The float2 primvar the mesh's materials read through `UsdPrimvarReader_float2`
+    /// (`st` when none names one), de-indexed, with its interpolation.
+    pub(super) fn uvs(&mut self, prim: &Prim, p: &str) -> Result<Option<(String, Vec<glam::Vec2>, String)>> {
+        let time = self.time;
+        let names = self.reader_varnames(prim, &["UsdPrimvarReader_float2"])?;
+        if names.len() > 1 {
+            self.out.warnings.push(format!(
+                "{p}: its materials read several texture coordinate sets ({}); only '{}' is sent",
+                names.join(", "),
+                names[0]
+            ));
+        }
+        let name = names.into_iter().next().unwrap_or_else(|| "st".to_string());
+        let attr_name = format!("primvars:{name}");
+        let Some(v) = get(prim, &attr_name, time)? else { return Ok(None) };
+        let Some(st) = values::vec2_array(&v) else {
+            self.out.warnings.push(format!("{p}: {attr_name} has type {}, not texCoord2f[]; no texture coordinates", values::type_of(&v)));
+            return Ok(None);
+        };
+        let (st, interp) = self.flatten_primvar(prim, p, &attr_name, st)?;
+        Ok(Some((attr_name, st, interp)))
+    }
+
+    pub(super) fn normals(&self, prim: &Prim, p: &str) -> Result<Option<(Vec<Vec3>, String)>> {
+        let time = self.time;
+        let interp = |name: &str, default: &str| -> String {
+            prim.attribute(name)
+                .get_metadata::<openusd::tf::Token>("interpolation")
+                .ok()
+                .flatten()
+                .map(|t| t.as_str().to_string())
+                .unwrap_or_else(|| default.to_string())
+        };
+        if let Some(v) = get(prim, "primvars:normals", time)? {
+            let n = values::vec3_array(&v).with_context(|| format!("{p}: primvars:normals is not a normal3f[]"))?;
+            let n = match get(prim, "primvars:normals:indices", time)?.as_ref().and_then(values::int_array) {
+                Some(idx) => idx.iter().map(|&i| n.get(i as usize).copied().unwrap_or(Vec3::ZERO)).collect(),
+                None => n,
+            };
+            return Ok(Some((n, interp("primvars:normals", "constant"))));
+        }
+        match get(prim, "normals", time)? {
+            Some(v) => Ok(Some((
+                values::vec3_array(&v).with_context(|| format!("{p}: normals is not a normal3f[]"))?,
+                interp("normals", "vertex"),
+            ))),
+            None => Ok(None),
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! Instancing: native instanceable prims (one mesh per prototype and material) and PointInstancers.
+
+use anyhow::{Context, Result};
+
+use super::*;
+
+impl Reader<'_> {
+    /// A mesh inside an instanceable prim (an instance proxy standing for `shared`, a mesh
+    /// in the stage's prototype): its geometry is read once per prototype and bound material
+    /// and every proxy becomes one more instance of it, so a forest of referenced instanceable
+    /// trees costs one BLAS. Proxies with GeomSubsets or without a bound material take the
+    /// flat path (returns false).
+    pub(super) fn native_instance(&mut self, prim: &Prim, p: &str, visible: bool, shared: &str) -> Result<bool> {
+        for child in prim.children()? {
+            if child.type_name()?.is_some_and(|t| t.as_str() == "GeomSubset") {
+                return Ok(false);
+            }
+        }
+        let Some(material) = self.bound_material(prim)? else { return Ok(false) };
+        // A material inside the instance is one material for every instance: name it by its
+        // prim in the prototype.
+        let in_prototype = self.stage.prim(sdf::path(&material)?).prim_in_prototype()?;
+        let shared_material = in_prototype.map_or_else(|| material.clone(), |m| m.path().as_str().to_string());
+        self.material(&shared_material)?;
+        let key = (shared.to_string(), shared_material.clone());
+        let index = match self.native.get(&key) {
+            Some(&i) => i,
+            None => {
+                let (mesh, _, _) = self.read_mesh(prim, p)?;
+                let same_prototype = self.native.keys().filter(|(s, _)| s == shared).count();
+                let mesh_path = if same_prototype == 0 { shared.to_string() } else { format!("{shared}[{same_prototype}]") };
+                let desc = MeshDesc { mesh: Arc::new(mesh), transform: Affine3A::IDENTITY, material: shared_material, visible: false };
+                self.out.meshes.push((mesh_path.clone(), desc));
+                self.out
+                    .instancers
+                    .push((format!("{mesh_path}[instances]"), InstancerDesc { prototype: mesh_path, transforms: Vec::new() }));
+                self.native.insert(key.clone(), self.out.instancers.len() - 1);
+                self.out.instancers.len() - 1
+            }
+        };
+        let world = self.affine(prim, p)?;
+        let prototype = &self.out.instancers[index].1.prototype;
+        let triangles = self.out.meshes.iter().find(|(path, _)| path == prototype).map_or(0, |(_, m)| m.mesh.indices.len());
+        if visible {
+            self.out.instancers[index].1.transforms.push(world);
+        }
+        self.out.native_instances.push(NativeInstance { path: p.to_string(), instancer: index, world, material, triangles, visible });
+        Ok(true)
+    }
+
+    /// A `PointInstancer`: each mesh (or implicit prim) of each prototype becomes one
+    /// instancer of a shared BLAS, placed by the instancer's world transform, the instance's
+    /// translate-orient-scale (UsdGeomPointInstancer's order) and the mesh's transform
+    /// relative to its prototype root's parent (the prototype's own xform included, as
+    /// USD's default `IncludeProtoXform` does).
+    pub(super) fn point_instancer(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
+        let _span = tracing::debug_span!("point_instancer", path = p).entered();
+        self.instancer_roots.push(p.to_string());
+        let prototypes = valid_targets(prim, p, "prototypes")?;
+        let per_proto = self.instance_transforms(prim, p, prototypes.len())?;
+        for (proto, instances) in prototypes.iter().zip(&per_proto) {
+            self.instance_prototype(p, proto, instances, visible)?;
+        }
+        Ok(())
+    }
+
+    /// The world transform of each visible instance of a PointInstancer, by prototype index:
+    /// positions, orientations and scales composed as UsdGeomPointInstancer defines them,
+    /// instances hidden by `invisibleIds` left out.
+    fn instance_transforms(&mut self, prim: &Prim, p: &str, prototypes: usize) -> Result<Vec<Vec<DMat4>>> {
+        let time = self.time;
+        let ints = |name: &str| -> Result<Option<Vec<i64>>> {
+            match get(prim, name, time)? {
+                None => Ok(None),
+                Some(v) => Ok(Some(values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array"))?)),
+            }
+        };
+        let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
+        let n = proto_indices.len();
+        let positions = match get(prim, "positions", time)? {
+            Some(v) => values::vec3_array(&v).with_context(|| format!("{p}: attribute 'positions' is not a point3f[]"))?,
+            None => anyhow::bail!("{p}: attribute 'positions' is missing"),
+        };
+        let orientations = match get(prim, "orientations", time)?.or(get(prim, "orientationsf", time)?) {
+            Some(v) => Some(values::quat_array(&v).with_context(|| format!("{p}: attribute 'orientations' is not a quath[]"))?),
+            None => None,
+        };
+        let scales = match get(prim, "scales", time)? {
+            Some(v) => Some(values::vec3_array(&v).with_context(|| format!("{p}: attribute 'scales' is not a float3[]"))?),
+            None => None,
+        };
+        for (name, len) in [
+            ("positions", Some(positions.len())),
+            ("orientations", orientations.as_ref().map(Vec::len)),
+            ("scales", scales.as_ref().map(Vec::len)),
+        ] {
+            if let Some(len) = len.filter(|&len| len != n) {
+                anyhow::bail!("{p}: attribute '{name}' has {len} entries but protoIndices has {n}");
+            }
+        }
+        if let Some((i, &k)) = proto_indices.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= prototypes) {
+            anyhow::bail!("{p}: attribute 'protoIndices': entry {i} is {k}, but there are {prototypes} prototypes");
+        }
+        // Instances hidden by id (ids default to the instance index).
+        let hidden: std::collections::HashSet<i64> = ints("invisibleIds")?.unwrap_or_default().into_iter().collect();
+        let ids = ints("ids")?;
+        let instancer_world = self.world_transform(prim.path())?;
+        let mut per_proto: Vec<Vec<DMat4>> = vec![Vec::new(); prototypes];
+        for i in 0..n {
+            let id = ids.as_ref().and_then(|ids| ids.get(i).copied()).unwrap_or(i as i64);
+            if hidden.contains(&id) {
+                continue;
+            }
+            let t = positions[i].as_dvec3();
+            let r = orientations.as_ref().map_or(glam::DMat3::IDENTITY, |o| usd_rotation(o[i]));
+            let s = scales.as_ref().map_or(glam::DVec3::ONE, |s| s[i].as_dvec3());
+            if !(t.is_finite() && r.is_finite() && s.is_finite()) {
+                anyhow::bail!("{p}: instance {i} has a non-finite position, orientation or scale");
+            }
+            let trs = DMat4::from_translation(t) * DMat4::from_mat3(r) * DMat4::from_scale(s);
+            per_proto[proto_indices[i] as usize].push(instancer_world * trs);
+        }
+        Ok(per_proto)
+    }
+
+    /// The meshes of one PointInstancer prototype (the subtree at `proto`), each as a hidden
+    /// prototype mesh and an instancer placing it at `instances` (none when the instancer is
+    /// invisible).
+    fn instance_prototype(&mut self, p: &str, proto: &sdf::Path, instances: &[DMat4], visible: bool) -> Result<()> {
+        let root = proto.as_str().to_string();
+        let root_parent = match proto.parent() {
+            Some(pp) if pp.as_str() != "/" && !pp.as_str().is_empty() => self.world_transform(&pp)?.inverse(),
+            _ => DMat4::IDENTITY,
+        };
+        let members: Vec<sdf::Path> = self.all_paths.iter().filter(|q| under(q.as_str(), &root)).cloned().collect();
+        if members.is_empty() {
+            anyhow::bail!("{p}: relationship 'prototypes' targets {root}, which is not a prim on the stage");
+        }
+        for member in members {
+            let mprim = self.stage.prim(member.clone());
+            let type_name = mprim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
+            if type_name != "Mesh" && !IMPLICIT.contains(&type_name.as_str()) {
+                if !STRUCTURAL.contains(&type_name.as_str()) {
+                    self.out
+                        .warnings
+                        .push(format!("{}: prim type '{type_name}' in a PointInstancer prototype is not rendered", member.as_str()));
+                    self.out.skipped.push(member.as_str().to_string());
+                }
+                continue;
+            }
+            let view = AnyXformable(mprim.clone());
+            if matches!(view.compute_purpose()?, Purpose::Proxy | Purpose::Guide) || view.compute_visibility()? == Visibility::Invisible {
+                continue;
+            }
+            // The prototype mesh itself (one per bound GeomSubset too), never drawn directly.
+            let before = self.out.meshes.len();
+            if type_name == "Mesh" {
+                self.mesh(&mprim, member.as_str(), false)?;
+            } else {
+                self.implicit(&mprim, member.as_str(), &type_name, false)?;
+            }
+            let relative = root_parent * self.world_transform(&member)?;
+            let transforms = match visible {
+                true => instances
+                    .iter()
+                    .map(|m| to_affine(&(*m * relative)))
+                    .collect::<Result<Vec<_>>>()
+                    .with_context(|| format!("{p}: instances of {root}"))?,
+                false => Vec::new(),
+            };
+            for (mesh_key, _) in &mut self.out.meshes[before..] {
+                let part = mesh_key.clone();
+                if !under(&part, p) {
+                    *mesh_key = format!("{part}@{p}");
+                }
+                self.out
+                    .instancers
+                    .push((format!("{p}[{part}]"), InstancerDesc { prototype: mesh_key.clone(), transforms: transforms.clone() }));
+            }
+        }
+        Ok(())
+    }
+}

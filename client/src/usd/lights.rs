@@ -1,0 +1,116 @@
+//! UsdLux lights and their shaping.
+
+use anyhow::Result;
+
+use super::*;
+
+impl Reader<'_> {
+    pub(super) fn light(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
+        let time = self.time;
+        // UsdLux inputs; pre-2021 files spell them without the `inputs:` prefix.
+        let input = |name: &str| -> Result<Option<Value>> {
+            match get(prim, &format!("inputs:{name}"), time)? {
+                Some(v) => Ok(Some(v)),
+                None => get(prim, name, time),
+            }
+        };
+        let float =
+            |name: &str, default: f32| -> Result<f32> { Ok(input(name)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32)) };
+        let kind = match type_name {
+            "SphereLight" => LightKind::Sphere { radius: float("radius", 0.5)? },
+            "RectLight" => LightKind::Rect { width: float("width", 1.0)?, height: float("height", 1.0)? },
+            "DiskLight" => LightKind::Disk { radius: float("radius", 0.5)? },
+            "CylinderLight" => LightKind::Cylinder { radius: float("radius", 0.5)?, length: float("length", 1.0)? },
+            "DistantLight" => LightKind::Distant { angle_degrees: float("angle", 0.53)? },
+            _ => LightKind::Dome,
+        };
+        let mut texture = None;
+        match (type_name, input("texture:file")?) {
+            ("DomeLight" | "DomeLight_1", Some(Value::AssetPath(a))) if !a.is_empty() => {
+                let format = input("texture:format")?.as_ref().and_then(values::token).unwrap_or_else(|| "automatic".into());
+                if format != "automatic" && format != "latlong" {
+                    self.out.warnings.push(format!(
+                        "{p}: texture:format '{format}' is not supported (only latlong); the map is read as latitude-longitude"
+                    ));
+                }
+                if let ParamValue::Texture { hash, source } = self.texture_param(p, "texture:file", &a) {
+                    texture = Some(render_core::texture::TextureRef { hash, source });
+                }
+            }
+            ("RectLight", Some(_)) => self
+                .out
+                .warnings
+                .push(format!("{p}: inputs:texture:file on a RectLight is not supported yet; the light's constant colour is used")),
+            _ => {}
+        }
+        // UsdLux: the colour temperature multiplies `color` when enabled (default 6500 K).
+        let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
+            .then(|| float("colorTemperature", 6500.0))
+            .transpose()?;
+        let mut transform = self.affine(prim, p)?;
+        if type_name == "DomeLight_1" {
+            // `poleAxis` (UsdLux DomeLight_1): the dome's top pole starts along the stage's up
+            // axis ("scene", the fallback), +Y or +Z; a Z pole is the +Y pole turned 90° about
+            // +X, applied to the dome alone.
+            let pole = get(prim, "poleAxis", time)?.as_ref().and_then(values::token).unwrap_or_else(|| "scene".into());
+            let z_pole = match pole.as_str() {
+                "Z" => true,
+                "Y" => false,
+                "scene" => self.out.z_up,
+                other => {
+                    self.out.warnings.push(format!("{p}: poleAxis '{other}' is not scene, Y or Z; using scene"));
+                    self.out.z_up
+                }
+            };
+            if z_pole {
+                transform *= glam::Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2);
+            }
+        }
+        let desc = LightDesc {
+            kind,
+            transform,
+            // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
+            intensity: float("intensity", if type_name == "DistantLight" { 50000.0 } else { 1.0 })?,
+            exposure: float("exposure", 0.0)?,
+            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE)
+                * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
+            normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
+            visible_to_camera: visible,
+            shaping: self.shaping(prim, p, type_name)?,
+            diffuse: float("diffuse", 1.0)?,
+            specular: float("specular", 1.0)?,
+            texture,
+        };
+        if !visible {
+            return Ok(());
+        }
+        self.out.lights.push((p.to_string(), desc));
+        Ok(())
+    }
+
+    /// `ShapingAPI` inputs when any is authored (on the area lights it applies to); IES
+    /// profiles are reported as unsupported.
+    pub(super) fn shaping(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<Option<render_core::light::Shaping>> {
+        let time = self.time;
+        let read = |name: &str| get(prim, &format!("inputs:shaping:{name}"), time);
+        let (angle, softness, focus, tint) = (read("cone:angle")?, read("cone:softness")?, read("focus")?, read("focusTint")?);
+        if read("ies:file")?.is_some() {
+            self.out.warnings.push(format!("{p}: IES profiles (inputs:shaping:ies:file) are not supported yet and are ignored"));
+        }
+        if angle.is_none() && softness.is_none() && focus.is_none() && tint.is_none() {
+            return Ok(None);
+        }
+        if matches!(type_name, "DomeLight" | "DomeLight_1" | "DistantLight") {
+            self.out.warnings.push(format!("{p}: ShapingAPI has no meaning for a {type_name} and is ignored"));
+            return Ok(None);
+        }
+        let d = render_core::light::Shaping::default();
+        let scalar = |v: &Option<Value>, default: f32| v.as_ref().and_then(values::scalar).map_or(default, |x| x as f32);
+        Ok(Some(render_core::light::Shaping {
+            cone_angle: scalar(&angle, d.cone_angle),
+            cone_softness: scalar(&softness, d.cone_softness),
+            focus: scalar(&focus, d.focus),
+            focus_tint: tint.as_ref().and_then(values::vec3).unwrap_or(d.focus_tint),
+        }))
+    }
+}

@@ -1,0 +1,226 @@
+//! Shading networks: a bound Material's shaders and connections as a render-core material network, and the texture files it reads.
+
+use anyhow::Result;
+
+use super::*;
+
+pub(super) fn param(v: &Value) -> Option<ParamValue> {
+    Some(match v {
+        Value::Float(_) | Value::Double(_) | Value::Half(_) => ParamValue::Float(values::scalar(v)? as f32),
+        Value::Int(i) => ParamValue::Int(*i),
+        Value::Bool(b) => ParamValue::Bool(*b),
+        Value::Token(_) | Value::String(_) => ParamValue::String(values::token(v)?),
+        Value::AssetPath(a) => ParamValue::Asset(a.as_str().to_string()),
+        Value::Vec2f(_) | Value::Vec2d(_) | Value::Vec2h(_) => {
+            let [x, y] = values::vec2(v)?;
+            ParamValue::Float2(glam::Vec2::new(x as f32, y as f32))
+        }
+        Value::Vec4f(_) | Value::Vec4d(_) => ParamValue::Float4(values::vec4(v)?),
+        _ => ParamValue::Float3(values::vec3(v)?),
+    })
+}
+
+/// The bytes of an asset as the stage resolved it: a file, or a member of a `.usdz` package
+/// (`scene.usdz[textures/wood.png]`).
+pub(super) fn read_asset(a: &openusd::sdf::AssetPath) -> std::io::Result<Vec<u8>> {
+    use openusd::ar::Resolver;
+    let resolved = a.resolved_path().filter(|r| !r.is_empty()).ok_or_else(|| {
+        std::io::Error::new(std::io::ErrorKind::NotFound, "the path does not resolve (no such file next to the layer that authored it)")
+    })?;
+    let mut asset = openusd::ar::DefaultResolver::new().open_asset(&openusd::ar::ResolvedPath::new(resolved))?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut asset, &mut bytes)?;
+    Ok(bytes)
+}
+
+impl Reader<'_> {
+    /// The `varname`s that the materials bound to `prim` (and to its GeomSubsets) read
+    /// through nodes of the given ids, in order of first use.
+    pub(super) fn reader_varnames(&mut self, prim: &Prim, ids: &[&str]) -> Result<Vec<String>> {
+        let mut bound = Vec::new();
+        if let Some(m) = self.bound_material(prim)? {
+            bound.push(m);
+        }
+        for child in prim.children()? {
+            if child.type_name()?.is_some_and(|t| t.as_str() == "GeomSubset")
+                && let Some(m) = self.bound_material(&child)?
+            {
+                bound.push(m);
+            }
+        }
+        let mut names: Vec<String> = Vec::new();
+        for m in &bound {
+            self.material(m)?;
+            let Some((_, net)) = self.out.materials.iter().find(|(path, _)| path == m) else { continue };
+            for n in net.nodes.iter().filter(|n| ids.contains(&n.node_type_id.as_str())) {
+                if let Some(ParamValue::String(v)) = n.parameters.get("varname")
+                    && !names.contains(v)
+                {
+                    names.push(v.clone());
+                }
+            }
+        }
+        Ok(names)
+    }
+
+    /// Collects the network feeding the material's surface terminal, as Hydra does.
+    pub(super) fn material(&mut self, path: &str) -> Result<()> {
+        if self.materials_seen.contains_key(path) {
+            return Ok(());
+        }
+        self.materials_seen.insert(path.to_string(), ());
+        let mut network = MaterialNetwork::default();
+        let Some(material) = Material::get(self.stage, sdf::path(path)?)? else {
+            self.out.warnings.push(format!("{path}: bound material is not a Material prim; the default material is used"));
+            return Ok(());
+        };
+        if !self.outputs_well_formed(path)? {
+            return Ok(());
+        }
+        let Some(surface) = material.compute_surface_source()? else {
+            self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
+            self.out.materials.push((path.to_string(), network));
+            return Ok(());
+        };
+        network.surface_node = surface.path().as_str().to_string();
+        let mut stack = vec![surface.path().clone()];
+        let mut seen = std::collections::HashSet::new();
+        while let Some(node_path) = stack.pop() {
+            if seen.insert(node_path.as_str().to_string()) {
+                let node = self.shader_node(&node_path, &mut network.connections, &mut stack)?;
+                network.nodes.push(node);
+            }
+        }
+        self.out.materials.push((path.to_string(), network));
+        Ok(())
+    }
+
+    /// The material's outputs are followed by the openusd crate itself: their connections
+    /// are checked first (a malformed one sent it into endless recursion, found by fuzzing).
+    /// False, with a warning, when one is malformed.
+    fn outputs_well_formed(&mut self, path: &str) -> Result<bool> {
+        let material_prim = self.stage.prim(sdf::path(path)?);
+        for name in material_prim.property_names()? {
+            if !name.as_str().starts_with("outputs:") {
+                continue;
+            }
+            for src in material_prim.attribute(name.as_str()).connections()? {
+                if !well_formed_path(src.as_str()) {
+                    let (name, src) = (name.as_str(), src.as_str());
+                    let w = format!("{path}: '{name}' connects to '{src}', which is not a valid path; the default material is used");
+                    self.out.warnings.push(w);
+                    return Ok(false);
+                }
+            }
+        }
+        Ok(true)
+    }
+
+    /// One shader node: its authored inputs as parameters, its connected inputs as
+    /// connections (their upstream nodes pushed on `stack` to be read next).
+    fn shader_node(
+        &mut self,
+        node_path: &sdf::Path,
+        connections: &mut Vec<MaterialConnection>,
+        stack: &mut Vec<sdf::Path>,
+    ) -> Result<MaterialNode> {
+        let prim = self.stage.prim(node_path.clone());
+        let id = get(&prim, "info:id", self.time)?.as_ref().and_then(values::token).unwrap_or_default();
+        let mut node = MaterialNode { path: node_path.as_str().to_string(), node_type_id: id, ..Default::default() };
+        for name in prim.property_names()? {
+            let Some(input) = name.strip_prefix("inputs:") else {
+                continue;
+            };
+            let attr = prim.attribute(name.as_str());
+            for src in attr.connections()? {
+                if let Some(c) = self.connection(&mut node, input, &src)? {
+                    stack.push(sdf::path(&c.upstream_node)?);
+                    connections.push(c);
+                }
+            }
+            if node.parameters.contains_key(input) {
+                continue; // set through the material interface
+            }
+            if let Some(v) = attr.get_at::<Value>(self.time)? {
+                self.input_value(&mut node, input, &v);
+            }
+        }
+        Ok(node)
+    }
+
+    /// A connection of `node`'s `input` to `src`: to another shader's output, returned; to the
+    /// material's own interface (`inputs:` on the Material or a NodeGraph), that input's
+    /// value set on the node; malformed, ignored with a warning.
+    fn connection(&mut self, node: &mut MaterialNode, input: &str, src: &sdf::Path) -> Result<Option<MaterialConnection>> {
+        if !well_formed_path(src.as_str()) {
+            let w = format!(
+                "{}: input '{input}' connects to '{}', which is not a valid path; the connection is ignored",
+                node.path,
+                src.as_str()
+            );
+            self.out.warnings.push(w);
+            return Ok(None);
+        }
+        // The property part of `/Material/Node.outputs:rgb`.
+        let property = src.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+        let up_prim = src.prim_path();
+        let up = self.stage.prim(up_prim.clone());
+        if up.type_name()?.is_some_and(|t| t.as_str() == "Material" || t.as_str() == "NodeGraph") && property.starts_with("inputs:") {
+            match up.attribute(property.as_str()).get_at::<Value>(self.time)?.as_ref().and_then(param) {
+                Some(pv) => {
+                    node.parameters.insert(input.to_string(), pv);
+                }
+                None => self.out.warnings.push(format!(
+                    "{}: input '{input}' connects to {}, which has no value; its own value is used",
+                    node.path,
+                    src.as_str()
+                )),
+            }
+            return Ok(None);
+        }
+        Ok(Some(MaterialConnection {
+            downstream_node: node.path.clone(),
+            downstream_input: input.to_string(),
+            upstream_node: up_prim.as_str().to_string(),
+            upstream_output: property.trim_start_matches("outputs:").to_string(),
+        }))
+    }
+
+    /// An authored input value on `node`: a texture file, or a parameter of a supported type
+    /// (others reported by name).
+    fn input_value(&mut self, node: &mut MaterialNode, input: &str, v: &Value) {
+        if let Value::AssetPath(a) = v {
+            let pv = self.texture_param(&node.path, input, a);
+            node.parameters.insert(input.to_string(), pv);
+            return;
+        }
+        match param(v) {
+            Some(pv) => {
+                node.parameters.insert(input.to_string(), pv);
+            }
+            None => self.out.warnings.push(format!("{}: input '{input}' has unsupported type {}", node.path, values::type_of(v))),
+        }
+    }
+
+    /// An asset input of a shader: the file's content hash once its bytes are read (and kept
+    /// for upload), else the authored path with a warning naming the node and input.
+    pub(super) fn texture_param(&mut self, node: &str, input: &str, a: &openusd::sdf::AssetPath) -> ParamValue {
+        if a.is_empty() {
+            return ParamValue::Asset(String::new());
+        }
+        if let Some(resolved) = a.resolved_path() {
+            self.out.texture_paths.push((format!("{node}.inputs:{input}"), resolved.to_string()));
+        }
+        match read_asset(a) {
+            Ok(bytes) => {
+                let hash = tessera_wire::content_hash(&bytes);
+                self.out.textures.entry(hash.clone()).or_insert(TextureFile { source: a.as_str().to_string(), bytes: Arc::new(bytes) });
+                ParamValue::Texture { hash, source: a.as_str().to_string() }
+            }
+            Err(e) => {
+                self.out.warnings.push(format!("{node}: input '{input}': cannot read '{}': {e}", a.as_str()));
+                ParamValue::Asset(a.as_str().to_string())
+            }
+        }
+    }
+}

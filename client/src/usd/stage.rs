@@ -1,0 +1,121 @@
+//! Walking the composed stage: visiting prims in order, world transforms, attribute reads at the frame.
+
+use anyhow::{Context, Result};
+
+use super::*;
+
+/// A double-precision world matrix as the renderer's affine transform.
+pub(super) fn to_affine(m: &DMat4) -> Result<Affine3A> {
+    let a = Affine3A::from_mat4(Mat4::from_cols_array(&m.to_cols_array().map(|x| x as f32)));
+    if !a.is_finite() {
+        anyhow::bail!("the transform is not finite");
+    }
+    Ok(a)
+}
+
+/// The rotation matrix USD makes of an orientation quaternion (GfMatrix4d::SetRotate): the
+/// unit-quaternion formula applied to the raw components, without normalising. Half-precision
+/// orientations are rarely unit length; normalising them (or going through GfRotation's
+/// axis-angle) moved instances by 1e-4 relative to what usd-core computes.
+pub(super) fn usd_rotation(q: glam::DQuat) -> glam::DMat3 {
+    let (x2, y2, z2) = (q.x + q.x, q.y + q.y, q.z + q.z);
+    let (xx, xy, xz) = (q.x * x2, q.x * y2, q.x * z2);
+    let (yy, yz, zz) = (q.y * y2, q.y * z2, q.z * z2);
+    let (wx, wy, wz) = (q.w * x2, q.w * y2, q.w * z2);
+    glam::DMat3::from_cols(
+        glam::DVec3::new(1.0 - (yy + zz), xy + wz, xz - wy),
+        glam::DVec3::new(xy - wz, 1.0 - (xx + zz), yz + wx),
+        glam::DVec3::new(xz + wy, yz - wx, 1.0 - (xx + yy)),
+    )
+}
+
+/// True when `path` is `root` or beneath it.
+pub(super) fn under(path: &str, root: &str) -> bool {
+    path == root || (path.starts_with(root) && path.as_bytes().get(root.len()) == Some(&b'/'))
+}
+
+/// An attribute's value at `time`: its time samples interpolated, else its default.
+pub(super) fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {
+    prim.attribute(name).get_at::<Value>(time).map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
+}
+
+impl Reader<'_> {
+    pub(super) fn visit(&mut self, path: &sdf::Path) -> Result<()> {
+        if !well_formed_path(path.as_str()) {
+            self.out.warnings.push(format!("'{}' is not a valid prim path; the prim is skipped", path.as_str()));
+            return Ok(());
+        }
+        let prim = self.stage.prim(path.clone());
+        let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
+        let p = path.as_str().to_string();
+        if STRUCTURAL.contains(&type_name.as_str()) || self.instancer_roots.iter().any(|r| under(&p, r) && *r != p) {
+            return Ok(());
+        }
+        let view = AnyXformable(prim.clone());
+        let purpose = view.compute_purpose()?;
+        if matches!(purpose, Purpose::Proxy | Purpose::Guide) {
+            return Ok(());
+        }
+        let visible = view.compute_visibility()? != Visibility::Invisible;
+        match type_name.as_str() {
+            "Mesh" => self.mesh(&prim, &p, visible),
+            t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
+            "PointInstancer" => self.point_instancer(&prim, &p, visible),
+            "RenderSettings" => self.render_settings(&prim, &p),
+            // Read through the RenderSettings that names them.
+            "RenderProduct" | "RenderVar" => Ok(()),
+            "Camera" => self.camera(&prim, &p),
+            t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
+            // UsdSkel: the meshes under a SkelRoot are ordinary meshes in their rest pose.
+            "SkelRoot" => {
+                self.out
+                    .warnings
+                    .push(format!("{p}: skinning (UsdSkel) is not supported yet: the meshes under it render in their rest pose"));
+                Ok(())
+            }
+            "Skeleton" | "SkelAnimation" | "BlendShape" => {
+                self.out.skipped.push(p);
+                Ok(())
+            }
+            other => {
+                self.out.warnings.push(format!("{p}: prim type '{other}' is not supported yet and is not rendered"));
+                self.out.skipped.push(p);
+                Ok(())
+            }
+        }
+    }
+
+    /// Local-to-world, composing parents and honouring `!resetXformStack!`.
+    pub(super) fn world_transform(&mut self, path: &sdf::Path) -> Result<DMat4> {
+        if let Some(m) = self.world.get(path.as_str()) {
+            return Ok(*m);
+        }
+        let prim = self.stage.prim(path.clone());
+        // The schema looks each op up by name: check the names first (a garbled one sent the
+        // openusd crate into an endless loop, found by fuzzing).
+        if let Some(order) = get(&prim, "xformOpOrder", self.time)? {
+            for op in values::token_array(&order).unwrap_or_default() {
+                let name = op.trim_start_matches("!invert!");
+                if op != "!resetXformStack!" && !well_formed_name(name) {
+                    anyhow::bail!("{path}: attribute 'xformOpOrder' names '{op}', which is not a valid attribute name");
+                }
+            }
+        }
+        let view = AnyXformable(prim);
+        let local = values::matrix(&view.local_to_parent_transform(self.time)?);
+        let parent = match path.parent() {
+            Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => {
+                self.world_transform(&parent)?
+            }
+            _ => DMat4::IDENTITY,
+        };
+        let m = parent * local;
+        self.world.insert(path.as_str().to_string(), m);
+        Ok(m)
+    }
+
+    pub(super) fn affine(&mut self, prim: &Prim, p: &str) -> Result<Affine3A> {
+        let m = self.world_transform(prim.path())?;
+        to_affine(&m).with_context(|| format!("{p}: xformOps compose to a non-finite transform"))
+    }
+}
