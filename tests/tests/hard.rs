@@ -247,12 +247,12 @@ async fn ten_thousand_lights_match_the_closed_form_and_converge_like_one() {
 /// the shading normal's horizon (the shading normal is bent back until the view reflects
 /// above the surface) and against energy gain. Shading normals still lose light from the
 /// directions the two normals put on different sides (a diffuse lobe tilted 80° has much of
-/// its hemisphere below the facet); measured 2026-12-01: mean 0.85 (about 0.4 before the bend),
-/// so the bound is 0.8.
+/// its hemisphere below the facet); measured 2026-12-02: mean 0.849 (about 0.4 before the
+/// bend), 10th percentile 0.705; the bounds sit 0.02 and 0.025 below.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn normal_maps_tilted_below_the_horizon_neither_blacken_nor_gain_energy() {
     let (report, mean, n) = furnace("hard/normal_map_furnace.usda", 64, 64).await;
-    assert!(n > 400 && mean > 0.8 && mean < 1.01, "normal-mapped furnace: mean {mean} over {n} pixels");
+    assert!(n > 400 && mean > 0.83 && mean < 1.01, "normal-mapped furnace: mean {mean} over {n} pixels");
     // No stripe goes dark: the darkest tenth of the sphere's pixels stays bright.
     let img = &report.image;
     let mut lum: Vec<f64> = (0..img.height)
@@ -263,5 +263,5 @@ async fn normal_maps_tilted_below_the_horizon_neither_blacken_nor_gain_energy() 
     lum.sort_by(f64::total_cmp);
     let tenth = lum[lum.len() / 10];
     println!("10th percentile {tenth}");
-    assert!(tenth > 0.6, "10th percentile {tenth}: dark stripes");
+    assert!(tenth > 0.68, "10th percentile {tenth}: dark stripes");
 }

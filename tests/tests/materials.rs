@@ -10,15 +10,17 @@ async fn furnace_mean(rel: &str) -> f64 {
 
 /// White metal over a white plastic with a clearcoat and a sheen (mask 0.5), and a closed
 /// thin sheet, in the unit white furnace: no energy gain (the background is 1); the losses
-/// are the coats' min rule and the thin sheet's grazing angles (docs/materials.md).
+/// are the coats' min rule and the thin sheet's grazing angles (docs/materials.md). Measured
+/// 2026-12-02: layered 0.955, thin 0.983 (fixed seed); the lower bounds sit 2% below, the
+/// sphere mean's sampling noise at this spp being well under 1%, so a 5% loss fails.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn layered_coated_and_thin_materials_never_gain_energy_in_the_furnace() {
     let layered = furnace_mean("materials/furnace_layered.usda").await;
     println!("layered in the furnace: {layered}");
-    assert!(layered <= 1.02 && layered > 0.85, "layered: {layered}");
+    assert!(layered <= 1.01 && layered > 0.935, "layered: {layered}");
     let thin = furnace_mean("materials/furnace_thin.usda").await;
     println!("thin sheet in the furnace: {thin}");
-    assert!(thin <= 1.02 && thin > 0.85, "thin sheet: {thin}");
+    assert!(thin <= 1.01 && thin > 0.963, "thin sheet: {thin}");
 }
 
 /// The showcase reads every native shader without a warning, and the plan names each effect
@@ -92,12 +94,12 @@ async fn glitter_flakes_stay_on_a_moving_object() {
 /// glitter with its material; the fixture reads without a warning. The flakes lose what they
 /// reflect below the surface and what the binder masks (single scattering, as in the slides'
 /// model: nothing bounces between flakes): with a spread of 0.5 over 80% coverage the sphere
-/// renders 0.72.
+/// renders 0.72 (0.723 measured 2026-12-02); the bound sits 0.02 below it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn glitter_never_gains_energy_and_is_planned() {
     let mean = furnace_mean("materials/furnace_glitter.usda").await;
     println!("white glitter over white in the furnace: mean {mean}");
-    assert!(mean <= 1.02 && mean > 0.6, "glitter furnace: {mean}");
+    assert!(mean <= 1.01 && mean > 0.70, "glitter furnace: {mean}");
     let plan = tessera::commands::render::explain_plan(&fixture("materials/glitter.usda"), None).unwrap();
     assert!(!plan.contains("  ! "), "warnings: {plan}");
     let line = plan.lines().position(|l| l.contains("+ glitter ")).unwrap_or_else(|| panic!("no glitter: {plan}"));

@@ -225,16 +225,45 @@ mod tests {
 
     #[test]
     fn white_furnace_over_the_parameter_grid() {
+        let (mut iso_min, mut aniso_min) = (f32::INFINITY, f32::INFINITY);
         for p in grid() {
             let bsdf = p.bsdf(true);
+            // White metal and white glass, compensated, lose nothing: a conductor of F = 1
+            // reflects all, clear glass reflects or transmits all (Kulla & Conty 2017,
+            // "Revisiting Physically Based Shading at Imageworks", energy compensation).
+            // Index-matched glass (IOR 1) is left out at cos 1e-4, where its lobe returns no
+            // sample: commit removes such surfaces, so a render never evaluates it.
+            let lossless = p.base_color == Vec3::ONE && (p.metallic == 1.0 || p.spec_trans == 1.0);
             for wo in testing::probe_directions() {
                 for wo in if p.spec_trans > 0.0 { vec![wo, -wo] } else { vec![wo] } {
                     let a = testing::albedo_estimate(&bsdf, wo, 8_000);
                     assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{p:?} at {wo:?}: albedo {a:?}");
+                    if !lossless || (p.ior == 1.0 && wo.z.abs() < 1e-3) {
+                        continue;
+                    }
+                    let (min, floor) = match p.anisotropic {
+                        0.0 => (&mut iso_min, ISOTROPIC_FLOOR),
+                        _ => (&mut aniso_min, ANISOTROPIC_FLOOR),
+                    };
+                    *min = min.min(a.min_element());
+                    assert!(a.min_element() >= floor, "{p:?} at {wo:?}: albedo {a:?} below {floor}");
                 }
             }
         }
+        println!("white metal and glass over the grid: lowest albedo isotropic {iso_min}, anisotropic {aniso_min}");
     }
+
+    /// The lowest albedo isotropic white metal and glass reach over the grid, compensated:
+    /// measured 2026-12-02 at 0.987; the floor leaves 8 000 samples' noise (σ ≈ 0.5% of a rough
+    /// glass's albedo, whose weights vary).
+    const ISOTROPIC_FLOOR: f32 = 0.975;
+
+    /// The same for anisotropic glass, which is not compensated (docs/materials.md: one
+    /// table by mean roughness gained up to 9%; losing is the conservative failure): at
+    /// roughness 0.5, anisotropy ±1 and grazing angles it loses most of its energy (0.57 at cos 0.05, IOR 1.0001; 0.068 at cos −1e-4 from
+    /// inside). Measured 2026-12-02; a known gap (docs/materials.md), bounded here so it cannot
+    /// grow unnoticed.
+    const ANISOTROPIC_FLOOR: f32 = 0.05;
 
     #[test]
     fn specular_and_coupled_diffuse_never_exceed_one() {
