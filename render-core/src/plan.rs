@@ -1,7 +1,7 @@
 //! The render plan: the typed set of [`Feature`]s a committed scene calls for, with the prims
 //! that call for each.
 //!
-//! Commit derives the set once ([`crate::scene::commit`]); the machinery reads it (which
+//! Commit derives the set once (the scene's features step); the machinery reads it (which
 //! caches are built, which tests a ray makes, which path loop runs), and the plan a user reads
 //! (`Started.plan`, `--explain-plan`) is printed from the same set, so the two cannot drift.
 

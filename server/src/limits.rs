@@ -1,8 +1,6 @@
 //! Every size a client controls has a limit, reported by `GetCapabilities` and enforced
 //! with a clear status.
 
-use tessera_proto::v1 as pb;
-
 /// Server limits.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
@@ -49,30 +47,6 @@ impl Default for Limits {
     }
 }
 
-impl Limits {
-    /// As a wire message, with the configuration's budgets and timeouts.
-    pub fn to_wire(&self, config: &crate::config::ServerConfig) -> pb::Limits {
-        use render_core::material::network;
-        pb::Limits {
-            max_instances: self.max_instances,
-            max_sessions_per_tenant: self.max_sessions_per_tenant,
-            memory_budget: config.memory_budget,
-            session_memory_budget: config.session_memory_budget,
-            max_material_nodes: network::MAX_NODES as u32,
-            max_material_connections: network::MAX_CONNECTIONS as u32,
-            max_material_depth: network::MAX_CHAIN_DEPTH as u32,
-            max_prim_path_bytes: crate::session::MAX_PRIM_PATH_BYTES as u32,
-            session_idle_timeout_seconds: config.session_idle_timeout.as_secs_f64(),
-            stall_timeout_seconds: config.stall_timeout.as_secs_f64(),
-            max_triangles_per_mesh: self.max_triangles_per_mesh,
-            max_total_triangles: self.max_total_triangles,
-            max_resolution: self.max_resolution,
-            max_spp: self.max_spp,
-            max_sessions: self.max_sessions,
-            max_array_chunk_elements: self.max_array_chunk_elements,
-            texture_cache_bytes: self.texture_cache_bytes,
-            max_texture_file_bytes: self.max_texture_file_bytes,
-            max_texture_texels: self.max_texture_texels,
-        }
-    }
-}
+/// Longest prim path a client may send, in bytes (USD sets no limit; real paths are far
+/// shorter, and every lookup and log line carries them).
+pub const MAX_PRIM_PATH_BYTES: usize = 4096;

@@ -149,7 +149,7 @@ pub fn capabilities(config: &ServerConfig) -> pb::Capabilities {
         .map(String::from)
         .collect(),
         aovs: Aov::ALL.iter().map(|a| a.name().to_string()).collect(),
-        limits: Some(config.limits.to_wire(config)),
+        limits: Some(config.limits_to_wire()),
     }
 }
 

@@ -708,8 +708,7 @@ impl Transaction {
     }
 }
 
-/// Longest prim path accepted. USD paths of real scenes stay under a few hundred bytes.
-pub const MAX_PRIM_PATH_BYTES: usize = 4096;
+pub use crate::limits::MAX_PRIM_PATH_BYTES;
 
 /// A prim path as the wire carries it: absolute, bounded, printable (no NUL or other control
 /// characters, which would corrupt every message that names the prim).

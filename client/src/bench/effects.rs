@@ -84,7 +84,7 @@ pub fn effects(b: &EffectsBench) -> Result<(String, Vec<EffectsRow>)> {
     writeln!(md, "# What the render plan saves\n")?;
     writeln!(
         md,
-        "Written by `tessera bench effects` on {} ({}). Each fixture renders at {}x{}, {} spp, max depth 8, in-process, as planned and with every effect forced on (every lobe at weight 0 with its energy tables, tangent frames, closest-hit shadow rays, light-path AOVs). The images agree within noise: forced and planned use different seeds, and their difference is compared with the difference between two planned renders of different seeds.\n",
+        "Written by `tessera bench effects` on {} ({}). Each fixture renders at {}x{}, {} spp, max depth 8, in-process: as planned; in the general path loop at the same seed (which must give the same image to the bit); and with every effect forced on (every lobe at weight 0 with its energy tables, tangent frames, closest-hit shadow rays, light-path AOVs). The forced render is no renderer anyone runs: read it as an upper bound on what planning saves. The comparison that matters is the path loop: a scene without media, cut-outs or glitter (and a render without light-path AOVs or caustic avoidance) runs the specialised loop, compiled without that machinery. Forced and planned use different seeds, and their difference is compared with the difference between two planned renders of different seeds.\n",
         super::harness::today(),
         super::harness::machine_description(),
         b.size,

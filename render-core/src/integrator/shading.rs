@@ -49,10 +49,11 @@ impl Vertex {
     }
 }
 
-/// What the ray met.
+/// What the ray met. The vertex is returned inline: boxing it cost an allocation per bounce.
+#[allow(clippy::large_enum_variant)]
 pub(super) enum Landing {
     /// A surface to scatter at.
-    Surface(Box<Vertex>),
+    Surface(Vertex),
     /// A surface cut out or absent here: the ray goes on (the path's ray is already updated).
     PassedThrough,
     /// More cut-outs than a ray crosses: the rest counts as opaque.
@@ -93,7 +94,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
         }
         let wo_local = frame.to_local(wo);
-        Landing::Surface(Box::new(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here }))
+        Landing::Surface(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here })
     }
 
     /// True when the ray passes `s` untouched: cut out here, or not present for this ray

@@ -3,7 +3,7 @@
 
 use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 
-/// Node ids whose outputs are evaluated per shading point ([`super::graph`]).
+/// Node ids whose outputs are evaluated per shading point (the texture graph's nodes).
 pub(super) const EVALUATED: &[&str] = &[
     "UsdUVTexture",
     "UsdPrimvarReader_float2",

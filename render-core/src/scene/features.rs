@@ -1,9 +1,9 @@
 //! The features a scene calls for, found from its materials, instancers, lights and cameras,
 //! with the prims that call for each. Light features are added by the lights step
-//! ([`super::commit`]), which knows which lights emit.
+//! (the commit's lights step), which knows which lights emit.
 
 use super::SceneDesc;
-use super::commit::Materials;
+use super::materials::Materials;
 use crate::material::{Material, TexturedMaterial, Uber};
 use crate::plan::{Feature, RenderPlan};
 

@@ -13,6 +13,7 @@ mod commit;
 mod committed;
 mod desc;
 mod features;
+mod materials;
 mod query;
 mod shadows;
 

@@ -1,0 +1,114 @@
+//! The materials step of commit: every network resolved (textured ones compiled for
+//! per-point evaluation), the mip pyramids they and the dome lights read.
+
+use std::cell::RefCell;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
+
+use super::{BlasCache, SceneDesc};
+use crate::caustics::ShadowGlass;
+use crate::material::{Material, ResolveReport, TexturedMaterial};
+use crate::texture::{ColorSpace, Texture};
+
+/// The materials resolved: index 0 is the fallback for unbound meshes.
+pub(super) struct Materials<'d> {
+    /// Each material as seen from afar (a textured one with each texture at its mean).
+    pub list: Vec<Material>,
+    /// Per material, its inputs that vary over the surface, if any.
+    pub textured: Vec<Option<Arc<TexturedMaterial>>>,
+    /// Index in [`Self::list`] by material path.
+    pub index: HashMap<&'d str, u32>,
+    /// Dome light maps by light path.
+    pub environments: BTreeMap<&'d str, Arc<Texture>>,
+}
+
+impl<'d> Materials<'d> {
+    /// Resolves every material network (compiling the textured ones) and reads the dome
+    /// lights' maps, building mip pyramids only for textures a material or dome reads; the
+    /// cache keeps exactly those.
+    pub(super) fn resolve(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Self {
+        let pyramids = RefCell::new(HashMap::new());
+        let source = |hash: &str, space: ColorSpace| -> Option<Arc<Texture>> {
+            let key = (hash.to_string(), space);
+            let known = cache.textures.get(&key).cloned().or_else(|| pyramids.borrow().get(&key).cloned());
+            let t = match known {
+                Some(t) => t,
+                None => {
+                    let image = desc.textures.get(hash)?;
+                    let _span = tracing::info_span!("mipmap", hash, bytes = image.bytes()).entered();
+                    Arc::new(Texture::new(image, space))
+                }
+            };
+            pyramids.borrow_mut().insert(key, Arc::clone(&t));
+            Some(t)
+        };
+        let mut out = Materials {
+            list: vec![Material::preview_surface_default()],
+            textured: vec![None],
+            index: HashMap::new(),
+            environments: BTreeMap::new(),
+        };
+        for (path, network) in &desc.materials {
+            let mut report = ResolveReport::default();
+            let varying = TexturedMaterial::compile(network, path, &source, &mut report);
+            let (m, r) = match &varying {
+                Some(t) => t.mean(),
+                None => network.resolve(path),
+            };
+            report.warnings.extend(r.warnings);
+            warnings.extend(report.warnings);
+            out.index.insert(path.as_str(), out.list.len() as u32);
+            out.list.push(m);
+            out.textured.push(varying.map(Arc::new));
+        }
+        // Dome light maps, read as the materials' textures are (linear for float files).
+        for (path, l) in &desc.lights {
+            let Some(t) = &l.texture else { continue };
+            match source(&t.hash, ColorSpace::Auto) {
+                Some(tex) => {
+                    out.environments.insert(path.as_str(), tex);
+                }
+                None => warnings.push(format!("{path}: texture '{}' is not on the server; the dome is its constant colour", t.source)),
+            }
+        }
+        cache.textures = pyramids.into_inner();
+        out
+    }
+
+    /// The material bound at `path` for prim `prim`, or the default where it is missing.
+    pub(super) fn of(&self, prim: &str, path: &str) -> u32 {
+        if path.is_empty() {
+            return 0;
+        }
+        match self.index.get(path) {
+            Some(&i) => i,
+            None => {
+                tracing::warn!(prim, material = path, "bound material is not in the scene; using the default");
+                0
+            }
+        }
+    }
+
+    /// The material at `path`.
+    pub fn at(&self, path: &str) -> &Material {
+        &self.list[self.index[path] as usize]
+    }
+
+    /// True when material `path`'s subsurface medium lies behind a smooth boundary
+    /// (roughness up to [`crate::caustics::SMOOTH_GLASS`]): full path tracing lights it only
+    /// by chance.
+    pub(super) fn smooth_behind(&self, path: &str) -> bool {
+        ShadowGlass::of_medium_boundary(self.at(path)).is_some_and(|b| b.roughness <= crate::caustics::SMOOTH_GLASS)
+    }
+
+    /// Material `path`'s inputs that vary over the surface, if any.
+    pub fn textured_at(&self, path: &str) -> Option<&TexturedMaterial> {
+        self.textured[self.index[path] as usize].as_deref()
+    }
+
+    /// Materials with no effect on light (cut out, index-matched clear glass) remove their
+    /// surfaces altogether; a textured material is cut out point by point, never as a whole.
+    pub(super) fn removes_its_surfaces(&self, m: u32) -> bool {
+        self.textured[m as usize].is_none() && self.list[m as usize].is_invisible()
+    }
+}
