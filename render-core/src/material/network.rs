@@ -14,6 +14,10 @@ struct Walk<'a> {
     /// The material of each node feeding several inputs, resolved once: a node shared by many
     /// layers (a "diamond") costs one resolution, not one per path to it.
     memo: std::collections::HashMap<String, Material>,
+    /// Materials of the nodes no varying input reaches, resolved once per material at
+    /// compile time ([`super::graph::TexturedMaterial`]): per shading point only the nodes
+    /// between a varying input and the surface are resolved again.
+    fixed: Option<&'a std::collections::HashMap<String, Material>>,
     report: ResolveReport,
     overrides: Overrides<'a>,
 }
@@ -152,12 +156,37 @@ impl MaterialNetwork {
 
     /// [`Self::resolve`] with connected inputs evaluated at a shading point.
     pub(crate) fn resolve_with(&self, material_path: &str, overrides: Overrides, report_unused: bool) -> (Material, ResolveReport) {
+        self.resolve_using(material_path, overrides, report_unused, None)
+    }
+
+    /// The material node `path` stands for on its own (what its subtree resolves to), with
+    /// the authored values.
+    pub(crate) fn resolve_subtree(&self, material_path: &str, path: &str) -> Material {
+        let mut walk = Walk {
+            material_path,
+            used: Vec::new(),
+            memo: Default::default(),
+            fixed: None,
+            report: ResolveReport::default(),
+            overrides: Overrides::default(),
+        };
+        self.resolve_node(path, 0, &mut walk)
+    }
+
+    /// [`Self::resolve_with`], taking the materials of the nodes in `fixed` as given.
+    pub(crate) fn resolve_using(
+        &self,
+        material_path: &str,
+        overrides: Overrides,
+        report_unused: bool,
+        fixed: Option<&std::collections::HashMap<String, Material>>,
+    ) -> (Material, ResolveReport) {
         let mut report = ResolveReport::default();
         if self.node(&self.surface_node).is_none() {
             report.warnings.push(format!("{material_path}: no surface shader; using the UsdPreviewSurface defaults"));
             return (Material::preview_surface_default(), report);
         }
-        let mut walk = Walk { material_path, used: vec![self.surface_node.clone()], memo: Default::default(), report, overrides };
+        let mut walk = Walk { material_path, used: vec![self.surface_node.clone()], memo: Default::default(), fixed, report, overrides };
         let m = self.resolve_node(&self.surface_node, 0, &mut walk);
         let Walk { used, mut report, .. } = walk;
         if !report_unused {
@@ -172,6 +201,9 @@ impl MaterialNetwork {
     }
 
     fn resolve_node(&self, path: &str, depth: usize, walk: &mut Walk) -> Material {
+        if let Some(m) = walk.fixed.and_then(|f| f.get(path)) {
+            return m.clone();
+        }
         if !walk.memo.is_empty()
             && let Some(m) = walk.memo.get(path)
         {
