@@ -176,6 +176,8 @@ mod tests {
         [R_MIN, 0.1, 0.3, 0.6, 1.0].iter().map(|&r| Lobe::CharlieSheen(CharlieSheen::new(Vec3::ONE, r))).collect()
     }
 
+    testing::lobe_battery!(lobes: lobes(), chi_square: lobes(), seed: 900);
+
     /// Λ by integrating the distribution: 1 + Λ(w) = ∫⟨w, m⟩₊ D(m) dm / μ (Smith's
     /// projected-area identity), on a fine (θm, φm) midpoint grid.
     fn lambda_numeric(r: f32, mu: f32) -> f64 {
@@ -216,16 +218,6 @@ mod tests {
                 let (fit, num) = (CharlieSheen::lambda(r, mu) as f64, lambda_numeric(r, mu));
                 assert!((1.0 / (1.0 + fit) - 1.0 / (1.0 + num)).abs() < 0.02, "r {r}, μ {mu}: fit Λ {fit}, integrated {num}");
             }
-        }
-    }
-
-    #[test]
-    fn white_furnace_reciprocity_chi_square_and_weights() {
-        for (k, lobe) in lobes().iter().enumerate() {
-            testing::assert_albedo_at_most_one(lobe);
-            testing::assert_reciprocal(lobe);
-            testing::assert_chi2(lobe, 900 + k as u64);
-            testing::assert_weights_consistent(lobe);
         }
     }
 

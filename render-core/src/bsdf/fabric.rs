@@ -231,6 +231,8 @@ mod tests {
         [(0.0, 0.0), (0.3, 0.5), (0.7, 1.3), (1.0, -0.4)].iter().map(|&(r, a)| Lobe::Fabric(Fabric::new(Vec3::ONE, r, a))).collect()
     }
 
+    testing::lobe_battery!(lobes: lobes(), chi_square: lobes(), seed: 1100);
+
     /// The furnace (the paper's figure 15): for every exponent 0..=30 the white
     /// fabric's maximal directional albedo is 1 within 1%, measured by sampling the lobe at
     /// the direction the table says is brightest; no direction exceeds it.
@@ -261,15 +263,6 @@ mod tests {
         }
         let head_on: Vec<f32> = [0.0, 0.5, 1.0].iter().map(|&r| Fabric::new(Vec3::ONE, r, 0.0).albedo(Vec3::Z).x).collect();
         assert!(head_on.iter().all(|&a| a > 0.9 && a <= 1.0 + 1e-6), "normalised albedos {head_on:?}");
-    }
-
-    #[test]
-    fn reciprocity_chi_square_and_weights() {
-        for (k, lobe) in lobes().iter().enumerate() {
-            testing::assert_reciprocal(lobe);
-            testing::assert_weights_consistent(lobe);
-            testing::assert_chi2(lobe, 1100 + k as u64);
-        }
     }
 
     /// The cone: light along the normal plane reflects most towards the mirror latitude.

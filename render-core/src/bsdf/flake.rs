@@ -162,36 +162,11 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn white_furnace_at_most_one() {
-        for l in flakes() {
-            testing::assert_albedo_at_most_one(&l);
-        }
-    }
-
-    #[test]
-    fn reciprocal() {
-        for l in flakes() {
-            testing::assert_reciprocal(&l);
-        }
-    }
-
-    #[test]
-    fn sample_weights_match_eval_and_pdf() {
-        for l in flakes() {
-            testing::assert_weights_consistent(&l);
-        }
-    }
-
-    /// From roughness 0.2 (α = 0.04), as for `GgxReflection`: sharper lobes at grazing views
-    /// are thinner than the harness's quadrature of the pdf resolves (α = 0.01 at cos θo = 0.01
-    /// integrates to 0.93 where 0.97 of samples return, untilted flake and plain GGX alike).
-    #[test]
-    fn chi_square_sampling_matches_pdf() {
-        for (k, l) in flakes_at_least(0.2).iter().enumerate() {
-            testing::assert_chi2(l, 40 + k as u64);
-        }
-    }
+    // Chi-square from roughness 0.2 (α = 0.04), as for `GgxReflection`: sharper lobes at
+    // grazing views are thinner than the harness's quadrature of the pdf resolves (α = 0.01 at
+    // cos θo = 0.01 integrates to 0.93 where 0.97 of samples return, untilted flake and plain
+    // GGX alike).
+    testing::lobe_battery!(lobes: flakes(), chi_square: flakes_at_least(0.2), seed: 40);
 
     /// An untilted flake is exactly the GGX reflection with Schlick Fresnel.
     #[test]

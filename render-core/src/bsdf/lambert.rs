@@ -58,12 +58,10 @@ mod tests {
         vec![Lobe::Lambert(Lambert { r: Vec3::ONE }), Lobe::Lambert(Lambert { r: Vec3::new(0.2, 0.5, 0.0) })]
     }
 
+    testing::lobe_battery!(lobes: lobes(), chi_square: lobes(), seed: 0xc0ffee);
+
     #[test]
-    fn white_furnace() {
-        for lobe in lobes() {
-            testing::assert_albedo_at_most_one(&lobe);
-        }
-        // R = 1 reflects everything.
+    fn white_lambert_reflects_everything() {
         let a = testing::albedo_estimate(&Lobe::Lambert(Lambert { r: Vec3::ONE }), Vec3::new(0.6, 0.0, 0.8), 100_000);
         assert!((a - Vec3::ONE).abs().max_element() < 0.01, "{a:?}");
     }
@@ -79,26 +77,5 @@ mod tests {
             acc += lobe.pdf(Vec3::new(0.3, 0.1, 0.95).normalize(), w) as f64 * 4.0 * std::f64::consts::PI;
         }
         assert!((acc / n as f64 - 1.0).abs() < 0.01, "{}", acc / n as f64);
-    }
-
-    #[test]
-    fn reciprocity() {
-        for lobe in lobes() {
-            testing::assert_reciprocal(&lobe);
-        }
-    }
-
-    #[test]
-    fn chi_square() {
-        for lobe in lobes() {
-            testing::assert_chi2(&lobe, 0xc0ffee);
-        }
-    }
-
-    #[test]
-    fn sample_weight_matches_eval_over_pdf() {
-        for lobe in lobes() {
-            testing::assert_weights_consistent(&lobe);
-        }
     }
 }

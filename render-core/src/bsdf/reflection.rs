@@ -331,28 +331,19 @@ mod tests {
         }
     }
 
-    #[test]
-    fn reciprocity() {
-        for r in [0.1, 0.5, 1.0] {
-            testing::assert_reciprocal(&white(r, 0.0, true));
-            testing::assert_reciprocal(&gold(r, 0.7));
-            testing::assert_reciprocal(&white(r, -1.0, true));
-        }
+    /// White and gold conductors, isotropic and anisotropic, rough to nearly smooth.
+    fn battery_lobes() -> Vec<Lobe> {
+        let mut v: Vec<Lobe> =
+            [0.1, 0.5, 1.0].into_iter().flat_map(|r| [white(r, 0.0, true), gold(r, 0.7), white(r, -1.0, true)]).collect();
+        v.extend([white(0.3, 0.0, true), gold(0.05, 0.5), gold(1.0, 0.0)]);
+        v
     }
 
-    #[test]
-    fn chi_square() {
-        for (k, lobe) in [white(0.2, 0.0, false), white(0.6, 0.0, true), gold(0.3, 0.8), gold(1.0, -1.0)].iter().enumerate() {
-            testing::assert_chi2(lobe, 100 + k as u64);
-        }
-    }
-
-    #[test]
-    fn sample_weight_matches_eval_over_pdf() {
-        for lobe in [white(0.3, 0.0, true), gold(0.05, 0.5), gold(1.0, 0.0)] {
-            testing::assert_weights_consistent(&lobe);
-        }
-    }
+    testing::lobe_battery!(
+        lobes: battery_lobes(),
+        chi_square: vec![white(0.2, 0.0, false), white(0.6, 0.0, true), gold(0.3, 0.8), gold(1.0, -1.0)],
+        seed: 100,
+    );
 
     #[test]
     fn smooth_conductor_is_a_mirror_weighted_by_fresnel() {

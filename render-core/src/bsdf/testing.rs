@@ -117,6 +117,44 @@ pub fn assert_weights_consistent(lobe: &impl Scatter) {
     }
 }
 
+/// The battery every lobe runs, as the same four tests in each lobe's test module:
+/// `battery_white_furnace` (albedo ≤ 1 at every probe direction), `battery_reciprocity`,
+/// `battery_chi_square` (`sample` against `pdf`, lobe k with seed `seed + k`) and
+/// `battery_sample_weights` (weight = f·cos/pdf, pdf as `pdf` says). `lobes` are the lobes
+/// (a `Vec<Lobe>`); `chi_square` those whose pdf the harness's quadrature resolves.
+macro_rules! lobe_battery {
+    (lobes: $lobes:expr, chi_square: $chi:expr, seed: $seed:expr $(,)?) => {
+        #[test]
+        fn battery_white_furnace() {
+            for lobe in $lobes {
+                $crate::bsdf::testing::assert_albedo_at_most_one(&lobe);
+            }
+        }
+
+        #[test]
+        fn battery_reciprocity() {
+            for lobe in $lobes {
+                $crate::bsdf::testing::assert_reciprocal(&lobe);
+            }
+        }
+
+        #[test]
+        fn battery_chi_square() {
+            for (k, lobe) in $chi.into_iter().enumerate() {
+                $crate::bsdf::testing::assert_chi2(&lobe, $seed + k as u64);
+            }
+        }
+
+        #[test]
+        fn battery_sample_weights() {
+            for lobe in $lobes {
+                $crate::bsdf::testing::assert_weights_consistent(&lobe);
+            }
+        }
+    };
+}
+pub(crate) use lobe_battery;
+
 const THETA_BINS: usize = 20;
 const PHI_BINS: usize = 40;
 const SAMPLES: u32 = 400_000;

@@ -335,16 +335,11 @@ mod tests {
         v
     }
 
+    testing::lobe_battery!(lobes: battery(), chi_square: battery(), seed: 1000);
+
     #[test]
-    fn white_furnace_reciprocity_weights_and_chi_square() {
-        for (k, l) in battery().iter().enumerate() {
-            testing::assert_albedo_at_most_one(l);
-            testing::assert_reciprocal(l);
-            testing::assert_weights_consistent(l);
-            if !l.flags().delta {
-                testing::assert_chi2(l, 1000 + k as u64);
-            }
-            // From below the sheet is the same.
+    fn seen_from_below_the_sheet_is_the_same() {
+        for l in battery() {
             let Lobe::ThinDielectric(t) = l else { unreachable!() };
             for wo in testing::probe_directions() {
                 assert!((t.albedo(wo) - t.albedo(mirror(wo))).abs().max_element() < 1e-6);
