@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use render_core::integrator::LightStrategy;
 use render_core::sampling::SamplerKind;
-use render_core::scene::{BlasCache, commit};
+use render_core::scene::{BlasCache, CommittedScene, commit};
 
 use super::harness::{Knobs, Row, load, machine_description, mean, mean_abs, reference_image, rel_mse, render, today};
 use crate::quality::Quality;
@@ -180,6 +180,15 @@ impl Report<'_> {
             &adaptive_rows,
         )?;
 
+        self.cornell_strategies_and_presets(&cornell, &reference)
+    }
+
+    /// The Cornell box's light strategies and quality presets, against its reference.
+    fn cornell_strategies_and_presets(&mut self, cornell: &CommittedScene, reference: &[f64]) -> Result<()> {
+        let measure = |label: String, k: Knobs| -> Row {
+            let r = render(cornell, self.res, k, 7);
+            Row::of(label, &r, reference)
+        };
         // Light strategies.
         eprintln!("cornell light strategies ...");
         let strategy_rows: Vec<Row> = [LightStrategy::Mis, LightStrategy::LightOnly, LightStrategy::BsdfOnly]

@@ -433,23 +433,29 @@ mod tests {
         m.at(&sp).0.surface.plastic.params.diffuse
     }
 
-    /// A textured plastic under eight `tessera:Layer`s, each with a constant metal as its
-    /// other side: the constant sides are resolved once at compile time (the frontier), and
-    /// the per-point material is what resolving the whole network at that point gives.
-    #[test]
-    fn constant_subtrees_resolve_once_and_change_nothing() {
+    /// The textured plastic of [`textured`] under `depth` `tessera:Layer`s (mask 0.3), each
+    /// with a constant metal of its own roughness as its other side.
+    fn layer_stack(depth: usize) -> MaterialNetwork {
         let mut net = textured(&[]);
         let mut below = "/M/S".to_string();
-        for k in 0..8 {
+        for k in 0..depth {
             let (layer, metal) = (format!("/M/L{k}"), format!("/M/Metal{k}"));
             net.nodes.push(node(&layer, "tessera:Layer", &[("mask", ParamValue::Float(0.3))]));
-            net.nodes.push(node(&metal, "tessera:Metal", &[("roughness", ParamValue::Float(0.1 * k as f32))]));
+            net.nodes.push(node(&metal, "tessera:Metal", &[("roughness", ParamValue::Float(0.05 * k as f32))]));
             net.connections.push(connect(&layer, "a", &metal, "surface"));
             net.connections.push(connect(&layer, "b", &below, "surface"));
             below = layer;
         }
         net.surface_node = below;
-        let m = TexturedMaterial::compile(&net, "/M", &source(), &mut ResolveReport::default()).expect("varying");
+        net
+    }
+
+    /// A textured plastic under eight `tessera:Layer`s, each with a constant metal as its
+    /// other side: the constant sides are resolved once at compile time (the frontier), and
+    /// the per-point material is what resolving the whole network at that point gives.
+    #[test]
+    fn constant_subtrees_resolve_once_and_change_nothing() {
+        let m = TexturedMaterial::compile(&layer_stack(8), "/M", &source(), &mut ResolveReport::default()).expect("varying");
         let frontier: Vec<&str> = m.fixed.keys().map(String::as_str).collect();
         assert_eq!(m.fixed.len(), 8, "the eight constant metals, nothing on the varying path: {frontier:?}");
         for st in [Vec2::new(0.25, 0.5), Vec2::new(0.75, 0.5)] {
@@ -465,18 +471,7 @@ mod tests {
     #[test]
     #[ignore]
     fn measure_per_point_resolution_of_a_deep_layer_stack() {
-        let mut net = textured(&[]);
-        let mut below = "/M/S".to_string();
-        for k in 0..16 {
-            let (layer, metal) = (format!("/M/L{k}"), format!("/M/Metal{k}"));
-            net.nodes.push(node(&layer, "tessera:Layer", &[("mask", ParamValue::Float(0.3))]));
-            net.nodes.push(node(&metal, "tessera:Metal", &[]));
-            net.connections.push(connect(&layer, "a", &metal, "surface"));
-            net.connections.push(connect(&layer, "b", &below, "surface"));
-            below = layer;
-        }
-        net.surface_node = below;
-        let mut m = TexturedMaterial::compile(&net, "/M", &source(), &mut ResolveReport::default()).expect("varying");
+        let mut m = TexturedMaterial::compile(&layer_stack(16), "/M", &source(), &mut ResolveReport::default()).expect("varying");
         let sp = ShadingPoint { st: Some(Vec2::new(0.25, 0.5)), primvars: None, width: 0.0, cos: 1.0, uv_density: 1.0 };
         let n = 20_000;
         let time = |m: &TexturedMaterial| {
