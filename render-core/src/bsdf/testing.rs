@@ -76,9 +76,33 @@ pub fn albedo_estimate(lobe: &impl Scatter, wo: Vec3, n: u32) -> Vec3 {
     (acc / n as f64).as_vec3()
 }
 
+/// Which sides of the surface the battery looks from.
+#[derive(Clone, Copy, Debug)]
+pub enum Sides {
+    /// Reflecting lobes: `wo` above the surface only.
+    Above,
+    /// Transmitting lobes: `wo` above and below (inside the medium of index `eta_below`).
+    Both,
+}
+
+impl Sides {
+    /// The probe directions on these sides.
+    pub fn directions(self) -> Vec<Vec3> {
+        match self {
+            Sides::Above => probe_directions(),
+            Sides::Both => probe_directions().into_iter().flat_map(|w| [w, -w]).collect(),
+        }
+    }
+}
+
 /// White furnace: albedo ≤ 1 + 1e-3 (plus Monte Carlo slack) at every probe direction.
 pub fn assert_albedo_at_most_one(lobe: &impl Scatter) {
-    for wo in probe_directions() {
+    assert_albedo_at_most_one_from(lobe, Sides::Above);
+}
+
+/// The white furnace from the given sides.
+pub fn assert_albedo_at_most_one_from(lobe: &impl Scatter, sides: Sides) {
+    for wo in sides.directions() {
         let a = albedo_estimate(lobe, wo, 50_000);
         assert!(a.max_element() <= 1.0 + 1e-3 + 0.01, "albedo {a:?} > 1 at wo={wo:?} for {lobe:?}");
     }
@@ -86,12 +110,20 @@ pub fn assert_albedo_at_most_one(lobe: &impl Scatter) {
 
 /// f(wo, wi) = f(wi, wo) to 1e-4 relative for random direction pairs.
 pub fn assert_reciprocal(lobe: &impl Scatter) {
+    assert_reciprocal_across(lobe, 1.0);
+}
+
+/// Veach's generalised reciprocity for radiance BSDFs between media (thesis, eq. 5.14):
+/// f(wo, wi)/η_o² = f(wi, wo)/η_i², with index 1 above the surface and `eta_below` below.
+/// With `eta_below` = 1 this is plain symmetry.
+pub fn assert_reciprocal_across(lobe: &impl Scatter, eta_below: f32) {
+    let n2 = |w: Vec3| if w.z > 0.0 { 1.0 } else { eta_below * eta_below };
     let mut rng = Pcg32::new(5, 9);
     for _ in 0..1000 {
         let a = crate::sampling::uniform_sphere(rng.next_2d());
         let b = crate::sampling::uniform_sphere(rng.next_2d());
-        let f1 = lobe.f(a, b);
-        let f2 = lobe.f(b, a);
+        let f1 = lobe.f(a, b) / n2(a);
+        let f2 = lobe.f(b, a) / n2(b);
         let scale = f1.abs().max(f2.abs()).max_element().max(1e-6);
         assert!((f1 - f2).abs().max_element() <= 1e-4 * scale, "f({a:?},{b:?})={f1:?} but reversed {f2:?}");
     }
@@ -100,8 +132,13 @@ pub fn assert_reciprocal(lobe: &impl Scatter) {
 /// For sampled directions, the returned weight equals eval·|cos θi|/pdf and pdf matches
 /// `Lobe::pdf`.
 pub fn assert_weights_consistent(lobe: &impl Scatter) {
+    assert_weights_consistent_from(lobe, Sides::Above);
+}
+
+/// Sample weights against eval and pdf from the given sides.
+pub fn assert_weights_consistent_from(lobe: &impl Scatter, sides: Sides) {
     let mut rng = Pcg32::new(77, 1);
-    for wo in probe_directions() {
+    for wo in sides.directions() {
         for _ in 0..2000 {
             let Some(s) = lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) else {
                 continue;
@@ -122,33 +159,41 @@ pub fn assert_weights_consistent(lobe: &impl Scatter) {
 /// `battery_chi_square` (`sample` against `pdf`, lobe k with seed `seed + k`) and
 /// `battery_sample_weights` (weight = f·cos/pdf, pdf as `pdf` says). `lobes` are the lobes
 /// (a `Vec<Lobe>`); `chi_square` those whose pdf the harness's quadrature resolves.
+/// Transmitting lobes add `index_below: |lobe| η`: every test then looks from both sides,
+/// and reciprocity is the generalised one between media of index 1 and η.
 macro_rules! lobe_battery {
     (lobes: $lobes:expr, chi_square: $chi:expr, seed: $seed:expr $(,)?) => {
+        $crate::bsdf::testing::lobe_battery!(@tests $lobes, $chi, $seed, $crate::bsdf::testing::Sides::Above, |_| 1.0);
+    };
+    (lobes: $lobes:expr, chi_square: $chi:expr, seed: $seed:expr, index_below: $eta:expr $(,)?) => {
+        $crate::bsdf::testing::lobe_battery!(@tests $lobes, $chi, $seed, $crate::bsdf::testing::Sides::Both, $eta);
+    };
+    (@tests $lobes:expr, $chi:expr, $seed:expr, $sides:expr, $eta:expr) => {
         #[test]
         fn battery_white_furnace() {
             for lobe in $lobes {
-                $crate::bsdf::testing::assert_albedo_at_most_one(&lobe);
+                $crate::bsdf::testing::assert_albedo_at_most_one_from(&lobe, $sides);
             }
         }
 
         #[test]
         fn battery_reciprocity() {
             for lobe in $lobes {
-                $crate::bsdf::testing::assert_reciprocal(&lobe);
+                $crate::bsdf::testing::assert_reciprocal_across(&lobe, ($eta)(&lobe));
             }
         }
 
         #[test]
         fn battery_chi_square() {
             for (k, lobe) in $chi.into_iter().enumerate() {
-                $crate::bsdf::testing::assert_chi2(&lobe, $seed + k as u64);
+                $crate::bsdf::testing::assert_chi2_at(&lobe, $seed + k as u64, $sides.directions());
             }
         }
 
         #[test]
         fn battery_sample_weights() {
             for lobe in $lobes {
-                $crate::bsdf::testing::assert_weights_consistent(&lobe);
+                $crate::bsdf::testing::assert_weights_consistent_from(&lobe, $sides);
             }
         }
     };
