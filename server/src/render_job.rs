@@ -3,7 +3,7 @@
 //! under a bound on how long a client that stops reading can hold the thread.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use render_core::camera::Camera;
@@ -22,8 +22,30 @@ use crate::session::Session;
 /// Events buffered per render before sending waits for the client.
 pub const EVENT_BUFFER: usize = 256;
 
+/// A render event and the restart it was sent in (0 before the first restart).
+pub struct Queued {
+    /// How many times the render had restarted when the event was sent.
+    pub restart: u64,
+    /// The event, or the status that ends the stream.
+    pub item: Result<pb::RenderEvent, Status>,
+}
+
+impl Queued {
+    /// Whether the client still wants this event once the render has restarted `now` times:
+    /// tiles and progress of a superseded scene version are dropped rather than sent ahead of
+    /// the new image (a 1080p pass fills the whole event buffer, 16 MiB of stale tiles);
+    /// everything else is always delivered.
+    pub fn is_current(&self, now: u64) -> bool {
+        let stale_kind = matches!(
+            &self.item,
+            Ok(pb::RenderEvent { event: Some(pb::render_event::Event::Tile(_) | pb::render_event::Event::Progress(_)) })
+        );
+        self.restart == now || !stale_kind
+    }
+}
+
 /// The sending end of a render's event stream.
-pub type EventSender = mpsc::Sender<Result<pb::RenderEvent, Status>>;
+pub type EventSender = mpsc::Sender<Queued>;
 
 /// A validated render request.
 pub struct RenderJob {
@@ -193,7 +215,7 @@ impl RenderJob {
     /// `pool` runs the tiles (`None`: rayon's global pool). `film` is the reservation of the
     /// film's memory, held until the render ends.
     pub fn run(&self, session: &Session, run: &RunContext, pool: Option<&rayon::ThreadPool>, film: Reservation) {
-        let out = Outbox { tx: &run.tx, cancel: &run.cancel, stall: run.stall };
+        let out = Outbox { tx: &run.tx, cancel: &run.cancel, stall: run.stall, restarts: &run.restarts };
         let start = Instant::now();
         let mut first = true;
         loop {
@@ -224,6 +246,8 @@ impl RenderJob {
                 tracing::warn!(samples = outcome.non_finite, "non-finite radiance samples were dropped");
             }
             if outcome.stopped == Some(StopReason::SceneChanged) {
+                run.restarts.fetch_add(1, Ordering::AcqRel);
+                out.wait_for_commit(session);
                 continue;
             }
             let secs = start.elapsed().as_secs_f64().max(1e-9);
@@ -287,6 +311,8 @@ pub struct RunContext {
     pub cancel: Arc<AtomicBool>,
     /// How long a full stream may stay full.
     pub stall: Duration,
+    /// Restarts so far; the stream drops what was queued before the latest.
+    pub restarts: Arc<AtomicU64>,
 }
 
 /// Sends a render's events without letting a client that stops reading hold the thread: a
@@ -296,6 +322,7 @@ struct Outbox<'a> {
     tx: &'a EventSender,
     cancel: &'a AtomicBool,
     stall: Duration,
+    restarts: &'a AtomicU64,
 }
 
 /// How long the final `Finished` of a cancelled render may wait for a slow reader.
@@ -317,15 +344,24 @@ impl Outbox<'_> {
         self.deliver(Ok(event), wait, false);
     }
 
+    /// Waits while the session commits a new scene version (the render stopped its pass for
+    /// it), or until the render is cancelled or its client leaves.
+    fn wait_for_commit(&self, session: &Session) {
+        while session.is_committing() && !self.cancel.load(Ordering::Acquire) && !self.tx.is_closed() {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
     /// Ends the stream with an error status.
     fn error(&self, status: Status) {
         self.deliver(Err(status), FINISH_WAIT, false);
     }
 
-    fn deliver(&self, mut item: Result<pb::RenderEvent, Status>, wait: Duration, stop_on_cancel: bool) -> bool {
+    fn deliver(&self, item: Result<pb::RenderEvent, Status>, wait: Duration, stop_on_cancel: bool) -> bool {
         let deadline = Instant::now() + wait;
+        let mut queued = Queued { restart: self.restarts.load(Ordering::Acquire), item };
         loop {
-            match self.tx.try_send(item) {
+            match self.tx.try_send(queued) {
                 Ok(()) => return true,
                 Err(TrySendError::Closed(_)) => break,
                 Err(TrySendError::Full(back)) => {
@@ -341,7 +377,7 @@ impl Outbox<'_> {
                         }
                         break;
                     }
-                    item = back;
+                    queued = back;
                     std::thread::sleep(Duration::from_millis(2));
                 }
             }
@@ -386,7 +422,7 @@ impl RenderSink for StreamSink<'_> {
     fn should_stop(&self) -> Option<StopReason> {
         if self.out.cancel.load(Ordering::Acquire) || self.out.tx.is_closed() {
             Some(StopReason::Cancelled)
-        } else if self.session.version() != self.version {
+        } else if self.session.version() != self.version || self.session.is_committing() {
             Some(StopReason::SceneChanged)
         } else {
             None

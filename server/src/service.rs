@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use render_core::film::Aov;
@@ -268,7 +268,8 @@ impl pb::render_server::Render for RenderService {
         };
         let pool = self.pool(job.threads())?;
         let (tx, rx) = mpsc::channel(EVENT_BUFFER);
-        let run = RunContext { tx, cancel, stall: self.config.stall_timeout };
+        let restarts = Arc::new(AtomicU64::new(0));
+        let run = RunContext { tx, cancel, stall: self.config.stall_timeout, restarts: Arc::clone(&restarts) };
         let span =
             tracing::info_span!("render", session = %session.id, w = job.settings.width, h = job.settings.height, spp = job.settings.spp);
         session.counters.renders.fetch_add(1, Ordering::Relaxed);
@@ -283,7 +284,8 @@ impl pb::render_server::Render for RenderService {
                 drop((alive, running));
             })
             .map_err(|e| Status::internal(format!("cannot start render thread: {e}")))?;
-        Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+        let current = ReceiverStream::new(rx).filter_map(move |q| q.is_current(restarts.load(Ordering::Acquire)).then_some(q.item));
+        Ok(Response::new(Box::pin(current)))
     }
 
     async fn cancel(&self, req: Request<pb::CancelRequest>) -> Result<Response<pb::CancelResponse>, Status> {

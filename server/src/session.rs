@@ -60,6 +60,9 @@ pub struct Session {
     budgets: Vec<Arc<Budget>>,
     /// True while a Sync is being applied (one at a time).
     syncing: AtomicBool,
+    /// A new scene version is being built: the running render stops its pass at once, so
+    /// the commit has the cores and the edit reaches the screen without waiting for the pass.
+    committing: AtomicBool,
     /// Open Render and Sync streams; a session with one is never idle.
     open_streams: AtomicUsize,
     last_active: Mutex<Instant>,
@@ -84,6 +87,22 @@ pub struct SyncGuard(Arc<Session>);
 impl Drop for SyncGuard {
     fn drop(&mut self) {
         self.0.syncing.store(false, Ordering::Release);
+    }
+}
+
+/// Holds a session's commit flag up while a commit runs, whatever way it ends.
+struct CommitFlag<'a>(&'a AtomicBool);
+
+impl<'a> CommitFlag<'a> {
+    fn raise(flag: &'a AtomicBool) -> Self {
+        flag.store(true, Ordering::Release);
+        CommitFlag(flag)
+    }
+}
+
+impl Drop for CommitFlag<'_> {
+    fn drop(&mut self) {
+        self.0.store(false, Ordering::Release);
     }
 }
 
@@ -204,6 +223,7 @@ impl Session {
             render_cancel: Mutex::new(None),
             budgets,
             syncing: AtomicBool::new(false),
+            committing: AtomicBool::new(false),
             open_streams: AtomicUsize::new(0),
             last_active: Mutex::new(Instant::now()),
             counters: SessionCounters::default(),
@@ -251,6 +271,11 @@ impl Session {
     /// Whether a Sync holds the session's Sync slot now.
     pub fn is_syncing(&self) -> bool {
         self.syncing.load(Ordering::Acquire)
+    }
+
+    /// Whether a new scene version is being committed now.
+    pub fn is_committing(&self) -> bool {
+        self.committing.load(Ordering::Acquire)
     }
 
     /// Bytes the committed scene is estimated to hold.
@@ -303,6 +328,8 @@ impl Session {
         // the larger of the two now, and settle on the new size after the swap.
         let old = self.scene_bytes();
         let mut memory = Reservation::take(&self.budgets, bytes.saturating_sub(old), &format!("the scene of session '{}'", self.id))?;
+        // From here on the edit is valid: the running render gives the cores to the commit.
+        let _flag = CommitFlag::raise(&self.committing);
         drop(staged);
         let scene = {
             let mut cache = self.cache.lock().unwrap();

@@ -13,6 +13,7 @@ mod grpc;
 mod hard;
 mod hostile;
 mod images;
+mod interactive;
 mod light_units;
 mod materials;
 mod preview_surface;

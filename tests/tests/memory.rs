@@ -1,6 +1,6 @@
 //! The memory budget holds in fact, not only in its bookkeeping: a server with `--memory-budget
 //! 2G` answers the requests that took 8-12 GB before (a 16384² all-AOV render, a 16-bit PNG
-//! that decodes to 16384² RGBA, a 40M-triangle mesh declaration) with RESOURCE_EXHAUSTED, and
+//! that decodes to 16384² RGBA, 40M- and 200M-triangle mesh declarations) with RESOURCE_EXHAUSTED, and
 //! this process's peak resident memory (`VmHWM` in `/proc/self/status`) stays under the budget.
 //! Its own test binary, so no other test's allocations count.
 
@@ -39,8 +39,14 @@ async fn the_server_stays_under_its_memory_budget() {
     let e = c.sync(sync(inputs::textured(&tessera_server::textures::content_hash(&png), &png))).await.unwrap_err();
     assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
 
+    // Within the per-mesh limit (50 M) but 40 M × 256 bytes is 10 GB: refused by the budget.
     let e = c.sync(sync(inputs::declared_mesh("/Evil/Huge", 40_000_000))).await.unwrap_err();
     assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
+    assert!(e.message().contains("/Evil/Huge"), "names the prim: {e:?}");
+    // The 200 M-triangle declaration: refused before a byte of it arrives.
+    let e = c.sync(sync(inputs::declared_mesh("/Evil/Huger", 200_000_000))).await.unwrap_err();
+    assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
+    assert!(e.message().contains("/Evil/Huger"), "names the prim: {e:?}");
 
     // A render that fits still runs, under the same budget.
     let ok = pb::RenderSettings { width: 256, height: 256, spp: 4, ..Default::default() };

@@ -1,0 +1,197 @@
+//! Interactive latency over loopback against the real server (`cargo bench -p tessera-tests
+//! --bench interactive`): the Cornell box rendering progressively at 512² and 1920×1080, and
+//! edits of each kind (camera move, object transform, light intensity, material roughness)
+//! made at pseudo-random moments of the render. For each: how long the Sync takes to return,
+//! and how long until `Restarted` and the first tile of the new scene version reach the
+//! client. Also the first tile after Render. Prints numbers; asserts nothing. Results:
+//! `docs/service.md`.
+
+use std::time::{Duration, Instant};
+
+use glam::{Affine3A, Vec3};
+use render_core::material::ParamValue;
+use tessera::usd::Translation;
+use tessera_proto::v1 as pb;
+use tessera_proto::v1::render_client::RenderClient;
+use tessera_server::EmbeddedServer;
+use tessera_wire::convert;
+use tokio::sync::mpsc;
+use tonic::transport::Channel;
+
+type Client = RenderClient<Channel>;
+
+/// Edits per kind and resolution.
+const EDITS: usize = 20;
+
+#[derive(Clone, Copy, Debug)]
+enum Edit {
+    Camera,
+    Transform,
+    Light,
+    Material,
+}
+
+impl Edit {
+    const ALL: [Edit; 4] = [Edit::Camera, Edit::Transform, Edit::Light, Edit::Material];
+
+    fn name(self) -> &'static str {
+        match self {
+            Edit::Camera => "camera move",
+            Edit::Transform => "object transform",
+            Edit::Light => "light intensity",
+            Edit::Material => "material roughness",
+        }
+    }
+
+    /// The one prim delta that makes the `k`-th edit of this kind.
+    fn delta(self, t: &Translation, k: usize) -> pb::sync_request::Item {
+        let wiggle = if k % 2 == 0 { 1.0 } else { -1.0 };
+        match self {
+            Edit::Camera => {
+                let (path, c) = &t.cameras[0];
+                let mut c = c.clone();
+                c.transform = Affine3A::from_translation(Vec3::new(0.01 * wiggle, 0.0, 0.0)) * c.transform;
+                tessera::sync::delta(path, pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(convert::camera_to_wire(&c)))
+            }
+            Edit::Transform => {
+                let (path, m) = t.meshes.iter().find(|(p, _)| p.contains("Tall")).unwrap_or(&t.meshes[0]);
+                let xf = Affine3A::from_translation(Vec3::new(0.02 * wiggle, 0.0, 0.0)) * m.transform;
+                let prim = pb::MeshPrim {
+                    transform: Some(convert::matrix(&xf)),
+                    material_path: m.material.clone(),
+                    visible: m.visible,
+                    double_sided: true,
+                    ..Default::default()
+                };
+                let mut item = tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim));
+                if let pb::sync_request::Item::Prim(d) = &mut item {
+                    d.dirty = pb::DirtyBits::DirtyTransform as u32;
+                }
+                item
+            }
+            Edit::Light => {
+                let (path, l) = &t.lights[0];
+                let mut l = l.clone();
+                l.intensity *= 1.0 + 0.1 * wiggle;
+                tessera::sync::delta(path, pb::PrimKind::Light, pb::prim_delta::Payload::Light(convert::light_to_wire(&l)))
+            }
+            Edit::Material => {
+                let (path, m) = &t.materials[0];
+                let mut m = m.clone();
+                m.nodes[0].parameters.insert("roughness".into(), ParamValue::Float(0.5 + 0.2 * wiggle));
+                tessera::sync::delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(convert::material_to_wire(&m)))
+            }
+        }
+    }
+}
+
+async fn client(server: &EmbeddedServer) -> Client {
+    let channel = Channel::from_shared(server.url()).unwrap().connect().await.unwrap();
+    RenderClient::new(channel).max_decoding_message_size(64 << 20)
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+/// What the stream reader saw, with the time it arrived.
+enum Seen {
+    Tile(u64, Instant),
+    Restarted(u64, Instant),
+}
+
+/// Reads a render stream to its end, reporting tiles (with the version they belong to) and
+/// restarts as they arrive.
+fn read_events(mut stream: tonic::Streaming<pb::RenderEvent>, tx: mpsc::UnboundedSender<Seen>) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        let mut version = 0;
+        while let Ok(Some(e)) = stream.message().await {
+            let now = Instant::now();
+            match e.event {
+                Some(pb::render_event::Event::Started(s)) => version = s.scene_version,
+                Some(pb::render_event::Event::Restarted(r)) => {
+                    version = r.scene_version;
+                    let _ = tx.send(Seen::Restarted(version, now));
+                }
+                Some(pb::render_event::Event::Tile(_)) => {
+                    let _ = tx.send(Seen::Tile(version, now));
+                }
+                _ => {}
+            }
+        }
+    })
+}
+
+/// Waits for the first tile of `version` (or newer); returns (restarted at, first tile at).
+async fn until_new_tile(rx: &mut mpsc::UnboundedReceiver<Seen>, version: u64) -> (Option<Instant>, Instant) {
+    let mut restarted = None;
+    loop {
+        match rx.recv().await.expect("the render ended before showing the edit") {
+            Seen::Restarted(v, t) if v >= version && restarted.is_none() => restarted = Some(t),
+            Seen::Tile(v, t) if v >= version => return (restarted, t),
+            _ => {}
+        }
+    }
+}
+
+/// A tiny deterministic generator for the moments of the edits.
+fn next_delay(state: &mut u64) -> Duration {
+    *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    Duration::from_millis(30 + (*state >> 33) % 600)
+}
+
+fn summary(label: &str, v: &mut [f64]) -> String {
+    v.sort_by(f64::total_cmp);
+    format!("{label} p50 {:.0} ms, p90 {:.0} ms, max {:.0} ms", percentile(v, 0.5), percentile(v, 0.9), v.last().unwrap())
+}
+
+async fn edits_during_render(server: &EmbeddedServer, t: &Translation, width: u32, height: u32) {
+    let mut c = client(server).await;
+    let s = c.create_session(pb::CreateSessionRequest { client_name: "interactive bench".into() }).await.unwrap().into_inner().session_id;
+    c.sync(tokio_stream::iter(tessera::sync::requests(&s, tessera::sync::full_sync(t)))).await.unwrap();
+    let settings = pb::RenderSettings { width, height, spp: 1 << 16, ..Default::default() };
+    let started = Instant::now();
+    let stream = c.render(pb::RenderRequest { session_id: s.clone(), settings: Some(settings) }).await.unwrap().into_inner();
+    let (tx, mut rx) = mpsc::unbounded_channel();
+    let reader = read_events(stream, tx);
+    let (_, first) = until_new_tile(&mut rx, 0).await;
+    println!("{width}x{height}: first tile {:.0} ms after Render", (first - started).as_secs_f64() * 1e3);
+    let mut state = 0x7e55e7a;
+    for kind in Edit::ALL {
+        let (mut sync, mut restart, mut tile) = (Vec::new(), Vec::new(), Vec::new());
+        for k in 0..EDITS {
+            tokio::time::sleep(next_delay(&mut state)).await;
+            while rx.try_recv().is_ok() {}
+            let t0 = Instant::now();
+            let r = c.sync(tokio_stream::iter(tessera::sync::requests(&s, vec![kind.delta(t, k)]))).await.unwrap().into_inner();
+            sync.push(t0.elapsed().as_secs_f64() * 1e3);
+            let (restarted, first) = until_new_tile(&mut rx, r.scene_version).await;
+            restart.push(restarted.map_or(f64::NAN, |r| (r - t0).as_secs_f64() * 1e3));
+            tile.push((first - t0).as_secs_f64() * 1e3);
+        }
+        println!(
+            "  {:<18} {}; {}; {}",
+            kind.name(),
+            summary("Sync returns", &mut sync),
+            summary("Restarted", &mut restart),
+            summary("first new tile", &mut tile)
+        );
+    }
+    c.cancel(pb::CancelRequest { session_id: s.clone() }).await.unwrap();
+    reader.await.unwrap();
+    c.close_session(pb::CloseSessionRequest { session_id: s }).await.unwrap();
+}
+
+fn main() {
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    rt.block_on(async {
+        let server = EmbeddedServer::start().await.unwrap();
+        println!("interactive bench, {} cores, {EDITS} edits per kind", std::thread::available_parallelism().map_or(1, |n| n.get()));
+        let cornell =
+            tessera::usd::load(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/cornell_box.usda")).unwrap();
+        for (w, h) in [(512, 512), (1920, 1080)] {
+            edits_during_render(&server, &cornell, w, h).await;
+        }
+        server.stop().await.unwrap();
+    });
+}
