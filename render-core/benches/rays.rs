@@ -1,5 +1,5 @@
 //! Ray throughput on a 1-million-triangle mesh: BVH build time, closest-hit and occlusion
-//! Mrays/s for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one thread)
+//! Mrays/s per thread for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one thread)
 //! measured in the same run on the same data; then, at the flat BVH's triangle cap, what a
 //! commit's rebuild costs and what tracing gains against two levels. Run:
 //! `cargo bench -p render-core --bench rays`.
@@ -122,9 +122,11 @@ fn main() {
         );
     };
     row("BVH build (s)  [ratio: speed]", build, e("build_s"), false);
+    // Embree runs one thread, so each row compares per thread: threads with threads.
     for &(threads, c, o, hc, ho) in &results {
-        row(&format!("closest-hit Mrays/s, {threads} thread(s)"), c, e("closest_mrays"), true);
-        row(&format!("occlusion Mrays/s, {threads} thread(s)"), o, e("occluded_mrays"), true);
+        let per = threads as f64;
+        row(&format!("closest-hit Mrays/s/thread, {threads} thr"), c / per, e("closest_mrays"), true);
+        row(&format!("occlusion Mrays/s/thread, {threads} thr"), o / per, e("occluded_mrays"), true);
         if let (Some(ec), Some(eo)) = (e("closest_hits"), e("occluded_hits")) {
             println!("  agreement ({threads} thr): closest hits {hc} vs embree {ec}, occluded {ho} vs embree {eo}");
         }
