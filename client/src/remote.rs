@@ -52,6 +52,9 @@ pub struct RenderOptions {
     /// Edge of the server's render tiles (the regions the final stats count samples in); 0
     /// for the server's default, 64.
     pub tile_size: u32,
+    /// Block edge of the coarse first-look passes (a viewport's option; 0, the default, is
+    /// off: final renders start with full passes).
+    pub coarse_start: u32,
 }
 
 impl Default for RenderOptions {
@@ -77,6 +80,7 @@ impl Default for RenderOptions {
             force_all_effects: false,
             pixel_aspect: 0.0,
             tile_size: 0,
+            coarse_start: 0,
         }
     }
 }
@@ -262,6 +266,7 @@ impl Connection {
             disable_light_splitting: !opts.light_splitting,
             pixel_aspect: opts.pixel_aspect,
             light_split_budget: opts.light_split_budget,
+            coarse_start: opts.coarse_start,
         };
         let mut stream = self
             .client

@@ -31,6 +31,9 @@ pub struct RenderSettings {
     /// Adaptive sampling: a pixel stops receiving samples once the relative standard error of
     /// its mean (worst over its neighbourhood) is below this; 0 = off.
     pub noise_threshold: f32,
+    /// Block edge of the first coarse pass (a power of two; 0 or 1 = off): see
+    /// [`coarse_schedule`].
+    pub coarse_start: u32,
 }
 
 /// Camera samples a worker traces between two polls of [`RenderSink::should_stop`]. A
@@ -54,6 +57,7 @@ impl Default for RenderSettings {
             integrator: IntegratorSettings::default(),
             sampler: SamplerKind::default(),
             noise_threshold: 0.0,
+            coarse_start: 0,
         }
     }
 }
@@ -109,6 +113,9 @@ pub trait RenderSink: Sync {
     fn tile(&self, tile: &TileFilm, pass: u32);
     /// A pass finished.
     fn pass_done(&self, stats: &PassStats);
+    /// A coarse pass finished a tile: `film` holds one sample per `pixel_size`² block of the
+    /// image rect `covers` (its own rect counts blocks from 0). Only sent when asked for.
+    fn coarse_tile(&self, _covers: Rect, _pixel_size: u32, _film: &TileFilm) {}
     /// Polled before every tile and every [`STOP_POLL_SAMPLES`] samples within one: `Some`
     /// stops the render (a tile stopped part-way is dropped, never sent). Keep it cheap.
     fn should_stop(&self) -> Option<StopReason>;
@@ -151,6 +158,9 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
     let extra = settings.integrator.light_path_aovs || settings.integrator.force_all_effects;
     let tiles: Vec<LazyTile> =
         tiles_centre_out(settings.width, settings.height, settings.tile_size).into_iter().map(|rect| LazyTile::new(rect, extra)).collect();
+    if let Some(reason) = coarse_passes(scene, camera, settings, &tiles, sink) {
+        return RenderOutcome { stats: PassStats::default(), paths: 0, non_finite: 0, stopped: Some(reason), regions: Vec::new() };
+    }
     let rays = AtomicU64::new(0);
     let non_finite = AtomicU64::new(0);
     let paths = AtomicU64::new(0);
@@ -259,6 +269,60 @@ fn regions_of(tiles: &[LazyTile]) -> Vec<RegionSamples> {
     tiles.iter().map(|t| RegionSamples { rect: t.rect, samples: t.film.get().map_or(0, |f| f.lock().unwrap().sample_totals().1) }).collect()
 }
 
+/// Block edges of the coarse passes that start a render: `start`, `start/2`, … down to 2
+/// (Cycles' viewport "start resolution" and Arras' progressive refinement do the same). A
+/// whole frame at 8×8 costs a 64th of a one-sample pass, so a viewport sees every pixel
+/// change within a frame time of an edit. Empty for 0 or 1.
+pub fn coarse_schedule(start: u32) -> Vec<u32> {
+    std::iter::successors(Some(start), |b| Some(b / 2)).take_while(|&b| b >= 2).collect()
+}
+
+/// The coarse passes, each over every tile in parallel; `Some` when the sink stopped them.
+/// Their samples go to throw-away films, so the passes after them are unchanged.
+fn coarse_passes(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    tiles: &[LazyTile],
+    sink: &dyn RenderSink,
+) -> Option<StopReason> {
+    use rayon::prelude::*;
+    coarse_schedule(settings.coarse_start)
+        .into_iter()
+        .find_map(|block| tiles.par_iter().find_map_any(|t| coarse_tile(scene, camera, settings, t.rect, block, sink)))
+}
+
+/// One sample per `block`² block of `rect`, at the block's centre pixel (clamped into the
+/// rect), with the sample index 0 that pixel's first full pass also draws.
+fn coarse_tile(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    rect: Rect,
+    block: u32,
+    sink: &dyn RenderSink,
+) -> Option<StopReason> {
+    if let Some(reason) = sink.should_stop() {
+        return Some(reason);
+    }
+    let blocks = Rect { x: 0, y: 0, width: rect.width.div_ceil(block), height: rect.height.div_ceil(block) };
+    let mut film = TileFilm::new(blocks, settings.integrator.light_path_aovs || settings.integrator.force_all_effects);
+    let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
+    let integrator = IntegratorSettings { pixel_footprint: footprint, ..settings.integrator };
+    let mut counters = PathCounters::default();
+    for by in 0..blocks.height {
+        for bx in 0..blocks.width {
+            let x = (rect.x + bx * block + block / 2).min(rect.x + rect.width - 1);
+            let y = (rect.y + by * block + block / 2).min(rect.y + rect.height - 1);
+            let sample = trace_camera_sample(scene, camera, settings, &integrator, x, y, 0, &mut counters);
+            film.add((by * blocks.width + bx) as usize, &sample);
+        }
+    }
+    film.samples = 1;
+    sink.coarse_tile(rect, block, &film);
+    None
+}
+
 /// A tile whose film is allocated by the first worker that renders it. A 1920×1080 film is
 /// over 200 MB; allocated up front it delayed the first tile of every (re)start by ~40 ms.
 struct LazyTile {
@@ -309,11 +373,7 @@ fn render_tile(
                         return Some(reason);
                     }
                 }
-                let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
-                // The camera's 4D set: pixel jitter and the lens point.
-                let [jx, jy, lx, ly] = rng.next_4d();
-                let (ray, cos) = camera.ray_through_lens(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly));
-                let sample = trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, &integrator, counters);
+                let sample = trace_camera_sample(scene, camera, settings, &integrator, x, y, k, counters);
                 tile.add(i, &sample);
             }
         }
@@ -384,4 +444,23 @@ mod tests {
             assert_eq!(pass_schedule(spp).iter().sum::<u32>(), spp);
         }
     }
+}
+
+/// Sample `k` of pixel (`x`, `y`): its random numbers depend on nothing else.
+#[allow(clippy::too_many_arguments)]
+fn trace_camera_sample(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    integrator: &IntegratorSettings,
+    x: u32,
+    y: u32,
+    k: u32,
+    counters: &mut PathCounters,
+) -> crate::film::PixelSample {
+    let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
+    // The camera's 4D set: pixel jitter and the lens point.
+    let [jx, jy, lx, ly] = rng.next_4d();
+    let (ray, cos) = camera.ray_through_lens(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly));
+    trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, integrator, counters)
 }

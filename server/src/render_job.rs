@@ -172,6 +172,11 @@ impl RenderJob {
                     x if x.is_finite() && x >= 0.0 => x,
                     x => return Err(bad("noise_threshold", format!("{x} must be finite and not negative (0 = off)"))),
                 },
+                coarse_start: match s.coarse_start {
+                    0 | 1 => 0,
+                    b if b.is_power_of_two() && b <= 64 => b,
+                    b => return Err(bad("coarse_start", format!("{b} must be a power of two from 2 to 64 (0 = off)"))),
+                },
                 sampler: match pb::Sampler::try_from(s.sampler) {
                     Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,
                     Ok(pb::Sampler::Independent) => render_core::sampling::SamplerKind::Independent,
@@ -400,6 +405,16 @@ impl RenderSink for StreamSink<'_> {
         let format = if pass + 1 == self.passes { pb::PixelFormat::F32 } else { self.job.progressive_format };
         for &aov in &self.job.aovs {
             if !self.out.send(pb::render_event::Event::Tile(convert::tile_to_wire(tile, aov, pass, format))) {
+                return;
+            }
+        }
+    }
+
+    fn coarse_tile(&self, covers: render_core::film::Rect, pixel_size: u32, film: &TileFilm) {
+        for &aov in &self.job.aovs {
+            let mut tile = convert::tile_to_wire(film, aov, 0, self.job.progressive_format);
+            (tile.x, tile.y, tile.width, tile.height, tile.pixel_size) = (covers.x, covers.y, covers.width, covers.height, pixel_size);
+            if !self.out.send(pb::render_event::Event::Tile(tile)) {
                 return;
             }
         }

@@ -1,9 +1,10 @@
 //! Interactive latency over loopback against the real server (`cargo bench -p tessera-tests
 //! --bench interactive`): the Cornell box rendering progressively at 512² and 1920×1080, and
 //! edits of each kind (camera move, object transform, light intensity, material roughness)
-//! made at pseudo-random moments of the render. For each: how long the Sync takes to return,
-//! and how long until `Restarted` and the first tile of the new scene version reach the
-//! client. Also the first tile after Render. Prints numbers; asserts nothing. Results:
+//! made at pseudo-random moments of the render, with the viewport's coarse first passes on
+//! (8×8 blocks first). For each: how long the Sync takes to return, and how long until
+//! `Restarted`, the first tile of the new scene version and its first whole coarse frame reach
+//! the client. Also the first tile and first whole frame after Render. Prints numbers; asserts nothing. Results:
 //! `docs/service.md`.
 
 use std::time::{Duration, Instant};
@@ -22,6 +23,9 @@ type Client = RenderClient<Channel>;
 
 /// Edits per kind and resolution.
 const EDITS: usize = 20;
+
+/// Block edge of the first coarse pass, as a viewport asks for it.
+const COARSE_START: u32 = 8;
 
 #[derive(Clone, Copy, Debug)]
 enum Edit {
@@ -98,23 +102,31 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 enum Seen {
     Tile(u64, Instant),
     Restarted(u64, Instant),
+    /// The first coarse pass of a version covered the whole frame.
+    CoarseFrame(u64, Instant),
 }
 
-/// Reads a render stream to its end, reporting tiles (with the version they belong to) and
-/// restarts as they arrive.
-fn read_events(mut stream: tonic::Streaming<pb::RenderEvent>, tx: mpsc::UnboundedSender<Seen>) -> tokio::task::JoinHandle<()> {
+/// Reads a render stream to its end, reporting tiles (with the version they belong to),
+/// restarts, and the moment the first coarse pass of each version covered `pixels`.
+fn read_events(mut stream: tonic::Streaming<pb::RenderEvent>, pixels: u32, tx: mpsc::UnboundedSender<Seen>) -> tokio::task::JoinHandle<()> {
     tokio::spawn(async move {
-        let mut version = 0;
+        let (mut version, mut coarse) = (0, 0);
         while let Ok(Some(e)) = stream.message().await {
             let now = Instant::now();
             match e.event {
                 Some(pb::render_event::Event::Started(s)) => version = s.scene_version,
                 Some(pb::render_event::Event::Restarted(r)) => {
-                    version = r.scene_version;
+                    (version, coarse) = (r.scene_version, 0);
                     let _ = tx.send(Seen::Restarted(version, now));
                 }
-                Some(pb::render_event::Event::Tile(_)) => {
+                Some(pb::render_event::Event::Tile(t)) if t.aov == "beauty" => {
                     let _ = tx.send(Seen::Tile(version, now));
+                    if t.pixel_size == COARSE_START {
+                        coarse += t.width * t.height;
+                        if coarse == pixels {
+                            let _ = tx.send(Seen::CoarseFrame(version, now));
+                        }
+                    }
                 }
                 _ => {}
             }
@@ -122,13 +134,22 @@ fn read_events(mut stream: tonic::Streaming<pb::RenderEvent>, tx: mpsc::Unbounde
     })
 }
 
-/// Waits for the first tile of `version` (or newer); returns (restarted at, first tile at).
-async fn until_new_tile(rx: &mut mpsc::UnboundedReceiver<Seen>, version: u64) -> (Option<Instant>, Instant) {
-    let mut restarted = None;
+/// When `version` (or a newer one) showed: its `Restarted`, first tile and first whole
+/// coarse frame.
+struct Shown {
+    restarted: Option<Instant>,
+    tile: Instant,
+    frame: Instant,
+}
+
+/// Waits for the first whole coarse frame of `version` (or newer).
+async fn until_new_frame(rx: &mut mpsc::UnboundedReceiver<Seen>, version: u64) -> Shown {
+    let (mut restarted, mut tile) = (None, None);
     loop {
         match rx.recv().await.expect("the render ended before showing the edit") {
             Seen::Restarted(v, t) if v >= version && restarted.is_none() => restarted = Some(t),
-            Seen::Tile(v, t) if v >= version => return (restarted, t),
+            Seen::Tile(v, t) if v >= version && tile.is_none() => tile = Some(t),
+            Seen::CoarseFrame(v, t) if v >= version => return Shown { restarted, tile: tile.unwrap_or(t), frame: t },
             _ => {}
         }
     }
@@ -149,32 +170,39 @@ async fn edits_during_render(server: &EmbeddedServer, t: &Translation, width: u3
     let mut c = client(server).await;
     let s = c.create_session(pb::CreateSessionRequest { client_name: "interactive bench".into() }).await.unwrap().into_inner().session_id;
     c.sync(tokio_stream::iter(tessera::sync::requests(&s, tessera::sync::full_sync(t)))).await.unwrap();
-    let settings = pb::RenderSettings { width, height, spp: 1 << 16, ..Default::default() };
+    let settings = pb::RenderSettings { width, height, spp: 1 << 16, coarse_start: COARSE_START, ..Default::default() };
     let started = Instant::now();
     let stream = c.render(pb::RenderRequest { session_id: s.clone(), settings: Some(settings) }).await.unwrap().into_inner();
     let (tx, mut rx) = mpsc::unbounded_channel();
-    let reader = read_events(stream, tx);
-    let (_, first) = until_new_tile(&mut rx, 0).await;
-    println!("{width}x{height}: first tile {:.0} ms after Render", (first - started).as_secs_f64() * 1e3);
+    let reader = read_events(stream, width * height, tx);
+    let first = until_new_frame(&mut rx, 0).await;
+    let ms = |t: Instant, from: Instant| (t - from).as_secs_f64() * 1e3;
+    println!(
+        "{width}x{height}: first tile {:.0} ms, first whole coarse frame {:.0} ms after Render",
+        ms(first.tile, started),
+        ms(first.frame, started)
+    );
     let mut state = 0x7e55e7a;
     for kind in Edit::ALL {
-        let (mut sync, mut restart, mut tile) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut sync, mut restart, mut tile, mut frame) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for k in 0..EDITS {
             tokio::time::sleep(next_delay(&mut state)).await;
             while rx.try_recv().is_ok() {}
             let t0 = Instant::now();
             let r = c.sync(tokio_stream::iter(tessera::sync::requests(&s, vec![kind.delta(t, k)]))).await.unwrap().into_inner();
             sync.push(t0.elapsed().as_secs_f64() * 1e3);
-            let (restarted, first) = until_new_tile(&mut rx, r.scene_version).await;
-            restart.push(restarted.map_or(f64::NAN, |r| (r - t0).as_secs_f64() * 1e3));
-            tile.push((first - t0).as_secs_f64() * 1e3);
+            let shown = until_new_frame(&mut rx, r.scene_version).await;
+            restart.push(shown.restarted.map_or(f64::NAN, |r| ms(r, t0)));
+            tile.push(ms(shown.tile, t0));
+            frame.push(ms(shown.frame, t0));
         }
         println!(
-            "  {:<18} {}; {}; {}",
+            "  {:<18} {}; {}; {}; {}",
             kind.name(),
             summary("Sync returns", &mut sync),
             summary("Restarted", &mut restart),
-            summary("first new tile", &mut tile)
+            summary("first new tile", &mut tile),
+            summary("whole coarse frame", &mut frame)
         );
     }
     c.cancel(pb::CancelRequest { session_id: s.clone() }).await.unwrap();

@@ -102,3 +102,41 @@ async fn a_restarted_render_equals_a_fresh_render_of_the_edited_scene() {
     assert_eq!(image.layers["beauty"], fresh.image.layers["beauty"], "bit-identical to a fresh render of the edited scene");
     server.stop().await.unwrap();
 }
+
+/// Coarse first-look passes (`coarse_start`): before the first full pass, blocks of 8×8,
+/// then 4×4, then 2×2 pixels each cover the whole frame once (100×70 in 32² tiles, so blocks
+/// are cut at tile and image edges), with finite values; and since their samples never enter
+/// the film, the final image is bit-identical to a render without them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn coarse_passes_cover_the_frame_first_and_leave_the_image_unchanged() {
+    let (server, mut conn) = tessera_tests::session_with(&load("cornell_box.usda")).await;
+    let opts = tessera::remote::RenderOptions { tile_size: 32, ..tessera_tests::small(100, 70, 4) };
+    let plain = conn.render(&opts, |_| {}).await.unwrap();
+    let mut covered = std::collections::BTreeMap::<u32, u32>::new();
+    // The pixel size of every beauty tile in arrival order (1 for full passes).
+    let mut order = Vec::new();
+    let coarse_opts = tessera::remote::RenderOptions { coarse_start: 8, ..opts };
+    let coarse = conn
+        .render(&coarse_opts, |e| {
+            if let pb::render_event::Event::Tile(t) = e
+                && t.aov == "beauty"
+            {
+                let block = t.pixel_size.max(1);
+                order.push(block);
+                if block > 1 {
+                    *covered.entry(block).or_default() += t.width * t.height;
+                    let values = convert::tile_pixels(t).unwrap();
+                    assert_eq!(values.len() as u32, t.width * t.height * 4);
+                    assert!(values.iter().all(|v| v.is_finite()), "finite coarse values");
+                }
+            }
+        })
+        .await
+        .unwrap();
+    assert_eq!(covered, [(2, 7000), (4, 7000), (8, 7000)].into(), "each coarse pass covers the frame once");
+    let first_full = order.iter().position(|&b| b == 1).unwrap();
+    assert!(order[..first_full].windows(2).all(|w| w[0] >= w[1]), "8×8, then 4×4, then 2×2: {order:?}");
+    assert!(order[first_full..].iter().all(|&b| b == 1), "no coarse tile after the first full one");
+    assert_eq!(coarse.image.layers["beauty"], plain.image.layers["beauty"], "coarse passes leave the image bit-identical");
+    server.stop().await.unwrap();
+}

@@ -315,12 +315,33 @@ pub fn tile_to_wire(tile: &TileFilm, aov: Aov, pass: u32, format: pb::PixelForma
         samples: tile.samples,
         format: format as i32,
         pixels,
+        pixel_size: 0,
     }
 }
 
-/// Decodes a wire tile's pixels to f32.
+/// Decodes a wire tile's pixels to f32, one value per pixel of its rect: a coarse tile's
+/// blocks are scaled up (each value fills its block).
 pub fn tile_pixels(t: &pb::Tile) -> Result<Vec<f32>, Status> {
-    let expected = (t.width * t.height * t.channels) as usize;
+    let block = t.pixel_size.max(1);
+    if block > 64 {
+        return Err(Status::invalid_argument(format!("tile: pixel_size {block} exceeds 64")));
+    }
+    let values = decode_values(t, (t.width.div_ceil(block) * t.height.div_ceil(block) * t.channels) as usize)?;
+    if block == 1 {
+        return Ok(values);
+    }
+    let (c, row) = (t.channels as usize, t.width.div_ceil(block) as usize);
+    let mut out = Vec::with_capacity((t.width * t.height) as usize * c);
+    for y in 0..t.height as usize {
+        for x in 0..t.width as usize {
+            let i = ((y / block as usize) * row + x / block as usize) * c;
+            out.extend_from_slice(&values[i..i + c]);
+        }
+    }
+    Ok(out)
+}
+
+fn decode_values(t: &pb::Tile, expected: usize) -> Result<Vec<f32>, Status> {
     let out: Vec<f32> = match pb::PixelFormat::try_from(t.format) {
         Ok(pb::PixelFormat::F32) => t.pixels.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
         Ok(pb::PixelFormat::F16) => t.pixels.chunks_exact(2).map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32()).collect(),
