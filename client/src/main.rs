@@ -315,6 +315,8 @@ async fn real_main() -> Result<()> {
                 force_all_effects,
                 pixel_aspect: pixel_aspect.unwrap_or(0.0),
                 tile_size: tile_size.unwrap_or(0),
+                // Final renders start with full passes (coarse passes are for viewports).
+                coarse_start: 0,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).

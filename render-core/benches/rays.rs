@@ -13,29 +13,6 @@ use render_core::geometry::{Mesh, Ray, Transform};
 use render_core::sampling::{Pcg32, uniform_sphere};
 
 /// A UV sphere of `rings`×`segments`×2 triangles.
-fn sphere(rings: u32, segments: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for r in 0..=rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
-        }
-    }
-    let mut indices = Vec::new();
-    for r in 0..rings {
-        for s in 0..segments {
-            let a = r * segments + s;
-            let b = r * segments + (s + 1) % segments;
-            let c = (r + 1) * segments + (s + 1) % segments;
-            let d = (r + 1) * segments + s;
-            indices.push([a, b, c]);
-            indices.push([a, c, d]);
-        }
-    }
-    Mesh { positions, indices, ..Default::default() }
-}
-
 struct TestRay {
     o: Vec3,
     d: Vec3,
@@ -48,7 +25,7 @@ fn write<T: Copy>(path: &std::path::Path, data: &[T]) {
 }
 
 fn main() {
-    let mesh = sphere(500, 1000);
+    let mesh = Mesh::uv_sphere(500, 1000);
     let n_rays = 2_000_000;
     let mut rng = Pcg32::new(42, 7);
     // Incoherent: origins anywhere in a cube around the sphere, directions uniform.
@@ -139,7 +116,7 @@ fn main() {
 /// time is the TLAS alone: commits reuse BLASes.
 fn flat_at_the_cap(rays: &[TestRay]) {
     let rings = (FLAT_TRIANGLES / 4 / 2 / 64) as u32;
-    let mesh = sphere(rings, 64);
+    let mesh = Mesh::uv_sphere(rings, 64);
     let blas = vec![std::sync::Arc::new(Blas::build(&mesh, BuildQuality::Medium))];
     let instances: Vec<TlasInstance> = (0..4)
         .map(|i| {

@@ -144,6 +144,29 @@ pub struct Primvar {
 }
 
 impl Mesh {
+    /// A unit sphere of `2 × rings × segments` triangles (for benchmarks and tests that need
+    /// a mesh of a given size).
+    pub fn uv_sphere(rings: u32, segments: u32) -> Mesh {
+        let mut positions = Vec::new();
+        for r in 0..=rings {
+            let theta = std::f32::consts::PI * r as f32 / rings as f32;
+            for s in 0..segments {
+                let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
+                positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
+            }
+        }
+        let mut indices = Vec::new();
+        for r in 0..rings {
+            for s in 0..segments {
+                let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+                let (c, d) = ((r + 1) * segments + (s + 1) % segments, (r + 1) * segments + s);
+                indices.push([a, b, c]);
+                indices.push([a, c, d]);
+            }
+        }
+        Mesh { positions, indices, ..Default::default() }
+    }
+
     /// Object-space vertices of triangle `tri`.
     #[inline]
     pub fn triangle(&self, tri: usize) -> [Vec3; 3] {

@@ -447,6 +447,7 @@ mod tests {
 }
 
 /// Sample `k` of pixel (`x`, `y`): its random numbers depend on nothing else.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn trace_camera_sample(
     scene: &CommittedScene,

@@ -1,6 +1,8 @@
 //! Interactive latency over loopback against the real server (`cargo bench -p tessera-tests
-//! --bench interactive`): the Cornell box rendering progressively at 512² and 1920×1080, and
-//! edits of each kind (camera move, object transform, light intensity, material roughness)
+//! --bench interactive`): the Cornell box rendering progressively at 512² and 1920×1080 and a
+//! 1M-triangle scene with 400 instances at 1920×1080, and
+//! edits of each kind (camera move, object transform, light intensity, material roughness,
+//! texture swap, mesh points)
 //! made at pseudo-random moments of the render, with the viewport's coarse first passes on
 //! (8×8 blocks first). For each: how long the Sync takes to return, and how long until
 //! `Restarted`, the first tile of the new scene version and its first whole coarse frame reach
@@ -10,7 +12,10 @@
 use std::time::{Duration, Instant};
 
 use glam::{Affine3A, Vec3};
-use render_core::material::ParamValue;
+use render_core::camera::CameraDesc;
+use render_core::light::LightDesc;
+use render_core::material::{MaterialNetwork, ParamValue};
+use render_core::scene::MeshDesc;
 use tessera::usd::Translation;
 use tessera_proto::v1 as pb;
 use tessera_proto::v1::render_client::RenderClient;
@@ -33,10 +38,12 @@ enum Edit {
     Transform,
     Light,
     Material,
+    TextureSwap,
+    MeshPoints,
 }
 
 impl Edit {
-    const ALL: [Edit; 4] = [Edit::Camera, Edit::Transform, Edit::Light, Edit::Material];
+    const ALL: [Edit; 6] = [Edit::Camera, Edit::Transform, Edit::Light, Edit::Material, Edit::TextureSwap, Edit::MeshPoints];
 
     fn name(self) -> &'static str {
         match self {
@@ -44,24 +51,26 @@ impl Edit {
             Edit::Transform => "object transform",
             Edit::Light => "light intensity",
             Edit::Material => "material roughness",
+            Edit::TextureSwap => "texture swap",
+            Edit::MeshPoints => "mesh points",
         }
     }
 
-    /// The one prim delta that makes the `k`-th edit of this kind.
-    fn delta(self, t: &Translation, k: usize) -> pb::sync_request::Item {
+    /// The prim deltas that make the `k`-th edit of this kind, or `None` where the scene has
+    /// nothing to edit that way (a texture swap needs a textured material).
+    fn items(self, t: &Translation, k: usize) -> Option<Vec<pb::sync_request::Item>> {
         let wiggle = if k % 2 == 0 { 1.0 } else { -1.0 };
-        match self {
+        let nudge = |by: f32| Affine3A::from_translation(Vec3::new(by * wiggle, 0.0, 0.0));
+        Some(match self {
             Edit::Camera => {
                 let (path, c) = &t.cameras[0];
-                let mut c = c.clone();
-                c.transform = Affine3A::from_translation(Vec3::new(0.01 * wiggle, 0.0, 0.0)) * c.transform;
-                tessera::sync::delta(path, pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(convert::camera_to_wire(&c)))
+                let c = CameraDesc { transform: nudge(0.01) * c.transform, ..c.clone() };
+                vec![tessera::sync::delta(path, pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(convert::camera_to_wire(&c)))]
             }
             Edit::Transform => {
-                let (path, m) = t.meshes.iter().find(|(p, _)| p.contains("Tall")).unwrap_or(&t.meshes[0]);
-                let xf = Affine3A::from_translation(Vec3::new(0.02 * wiggle, 0.0, 0.0)) * m.transform;
+                let (path, m) = edited_mesh(t, false);
                 let prim = pb::MeshPrim {
-                    transform: Some(convert::matrix(&xf)),
+                    transform: Some(convert::matrix(&(nudge(0.02) * m.transform))),
                     material_path: m.material.clone(),
                     visible: m.visible,
                     double_sided: true,
@@ -71,22 +80,59 @@ impl Edit {
                 if let pb::sync_request::Item::Prim(d) = &mut item {
                     d.dirty = pb::DirtyBits::DirtyTransform as u32;
                 }
-                item
+                vec![item]
             }
             Edit::Light => {
                 let (path, l) = &t.lights[0];
-                let mut l = l.clone();
-                l.intensity *= 1.0 + 0.1 * wiggle;
-                tessera::sync::delta(path, pb::PrimKind::Light, pb::prim_delta::Payload::Light(convert::light_to_wire(&l)))
+                let l = LightDesc { intensity: l.intensity * (1.0 + 0.1 * wiggle), ..l.clone() };
+                vec![tessera::sync::delta(path, pb::PrimKind::Light, pb::prim_delta::Payload::Light(convert::light_to_wire(&l)))]
             }
             Edit::Material => {
-                let (path, m) = &t.materials[0];
-                let mut m = m.clone();
-                m.nodes[0].parameters.insert("roughness".into(), ParamValue::Float(0.5 + 0.2 * wiggle));
-                tessera::sync::delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(convert::material_to_wire(&m)))
+                let (path, mut m) = t.materials[0].clone();
+                let surface = m.nodes.iter_mut().find(|n| n.node_type_id == "UsdPreviewSurface")?;
+                surface.parameters.insert("roughness".into(), ParamValue::Float(0.5 + 0.2 * wiggle));
+                vec![material_item(&path, &m)]
             }
-        }
+            Edit::TextureSwap => {
+                // Both files were uploaded with the scene (as a DCC's first swap would upload
+                // the new one); the edit names the other by content.
+                let (path, mut m) = t.materials.iter().find(|(_, m)| m.nodes.iter().any(|n| n.node_type_id == "UsdUVTexture"))?.clone();
+                let node = m.nodes.iter_mut().find(|n| n.node_type_id == "UsdUVTexture")?;
+                let (hash, file) = t.textures.iter().nth(k % 2)?;
+                node.parameters.insert("file".into(), ParamValue::Texture { hash: hash.clone(), source: file.source.clone() });
+                vec![material_item(&path, &m)]
+            }
+            Edit::MeshPoints => {
+                let (path, m) = edited_mesh(t, true);
+                let mut mesh = (*m.mesh).clone();
+                mesh.positions.iter_mut().for_each(|p| *p *= 1.0 + 0.01 * wiggle);
+                let moved = MeshDesc { mesh: std::sync::Arc::new(mesh), ..m.clone() };
+                tessera::sync::full_sync(&Translation { meshes: vec![(path.clone(), moved)], ..Default::default() })
+            }
+        })
     }
+}
+
+/// The mesh an edit moves: the Cornell box's tall box; else, for point edits, the prototype
+/// of instances (every instance changes), and for transforms the first visible mesh.
+fn edited_mesh(t: &Translation, points: bool) -> &(String, MeshDesc) {
+    let prototype = t.instancers.first().map(|(_, i)| i.prototype.as_str()).filter(|_| points);
+    let pick = |(p, m): &&(String, MeshDesc)| p.contains("Tall") || Some(p.as_str()) == prototype || (!points && m.visible);
+    t.meshes.iter().find(|m| m.0.contains("Tall")).or_else(|| t.meshes.iter().find(pick)).unwrap_or(&t.meshes[0])
+}
+
+fn material_item(path: &str, m: &MaterialNetwork) -> pb::sync_request::Item {
+    tessera::sync::delta(path, pb::PrimKind::Material, pb::prim_delta::Payload::Material(convert::material_to_wire(m)))
+}
+
+/// The checker-plane fixture with a second texture uploaded beside its own, for swaps.
+fn textured_plane() -> Translation {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/textures");
+    let mut t = tessera::usd::load(&dir.join("checker_plane.usda")).unwrap();
+    let bytes = std::fs::read(dir.join("maps/quadrants.png")).unwrap();
+    let file = tessera::usd::TextureFile { source: "maps/quadrants.png".into(), bytes: std::sync::Arc::new(bytes) };
+    t.textures.insert(tessera_wire::content_hash(&file.bytes), file);
+    t
 }
 
 async fn client(server: &EmbeddedServer) -> Client {
@@ -184,12 +230,16 @@ async fn edits_during_render(server: &EmbeddedServer, t: &Translation, width: u3
     );
     let mut state = 0x7e55e7a;
     for kind in Edit::ALL {
+        if kind.items(t, 0).is_none() {
+            continue;
+        }
         let (mut sync, mut restart, mut tile, mut frame) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for k in 0..EDITS {
+            let items = kind.items(t, k).unwrap();
             tokio::time::sleep(next_delay(&mut state)).await;
             while rx.try_recv().is_ok() {}
             let t0 = Instant::now();
-            let r = c.sync(tokio_stream::iter(tessera::sync::requests(&s, vec![kind.delta(t, k)]))).await.unwrap().into_inner();
+            let r = c.sync(tokio_stream::iter(tessera::sync::requests(&s, items))).await.unwrap().into_inner();
             sync.push(t0.elapsed().as_secs_f64() * 1e3);
             let shown = until_new_frame(&mut rx, r.scene_version).await;
             restart.push(shown.restarted.map_or(f64::NAN, |r| ms(r, t0)));
@@ -210,16 +260,35 @@ async fn edits_during_render(server: &EmbeddedServer, t: &Translation, width: u3
     c.close_session(pb::CloseSessionRequest { session_id: s }).await.unwrap();
 }
 
+/// A scene built in code, as the client's translation of a stage would hold it.
+fn as_translation(desc: render_core::scene::SceneDesc) -> Translation {
+    Translation {
+        meshes: desc.meshes.into_iter().collect(),
+        materials: desc.materials.into_iter().collect(),
+        instancers: desc.instancers.into_iter().collect(),
+        lights: desc.lights.into_iter().collect(),
+        cameras: desc.cameras.into_iter().collect(),
+        ..Default::default()
+    }
+}
+
 fn main() {
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
     rt.block_on(async {
+        // As `tessera-server` does at start-up (the embedded server builds them on first use).
+        render_core::bsdf::energy::warm_up();
         let server = EmbeddedServer::start().await.unwrap();
         println!("interactive bench, {} cores, {EDITS} edits per kind", std::thread::available_parallelism().map_or(1, |n| n.get()));
         let cornell =
             tessera::usd::load(&std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures/cornell_box.usda")).unwrap();
         for (w, h) in [(512, 512), (1920, 1080)] {
+            println!("Cornell box");
             edits_during_render(&server, &cornell, w, h).await;
         }
+        println!("Textured plane (fixtures/textures/checker_plane.usda) with a second texture to swap to");
+        edits_during_render(&server, &textured_plane(), 1920, 1080).await;
+        println!("1M-triangle mesh + 400 instances of a 5k-triangle rock (tessera_tests::production_scene)");
+        edits_during_render(&server, &as_translation(tessera_tests::production_scene()), 1920, 1080).await;
         server.stop().await.unwrap();
     });
 }

@@ -182,3 +182,73 @@ pub mod hostile_inputs {
         vec![tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(m))]
     }
 }
+
+/// Scenes built in code for the benches.
+mod production {
+    use std::collections::BTreeMap;
+    use std::sync::Arc;
+
+    use glam::{Affine3A, Vec3};
+    use render_core::camera::CameraDesc;
+    use render_core::geometry::Mesh;
+    use render_core::light::{LightDesc, LightKind};
+    use render_core::material::{MaterialNetwork, MaterialNode, ParamValue};
+    use render_core::scene::{InstancerDesc, MeshDesc, SceneDesc};
+
+    fn preview(path: &str, colour: Vec3, roughness: f32) -> MaterialNetwork {
+        let node = MaterialNode {
+            path: format!("{path}/Surface"),
+            node_type_id: "UsdPreviewSurface".into(),
+            parameters: BTreeMap::from([
+                ("diffuseColor".to_string(), ParamValue::Float3(colour)),
+                ("roughness".to_string(), ParamValue::Float(roughness)),
+            ]),
+        };
+        MaterialNetwork { surface_node: node.path.clone(), nodes: vec![node], connections: Vec::new() }
+    }
+
+    fn light(kind: LightKind, at: Vec3, intensity: f32) -> LightDesc {
+        LightDesc {
+            kind,
+            transform: Affine3A::from_translation(at),
+            intensity,
+            exposure: 0.0,
+            color: Vec3::ONE,
+            normalize: false,
+            visible_to_camera: true,
+            shaping: None,
+            diffuse: 1.0,
+            specular: 1.0,
+            texture: None,
+        }
+    }
+
+    /// A production-sized scene for the latency benches: a 1M-triangle mesh, 400 instances of a
+    /// 5 000-triangle rock, two lights, two materials and a camera.
+    pub fn production_scene() -> SceneDesc {
+        let mut desc = SceneDesc::default();
+        let mesh = |m: Mesh, xf: Affine3A, material: &str, visible: bool| MeshDesc {
+            mesh: Arc::new(m),
+            transform: xf,
+            material: material.into(),
+            visible,
+        };
+        desc.meshes.insert("/World/Hero".into(), mesh(Mesh::uv_sphere(500, 1000), Affine3A::from_scale(Vec3::splat(2.0)), "/M/Hero", true));
+        desc.meshes.insert("/World/Rock".into(), mesh(Mesh::uv_sphere(50, 50), Affine3A::IDENTITY, "/M/Rock", false));
+        let transforms = (0..400)
+            .map(|i| {
+                let (x, z) = ((i % 20) as f32 - 9.5, (i / 20) as f32 - 9.5);
+                Affine3A::from_scale_rotation_translation(Vec3::splat(0.2), glam::Quat::from_rotation_y(i as f32), Vec3::new(x, -2.0, z))
+            })
+            .collect();
+        desc.instancers.insert("/World/Scatter".into(), InstancerDesc { prototype: "/World/Rock".into(), transforms });
+        desc.materials.insert("/M/Hero".into(), preview("/M/Hero", Vec3::new(0.8, 0.2, 0.1), 0.3));
+        desc.materials.insert("/M/Rock".into(), preview("/M/Rock", Vec3::splat(0.4), 0.8));
+        desc.lights.insert("/Lights/Key".into(), light(LightKind::Sphere { radius: 0.5 }, Vec3::new(3.0, 5.0, 3.0), 50.0));
+        desc.lights.insert("/Lights/Fill".into(), light(LightKind::Rect { width: 4.0, height: 4.0 }, Vec3::new(-4.0, 4.0, 0.0), 5.0));
+        let camera = CameraDesc { transform: Affine3A::from_translation(Vec3::new(0.0, 1.0, 12.0)), ..Default::default() };
+        desc.cameras.insert("/Camera".into(), camera);
+        desc
+    }
+}
+pub use production::production_scene;

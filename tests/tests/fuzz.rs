@@ -185,8 +185,10 @@ fn mutated_render_settings_never_panic_the_server() {
             caustics: 99,
             sampler: -1,
             light_split_budget: 1 << 30,
+            coarse_start: u32::MAX,
             ..Default::default()
         },
+        pb::RenderSettings { coarse_start: 64, width: 1, height: 1, ..Default::default() },
     ];
     let seeds: Vec<Vec<u8>> = extremes.iter().map(|s| s.encode_to_vec()).collect();
     let failures = run("settings", &seeds, 300, |d| {

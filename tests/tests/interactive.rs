@@ -140,3 +140,31 @@ async fn coarse_passes_cover_the_frame_first_and_leave_the_image_unchanged() {
     assert_eq!(coarse.image.layers["beauty"], plain.image.layers["beauty"], "coarse passes leave the image bit-identical");
     server.stop().await.unwrap();
 }
+
+/// `coarse_start` is a client-controlled size: anything but a power of two up to 64 is refused
+/// by name, and the largest blocks on an image smaller than one block still cover it once per
+/// pass (blocks are cut at the image's edge).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn coarse_start_is_bounded_and_blocks_larger_than_the_image_work() {
+    let (server, mut conn) = tessera_tests::session_with(&load("cornell_box.usda")).await;
+    for bad in [3, 128, u32::MAX] {
+        let opts = tessera::remote::RenderOptions { coarse_start: bad, ..tessera_tests::small(8, 8, 1) };
+        let e = conn.render(&opts, |_| {}).await.unwrap_err();
+        assert!(format!("{e:#}").contains("coarse_start"), "names the field: {e:#}");
+    }
+    let mut covered = std::collections::BTreeMap::<u32, u32>::new();
+    let opts = tessera::remote::RenderOptions { coarse_start: 64, ..tessera_tests::small(5, 3, 1) };
+    conn.render(&opts, |e| {
+        if let pb::render_event::Event::Tile(t) = e
+            && t.aov == "beauty"
+            && t.pixel_size > 1
+        {
+            *covered.entry(t.pixel_size).or_default() += t.width * t.height;
+            assert_eq!(convert::tile_pixels(t).unwrap().len(), 15 * 4);
+        }
+    })
+    .await
+    .unwrap();
+    assert_eq!(covered, [(2, 15), (4, 15), (8, 15), (16, 15), (32, 15), (64, 15)].into());
+    server.stop().await.unwrap();
+}

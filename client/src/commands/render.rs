@@ -59,6 +59,8 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     // so the plan and the warnings go to stderr directly.
     let say = |line: String| if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) };
     let mut tiles_this_pass = 0u32;
+    let asked = std::time::Instant::now();
+    let mut first_tile = None;
     let report = conn
         .render(options, |e| match e {
             pb::render_event::Event::Started(s) => {
@@ -73,6 +75,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 }
             }
             pb::render_event::Event::Tile(t) if t.aov == "beauty" => {
+                first_tile.get_or_insert_with(|| asked.elapsed());
                 tiles_this_pass += 1;
                 bar.set_message(format!("pass {} tiles {tiles_this_pass}", t.pass_index));
             }
@@ -98,12 +101,13 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
     }
     let f = &report.finished;
     println!(
-        "{}: {}x{} {} spp in {:.2} s (+{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
+        "{}: {}x{} {} spp in {:.2} s (first tile {:.0} ms, +{:.2} s load) | {:.2} Mrays/s, {:.2} Mpaths/s | noise {:.2}% -> {} (+ {})",
         job.scene.file_name().map_or_else(|| job.scene.display().to_string(), |n| n.to_string_lossy().to_string()),
         options.width,
         options.height,
         f.spp,
         f.seconds,
+        first_tile.map_or(f64::NAN, |d| d.as_secs_f64() * 1e3),
         load_secs,
         f.rays_per_second / 1e6,
         f.paths_per_second / 1e6,
