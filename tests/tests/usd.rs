@@ -77,7 +77,7 @@ fn an_independent_reader_agrees_on_every_fixture() {
     let mut cases: Vec<(PathBuf, Option<f64>)> = fixtures.into_iter().map(|f| (f, None)).collect();
     cases.push((fixture("usd/animated.usda"), Some(5.5)));
     let mut problems = Vec::new();
-    let mut textures_compared = 0;
+    let (mut textures_compared, mut materials_compared) = (0, 0);
     for (scene, frame) in cases {
         let ours = tessera::commands::inspect::inspect(&scene, frame).unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
         let theirs = usd_core_reads(&scene, frame);
@@ -85,6 +85,20 @@ fn an_independent_reader_agrees_on_every_fixture() {
             let mut found = Vec::new();
             differences(&theirs[section], &ours[section], section, &ours, &mut found);
             problems.extend(found.into_iter().map(|d| format!("{} (frame {frame:?}): {d}", scene.display())));
+        }
+        // Surface shaders, resolved through NodeGraphs: every material we read names the
+        // shader type usd-core's ComputeSurfaceSource finds.
+        for (path, m) in ours["materials"].as_object().expect("materials") {
+            let Some(expected) = theirs["materials"].get(path) else { continue };
+            materials_compared += 1;
+            if expected["surface"] != m["surface"] {
+                problems.push(format!(
+                    "{} materials.{path}.surface: usd-core {}, Tessera {}",
+                    scene.display(),
+                    expected["surface"],
+                    m["surface"]
+                ));
+            }
         }
         // Resolved texture files: usd-core lists every shader's asset inputs, we those our
         // materials reach; each of ours must resolve where usd-core resolves it.
@@ -97,6 +111,7 @@ fn an_independent_reader_agrees_on_every_fixture() {
     }
     assert!(problems.is_empty(), "{} differences:\n{}", problems.len(), problems[..problems.len().min(30)].join("\n"));
     assert!(textures_compared >= 20, "only {textures_compared} resolved texture paths compared");
+    assert!(materials_compared >= 100, "only {materials_compared} surface shaders compared");
 }
 
 #[test]
@@ -370,4 +385,71 @@ async fn render_products_name_the_file_camera_resolution_and_aovs() {
     let centre = r.image.pixel("beauty", 20, 10);
     assert!(centre[1] > 2.0 * centre[0], "CamA sees the green quad: {centre:?}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Materials whose surface and inputs pass through NodeGraphs (`fixtures/usd/nodegraph.usda`:
+/// the surface behind two nested NodeGraph outputs, a colour from an interface input two
+/// levels up, a roughness authored on a NodeGraph's input, a primvar reader behind a
+/// NodeGraph output) resolve to the network of their flat twin, as usd-core's
+/// UsdShadeConnectableAPI resolves them, and render the same image bit for bit. They used to
+/// render default grey.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn nodegraph_materials_resolve_to_their_flat_network() {
+    let (graph, flat) = (load("usd/nodegraph.usda"), load("usd/nodegraph_flat.usda"));
+    assert!(graph.warnings.is_empty(), "{:?}", graph.warnings);
+    let net = &graph.materials[0].1;
+    assert_eq!(net.surface_node, "/World/Looks/Lime/NG/Inner/Surface");
+    let surface = net.nodes.iter().find(|n| n.path == net.surface_node).expect("the surface node is read");
+    assert_eq!(surface.node_type_id, "UsdPreviewSurface");
+    let flat_surface = &flat.materials[0].1.nodes.iter().find(|n| n.node_type_id == "UsdPreviewSurface").unwrap();
+    assert_eq!(surface.parameters, flat_surface.parameters, "interface values reach the shader");
+    let metal = net.connections.iter().find(|c| c.downstream_input == "metallic").expect("metallic stays connected");
+    assert_eq!((metal.upstream_node.as_str(), metal.upstream_output.as_str()), ("/World/Looks/Lime/NG/Metal", "result"));
+    let opts = small(48, 48, 4);
+    let (a, b) = (render_fixture("usd/nodegraph.usda", &opts).await, render_fixture("usd/nodegraph_flat.usda", &opts).await);
+    assert_eq!(a.image.layers["beauty"], b.image.layers["beauty"]);
+    // Lime, not grey: green well above red and blue at the centre.
+    let p = a.image.pixel("beauty", 24, 24);
+    assert!(p[1] > 1.5 * p[0] && p[1] > 3.0 * p[2], "lime at the centre: {p:?}");
+}
+
+/// A cycle through NodeGraph interface inputs is reported by path and not followed; the
+/// rest of the material still reads.
+#[test]
+fn a_nodegraph_cycle_is_reported_not_followed() {
+    let dir = std::env::temp_dir().join(format!("tessera-ng-cycle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("cycle.usda");
+    std::fs::write(
+        &file,
+        r#"#usda 1.0
+def Material "M"
+{
+    token outputs:surface.connect = </M/S.outputs:surface>
+    def NodeGraph "A" { color3f inputs:c.connect = </M/B.inputs:c> }
+    def NodeGraph "B" { color3f inputs:c.connect = </M/A.inputs:c> }
+    def Shader "S"
+    {
+        uniform token info:id = "UsdPreviewSurface"
+        color3f inputs:diffuseColor.connect = </M/A.inputs:c>
+        float inputs:roughness = 0.5
+        token outputs:surface
+    }
+}
+def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
+{
+    point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    rel material:binding = </M>
+}
+"#,
+    )
+    .unwrap();
+    let t = tessera::usd::load(&file).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(t.warnings.iter().any(|w| w.contains("more than 64 steps")), "{:?}", t.warnings);
+    let net = &t.materials[0].1;
+    assert_eq!(net.surface_node, "/M/S");
+    assert!(net.nodes[0].parameters.contains_key("roughness"), "the rest of the material reads");
 }

@@ -63,7 +63,8 @@ impl Reader<'_> {
         Ok(names)
     }
 
-    /// Collects the network feeding the material's surface terminal, as Hydra does.
+    /// Collects the network feeding the material's surface terminal, as Hydra does (through
+    /// NodeGraphs, which carry no shading of their own).
     pub(super) fn material(&mut self, path: &str) -> Result<()> {
         if self.materials_seen.contains_key(path) {
             return Ok(());
@@ -77,13 +78,13 @@ impl Reader<'_> {
         if !self.outputs_well_formed(path)? {
             return Ok(());
         }
-        let Some(surface) = material.compute_surface_source()? else {
+        let Some(surface) = self.surface_shader(&material)? else {
             self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
             self.out.materials.push((path.to_string(), network));
             return Ok(());
         };
-        network.surface_node = surface.path().as_str().to_string();
-        let mut stack = vec![surface.path().clone()];
+        network.surface_node = surface.as_str().to_string();
+        let mut stack = vec![surface];
         let mut seen = std::collections::HashSet::new();
         while let Some(node_path) = stack.pop() {
             if seen.insert(node_path.as_str().to_string()) {
@@ -93,6 +94,64 @@ impl Reader<'_> {
         }
         self.out.materials.push((path.to_string(), network));
         Ok(())
+    }
+
+    /// The shader prim behind the material's surface terminal (`outputs:surface`, else the
+    /// first render context's `outputs:<context>:surface`), followed through NodeGraph
+    /// outputs at any depth.
+    fn surface_shader(&mut self, material: &Material) -> Result<Option<sdf::Path>> {
+        let prim = self.stage.prim(material.path().clone());
+        let mut terminals: Vec<String> = prim
+            .property_names()?
+            .into_iter()
+            .map(|n| n.as_str().to_string())
+            .filter(|n| {
+                n.strip_prefix("outputs:").and_then(|r| r.strip_suffix("surface")).is_some_and(|ctx| ctx.is_empty() || ctx.ends_with(':'))
+            })
+            .collect();
+        // The universal terminal first, then render contexts in name order (as the openusd crate's
+        // compute_surface_source picks them).
+        terminals.sort_by_key(|n| (n != "outputs:surface", n.clone()));
+        for terminal in terminals {
+            let Some(target) = prim.attribute(&terminal).connections()?.into_iter().next() else {
+                continue;
+            };
+            return Ok(match self.resolve_source(&target)? {
+                Some(Source::Output(shader, _)) => Some(shader),
+                _ => None,
+            });
+        }
+        Ok(None)
+    }
+
+    /// Where a connection target leads once NodeGraph (and Material) outputs and interface
+    /// inputs are followed, as UsdShadeConnectableAPI resolves them: a shader's output, or
+    /// the value authored on the last interface input of the chain. `None` for a chain that
+    /// ends on nothing, or is longer than [`MAX_INTERFACE_HOPS`] (a cycle, reported).
+    fn resolve_source(&mut self, target: &sdf::Path) -> Result<Option<Source>> {
+        let mut target = target.clone();
+        for _ in 0..MAX_INTERFACE_HOPS {
+            if !well_formed_path(target.as_str()) {
+                return Ok(None);
+            }
+            let property = target.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+            let prim = self.stage.prim(target.prim_path());
+            let interface = prim.type_name()?.is_some_and(|t| t.as_str() == "Material" || t.as_str() == "NodeGraph");
+            if !interface {
+                return Ok(Some(Source::Output(target.prim_path(), property.trim_start_matches("outputs:").to_string())));
+            }
+            let attr = prim.attribute(property.as_str());
+            match attr.connections()?.into_iter().next() {
+                Some(next) => target = next,
+                None if property.starts_with("inputs:") => return Ok(Some(Source::Value(attr.get_at::<Value>(self.time)?))),
+                None => return Ok(None),
+            }
+        }
+        self.out.warnings.push(format!(
+            "{}: the connections through NodeGraphs from here go on for more than {MAX_INTERFACE_HOPS} steps (a cycle?); not followed",
+            target.as_str()
+        ));
+        Ok(None)
     }
 
     /// The material's outputs are followed by the openusd crate itself: their connections
@@ -161,29 +220,29 @@ impl Reader<'_> {
             self.out.warnings.push(w);
             return Ok(None);
         }
-        // The property part of `/Material/Node.outputs:rgb`.
-        let property = src.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
-        let up_prim = src.prim_path();
-        let up = self.stage.prim(up_prim.clone());
-        if up.type_name()?.is_some_and(|t| t.as_str() == "Material" || t.as_str() == "NodeGraph") && property.starts_with("inputs:") {
-            match up.attribute(property.as_str()).get_at::<Value>(self.time)?.as_ref().and_then(param) {
-                Some(pv) => {
-                    node.parameters.insert(input.to_string(), pv);
-                }
-                None => self.out.warnings.push(format!(
-                    "{}: input '{input}' connects to {}, which has no value; its own value is used",
-                    node.path,
-                    src.as_str()
-                )),
+        match self.resolve_source(src)? {
+            Some(Source::Output(up, output)) => {
+                return Ok(Some(MaterialConnection {
+                    downstream_node: node.path.clone(),
+                    downstream_input: input.to_string(),
+                    upstream_node: up.as_str().to_string(),
+                    upstream_output: output,
+                }));
             }
-            return Ok(None);
+            Some(Source::Value(v)) => {
+                if let Some(pv) = v.as_ref().and_then(param) {
+                    node.parameters.insert(input.to_string(), pv);
+                    return Ok(None);
+                }
+            }
+            None => {}
         }
-        Ok(Some(MaterialConnection {
-            downstream_node: node.path.clone(),
-            downstream_input: input.to_string(),
-            upstream_node: up_prim.as_str().to_string(),
-            upstream_output: property.trim_start_matches("outputs:").to_string(),
-        }))
+        self.out.warnings.push(format!(
+            "{}: input '{input}' connects to {}, which leads to no shader output or value; its own value is used",
+            node.path,
+            src.as_str()
+        ));
+        Ok(None)
     }
 
     /// An authored input value on `node`: a texture file, or a parameter of a supported type
@@ -224,3 +283,14 @@ impl Reader<'_> {
         }
     }
 }
+
+/// What a connection leads to after NodeGraph outputs and interface inputs.
+enum Source {
+    /// A shader prim and the name of its output (without `outputs:`).
+    Output(sdf::Path, String),
+    /// The value on the interface input that ends the chain (`None` when it has none).
+    Value(Option<Value>),
+}
+
+/// Longest chain of NodeGraph outputs and interface inputs followed from one connection.
+const MAX_INTERFACE_HOPS: usize = 64;
