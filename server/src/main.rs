@@ -195,8 +195,8 @@ async fn main() -> anyhow::Result<()> {
         memory_budget = %tessera_server::budget::human(config.memory_budget),
         "tessera-server listening"
     );
-    // A long-running server builds the energy tables now, in the background (3.4 s of CPU on
-    // two cores), so that no client's first render of rough materials waits ~0.8 s for them
+    // A long-running server builds the energy tables now, in the background on one core
+    // (7 s), so that no client's first render of rough materials waits ~0.8 s for them
     // before its first tile. An embedded server (the CLI) builds them when a scene needs them.
     std::thread::Builder::new().name("energy-tables".into()).spawn(render_core::bsdf::energy::warm_up)?;
     let service = RenderService::new(config);

@@ -122,26 +122,22 @@ pub(crate) fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
     [(i0, 1.0 - t), (i0 + 1, t)]
 }
 
-/// Computes every energy table now, each on its own rayon task, instead of at the first
-/// render whose materials need it (which then waits for them before its first tile: 0.8 s
-/// on a 2-core machine for a scene of rough materials). A server calls this at start-up.
+/// Computes every energy table now instead of at the first render whose materials need it
+/// (which then waits for them before its first tile: 0.8 s on a 2-core machine for a scene
+/// of rough materials). A server calls this at start-up, on a thread of its own: the tables
+/// are built on a one-thread pool, most used first, so the global pool and the other cores
+/// stay free for renders (a render that needs a table still being built waits for it, as
+/// it would for its own build).
 pub fn warm_up() {
-    rayon::scope(|s| {
-        s.spawn(|_| {
-            ggx();
-        });
-        s.spawn(|_| {
-            ggx_anisotropic();
-        });
-        s.spawn(|_| {
-            clearcoat();
-        });
-        s.spawn(|_| {
-            glass();
-        });
-        s.spawn(|_| {
-            dielectric_specular();
-        });
+    let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(1).thread_name(|_| "energy-tables".into()).build() else {
+        return;
+    };
+    pool.install(|| {
+        ggx();
+        dielectric_specular();
+        clearcoat();
+        glass();
+        ggx_anisotropic();
     });
 }
 
