@@ -105,6 +105,10 @@ enum Command {
         /// Render a scene without lights black, instead of under the default white dome.
         #[arg(long)]
         no_default_light: bool,
+        /// Fail when reading the scene gives warnings (a malformed prim is otherwise skipped
+        /// with a warning and the rest renders, exit status 0).
+        #[arg(long)]
+        strict: bool,
         /// Firefly clamp: limit each indirect contribution's largest component to this value
         /// (off by default; it darkens what it clamps, and the render reports it).
         #[arg(long)]
@@ -281,6 +285,7 @@ async fn real_main() -> Result<()> {
             caustics,
             force_all_effects,
             no_default_light,
+            strict,
             clamp,
             noise_threshold,
             quality,
@@ -321,7 +326,7 @@ async fn real_main() -> Result<()> {
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).
             let output = output.unwrap_or_default();
-            run(&RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light }).await?;
+            run(&RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light, strict }).await?;
         }
     }
     Ok(())

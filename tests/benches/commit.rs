@@ -41,7 +41,10 @@ fn median_ms(mut v: Vec<f64>) -> f64 {
 fn main() {
     let t = Instant::now();
     render_core::bsdf::energy::warm_up();
-    println!("energy tables, all of them: {:.0} ms (once per process, on one thread; a server builds them at start-up)", t.elapsed().as_secs_f64() * 1e3);
+    println!(
+        "energy tables, all of them: {:.0} ms (once per process, on one thread; a server builds them at start-up)",
+        t.elapsed().as_secs_f64() * 1e3
+    );
     let mut desc = production_scene();
     let mut cache = BlasCache::default();
     let t = Instant::now();

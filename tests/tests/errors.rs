@@ -13,12 +13,57 @@ fn malformed_usd_is_an_error_naming_the_file() {
     assert!(e.contains("no such file"), "{e}");
 }
 
+/// A bad mesh is reported by prim and attribute and skipped; the stage still loads.
 #[test]
 fn bad_meshes_in_usd_name_the_prim_and_attribute() {
-    let e = format!("{:#}", tessera::usd::load(&fixture("bad/index_out_of_range.usda")).unwrap_err());
-    assert!(e.contains("/World/Broken") && e.contains("faceVertexIndices[2] = 7"), "{e}");
-    let e = format!("{:#}", tessera::usd::load(&fixture("bad/nan_points.usda")).unwrap_err());
-    assert!(e.contains("/World/Broken") && e.contains("points") && e.contains("point 1"), "{e}");
+    let skipped_with = |file: &str, needles: &[&str]| {
+        let t = tessera::usd::load(&fixture(file)).unwrap_or_else(|e| panic!("{file}: {e:#}"));
+        assert!(t.meshes.iter().all(|(p, _)| p != "/World/Broken"), "{file}: the bad mesh is left out");
+        assert_eq!(t.skipped, ["/World/Broken"], "{file}");
+        let w = t.warnings.join("\n");
+        assert!(needles.iter().all(|n| w.contains(n)) && w.contains("the prim is skipped"), "{file}: {w}");
+    };
+    skipped_with("bad/index_out_of_range.usda", &["/World/Broken", "faceVertexIndices[2] = 7"]);
+    skipped_with("bad/nan_points.usda", &["/World/Broken", "points", "point 1"]);
+}
+
+/// One malformed prim of each kind (no points, `points` as `int[]`, `normals` as `float[]`,
+/// a zero scale) beside a good quad: each is reported once by prim and attribute and
+/// skipped, the quad renders, and `--strict` turns the warnings into a failure before
+/// rendering.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn malformed_prims_are_skipped_and_the_rest_renders() {
+    let t = tessera::usd::load(&fixture("bad/malformed_prims.usda")).expect("the stage loads");
+    assert_eq!(t.skipped, ["/World/NoPoints", "/World/IntPoints", "/World/BadNormals", "/World/Singular"]);
+    for (prim, what) in [
+        ("/World/NoPoints", "'points' is missing"),
+        ("/World/IntPoints", "'points' has type"),
+        ("/World/BadNormals", "normals"),
+        ("/World/Singular", "singular transform"),
+    ] {
+        let said: Vec<&String> = t.warnings.iter().filter(|w| w.starts_with(prim)).collect();
+        assert_eq!(said.len(), 1, "{prim} reported once: {:?}", t.warnings);
+        assert!(said[0].contains(what) && said[0].contains("the prim is skipped"), "{}", said[0]);
+    }
+    assert_eq!(t.meshes.iter().map(|(p, _)| p.as_str()).collect::<Vec<_>>(), ["/World/Good"]);
+    let report = render_fixture("bad/malformed_prims.usda", &small(32, 32, 4)).await;
+    let centre = report.image.pixel("beauty", 16, 16);
+    assert!(centre[0] > 0.1 && centre[3] == 1.0, "the good quad renders: {centre:?}");
+
+    let out = std::env::temp_dir().join(format!("tessera-strict-{}.exr", std::process::id()));
+    let job = tessera::commands::render::RenderJob {
+        scene: fixture("bad/malformed_prims.usda"),
+        output: out.clone(),
+        options: small(8, 8, 1),
+        server: None,
+        progress: false,
+        frame: None,
+        default_light: true,
+        strict: true,
+    };
+    let e = format!("{:#}", tessera::commands::render::run(&job).await.unwrap_err());
+    assert!(e.contains("4 warning(s)") && e.contains("--strict"), "{e}");
+    assert!(!out.exists(), "nothing is written");
 }
 
 fn raw_mesh(path: &str, points: Vec<f32>, indices: Vec<u32>) -> Vec<pb::sync_request::Item> {

@@ -51,6 +51,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         progress: false,
         frame: None,
         default_light: true,
+        strict: false,
     })
     .await
     .expect("renders");

@@ -29,6 +29,9 @@ pub struct RenderJob {
     /// Light a scene that has no lights with a white dome (see
     /// [`crate::usd::Translation::add_default_light`]).
     pub default_light: bool,
+    /// Fail, before rendering, when reading the scene gave warnings (skipped prims,
+    /// unresolved inputs): for pipelines that would rather stop than render a partial scene.
+    pub strict: bool,
 }
 
 /// Reads the scene, renders it and writes the outputs. Returns the report for callers
@@ -134,6 +137,13 @@ async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
     }
     if !translation.skipped.is_empty() {
         eprintln!("warning: {} prim(s) not rendered: {}", translation.skipped.len(), translation.skipped.join(", "));
+    }
+    if job.strict && !translation.warnings.is_empty() {
+        anyhow::bail!(
+            "{}: {} warning(s) reading the scene, and --strict makes them errors",
+            job.scene.display(),
+            translation.warnings.len()
+        );
     }
     Ok(translation)
 }

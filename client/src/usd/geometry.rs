@@ -126,6 +126,9 @@ impl Reader<'_> {
         material: Option<String>,
     ) -> Result<()> {
         let transform = self.affine(prim, p)?;
+        if visible && render_core::geometry::Transform::new(transform).is_none() {
+            anyhow::bail!("{p}: xformOps compose to a singular transform (a zero scale?), which places the mesh nowhere");
+        }
         let material = match material {
             Some(m) => m,
             None => self.display_color_material(prim, p)?.unwrap_or_default(),

@@ -256,9 +256,27 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         .map_err(|e| anyhow::anyhow!("{}: traversal failed: {e:#}", path.display()))?;
     reader.all_paths = paths.clone();
     for p in paths {
-        reader.visit(&p).with_context(|| format!("{}: {}", path.display(), p.as_str()))?;
+        reader.visit_or_skip(&p);
     }
     Ok(reader.out)
+}
+
+impl Reader<'_> {
+    /// Visits one prim. A prim that cannot be read is reported (the error names the prim and
+    /// attribute), left out with whatever it had added, and the rest of the stage still
+    /// renders, as usdrecord does; `--strict` makes such warnings fatal.
+    fn visit_or_skip(&mut self, p: &sdf::Path) {
+        let kept = (self.out.meshes.len(), self.out.lights.len(), self.out.cameras.len());
+        if let Err(e) = self.visit(p) {
+            self.out.meshes.truncate(kept.0);
+            self.out.lights.truncate(kept.1);
+            self.out.cameras.truncate(kept.2);
+            let why = format!("{e:#}");
+            let named = if why.contains(p.as_str()) { why } else { format!("{}: {why}", p.as_str()) };
+            self.out.warnings.push(format!("{named}; the prim is skipped"));
+            self.out.skipped.push(p.as_str().to_string());
+        }
+    }
 }
 
 struct Reader<'s> {
