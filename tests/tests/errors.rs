@@ -149,3 +149,88 @@ async fn the_server_rejects_bad_deltas_by_name_and_keeps_serving_others() {
     assert!(mean > 0.05, "{mean}");
     server.stop().await.unwrap();
 }
+
+/// A warning is said once however many prims run into it: two meshes bound to one material
+/// path that is not a Material.
+#[test]
+fn each_warning_is_said_once() {
+    let dir = std::env::temp_dir().join(format!("tessera-once-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("once.usda");
+    let mesh = |name: &str| {
+        format!(
+            r#"def Mesh "{name}" (prepend apiSchemas = ["MaterialBindingAPI"])
+{{
+    point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0)]
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    rel material:binding = </NotAMaterial>
+}}
+"#
+        )
+    };
+    std::fs::write(&file, format!("#usda 1.0\ndef Xform \"NotAMaterial\" {{}}\n{}{}", mesh("A"), mesh("B"))).unwrap();
+    let t = tessera::usd::load(&file).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let about: Vec<&String> = t.warnings.iter().filter(|w| w.contains("/NotAMaterial")).collect();
+    assert_eq!(about.len(), 1, "{:?}", t.warnings);
+}
+
+/// What would otherwise be lost without a word gets one warning each: a camera whose clipping
+/// range hides every mesh, a `model:drawMode` stand-in (the geometry renders), an `upAxis`
+/// that is neither Y nor Z, a reference and a payload whose files do not exist.
+#[test]
+fn silent_losses_are_said() {
+    let dir = std::env::temp_dir().join(format!("tessera-silent-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("silent.usda");
+    std::fs::write(
+        &file,
+        r#"#usda 1.0
+(
+    upAxis = "X"
+)
+def Xform "Asset" (prepend apiSchemas = ["GeomModelAPI"])
+{
+    uniform token model:drawMode = "cards"
+    def Mesh "Quad"
+    {
+        point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+    }
+}
+def "Missing" (prepend references = @./does_not_exist.usda@)
+{
+}
+def "Unloadable" (prepend payload = @./nope.usda@)
+{
+}
+def Camera "Far"
+{
+    float2 clippingRange = (100, 1000)
+    double3 xformOp:translate = (0, 0, 5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def Camera "Fine"
+{
+    double3 xformOp:translate = (0, 0, 5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"#,
+    )
+    .unwrap();
+    let t = tessera::usd::load(&file).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let one = |needle: &str| {
+        let n = t.warnings.iter().filter(|w| w.contains(needle)).count();
+        assert_eq!(n, 1, "'{needle}' said once: {:?}", t.warnings);
+    };
+    one("/Far: clippingRange (100, 1000) hides the whole scene");
+    one("/Asset: model:drawMode 'cards'");
+    one("upAxis 'X'");
+    one("unresolved Reference layer @");
+    one("unresolved Payload layer @");
+    assert!(!t.warnings.iter().any(|w| w.contains("/Fine")), "{:?}", t.warnings);
+    assert_eq!(t.meshes.len(), 1, "the geometry under a draw mode renders");
+}

@@ -138,6 +138,41 @@ impl Translation {
         self.cameras.push((Self::DEFAULT_CAMERA.to_string(), CameraDesc { transform, near: (dist - radius).max(1e-3) * 0.5, ..d }));
     }
 
+    /// A warning for each camera whose clipping range lies wholly in front of or behind
+    /// every mesh (an image of nothing but the background, which otherwise converges to
+    /// "noise 0%" without a word).
+    fn cameras_clipping_everything(&self) -> Vec<String> {
+        let corners: Vec<Vec3> = self
+            .meshes
+            .iter()
+            .filter(|(_, m)| m.visible && !m.mesh.positions.is_empty())
+            .flat_map(|(_, m)| {
+                let (lo, hi) = m.mesh.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+                (0..8).map(move |k| {
+                    let c = Vec3::new([lo.x, hi.x][k & 1], [lo.y, hi.y][(k >> 1) & 1], [lo.z, hi.z][k >> 2]);
+                    m.transform.transform_point3(c)
+                })
+            })
+            .collect();
+        if corners.is_empty() {
+            return Vec::new();
+        }
+        self.cameras
+            .iter()
+            .filter_map(|(path, c)| {
+                let to_camera = c.transform.inverse();
+                let depths = corners.iter().map(|w| -to_camera.transform_point3(*w).z);
+                let (near, far) = depths.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), d| (a.min(d), b.max(d)));
+                (far < c.near || near > c.far).then(|| {
+                    format!(
+                        "{path}: clippingRange ({}, {}) hides the whole scene (its meshes lie {near:.3}..{far:.3} in front of the camera); the image shows only the background",
+                        c.near, c.far
+                    )
+                })
+            })
+            .collect()
+    }
+
     /// Path of the light [`Self::add_default_light`] adds.
     pub const DEFAULT_LIGHT: &'static str = "/TesseraDefaultDome";
 
@@ -238,7 +273,11 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         bindings: HashMap::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
-    reader.out.z_up = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token).is_some_and(|t| t == "Z");
+    let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
+    reader.out.z_up = up_axis.as_deref() == Some("Z");
+    if let Some(axis) = up_axis.filter(|a| a != "Y" && a != "Z") {
+        reader.out.warnings.push(format!("{}: upAxis '{axis}' is neither Y nor Z; the stage is read as Y-up", path.display()));
+    }
     reader.out.meters_per_unit = stage
         .stage_metadata("metersPerUnit")
         .ok()
@@ -247,9 +286,6 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         .and_then(values::scalar)
         .filter(|m| m.is_finite() && *m > 0.0)
         .unwrap_or(0.01);
-    for e in stage.composition_errors() {
-        reader.out.warnings.push(format!("composition: {e}"));
-    }
     let mut paths = Vec::new();
     stage
         .traverse(PrimPredicate::DEFAULT_PROXIES, |p| paths.push(p.clone()))
@@ -258,6 +294,15 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     for p in paths {
         reader.visit_or_skip(&p);
     }
+    // After the traversal: arcs are composed (and found unresolved) as their prims are read.
+    for e in stage.composition_errors() {
+        reader.out.warnings.push(format!("composition: {e}"));
+    }
+    let hidden = reader.out.cameras_clipping_everything();
+    reader.out.warnings.extend(hidden);
+    // Each thing is said once, however many prims run into it.
+    let mut said = std::collections::HashSet::new();
+    reader.out.warnings.retain(|w| said.insert(w.clone()));
     Ok(reader.out)
 }
 

@@ -48,6 +48,14 @@ impl Reader<'_> {
         let prim = self.stage.prim(path.clone());
         let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
         let p = path.as_str().to_string();
+        // Draw modes sit on models (Xforms): checked before structural prims are passed by.
+        if let Some(mode) = get(&prim, "model:drawMode", self.time)?.as_ref().and_then(values::token)
+            && !matches!(mode.as_str(), "default" | "inherited")
+        {
+            self.out
+                .warnings
+                .push(format!("{p}: model:drawMode '{mode}' is a viewport stand-in (cards, bounds, origin); the geometry itself renders"));
+        }
         if STRUCTURAL.contains(&type_name.as_str()) || self.instancer_roots.iter().any(|r| under(&p, r) && *r != p) {
             return Ok(());
         }

@@ -116,6 +116,8 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
             (n @ ("diffuseColor" | "emissiveColor" | "metallic" | "roughness" | "clearcoat" | "clearcoatRoughness" | "ior"), v) => {
                 report.warnings.push(format!("{}: input '{n}' has the wrong type {v:?}; using its default", node.path))
             }
+            // Zero displacement (as exporters write it) asks for nothing.
+            ("displacement", ParamValue::Float(d)) if *d == 0.0 => {}
             (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
                 report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", node.path))
             }
@@ -243,6 +245,9 @@ pub(crate) mod tests {
         assert!(r.warnings.iter().any(|w| w.contains("'displacement'") && w.contains("/M/S")));
         assert!(!r.warnings.iter().any(|w| w.contains("'occlusion'")), "occlusion is meaningless to a path tracer, not unsupported");
         assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
+        // Exporters write displacement 0 on every material: that asks for nothing.
+        let (_, r) = preview(&[("displacement", ParamValue::Float(0.0))]).resolve("/M");
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
     }
 
     #[test]

@@ -48,6 +48,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let media = materials.list.iter().map(|m| if subsurface { m.medium() } else { None }).collect();
     let smooth_subsurface = plan.prims(Feature::Subsurface).iter().filter(|m| materials.smooth_behind(m)).cloned().collect();
     let light_set = LightSet::new(lights.all, scene_radius);
+    // Each thing is said once, however many instances or lobes run into it.
+    let mut said = std::collections::HashSet::new();
+    warnings.retain(|w| said.insert(w.clone()));
     tracing::info!(instances = instances.len(), blas_builds = cache.last_builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {
         meshes: geometry.meshes,
