@@ -4,6 +4,7 @@
 
 pub mod bench;
 pub mod commands;
+pub mod exit;
 pub mod fuzzing;
 pub mod output;
 pub mod quality;

@@ -227,7 +227,7 @@ async fn main() {
         .init();
     if let Err(e) = real_main().await {
         eprintln!("error: {e:#}");
-        std::process::exit(1);
+        std::process::exit(tessera::exit::code_of(&e));
     }
 }
 

@@ -104,7 +104,18 @@ pub struct RenderReport {
 
 /// Turns a gRPC status into an error a person can read.
 pub fn status_error(s: tonic::Status) -> anyhow::Error {
-    anyhow::anyhow!("server: {}", s.message())
+    ServerError { code: s.code(), message: s.message().to_string() }.into()
+}
+
+/// A status the server answered with, kept typed so that a caller (the CLI's exit status) can
+/// tell a request that will never succeed from a failure worth retrying.
+#[derive(Debug, thiserror::Error)]
+#[error("server: {message}")]
+pub struct ServerError {
+    /// The gRPC status code.
+    pub code: tonic::Code,
+    /// The server's message, naming the prim or field at fault.
+    pub message: String,
 }
 
 /// How a client proves who it is: a bearer token, and for `https://` URLs the certificate

@@ -21,3 +21,38 @@ fn a_piped_render_still_prints_the_plan_and_the_warnings() {
     assert!(exr.is_file(), "no {}", exr.display());
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// Exit statuses a scheduler can act on (`tessera::exit`): 2 when retrying will not help (a
+/// scene that is not there or does not parse, `--strict` with warnings), 3 when it may (no
+/// server at the URL), 0 for a render that skipped a malformed prim with a warning.
+#[test]
+fn exit_statuses_say_whether_a_retry_can_help() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = std::env::temp_dir().join(format!("tessera-cli-exit-{}", std::process::id()));
+    let status = |scene: &str, extra: &[&str]| {
+        let run = Command::new(env!("CARGO_BIN_EXE_tessera"))
+            .args(["render", "--res", "8x8", "--spp", "1", "-o"])
+            .arg(out.join("frame.exr"))
+            .args(extra)
+            .arg(root.join(scene))
+            .output()
+            .expect("the CLI runs");
+        (run.status.code(), String::from_utf8_lossy(&run.stderr).to_string())
+    };
+    assert_eq!(status("fixtures/bad/does_not_exist.usda", &[]).0, Some(2));
+    assert_eq!(status("fixtures/bad/malformed.usda", &[]).0, Some(2));
+    let (code, stderr) = status("fixtures/bad/malformed_prims.usda", &[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("/World/NoPoints") && stderr.contains("the prim is skipped"), "{stderr}");
+    assert_eq!(status("fixtures/bad/malformed_prims.usda", &["--strict"]).0, Some(2));
+    // Nothing listens on port 1 of loopback.
+    let (code, stderr) = status("fixtures/cornell_box.usda", &["--server", "http://127.0.0.1:1"]);
+    assert_eq!(code, Some(3), "{stderr}");
+    let left: Vec<_> = std::fs::read_dir(&out).map(|d| d.map(|e| e.unwrap().file_name()).collect()).unwrap_or_default();
+    assert_eq!(
+        left.iter().filter(|n| n.to_string_lossy() != "frame.exr" && n.to_string_lossy() != "frame.png").count(),
+        0,
+        "no partial files: {left:?}"
+    );
+    std::fs::remove_dir_all(&out).ok();
+}

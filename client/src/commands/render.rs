@@ -325,13 +325,55 @@ pub fn write_outputs(exr: &Path, report: &RenderReport, metadata: &[(String, Str
     if let Some(dir) = exr.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    output::write_exr(exr, &report.image, metadata)?;
-    output::write_png(&output::preview_path(exr), &report.image)
+    atomically(exr, |tmp| output::write_exr(tmp, &report.image, metadata))?;
+    atomically(&output::preview_path(exr), |tmp| output::write_png(tmp, &report.image))
+}
+
+/// Writes `path` through a temporary file beside it, renamed into place once complete: a
+/// process killed mid-write leaves no truncated or black frame at the final path (what
+/// farms call "black frames"), only a `.partial` file that the next write replaces.
+pub fn atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let name = path.file_name().with_context(|| format!("{}: not a file name", path.display()))?.to_string_lossy();
+    // The extension stays last: the image writers pick the format by it.
+    let tmp = path.with_file_name(format!(
+        ".{name}.partial-{}.{}",
+        std::process::id(),
+        path.extension().map_or("".into(), |e| e.to_string_lossy())
+    ));
+    if let Err(e) = write(&tmp) {
+        std::fs::remove_file(&tmp).ok();
+        return Err(e);
+    }
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot move the finished {} into place", path.display()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The final path appears only complete: a failed write leaves neither it nor the
+    /// temporary file, and a successful one leaves just the final file.
+    #[test]
+    fn outputs_appear_whole_or_not_at_all() {
+        let dir = std::env::temp_dir().join(format!("tessera-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = dir.join("shot.0001.exr");
+        let e = atomically(&frame, |tmp| {
+            std::fs::write(tmp, b"half a frame")?;
+            anyhow::bail!("killed mid-write")
+        });
+        assert!(e.is_err());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing left behind");
+        atomically(&frame, |tmp| {
+            assert_eq!(tmp.extension().unwrap(), "exr", "writers choose the format by the extension");
+            Ok(std::fs::write(tmp, b"a whole frame")?)
+        })
+        .unwrap();
+        let names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+        assert_eq!(names, ["shot.0001.exr"]);
+        assert_eq!(std::fs::read(&frame).unwrap(), b"a whole frame");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     fn region(x: u32, y: u32, size: u32, mean_spp: f64) -> pb::RegionSamples {
         pb::RegionSamples { x, y, width: size, height: size, mean_spp }
