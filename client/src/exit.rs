@@ -5,7 +5,7 @@
 //! | 0 | rendered and written (warnings, if any, were printed) |
 //! | 2 | the scene, the settings or the output cannot work: retrying will not help |
 //! | 3 | a transient failure (the server unreachable or busy, its memory budget full, a disk error): a retry may succeed |
-//! | 130 | interrupted by a signal (as the shell reports it) |
+//! | 128 + N | ended by signal N (130 for SIGINT, 143 for SIGTERM), as the shell reports it |
 
 use std::io::ErrorKind;
 
