@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use tessera::commands::render::{RenderJob, run};
 use tessera::quality::Quality;
@@ -88,8 +88,19 @@ enum Command {
         light_split_budget: Option<u32>,
         /// Time code at which to evaluate animated attributes (default: the stage's
         /// startTimeCode, else 0).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "frames")]
         frame: Option<f64>,
+        /// Render a frame range in one process: FIRST-LAST[xSTEP], comma-separated
+        /// (`1-240x2`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
+        #[arg(long)]
+        frames: Option<String>,
+        /// Print `ALF_PROGRESS n%` lines over the whole job (Tractor's and husk's convention).
+        #[arg(long)]
+        alf_progress: bool,
+        /// Skip frames whose output exists and was rendered with the same settings and scene
+        /// (recorded in its EXR header); others are rendered again.
+        #[arg(long)]
+        skip_existing: bool,
         /// The numbers paths draw: Owen-scrambled Sobol points or independent random numbers.
         #[arg(long, value_enum, default_value_t = SamplerArg::Sobol)]
         sampler: SamplerArg,
@@ -231,6 +242,23 @@ async fn main() {
     }
 }
 
+/// Renders each frame of a range to the path its pattern names, in one process.
+async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing: bool) -> Result<()> {
+    let paths = tessera::commands::frames::frame_paths(&job.output, frames)?;
+    for (i, (&frame, output)) in frames.iter().zip(paths).enumerate() {
+        let job = RenderJob { frame: Some(frame as f64), output, alf_progress: alf.then_some((i, frames.len())), ..job.clone() };
+        if skip_existing && job.already_rendered() {
+            eprintln!("frame {frame}: {} already rendered with these settings; skipped", job.output.display());
+        } else {
+            run(&job).await.with_context(|| format!("frame {frame}"))?;
+        }
+        if alf {
+            tessera::commands::frames::alf_progress(i, frames.len(), 100.0);
+        }
+    }
+    Ok(())
+}
+
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what: BenchCommand::Accuracy { out, fixtures, size, reference_spp } } => {
@@ -281,6 +309,9 @@ async fn real_main() -> Result<()> {
             light_splitting,
             light_split_budget,
             frame,
+            frames,
+            alf_progress,
+            skip_existing,
             sampler,
             caustics,
             force_all_effects,
@@ -326,7 +357,18 @@ async fn real_main() -> Result<()> {
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).
             let output = output.unwrap_or_default();
-            run(&RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light, strict }).await?;
+            let job =
+                RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light, strict, alf_progress: None };
+            match frames {
+                None if !skip_existing || !job.already_rendered() => {
+                    run(&RenderJob { alf_progress: alf_progress.then_some((0, 1)), ..job }).await?;
+                    if alf_progress {
+                        tessera::commands::frames::alf_progress(0, 1, 100.0);
+                    }
+                }
+                None => eprintln!("{}: already rendered with these settings; skipped", job.output.display()),
+                Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
+            }
         }
     }
     Ok(())

@@ -76,6 +76,17 @@ pub fn write_exr(path: &Path, image: &Image, metadata: &[(String, String)]) -> R
     Ok(())
 }
 
+/// A text attribute of a Tessera EXR's header (`key` without the `tessera/` prefix), read
+/// without its pixels; `None` when the file, the header or the attribute is missing.
+pub fn exr_attribute(path: &Path, key: &str) -> Option<String> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).ok()?;
+    let value = meta.headers.first()?.own_attributes.other.get(&Text::new_or_none(format!("tessera/{key}"))?)?.clone();
+    match value {
+        AttributeValue::Text(t) => Some(t.to_string()),
+        _ => None,
+    }
+}
+
 /// The PNG preview path beside an EXR.
 pub fn preview_path(exr: &Path) -> PathBuf {
     exr.with_extension("png")

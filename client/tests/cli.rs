@@ -56,3 +56,38 @@ fn exit_statuses_say_whether_a_retry_can_help() {
     );
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// A frame range in one process, as a farm scheduler runs it: each frame evaluated at its
+/// time and written to the name its pattern gives, `ALF_PROGRESS` lines to 100%, and
+/// `--skip-existing` skipping exactly the frames already rendered with the same settings.
+#[test]
+fn frame_ranges_name_each_frame_report_progress_and_skip_what_exists() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = std::env::temp_dir().join(format!("tessera-cli-frames-{}", std::process::id()));
+    let render = |extra: &[&str]| {
+        let run = Command::new(env!("CARGO_BIN_EXE_tessera"))
+            .args(["render", "--res", "12x8", "--frames", "1-9x4", "-o"])
+            .arg(out.join("anim.####.exr"))
+            .args(extra)
+            .arg(root.join("fixtures/usd/animated.usda"))
+            .output()
+            .expect("the CLI runs");
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        (String::from_utf8_lossy(&run.stdout).to_string(), String::from_utf8_lossy(&run.stderr).to_string())
+    };
+    let (stdout, _) = render(&["--spp", "1", "--alf-progress"]);
+    let frames = ["anim.0001.exr", "anim.0005.exr", "anim.0009.exr"].map(|f| out.join(f));
+    assert!(frames.iter().all(|f| f.is_file()), "{:?}", std::fs::read_dir(&out).unwrap().collect::<Vec<_>>());
+    let alf: Vec<u32> = stdout.lines().filter_map(|l| l.strip_prefix("ALF_PROGRESS ")?.strip_suffix('%')?.parse().ok()).collect();
+    assert!(alf.windows(2).all(|w| w[0] < w[1]) && alf.last() == Some(&100) && alf.len() >= 3, "{stdout}");
+    let beauty = |f: &std::path::Path| tessera::output::read_exr(f).unwrap().layers["beauty"].1.clone();
+    assert_ne!(beauty(&frames[0]), beauty(&frames[2]), "each frame at its own time");
+    let modified = |f: &std::path::Path| std::fs::metadata(f).unwrap().modified().unwrap();
+    let before: Vec<_> = frames.iter().map(|f| modified(f)).collect();
+    let (_, stderr) = render(&["--spp", "1", "--skip-existing"]);
+    assert_eq!(stderr.matches("already rendered with these settings; skipped").count(), 3, "{stderr}");
+    assert_eq!(frames.iter().map(|f| modified(f)).collect::<Vec<_>>(), before, "nothing rewritten");
+    let (_, stderr) = render(&["--spp", "2", "--skip-existing"]);
+    assert!(!stderr.contains("skipped"), "other settings render again: {stderr}");
+    std::fs::remove_dir_all(&out).ok();
+}

@@ -60,6 +60,7 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
         frame: None,
         default_light: true,
         strict: true,
+        alf_progress: None,
     };
     let e = format!("{:#}", tessera::commands::render::run(&job).await.unwrap_err());
     assert!(e.contains("4 warning(s)") && e.contains("--strict"), "{e}");

@@ -52,6 +52,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         frame: None,
         default_light: true,
         strict: false,
+        alf_progress: None,
     })
     .await
     .expect("renders");

@@ -259,6 +259,7 @@ async fn render_settings_supply_camera_and_resolution_and_flags_override_them() 
         frame: None,
         default_light: true,
         strict: false,
+        alf_progress: None,
     };
     // Nothing on the command line: /Render/Settings says CamB (the red quad), 64 x 32.
     let r = run(&job(0, 0, "")).await.expect("renders");
@@ -380,6 +381,7 @@ async fn render_products_name_the_file_camera_resolution_and_aovs() {
         frame: None,
         default_light: true,
         strict: false,
+        alf_progress: None,
     };
     let r = run(&job).await.expect("renders");
     assert_eq!((r.image.width, r.image.height), (40, 20));

@@ -1,4 +1,5 @@
 //! The CLI's subcommands.
 
+pub mod frames;
 pub mod inspect;
 pub mod render;

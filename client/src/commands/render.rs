@@ -32,6 +32,26 @@ pub struct RenderJob {
     /// Fail, before rendering, when reading the scene gave warnings (skipped prims,
     /// unresolved inputs): for pipelines that would rather stop than render a partial scene.
     pub strict: bool,
+    /// Print `ALF_PROGRESS` lines as frame `.0` of `.1` of a frame range.
+    pub alf_progress: Option<(usize, usize)>,
+}
+
+impl RenderJob {
+    /// What the frame's output depends on: the settings asked for, the scene file's bytes
+    /// and the frame. Recorded in the EXR header; `--skip-existing` re-renders a frame whose
+    /// file records another.
+    pub fn settings_hash(&self) -> Result<String> {
+        let scene = std::fs::read(&self.scene).with_context(|| format!("cannot read {}", self.scene.display()))?;
+        let asked = format!("{:?}|{:?}|{}|{}", self.options, self.frame, self.default_light, tessera_wire::content_hash(&scene));
+        Ok(tessera_wire::content_hash(asked.as_bytes()))
+    }
+
+    /// True when the output exists, complete, from these settings (atomic writes mean an
+    /// existing file is a whole one).
+    pub fn already_rendered(&self) -> bool {
+        let recorded = crate::output::exr_attribute(&self.output, "settingsHash");
+        recorded.is_some() && recorded == self.settings_hash().ok()
+    }
 }
 
 /// Reads the scene, renders it and writes the outputs. Returns the report for callers
@@ -83,6 +103,9 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
                 bar.set_message(format!("pass {} tiles {tiles_this_pass}", t.pass_index));
             }
             pb::render_event::Event::Progress(p) => {
+                if let Some((index, count)) = job.alf_progress {
+                    super::frames::alf_progress(index, count, p.percent);
+                }
                 tiles_this_pass = 0;
                 bar.set_position(p.spp as u64);
                 bar.set_message(format!("{:.1} Mrays/s  noise {:.2}%", p.rays_per_second / 1e6, 100.0 * p.estimated_noise));
@@ -159,6 +182,7 @@ fn exr_metadata(
     let f = &report.finished;
     vec![
         ("scene".to_string(), job.scene.display().to_string()),
+        ("settingsHash".to_string(), job.settings_hash().unwrap_or_default()),
         ("spp".to_string(), f.spp.to_string()),
         ("seconds".to_string(), format!("{:.3}", f.seconds)),
         ("estimated_noise".to_string(), format!("{:.5}", f.estimated_noise)),
