@@ -37,6 +37,18 @@ pub fn load(rel: &str) -> Translation {
     tessera::usd::load(&fixture(rel)).unwrap_or_else(|e| panic!("{rel}: {e:#}"))
 }
 
+/// Reads a `.usda` layer given as text (written to a temporary folder of its own, so
+/// relative asset paths in it resolve there and find nothing).
+pub fn load_text(name: &str, usda: &str) -> Translation {
+    let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary folder");
+    let file = dir.join(format!("{name}.usda"));
+    std::fs::write(&file, usda).expect("layer written");
+    let t = tessera::usd::load(&file).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+    std::fs::remove_dir_all(&dir).ok();
+    t
+}
+
 /// A server on loopback and a session on it with `translation` synced.
 pub async fn session_with(translation: &Translation) -> (EmbeddedServer, Connection) {
     let server = EmbeddedServer::start().await.expect("embedded server starts");
@@ -208,19 +220,7 @@ mod production {
     }
 
     fn light(kind: LightKind, at: Vec3, intensity: f32) -> LightDesc {
-        LightDesc {
-            kind,
-            transform: Affine3A::from_translation(at),
-            intensity,
-            exposure: 0.0,
-            color: Vec3::ONE,
-            normalize: false,
-            visible_to_camera: true,
-            shaping: None,
-            diffuse: 1.0,
-            specular: 1.0,
-            texture: None,
-        }
+        LightDesc::new(kind, Affine3A::from_translation(at), intensity)
     }
 
     /// A production-sized scene for the latency benches: a 1M-triangle mesh, 400 instances of a

@@ -155,9 +155,6 @@ async fn the_server_rejects_bad_deltas_by_name_and_keeps_serving_others() {
 /// path that is not a Material.
 #[test]
 fn each_warning_is_said_once() {
-    let dir = std::env::temp_dir().join(format!("tessera-once-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("once.usda");
     let mesh = |name: &str| {
         format!(
             r#"def Mesh "{name}" (prepend apiSchemas = ["MaterialBindingAPI"])
@@ -170,9 +167,7 @@ fn each_warning_is_said_once() {
 "#
         )
     };
-    std::fs::write(&file, format!("#usda 1.0\ndef Xform \"NotAMaterial\" {{}}\n{}{}", mesh("A"), mesh("B"))).unwrap();
-    let t = tessera::usd::load(&file).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
+    let t = load_text("once", &format!("#usda 1.0\ndef Xform \"NotAMaterial\" {{}}\n{}{}", mesh("A"), mesh("B")));
     let about: Vec<&String> = t.warnings.iter().filter(|w| w.contains("/NotAMaterial")).collect();
     assert_eq!(about.len(), 1, "{:?}", t.warnings);
 }
@@ -182,11 +177,8 @@ fn each_warning_is_said_once() {
 /// that is neither Y nor Z, a reference and a payload whose files do not exist.
 #[test]
 fn silent_losses_are_said() {
-    let dir = std::env::temp_dir().join(format!("tessera-silent-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("silent.usda");
-    std::fs::write(
-        &file,
+    let t = load_text(
+        "silent",
         r#"#usda 1.0
 (
     upAxis = "X"
@@ -219,10 +211,7 @@ def Camera "Fine"
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }
 "#,
-    )
-    .unwrap();
-    let t = tessera::usd::load(&file).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
+    );
     let one = |needle: &str| {
         let n = t.warnings.iter().filter(|w| w.contains(needle)).count();
         assert_eq!(n, 1, "'{needle}' said once: {:?}", t.warnings);

@@ -184,19 +184,7 @@ impl Translation {
         if !self.lights.is_empty() || emissive {
             return false;
         }
-        let dome = LightDesc {
-            kind: LightKind::Dome,
-            transform: Affine3A::IDENTITY,
-            intensity: 1.0,
-            exposure: 0.0,
-            color: Vec3::ONE,
-            normalize: false,
-            visible_to_camera: true,
-            shaping: None,
-            diffuse: 1.0,
-            specular: 1.0,
-            texture: None,
-        };
+        let dome = LightDesc::new(LightKind::Dome, Affine3A::IDENTITY, 1.0);
         self.lights.push((Self::DEFAULT_LIGHT.to_string(), dome));
         true
     }

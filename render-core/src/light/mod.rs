@@ -219,6 +219,24 @@ pub struct ShadingContext {
 }
 
 impl LightDesc {
+    /// A light of `kind` at `transform` with `intensity`, every other input at its UsdLux
+    /// schema default (white, exposure 0, not normalised, seen by the camera, no shaping).
+    pub fn new(kind: LightKind, transform: Affine3A, intensity: f32) -> Self {
+        LightDesc {
+            kind,
+            transform,
+            intensity,
+            exposure: 0.0,
+            color: Vec3::ONE,
+            normalize: false,
+            visible_to_camera: true,
+            shaping: None,
+            diffuse: 1.0,
+            specular: 1.0,
+            texture: None,
+        }
+    }
+
     /// Emitted radiance before normalisation.
     fn base_radiance(&self) -> Vec3 {
         self.color.max(Vec3::ZERO) * self.intensity * self.exposure.exp2()
