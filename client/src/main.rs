@@ -242,21 +242,23 @@ async fn main() {
     }
 }
 
-/// Renders each frame of a range to the path its pattern names, in one process.
+/// Renders each frame of a range to the path its pattern names, in one process and one
+/// server session (each frame after the first sends only what changed).
 async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing: bool) -> Result<()> {
     let paths = tessera::commands::frames::frame_paths(&job.output, frames)?;
+    let mut session = tessera::commands::render::FrameSession::open(&job).await?;
     for (i, (&frame, output)) in frames.iter().zip(paths).enumerate() {
         let job = RenderJob { frame: Some(frame as f64), output, alf_progress: alf.then_some((i, frames.len())), ..job.clone() };
         if skip_existing && job.already_rendered() {
             eprintln!("frame {frame}: {} already rendered with these settings; skipped", job.output.display());
         } else {
-            run(&job).await.with_context(|| format!("frame {frame}"))?;
+            session.render(&job).await.with_context(|| format!("frame {frame}"))?;
         }
         if alf {
             tessera::commands::frames::alf_progress(i, frames.len(), 100.0);
         }
     }
-    Ok(())
+    session.close().await
 }
 
 async fn real_main() -> Result<()> {

@@ -111,6 +111,72 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
     items
 }
 
+/// The deltas that take a session holding `before` to `after`, as Hydra sends them: a prim
+/// whose content changed goes again in full; a mesh whose points, topology and primvars are
+/// unchanged sends only its transform, material and visibility (no arrays); a prim that is
+/// gone is removed; a texture is uploaded only if `before` did not name it. An unchanged
+/// scene sends nothing.
+pub fn changes(before: &Translation, after: &Translation) -> Vec<pb::sync_request::Item> {
+    use std::collections::BTreeMap;
+    fn index<T>(v: &[(String, T)]) -> BTreeMap<&str, &T> {
+        v.iter().map(|(p, t)| (p.as_str(), t)).collect()
+    }
+    fn changed<T: Clone + PartialEq>(before: &[(String, T)], after: &[(String, T)]) -> Vec<(String, T)> {
+        let old = index(before);
+        after.iter().filter(|(p, t)| old.get(p.as_str()) != Some(&t)).cloned().collect()
+    }
+    let old_meshes = index(&before.meshes);
+    let (moved, remade): (Vec<_>, Vec<_>) = after
+        .meshes
+        .iter()
+        .filter(|(p, m)| old_meshes.get(p.as_str()) != Some(&m))
+        .cloned()
+        .partition(|(p, m)| old_meshes.get(p.as_str()).is_some_and(|o| o.mesh == m.mesh));
+    let subset = Translation {
+        meshes: remade,
+        materials: changed(&before.materials, &after.materials),
+        lights: changed(&before.lights, &after.lights),
+        cameras: changed(&before.cameras, &after.cameras),
+        instancers: changed(&before.instancers, &after.instancers),
+        textures: after.textures.iter().filter(|(h, _)| !before.textures.contains_key(*h)).map(|(h, t)| (h.clone(), t.clone())).collect(),
+        ..Default::default()
+    };
+    let mut items = scene_sync(&subset, |_| true);
+    items.extend(moved.iter().map(|(path, m)| mesh_placement(path, m)));
+    let now = prim_paths(after);
+    items.extend(prim_paths(before).into_iter().filter(|p| !now.contains(p)).map(|p| {
+        pb::sync_request::Item::Prim(pb::PrimDelta { path: p.to_string(), kind: pb::PrimKind::Remove as i32, dirty: 0, payload: None })
+    }));
+    items
+}
+
+/// Every prim path a translation sends (textures aside).
+fn prim_paths(t: &Translation) -> std::collections::BTreeSet<&str> {
+    let meshes = t.meshes.iter().map(|(p, _)| p);
+    let materials = t.materials.iter().map(|(p, _)| p);
+    let lights = t.lights.iter().map(|(p, _)| p);
+    let cameras = t.cameras.iter().map(|(p, _)| p);
+    let instancers = t.instancers.iter().map(|(p, _)| p);
+    meshes.chain(materials).chain(lights).chain(cameras).chain(instancers).map(String::as_str).collect()
+}
+
+/// A mesh delta that moves, rebinds or hides a mesh the session holds, without its arrays.
+fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
+    let prim = pb::MeshPrim {
+        transform: Some(convert::matrix(&m.transform)),
+        material_path: m.material.clone(),
+        visible: m.visible,
+        double_sided: true,
+        ..Default::default()
+    };
+    pb::sync_request::Item::Prim(pb::PrimDelta {
+        path: path.to_string(),
+        kind: pb::PrimKind::Mesh as i32,
+        dirty: (pb::DirtyBits::DirtyTransform as u32) | (pb::DirtyBits::DirtyMaterialId as u32) | (pb::DirtyBits::DirtyVisibility as u32),
+        payload: Some(pb::prim_delta::Payload::Mesh(prim)),
+    })
+}
+
 /// A delta with every dirty bit set.
 pub fn delta(path: &str, kind: pb::PrimKind, payload: pb::prim_delta::Payload) -> pb::sync_request::Item {
     pb::sync_request::Item::Prim(pb::PrimDelta {
@@ -128,4 +194,51 @@ pub fn requests(session_id: &str, items: Vec<pb::sync_request::Item>) -> Vec<pb:
         .enumerate()
         .map(|(i, item)| pb::SyncRequest { session_id: if i == 0 { session_id.to_string() } else { String::new() }, item: Some(item) })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn animated(frame: f64) -> Translation {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/usd/animated.usda");
+        crate::usd::load_at(&path, Some(frame)).unwrap()
+    }
+
+    fn prims(items: &[pb::sync_request::Item]) -> Vec<(String, i32, u32)> {
+        items
+            .iter()
+            .filter_map(|i| match i {
+                pb::sync_request::Item::Prim(d) => Some((d.path.clone(), d.kind, d.dirty)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Between two frames of `fixtures/usd/animated.usda` the cube only moves (one transform
+    /// delta, no arrays) and the triangle's points change (the mesh again, with its arrays);
+    /// nothing else is sent, an unchanged scene sends nothing, and a prim that is gone is
+    /// removed.
+    #[test]
+    fn changes_send_only_what_changed() {
+        let (a, b) = (animated(1.0), animated(5.0));
+        assert!(changes(&a, &a).is_empty());
+        let items = changes(&a, &b);
+        let placement =
+            pb::DirtyBits::DirtyTransform as u32 | pb::DirtyBits::DirtyMaterialId as u32 | pb::DirtyBits::DirtyVisibility as u32;
+        let mut sent = prims(&items);
+        sent.sort();
+        assert_eq!(
+            sent,
+            [
+                ("/World/Mover".to_string(), pb::PrimKind::Mesh as i32, placement),
+                ("/World/Triangle".to_string(), pb::PrimKind::Mesh as i32, pb::DirtyBits::DirtyAll as u32),
+            ]
+        );
+        let chunks = items.iter().filter(|i| matches!(i, pb::sync_request::Item::Chunk(c) if c.path == "/World/Mover")).count();
+        assert_eq!(chunks, 0, "a moved mesh sends no arrays");
+        let mut fewer = b.clone();
+        let (gone, _) = fewer.lights.remove(0);
+        assert_eq!(prims(&changes(&b, &fewer)), [(gone, pb::PrimKind::Remove as i32, 0)]);
+    }
 }

@@ -58,7 +58,8 @@ fn exit_statuses_say_whether_a_retry_can_help() {
 }
 
 /// A frame range in one process, as a farm scheduler runs it: each frame evaluated at its
-/// time and written to the name its pattern gives, `ALF_PROGRESS` lines to 100%, and
+/// time (sent as the changes since the frame before, and equal to the frame rendered alone)
+/// and written to the name its pattern gives, `ALF_PROGRESS` lines to 100%, and
 /// `--skip-existing` skipping exactly the frames already rendered with the same settings.
 #[test]
 fn frame_ranges_name_each_frame_report_progress_and_skip_what_exists() {
@@ -82,6 +83,19 @@ fn frame_ranges_name_each_frame_report_progress_and_skip_what_exists() {
     assert!(alf.windows(2).all(|w| w[0] < w[1]) && alf.last() == Some(&100) && alf.len() >= 3, "{stdout}");
     let beauty = |f: &std::path::Path| tessera::output::read_exr(f).unwrap().layers["beauty"].1.clone();
     assert_ne!(beauty(&frames[0]), beauty(&frames[2]), "each frame at its own time");
+    // Frame 5 of the range (synced as changes since frame 1) is frame 5 rendered alone.
+    let alone = out.join("alone.exr");
+    let run = Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(["render", "--res", "12x8", "--spp", "1", "--frame", "5", "-o"])
+        .arg(&alone)
+        .arg(root.join("fixtures/usd/animated.usda"))
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    assert_eq!(beauty(&alone), beauty(&frames[1]), "bit-identical to a render of the frame alone");
+    for f in ["alone.exr", "alone.png"] {
+        std::fs::remove_file(out.join(f)).unwrap();
+    }
     let modified = |f: &std::path::Path| std::fs::metadata(f).unwrap().modified().unwrap();
     let before: Vec<_> = frames.iter().map(|f| modified(f)).collect();
     let (_, stderr) = render(&["--spp", "1", "--skip-existing"]);

@@ -57,22 +57,78 @@ impl RenderJob {
 /// Reads the scene, renders it and writes the outputs. Returns the report for callers
 /// (tests) that want the numbers.
 pub async fn run(job: &RenderJob) -> Result<RenderReport> {
-    let t0 = Instant::now();
-    let translation = load_translation(job).await?;
-    let options = &resolve_options(&job.options, &translation);
-    let output_path = output_of(&job.output, &translation)?;
+    let mut session = FrameSession::open(job).await?;
+    let report = session.render(job).await;
+    session.close().await?;
+    report
+}
 
-    let embedded = match &job.server {
-        Some(_) => None,
-        None => Some(tessera_server::EmbeddedServer::start().await?),
-    };
-    let url = job.server.clone().unwrap_or_else(|| embedded.as_ref().expect("started above").url());
-    let mut conn = Connection::connect(&url, "tessera-cli").await?;
-    let sync = conn.sync_scene(&translation).await.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
-    for w in &sync.warnings {
-        eprintln!("warning: {w}");
+/// One server session for a run of frames: the first frame's scene is synced whole, each
+/// later frame sends only what changed since the one before (`sync::changes`), as a DCC
+/// does between edits.
+pub struct FrameSession {
+    embedded: Option<tessera_server::EmbeddedServer>,
+    conn: Connection,
+    held: Option<crate::usd::Translation>,
+}
+
+impl FrameSession {
+    /// Starts an embedded server unless the job names one, and opens a session on it.
+    pub async fn open(job: &RenderJob) -> Result<Self> {
+        let embedded = match &job.server {
+            Some(_) => None,
+            None => Some(tessera_server::EmbeddedServer::start().await?),
+        };
+        let url = job.server.clone().unwrap_or_else(|| embedded.as_ref().expect("started above").url());
+        let conn = Connection::connect(&url, "tessera-cli").await?;
+        Ok(FrameSession { embedded, conn, held: None })
     }
-    let load_secs = t0.elapsed().as_secs_f64();
+
+    /// Closes the session and stops the embedded server.
+    pub async fn close(mut self) -> Result<()> {
+        self.conn.close().await.ok();
+        if let Some(server) = self.embedded.take() {
+            server.stop().await?;
+        }
+        Ok(())
+    }
+
+    /// Reads the job's scene at its frame, brings the session up to date with it, renders and
+    /// writes the outputs.
+    pub async fn render(&mut self, job: &RenderJob) -> Result<RenderReport> {
+        let t0 = Instant::now();
+        let translation = load_translation(job).await?;
+        let items = match &self.held {
+            Some(before) => crate::sync::changes(before, &translation),
+            None => {
+                let hashes = translation.textures.keys().cloned().collect();
+                let missing = self.conn.missing_textures(hashes).await?;
+                crate::sync::scene_sync(&translation, |h| missing.iter().any(|m| m == h))
+            }
+        };
+        // A frame where nothing moves sends nothing (a Sync must carry at least one item).
+        if !items.is_empty() {
+            let sync = self.conn.sync(items).await.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
+            for w in &sync.warnings {
+                eprintln!("warning: {w}");
+            }
+        }
+        self.held = Some(translation);
+        let translation = self.held.as_ref().expect("just set");
+        render_synced(job, &mut self.conn, translation, t0.elapsed().as_secs_f64()).await
+    }
+}
+
+/// Renders the scene the session holds and writes the outputs; prints the plan, warnings,
+/// progress and one summary line.
+async fn render_synced(
+    job: &RenderJob,
+    conn: &mut Connection,
+    translation: &crate::usd::Translation,
+    load_secs: f64,
+) -> Result<RenderReport> {
+    let options = &resolve_options(&job.options, translation);
+    let output_path = output_of(&job.output, translation)?;
 
     let bar = if job.progress { ProgressBar::new(options.spp as u64) } else { ProgressBar::hidden() };
     bar.set_style(
@@ -115,12 +171,7 @@ pub async fn run(job: &RenderJob) -> Result<RenderReport> {
         })
         .await?;
     bar.finish_and_clear();
-    conn.close().await.ok();
-    if let Some(server) = embedded {
-        server.stop().await?;
-    }
-
-    write_outputs(&output_path, &report, &exr_metadata(job, options, &translation, &report))?;
+    write_outputs(&output_path, &report, &exr_metadata(job, options, translation, &report))?;
     eprint!("{}", convergence_table(&report.progress));
     if let Some(t) = options.noise_threshold {
         eprintln!("{}", adaptive_summary(&report, t));
