@@ -263,29 +263,7 @@ async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing:
 
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
-        Command::Bench { what: BenchCommand::Accuracy { out, fixtures, size, reference_spp } } => {
-            let (report, _) = tessera::bench::accuracy::accuracy(&tessera::bench::accuracy::AccuracyBench {
-                fixtures,
-                out: out.clone(),
-                size,
-                reference_spp,
-            })?;
-            print!("{report}");
-            eprintln!("wrote {}", out.display());
-        }
-        Command::Bench { what: BenchCommand::Effects { out, fixtures, size, spp } } => {
-            let names = tessera::bench::effects::FIXTURES.iter().map(|s| s.to_string()).collect();
-            let bench = tessera::bench::effects::EffectsBench { fixtures, names, size, spp, out: Some(out.clone()) };
-            let (report, _) = tessera::bench::effects::effects(&bench)?;
-            print!("{report}");
-            eprintln!("wrote {}", out.display());
-        }
-        Command::Bench { what: BenchCommand::Lights { fixtures, size, reference_spp, out } } => {
-            let bench =
-                tessera::bench::lights::LightsBench { out, ..tessera::bench::lights::LightsBench::new(fixtures, size, reference_spp) };
-            let (report, _) = tessera::bench::lights::lights(&bench)?;
-            print!("{report}");
-        }
+        Command::Bench { what } => bench(what)?,
         Command::Inspect { scene, json: _, frame } => {
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
@@ -362,16 +340,53 @@ async fn real_main() -> Result<()> {
             let job =
                 RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light, strict, alf_progress: None };
             match frames {
-                None if !skip_existing || !job.already_rendered() => {
-                    run(&RenderJob { alf_progress: alf_progress.then_some((0, 1)), ..job }).await?;
-                    if alf_progress {
-                        tessera::commands::frames::alf_progress(0, 1, 100.0);
-                    }
-                }
-                None => eprintln!("{}: already rendered with these settings; skipped", job.output.display()),
+                None => render_one(job, alf_progress, skip_existing).await?,
                 Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
             }
         }
+    }
+    Ok(())
+}
+
+/// `tessera bench ...`: the renderer's benchmarks that write the docs' reports.
+fn bench(what: BenchCommand) -> Result<()> {
+    match what {
+        BenchCommand::Accuracy { out, fixtures, size, reference_spp } => {
+            let (report, _) = tessera::bench::accuracy::accuracy(&tessera::bench::accuracy::AccuracyBench {
+                fixtures,
+                out: out.clone(),
+                size,
+                reference_spp,
+            })?;
+            print!("{report}");
+            eprintln!("wrote {}", out.display());
+        }
+        BenchCommand::Effects { out, fixtures, size, spp } => {
+            let names = tessera::bench::effects::FIXTURES.iter().map(|s| s.to_string()).collect();
+            let bench = tessera::bench::effects::EffectsBench { fixtures, names, size, spp, out: Some(out.clone()) };
+            let (report, _) = tessera::bench::effects::effects(&bench)?;
+            print!("{report}");
+            eprintln!("wrote {}", out.display());
+        }
+        BenchCommand::Lights { fixtures, size, reference_spp, out } => {
+            let bench =
+                tessera::bench::lights::LightsBench { out, ..tessera::bench::lights::LightsBench::new(fixtures, size, reference_spp) };
+            let (report, _) = tessera::bench::lights::lights(&bench)?;
+            print!("{report}");
+        }
+    }
+    Ok(())
+}
+
+/// One frame (the job's own, or the stage's default), unless `--skip-existing` finds it done.
+async fn render_one(job: RenderJob, alf: bool, skip_existing: bool) -> Result<()> {
+    if skip_existing && job.already_rendered() {
+        eprintln!("{}: already rendered with these settings; skipped", job.output.display());
+        return Ok(());
+    }
+    run(&RenderJob { alf_progress: alf.then_some((0, 1)), ..job }).await?;
+    if alf {
+        tessera::commands::frames::alf_progress(0, 1, 100.0);
     }
     Ok(())
 }
