@@ -174,7 +174,8 @@ fn each_warning_is_said_once() {
 
 /// What would otherwise be lost without a word gets one warning each: a camera whose clipping
 /// range hides every mesh, a `model:drawMode` stand-in (the geometry renders), an `upAxis`
-/// that is neither Y nor Z, a reference and a payload whose files do not exist.
+/// that is neither Y nor Z, a reference and a payload whose files do not exist, a `purpose`
+/// token UsdGeom does not define (the prim renders as `default`).
 #[test]
 fn silent_losses_are_said() {
     let t = load_text(
@@ -191,6 +192,7 @@ def Xform "Asset" (prepend apiSchemas = ["GeomModelAPI"])
         point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
         int[] faceVertexCounts = [4]
         int[] faceVertexIndices = [0, 1, 2, 3]
+        uniform token purpose = "bogus"
     }
 }
 def "Missing" (prepend references = @./does_not_exist.usda@)
@@ -221,6 +223,7 @@ def Camera "Fine"
     one("upAxis 'X'");
     one("unresolved Reference layer @");
     one("unresolved Payload layer @");
+    one("/Asset/Quad: purpose 'bogus'");
     assert!(!t.warnings.iter().any(|w| w.contains("/Fine")), "{:?}", t.warnings);
     assert_eq!(t.meshes.len(), 1, "the geometry under a draw mode renders");
 }

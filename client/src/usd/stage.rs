@@ -59,6 +59,11 @@ impl Reader<'_> {
         if STRUCTURAL.contains(&type_name.as_str()) || self.instancer_roots.iter().any(|r| under(&p, r) && *r != p) {
             return Ok(());
         }
+        if let Some(purpose) = get(&prim, "purpose", self.time)?.as_ref().and_then(values::token)
+            && !matches!(purpose.as_str(), "default" | "render" | "proxy" | "guide")
+        {
+            self.out.warnings.push(format!("{p}: purpose '{purpose}' is not default, render, proxy or guide; read as default"));
+        }
         let view = AnyXformable(prim.clone());
         let purpose = view.compute_purpose()?;
         if matches!(purpose, Purpose::Proxy | Purpose::Guide) {
