@@ -161,7 +161,7 @@ fn prim_paths(t: &Translation) -> std::collections::BTreeSet<&str> {
 }
 
 /// A mesh delta that moves, rebinds or hides a mesh the session holds, without its arrays.
-fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
+pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
     let prim = pb::MeshPrim {
         transform: Some(convert::matrix(&m.transform)),
         material_path: m.material.clone(),

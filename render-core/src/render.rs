@@ -269,6 +269,9 @@ fn regions_of(tiles: &[LazyTile]) -> Vec<RegionSamples> {
     tiles.iter().map(|t| RegionSamples { rect: t.rect, samples: t.film.get().map_or(0, |f| f.lock().unwrap().sample_totals().1) }).collect()
 }
 
+/// Largest block edge a coarse pass may use (`RenderSettings::coarse_start`).
+pub const MAX_COARSE_START: u32 = 64;
+
 /// Block edges of the coarse passes that start a render: `start`, `start/2`, … down to 2
 /// (Cycles' viewport "start resolution" and Arras' progressive refinement do the same). A
 /// whole frame at 8×8 costs a 64th of a one-sample pass, so a viewport sees every pixel
@@ -289,7 +292,7 @@ fn coarse_passes(
     use rayon::prelude::*;
     coarse_schedule(settings.coarse_start)
         .into_iter()
-        .find_map(|block| tiles.par_iter().find_map_any(|t| coarse_tile(scene, camera, settings, t.rect, block, sink)))
+        .find_map(|block| tiles.par_iter().find_map_any(|t| coarse_tile(scene, camera, settings, t, block, sink)))
 }
 
 /// One sample per `block`² block of `rect`, at the block's centre pixel (clamped into the
@@ -298,17 +301,17 @@ fn coarse_tile(
     scene: &CommittedScene,
     camera: &Camera,
     settings: &RenderSettings,
-    rect: Rect,
+    tile: &LazyTile,
     block: u32,
     sink: &dyn RenderSink,
 ) -> Option<StopReason> {
     if let Some(reason) = sink.should_stop() {
         return Some(reason);
     }
+    let rect = tile.rect;
     let blocks = Rect { x: 0, y: 0, width: rect.width.div_ceil(block), height: rect.height.div_ceil(block) };
-    let mut film = TileFilm::new(blocks, settings.integrator.light_path_aovs || settings.integrator.force_all_effects);
-    let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
-    let integrator = IntegratorSettings { pixel_footprint: footprint, ..settings.integrator };
+    let mut film = TileFilm::new(blocks, tile.extra);
+    let integrator = integrator_for(camera, settings);
     let mut counters = PathCounters::default();
     for by in 0..blocks.height {
         for bx in 0..blocks.width {
@@ -356,8 +359,7 @@ fn render_tile(
 ) -> Option<StopReason> {
     let r = tile.rect;
     let mut until_poll = STOP_POLL_SAMPLES;
-    let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
-    let integrator = IntegratorSettings { pixel_footprint: footprint, ..settings.integrator };
+    let integrator = integrator_for(camera, settings);
     for py in 0..r.height {
         for px in 0..r.width {
             let (x, y) = (r.x + px, r.y + py);
@@ -444,6 +446,12 @@ mod tests {
             assert_eq!(pass_schedule(spp).iter().sum::<u32>(), spp);
         }
     }
+}
+
+/// The render's path settings with the camera's pixel footprint (for texture filtering).
+fn integrator_for(camera: &Camera, settings: &RenderSettings) -> IntegratorSettings {
+    let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
+    IntegratorSettings { pixel_footprint: footprint, ..settings.integrator }
 }
 
 /// Sample `k` of pixel (`x`, `y`): its random numbers depend on nothing else.

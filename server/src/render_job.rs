@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use render_core::camera::Camera;
 use render_core::film::{Aov, TileFilm};
 use render_core::integrator::IntegratorSettings;
-use render_core::render::{PassStats, RenderSettings, RenderSink, StopReason, pass_schedule, render};
+use render_core::render::{MAX_COARSE_START, PassStats, RenderSettings, RenderSink, StopReason, pass_schedule, render};
 use tessera_proto::v1 as pb;
 use tokio::sync::mpsc::{self, error::TrySendError};
 use tonic::Status;
@@ -174,8 +174,8 @@ impl RenderJob {
                 },
                 coarse_start: match s.coarse_start {
                     0 | 1 => 0,
-                    b if b.is_power_of_two() && b <= 64 => b,
-                    b => return Err(bad("coarse_start", format!("{b} must be a power of two from 2 to 64 (0 = off)"))),
+                    b if b.is_power_of_two() && b <= MAX_COARSE_START => b,
+                    b => return Err(bad("coarse_start", format!("{b} must be a power of two from 2 to {MAX_COARSE_START} (0 = off)"))),
                 },
                 sampler: match pb::Sampler::try_from(s.sampler) {
                     Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,

@@ -69,18 +69,7 @@ impl Edit {
             }
             Edit::Transform => {
                 let (path, m) = edited_mesh(t, false);
-                let prim = pb::MeshPrim {
-                    transform: Some(convert::matrix(&(nudge(0.02) * m.transform))),
-                    material_path: m.material.clone(),
-                    visible: m.visible,
-                    double_sided: true,
-                    ..Default::default()
-                };
-                let mut item = tessera::sync::delta(path, pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(prim));
-                if let pb::sync_request::Item::Prim(d) = &mut item {
-                    d.dirty = pb::DirtyBits::DirtyTransform as u32;
-                }
-                vec![item]
+                vec![tessera::sync::mesh_placement(path, &MeshDesc { transform: nudge(0.02) * m.transform, ..m.clone() })]
             }
             Edit::Light => {
                 let (path, l) = &t.lights[0];

@@ -152,7 +152,7 @@ async fn the_server_rejects_bad_deltas_by_name_and_keeps_serving_others() {
 }
 
 /// A warning is said once however many prims run into it: two meshes bound to one material
-/// path that is not a Material.
+/// path that is not a Material (the reader looks at each material path once).
 #[test]
 fn each_warning_is_said_once() {
     let mesh = |name: &str| {
@@ -226,4 +226,17 @@ def Camera "Fine"
     one("/Asset/Quad: purpose 'bogus'");
     assert!(!t.warnings.iter().any(|w| w.contains("/Fine")), "{:?}", t.warnings);
     assert_eq!(t.meshes.len(), 1, "the geometry under a draw mode renders");
+}
+
+/// The commit says each thing once too: a textured material's unsupported input is said
+/// once, though its network is both compiled (texture graph) and resolved (constant part).
+#[test]
+fn a_commit_says_each_warning_once() {
+    let mut t = load("textures/checker_plane.usda");
+    let net = &mut t.materials[0].1;
+    let surface = net.nodes.iter_mut().find(|n| n.node_type_id == "UsdPreviewSurface").unwrap();
+    surface.parameters.insert("displacement".into(), render_core::material::ParamValue::Float(0.1));
+    let scene = render_core::scene::commit(&t.to_scene_desc(), &mut render_core::scene::BlasCache::default()).unwrap();
+    let said = scene.warnings.iter().filter(|w| w.contains("'displacement'")).count();
+    assert_eq!(said, 1, "{:?}", scene.warnings);
 }

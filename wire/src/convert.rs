@@ -6,6 +6,7 @@ use render_core::camera::CameraDesc;
 use render_core::film::{Aov, TileFilm};
 use render_core::light::{LightDesc, LightKind};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+use render_core::render::MAX_COARSE_START;
 use tessera_proto::v1 as pb;
 use tonic::Status;
 
@@ -323,8 +324,8 @@ pub fn tile_to_wire(tile: &TileFilm, aov: Aov, pass: u32, format: pb::PixelForma
 /// blocks are scaled up (each value fills its block).
 pub fn tile_pixels(t: &pb::Tile) -> Result<Vec<f32>, Status> {
     let block = t.pixel_size.max(1);
-    if block > 64 {
-        return Err(Status::invalid_argument(format!("tile: pixel_size {block} exceeds 64")));
+    if block > MAX_COARSE_START {
+        return Err(Status::invalid_argument(format!("tile: pixel_size {block} exceeds {MAX_COARSE_START}")));
     }
     let values = decode_values(t, (t.width.div_ceil(block) * t.height.div_ceil(block) * t.channels) as usize)?;
     if block == 1 {

@@ -98,17 +98,16 @@ impl FrameSession {
     pub async fn render(&mut self, job: &RenderJob) -> Result<RenderReport> {
         let t0 = Instant::now();
         let translation = load_translation(job).await?;
-        let items = match &self.held {
-            Some(before) => crate::sync::changes(before, &translation),
-            None => {
-                let hashes = translation.textures.keys().cloned().collect();
-                let missing = self.conn.missing_textures(hashes).await?;
-                crate::sync::scene_sync(&translation, |h| missing.iter().any(|m| m == h))
+        let synced = match &self.held {
+            None => Some(self.conn.sync_scene(&translation).await),
+            Some(before) => {
+                let items = crate::sync::changes(before, &translation);
+                // A frame where nothing moves sends nothing (a Sync must carry at least one item).
+                if items.is_empty() { None } else { Some(self.conn.sync(items).await) }
             }
         };
-        // A frame where nothing moves sends nothing (a Sync must carry at least one item).
-        if !items.is_empty() {
-            let sync = self.conn.sync(items).await.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
+        if let Some(sync) = synced {
+            let sync = sync.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
             for w in &sync.warnings {
                 eprintln!("warning: {w}");
             }
