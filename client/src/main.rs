@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use tessera::commands::render::{RenderJob, run};
+use tessera::commands::render::{FilmMode, RenderJob, run};
 use tessera::quality::Quality;
 use tessera::remote::RenderOptions;
 
@@ -129,6 +129,33 @@ enum Command {
         /// default. Pixels take at least 16 samples first.
         #[arg(long)]
         noise_threshold: Option<f32>,
+        /// Render only samples FIRST-END of every pixel (a slice of a frame split across
+        /// machines) and write their film to --partial; `tessera merge` combines slices into
+        /// the EXR the whole render writes, bit for bit. FIRST and END must start passes: 0,
+        /// a power of two up to 64, or a multiple of 64 (END may also be --spp).
+        #[arg(long, requires = "partial", conflicts_with_all = ["frames", "checkpoint_interval"])]
+        sample_range: Option<String>,
+        /// Where --sample-range writes its film.
+        #[arg(long, requires = "sample_range")]
+        partial: Option<PathBuf>,
+        /// Write the render's film beside the output (`OUTPUT.checkpoint`) at the first pass
+        /// end after every SECONDS, atomically; --resume continues from it.
+        #[arg(long)]
+        checkpoint_interval: Option<f64>,
+        /// Continue from the output's checkpoint when one from the same settings and scene is
+        /// there (bit-identical to an uninterrupted render); otherwise start afresh.
+        #[arg(long)]
+        resume: bool,
+    },
+    /// Combine the films of a frame's sample slices (`render --sample-range --partial`)
+    /// into its EXR: the same pixels as rendering all the samples at once.
+    Merge {
+        /// The slices' films, in any order; together they must cover samples 0 to their end.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// The EXR to write (a PNG preview goes beside it).
+        #[arg(short, long)]
+        output: PathBuf,
     },
     /// Measure what the quality knobs buy and cost, and write the report.
     Bench {
@@ -221,6 +248,29 @@ enum OnOff {
     Off,
 }
 
+/// `FIRST-END` of `--sample-range`.
+fn parse_sample_range(s: &str) -> Result<std::ops::Range<u32>> {
+    let parsed = s.split_once('-').and_then(|(a, b)| Some(a.trim().parse::<u32>().ok()?..b.trim().parse::<u32>().ok()?));
+    match parsed {
+        Some(r) if r.start < r.end => Ok(r),
+        _ => bail!("--sample-range must look like 64-128 (first sample, end sample, first below end), got '{s}'"),
+    }
+}
+
+/// What the film options ask for: a slice, a checkpointed render, or neither.
+fn film_mode(sample_range: Option<String>, partial: Option<PathBuf>, checkpoint_interval: Option<f64>, resume: bool) -> Result<FilmMode> {
+    Ok(match (sample_range, partial, checkpoint_interval) {
+        (Some(range), Some(partial), _) => FilmMode::Slice { range: parse_sample_range(&range)?, partial },
+        (_, _, Some(secs)) if secs.is_finite() && secs >= 0.0 => {
+            FilmMode::Checkpointed { interval: std::time::Duration::from_secs_f64(secs), resume }
+        }
+        (_, _, Some(secs)) => bail!("--checkpoint-interval must be a number of seconds, got {secs}"),
+        // A resume without new checkpoints still continues from an old one.
+        _ if resume => FilmMode::Checkpointed { interval: std::time::Duration::MAX, resume },
+        _ => FilmMode::Pixels,
+    })
+}
+
 fn parse_res(s: &str) -> Result<(u32, u32)> {
     let Some((w, h)) = s.split_once(['x', 'X']) else { bail!("--res must look like 640x480, got '{s}'") };
     let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
@@ -268,6 +318,10 @@ async fn real_main() -> Result<()> {
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
         }
+        Command::Merge { parts, output } => {
+            let merged = tessera::commands::render::merge(&parts, &output)?;
+            println!("{} slices, samples 0..{} -> {}", parts.len(), merged.range.end, output.display());
+        }
         Command::Render { scene, explain_plan: true, frame, .. } => {
             print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
         }
@@ -301,7 +355,12 @@ async fn real_main() -> Result<()> {
             noise_threshold,
             quality,
             explain_plan: false,
+            sample_range,
+            partial,
+            checkpoint_interval,
+            resume,
         } => {
+            let film = film_mode(sample_range, partial, checkpoint_interval, resume)?;
             let preset = quality.preset();
             let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
             // 0x0: not given; the scene's RenderSettings or 512x512 decide (RenderJob::run).
@@ -333,12 +392,19 @@ async fn real_main() -> Result<()> {
                 tile_size: tile_size.unwrap_or(0),
                 // Final renders start with full passes (coarse passes are for viewports).
                 coarse_start: 0,
+                first_sample: 0,
+                stream_film: false,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).
-            let output = output.unwrap_or_default();
-            let job =
-                RenderJob { scene, output, options, server, progress, frame, default_light: !no_default_light, strict, alf_progress: None };
+            let output = match (&film, output) {
+                (_, Some(o)) => o,
+                // A slice writes no image: its film is the output.
+                (FilmMode::Slice { partial, .. }, None) => partial.clone(),
+                (_, None) => PathBuf::new(),
+            };
+            let default_light = !no_default_light;
+            let job = RenderJob { scene, output, options, server, progress, frame, default_light, strict, alf_progress: None, film };
             match frames {
                 None => render_one(job, alf_progress, skip_existing).await?,
                 Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,

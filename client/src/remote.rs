@@ -55,6 +55,11 @@ pub struct RenderOptions {
     /// Block edge of the coarse first-look passes (a viewport's option; 0, the default, is
     /// off: final renders start with full passes).
     pub coarse_start: u32,
+    /// The first sample index of every pixel to render (a slice of a split render, or the
+    /// rest of a resumed one); `spp` is where it ends. Must start a pass.
+    pub first_sample: u32,
+    /// Stream exact pass sums instead of pixels (for [`crate::film::ExactFilm`]).
+    pub stream_film: bool,
 }
 
 impl Default for RenderOptions {
@@ -81,6 +86,8 @@ impl Default for RenderOptions {
             pixel_aspect: 0.0,
             tile_size: 0,
             coarse_start: 0,
+            first_sample: 0,
+            stream_film: false,
         }
     }
 }
@@ -255,7 +262,20 @@ impl Connection {
     }
 
     /// Renders, calling `on_event` for every event, and assembles the final image.
-    pub async fn render(&mut self, opts: &RenderOptions, mut on_event: impl FnMut(&pb::render_event::Event)) -> Result<RenderReport> {
+    pub async fn render(&mut self, opts: &RenderOptions, on_event: impl FnMut(&pb::render_event::Event)) -> Result<RenderReport> {
+        self.render_into(opts, None, on_event, |_| Ok(())).await
+    }
+
+    /// [`Self::render`] that, with `film` (and `opts.stream_film`), adds the streamed pass
+    /// sums to it and calls `on_pass` after every completed pass (to checkpoint it); the
+    /// report's image is then resolved from the film when it starts at sample 0.
+    pub async fn render_into(
+        &mut self,
+        opts: &RenderOptions,
+        mut film: Option<&mut crate::film::ExactFilm>,
+        mut on_event: impl FnMut(&pb::render_event::Event),
+        mut on_pass: impl FnMut(&crate::film::ExactFilm) -> Result<()>,
+    ) -> Result<RenderReport> {
         let settings = pb::RenderSettings {
             width: opts.width,
             height: opts.height,
@@ -278,6 +298,8 @@ impl Connection {
             pixel_aspect: opts.pixel_aspect,
             light_split_budget: opts.light_split_budget,
             coarse_start: opts.coarse_start,
+            first_sample: opts.first_sample,
+            stream_film: opts.stream_film,
         };
         let mut stream = self
             .client
@@ -300,9 +322,27 @@ impl Connection {
                     report.image.write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
                     report.tiles += 1;
                 }
-                Event::Progress(p) => report.progress.push(p),
-                Event::Restarted(r) => report.restarts.push(r.scene_version),
+                Event::Film(t) => {
+                    film.as_deref_mut().context("the server streamed film sums nobody asked for")?.add(&t)?;
+                    report.tiles += 1;
+                }
+                Event::Progress(p) => {
+                    if let Some(film) = film.as_deref_mut() {
+                        film.pass_done(p.spp);
+                        on_pass(film)?;
+                    }
+                    report.progress.push(p);
+                }
+                Event::Restarted(r) => {
+                    if let Some(film) = film.as_deref_mut() {
+                        film.clear();
+                    }
+                    report.restarts.push(r.scene_version);
+                }
                 Event::Finished(f) => {
+                    if let Some(film) = film.filter(|f| f.range.start == 0 && opts.stream_film) {
+                        report.image = film.resolve(&report.started.aovs)?;
+                    }
                     report.finished = f;
                     return Ok(report);
                 }

@@ -257,6 +257,109 @@ impl TileFilm {
         }
     }
 
+    /// Empties the film and makes it cover `rect`, keeping its allocations (a worker's
+    /// per-pass scratch film is reset for every tile it renders).
+    pub fn reset(&mut self, rect: Rect, extra: bool) {
+        let n = (rect.width * rect.height) as usize;
+        self.rect = rect;
+        self.sums.clear();
+        self.sums.resize(n, [0.0; VALUES]);
+        self.extra.clear();
+        self.extra.resize(if extra { n } else { 0 }, [0.0; EXTRA]);
+        for v in [&mut self.counts, &mut self.prim_ids] {
+            v.clear();
+            v.resize(n, 0);
+        }
+        self.lum_sq.clear();
+        self.lum_sq.resize(n, 0.0);
+        self.active.clear();
+        self.active.resize(n, true);
+        self.samples = 0;
+    }
+
+    /// Adds the sums of `pass`, a film over a rect inside this one, pixel by pixel: the film
+    /// then holds (its sums) + (the pass's sums). Every pixel's total is built this way, one
+    /// whole pass at a time in sample order, so a film assembled from the passes of separate
+    /// sample ranges, or resumed from a checkpoint, holds the same f64 bits as one render.
+    pub fn absorb(&mut self, pass: &TileFilm) {
+        let (r, p) = (self.rect, pass.rect);
+        assert!(p.x >= r.x && p.y >= r.y && p.x + p.width <= r.x + r.width && p.y + p.height <= r.y + r.height, "pass outside the film");
+        assert_eq!(pass.has_extra(), self.has_extra(), "a pass with other AOV buffers than the film");
+        for row in 0..p.height {
+            for col in 0..p.width {
+                let j = (row * p.width + col) as usize;
+                let i = ((p.y - r.y + row) * r.width + (p.x - r.x + col)) as usize;
+                self.absorb_pixel(i, pass, j);
+            }
+        }
+    }
+
+    fn absorb_pixel(&mut self, i: usize, pass: &TileFilm, j: usize) {
+        for (acc, x) in self.sums[i].iter_mut().zip(pass.sums[j]) {
+            *acc += x;
+        }
+        if let (Some(acc), Some(x)) = (self.extra.get_mut(i), pass.extra.get(j)) {
+            for (a, x) in acc.iter_mut().zip(x) {
+                *a += x;
+            }
+        }
+        self.lum_sq[i] += pass.lum_sq[j];
+        if self.counts[i] == 0 {
+            self.prim_ids[i] = pass.prim_ids[j];
+        }
+        self.counts[i] += pass.counts[j];
+    }
+
+    /// The accumulated state as bytes (little-endian; per pixel its sums, extra sums when
+    /// allocated, squared luminance, sample count and prim id): what a checkpoint or a
+    /// sample-range slice stores and what the wire carries for one. Adaptive sampling's
+    /// retired pixels are not included (slices and checkpoints render without it).
+    pub fn encode(&self) -> Vec<u8> {
+        let per_pixel = Self::encoded_bytes_per_pixel(self.has_extra());
+        let mut out = Vec::with_capacity(self.counts.len() * per_pixel);
+        for i in 0..self.counts.len() {
+            let extra = self.extra.get(i).map_or(&[][..], |e| &e[..]);
+            for v in self.sums[i].iter().chain(extra).chain([&self.lum_sq[i]]) {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend_from_slice(&self.counts[i].to_le_bytes());
+            out.extend_from_slice(&self.prim_ids[i].to_le_bytes());
+        }
+        out
+    }
+
+    /// Bytes [`Self::encode`] writes per pixel.
+    pub const fn encoded_bytes_per_pixel(extra: bool) -> usize {
+        (VALUES + if extra { EXTRA } else { 0 } + 1) * 8 + 8
+    }
+
+    /// The film [`Self::encode`] wrote for `rect`; `None` when `bytes` has another length or
+    /// a value is not finite (a damaged file or a stream from something else).
+    pub fn decode(rect: Rect, extra: bool, samples: u32, bytes: &[u8]) -> Option<TileFilm> {
+        let per_pixel = Self::encoded_bytes_per_pixel(extra);
+        let n = rect.width as usize * rect.height as usize;
+        if bytes.len() != n.checked_mul(per_pixel)? {
+            return None;
+        }
+        let mut film = TileFilm::new(rect, extra);
+        let f64_at = |b: &[u8], k: usize| f64::from_le_bytes(b[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+        for (i, b) in bytes.chunks_exact(per_pixel).enumerate() {
+            let values = per_pixel / 8 - 1;
+            if (0..values).any(|k| !f64_at(b, k).is_finite()) {
+                return None;
+            }
+            film.sums[i] = std::array::from_fn(|k| f64_at(b, k));
+            if let Some(e) = film.extra.get_mut(i) {
+                *e = std::array::from_fn(|k| f64_at(b, VALUES + k));
+            }
+            film.lum_sq[i] = f64_at(b, values - 1);
+            film.counts[i] = u32::from_le_bytes(b[8 * values..8 * values + 4].try_into().expect("4 bytes"));
+            film.prim_ids[i] = u32::from_le_bytes(b[8 * values + 4..8 * values + 8].try_into().expect("4 bytes"));
+        }
+        film.samples = samples;
+        Some(film)
+    }
+
     /// Bytes one pixel of a tile holds (the server's memory budget reserves a film's
     /// `width × height ×` this before allocating it).
     pub const fn bytes_per_pixel(extra: bool) -> u64 {

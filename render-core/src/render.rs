@@ -34,6 +34,10 @@ pub struct RenderSettings {
     /// Block edge of the first coarse pass (a power of two; 0 or 1 = off): see
     /// [`coarse_schedule`].
     pub coarse_start: u32,
+    /// The first sample index rendered: samples `first_sample..spp` of every pixel are taken
+    /// (a slice of a render split across machines, or the rest of one resumed from a
+    /// checkpoint). Must be a pass boundary of `spp` ([`is_pass_boundary`]); 0 renders all.
+    pub first_sample: u32,
 }
 
 /// Camera samples a worker traces between two polls of [`RenderSink::should_stop`]. A
@@ -58,12 +62,19 @@ impl Default for RenderSettings {
             sampler: SamplerKind::default(),
             noise_threshold: 0.0,
             coarse_start: 0,
+            first_sample: 0,
         }
     }
 }
 
-/// Samples per pass: 1, 1, 2, 4, 8, ... so the first image arrives fast and each pass
-/// doubles the total, trimmed so the passes add up to `spp`.
+/// The largest pass. Passes are where sample ranges may start and end (a film is built one
+/// whole pass at a time, see [`TileFilm::absorb`]), so capping them makes every multiple of
+/// this a boundary: 1024 spp splits into slices of 64, 128, 256, … at any such multiple.
+pub const MAX_PASS_SPP: u32 = 64;
+
+/// Samples per pass: 1, 1, 2, 4, … up to [`MAX_PASS_SPP`], then that many per pass, so the
+/// first image arrives fast and the early passes double the total; trimmed so the passes
+/// add up to `spp`.
 pub fn pass_schedule(spp: u32) -> Vec<u32> {
     let mut passes = Vec::new();
     let mut total = 0u32;
@@ -73,10 +84,28 @@ pub fn pass_schedule(spp: u32) -> Vec<u32> {
         passes.push(n);
         total += n;
         if passes.len() > 1 {
-            next = next.saturating_mul(2);
+            next = next.saturating_mul(2).min(MAX_PASS_SPP);
         }
     }
     passes
+}
+
+/// True when sample index `k` starts a pass of a `spp`-sample render (or ends it): the
+/// places a sample range may begin or end.
+pub fn is_pass_boundary(k: u32, spp: u32) -> bool {
+    k == spp || pass_ranges(spp).iter().any(|r| r.start == k)
+}
+
+/// The sample ranges of the passes of a `spp`-sample render, in order.
+pub fn pass_ranges(spp: u32) -> Vec<std::ops::Range<u32>> {
+    let mut start = 0;
+    pass_schedule(spp)
+        .into_iter()
+        .map(|n| {
+            start += n;
+            start - n..start
+        })
+        .collect()
 }
 
 /// Why a render stopped before its last pass.
@@ -116,6 +145,14 @@ pub trait RenderSink: Sync {
     /// A coarse pass finished a tile: `film` holds one sample per `pixel_size`² block of the
     /// image rect `covers` (its own rect counts blocks from 0). Only sent when asked for.
     fn coarse_tile(&self, _covers: Rect, _pixel_size: u32, _film: &TileFilm) {}
+    /// True when the sink wants [`Self::pass_film`] calls.
+    fn wants_pass_films(&self) -> bool {
+        false
+    }
+    /// A tile finished a pass: `film` holds that pass's sums alone (samples `samples` of
+    /// each active pixel), before they were added to the tile's totals. Only called when
+    /// [`Self::wants_pass_films`]; for clients that keep exact films (slices, checkpoints).
+    fn pass_film(&self, _film: &TileFilm, _pass: u32, _samples: std::ops::Range<u32>) {}
     /// Polled before every tile and every [`STOP_POLL_SAMPLES`] samples within one: `Some`
     /// stops the render (a tile stopped part-way is dropped, never sent). Keep it cheap.
     fn should_stop(&self) -> Option<StopReason>;
@@ -161,54 +198,22 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
     if let Some(reason) = coarse_passes(scene, camera, settings, &tiles, sink) {
         return RenderOutcome { stats: PassStats::default(), paths: 0, non_finite: 0, stopped: Some(reason), regions: Vec::new() };
     }
-    let rays = AtomicU64::new(0);
-    let non_finite = AtomicU64::new(0);
-    let paths = AtomicU64::new(0);
-    let mut spp_done = 0u32;
+    let totals = Totals::default();
     let mut last = PassStats::default();
-    let workers = rayon::current_num_threads().max(1);
-
-    for (pass, &pass_spp) in pass_schedule(settings.spp).iter().enumerate() {
-        let _span = tracing::debug_span!("pass", pass, spp = pass_spp).entered();
-        let next = AtomicUsize::new(0);
-        let stopped: Mutex<Option<StopReason>> = Mutex::new(None);
-        rayon::scope(|s| {
-            for _ in 0..workers {
-                s.spawn(|_| {
-                    loop {
-                        if let Some(reason) = sink.should_stop() {
-                            *stopped.lock().unwrap() = Some(reason);
-                            return;
-                        }
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some(tile) = tiles.get(i) else { return };
-                        let mut tile = tile.film().lock().unwrap();
-                        let mut counters = PathCounters::default();
-                        let before = tile.sample_totals().1;
-                        let interrupted = render_tile(scene, camera, settings, &mut tile, spp_done, pass_spp, &mut counters, sink);
-                        rays.fetch_add(counters.rays, Ordering::Relaxed);
-                        non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
-                        paths.fetch_add(tile.sample_totals().1 - before, Ordering::Relaxed);
-                        if let Some(reason) = interrupted {
-                            *stopped.lock().unwrap() = Some(reason);
-                            return;
-                        }
-                        sink.tile(&tile, pass as u32);
-                    }
-                });
-            }
-        });
-        if let Some(reason) = *stopped.lock().unwrap() {
+    let passes = pass_ranges(settings.spp).into_iter().enumerate().filter(|(_, r)| r.start >= settings.first_sample);
+    for (pass, samples) in passes {
+        let _span = tracing::debug_span!("pass", pass, spp = samples.len()).entered();
+        if let Some(reason) = run_pass(scene, camera, settings, &tiles, pass as u32, samples.clone(), &totals, sink) {
             let regions = regions_of(&tiles);
             return RenderOutcome {
                 stats: last,
-                paths: paths.into_inner(),
-                non_finite: non_finite.into_inner(),
+                paths: totals.paths.into_inner(),
+                non_finite: totals.non_finite.into_inner(),
                 stopped: Some(reason),
                 regions,
             };
         }
-        spp_done += pass_spp;
+        let spp_done = samples.end;
         let (var, mean, active, taken) = settle_pass(&tiles, settings, spp_done);
         let pixels = (settings.width * settings.height).max(1) as f64;
         let noise = if mean > 0.0 { ((var / pixels).sqrt() / (mean / pixels)) as f32 } else { 0.0 };
@@ -216,7 +221,7 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
             pass: pass as u32,
             spp: spp_done,
             elapsed: start.elapsed().as_secs_f64(),
-            rays: rays.load(Ordering::Relaxed),
+            rays: totals.rays.load(Ordering::Relaxed),
             noise,
             active_pixels: active,
             samples_taken: taken,
@@ -228,14 +233,70 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
         }
     }
     let regions = regions_of(&tiles);
-    RenderOutcome { stats: last, paths: paths.into_inner(), non_finite: non_finite.into_inner(), stopped: None, regions }
+    RenderOutcome { stats: last, paths: totals.paths.into_inner(), non_finite: totals.non_finite.into_inner(), stopped: None, regions }
+}
+
+/// Rays, dropped samples and camera samples of a render so far, summed over its workers.
+#[derive(Default)]
+struct Totals {
+    rays: AtomicU64,
+    non_finite: AtomicU64,
+    paths: AtomicU64,
+}
+
+/// One pass over every tile on the pool's workers, each taking the next tile; `Some` when
+/// the sink stopped it.
+#[allow(clippy::too_many_arguments)]
+fn run_pass(
+    scene: &CommittedScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    tiles: &[LazyTile],
+    pass: u32,
+    samples: std::ops::Range<u32>,
+    totals: &Totals,
+    sink: &dyn RenderSink,
+) -> Option<StopReason> {
+    let next = AtomicUsize::new(0);
+    let stopped: Mutex<Option<StopReason>> = Mutex::new(None);
+    let stop = |reason| *stopped.lock().unwrap() = Some(reason);
+    rayon::scope(|s| {
+        for _ in 0..rayon::current_num_threads().max(1) {
+            s.spawn(|_| {
+                // This worker's pass sums of its current tile, reused from tile to tile.
+                let mut scratch = TileFilm::new(Rect { x: 0, y: 0, width: 0, height: 0 }, false);
+                loop {
+                    if let Some(reason) = sink.should_stop() {
+                        return stop(reason);
+                    }
+                    let Some(tile) = tiles.get(next.fetch_add(1, Ordering::Relaxed)) else { return };
+                    let mut tile = tile.film().lock().unwrap();
+                    let mut counters = PathCounters::default();
+                    let before = tile.sample_totals().1;
+                    let interrupted = render_tile(scene, camera, settings, &mut tile, &mut scratch, samples.clone(), &mut counters, sink);
+                    totals.rays.fetch_add(counters.rays, Ordering::Relaxed);
+                    totals.non_finite.fetch_add(counters.non_finite, Ordering::Relaxed);
+                    totals.paths.fetch_add(tile.sample_totals().1 - before, Ordering::Relaxed);
+                    if let Some(reason) = interrupted {
+                        return stop(reason);
+                    }
+                    if sink.wants_pass_films() {
+                        sink.pass_film(&scratch, pass, samples.clone());
+                    }
+                    sink.tile(&tile, pass);
+                }
+            });
+        }
+    });
+    stopped.into_inner().unwrap()
 }
 
 /// After a pass: retires the pixels adaptive sampling finds converged (once every pixel has
 /// [`ADAPTIVE_MIN_SPP`]), and sums the noise terms and sample counts over the tiles as
 /// (variance, mean, active pixels, samples taken).
 fn settle_pass(tiles: &[LazyTile], settings: &RenderSettings, spp_done: u32) -> (f64, f64, u64, u64) {
-    let adaptive = settings.noise_threshold > 0.0 && spp_done >= ADAPTIVE_MIN_SPP;
+    // A slice lacks the samples before it, so it cannot judge convergence.
+    let adaptive = settings.noise_threshold > 0.0 && settings.first_sample == 0 && spp_done >= ADAPTIVE_MIN_SPP;
     // Every pixel's relative error over the whole image, so neighbourhoods cross tiles.
     let errors = adaptive.then(|| {
         let mut errors = vec![0.0f32; (settings.width * settings.height) as usize];
@@ -344,20 +405,24 @@ impl LazyTile {
     }
 }
 
-/// Adds `count` samples from `first_sample` to every active pixel of `tile`, or stops part-way
-/// when the sink says so (then the tile is incomplete and returns the reason).
+/// Adds samples `samples` to every active pixel of `tile`, or stops part-way when the sink
+/// says so (then the tile is unchanged and the reason returned). The samples go to `pass`
+/// first, reset to the tile's rect, and are added to the tile's totals as one pass sum
+/// ([`TileFilm::absorb`]), so a pixel's total does not depend on how its passes were split
+/// between renders.
 #[allow(clippy::too_many_arguments)]
 fn render_tile(
     scene: &CommittedScene,
     camera: &Camera,
     settings: &RenderSettings,
     tile: &mut TileFilm,
-    first_sample: u32,
-    count: u32,
+    pass: &mut TileFilm,
+    samples: std::ops::Range<u32>,
     counters: &mut PathCounters,
     sink: &dyn RenderSink,
 ) -> Option<StopReason> {
     let r = tile.rect;
+    pass.reset(r, tile.has_extra());
     let mut until_poll = STOP_POLL_SAMPLES;
     let integrator = integrator_for(camera, settings);
     for py in 0..r.height {
@@ -367,7 +432,7 @@ fn render_tile(
             if !tile.is_active(i) {
                 continue;
             }
-            for k in first_sample..first_sample + count {
+            for k in samples.clone() {
                 until_poll -= 1;
                 if until_poll == 0 {
                     until_poll = STOP_POLL_SAMPLES;
@@ -376,11 +441,13 @@ fn render_tile(
                     }
                 }
                 let sample = trace_camera_sample(scene, camera, settings, &integrator, x, y, k, counters);
-                tile.add(i, &sample);
+                pass.add(i, &sample);
             }
         }
     }
-    tile.samples = first_sample + count;
+    pass.samples = samples.end;
+    tile.absorb(pass);
+    tile.samples = samples.end;
     None
 }
 
@@ -440,6 +507,9 @@ mod tests {
     #[test]
     fn pass_schedule_adds_up() {
         assert_eq!(pass_schedule(64), vec![1, 1, 2, 4, 8, 16, 32]);
+        assert_eq!(pass_schedule(300), vec![1, 1, 2, 4, 8, 16, 32, 64, 64, 64, 44]);
+        assert!([0, 1, 2, 4, 64, 128, 192, 256, 300].iter().all(|&k| is_pass_boundary(k, 300)));
+        assert!(![3, 100, 299].iter().any(|&k| is_pass_boundary(k, 300)));
         assert_eq!(pass_schedule(5), vec![1, 1, 2, 1]);
         assert_eq!(pass_schedule(1), vec![1]);
         for spp in 1..300 {

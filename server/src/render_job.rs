@@ -38,7 +38,9 @@ impl Queued {
     pub fn is_current(&self, now: u64) -> bool {
         let stale_kind = matches!(
             &self.item,
-            Ok(pb::RenderEvent { event: Some(pb::render_event::Event::Tile(_) | pb::render_event::Event::Progress(_)) })
+            Ok(pb::RenderEvent {
+                event: Some(pb::render_event::Event::Tile(_) | pb::render_event::Event::Progress(_) | pb::render_event::Event::Film(_))
+            })
         );
         self.restart == now || !stale_kind
     }
@@ -57,6 +59,8 @@ pub struct RenderJob {
     camera_path: String,
     progressive_format: pb::PixelFormat,
     threads: usize,
+    /// Send each tile's pass sums (FilmTile) instead of its resolved pixels.
+    stream_film: bool,
 }
 
 impl RenderJob {
@@ -126,6 +130,21 @@ impl RenderJob {
         // More threads than cores only adds switching; the pools are shared per count.
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = (s.threads as usize).min(cores);
+        if s.first_sample != 0 && (s.first_sample >= spp || !render_core::render::is_pass_boundary(s.first_sample, spp)) {
+            return Err(bad(
+                "first_sample",
+                format!(
+                    "{} must be below spp {spp} and start one of its passes (0, a power of two up to 64, or a multiple of 64)",
+                    s.first_sample
+                ),
+            ));
+        }
+        if s.first_sample != 0 && s.noise_threshold != 0.0 {
+            return Err(bad(
+                "first_sample",
+                "a slice cannot use adaptive sampling (noise_threshold): it lacks the samples before it".into(),
+            ));
+        }
         let pixel_aspect = match s.pixel_aspect {
             0.0 => 1.0,
             a if a.is_finite() && (1e-3..=1e3).contains(&a) => a,
@@ -177,6 +196,7 @@ impl RenderJob {
                     b if b.is_power_of_two() && b <= MAX_COARSE_START => b,
                     b => return Err(bad("coarse_start", format!("{b} must be a power of two from 2 to {MAX_COARSE_START} (0 = off)"))),
                 },
+                first_sample: s.first_sample,
                 sampler: match pb::Sampler::try_from(s.sampler) {
                     Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,
                     Ok(pb::Sampler::Independent) => render_core::sampling::SamplerKind::Independent,
@@ -191,6 +211,7 @@ impl RenderJob {
                 pb::PixelFormat::try_from(s.progressive_format).unwrap_or(pb::PixelFormat::F32)
             },
             threads,
+            stream_film: s.stream_film,
         })
     }
 
@@ -208,7 +229,11 @@ impl RenderJob {
         let adaptive = if s.noise_threshold > 0.0 { 4 } else { 0 };
         let channels: u64 = self.aovs.iter().map(|a| a.channels() as u64).sum();
         let tile = u64::from(s.tile_size).pow(2).min(pixels);
-        pixels * (TileFilm::bytes_per_pixel(extra) + adaptive) + EVENT_BUFFER as u64 * tile * 4 * channels.max(1) / self.aovs.len() as u64
+        let event = match self.stream_film {
+            true => tile * TileFilm::encoded_bytes_per_pixel(extra) as u64,
+            false => tile * 4 * channels.max(1) / self.aovs.len() as u64,
+        };
+        pixels * (TileFilm::bytes_per_pixel(extra) + adaptive) + EVENT_BUFFER as u64 * event
     }
 
     /// What the film reservation refuses with, naming the render.
@@ -401,7 +426,29 @@ struct StreamSink<'a> {
 }
 
 impl RenderSink for StreamSink<'_> {
+    fn wants_pass_films(&self) -> bool {
+        self.job.stream_film
+    }
+
+    fn pass_film(&self, film: &TileFilm, pass: u32, samples: std::ops::Range<u32>) {
+        let r = film.rect;
+        self.out.send(pb::render_event::Event::Film(pb::FilmTile {
+            x: r.x,
+            y: r.y,
+            width: r.width,
+            height: r.height,
+            pass_index: pass,
+            first_sample: samples.start,
+            end_sample: samples.end,
+            extra: film.has_extra(),
+            sums: film.encode(),
+        }));
+    }
+
     fn tile(&self, tile: &TileFilm, pass: u32) {
+        if self.job.stream_film {
+            return;
+        }
         let format = if pass + 1 == self.passes { pb::PixelFormat::F32 } else { self.job.progressive_format };
         for &aov in &self.job.aovs {
             if !self.out.send(pb::render_event::Event::Tile(convert::tile_to_wire(tile, aov, pass, format))) {
@@ -421,11 +468,13 @@ impl RenderSink for StreamSink<'_> {
     }
 
     fn pass_done(&self, s: &PassStats) {
-        let total = self.job.settings.spp as f32;
+        // A slice's share: its own samples against the ones it was asked for.
+        let first = self.job.settings.first_sample;
+        let total = (self.job.settings.spp - first).max(1) as f32;
         self.out.send(pb::render_event::Event::Progress(pb::Progress {
             pass_index: s.pass,
             spp: s.spp,
-            percent: 100.0 * s.spp as f32 / total,
+            percent: 100.0 * (s.spp - first) as f32 / total,
             rays_per_second: s.rays as f64 / s.elapsed.max(1e-9),
             estimated_noise: s.noise,
             elapsed_seconds: s.elapsed,

@@ -61,6 +61,7 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
         default_light: true,
         strict: true,
         alf_progress: None,
+        film: Default::default(),
     };
     let e = format!("{:#}", tessera::commands::render::run(&job).await.unwrap_err());
     assert!(e.contains("4 warning(s)") && e.contains("--strict"), "{e}");

@@ -53,6 +53,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         default_light: true,
         strict: false,
         alf_progress: None,
+        film: Default::default(),
     })
     .await
     .expect("renders");

@@ -260,6 +260,7 @@ async fn render_settings_supply_camera_and_resolution_and_flags_override_them() 
         default_light: true,
         strict: false,
         alf_progress: None,
+        film: Default::default(),
     };
     // Nothing on the command line: /Render/Settings says CamB (the red quad), 64 x 32.
     let r = run(&job(0, 0, "")).await.expect("renders");
@@ -382,6 +383,7 @@ async fn render_products_name_the_file_camera_resolution_and_aovs() {
         default_light: true,
         strict: false,
         alf_progress: None,
+        film: Default::default(),
     };
     let r = run(&job).await.expect("renders");
     assert_eq!((r.image.width, r.image.height), (40, 20));

@@ -103,6 +103,7 @@ pub(crate) fn render(scene: &CommittedScene, (w, h): (u32, u32), k: Knobs, seed:
         sampler: k.sampler,
         noise_threshold: k.noise_threshold,
         coarse_start: 0,
+        first_sample: 0,
     };
     let camera = Camera::new(&scene.camera("").expect("the fixture has a camera"), w, h);
     // One-time energy-table builds are a load cost, not a per-render one (see

@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use tessera_proto::v1 as pb;
 
+use crate::film::ExactFilm;
 use crate::output;
 use crate::remote::{Connection, RenderOptions, RenderReport};
 
@@ -34,15 +35,51 @@ pub struct RenderJob {
     pub strict: bool,
     /// Print `ALF_PROGRESS` lines as frame `.0` of `.1` of a frame range.
     pub alf_progress: Option<(usize, usize)>,
+    /// Whether the render keeps its exact film (to checkpoint it, or to write a slice).
+    pub film: FilmMode,
+}
+
+/// How a render keeps its samples.
+#[derive(Clone, Debug, Default)]
+pub enum FilmMode {
+    /// The server resolves its tiles; nothing survives the process.
+    #[default]
+    Pixels,
+    /// The client keeps the exact film and writes it beside the output every `interval`
+    /// (at the first pass end after it); `resume` continues from such a file.
+    Checkpointed {
+        /// Time between checkpoints.
+        interval: std::time::Duration,
+        /// Continue from the checkpoint when there is one from the same settings.
+        resume: bool,
+    },
+    /// Render samples `range` of every pixel and write their film (not an image) to
+    /// `partial`, for `tessera merge`.
+    Slice {
+        /// The samples.
+        range: std::ops::Range<u32>,
+        /// Where the film goes.
+        partial: PathBuf,
+    },
+}
+
+/// Where a checkpointed render keeps its film: beside the output, named after it.
+pub fn checkpoint_path(output: &Path) -> PathBuf {
+    let mut name = output.file_name().unwrap_or_default().to_os_string();
+    name.push(".checkpoint");
+    output.with_file_name(name)
 }
 
 impl RenderJob {
     /// What the frame's output depends on: the settings asked for, the scene file's bytes
     /// and the frame. Recorded in the EXR header; `--skip-existing` re-renders a frame whose
     /// file records another.
+    /// The sample count is left out (the EXR records it as `sppAsked`), so the slices of one
+    /// render, its checkpoints and the render itself share the hash.
     pub fn settings_hash(&self) -> Result<String> {
         let scene = std::fs::read(&self.scene).with_context(|| format!("cannot read {}", self.scene.display()))?;
-        let asked = format!("{:?}|{:?}|{}|{}", self.options, self.frame, self.default_light, tessera_wire::content_hash(&scene));
+        let options = RenderOptions { spp: 0, first_sample: 0, stream_film: false, ..self.options.clone() };
+        let asked = format!("{:?}|{:?}|{}|{}", options, self.frame, self.default_light, tessera_wire::content_hash(&scene));
         Ok(tessera_wire::content_hash(asked.as_bytes()))
     }
 
@@ -50,7 +87,8 @@ impl RenderJob {
     /// existing file is a whole one).
     pub fn already_rendered(&self) -> bool {
         let recorded = crate::output::exr_attribute(&self.output, "settingsHash");
-        recorded.is_some() && recorded == self.settings_hash().ok()
+        let spp = crate::output::exr_attribute(&self.output, "sppAsked");
+        recorded.is_some() && recorded == self.settings_hash().ok() && spp == Some(self.options.spp.to_string())
     }
 }
 
@@ -139,38 +177,53 @@ async fn render_synced(
     let mut tiles_this_pass = 0u32;
     let asked = std::time::Instant::now();
     let mut first_tile = None;
-    let report = conn
-        .render(options, |e| match e {
-            pb::render_event::Event::Started(s) => {
-                if !s.plan.is_empty() {
-                    say("render plan:".to_string());
-                    for p in &s.plan {
-                        say(format!("  + {:<16} {}", p.effect, p.reason));
-                    }
-                }
-                for w in &s.warnings {
-                    say(format!("warning: {w}"));
+    let mut on_event = |e: &pb::render_event::Event| match e {
+        pb::render_event::Event::Started(s) => {
+            if !s.plan.is_empty() {
+                say("render plan:".to_string());
+                for p in &s.plan {
+                    say(format!("  + {:<16} {}", p.effect, p.reason));
                 }
             }
-            pb::render_event::Event::Tile(t) if t.aov == "beauty" => {
-                first_tile.get_or_insert_with(|| asked.elapsed());
-                tiles_this_pass += 1;
-                bar.set_message(format!("pass {} tiles {tiles_this_pass}", t.pass_index));
+            for w in &s.warnings {
+                say(format!("warning: {w}"));
             }
-            pb::render_event::Event::Progress(p) => {
-                if let Some((index, count)) = job.alf_progress {
-                    super::frames::alf_progress(index, count, p.percent);
-                }
-                tiles_this_pass = 0;
-                bar.set_position(p.spp as u64);
-                bar.set_message(format!("{:.1} Mrays/s  noise {:.2}%", p.rays_per_second / 1e6, 100.0 * p.estimated_noise));
+        }
+        pb::render_event::Event::Tile(pb::Tile { pass_index, .. }) | pb::render_event::Event::Film(pb::FilmTile { pass_index, .. })
+            if !matches!(e, pb::render_event::Event::Tile(t) if t.aov != "beauty") =>
+        {
+            first_tile.get_or_insert_with(|| asked.elapsed());
+            tiles_this_pass += 1;
+            bar.set_message(format!("pass {pass_index} tiles {tiles_this_pass}"));
+        }
+        pb::render_event::Event::Progress(p) => {
+            if let Some((index, count)) = job.alf_progress {
+                super::frames::alf_progress(index, count, p.percent);
             }
-            pb::render_event::Event::Restarted(r) => say(format!("scene changed (version {}): restarting", r.scene_version)),
-            _ => {}
-        })
-        .await?;
+            tiles_this_pass = 0;
+            bar.set_position(p.spp as u64);
+            bar.set_message(format!("{:.1} Mrays/s  noise {:.2}%", p.rays_per_second / 1e6, 100.0 * p.estimated_noise));
+        }
+        pb::render_event::Event::Restarted(r) => say(format!("scene changed (version {}): restarting", r.scene_version)),
+        _ => {}
+    };
+    let report = match &job.film {
+        FilmMode::Pixels => conn.render(options, &mut on_event).await?,
+        mode => {
+            let (report, film) = render_film(job, conn, options, &output_path, &mut on_event).await?;
+            bar.finish_and_clear();
+            if let FilmMode::Slice { partial, range } = mode {
+                return write_slice(film, partial, range, exr_metadata(job, options, translation, &report), report);
+            }
+            report
+        }
+    };
     bar.finish_and_clear();
     write_outputs(&output_path, &report, &exr_metadata(job, options, translation, &report))?;
+    if let FilmMode::Checkpointed { .. } = job.film {
+        // The frame is whole at its final path: its checkpoint has nothing left to give.
+        std::fs::remove_file(checkpoint_path(&output_path)).ok();
+    }
     eprint!("{}", convergence_table(&report.progress));
     if let Some(t) = options.noise_threshold {
         eprintln!("{}", adaptive_summary(&report, t));
@@ -192,6 +245,133 @@ async fn render_synced(
         output::preview_path(&output_path).display()
     );
     Ok(report)
+}
+
+/// Renders with an exact film: a slice's samples, or the whole render checkpointed every
+/// interval and resumed from the last checkpoint when asked. Returns the report (its image
+/// resolved from the film when it starts at sample 0) and the film.
+async fn render_film(
+    job: &RenderJob,
+    conn: &mut Connection,
+    options: &RenderOptions,
+    output: &Path,
+    on_event: &mut (dyn FnMut(&pb::render_event::Event) + Send),
+) -> Result<(RenderReport, ExactFilm)> {
+    if options.noise_threshold.is_some() {
+        anyhow::bail!(
+            "--checkpoint-interval and --sample-range render without adaptive sampling (--noise-threshold): a later slice could not judge convergence without the samples before it"
+        );
+    }
+    let hash = job.settings_hash()?;
+    let mut opts = RenderOptions { stream_film: true, ..options.clone() };
+    let (w, h) = (options.width, options.height);
+    let (mut film, checkpoint) = match &job.film {
+        FilmMode::Slice { range, .. } => {
+            (opts.first_sample, opts.spp) = (range.start, range.end);
+            (ExactFilm::new(w, h, range.start), None)
+        }
+        FilmMode::Checkpointed { interval, resume } => {
+            let path = checkpoint_path(output);
+            let resumed = resume.then(|| resumable(&path, &hash, options)).flatten();
+            if let Some(f) = &resumed {
+                eprintln!("resuming {} from sample {} of {}", output.display(), f.range.end, options.spp);
+            }
+            (resumed.unwrap_or_else(|| ExactFilm::new(w, h, 0)), Some((path, *interval)))
+        }
+        FilmMode::Pixels => unreachable!("pixel renders keep no film"),
+    };
+    opts.first_sample = opts.first_sample.max(film.range.end);
+    film.metadata = vec![("settingsHash".to_string(), hash)];
+    let mut last = Instant::now();
+    let on_pass = |f: &ExactFilm| {
+        match &checkpoint {
+            Some((path, interval)) if f.range.end < opts.spp && last.elapsed() >= *interval => {
+                atomically(path, |tmp| f.save(tmp))?;
+                last = Instant::now();
+            }
+            _ => {}
+        }
+        Ok(())
+    };
+    let mut report = conn.render_into(&opts, Some(&mut film), on_event, on_pass).await?;
+    // A resumed render's server saw only the samples after the checkpoint; the film has all.
+    if let Some((noise, mean_spp)) = film.noise_and_mean_spp() {
+        (report.finished.estimated_noise, report.finished.mean_spp) = (noise as f32, mean_spp);
+    }
+    if let Some(aovs) = (!report.started.aovs.is_empty()).then(|| report.started.aovs.join(",")) {
+        film.metadata.push(("aovs".to_string(), aovs));
+    }
+    Ok((report, film))
+}
+
+/// The checkpoint at `path` when it holds an earlier part of this render (same settings and
+/// scene, ending at one of its passes); else `None`, said when a file was there.
+fn resumable(path: &Path, hash: &str, options: &RenderOptions) -> Option<ExactFilm> {
+    if !path.exists() {
+        return None;
+    }
+    let film = match ExactFilm::load(path) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("warning: {e:#}; rendering from the start");
+            return None;
+        }
+    };
+    let fits = film.metadata_value("settingsHash") == Some(hash)
+        && (film.width, film.height) == (options.width, options.height)
+        && film.range.start == 0
+        && film.range.end < options.spp
+        && render_core::render::is_pass_boundary(film.range.end, options.spp);
+    if !fits {
+        eprintln!("warning: {} is from other settings or another scene; rendering from the start", path.display());
+    }
+    fits.then_some(film)
+}
+
+/// Writes a slice's film to `partial` (atomically) with the header the merged EXR will carry.
+fn write_slice(
+    mut film: ExactFilm,
+    partial: &Path,
+    range: &std::ops::Range<u32>,
+    metadata: Vec<(String, String)>,
+    report: RenderReport,
+) -> Result<RenderReport> {
+    let aovs = film.metadata_value("aovs").map(str::to_string);
+    film.metadata = metadata;
+    film.metadata.extend(aovs.map(|a| ("aovs".to_string(), a)));
+    if let Some(dir) = partial.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    atomically(partial, |tmp| film.save(tmp))?;
+    println!("samples {}..{} in {:.2} s -> {}", range.start, range.end, report.finished.seconds, partial.display());
+    Ok(report)
+}
+
+/// `tessera merge`: one EXR from the films of a render's slices, which must together cover
+/// samples 0 to their end; bit-identical to rendering those samples in one process.
+pub fn merge(parts: &[PathBuf], output: &Path) -> Result<ExactFilm> {
+    let films = parts.iter().map(|p| ExactFilm::load(p)).collect::<Result<Vec<_>>>()?;
+    let seconds: f64 = films.iter().filter_map(|f| f.metadata_value("seconds")?.parse::<f64>().ok()).sum();
+    let merged = ExactFilm::merge(films)?;
+    let aovs: Vec<String> = merged.metadata_value("aovs").unwrap_or("beauty").split(',').map(str::to_string).collect();
+    let image = merged.resolve(&aovs)?;
+    let end = merged.range.end.to_string();
+    let (noise, mean_spp) = merged.noise_and_mean_spp().unwrap_or_default();
+    let metadata: Vec<(String, String)> = merged
+        .metadata
+        .iter()
+        .filter(|(k, _)| k != "aovs")
+        .map(|(k, v)| match k.as_str() {
+            "spp" | "sppAsked" => (k.clone(), end.clone()),
+            "seconds" => (k.clone(), format!("{seconds:.3}")),
+            "estimated_noise" => (k.clone(), format!("{noise:.5}")),
+            "mean_spp" => (k.clone(), format!("{mean_spp:.2}")),
+            _ => (k.clone(), v.clone()),
+        })
+        .collect();
+    let report = RenderReport { image, ..Default::default() };
+    write_outputs(output, &report, &metadata)?;
+    Ok(merged)
 }
 
 /// The stage translated at the job's frame, with a default camera and light where it has
@@ -234,6 +414,7 @@ fn exr_metadata(
         ("scene".to_string(), job.scene.display().to_string()),
         ("settingsHash".to_string(), job.settings_hash().unwrap_or_default()),
         ("spp".to_string(), f.spp.to_string()),
+        ("sppAsked".to_string(), options.spp.to_string()),
         ("seconds".to_string(), format!("{:.3}", f.seconds)),
         ("estimated_noise".to_string(), format!("{:.5}", f.estimated_noise)),
         (
