@@ -5,6 +5,7 @@
 pub mod bench;
 pub mod commands;
 pub mod exit;
+pub mod farm;
 pub mod film;
 pub mod fuzzing;
 pub mod output;

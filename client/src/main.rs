@@ -147,6 +147,11 @@ enum Command {
         #[arg(long)]
         resume: bool,
     },
+    /// Render on a farm through a Redis Streams queue: submit jobs, run workers, watch them.
+    Farm {
+        #[command(subcommand)]
+        what: FarmCommand,
+    },
     /// Combine the films of a frame's sample slices (`render --sample-range --partial`)
     /// into its EXR: the same pixels as rendering all the samples at once.
     Merge {
@@ -228,6 +233,130 @@ enum BenchCommand {
         #[arg(long, default_value_t = 32)]
         spp: u32,
     },
+}
+
+#[derive(Subcommand)]
+enum FarmCommand {
+    /// Put a job on the queue: one task per frame, or per (frame, sample slice) with
+    /// --split-samples. Prints the job id. The scene and the outputs must be on storage
+    /// every worker reads and writes.
+    Submit {
+        /// The scene.
+        scene: PathBuf,
+        /// Frames: FIRST-LAST[xSTEP], comma-separated.
+        #[arg(long)]
+        frames: String,
+        /// Output pattern with `####` or `$F4` for the frame number.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The queue: redis://HOST:PORT.
+        #[arg(long)]
+        redis: String,
+        /// Samples per pixel.
+        #[arg(long, default_value_t = 64)]
+        spp: u32,
+        /// Split each frame's samples into this many slices, rendered by any workers and
+        /// merged exactly when all are done.
+        #[arg(long, default_value_t = 1)]
+        split_samples: u32,
+        /// Further `tessera render` arguments, after `--` (`-- --res 1920x1080 --aov albedo`).
+        #[arg(last = true)]
+        render_args: Vec<String>,
+    },
+    /// Render tasks from the queue until stopped.
+    Worker {
+        /// The queue: redis://HOST:PORT.
+        #[arg(long)]
+        redis: String,
+        /// This worker's name on the queue (default: host name and process id).
+        #[arg(long)]
+        name: Option<String>,
+        /// Render server URL (default: an embedded server per task).
+        #[arg(long)]
+        server: Option<String>,
+        /// Seconds a task's worker may stay silent before another claims it.
+        #[arg(long, default_value_t = 60.0)]
+        claim_after: f64,
+        /// Seconds between a frame's checkpoints.
+        #[arg(long, default_value_t = 30.0)]
+        checkpoint_interval: f64,
+        /// Exit after this many seconds without a task (default: never).
+        #[arg(long)]
+        exit_when_idle: Option<f64>,
+    },
+    /// Per-task state (queued, rendering where and how far, done, failed and why) and the
+    /// job's progress.
+    Status {
+        /// The job id `submit` printed.
+        job: String,
+        /// The queue: redis://HOST:PORT.
+        #[arg(long)]
+        redis: String,
+    },
+    /// Stop a job: queued tasks are dropped, running ones stopped at the next heartbeat.
+    Cancel {
+        /// The job id.
+        job: String,
+        /// The queue: redis://HOST:PORT.
+        #[arg(long)]
+        redis: String,
+    },
+    /// Put a job's failed tasks back on the queue.
+    Retry {
+        /// The job id.
+        job: String,
+        /// The queue: redis://HOST:PORT.
+        #[arg(long)]
+        redis: String,
+        /// Retry the failed tasks (the only kind there is to retry).
+        #[arg(long)]
+        failed: bool,
+    },
+}
+
+/// `tessera farm ...`.
+async fn farm(what: FarmCommand) -> Result<()> {
+    use tessera::farm::{Redis, queue, worker};
+    let secs = |s: f64, what: &str| match s.is_finite() && s >= 0.0 {
+        true => Ok(std::time::Duration::from_secs_f64(s)),
+        false => Err(anyhow::anyhow!("{what} must be a number of seconds, got {s}")),
+    };
+    match what {
+        FarmCommand::Submit { scene, frames, output, redis, spp, split_samples, render_args } => {
+            let frames = tessera::commands::frames::parse_frames(&frames)?;
+            let submission = queue::Submission { scene, frames, output, spp, split: split_samples, render_args };
+            println!("{}", queue::submit(&mut Redis::connect(&redis).await?, &submission).await?);
+        }
+        FarmCommand::Worker { redis, name, server, claim_after, checkpoint_interval, exit_when_idle } => {
+            let claim_after = secs(claim_after, "--claim-after")?;
+            let cfg = worker::WorkerConfig {
+                name: name.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id())),
+                redis,
+                server,
+                claim_after,
+                // Three heartbeats per claim period: one late beat does not lose the task.
+                heartbeat: (claim_after / 3).max(std::time::Duration::from_millis(50)),
+                checkpoint_interval: secs(checkpoint_interval, "--checkpoint-interval")?,
+                exit_when_idle: exit_when_idle.map(|s| secs(s, "--exit-when-idle")).transpose()?,
+            };
+            let summary = worker::run(&cfg).await?;
+            eprintln!("worker {}: {} tasks done, {} failed", cfg.name, summary.done, summary.failed);
+        }
+        FarmCommand::Status { job, redis } => print!("{}", queue::status(&mut Redis::connect(&redis).await?, &job).await?),
+        FarmCommand::Cancel { job, redis } => {
+            queue::cancel(&mut Redis::connect(&redis).await?, &job).await?;
+            println!("job {job} cancelled");
+        }
+        FarmCommand::Retry { job, redis, failed: _ } => {
+            let n = queue::retry_failed(&mut Redis::connect(&redis).await?, &job).await?;
+            println!("{n} failed tasks of job {job} queued again");
+        }
+    }
+    Ok(())
+}
+
+fn hostname() -> String {
+    std::fs::read_to_string("/etc/hostname").map(|h| h.trim().to_string()).unwrap_or_else(|_| "worker".into())
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -318,6 +447,7 @@ async fn real_main() -> Result<()> {
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
         }
+        Command::Farm { what } => farm(what).await?,
         Command::Merge { parts, output } => {
             let merged = tessera::commands::render::merge(&parts, &output)?;
             println!("{} slices, samples 0..{} -> {}", parts.len(), merged.range.end, output.display());

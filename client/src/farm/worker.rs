@@ -1,0 +1,311 @@
+//! `tessera farm worker`: takes tasks from the consumer group, renders each in a child
+//! `tessera render` (checkpointing into the shared output directory, or writing a slice's
+//! film), heartbeats while it runs, and acknowledges a task only once its output is in
+//! place. Work whose worker went silent is claimed back with `XAUTOCLAIM` and resumes from
+//! its checkpoint.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, BufReader};
+
+use super::queue::{ensure_group, slice_path};
+use super::{DEAD, GROUP, MAX_ATTEMPTS, Redis, TASKS, job_key, slices_key};
+
+/// How a worker runs.
+#[derive(Clone, Debug)]
+pub struct WorkerConfig {
+    /// `redis://HOST:PORT`.
+    pub redis: String,
+    /// The consumer name (unique per worker).
+    pub name: String,
+    /// Render server URL; `None`: each task starts an embedded one.
+    pub server: Option<String>,
+    /// A task whose worker has not heartbeaten for this long is claimed by another.
+    pub claim_after: Duration,
+    /// Time between heartbeats (well under `claim_after`).
+    pub heartbeat: Duration,
+    /// Time between a frame's checkpoints.
+    pub checkpoint_interval: Duration,
+    /// Exit once no task has come for this long (`None`: run until killed).
+    pub exit_when_idle: Option<Duration>,
+}
+
+/// What a worker did before it exited.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WorkerSummary {
+    /// Tasks finished and acknowledged.
+    pub done: u32,
+    /// Tasks sent to the dead-letter stream.
+    pub failed: u32,
+}
+
+/// How one task's render ended.
+enum Outcome {
+    Done,
+    /// The scene or settings are bad: retrying will not help.
+    BadInput(String),
+    /// May work on another attempt.
+    Transient(String),
+    Cancelled,
+}
+
+/// Runs tasks until idle for `exit_when_idle`, or forever.
+pub async fn run(cfg: &WorkerConfig) -> Result<WorkerSummary> {
+    let mut redis = Redis::connect(&cfg.redis).await?;
+    ensure_group(&mut redis).await?;
+    let span = tracing::info_span!("worker", name = %cfg.name);
+    let _entered = span.enter();
+    let mut summary = WorkerSummary::default();
+    let mut idle_since = Instant::now();
+    loop {
+        let next = match claim_stale(&mut redis, cfg).await? {
+            Some(t) => Some(t),
+            None => read_new(&mut redis, cfg).await?,
+        };
+        let Some((id, key)) = next else {
+            if cfg.exit_when_idle.is_some_and(|d| idle_since.elapsed() >= d) {
+                return Ok(summary);
+            }
+            continue;
+        };
+        match handle(&mut redis, cfg, &id, &key).await? {
+            Some(true) => summary.done += 1,
+            Some(false) => summary.failed += 1,
+            None => {}
+        }
+        idle_since = Instant::now();
+    }
+}
+
+/// A task another worker left silent for `claim_after`, now ours.
+async fn claim_stale(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(String, String)>> {
+    let ms = cfg.claim_after.as_millis() as u64;
+    let cmd = redis::cmd("XAUTOCLAIM").arg(TASKS).arg(GROUP).arg(&cfg.name).arg(ms).arg("0-0").arg("COUNT").arg(1).clone();
+    // Redis 7: (next cursor, claimed entries, ids deleted meanwhile).
+    let (_, entries, _): (String, Vec<(String, Vec<String>)>, Vec<String>) = redis.query(&cmd).await?;
+    Ok(entries.into_iter().next().and_then(entry_task))
+}
+
+/// The next new task, waiting up to half a second.
+async fn read_new(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(String, String)>> {
+    let cmd = redis::cmd("XREADGROUP")
+        .arg("GROUP")
+        .arg(GROUP)
+        .arg(&cfg.name)
+        .arg("COUNT")
+        .arg(1)
+        .arg("BLOCK")
+        .arg(500)
+        .arg("STREAMS")
+        .arg(TASKS)
+        .arg(">")
+        .clone();
+    let reply: Option<Vec<(String, Vec<(String, Vec<String>)>)>> = redis.query(&cmd).await?;
+    Ok(reply.into_iter().flatten().flat_map(|(_, entries)| entries).next().and_then(entry_task))
+}
+
+fn entry_task((id, fields): (String, Vec<String>)) -> Option<(String, String)> {
+    fields.chunks(2).find(|p| p.len() == 2 && p[0] == "task").map(|p| (id, p[1].clone()))
+}
+
+/// Runs one delivery of task `key` (stream entry `id`): `Some(true)` done, `Some(false)`
+/// dead-lettered, `None` neither (cancelled, or left pending for another attempt).
+async fn handle(redis: &mut Redis, cfg: &WorkerConfig, id: &str, key: &str) -> Result<Option<bool>> {
+    let task = redis.hash(key).await?;
+    let job_id = job_of(key);
+    let job = redis.hash(&job_key(&job_id)).await?;
+    let field = |m: &HashMap<String, String>, k: &str| m.get(k).cloned().unwrap_or_default();
+    if task.is_empty() || job.is_empty() || field(&task, "state") == "done" {
+        ack(redis, id).await?;
+        return Ok(None);
+    }
+    if field(&job, "state") == "cancelled" {
+        set(redis, key, &[("state", "cancelled")]).await?;
+        ack(redis, id).await?;
+        return Ok(None);
+    }
+    let attempts: u32 = redis.query(redis::cmd("HINCRBY").arg(key).arg("attempts").arg(1)).await?;
+    if attempts > MAX_ATTEMPTS {
+        let why = format!("gave up after {MAX_ATTEMPTS} attempts: {}", field(&task, "error"));
+        return dead_letter(redis, id, key, &why).await.map(Some);
+    }
+    if let Some(why) = scene_problem(&job) {
+        return dead_letter(redis, id, key, &why).await.map(Some);
+    }
+    let _span = tracing::info_span!("task", key, frame = %field(&task, "frame"), attempt = attempts).entered();
+    set(redis, key, &[("state", "rendering"), ("worker", &cfg.name), ("percent", "0")]).await?;
+    match render_task(redis, cfg, id, key, &job, &task).await? {
+        Outcome::Done => {
+            if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1 {
+                merge_when_complete(redis, &job_id, &task).await?;
+            }
+            set(redis, key, &[("state", "done"), ("percent", "100"), ("error", "")]).await?;
+            ack(redis, id).await?;
+            Ok(Some(true))
+        }
+        Outcome::BadInput(why) => dead_letter(redis, id, key, &why).await.map(Some),
+        Outcome::Cancelled => {
+            set(redis, key, &[("state", "cancelled")]).await?;
+            ack(redis, id).await?;
+            Ok(None)
+        }
+        Outcome::Transient(why) => {
+            // Left pending: claimed again once idle for claim_after, by any worker.
+            set(redis, key, &[("state", "queued"), ("error", &why)]).await?;
+            Ok(None)
+        }
+    }
+}
+
+/// Why the job's scene cannot be rendered: gone, or changed since submission.
+fn scene_problem(job: &HashMap<String, String>) -> Option<String> {
+    let scene = job.get("scene").map_or("", String::as_str);
+    match std::fs::read(scene) {
+        Err(e) => Some(format!("cannot read the scene {scene}: {e}")),
+        Ok(bytes) if Some(&tessera_wire::content_hash(&bytes)) != job.get("scene_hash") => {
+            Some(format!("the scene {scene} changed after the job was submitted; submit it again"))
+        }
+        Ok(_) => None,
+    }
+}
+
+/// The `tessera render` a task runs.
+fn render_command(cfg: &WorkerConfig, job: &HashMap<String, String>, task: &HashMap<String, String>) -> Result<tokio::process::Command> {
+    let field = |m: &HashMap<String, String>, k: &str| m.get(k).cloned().unwrap_or_default();
+    let args: Vec<String> = serde_json::from_str(&field(job, "args")).context("the job's render arguments")?;
+    let mut cmd = tokio::process::Command::new(std::env::current_exe()?);
+    cmd.arg("render").arg(field(job, "scene")).args(["--frame", &field(task, "frame"), "--spp", &field(job, "spp"), "--alf-progress"]);
+    cmd.args(args);
+    if let Some(server) = &cfg.server {
+        cmd.args(["--server", server]);
+    }
+    let output = PathBuf::from(field(task, "output"));
+    match field(task, "range") {
+        r if r.is_empty() => {
+            cmd.arg("-o").arg(&output).arg("--resume");
+            cmd.args(["--checkpoint-interval", &cfg.checkpoint_interval.as_secs_f64().to_string()]);
+        }
+        r => {
+            let k: usize = field(task, "slice").parse().unwrap_or(0);
+            cmd.args(["--sample-range", &r, "--partial"]).arg(slice_path(&output, k));
+        }
+    }
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).stdin(Stdio::null()).kill_on_drop(true);
+    // SAFETY: prctl is async-signal-safe; it only asks the kernel to kill the child when this
+    // worker dies, so a killed worker leaves no render running that nobody will acknowledge.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+            Ok(())
+        });
+    }
+    Ok(cmd)
+}
+
+/// Renders a task in a child process, heartbeating and recording its progress.
+async fn render_task(
+    redis: &mut Redis,
+    cfg: &WorkerConfig,
+    id: &str,
+    task_key: &str,
+    job: &HashMap<String, String>,
+    task: &HashMap<String, String>,
+) -> Result<Outcome> {
+    let mut child = render_command(cfg, job, task)?.spawn().context("cannot start tessera render")?;
+    let mut lines = BufReader::new(child.stdout.take().expect("piped")).lines();
+    let mut stderr = child.stderr.take().expect("piped");
+    let errors = tokio::spawn(async move {
+        let mut text = String::new();
+        stderr.read_to_string(&mut text).await.ok();
+        text
+    });
+    let mut beat = tokio::time::interval(cfg.heartbeat);
+    let mut reading = true;
+    let status = loop {
+        tokio::select! {
+            line = lines.next_line(), if reading => match line {
+                Ok(Some(l)) => {
+                    if let Some(p) = l.strip_prefix("ALF_PROGRESS ").and_then(|p| p.strip_suffix('%')) {
+                        set(redis, task_key, &[("percent", p)]).await?;
+                    }
+                }
+                _ => reading = false,
+            },
+            _ = beat.tick() => {
+                // Resets the entry's idle time: the task is still ours.
+                redis.query::<redis::Value>(redis::cmd("XCLAIM").arg(TASKS).arg(GROUP).arg(&cfg.name).arg(0).arg(id).arg("JUSTID")).await?;
+                if redis.hash(&job_key(&job_of(task_key))).await?.get("state").map(String::as_str) == Some("cancelled") {
+                    child.kill().await.ok();
+                    return Ok(Outcome::Cancelled);
+                }
+            }
+            status = child.wait() => break status?,
+        }
+    };
+    let stderr = errors.await.unwrap_or_default();
+    let why = || stderr.lines().filter(|l| l.starts_with("error")).collect::<Vec<_>>().join("; ");
+    Ok(match status.code() {
+        Some(0) => Outcome::Done,
+        Some(crate::exit::BAD_INPUT) => Outcome::BadInput(why()),
+        code => Outcome::Transient(format!("tessera render exited with {code:?}: {}", why())),
+    })
+}
+
+/// The job id in a task's key (`tessera:task:ID:N`).
+fn job_of(task_key: &str) -> String {
+    task_key.trim_start_matches("tessera:task:").rsplit_once(':').map_or("", |(j, _)| j).to_string()
+}
+
+/// After a slice: when every slice of the frame is in, one worker (the first to take the
+/// frame's merge lock) merges them into the frame's EXR and removes the slices.
+async fn merge_when_complete(redis: &mut Redis, job_id: &str, task: &HashMap<String, String>) -> Result<()> {
+    let field = |k: &str| task.get(k).cloned().unwrap_or_default();
+    let frame: i64 = field("frame").parse().unwrap_or(0);
+    let slices: usize = field("slices").parse().unwrap_or(1);
+    let set_key = slices_key(job_id, frame);
+    redis.query::<()>(redis::cmd("SADD").arg(&set_key).arg(field("slice"))).await?;
+    if redis.query::<usize>(redis::cmd("SCARD").arg(&set_key)).await? < slices {
+        return Ok(());
+    }
+    let lock: Option<String> = redis.query(redis::cmd("SET").arg(format!("{set_key}:merge")).arg(1).arg("NX").arg("EX").arg(600)).await?;
+    if lock.is_none() {
+        return Ok(());
+    }
+    let output = PathBuf::from(field("output"));
+    let parts: Vec<PathBuf> = (0..slices).map(|k| slice_path(&output, k)).collect();
+    let merged = tokio::task::spawn_blocking({
+        let (parts, output) = (parts.clone(), output.clone());
+        move || crate::commands::render::merge(&parts, &output)
+    })
+    .await?;
+    if let Err(e) = merged {
+        // Let a later attempt merge again.
+        redis.query::<()>(redis::cmd("DEL").arg(format!("{set_key}:merge"))).await?;
+        return Err(e.context(format!("merging frame {frame}")));
+    }
+    for p in parts {
+        std::fs::remove_file(p).ok();
+    }
+    Ok(())
+}
+
+/// Sends a task to the dead-letter stream with its error, marks it failed and acknowledges it.
+async fn dead_letter(redis: &mut Redis, id: &str, key: &str, why: &str) -> Result<bool> {
+    tracing::warn!(task = key, error = why, "task failed for good");
+    redis.query::<String>(redis::cmd("XADD").arg(DEAD).arg("*").arg("task").arg(key).arg("error").arg(why)).await?;
+    set(redis, key, &[("state", "failed"), ("error", why)]).await?;
+    ack(redis, id).await?;
+    Ok(false)
+}
+
+async fn set(redis: &mut Redis, key: &str, fields: &[(&str, &str)]) -> Result<()> {
+    redis.query(redis::cmd("HSET").arg(key).arg(fields)).await
+}
+
+async fn ack(redis: &mut Redis, id: &str) -> Result<()> {
+    redis.query::<()>(redis::cmd("XACK").arg(TASKS).arg(GROUP).arg(id)).await
+}
