@@ -272,6 +272,9 @@ async fn render_film(
         }
         FilmMode::Checkpointed { interval, resume } => {
             let path = checkpoint_path(output);
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            }
             let resumed = resume.then(|| resumable(&path, &hash, options)).flatten();
             if let Some(f) = &resumed {
                 eprintln!("resuming {} from sample {} of {}", output.display(), f.range.end, options.spp);
