@@ -314,6 +314,13 @@ enum FarmCommand {
     },
 }
 
+/// `tessera merge`.
+fn merge(parts: &[PathBuf], output: &std::path::Path) -> Result<()> {
+    let merged = tessera::commands::render::merge(parts, output)?;
+    println!("{} slices, samples 0..{} -> {}", parts.len(), merged.range.end, output.display());
+    Ok(())
+}
+
 /// `tessera farm ...`.
 async fn farm(what: FarmCommand) -> Result<()> {
     use tessera::farm::{Redis, queue, worker};
@@ -338,6 +345,7 @@ async fn farm(what: FarmCommand) -> Result<()> {
                 heartbeat: (claim_after / 3).max(std::time::Duration::from_millis(50)),
                 checkpoint_interval: secs(checkpoint_interval, "--checkpoint-interval")?,
                 exit_when_idle: exit_when_idle.map(|s| secs(s, "--exit-when-idle")).transpose()?,
+                render_exe: std::env::current_exe()?,
             };
             let summary = worker::run(&cfg).await?;
             eprintln!("worker {}: {} tasks done, {} failed", cfg.name, summary.done, summary.failed);
@@ -448,10 +456,7 @@ async fn real_main() -> Result<()> {
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
         }
         Command::Farm { what } => farm(what).await?,
-        Command::Merge { parts, output } => {
-            let merged = tessera::commands::render::merge(&parts, &output)?;
-            println!("{} slices, samples 0..{} -> {}", parts.len(), merged.range.end, output.display());
-        }
+        Command::Merge { parts, output } => merge(&parts, &output)?,
         Command::Render { scene, explain_plan: true, frame, .. } => {
             print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
         }

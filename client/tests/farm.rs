@@ -212,7 +212,8 @@ fn poison_tasks_go_to_the_dead_letter_stream() {
     let dir = scratch("poison");
     let redis = RedisServer::start(&dir);
     let bad = submit(&redis, &root().join("fixtures/bad/malformed.usda"), "1", &dir.join("bad.####.exr"), &["--spp", "1"]);
-    let good = submit(&redis, &root().join("fixtures/cornell_box.usda"), "1-2", &dir.join("good.####.exr"), &["--spp", "2", "--", "--res", "8x8"]);
+    let good =
+        submit(&redis, &root().join("fixtures/cornell_box.usda"), "1-2", &dir.join("good.####.exr"), &["--spp", "2", "--", "--res", "8x8"]);
     finish(vec![worker(&redis, "w", &["--exit-when-idle", "1"])]);
     assert!(status(&redis, &good).contains("2 of 2 tasks done"), "{}", status(&redis, &good));
     let report = status(&redis, &bad);
@@ -241,13 +242,32 @@ fn split_frames_merge_to_the_single_process_render() {
     let dir = scratch("split");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/cornell_box.usda");
-    let job = submit(&redis, &scene, "1", &dir.join("out/s.####.exr"), &["--spp", "256", "--split-samples", "4", "--", "--res", "24x24", "--aov", "albedo"]);
+    let job = submit(
+        &redis,
+        &scene,
+        "1",
+        &dir.join("out/s.####.exr"),
+        &["--spp", "256", "--split-samples", "4", "--", "--res", "24x24", "--aov", "albedo"],
+    );
     finish(["a", "b", "c"].map(|n| worker(&redis, n, &["--exit-when-idle", "2"])).into());
     let report = status(&redis, &job);
     assert_eq!(rows(&report).iter().map(|r| r[1].clone()).collect::<Vec<_>>(), ["0-64", "64-128", "128-192", "192-256"], "{report}");
     assert!(report.contains("4 of 4 tasks done"), "{report}");
     let single = dir.join("single.exr");
-    tessera(&["render", scene.to_str().unwrap(), "--frame", "1", "--spp", "256", "--res", "24x24", "--aov", "albedo", "-o", single.to_str().unwrap()]);
+    tessera(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--frame",
+        "1",
+        "--spp",
+        "256",
+        "--res",
+        "24x24",
+        "--aov",
+        "albedo",
+        "-o",
+        single.to_str().unwrap(),
+    ]);
     assert!(pixels(&single) == pixels(&dir.join("out/s.0001.exr")));
     let left: Vec<String> = std::fs::read_dir(dir.join("out")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
     assert!(left.iter().all(|n| !n.contains(".part")), "{left:?}");

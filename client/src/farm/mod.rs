@@ -117,6 +117,11 @@ impl Redis {
     }
 }
 
+/// Milliseconds since the Unix epoch, for the task timestamps.
+pub fn now_ms() -> String {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_millis()).to_string()
+}
+
 fn is_connection_error(e: &redis::RedisError) -> bool {
     e.is_io_error() || e.is_connection_refusal() || e.is_connection_dropped() || e.is_timeout() || e.is_unrecoverable_error()
 }

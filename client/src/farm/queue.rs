@@ -42,7 +42,7 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
     let outputs = crate::commands::frames::frame_paths(&std::path::absolute(&s.output)?, &s.frames)?;
     ensure_group(redis).await?;
     let id = format!("j{}", redis.query::<u64>(redis::cmd("INCR").arg("tessera:jobs")).await?);
-    let ranges = if s.split > 1 { slice_ranges(s.spp, s.split) } else { vec![0..s.spp] };
+    let ranges = slice_ranges(s.spp, s.split.max(1));
     let tasks = s.frames.len() * ranges.len();
     redis
         .query::<()>(
@@ -67,7 +67,8 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
         for (k, range) in ranges.iter().enumerate() {
             let slice = if ranges.len() > 1 { format!("{}-{}", range.start, range.end) } else { String::new() };
             let key = task_key(&id, n);
-            let fields: [(&str, String); 7] = [
+            let fields: [(&str, String); 8] = [
+                ("submitted", super::now_ms()),
                 ("frame", frame.to_string()),
                 ("output", output.display().to_string()),
                 ("slice", k.to_string()),

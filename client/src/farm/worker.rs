@@ -32,6 +32,8 @@ pub struct WorkerConfig {
     pub checkpoint_interval: Duration,
     /// Exit once no task has come for this long (`None`: run until killed).
     pub exit_when_idle: Option<Duration>,
+    /// The `tessera` executable that renders each task (the worker's own, normally).
+    pub render_exe: PathBuf,
 }
 
 /// What a worker did before it exited.
@@ -81,12 +83,15 @@ pub async fn run(cfg: &WorkerConfig) -> Result<WorkerSummary> {
     }
 }
 
+/// A stream entry: its id and its fields as a flat name, value list.
+type Entry = (String, Vec<String>);
+
 /// A task another worker left silent for `claim_after`, now ours.
 async fn claim_stale(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(String, String)>> {
     let ms = cfg.claim_after.as_millis() as u64;
     let cmd = redis::cmd("XAUTOCLAIM").arg(TASKS).arg(GROUP).arg(&cfg.name).arg(ms).arg("0-0").arg("COUNT").arg(1).clone();
     // Redis 7: (next cursor, claimed entries, ids deleted meanwhile).
-    let (_, entries, _): (String, Vec<(String, Vec<String>)>, Vec<String>) = redis.query(&cmd).await?;
+    let (_, entries, _): (String, Vec<Entry>, Vec<String>) = redis.query(&cmd).await?;
     Ok(entries.into_iter().next().and_then(entry_task))
 }
 
@@ -104,11 +109,11 @@ async fn read_new(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(Strin
         .arg(TASKS)
         .arg(">")
         .clone();
-    let reply: Option<Vec<(String, Vec<(String, Vec<String>)>)>> = redis.query(&cmd).await?;
+    let reply: Option<Vec<(String, Vec<Entry>)>> = redis.query(&cmd).await?;
     Ok(reply.into_iter().flatten().flat_map(|(_, entries)| entries).next().and_then(entry_task))
 }
 
-fn entry_task((id, fields): (String, Vec<String>)) -> Option<(String, String)> {
+fn entry_task((id, fields): Entry) -> Option<(String, String)> {
     fields.chunks(2).find(|p| p.len() == 2 && p[0] == "task").map(|p| (id, p[1].clone()))
 }
 
@@ -137,13 +142,16 @@ async fn handle(redis: &mut Redis, cfg: &WorkerConfig, id: &str, key: &str) -> R
         return dead_letter(redis, id, key, &why).await.map(Some);
     }
     let _span = tracing::info_span!("task", key, frame = %field(&task, "frame"), attempt = attempts).entered();
-    set(redis, key, &[("state", "rendering"), ("worker", &cfg.name), ("percent", "0")]).await?;
+    set(redis, key, &[("state", "rendering"), ("worker", &cfg.name), ("percent", "0"), ("started", &super::now_ms())]).await?;
     match render_task(redis, cfg, id, key, &job, &task).await? {
         Outcome::Done => {
             if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1 {
-                merge_when_complete(redis, &job_id, &task).await?;
+                if let Err(why) = merge_when_complete(redis, &job_id, &field(&job, "spp"), &task).await? {
+                    set(redis, key, &[("state", "queued"), ("error", &why)]).await?;
+                    return Ok(None);
+                }
             }
-            set(redis, key, &[("state", "done"), ("percent", "100"), ("error", "")]).await?;
+            set(redis, key, &[("state", "done"), ("percent", "100"), ("error", ""), ("finished", &super::now_ms())]).await?;
             ack(redis, id).await?;
             Ok(Some(true))
         }
@@ -177,7 +185,7 @@ fn scene_problem(job: &HashMap<String, String>) -> Option<String> {
 fn render_command(cfg: &WorkerConfig, job: &HashMap<String, String>, task: &HashMap<String, String>) -> Result<tokio::process::Command> {
     let field = |m: &HashMap<String, String>, k: &str| m.get(k).cloned().unwrap_or_default();
     let args: Vec<String> = serde_json::from_str(&field(job, "args")).context("the job's render arguments")?;
-    let mut cmd = tokio::process::Command::new(std::env::current_exe()?);
+    let mut cmd = tokio::process::Command::new(&cfg.render_exe);
     cmd.arg("render").arg(field(job, "scene")).args(["--frame", &field(task, "frame"), "--spp", &field(job, "spp"), "--alf-progress"]);
     cmd.args(args);
     if let Some(server) = &cfg.server {
@@ -260,37 +268,46 @@ fn job_of(task_key: &str) -> String {
     task_key.trim_start_matches("tessera:task:").rsplit_once(':').map_or("", |(j, _)| j).to_string()
 }
 
-/// After a slice: when every slice of the frame is in, one worker (the first to take the
-/// frame's merge lock) merges them into the frame's EXR and removes the slices.
-async fn merge_when_complete(redis: &mut Redis, job_id: &str, task: &HashMap<String, String>) -> Result<()> {
+/// After a slice: when every slice of the frame is in, merges them into the frame's EXR and
+/// removes them. Two workers finishing the last slices together may both merge: the merges
+/// write the same bytes atomically, and one that finds a slice already removed succeeds when
+/// the frame is complete at its path. `Err` with the reason when the frame is not merged
+/// (the task is then left for another attempt).
+async fn merge_when_complete(
+    redis: &mut Redis,
+    job_id: &str,
+    spp: &str,
+    task: &HashMap<String, String>,
+) -> Result<std::result::Result<(), String>> {
     let field = |k: &str| task.get(k).cloned().unwrap_or_default();
     let frame: i64 = field("frame").parse().unwrap_or(0);
     let slices: usize = field("slices").parse().unwrap_or(1);
     let set_key = slices_key(job_id, frame);
     redis.query::<()>(redis::cmd("SADD").arg(&set_key).arg(field("slice"))).await?;
     if redis.query::<usize>(redis::cmd("SCARD").arg(&set_key)).await? < slices {
-        return Ok(());
-    }
-    let lock: Option<String> = redis.query(redis::cmd("SET").arg(format!("{set_key}:merge")).arg(1).arg("NX").arg("EX").arg(600)).await?;
-    if lock.is_none() {
-        return Ok(());
+        return Ok(Ok(()));
     }
     let output = PathBuf::from(field("output"));
+    let complete = |o: &PathBuf| crate::output::exr_attribute(o, "sppAsked").as_deref() == Some(spp);
+    if complete(&output) {
+        return Ok(Ok(()));
+    }
     let parts: Vec<PathBuf> = (0..slices).map(|k| slice_path(&output, k)).collect();
     let merged = tokio::task::spawn_blocking({
         let (parts, output) = (parts.clone(), output.clone());
         move || crate::commands::render::merge(&parts, &output)
     })
     .await?;
-    if let Err(e) = merged {
-        // Let a later attempt merge again.
-        redis.query::<()>(redis::cmd("DEL").arg(format!("{set_key}:merge"))).await?;
-        return Err(e.context(format!("merging frame {frame}")));
+    match merged {
+        Ok(_) => {
+            for p in parts {
+                std::fs::remove_file(p).ok();
+            }
+            Ok(Ok(()))
+        }
+        Err(_) if complete(&output) => Ok(Ok(())),
+        Err(e) => Ok(Err(format!("merging frame {frame}: {e:#}"))),
     }
-    for p in parts {
-        std::fs::remove_file(p).ok();
-    }
-    Ok(())
 }
 
 /// Sends a task to the dead-letter stream with its error, marks it failed and acknowledges it.
