@@ -123,6 +123,7 @@ async fn queue(dir: &Path) -> anyhow::Result<()> {
         spp: 4,
         split: 1,
         render_args: args,
+        priority: tessera::farm::DEFAULT_PRIORITY,
     };
     let job = tessera::farm::queue::submit(&mut conn, &submission).await?;
     let cfg = tessera::farm::worker::WorkerConfig {
@@ -149,7 +150,7 @@ async fn queue(dir: &Path) -> anyhow::Result<()> {
     let status = t.elapsed().as_secs_f64() * 1e3;
     println!(
         "queue, {frames} tasks of 32x32 at 4 spp: {:.0} ms per task through the farm vs {:.0} ms per direct tessera render ({:.0} ms with the worker's checkpoint and progress flags); \
-         between one task's ack and the next start {:.1} ms (mean); status of a {frames}-task job {:.1} ms; first task picked up {:.0} ms after submission (worker not yet started)",
+         between one task's ack and the next start {:.1} ms (mean); status of a {frames}-task job {:.1} ms; first task picked up {:.0} ms after submission (worker started after it)",
         farm * 1e3,
         plain * 1e3,
         flagged * 1e3,

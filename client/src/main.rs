@@ -259,6 +259,9 @@ enum FarmCommand {
         /// merged exactly when all are done.
         #[arg(long, default_value_t = 1)]
         split_samples: u32,
+        /// 0 (lowest) to 9: workers take tasks of the highest priority first.
+        #[arg(long, default_value_t = tessera::farm::DEFAULT_PRIORITY)]
+        priority: u8,
         /// Further `tessera render` arguments, after `--` (`-- --res 1920x1080 --aov albedo`).
         #[arg(last = true)]
         render_args: Vec<String>,
@@ -329,9 +332,9 @@ async fn farm(what: FarmCommand) -> Result<()> {
         false => Err(anyhow::anyhow!("{what} must be a number of seconds, got {s}")),
     };
     match what {
-        FarmCommand::Submit { scene, frames, output, redis, spp, split_samples, render_args } => {
+        FarmCommand::Submit { scene, frames, output, redis, spp, split_samples, priority, render_args } => {
             let frames = tessera::commands::frames::parse_frames(&frames)?;
-            let submission = queue::Submission { scene, frames, output, spp, split: split_samples, render_args };
+            let submission = queue::Submission { scene, frames, output, spp, split: split_samples, render_args, priority };
             println!("{}", queue::submit(&mut Redis::connect(&redis).await?, &submission).await?);
         }
         FarmCommand::Worker { redis, name, server, claim_after, checkpoint_interval, exit_when_idle } => {

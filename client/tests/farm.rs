@@ -139,10 +139,9 @@ fn three_workers_render_twelve_frames_once_each() {
     assert_eq!(rows.len(), 12, "{report}");
     assert!(rows.iter().all(|r| r[2] == "done" && r[5] == "1"), "each frame once: {report}");
     assert!(report.contains("12 of 12 tasks done"), "{report}");
-    let pending = Command::new("redis-cli").args(["-p", &redis.port.to_string(), "XPENDING", "tessera:tasks", "workers"]).output();
-    if let Ok(p) = pending {
-        assert!(String::from_utf8_lossy(&p.stdout).starts_with('0'), "nothing pending: {}", String::from_utf8_lossy(&p.stdout));
-    }
+    let pending =
+        Command::new("redis-cli").args(["-p", &redis.port.to_string(), "XPENDING", "tessera:tasks:5", "workers"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&pending.stdout).starts_with('0'), "nothing pending: {}", String::from_utf8_lossy(&pending.stdout));
     let local = dir.join("local/f.####.exr");
     tessera(&["render", scene.to_str().unwrap(), "--frames", "1-12", "--spp", "8", "--res", "16x12", "-o", local.to_str().unwrap()]);
     for f in 1..=12 {
@@ -295,5 +294,31 @@ fn workers_survive_a_redis_restart() {
     for f in 1..=8 {
         assert!(dir.join(format!("out/f.{f:04}.exr")).is_file(), "frame {f}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Workers take the highest priority's tasks first: a job submitted after a low-priority one
+/// but at priority 9 is rendered entirely before it.
+#[test]
+fn higher_priority_jobs_go_first() {
+    let dir = scratch("priority");
+    let redis = RedisServer::start(&dir);
+    let scene = root().join("fixtures/cornell_box.usda");
+    let low = submit(&redis, &scene, "1-3", &dir.join("low.####.exr"), &["--spp", "1", "--priority", "1", "--", "--res", "8x8"]);
+    let high = submit(&redis, &scene, "1-3", &dir.join("high.####.exr"), &["--spp", "1", "--priority", "9", "--", "--res", "8x8"]);
+    finish(vec![worker(&redis, "w", &["--exit-when-idle", "1"])]);
+    let started = |job: &str| -> Vec<u64> {
+        (0..3)
+            .map(|n| {
+                let out = Command::new("redis-cli")
+                    .args(["-p", &redis.port.to_string(), "HGET", &format!("tessera:task:{job}:{n}"), "started"])
+                    .output()
+                    .unwrap();
+                String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
+            })
+            .collect()
+    };
+    let (low, high) = (started(&low), started(&high));
+    assert!(high.iter().max() < low.iter().min(), "high {high:?} before low {low:?}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -4,8 +4,8 @@
 //! without harm: outputs are written atomically, a frame resumes from its checkpoint, and a
 //! task is acknowledged only once its output is in place.
 //!
-//! Keys (all under `tessera:`): the stream `tasks` with the group `workers`, whose entries
-//! name a task; `dead`, the stream of tasks that failed for good; per job the hash
+//! Keys (all under `tessera:`): the streams `tasks:0` to `tasks:9`, one per priority, each
+//! with the group `workers`, whose entries name a task; `dead`, the stream of tasks that failed for good; per job the hash
 //! `job:ID` (scene, its content hash, render arguments, state); per task the hash
 //! `task:ID:N` (frame, sample range, output, state, worker, percent, attempts, error); per
 //! split frame the set `slices:ID:FRAME` of its finished slices.
@@ -18,9 +18,18 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
-/// The stream of tasks.
-pub const TASKS: &str = "tessera:tasks";
-/// The consumer group every worker reads `TASKS` through.
+/// Job priorities, lowest first: each has its own stream, and workers take from the highest
+/// that has work.
+pub const PRIORITIES: std::ops::RangeInclusive<u8> = 0..=9;
+/// The priority of a job submitted without `--priority`.
+pub const DEFAULT_PRIORITY: u8 = 5;
+
+/// The stream of tasks of one priority.
+pub fn tasks_stream(priority: u8) -> String {
+    format!("tessera:tasks:{priority}")
+}
+
+/// The consumer group every worker reads the task streams through.
 pub const GROUP: &str = "workers";
 /// The dead-letter stream: tasks that failed on every attempt, or on a bad scene.
 pub const DEAD: &str = "tessera:dead";

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use super::{DEAD, GROUP, Redis, TASKS, job_key, slice_ranges, task_key};
+use super::{DEAD, GROUP, PRIORITIES, Redis, job_key, slice_ranges, task_key, tasks_stream};
 
 /// What `tessera farm submit` puts on the queue.
 #[derive(Clone, Debug)]
@@ -23,15 +23,20 @@ pub struct Submission {
     pub split: u32,
     /// Further `tessera render` arguments (`--res 1920x1080 --aov albedo`).
     pub render_args: Vec<String>,
+    /// 0 (lowest) to 9: workers take the highest priority's tasks first.
+    pub priority: u8,
 }
 
-/// Creates the stream and the consumer group unless they exist.
-pub async fn ensure_group(redis: &mut Redis) -> Result<()> {
-    let created: Result<String> = redis.query(redis::cmd("XGROUP").arg("CREATE").arg(TASKS).arg(GROUP).arg("0").arg("MKSTREAM")).await;
-    match created {
-        Err(e) if e.to_string().contains("BUSYGROUP") => Ok(()),
-        other => other.map(|_| ()),
+/// Creates every priority's stream and its consumer group unless they exist.
+pub async fn ensure_groups(redis: &mut Redis) -> Result<()> {
+    for p in PRIORITIES {
+        let create = redis::cmd("XGROUP").arg("CREATE").arg(tasks_stream(p)).arg(GROUP).arg("0").arg("MKSTREAM").clone();
+        match redis.query::<String>(&create).await {
+            Err(e) if e.to_string().contains("BUSYGROUP") => {}
+            other => other.map(|_| ())?,
+        }
     }
+    Ok(())
 }
 
 /// Puts a job on the queue: one task per frame, or per (frame, sample range) when split.
@@ -40,7 +45,11 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
     let scene = std::path::absolute(&s.scene)?;
     let bytes = std::fs::read(&scene).with_context(|| format!("cannot read {}", scene.display()))?;
     let outputs = crate::commands::frames::frame_paths(&std::path::absolute(&s.output)?, &s.frames)?;
-    ensure_group(redis).await?;
+    if !PRIORITIES.contains(&s.priority) {
+        bail!("--priority {} is outside {}..={}", s.priority, PRIORITIES.start(), PRIORITIES.end());
+    }
+    ensure_groups(redis).await?;
+    let stream = tasks_stream(s.priority);
     let id = format!("j{}", redis.query::<u64>(redis::cmd("INCR").arg("tessera:jobs")).await?);
     let ranges = slice_ranges(s.spp, s.split.max(1));
     let tasks = s.frames.len() * ranges.len();
@@ -59,7 +68,9 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
                 .arg("tasks")
                 .arg(tasks)
                 .arg("state")
-                .arg("active"),
+                .arg("active")
+                .arg("priority")
+                .arg(s.priority),
         )
         .await?;
     let mut n = 0;
@@ -67,7 +78,8 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
         for (k, range) in ranges.iter().enumerate() {
             let slice = if ranges.len() > 1 { format!("{}-{}", range.start, range.end) } else { String::new() };
             let key = task_key(&id, n);
-            let fields: [(&str, String); 8] = [
+            let fields: [(&str, String); 9] = [
+                ("stream", stream.clone()),
                 ("submitted", super::now_ms()),
                 ("frame", frame.to_string()),
                 ("output", output.display().to_string()),
@@ -78,7 +90,7 @@ pub async fn submit(redis: &mut Redis, s: &Submission) -> Result<String> {
                 ("attempts", "0".into()),
             ];
             redis.query::<()>(redis::cmd("HSET").arg(&key).arg(&fields[..])).await?;
-            redis.query::<String>(redis::cmd("XADD").arg(TASKS).arg("*").arg("task").arg(&key)).await?;
+            redis.query::<String>(redis::cmd("XADD").arg(&stream).arg("*").arg("task").arg(&key)).await?;
             n += 1;
         }
     }
@@ -151,7 +163,8 @@ pub async fn retry_failed(redis: &mut Redis, id: &str) -> Result<usize> {
         if t.get("state").map(String::as_str) == Some("failed") {
             let key = task_key(id, n);
             redis.query::<()>(redis::cmd("HSET").arg(&key).arg("state").arg("queued").arg("attempts").arg(0).arg("error").arg("")).await?;
-            redis.query::<String>(redis::cmd("XADD").arg(TASKS).arg("*").arg("task").arg(&key)).await?;
+            let stream = t.get("stream").cloned().unwrap_or_else(|| tasks_stream(super::DEFAULT_PRIORITY));
+            redis.query::<String>(redis::cmd("XADD").arg(stream).arg("*").arg("task").arg(&key)).await?;
             retried += 1;
         }
     }

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, BufReader};
 
-use super::queue::{ensure_group, slice_path};
-use super::{DEAD, GROUP, MAX_ATTEMPTS, Redis, TASKS, job_key, slices_key};
+use super::queue::{ensure_groups, slice_path};
+use super::{DEAD, GROUP, MAX_ATTEMPTS, PRIORITIES, Redis, job_key, slices_key, tasks_stream};
 
 /// How a worker runs.
 #[derive(Clone, Debug)]
@@ -58,7 +58,7 @@ enum Outcome {
 /// Runs tasks until idle for `exit_when_idle`, or forever.
 pub async fn run(cfg: &WorkerConfig) -> Result<WorkerSummary> {
     let mut redis = Redis::connect(&cfg.redis).await?;
-    ensure_group(&mut redis).await?;
+    ensure_groups(&mut redis).await?;
     let span = tracing::info_span!("worker", name = %cfg.name);
     let _entered = span.enter();
     let mut summary = WorkerSummary::default();
@@ -68,13 +68,14 @@ pub async fn run(cfg: &WorkerConfig) -> Result<WorkerSummary> {
             Some(t) => Some(t),
             None => read_new(&mut redis, cfg).await?,
         };
-        let Some((id, key)) = next else {
+        let Some(delivery) = next else {
             if cfg.exit_when_idle.is_some_and(|d| idle_since.elapsed() >= d) {
                 return Ok(summary);
             }
+            tokio::time::sleep(IDLE_POLL).await;
             continue;
         };
-        match handle(&mut redis, cfg, &id, &key).await? {
+        match handle(&mut redis, cfg, &delivery).await? {
             Some(true) => summary.done += 1,
             Some(false) => summary.failed += 1,
             None => {}
@@ -83,67 +84,90 @@ pub async fn run(cfg: &WorkerConfig) -> Result<WorkerSummary> {
     }
 }
 
+/// How long an idle worker waits before it looks at the queue again. A blocking read cannot
+/// wait on the priorities in order, so idle workers poll: 10 cheap commands per poll.
+const IDLE_POLL: Duration = Duration::from_millis(250);
+
 /// A stream entry: its id and its fields as a flat name, value list.
 type Entry = (String, Vec<String>);
 
-/// A task another worker left silent for `claim_after`, now ours.
-async fn claim_stale(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(String, String)>> {
+/// One delivery of a task: the stream and entry that carried it, and the task's hash key.
+struct Delivery {
+    stream: String,
+    id: String,
+    key: String,
+}
+
+/// A task another worker left silent for `claim_after`, now ours: the highest priority's.
+async fn claim_stale(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<Delivery>> {
     let ms = cfg.claim_after.as_millis() as u64;
-    let cmd = redis::cmd("XAUTOCLAIM").arg(TASKS).arg(GROUP).arg(&cfg.name).arg(ms).arg("0-0").arg("COUNT").arg(1).clone();
-    // Redis 7: (next cursor, claimed entries, ids deleted meanwhile).
-    let (_, entries, _): (String, Vec<Entry>, Vec<String>) = redis.query(&cmd).await?;
-    Ok(entries.into_iter().next().and_then(entry_task))
+    for p in PRIORITIES.rev() {
+        let stream = tasks_stream(p);
+        let cmd = redis::cmd("XAUTOCLAIM").arg(&stream).arg(GROUP).arg(&cfg.name).arg(ms).arg("0-0").arg("COUNT").arg(1).clone();
+        // Redis 7: (next cursor, claimed entries, ids deleted meanwhile).
+        let (_, entries, _): (String, Vec<Entry>, Vec<String>) = redis.query(&cmd).await?;
+        if let Some(d) = entries.into_iter().next().and_then(|e| delivery(&stream, e)) {
+            return Ok(Some(d));
+        }
+    }
+    Ok(None)
 }
 
-/// The next new task, waiting up to half a second.
-async fn read_new(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<(String, String)>> {
-    let cmd = redis::cmd("XREADGROUP")
-        .arg("GROUP")
-        .arg(GROUP)
-        .arg(&cfg.name)
-        .arg("COUNT")
-        .arg(1)
-        .arg("BLOCK")
-        .arg(500)
-        .arg("STREAMS")
-        .arg(TASKS)
-        .arg(">")
-        .clone();
-    let reply: Option<Vec<(String, Vec<Entry>)>> = redis.query(&cmd).await?;
-    Ok(reply.into_iter().flatten().flat_map(|(_, entries)| entries).next().and_then(entry_task))
+/// The next new task of the highest priority that has one.
+async fn read_new(redis: &mut Redis, cfg: &WorkerConfig) -> Result<Option<Delivery>> {
+    for p in PRIORITIES.rev() {
+        let stream = tasks_stream(p);
+        let cmd = redis::cmd("XREADGROUP")
+            .arg("GROUP")
+            .arg(GROUP)
+            .arg(&cfg.name)
+            .arg("COUNT")
+            .arg(1)
+            .arg("STREAMS")
+            .arg(&stream)
+            .arg(">")
+            .clone();
+        let reply: Option<Vec<(String, Vec<Entry>)>> = redis.query(&cmd).await?;
+        if let Some(d) = reply.into_iter().flatten().flat_map(|(_, entries)| entries).next().and_then(|e| delivery(&stream, e)) {
+            return Ok(Some(d));
+        }
+    }
+    Ok(None)
 }
 
-fn entry_task((id, fields): Entry) -> Option<(String, String)> {
-    fields.chunks(2).find(|p| p.len() == 2 && p[0] == "task").map(|p| (id, p[1].clone()))
+fn delivery(stream: &str, (id, fields): Entry) -> Option<Delivery> {
+    let key = fields.chunks(2).find(|p| p.len() == 2 && p[0] == "task").map(|p| p[1].clone())?;
+    Some(Delivery { stream: stream.to_string(), id, key })
 }
 
 /// Runs one delivery of task `key` (stream entry `id`): `Some(true)` done, `Some(false)`
 /// dead-lettered, `None` neither (cancelled, or left pending for another attempt).
-async fn handle(redis: &mut Redis, cfg: &WorkerConfig, id: &str, key: &str) -> Result<Option<bool>> {
+async fn handle(redis: &mut Redis, cfg: &WorkerConfig, d: &Delivery) -> Result<Option<bool>> {
+    let key = d.key.as_str();
     let task = redis.hash(key).await?;
     let job_id = job_of(key);
     let job = redis.hash(&job_key(&job_id)).await?;
     let field = |m: &HashMap<String, String>, k: &str| m.get(k).cloned().unwrap_or_default();
     if task.is_empty() || job.is_empty() || field(&task, "state") == "done" {
-        ack(redis, id).await?;
+        ack(redis, d).await?;
         return Ok(None);
     }
     if field(&job, "state") == "cancelled" {
         set(redis, key, &[("state", "cancelled")]).await?;
-        ack(redis, id).await?;
+        ack(redis, d).await?;
         return Ok(None);
     }
     let attempts: u32 = redis.query(redis::cmd("HINCRBY").arg(key).arg("attempts").arg(1)).await?;
     if attempts > MAX_ATTEMPTS {
         let why = format!("gave up after {MAX_ATTEMPTS} attempts: {}", field(&task, "error"));
-        return dead_letter(redis, id, key, &why).await.map(Some);
+        return dead_letter(redis, d, &why).await.map(Some);
     }
     if let Some(why) = scene_problem(&job) {
-        return dead_letter(redis, id, key, &why).await.map(Some);
+        return dead_letter(redis, d, &why).await.map(Some);
     }
     let _span = tracing::info_span!("task", key, frame = %field(&task, "frame"), attempt = attempts).entered();
     set(redis, key, &[("state", "rendering"), ("worker", &cfg.name), ("percent", "0"), ("started", &super::now_ms())]).await?;
-    match render_task(redis, cfg, id, key, &job, &task).await? {
+    match render_task(redis, cfg, d, &job, &task).await? {
         Outcome::Done => {
             if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1 {
                 if let Err(why) = merge_when_complete(redis, &job_id, &field(&job, "spp"), &task).await? {
@@ -152,13 +176,13 @@ async fn handle(redis: &mut Redis, cfg: &WorkerConfig, id: &str, key: &str) -> R
                 }
             }
             set(redis, key, &[("state", "done"), ("percent", "100"), ("error", ""), ("finished", &super::now_ms())]).await?;
-            ack(redis, id).await?;
+            ack(redis, d).await?;
             Ok(Some(true))
         }
-        Outcome::BadInput(why) => dead_letter(redis, id, key, &why).await.map(Some),
+        Outcome::BadInput(why) => dead_letter(redis, d, &why).await.map(Some),
         Outcome::Cancelled => {
             set(redis, key, &[("state", "cancelled")]).await?;
-            ack(redis, id).await?;
+            ack(redis, d).await?;
             Ok(None)
         }
         Outcome::Transient(why) => {
@@ -218,8 +242,7 @@ fn render_command(cfg: &WorkerConfig, job: &HashMap<String, String>, task: &Hash
 async fn render_task(
     redis: &mut Redis,
     cfg: &WorkerConfig,
-    id: &str,
-    task_key: &str,
+    d: &Delivery,
     job: &HashMap<String, String>,
     task: &HashMap<String, String>,
 ) -> Result<Outcome> {
@@ -238,15 +261,15 @@ async fn render_task(
             line = lines.next_line(), if reading => match line {
                 Ok(Some(l)) => {
                     if let Some(p) = l.strip_prefix("ALF_PROGRESS ").and_then(|p| p.strip_suffix('%')) {
-                        set(redis, task_key, &[("percent", p)]).await?;
+                        set(redis, &d.key, &[("percent", p)]).await?;
                     }
                 }
                 _ => reading = false,
             },
             _ = beat.tick() => {
                 // Resets the entry's idle time: the task is still ours.
-                redis.query::<redis::Value>(redis::cmd("XCLAIM").arg(TASKS).arg(GROUP).arg(&cfg.name).arg(0).arg(id).arg("JUSTID")).await?;
-                if redis.hash(&job_key(&job_of(task_key))).await?.get("state").map(String::as_str) == Some("cancelled") {
+                redis.query::<redis::Value>(redis::cmd("XCLAIM").arg(&d.stream).arg(GROUP).arg(&cfg.name).arg(0).arg(&d.id).arg("JUSTID")).await?;
+                if redis.hash(&job_key(&job_of(&d.key))).await?.get("state").map(String::as_str) == Some("cancelled") {
                     child.kill().await.ok();
                     return Ok(Outcome::Cancelled);
                 }
@@ -311,11 +334,12 @@ async fn merge_when_complete(
 }
 
 /// Sends a task to the dead-letter stream with its error, marks it failed and acknowledges it.
-async fn dead_letter(redis: &mut Redis, id: &str, key: &str, why: &str) -> Result<bool> {
+async fn dead_letter(redis: &mut Redis, d: &Delivery, why: &str) -> Result<bool> {
+    let key = d.key.as_str();
     tracing::warn!(task = key, error = why, "task failed for good");
     redis.query::<String>(redis::cmd("XADD").arg(DEAD).arg("*").arg("task").arg(key).arg("error").arg(why)).await?;
     set(redis, key, &[("state", "failed"), ("error", why)]).await?;
-    ack(redis, id).await?;
+    ack(redis, d).await?;
     Ok(false)
 }
 
@@ -323,6 +347,6 @@ async fn set(redis: &mut Redis, key: &str, fields: &[(&str, &str)]) -> Result<()
     redis.query(redis::cmd("HSET").arg(key).arg(fields)).await
 }
 
-async fn ack(redis: &mut Redis, id: &str) -> Result<()> {
-    redis.query::<()>(redis::cmd("XACK").arg(TASKS).arg(GROUP).arg(id)).await
+async fn ack(redis: &mut Redis, d: &Delivery) -> Result<()> {
+    redis.query::<()>(redis::cmd("XACK").arg(&d.stream).arg(GROUP).arg(&d.id)).await
 }
