@@ -8,6 +8,7 @@ pub mod exit;
 pub mod farm;
 pub mod film;
 pub mod fuzzing;
+pub mod live;
 pub mod output;
 pub mod quality;
 pub mod remote;

@@ -261,21 +261,9 @@ impl Connection {
             .was_rendering)
     }
 
-    /// Renders, calling `on_event` for every event, and assembles the final image.
-    pub async fn render(&mut self, opts: &RenderOptions, on_event: impl FnMut(&pb::render_event::Event)) -> Result<RenderReport> {
-        self.render_into(opts, None, on_event, |_| Ok(())).await
-    }
-
-    /// [`Self::render`] that, with `film` (and `opts.stream_film`), adds the streamed pass
-    /// sums to it and calls `on_pass` after every completed pass (to checkpoint it); the
-    /// report's image is then resolved from the film when it starts at sample 0.
-    pub async fn render_into(
-        &mut self,
-        opts: &RenderOptions,
-        mut film: Option<&mut crate::film::ExactFilm>,
-        mut on_event: impl FnMut(&pb::render_event::Event),
-        mut on_pass: impl FnMut(&crate::film::ExactFilm) -> Result<()>,
-    ) -> Result<RenderReport> {
+    /// Starts a render and returns its raw event stream (for callers that consume events
+    /// at their own pace, like the Python package).
+    pub async fn render_stream(&mut self, opts: &RenderOptions) -> Result<tonic::Streaming<pb::RenderEvent>> {
         let settings = pb::RenderSettings {
             width: opts.width,
             height: opts.height,
@@ -301,12 +289,30 @@ impl Connection {
             first_sample: opts.first_sample,
             stream_film: opts.stream_film,
         };
-        let mut stream = self
+        Ok(self
             .client
             .render(pb::RenderRequest { session_id: self.session.clone(), settings: Some(settings) })
             .await
             .map_err(status_error)?
-            .into_inner();
+            .into_inner())
+    }
+
+    /// Renders, calling `on_event` for every event, and assembles the final image.
+    pub async fn render(&mut self, opts: &RenderOptions, on_event: impl FnMut(&pb::render_event::Event)) -> Result<RenderReport> {
+        self.render_into(opts, None, on_event, |_| Ok(())).await
+    }
+
+    /// [`Self::render`] that, with `film` (and `opts.stream_film`), adds the streamed pass
+    /// sums to it and calls `on_pass` after every completed pass (to checkpoint it); the
+    /// report's image is then resolved from the film when it starts at sample 0.
+    pub async fn render_into(
+        &mut self,
+        opts: &RenderOptions,
+        mut film: Option<&mut crate::film::ExactFilm>,
+        mut on_event: impl FnMut(&pb::render_event::Event),
+        mut on_pass: impl FnMut(&crate::film::ExactFilm) -> Result<()>,
+    ) -> Result<RenderReport> {
+        let mut stream = self.render_stream(opts).await?;
         let mut report = RenderReport::default();
         while let Some(event) = stream.message().await.map_err(status_error)? {
             let Some(event) = event.event else { continue };

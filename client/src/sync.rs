@@ -142,7 +142,7 @@ pub fn changes(before: &Translation, after: &Translation) -> Vec<pb::sync_reques
         ..Default::default()
     };
     let mut items = scene_sync(&subset, |_| true);
-    items.extend(moved.iter().map(|(path, m)| mesh_placement(path, m)));
+    items.extend(moved.iter().map(|(path, m)| mesh_edit(path, old_meshes[path.as_str()], m)));
     let now = prim_paths(after);
     items.extend(prim_paths(before).into_iter().filter(|p| !now.contains(p)).map(|p| {
         pb::sync_request::Item::Prim(pb::PrimDelta { path: p.to_string(), kind: pb::PrimKind::Remove as i32, dirty: 0, payload: None })
@@ -175,6 +175,21 @@ pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_
         dirty: (pb::DirtyBits::DirtyTransform as u32) | (pb::DirtyBits::DirtyMaterialId as u32) | (pb::DirtyBits::DirtyVisibility as u32),
         payload: Some(pb::prim_delta::Payload::Mesh(prim)),
     })
+}
+
+/// A mesh delta for a mesh whose geometry is unchanged, with the dirty bits of just what
+/// changed from `before` (transform, material binding, visibility).
+pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
+    let mut item = mesh_placement(path, after);
+    if let pb::sync_request::Item::Prim(d) = &mut item {
+        let bits = [
+            (before.transform != after.transform, pb::DirtyBits::DirtyTransform),
+            (before.material != after.material, pb::DirtyBits::DirtyMaterialId),
+            (before.visible != after.visible, pb::DirtyBits::DirtyVisibility),
+        ];
+        d.dirty = bits.into_iter().filter(|(changed, _)| *changed).fold(0, |acc, (_, b)| acc | b as u32);
+    }
+    item
 }
 
 /// A delta with every dirty bit set.
@@ -224,8 +239,8 @@ mod tests {
         let (a, b) = (animated(1.0), animated(5.0));
         assert!(changes(&a, &a).is_empty());
         let items = changes(&a, &b);
-        let placement =
-            pb::DirtyBits::DirtyTransform as u32 | pb::DirtyBits::DirtyMaterialId as u32 | pb::DirtyBits::DirtyVisibility as u32;
+        // Only the transform changed, so only its bit is set.
+        let placement = pb::DirtyBits::DirtyTransform as u32;
         let mut sent = prims(&items);
         sent.sort();
         assert_eq!(

@@ -517,13 +517,21 @@ impl Transaction {
             let primvars = vec![(Vec::new(), 0); m.primvars.len()];
             self.meshes.insert(path, StagedMesh { prim: m, primvars, ..Default::default() });
         } else {
-            // Transform, material or visibility only: keep the geometry.
+            // Transform, material or visibility only: keep the geometry, and change only what
+            // the dirty bits name (as Hydra's change tracker means them).
             let existing = self.desc.meshes.get_mut(&path).ok_or_else(|| {
                 invalid(&path, "dirty", "no geometry was synced before for this mesh; send DIRTY_POINTS | DIRTY_TOPOLOGY")
             })?;
-            existing.transform = convert::affine(&path, "transform", &m.transform)?;
-            existing.material = m.material_path;
-            existing.visible = m.visible;
+            let bit = |b: pb::DirtyBits| dirty & b as u32 != 0;
+            if bit(pb::DirtyBits::DirtyTransform) {
+                existing.transform = convert::affine(&path, "transform", &m.transform)?;
+            }
+            if bit(pb::DirtyBits::DirtyMaterialId) {
+                existing.material = m.material_path;
+            }
+            if bit(pb::DirtyBits::DirtyVisibility) {
+                existing.visible = m.visible;
+            }
         }
         Ok(())
     }
