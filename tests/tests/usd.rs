@@ -453,3 +453,18 @@ def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
     assert_eq!(net.surface_node, "/M/S");
     assert!(net.nodes[0].parameters.contains_key("roughness"), "the rest of the material reads");
 }
+
+/// `tessera:visibleToCamera = 0` hides a light from camera rays (a DCC's lights, Blender's by
+/// default, are not seen); without it a UsdLux light is seen, as the schema's lights are.
+#[test]
+fn tessera_visible_to_camera_hides_a_light_from_the_camera() {
+    let t = load_text(
+        "light-visibility",
+        r#"#usda 1.0
+def SphereLight "Seen" { float inputs:radius = 0.1 }
+def SphereLight "Hidden" { float inputs:radius = 0.1  bool tessera:visibleToCamera = 0 }
+"#,
+    );
+    let seen: Vec<(&str, bool)> = t.lights.iter().map(|(p, l)| (p.as_str(), l.visible_to_camera)).collect();
+    assert_eq!(seen, [("/Seen", true), ("/Hidden", false)]);
+}

@@ -75,7 +75,9 @@ impl Reader<'_> {
             color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE)
                 * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
             normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
-            visible_to_camera: visible,
+            // `tessera:visibleToCamera` (default on, as UsdLux lights are seen): DCCs whose lights
+            // camera rays do not see (Blender's default) say so with it.
+            visible_to_camera: get(prim, "tessera:visibleToCamera", time)?.as_ref().and_then(values::scalar).is_none_or(|v| v != 0.0),
             shaping: self.shaping(prim, p, type_name)?,
             diffuse: float("diffuse", 1.0)?,
             specular: float("specular", 1.0)?,

@@ -1,0 +1,133 @@
+"""The evaluated scene as USD, through Blender's own exporter, corrected where the export
+does not say what the artist sees in Cycles (docs/blender.md has the table):
+
+* Sun strength: the exporter divides it by 4 ("to match Karma"); Cycles' sun strength is
+  irradiance in W/m², which is what UsdLux ``DistantLight`` intensity means with
+  ``normalize``. We multiply it back.
+* Colour temperature: the exporter writes ``enableColorTemperature = 1`` (6500 K) for every
+  light; we write what the light does: off, or on at the light's temperature.
+* Camera visibility: Blender's lights are not seen by camera rays unless the object's
+  ray visibility says so (``visible_camera``, off by default); UsdLux lights are seen. We
+  write ``tessera:visibleToCamera`` from it.
+* Glass: UsdPreviewSurface has no transmission, so the exporter drops the Principled BSDF's
+  Transmission Weight. A material that has one becomes ``tessera:Principled`` with
+  ``specTrans`` and the Principled inputs it shares (Disney's names).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+
+import bpy
+
+#: What the exporter's sun strength is divided by.
+SUN_EXPORT_DIVISOR = 4.0
+
+
+@dataclass
+class Export:
+    """A scene exported for Tessera: the file, and each object's prims in it."""
+
+    path: str
+    #: Blender object name -> paths of the Mesh, light or Camera prims it exported.
+    prims: dict[str, list[str]] = field(default_factory=dict)
+    #: What the corrections changed, for the log.
+    corrections: list[str] = field(default_factory=list)
+
+
+def _pxr():
+    bpy.utils.expose_bundled_modules()
+    from pxr import Sdf, Usd, UsdLux, UsdShade  # noqa: F401
+
+    return Sdf, Usd, UsdLux, UsdShade
+
+
+def export_scene(depsgraph, directory: str | None = None) -> Export:
+    """Exports the evaluated scene (render visibility) and corrects it."""
+    directory = directory or tempfile.mkdtemp(prefix="tessera-")
+    path = os.path.join(directory, "scene.usdc")
+    with bpy.context.temp_override(scene=depsgraph.scene, view_layer=depsgraph.view_layer):
+        bpy.ops.wm.usd_export(
+            filepath=path,
+            export_materials=True,
+            generate_preview_surface=True,
+            export_textures_mode="NEW",
+            evaluation_mode="RENDER",
+            export_custom_properties=True,
+            author_blender_name=True,
+            convert_world_material=True,
+            export_animation=False,
+        )
+    exported = Export(path=path)
+    correct(exported, depsgraph.scene)
+    return exported
+
+
+def correct(exported: Export, scene) -> None:
+    """Applies the corrections above to the exported file and maps objects to prims."""
+    Sdf, Usd, UsdLux, UsdShade = _pxr()
+    stage = Usd.Stage.Open(exported.path)
+    for prim in stage.Traverse():
+        name_attr = prim.GetAttribute("userProperties:blender:object_name")
+        if name_attr and name_attr.HasValue():
+            obj = bpy.data.objects.get(name_attr.Get())
+            children = [c for c in prim.GetChildren() if c.GetTypeName() in ("Mesh", "Camera") or c.HasAPI(UsdLux.LightAPI)]
+            exported.prims.setdefault(name_attr.Get(), []).extend(str(c.GetPath()) for c in children)
+            for child in children:
+                if obj is not None and obj.type == "LIGHT" and child.HasAPI(UsdLux.LightAPI):
+                    _correct_light(exported, child, obj, UsdLux, Sdf)
+        if prim.IsA(UsdShade.Material):
+            _correct_glass(exported, prim, Sdf, UsdShade)
+    stage.GetRootLayer().Save()
+
+
+def _correct_light(exported: Export, prim, obj, UsdLux, Sdf) -> None:
+    light = obj.data
+    api = UsdLux.LightAPI(prim)
+    prim.CreateAttribute("tessera:visibleToCamera", Sdf.ValueTypeNames.Bool).Set(bool(obj.visible_camera))
+    if prim.IsA(UsdLux.DistantLight):
+        intensity = api.GetIntensityAttr()
+        intensity.Set(intensity.Get() * SUN_EXPORT_DIVISOR)
+        exported.corrections.append(f"{prim.GetPath()}: sun strength x{SUN_EXPORT_DIVISOR:g} (the exporter divides it)")
+    uses = bool(getattr(light, "use_temperature", False))
+    api.CreateEnableColorTemperatureAttr().Set(uses)
+    if uses:
+        api.CreateColorTemperatureAttr().Set(float(light.temperature))
+
+
+def _principled_of(material_name: str):
+    material = bpy.data.materials.get(material_name)
+    tree = getattr(material, "node_tree", None)
+    if tree is None:
+        return None
+    return next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
+
+
+def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
+    name_attr = prim.GetAttribute("userProperties:blender:data_name")
+    node = _principled_of(name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName())
+    if node is None:
+        return
+    transmission = float(node.inputs["Transmission Weight"].default_value)
+    if transmission <= 0.0:
+        return
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    if not surface:
+        return
+    shader = UsdShade.Shader(surface.GetPrim())
+    shader.SetShaderId("tessera:Principled")
+    renames = {"diffuseColor": "baseColor"}
+    for inp in list(shader.GetInputs()):
+        name = inp.GetBaseName()
+        if name in renames:
+            new = shader.CreateInput(renames[name], Sdf.ValueTypeNames.Color3f)
+            if inp.HasConnectedSource():
+                new.ConnectToSource(inp.GetConnectedSources()[0][0])
+            else:
+                new.Set(inp.Get())
+        if name not in ("baseColor", "metallic", "roughness", "ior", "clearcoat"):
+            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    shader.CreateInput("specTrans", Sdf.ValueTypeNames.Float).Set(transmission)
+    exported.corrections.append(f"{prim.GetPath()}: glass (Transmission Weight {transmission:g}) as tessera:Principled specTrans")

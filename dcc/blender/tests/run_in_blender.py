@@ -1,0 +1,163 @@
+"""Runs inside Blender (PyPI's `bpy`): enables the Tessera add-on, renders the comparison
+scenes with Tessera and with Cycles, checks the interactive path, and writes every number to
+a JSON file for the test (python/tests/test_blender.py) and for docs/blender.md.
+
+    python run_in_blender.py OUT_DIR SPP
+"""
+
+import json
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+import scenes  # noqa: E402
+import tessera  # noqa: E402
+import tessera_blender  # noqa: E402
+from tessera_blender import engine, export  # noqa: E402
+
+
+def regions_of(scene, exported):
+    """Each pixel's region (its object's pass_index, 0 for none), from Tessera's primId AOV
+    on the same export: the geometry is the same in both renderers, ids are exact labels."""
+    session = engine.client_for(None).session("regions")
+    session.sync_usd(exported.path)
+    fb, table = None, []
+    for e in session.render(scene.render.resolution_x, scene.render.resolution_y, spp=1, aovs=["primId"]):
+        if isinstance(e, tessera.Started):
+            fb, table = tessera.Framebuffer(e.width, e.height), e.prim_paths
+        elif isinstance(e, tessera.Tile):
+            fb.add(e)
+    owner = {p: name for name, prims in exported.prims.items() for p in prims}
+    ids = fb.layers["primId"][..., 0].astype(int)
+    index = np.zeros_like(ids)
+    for k, path in enumerate(table, start=1):
+        obj = bpy.data.objects.get(owner.get(path, ""))
+        index[ids == k] = obj.pass_index if obj else 0
+    return index
+
+
+def first_tile_seconds(scene):
+    """F12 to the first tile in the render result: the add-on's own timing of one render."""
+    starts = {}
+    original = engine.TesseraRenderEngine._write_tile
+
+    def timed(self, tile, height, view_layer):
+        starts.setdefault("first", time.perf_counter())
+        original(self, tile, height, view_layer)
+
+    engine.TesseraRenderEngine._write_tile = timed
+    try:
+        t0 = time.perf_counter()
+        scenes.render(scene, "TESSERA", os.path.join(OUT, "timing.exr"), 4)
+        return starts["first"] - t0
+    finally:
+        engine.TesseraRenderEngine._write_tile = original
+
+
+def cycles_first_sample_seconds(scene):
+    """Cycles' time to a first sample: a one-sample render, start to finish."""
+    t0 = time.perf_counter()
+    scenes.render(scene, "CYCLES", os.path.join(OUT, "timing_cycles.exr"), 1)
+    return time.perf_counter() - t0
+
+
+def compare(kind, spp):
+    scene = scenes.build(kind, OUT)
+    out = {}
+    for eng in ("TESSERA", "CYCLES"):
+        t0 = time.perf_counter()
+        scenes.render(scene, eng, os.path.join(OUT, f"{kind}_{eng.lower()}.exr"), spp)
+        out[f"{eng.lower()}_seconds"] = time.perf_counter() - t0
+    exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    np.save(os.path.join(OUT, f"{kind}_regions.npy"), regions_of(scene, exported))
+    out["corrections"] = exported.corrections
+    out["first_tile_seconds"] = first_tile_seconds(scene)
+    out["cycles_first_sample_seconds"] = cycles_first_sample_seconds(scene)
+    out["regions"] = scenes.REGIONS[kind]
+    return out
+
+
+def interactive():
+    """The viewport's update path, headless: a session holding the box, one object moved,
+    the add-on's depsgraph handler called. Exactly one transform delta goes, and the next
+    image shows the move."""
+    scene = scenes.build("box", OUT)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    exported = export.export_scene(depsgraph)
+    session = engine.client_for(None).session("interactive")
+    session.sync_usd(exported.path)
+    w, h = scene.render.resolution_x, scene.render.resolution_y
+
+    def image():
+        fb = None
+        for e in session.render(w, h, spp=4):
+            if isinstance(e, tessera.Started):
+                fb = tessera.Framebuffer(e.width, e.height)
+            elif isinstance(e, tessera.Tile):
+                fb.add(e)
+        return fb.layers["beauty"]
+
+    before = image()
+    # Blender hands a depsgraph with its updates to view_update (and to this handler, which
+    # headless Blender does call); the add-on's function turns them into deltas.
+    edits = {}
+
+    def handler(_scene, depsgraph):
+        edits["t0"] = time.perf_counter()
+        edits["sent"], edits["reexport"] = engine.object_edits(session, exported, depsgraph)
+
+    bpy.app.handlers.depsgraph_update_post.append(handler)
+    sphere = next(o for o in scene.objects if o.pass_index == 5)
+    sphere.location.x += 0.6
+    bpy.context.view_layer.update()
+    bpy.app.handlers.depsgraph_update_post.remove(handler)
+    sent, reexport, t0 = edits["sent"], edits["reexport"], edits["t0"]
+    # Edit to the first tile of the new image, with a render already running.
+    stream = session.render(w, h, spp=64, coarse_start=8)
+    first = next(e for e in stream if isinstance(e, tessera.Tile))
+    edit_to_tile = time.perf_counter() - t0
+    del stream
+    after = image()
+    return {
+        "sent": sent,
+        "reexport": reexport,
+        "image_changed": bool(not np.array_equal(before, after)),
+        "edit_to_first_tile_seconds": edit_to_tile,
+        "first_tile_pixel_size": first.pixel_size,
+    }
+
+
+def errors_reach_the_artist():
+    """A render whose export cannot be synced reports the error (the operator fails with it,
+    as F12 shows it in the status bar) rather than saving a silent black image."""
+    scene = scenes.build("glass", OUT)
+    scene.render.engine = "TESSERA"
+    engine.REPORTED.clear()
+    saved = export.export_scene
+    export.export_scene = lambda depsgraph, directory=None: export.Export(path=os.path.join(OUT, "missing.usdc"))
+    try:
+        scene.render.filepath = os.path.join(OUT, "error.exr")
+        bpy.ops.render.render(write_still=False)
+        operator_error = None
+    except RuntimeError as e:
+        operator_error = str(e)
+    finally:
+        export.export_scene = saved
+    return {"operator": operator_error, "reported": list(engine.REPORTED)}
+
+
+if __name__ == "__main__":
+    OUT, SPP = sys.argv[-2], int(sys.argv[-1])
+    tessera_blender.register()
+    results = {kind: compare(kind, SPP) for kind in scenes.REGIONS}
+    results["interactive"] = interactive()
+    results["error_reports"] = errors_reach_the_artist()
+    with open(os.path.join(OUT, "results.json"), "w") as f:
+        json.dump(results, f, indent=1)

@@ -1,0 +1,88 @@
+"""The three comparison scenes, built with bpy, and how each renderer renders them.
+
+Every object carries a ``pass_index``: the region it is compared in.
+"""
+
+import os
+
+import bpy
+import numpy as np
+
+#: Region names by pass index, per scene.
+REGIONS = {
+    "box": {1: "floor", 2: "red wall", 3: "green wall", 4: "back wall", 5: "rough metal sphere"},
+    "box_matte": {1: "floor", 2: "red wall", 3: "green wall", 4: "back wall", 5: "rough metal sphere"},
+    "glass": {1: "floor", 2: "glass sphere"},
+    "textured": {1: "textured plane"},
+}
+
+def build(kind, directory):
+    """A fresh scene of `kind` (box, glass, textured); files it needs go in `directory`."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
+        m = bpy.data.materials.new(name)
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["Base Color"].default_value = (*color, 1)
+        p.inputs["Roughness"].default_value = rough
+        p.inputs["Metallic"].default_value = metal
+        p.inputs["Transmission Weight"].default_value = trans
+        if kind == "box_matte" and metal == 0.0:
+            # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
+            p.inputs["IOR"].default_value = 1.0
+        return m
+    def add(op, mat_, index, **kw):
+        op(**kw); o = bpy.context.object; o.pass_index = index
+        if mat_: o.data.materials.append(mat_)
+        return o
+    if kind in ("box", "box_matte"):
+        add(bpy.ops.mesh.primitive_plane_add, mat("white", (0.8, 0.8, 0.8)), 1, size=4)
+        add(bpy.ops.mesh.primitive_plane_add, mat("red", (0.8, 0.1, 0.1)), 2, size=4, location=(-2, 0, 2), rotation=(0, 1.5708, 0))
+        add(bpy.ops.mesh.primitive_plane_add, mat("green", (0.1, 0.8, 0.1)), 3, size=4, location=(2, 0, 2), rotation=(0, 1.5708, 0))
+        add(bpy.ops.mesh.primitive_plane_add, mat("back", (0.8, 0.8, 0.8)), 4, size=4, location=(0, 2, 2), rotation=(1.5708, 0, 0))
+        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
+        cam = (0, -7, 2); rot = (1.5708, 0, 0)
+    elif kind == "glass":
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.7, 0.7, 0.7)), 1, size=20)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -8, 3); rot = (1.2, 0, 0)
+    else:
+        checker = os.path.join(directory, "checker.png")
+        img = bpy.data.images.new("checker", 64, 64)
+        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1
+        px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 0, :3] = (0.8, 0.7, 0.2)
+        px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 1, :3] = (0.1, 0.2, 0.6)
+        img.pixels.foreach_set(px.ravel()); img.filepath_raw = checker; img.file_format = 'PNG'; img.save()
+        m = mat("tex", (1, 1, 1), rough=0.6)
+        t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(checker)
+        m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+        add(bpy.ops.mesh.primitive_plane_add, m, 1, size=6)
+        bpy.ops.object.light_add(type='POINT', location=(1.5, -1, 2)); bpy.context.object.data.energy = 300; bpy.context.object.data.shadow_soft_size = 0.1
+        bpy.ops.object.light_add(type='SPOT', location=(-1.5, 0, 3)); s = bpy.context.object.data; s.energy = 500; s.spot_size = 1.0; s.spot_blend = 0.2; s.shadow_soft_size = 0.1
+        cam = (0, -6, 5); rot = (0.9, 0, 0)
+    bpy.ops.object.camera_add(location=cam, rotation=rot); scene.camera = bpy.context.object
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 96, 72, 100
+    scene.view_settings.view_transform = 'Standard'
+    scene.render.image_settings.media_type = 'MULTI_LAYER_IMAGE'
+    scene.render.image_settings.file_format = 'OPEN_EXR_MULTILAYER'
+    scene.render.image_settings.color_depth = '32'
+    scene.world = None
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    return scene
+
+def render(scene, engine, path, spp):
+    """Renders with `engine` ('TESSERA' or 'CYCLES') at `spp` to a linear multilayer EXR."""
+    scene.render.engine = engine
+    if engine == "CYCLES":
+        c = scene.cycles
+        c.samples, c.use_denoising, c.device, c.use_adaptive_sampling = spp, False, "CPU", False
+        # Tessera's max depth 8 counts every scattering event; Cycles limits each kind too.
+        c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 8
+        c.sample_clamp_indirect = 0.0
+    else:
+        scene.tessera.samples = spp
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)

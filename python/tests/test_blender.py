@@ -1,0 +1,121 @@
+"""The Blender add-on, headless, against Cycles: PyPI's `bpy` in a virtual environment this
+test creates (target/bpy-venv, with the tessera package installed), the add-on enabled, three
+scenes built in bpy and rendered by both engines (same resolution and samples, denoising off,
+view transform Standard, linear EXR), compared region by region."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+VENV = ROOT / "target" / "bpy-venv"
+#: bpy on PyPI pairs with one Python: 5.0.1 with 3.11, 5.2.x with 3.13.
+BPY = {(3, 11): "bpy==5.0.1", (3, 13): "bpy>=5.2,<5.3"}
+SPP = 256
+
+#: Regions where both renderers model the same thing: mean luminance within 3% of Cycles.
+AGREE = [
+    ("glass", "floor"),
+    ("glass", "glass sphere"),
+    ("box", "rough metal sphere"),
+    ("box_matte", "floor"),
+    ("box_matte", "red wall"),
+    ("box_matte", "green wall"),
+    ("box_matte", "back wall"),
+    ("box_matte", "rough metal sphere"),
+]
+
+#: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
+DIFFER = {
+    ("box", "floor"): (1.0, 1.09, "diffuse under a dielectric specular layer: layered differently"),
+    ("box", "red wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
+    ("box", "green wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
+    ("box", "back wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
+    ("textured", "textured plane"): (1.0, 1.07, "layering, and a texture-filtering share not yet isolated"),
+}
+
+
+def venv_python() -> Path:
+    """The bpy environment, created on first use (bpy is a 300 MB wheel from PyPI)."""
+    python = VENV / "bin" / "python"
+    spec = BPY.get(sys.version_info[:2])
+    assert spec, f"no bpy on PyPI for Python {sys.version_info[:2]}; use 3.11 (bpy 5.0.1) or 3.13 (bpy 5.2)"
+    if not python.exists():
+        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", spec], check=True)
+    # The add-on imports the package built from this checkout.
+    subprocess.run([str(python), "-m", "pip", "install", "-q", str(ROOT / "python")], check=True)
+    return python
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    out = tmp_path_factory.mktemp("blender")
+    script = ROOT / "dcc" / "blender" / "tests" / "run_in_blender.py"
+    run = subprocess.run([str(venv_python()), str(script), str(out), str(SPP)], capture_output=True, text=True, timeout=1200)
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-4000:]
+    return out, json.loads((out / "results.json").read_text())
+
+
+def luminance(path: Path) -> np.ndarray:
+    f = OpenEXR.InputFile(str(path))
+    dw = f.header()["dataWindow"]
+    w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
+    c = {k: np.frombuffer(f.channel(f"ViewLayer.Combined.{k}"), dtype=np.float32).reshape(h, w) for k in "RGB"}
+    return 0.2126 * c["R"] + 0.7152 * c["G"] + 0.0722 * c["B"]
+
+
+def region_ratios(out: Path, kind: str, names: dict) -> dict:
+    """Tessera / Cycles mean luminance per region, inner pixels only (a pixel and its four
+    neighbours in the region: edges mix two surfaces and the renderers filter them differently)."""
+    regions = np.load(out / f"{kind}_regions.npy")
+    tessera, cycles = luminance(out / f"{kind}_tessera.exr"), luminance(out / f"{kind}_cycles.exr")
+    ratios = {}
+    for index, name in names.items():
+        m = regions == int(index)
+        inner = m.copy()
+        inner[1:] &= m[:-1]
+        inner[:-1] &= m[1:]
+        inner[:, 1:] &= m[:, :-1]
+        inner[:, :-1] &= m[:, 1:]
+        assert inner.sum() > 100, f"{kind}/{name}: only {inner.sum()} pixels"
+        ratios[name] = float(tessera[inner].mean() / cycles[inner].mean())
+    return ratios
+
+
+def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
+    out, r = results
+    ratios = {(k, n): v for k in r if k in ("box", "box_matte", "glass", "textured") for n, v in region_ratios(out, k, r[k]["regions"]).items()}
+    for key in AGREE:
+        # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of
+        # converged (the glass floor, lit by one sun, agrees to 2%).
+        assert abs(ratios[key] - 1.0) <= 0.03, f"{key}: Tessera/Cycles {ratios[key]:.3f}"
+    for key, (lo, hi, why) in DIFFER.items():
+        assert lo <= ratios[key] <= hi, f"{key}: {ratios[key]:.3f} outside the documented [{lo}, {hi}] ({why})"
+    assert set(AGREE) | set(DIFFER) == set(ratios), "every region is in one table"
+
+
+def test_the_exporter_is_corrected(results):
+    _, r = results
+    assert any("sun strength x4" in c for c in r["glass"]["corrections"]), r["glass"]["corrections"]
+    assert any("tessera:Principled specTrans" in c for c in r["glass"]["corrections"])
+
+
+def test_moving_an_object_sends_one_transform_delta(results):
+    _, r = results
+    i = r["interactive"]
+    assert i["sent"] == [{"path": "/root/Sphere/Sphere", "kind": "mesh", "dirty": ["transform"], "chunks": 0}], i
+    assert not i["reexport"] and i["image_changed"], i
+    assert i["first_tile_pixel_size"] == 8, "the first image after an edit is a coarse one"
+
+
+def test_errors_reach_the_artist(results):
+    _, r = results
+    e = r["error_reports"]
+    assert e["operator"] and "missing.usdc" in e["operator"], e
+    assert e["reported"] and "missing.usdc" in e["reported"][-1], e
