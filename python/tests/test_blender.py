@@ -119,3 +119,14 @@ def test_errors_reach_the_artist(results):
     e = r["error_reports"]
     assert e["operator"] and "missing.usdc" in e["operator"], e
     assert e["reported"] and "missing.usdc" in e["reported"][-1], e
+
+
+def test_the_extension_zip_installs_and_registers_the_engine(tmp_path):
+    """`dcc/blender/build_extension.py` packs the add-on with the tessera wheel; Blender
+    installs the zip (in a scratch user directory) and the engine registers."""
+    build = subprocess.run([sys.executable, str(ROOT / "dcc" / "blender" / "build_extension.py"), str(tmp_path)], capture_output=True, text=True, check=True)
+    zip_path = build.stdout.strip().splitlines()[-1]
+    env = {"HOME": str(tmp_path / "home"), "PATH": "/usr/bin:/bin"}
+    script = ROOT / "dcc" / "blender" / "tests" / "install_zip.py"
+    run = subprocess.run([str(venv_python()), str(script), zip_path], capture_output=True, text=True, env=env, timeout=600)
+    assert "installed: ['FINISHED'] engine: True" in run.stdout, run.stdout[-2000:] + run.stderr[-2000:]
