@@ -322,3 +322,28 @@ fn higher_priority_jobs_go_first() {
     assert!(high.iter().max() < low.iter().min(), "high {high:?} before low {low:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `farm cancel` drops a job's queued tasks (no output appears); `farm retry --failed` puts
+/// failed tasks back with fresh attempts, and once the cause is gone they finish.
+#[test]
+fn cancelled_jobs_stop_and_failed_tasks_can_be_retried() {
+    let dir = scratch("cancel");
+    let redis = RedisServer::start(&dir);
+    let scene = root().join("fixtures/cornell_box.usda");
+    let cancelled = submit(&redis, &scene, "1-3", &dir.join("c.####.exr"), &["--spp", "1", "--", "--res", "8x8"]);
+    tessera(&["farm", "cancel", &cancelled, "--redis", &redis.url()]);
+    // Fails three times: no server at this URL (a transient failure).
+    let flaky = submit(&redis, &scene, "1", &dir.join("f.####.exr"), &["--spp", "1", "--", "--res", "8x8"]);
+    finish(vec![worker(&redis, "w", &["--server", "http://127.0.0.1:1", "--claim-after", "0.2", "--exit-when-idle", "2"])]);
+    let report = status(&redis, &cancelled);
+    assert!(rows(&report).iter().all(|r| r[2] == "cancelled"), "{report}");
+    assert!(!dir.join("c.0001.exr").exists());
+    assert!(status(&redis, &flaky).contains("1 failed"), "{}", status(&redis, &flaky));
+    let said = String::from_utf8(tessera(&["farm", "retry", &flaky, "--failed", "--redis", &redis.url()]).stdout).unwrap();
+    assert!(said.contains("1 failed tasks"), "{said}");
+    finish(vec![worker(&redis, "w", &["--exit-when-idle", "1"])]);
+    let report = status(&redis, &flaky);
+    assert!(report.contains("1 of 1 tasks done"), "{report}");
+    assert!(dir.join("f.0001.exr").is_file());
+    std::fs::remove_dir_all(&dir).ok();
+}
