@@ -130,21 +130,7 @@ impl RenderJob {
         // More threads than cores only adds switching; the pools are shared per count.
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let threads = (s.threads as usize).min(cores);
-        if s.first_sample != 0 && (s.first_sample >= spp || !render_core::render::is_pass_boundary(s.first_sample, spp)) {
-            return Err(bad(
-                "first_sample",
-                format!(
-                    "{} must be below spp {spp} and start one of its passes (0, a power of two up to 64, or a multiple of 64)",
-                    s.first_sample
-                ),
-            ));
-        }
-        if s.first_sample != 0 && s.noise_threshold != 0.0 {
-            return Err(bad(
-                "first_sample",
-                "a slice cannot use adaptive sampling (noise_threshold): it lacks the samples before it".into(),
-            ));
-        }
+        let first_sample = first_sample(s, spp)?;
         let pixel_aspect = match s.pixel_aspect {
             0.0 => 1.0,
             a if a.is_finite() && (1e-3..=1e3).contains(&a) => a,
@@ -196,7 +182,7 @@ impl RenderJob {
                     b if b.is_power_of_two() && b <= MAX_COARSE_START => b,
                     b => return Err(bad("coarse_start", format!("{b} must be a power of two from 2 to {MAX_COARSE_START} (0 = off)"))),
                 },
-                first_sample: s.first_sample,
+                first_sample,
                 sampler: match pb::Sampler::try_from(s.sampler) {
                     Ok(pb::Sampler::Sobol) => render_core::sampling::SamplerKind::Sobol,
                     Ok(pb::Sampler::Independent) => render_core::sampling::SamplerKind::Independent,
@@ -329,6 +315,23 @@ impl RenderJob {
                 })
                 .collect(),
         }
+    }
+}
+
+/// The first sample of a slice: below `spp`, at one of its pass boundaries, and without
+/// adaptive sampling (a slice lacks the samples before it to judge convergence).
+#[allow(clippy::result_large_err)]
+fn first_sample(s: &pb::RenderSettings, spp: u32) -> Result<u32, Status> {
+    let bad = |why: String| Err(Status::invalid_argument(format!("render settings: first_sample: {why}")));
+    match s.first_sample {
+        0 => Ok(0),
+        k if k >= spp || !render_core::render::is_pass_boundary(k, spp) => {
+            bad(format!("{k} must be below spp {spp} and start one of its passes (0, a power of two up to 64, or a multiple of 64)"))
+        }
+        _ if s.noise_threshold != 0.0 => {
+            bad("a slice cannot use adaptive sampling (noise_threshold): it lacks the samples before it".into())
+        }
+        k => Ok(k),
     }
 }
 

@@ -688,3 +688,29 @@ async fn a_hundred_thousand_small_prims_sync_in_one_stream() {
     assert_eq!(r.prims_applied, n as u32);
     assert_eq!(raw.stats(&s).await.unwrap().triangles, n as u64);
 }
+
+/// `first_sample` is a client-controlled count: past the end, between passes, or with
+/// adaptive sampling it is refused by name before anything renders; a valid slice that asks
+/// for exact film sums gets FilmTile events only, covering the image once per pass.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slices_are_bounded_and_stream_exact_sums() {
+    let (server, mut conn) = session_with(&load("cornell_box.usda")).await;
+    let slice = |first, noise| tessera::remote::RenderOptions {
+        first_sample: first,
+        noise_threshold: noise,
+        stream_film: true,
+        ..small(8, 8, 128)
+    };
+    for (first, noise) in [(u32::MAX, None), (128, None), (3, None), (100, None), (64, Some(0.01))] {
+        let e = conn.render(&slice(first, noise), |_| {}).await.unwrap_err();
+        assert!(format!("{e:#}").contains("first_sample"), "names the field: {e:#}");
+    }
+    let mut film = tessera::film::ExactFilm::new(8, 8, 64);
+    let mut tiles = 0;
+    conn.render_into(&slice(64, None), Some(&mut film), |e| tiles += matches!(e, pb::render_event::Event::Tile(_)) as u32, |_| Ok(()))
+        .await
+        .unwrap();
+    assert_eq!(tiles, 0, "no resolved tiles when sums are streamed");
+    assert_eq!(film.range, 64..128);
+    server.stop().await.unwrap();
+}
