@@ -76,7 +76,7 @@ fn merge(dir: &Path) {
         })
         .collect();
     let t = Instant::now();
-    tessera::commands::render::merge(&parts, &dir.join("merged.exr")).unwrap();
+    tessera::commands::render::merge(&parts, &dir.join("merged.exr"), false).unwrap();
     println!("merge of 4 slices at 1920x1080 (read, add, resolve, write EXR + PNG): {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
 }
 

@@ -4,6 +4,7 @@
 
 pub mod bench;
 pub mod commands;
+pub mod denoise;
 pub mod exit;
 pub mod farm;
 pub mod film;

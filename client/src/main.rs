@@ -146,6 +146,11 @@ enum Command {
         /// there (bit-identical to an uninterrupted render); otherwise start afresh.
         #[arg(long)]
         resume: bool,
+        /// Denoise the final image with Intel Open Image Denoise (`pip install pyoidn`):
+        /// adds `beauty_denoised` (and `<aov>_denoised` for light-path AOVs), guided by the
+        /// albedo and normal AOVs, which are rendered and written too. The raw beauty stays.
+        #[arg(long)]
+        denoise: bool,
     },
     /// Render on a farm through a Redis Streams queue: submit jobs, run workers, watch them.
     Farm {
@@ -161,6 +166,10 @@ enum Command {
         /// The EXR to write (a PNG preview goes beside it).
         #[arg(short, long)]
         output: PathBuf,
+        /// Denoise the merged image (slices are merged first and denoised once); the slices
+        /// must have rendered the albedo and normal AOVs.
+        #[arg(long)]
+        denoise: bool,
     },
     /// Measure what the quality knobs buy and cost, and write the report.
     Bench {
@@ -318,8 +327,8 @@ enum FarmCommand {
 }
 
 /// `tessera merge`.
-fn merge(parts: &[PathBuf], output: &std::path::Path) -> Result<()> {
-    let merged = tessera::commands::render::merge(parts, output)?;
+fn merge(parts: &[PathBuf], output: &std::path::Path, denoise: bool) -> Result<()> {
+    let merged = tessera::commands::render::merge(parts, output, denoise)?;
     println!("{} slices, samples 0..{} -> {}", parts.len(), merged.range.end, output.display());
     Ok(())
 }
@@ -459,7 +468,7 @@ async fn real_main() -> Result<()> {
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
         }
         Command::Farm { what } => farm(what).await?,
-        Command::Merge { parts, output } => merge(&parts, &output)?,
+        Command::Merge { parts, output, denoise } => merge(&parts, &output, denoise)?,
         Command::Render { scene, explain_plan: true, frame, .. } => {
             print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
         }
@@ -497,6 +506,7 @@ async fn real_main() -> Result<()> {
             partial,
             checkpoint_interval,
             resume,
+            denoise,
         } => {
             let film = film_mode(sample_range, partial, checkpoint_interval, resume)?;
             let preset = quality.preset();
@@ -532,6 +542,7 @@ async fn real_main() -> Result<()> {
                 coarse_start: 0,
                 first_sample: 0,
                 stream_film: false,
+                denoise,
             };
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             // Empty: the scene's RenderProduct names the file (RenderJob::run).

@@ -60,6 +60,9 @@ pub struct RenderOptions {
     pub first_sample: u32,
     /// Stream exact pass sums instead of pixels (for [`crate::film::ExactFilm`]).
     pub stream_film: bool,
+    /// Denoise the final image on the client (`crate::denoise`): adds `beauty_denoised`
+    /// and asks for the albedo and normal AOVs it is guided by.
+    pub denoise: bool,
 }
 
 impl Default for RenderOptions {
@@ -88,6 +91,7 @@ impl Default for RenderOptions {
             coarse_start: 0,
             first_sample: 0,
             stream_film: false,
+            denoise: false,
         }
     }
 }

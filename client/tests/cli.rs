@@ -105,3 +105,23 @@ fn frame_ranges_name_each_frame_report_progress_and_skip_what_exists() {
     assert!(!stderr.contains("skipped"), "other settings render again: {stderr}");
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// Without Open Image Denoise, `--denoise` fails before rendering with the install hint, as
+/// bad input (exit status 2), and writes nothing.
+#[test]
+fn denoise_without_the_library_says_how_to_install_it() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = std::env::temp_dir().join(format!("tessera-cli-denoise-{}", std::process::id()));
+    let run = Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(["render", "--res", "8x8", "--spp", "1", "--denoise", "-o"])
+        .arg(out.join("frame.exr"))
+        .arg(root.join("fixtures/cornell_box.usda"))
+        .env("TESSERA_OIDN_LIB", "/nonexistent/libOpenImageDenoise.so")
+        .output()
+        .expect("the CLI runs");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("pip install pyoidn"), "{stderr}");
+    assert!(!out.join("frame.exr").exists(), "nothing written");
+    std::fs::remove_dir_all(&out).ok();
+}

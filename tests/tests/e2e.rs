@@ -4,6 +4,7 @@
 mod aovs;
 mod caustics;
 mod conformance;
+mod denoise;
 mod energy;
 mod environment;
 mod errors;

@@ -126,7 +126,7 @@ pub(crate) fn reference_image(what: &str, scene: &CommittedScene, res: (u32, u32
 }
 
 /// Relative MSE against a reference, with Rousselle's ε = 0.01.
-pub(crate) fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
+pub fn rel_mse(img: &[f64], reference: &[f64]) -> f64 {
     img.iter().zip(reference).map(|(a, r)| (a - r).powi(2) / (r * r + 0.01)).sum::<f64>() / img.len() as f64
 }
 

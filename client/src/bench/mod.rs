@@ -6,7 +6,7 @@
 
 pub mod accuracy;
 pub mod effects;
-mod harness;
+pub mod harness;
 pub mod lights;
 
 pub use harness::Knobs;

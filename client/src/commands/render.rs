@@ -164,7 +164,11 @@ async fn render_synced(
     translation: &crate::usd::Translation,
     load_secs: f64,
 ) -> Result<RenderReport> {
-    let options = &resolve_options(&job.options, translation);
+    let options = &with_denoise_guides(resolve_options(&job.options, translation));
+    if options.denoise {
+        // Before rendering: a missing library should not cost the render.
+        crate::denoise::Denoiser::new(1)?;
+    }
     let output_path = output_of(&job.output, translation)?;
 
     let bar = if job.progress { ProgressBar::new(options.spp as u64) } else { ProgressBar::hidden() };
@@ -219,6 +223,10 @@ async fn render_synced(
         }
     };
     bar.finish_and_clear();
+    let mut report = report;
+    if options.denoise {
+        denoise_report(&mut report, options.threads as usize)?;
+    }
     write_outputs(&output_path, &report, &exr_metadata(job, options, translation, &report))?;
     if let FilmMode::Checkpointed { .. } = job.film {
         // The frame is whole at its final path: its checkpoint has nothing left to give.
@@ -352,7 +360,7 @@ fn write_slice(
 
 /// `tessera merge`: one EXR from the films of a render's slices, which must together cover
 /// samples 0 to their end; bit-identical to rendering those samples in one process.
-pub fn merge(parts: &[PathBuf], output: &Path) -> Result<ExactFilm> {
+pub fn merge(parts: &[PathBuf], output: &Path, denoise: bool) -> Result<ExactFilm> {
     let films = parts.iter().map(|p| ExactFilm::load(p)).collect::<Result<Vec<_>>>()?;
     let seconds: f64 = films.iter().filter_map(|f| f.metadata_value("seconds")?.parse::<f64>().ok()).sum();
     let merged = ExactFilm::merge(films)?;
@@ -372,7 +380,12 @@ pub fn merge(parts: &[PathBuf], output: &Path) -> Result<ExactFilm> {
             _ => (k.clone(), v.clone()),
         })
         .collect();
-    let report = RenderReport { image, ..Default::default() };
+    let mut report = RenderReport { image, ..Default::default() };
+    let mut metadata = metadata;
+    if denoise {
+        denoise_report(&mut report, 0)?;
+        metadata.extend(denoise_metadata(&report.image));
+    }
     write_outputs(output, &report, &metadata)?;
     Ok(merged)
 }
@@ -402,6 +415,38 @@ async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
         );
     }
     Ok(translation)
+}
+
+/// The options with the albedo and normal AOVs added when denoising asks for them (OIDN's
+/// guides; they are written too).
+fn with_denoise_guides(mut o: RenderOptions) -> RenderOptions {
+    if o.denoise {
+        for guide in ["albedo", "normal"] {
+            if !o.aovs.iter().any(|a| a == guide) {
+                o.aovs.push(guide.to_string());
+            }
+        }
+    }
+    o
+}
+
+/// Adds the denoised layers to a finished render's image and says what it did.
+pub fn denoise_report(report: &mut RenderReport, threads: usize) -> Result<()> {
+    let t = Instant::now();
+    let added = crate::denoise::denoise_image(&mut report.image, threads)?;
+    eprintln!("denoised {} with Open Image Denoise in {:.0} ms", added.join(", "), t.elapsed().as_secs_f64() * 1e3);
+    Ok(())
+}
+
+/// What the header says of denoising: the filter, its guides, the layers it wrote.
+pub fn denoise_metadata(image: &crate::output::Image) -> Option<(String, String)> {
+    let layers: Vec<&str> = image.layers.keys().filter(|k| k.ends_with("_denoised")).map(String::as_str).collect();
+    (!layers.is_empty()).then(|| {
+        (
+            "denoised".to_string(),
+            format!("Open Image Denoise RT, hdr, guides albedo + normal (prefiltered, cleanAux); layers {}", layers.join(", ")),
+        )
+    })
 }
 
 /// The EXR header's `tessera/*` attributes: scene, samples, time, noise, settings, units,
@@ -448,8 +493,14 @@ fn exr_metadata(
         ("upAxis".to_string(), if translation.z_up { "Z" } else { "Y" }.to_string()),
         // The primId AOV's table: line k names id k + 1.
         ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
-        ("plan".to_string(), report.started.plan.iter().map(|p| p.effect.as_str()).collect::<Vec<_>>().join(",")),
+        (
+            "plan".to_string(),
+            report.started.plan.iter().map(|p| p.effect.as_str()).chain(options.denoise.then_some("denoise")).collect::<Vec<_>>().join(","),
+        ),
     ]
+    .into_iter()
+    .chain(denoise_metadata(&report.image))
+    .collect()
 }
 
 /// Options the command line left open, from the stage's RenderSettings and its first

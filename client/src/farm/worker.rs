@@ -170,7 +170,7 @@ async fn handle(redis: &mut Redis, cfg: &WorkerConfig, d: &Delivery) -> Result<O
     match render_task(redis, cfg, d, &job, &task).await? {
         Outcome::Done => {
             if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1 {
-                if let Err(why) = merge_when_complete(redis, &job_id, &field(&job, "spp"), &task).await? {
+                if let Err(why) = merge_when_complete(redis, &job_id, &job, &task).await? {
                     set(redis, key, &[("state", "queued"), ("error", &why)]).await?;
                     return Ok(None);
                 }
@@ -299,9 +299,12 @@ fn job_of(task_key: &str) -> String {
 async fn merge_when_complete(
     redis: &mut Redis,
     job_id: &str,
-    spp: &str,
+    job: &HashMap<String, String>,
     task: &HashMap<String, String>,
 ) -> Result<std::result::Result<(), String>> {
+    let spp = job.get("spp").map_or("", String::as_str);
+    // Denoised once, after the merge (never slice by slice).
+    let denoise = job.get("args").is_some_and(|a| a.contains("\"--denoise\""));
     let field = |k: &str| task.get(k).cloned().unwrap_or_default();
     let frame: i64 = field("frame").parse().unwrap_or(0);
     let slices: usize = field("slices").parse().unwrap_or(1);
@@ -318,7 +321,7 @@ async fn merge_when_complete(
     let parts: Vec<PathBuf> = (0..slices).map(|k| slice_path(&output, k)).collect();
     let merged = tokio::task::spawn_blocking({
         let (parts, output) = (parts.clone(), output.clone());
-        move || crate::commands::render::merge(&parts, &output)
+        move || crate::commands::render::merge(&parts, &output, denoise)
     })
     .await?;
     match merged {
