@@ -472,93 +472,101 @@ async fn real_main() -> Result<()> {
         Command::Render { scene, explain_plan: true, frame, .. } => {
             print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
         }
-        Command::Render {
-            scene,
-            output,
-            spp,
-            res,
-            pixel_aspect,
-            tile_size,
-            camera,
-            max_depth,
-            seed,
-            aov,
-            server,
-            threads,
-            energy_compensation,
-            texture_filtering,
-            light_splitting,
-            light_split_budget,
-            frame,
-            frames,
-            alf_progress,
-            skip_existing,
-            sampler,
-            caustics,
-            force_all_effects,
-            no_default_light,
-            strict,
-            clamp,
-            noise_threshold,
-            quality,
-            explain_plan: false,
-            sample_range,
-            partial,
-            checkpoint_interval,
-            resume,
-            denoise,
-        } => {
-            let film = film_mode(sample_range, partial, checkpoint_interval, resume)?;
-            let preset = quality.preset();
-            let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
-            // 0x0: not given; the scene's RenderSettings or 512x512 decide (RenderJob::run).
-            let (width, height) = match &res {
-                Some(r) => parse_res(r)?,
-                None => (0, 0),
-            };
-            let energy_compensation = energy_compensation == OnOff::On;
-            let options = RenderOptions {
-                width,
-                height,
-                spp,
-                max_depth,
-                seed,
-                camera,
-                aovs: aov,
-                threads,
-                progressive_f16: true,
-                energy_compensation,
-                texture_filtering: texture_filtering == OnOff::On,
-                light_splitting: light_splitting == OnOff::On,
-                light_split_budget: light_split_budget.unwrap_or(0),
-                sobol: sampler == SamplerArg::Sobol,
-                clamp_indirect: clamp,
-                noise_threshold,
-                avoid_caustics: caustics == CausticsArg::Avoid,
-                force_all_effects,
-                pixel_aspect: pixel_aspect.unwrap_or(0.0),
-                tile_size: tile_size.unwrap_or(0),
-                // Final renders start with full passes (coarse passes are for viewports).
-                coarse_start: 0,
-                first_sample: 0,
-                stream_film: false,
-                denoise,
-            };
-            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-            // Empty: the scene's RenderProduct names the file (RenderJob::run).
-            let output = match (&film, output) {
-                (_, Some(o)) => o,
-                // A slice writes no image: its film is the output.
-                (FilmMode::Slice { partial, .. }, None) => partial.clone(),
-                (_, None) => PathBuf::new(),
-            };
-            let default_light = !no_default_light;
-            let job = RenderJob { scene, output, options, server, progress, frame, default_light, strict, alf_progress: None, film };
-            match frames {
-                None => render_one(job, alf_progress, skip_existing).await?,
-                Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
-            }
-        }
+        cmd @ Command::Render { explain_plan: false, .. } => render_command(cmd).await?,
+    }
+    Ok(())
+}
+
+/// `tessera render`: one frame, or a range, with the options the command line gives.
+async fn render_command(cmd: Command) -> Result<()> {
+    let Command::Render {
+        scene,
+        output,
+        spp,
+        res,
+        pixel_aspect,
+        tile_size,
+        camera,
+        max_depth,
+        seed,
+        aov,
+        server,
+        threads,
+        energy_compensation,
+        texture_filtering,
+        light_splitting,
+        light_split_budget,
+        frame,
+        frames,
+        alf_progress,
+        skip_existing,
+        sampler,
+        caustics,
+        force_all_effects,
+        no_default_light,
+        strict,
+        clamp,
+        noise_threshold,
+        quality,
+        explain_plan: false,
+        sample_range,
+        partial,
+        checkpoint_interval,
+        resume,
+        denoise,
+    } = cmd
+    else {
+        unreachable!("called for render commands")
+    };
+    let film = film_mode(sample_range, partial, checkpoint_interval, resume)?;
+    let preset = quality.preset();
+    let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
+    // 0x0: not given; the scene's RenderSettings or 512x512 decide (RenderJob::run).
+    let (width, height) = match &res {
+        Some(r) => parse_res(r)?,
+        None => (0, 0),
+    };
+    let energy_compensation = energy_compensation == OnOff::On;
+    let options = RenderOptions {
+        width,
+        height,
+        spp,
+        max_depth,
+        seed,
+        camera,
+        aovs: aov,
+        threads,
+        progressive_f16: true,
+        energy_compensation,
+        texture_filtering: texture_filtering == OnOff::On,
+        light_splitting: light_splitting == OnOff::On,
+        light_split_budget: light_split_budget.unwrap_or(0),
+        sobol: sampler == SamplerArg::Sobol,
+        clamp_indirect: clamp,
+        noise_threshold,
+        avoid_caustics: caustics == CausticsArg::Avoid,
+        force_all_effects,
+        pixel_aspect: pixel_aspect.unwrap_or(0.0),
+        tile_size: tile_size.unwrap_or(0),
+        // Final renders start with full passes (coarse passes are for viewports).
+        coarse_start: 0,
+        first_sample: 0,
+        stream_film: false,
+        denoise,
+    };
+    let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    // Empty: the scene's RenderProduct names the file (RenderJob::run).
+    let output = match (&film, output) {
+        (_, Some(o)) => o,
+        // A slice writes no image: its film is the output.
+        (FilmMode::Slice { partial, .. }, None) => partial.clone(),
+        (_, None) => PathBuf::new(),
+    };
+    let default_light = !no_default_light;
+    let job = RenderJob { scene, output, options, server, progress, frame, default_light, strict, alf_progress: None, film };
+    match frames {
+        None => render_one(job, alf_progress, skip_existing).await?,
+        Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
     }
     Ok(())
 }

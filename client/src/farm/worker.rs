@@ -169,11 +169,11 @@ async fn handle(redis: &mut Redis, cfg: &WorkerConfig, d: &Delivery) -> Result<O
     set(redis, key, &[("state", "rendering"), ("worker", &cfg.name), ("percent", "0"), ("started", &super::now_ms())]).await?;
     match render_task(redis, cfg, d, &job, &task).await? {
         Outcome::Done => {
-            if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1 {
-                if let Err(why) = merge_when_complete(redis, &job_id, &job, &task).await? {
-                    set(redis, key, &[("state", "queued"), ("error", &why)]).await?;
-                    return Ok(None);
-                }
+            if field(&task, "slices").parse::<u32>().unwrap_or(1) > 1
+                && let Err(why) = merge_when_complete(redis, &job_id, &job, &task).await?
+            {
+                set(redis, key, &[("state", "queued"), ("error", &why)]).await?;
+                return Ok(None);
             }
             set(redis, key, &[("state", "done"), ("percent", "100"), ("error", ""), ("finished", &super::now_ms())]).await?;
             ack(redis, d).await?;
