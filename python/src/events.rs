@@ -16,6 +16,9 @@ use crate::py_err;
 /// server wait, then drop the render (its stall timeout), rather than fill this process.
 const BUFFER: usize = 64;
 
+/// Each AOV of one rect: its name, channels and f32 pixels.
+type Layers = Vec<(String, u32, Vec<f32>)>;
+
 /// One event for Python.
 enum Event {
     Raw(pb::render_event::Event),
@@ -29,7 +32,6 @@ enum Event {
 /// A render in progress; iterating yields its events as dicts, ending after `finished`.
 #[pyclass(name = "_RenderStream")]
 pub struct RenderStream {
-    rt: Arc<Runtime>,
     rx: Mutex<mpsc::Receiver<anyhow::Result<Event>>>,
     task: tokio::task::JoinHandle<()>,
 }
@@ -45,7 +47,7 @@ impl RenderStream {
             let _conn = conn;
             pump(stream, tx).await;
         });
-        Ok(RenderStream { rt: rt.clone(), rx: Mutex::new(rx), task })
+        Ok(RenderStream { rx: Mutex::new(rx), task })
     }
 }
 
@@ -60,7 +62,7 @@ impl Drop for RenderStream {
 /// listening.
 async fn pump(mut stream: tonic::Streaming<pb::RenderEvent>, tx: mpsc::Sender<anyhow::Result<Event>>) {
     let mut aovs = 1usize;
-    let mut group: Option<(pb::Tile, Vec<(String, u32, Vec<f32>)>)> = None;
+    let mut group: Option<(pb::Tile, Layers)> = None;
     loop {
         let item = match stream.message().await {
             Ok(Some(pb::RenderEvent { event: Some(e) })) => e,
@@ -121,7 +123,8 @@ impl RenderStream {
 
     /// The next event as a dict, with the GIL released while waiting for it.
     fn __next__(&self, py: Python<'_>) -> PyResult<Option<Py<PyDict>>> {
-        let next = py.detach(|| self.rt.block_on(async { self.rx.lock().expect("one reader").recv().await }));
+        // Python's thread is outside the runtime, so it may block on the channel directly.
+        let next = py.detach(|| self.rx.lock().expect("one reader").blocking_recv());
         match next {
             None => Ok(None),
             Some(Err(e)) => Err(py_err(e)),
