@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyBytes, PyDict, PyList};
 use tessera::live::{LiveSession, SentPrim};
 use tessera::remote::{Connection, Credentials};
 use tokio::runtime::Runtime;
@@ -186,6 +186,44 @@ impl Session {
     }
 }
 
+/// The process's OIDN device, created on first use (creating one costs about 0.3 s).
+static DENOISER: Mutex<Option<tessera::denoise::Denoiser>> = Mutex::new(None);
+
+/// Denoises `color` (float32 bytes, `channels` per pixel, RGB first) guided by `albedo` and
+/// `normal` (float32 RGB bytes) with Open Image Denoise; returns float32 RGB bytes.
+#[pyfunction]
+fn denoise(
+    py: Python<'_>,
+    width: usize,
+    height: usize,
+    color: &[u8],
+    channels: usize,
+    albedo: &[u8],
+    normal: &[u8],
+) -> PyResult<Py<PyBytes>> {
+    let floats = |b: &[u8], per: usize, what: &str| -> PyResult<Vec<f32>> {
+        if b.len() != width * height * per * 4 {
+            return Err(TesseraError::new_err(format!("denoise: {what} holds {} bytes, not {width}x{height}x{per} float32", b.len())));
+        }
+        Ok(b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+    };
+    if channels < 3 {
+        return Err(TesseraError::new_err(format!("denoise: colour needs 3 or 4 channels, not {channels}")));
+    }
+    let (color, albedo, normal) = (floats(color, channels, "colour")?, floats(albedo, 3, "albedo")?, floats(normal, 3, "normal")?);
+    let out = py
+        .detach(|| {
+            let mut held = DENOISER.lock().expect("not poisoned");
+            if held.is_none() {
+                *held = Some(tessera::denoise::Denoiser::new(0)?);
+            }
+            held.as_ref().expect("just made").denoise((width, height), &color, channels, &albedo, &normal)
+        })
+        .map_err(py_err)?;
+    let bytes: Vec<u8> = out.iter().flat_map(|v| v.to_le_bytes()).collect();
+    Ok(PyBytes::new(py, &bytes).unbind())
+}
+
 /// A kwargs dict as (name, value) pairs.
 fn kwargs<'py>(d: Option<&Bound<'py, PyDict>>) -> PyResult<Vec<(String, Bound<'py, PyAny>)>> {
     d.map(|d| d.iter().map(|(k, v)| Ok((k.extract::<String>()?, v))).collect()).unwrap_or(Ok(Vec::new()))
@@ -210,6 +248,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Client>()?;
     m.add_class::<Session>()?;
     m.add_class::<events::RenderStream>()?;
+    m.add_function(wrap_pyfunction!(denoise, m)?)?;
     m.add("TesseraError", m.py().get_type::<TesseraError>())?;
     Ok(())
 }

@@ -26,6 +26,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from ._native import TesseraError, _Client
+from ._native import denoise as _denoise
 
 __all__ = [
     "Client",
@@ -37,6 +38,7 @@ __all__ = [
     "Restarted",
     "Finished",
     "Framebuffer",
+    "denoise",
 ]
 
 
@@ -129,6 +131,17 @@ class Framebuffer:
             if layer is None:
                 layer = self.layers[aov] = np.zeros((self.height, self.width, pixels.shape[2]), np.float32)
             layer[tile.y : tile.y + tile.height, tile.x : tile.x + tile.width] = pixels
+
+
+def denoise(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Open Image Denoise's RT filter (HDR) on ``color`` (height, width, 3 or 4), guided by
+    ``albedo`` and ``normal`` (height, width, 3), which are prefiltered first. Returns the
+    denoised RGB (height, width, 3) float32; alpha, if any, is the caller's to keep.
+    Needs ``pip install pyoidn==2.5.1.0``; the device is created once per process."""
+    h, w, c = color.shape
+    as_bytes = lambda a: np.ascontiguousarray(a, dtype="<f4").tobytes()  # noqa: E731
+    out = _denoise(w, h, as_bytes(color), c, as_bytes(albedo), as_bytes(normal))
+    return np.frombuffer(out, dtype="<f4").reshape(h, w, 3)
 
 
 class Session:

@@ -60,6 +60,11 @@ class TesseraSceneSettings(bpy.types.PropertyGroup):
         name="Energy Compensation", description="Kulla-Conty multiple scattering in rough microfacets", default=True
     )
     animate_seed: bpy.props.BoolProperty(name="Animate Seed", description="Use the frame number as the seed", default=False)
+    denoise: bpy.props.BoolProperty(
+        name="Denoise",
+        description="Open Image Denoise on the final render (pip install pyoidn); the raw image goes to the Noisy Image pass",
+        default=False,
+    )
 
 
 class TESSERA_PT_sampling(bpy.types.Panel):
@@ -77,7 +82,7 @@ class TESSERA_PT_sampling(bpy.types.Panel):
         settings = context.scene.tessera
         layout = self.layout
         layout.use_property_split = True
-        for prop in ("samples", "max_depth", "noise_threshold", "caustics", "clamp", "energy_compensation", "animate_seed"):
+        for prop in ("samples", "max_depth", "noise_threshold", "caustics", "clamp", "energy_compensation", "animate_seed", "denoise"):
             layout.prop(settings, prop)
 
 

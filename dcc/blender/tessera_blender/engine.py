@@ -124,13 +124,19 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         width, height = resolution(scene)
         session = client_for(preferences()).session("blender")
         session.sync_usd(self.exported.path)
-        aovs = passes.aovs_for(depsgraph.view_layer)
+        denoise = scene.tessera.denoise
+        aovs = passes.aovs_for(depsgraph.view_layer, denoise)
         self.update_stats("Tessera", "rendering")
         events = session.render(width, height, spp=scene.tessera.samples, aovs=aovs, **render_settings(scene))
+        import tessera
+
+        image = tessera.Framebuffer(width, height)
+        cancelled = False
         for event in events:
             kind = type(event).__name__
             if kind == "Tile":
                 self._write_tile(event, height, depsgraph.view_layer)
+                image.add(event)
             elif kind == "Progress":
                 self.update_progress(min(event.percent / 100.0, 1.0))
                 self.update_stats("Tessera", f"{event.spp}/{scene.tessera.samples} spp, noise {100 * event.estimated_noise:.2f}%")
@@ -139,8 +145,26 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                     self.report({"WARNING"}, f"Tessera: {w}")
             if self.test_break():
                 session.cancel()
+                cancelled = True
                 break
+        if denoise and not cancelled:
+            self._write_denoised(image, depsgraph.view_layer)
         self.session = session
+
+    def _write_denoised(self, image, view_layer) -> None:
+        """The denoised beauty as Combined, the raw one as Noisy Image (Cycles' convention)."""
+        import tessera
+
+        self.update_stats("Tessera", "denoising")
+        raw = image.layers["beauty"]
+        rgb = tessera.denoise(raw, image.layers["albedo"], image.layers["normal"])
+        denoised = np.concatenate([rgb, raw[..., 3:]], axis=2)
+        result = self.begin_result(0, 0, image.width, image.height, layer=view_layer.name)
+        for name, pixels in (("Combined", denoised), ("Noisy Image", raw)):
+            rp = next((p for p in result.layers[0].passes if p.name == name), None)
+            if rp is not None:
+                rp.rect.foreach_set(np.ascontiguousarray(pixels[::-1]).reshape(-1).astype(np.float32))
+        self.end_result(result)
 
     def _write_tile(self, tile, height: int, view_layer) -> None:
         # Blender's rows run bottom-up.
@@ -157,7 +181,7 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         self.end_result(result)
 
     def update_render_passes(self, scene=None, renderlayer=None):
-        for name, channels, chanid, kind in passes.enabled(renderlayer):
+        for name, channels, chanid, kind in passes.enabled(renderlayer, scene.tessera.denoise):
             self.register_pass(scene, renderlayer, name, channels, chanid, kind)
 
     # --- viewport ------------------------------------------------------------------------

@@ -27,9 +27,12 @@ def _albedo_enabled(view_layer) -> bool:
     return bool(getattr(cycles, "denoising_store_passes", False))
 
 
-def enabled(view_layer):
-    """The passes to register: Combined, then those the view layer enables that map."""
+def enabled(view_layer, denoise=False):
+    """The passes to register: Combined, then those the view layer enables that map (and
+    Noisy Image, the raw beauty, when the render is denoised: Cycles' convention)."""
     yield ("Combined", 4, "RGBA", "COLOR")
+    if denoise:
+        yield ("Noisy Image", 4, "RGBA", "COLOR")
     for flag, name, channels, chanid, kind, _ in PASSES:
         if getattr(view_layer, flag, False):
             yield (name, channels, chanid, kind)
@@ -37,11 +40,14 @@ def enabled(view_layer):
         yield ("Denoising Albedo", 3, "RGB", "COLOR")
 
 
-def aovs_for(view_layer) -> list[str]:
-    """The Tessera AOVs a view layer's enabled passes need (beauty is always rendered)."""
+def aovs_for(view_layer, denoise=False) -> list[str]:
+    """The Tessera AOVs a view layer's enabled passes need (beauty is always rendered), and
+    the albedo and normal the denoiser is guided by."""
     aovs = [aov for flag, _, _, _, _, aov in PASSES if getattr(view_layer, flag, False)]
-    if _albedo_enabled(view_layer):
+    if _albedo_enabled(view_layer) or denoise:
         aovs.append("albedo")
+    if denoise and "normal" not in aovs:
+        aovs.append("normal")
     return aovs
 
 

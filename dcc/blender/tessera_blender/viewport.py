@@ -18,6 +18,9 @@ from . import export
 VIEWPORT_SPP = 1024
 #: Block edge of the coarse passes after each edit (see RenderSettings.coarse_start).
 COARSE_START = 8
+#: With Denoise on, the viewport denoises at a pass end at most this often (seconds):
+#: OIDN costs about 10 s per megapixel on two cores.
+DENOISE_EVERY = 1.0
 
 
 class Viewport:
@@ -60,15 +63,33 @@ class Viewport:
         self.size = (width, height)
         self.pixels = np.zeros((height, width, 4), np.float32)
         settings = _engine.render_settings(scene) | {"coarse_start": COARSE_START}
+        denoise = scene.tessera.denoise
+        aovs = ["albedo", "normal"] if denoise else []
 
         def run():
-            for event in self.session.render(width, height, spp=VIEWPORT_SPP, **settings):
+            import time
+
+            import tessera
+
+            guides = tessera.Framebuffer(width, height)
+            last_denoise = 0.0
+            for event in self.session.render(width, height, spp=VIEWPORT_SPP, aovs=aovs, **settings):
                 if self.stopped:
                     break
-                if type(event).__name__ == "Tile":
-                    px = event.layers["beauty"]
+                kind = type(event).__name__
+                if kind == "Tile":
+                    guides.add(event)
                     with self.lock:
-                        self.pixels[event.y : event.y + event.height, event.x : event.x + event.width] = px
+                        self.pixels[event.y : event.y + event.height, event.x : event.x + event.width] = event.layers["beauty"]
+                    self.engine.tag_redraw()
+                elif kind == "Progress" and denoise and time.monotonic() - last_denoise > DENOISE_EVERY:
+                    # A pass is whole: denoise it on a time budget, then keep drawing raw tiles.
+                    with self.lock:
+                        raw = self.pixels.copy()
+                    rgb = tessera.denoise(raw, guides.layers["albedo"], guides.layers["normal"])
+                    with self.lock:
+                        self.pixels[..., :3] = rgb
+                    last_denoise = time.monotonic()
                     self.engine.tag_redraw()
 
         self.thread = threading.Thread(target=run, daemon=True)

@@ -84,6 +84,15 @@ def compare(kind, spp):
     return out
 
 
+def denoised(kind):
+    """The final render at 16 spp with the add-on's Denoise on and off (Combined only: what
+    Blender saves), for the test to hold against the 256-spp render."""
+    scene = scenes.build(kind, OUT)
+    for on in (True, False):
+        scene.tessera.denoise = on
+        scenes.render(scene, "TESSERA", os.path.join(OUT, f"{kind}_{'denoised' if on else 'raw'}16.exr"), 16)
+
+
 def interactive():
     """The viewport's update path, headless: a session holding the box, one object moved,
     the add-on's depsgraph handler called. Exactly one transform delta goes, and the next
@@ -157,6 +166,7 @@ if __name__ == "__main__":
     OUT, SPP = sys.argv[-2], int(sys.argv[-1])
     tessera_blender.register()
     results = {kind: compare(kind, SPP) for kind in scenes.REGIONS}
+    denoised("box")
     results["interactive"] = interactive()
     results["error_reports"] = errors_reach_the_artist()
     with open(os.path.join(OUT, "results.json"), "w") as f:
