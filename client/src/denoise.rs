@@ -125,7 +125,7 @@ impl Denoiser {
 
     /// The denoised RGB of `color` (`channels` floats per pixel, RGB first), with the
     /// prefiltered `albedo` and `normal` (3 floats per pixel) as guides. Non-finite inputs
-    /// are read as 0; the result is finite.
+    /// are read as 0; the result is finite and not clamped.
     pub fn denoise(&self, (w, h): (usize, usize), color: &[f32], channels: usize, albedo: &[f32], normal: &[f32]) -> Result<Vec<f32>> {
         let finite = |v: &[f32]| v.iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect::<Vec<f32>>();
         let (mut color, mut albedo, mut normal) = (finite(color), finite(albedo), finite(normal));
@@ -147,7 +147,8 @@ impl Denoiser {
             ],
             &[("hdr", true), ("cleanAux", true)],
         )?;
-        Ok(out.into_iter().map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 }).collect())
+        // HDR in, linear out, nothing clamped; only a non-finite value (never seen) is zeroed.
+        Ok(out.into_iter().map(|x| if x.is_finite() { x } else { 0.0 }).collect())
     }
 }
 

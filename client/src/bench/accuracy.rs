@@ -18,6 +18,10 @@ use render_core::scene::{BlasCache, CommittedScene, commit};
 use super::harness::{Knobs, Row, load, machine_description, mean, mean_abs, reference_image, rel_mse, render, today};
 use crate::quality::Quality;
 
+/// Where denoising's price lives: Open Image Denoise is an optional run-time library, so
+/// its bench is separate from this report's.
+const DENOISING: &str = "\n## Denoising\n\nRaw against denoised relMSE and time at 4 to 1024 spp on the Cornell box, the showcase and a glass scene, the bias floor, and Open Image Denoise's own time per megapixel on 1 and 2 threads: `cargo bench -p tessera --bench denoise`, reported in `docs/denoising.md` (the library is optional, so its bench stands apart from this one).\n";
+
 /// Options of `tessera bench accuracy`.
 #[derive(Clone, Debug)]
 pub struct AccuracyBench {
@@ -84,6 +88,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     r.smooth_subsurface()?;
     r.texture_filtering()?;
     r.many_lights()?;
+    r.md.push_str(DENOISING);
     std::fs::write(&b.out, &r.md).with_context(|| format!("cannot write {}", b.out.display()))?;
     Ok((r.md, r.summary))
 }

@@ -172,12 +172,11 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         result = self.begin_result(tile.x, y, tile.width, tile.height, layer=view_layer.name)
         layer = result.layers[0]
         for aov, pixels in tile.layers.items():
-            name = passes.PASS_OF_AOV.get(aov)
-            rp = next((p for p in layer.passes if p.name == name), None)
-            if rp is None:
-                continue
             flipped = np.ascontiguousarray(pixels[::-1]).reshape(-1, pixels.shape[2])
-            rp.rect.foreach_set(passes.to_pass(aov, flipped).ravel())
+            for name in passes.PASSES_OF_AOV.get(aov, []):
+                rp = next((p for p in layer.passes if p.name == name), None)
+                if rp is not None:
+                    rp.rect.foreach_set(passes.to_pass(aov, flipped).ravel())
         self.end_result(result)
 
     def update_render_passes(self, scene=None, renderlayer=None):

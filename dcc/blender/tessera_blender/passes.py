@@ -18,8 +18,9 @@ PASSES = [
     ("use_pass_emit", "Emit", 3, "RGB", "COLOR", "emission"),
 ]
 
-#: Tessera AOV -> Blender pass name.
-PASS_OF_AOV = {aov: name for _, name, _, _, _, aov in PASSES} | {"beauty": "Combined", "albedo": "Denoising Albedo"}
+#: Tessera AOV -> the Blender passes it fills (Cycles' Denoising Data: albedo and normal).
+PASSES_OF_AOV = {aov: [name] for _, name, _, _, _, aov in PASSES} | {"beauty": ["Combined"], "albedo": ["Denoising Albedo"]}
+PASSES_OF_AOV["normal"] = PASSES_OF_AOV["normal"] + ["Denoising Normal"]
 
 
 def _albedo_enabled(view_layer) -> bool:
@@ -37,6 +38,7 @@ def enabled(view_layer, denoise=False):
         if getattr(view_layer, flag, False):
             yield (name, channels, chanid, kind)
     if _albedo_enabled(view_layer):
+        yield ("Denoising Normal", 3, "XYZ", "VECTOR")
         yield ("Denoising Albedo", 3, "RGB", "COLOR")
 
 
@@ -46,7 +48,7 @@ def aovs_for(view_layer, denoise=False) -> list[str]:
     aovs = [aov for flag, _, _, _, _, aov in PASSES if getattr(view_layer, flag, False)]
     if _albedo_enabled(view_layer) or denoise:
         aovs.append("albedo")
-    if denoise and "normal" not in aovs:
+    if (_albedo_enabled(view_layer) or denoise) and "normal" not in aovs:
         aovs.append("normal")
     return aovs
 
