@@ -166,13 +166,12 @@ impl Drop for Denoiser {
 /// The layers `--denoise` adds: `beauty_denoised` (denoised RGB, the raw alpha) and
 /// `<aov>_denoised` for each light-path AOV present, guided by the image's albedo and
 /// normal. Returns the names added.
-pub fn denoise_image(image: &mut Image, threads: usize) -> Result<Vec<String>> {
+pub fn denoise_image(image: &mut Image, denoiser: &Denoiser) -> Result<Vec<String>> {
     let (Some((3, albedo)), Some((3, normal))) = (image.layers.get("albedo"), image.layers.get("normal")) else {
         bail!("denoising needs the albedo and normal AOVs");
     };
     let (albedo, normal) = (albedo.clone(), normal.clone());
     let size = (image.width as usize, image.height as usize);
-    let denoiser = Denoiser::new(threads)?;
     let targets: Vec<String> = image
         .layers
         .keys()

@@ -207,8 +207,7 @@ impl ExactFilm {
         let (_, total) = self.passes.first().filter(|_| self.range.start == 0)?;
         let pixels = (self.width as f64 * self.height as f64).max(1.0);
         let (var, mean) = total.noise_terms();
-        let noise = if mean > 0.0 { (var / pixels).sqrt() / (mean / pixels) } else { 0.0 };
-        Some((noise, total.sample_totals().1 as f64 / pixels))
+        Some((render_core::render::relative_noise(var, mean, pixels), total.sample_totals().1 as f64 / pixels))
     }
 
     /// A header attribute.

@@ -6,16 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tessera-farm-{name}-{}", std::process::id()));
-    std::fs::remove_dir_all(&dir).ok();
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{pixels, root, scratch};
 
 /// A `redis-server` on a free loopback port, stopped on drop.
 struct RedisServer {
@@ -118,17 +110,11 @@ fn rows(status: &str) -> Vec<Vec<String>> {
     status.lines().skip(2).filter(|l| l.starts_with("  ")).map(|l| l.split_whitespace().map(str::to_string).collect()).collect()
 }
 
-/// Every layer of an EXR as bits.
-fn pixels(path: &Path) -> Vec<(String, Vec<u32>)> {
-    let image = tessera::output::read_exr(path).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
-    image.layers.into_iter().map(|(name, (_, data))| (name, data.into_iter().map(f32::to_bits).collect())).collect()
-}
-
 /// Three workers, twelve frames: every frame rendered and acknowledged once (one attempt
 /// each, nothing left pending), and each EXR equals `tessera render --frames`' bit for bit.
 #[test]
 fn three_workers_render_twelve_frames_once_each() {
-    let dir = scratch("twelve");
+    let dir = scratch("farm", "twelve");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/usd/animated.usda");
     let job = submit(&redis, &scene, "1-12", &dir.join("farm/f.####.exr"), &["--spp", "8", "--", "--res", "16x12"]);
@@ -157,7 +143,7 @@ fn three_workers_render_twelve_frames_once_each() {
 /// final path: each is a whole EXR.
 #[test]
 fn a_killed_worker_s_frame_resumes_elsewhere_bit_for_bit() {
-    let dir = scratch("kill");
+    let dir = scratch("farm", "kill");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/cornell_box.usda");
     let output = dir.join("out/frame.####.exr");
@@ -208,7 +194,7 @@ fn a_killed_worker_s_frame_resumes_elsewhere_bit_for_bit() {
 /// the URL) after exactly three attempts. The good job's frames finish.
 #[test]
 fn poison_tasks_go_to_the_dead_letter_stream() {
-    let dir = scratch("poison");
+    let dir = scratch("farm", "poison");
     let redis = RedisServer::start(&dir);
     let bad = submit(&redis, &root().join("fixtures/bad/malformed.usda"), "1", &dir.join("bad.####.exr"), &["--spp", "1"]);
     let good =
@@ -238,7 +224,7 @@ fn poison_tasks_go_to_the_dead_letter_stream() {
 /// for bit, and the slices' films are removed once merged.
 #[test]
 fn split_frames_merge_to_the_single_process_render() {
-    let dir = scratch("split");
+    let dir = scratch("farm", "split");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/cornell_box.usda");
     let job = submit(
@@ -277,7 +263,7 @@ fn split_frames_merge_to_the_single_process_render() {
 /// completes.
 #[test]
 fn workers_survive_a_redis_restart() {
-    let dir = scratch("restart");
+    let dir = scratch("farm", "restart");
     let mut redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/usd/animated.usda");
     let job = submit(&redis, &scene, "1-8", &dir.join("out/f.####.exr"), &["--spp", "64", "--", "--res", "32x32"]);
@@ -301,7 +287,7 @@ fn workers_survive_a_redis_restart() {
 /// but at priority 9 is rendered entirely before it.
 #[test]
 fn higher_priority_jobs_go_first() {
-    let dir = scratch("priority");
+    let dir = scratch("farm", "priority");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/cornell_box.usda");
     let low = submit(&redis, &scene, "1-3", &dir.join("low.####.exr"), &["--spp", "1", "--priority", "1", "--", "--res", "8x8"]);
@@ -327,7 +313,7 @@ fn higher_priority_jobs_go_first() {
 /// failed tasks back with fresh attempts, and once the cause is gone they finish.
 #[test]
 fn cancelled_jobs_stop_and_failed_tasks_can_be_retried() {
-    let dir = scratch("cancel");
+    let dir = scratch("farm", "cancel");
     let redis = RedisServer::start(&dir);
     let scene = root().join("fixtures/cornell_box.usda");
     let cancelled = submit(&redis, &scene, "1-3", &dir.join("c.####.exr"), &["--spp", "1", "--", "--res", "8x8"]);

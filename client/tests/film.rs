@@ -1,20 +1,12 @@
 //! Exact films through the CLI: slices of a frame's samples merge to the whole render, and a
 //! render killed with SIGKILL resumes from its checkpoint to the same pixels, bit for bit.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tessera-film-{name}-{}", std::process::id()));
-    std::fs::remove_dir_all(&dir).ok();
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{pixels, root, scratch};
 
 /// `tessera render` of the Cornell box at 32x32 with two extra AOVs (one of them from the
 /// optional light-path buffer) and `extra` arguments.
@@ -29,17 +21,11 @@ fn render(extra: &[&str]) -> std::process::Output {
     run
 }
 
-/// Every layer of an EXR, as bits (NaN-safe, -0 distinct from 0).
-fn pixels(path: &Path) -> Vec<(String, Vec<u32>)> {
-    let image = tessera::output::read_exr(path).unwrap();
-    image.layers.into_iter().map(|(name, (_, data))| (name, data.into_iter().map(f32::to_bits).collect())).collect()
-}
-
 /// Three slices of unequal length (one of two passes), rendered in separate processes and
 /// merged in shuffled order, give the single render's pixels in every layer.
 #[test]
 fn slices_merge_to_the_whole_render_bit_for_bit() {
-    let dir = scratch("slices");
+    let dir = scratch("film", "slices");
     let whole = dir.join("whole.exr");
     render(&["--spp", "256", "-o", whole.to_str().unwrap()]);
     let mut parts = Vec::new();
@@ -67,7 +53,7 @@ fn slices_merge_to_the_whole_render_bit_for_bit() {
 /// with a message saying which.
 #[test]
 fn gaps_and_misaligned_slices_are_refused() {
-    let dir = scratch("gaps");
+    let dir = scratch("film", "gaps");
     let part = |range: &str| {
         let p = dir.join(format!("part.{range}"));
         (
@@ -102,7 +88,7 @@ fn checkpoint_end(path: &Path) -> Option<u32> {
 /// uninterrupted render's in every layer, and no partial file is ever left at the final path.
 #[test]
 fn a_killed_render_resumes_bit_for_bit() {
-    let dir = scratch("resume");
+    let dir = scratch("film", "resume");
     let clean = dir.join("clean.exr");
     render(&["--spp", "320", "-o", clean.to_str().unwrap()]);
     let exr = dir.join("frame.exr");

@@ -216,7 +216,7 @@ pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings
         let spp_done = samples.end;
         let (var, mean, active, taken) = settle_pass(&tiles, settings, spp_done);
         let pixels = (settings.width * settings.height).max(1) as f64;
-        let noise = if mean > 0.0 { ((var / pixels).sqrt() / (mean / pixels)) as f32 } else { 0.0 };
+        let noise = relative_noise(var, mean, pixels) as f32;
         last = PassStats {
             pass: pass as u32,
             spp: spp_done,
@@ -289,6 +289,12 @@ fn run_pass(
         }
     });
     stopped.into_inner().unwrap()
+}
+
+/// The image's noise estimate from the summed per-pixel terms of [`TileFilm::noise_terms`]:
+/// the RMS standard error of the pixels' mean luminance over the mean luminance.
+pub fn relative_noise(var: f64, mean: f64, pixels: f64) -> f64 {
+    if mean > 0.0 { (var / pixels).sqrt() / (mean / pixels) } else { 0.0 }
 }
 
 /// After a pass: retires the pixels adaptive sampling finds converged (once every pixel has

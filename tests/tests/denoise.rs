@@ -15,7 +15,8 @@ const SIZE: u32 = 96;
 async fn cornell(spp: u32) -> (Vec<f64>, Vec<f64>) {
     let opts = tessera::remote::RenderOptions { aovs: vec!["albedo".into(), "normal".into()], ..small(SIZE, SIZE, spp) };
     let mut report = render_fixture("cornell_box.usda", &opts).await;
-    tessera::commands::render::denoise_report(&mut report, 0).expect("OIDN is installed (pip install pyoidn)");
+    let denoiser = Denoiser::new(0).expect("OIDN is installed (pip install pyoidn)");
+    tessera::commands::render::denoise_report(&mut report, &denoiser).unwrap();
     let rgb = |name: &str| -> Vec<f64> { report.image.layers[name].1.chunks(4).flat_map(|p| p[..3].iter().map(|&x| x as f64)).collect() };
     (rgb("beauty"), rgb("beauty_denoised"))
 }

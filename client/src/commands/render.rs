@@ -165,10 +165,9 @@ async fn render_synced(
     load_secs: f64,
 ) -> Result<RenderReport> {
     let options = &with_denoise_guides(resolve_options(&job.options, translation));
-    if options.denoise {
-        // Before rendering: a missing library should not cost the render.
-        crate::denoise::Denoiser::new(1)?;
-    }
+    // Before rendering: a missing library should not cost the render. The same device then
+    // denoises the result.
+    let denoiser = options.denoise.then(|| crate::denoise::Denoiser::new(options.threads as usize)).transpose()?;
     let output_path = output_of(&job.output, translation)?;
 
     let bar = if job.progress { ProgressBar::new(options.spp as u64) } else { ProgressBar::hidden() };
@@ -224,8 +223,8 @@ async fn render_synced(
     };
     bar.finish_and_clear();
     let mut report = report;
-    if options.denoise {
-        denoise_report(&mut report, options.threads as usize)?;
+    if let Some(denoiser) = &denoiser {
+        denoise_report(&mut report, denoiser)?;
     }
     write_outputs(&output_path, &report, &exr_metadata(job, options, translation, &report))?;
     if let FilmMode::Checkpointed { .. } = job.film {
@@ -368,7 +367,7 @@ pub fn merge(parts: &[PathBuf], output: &Path, denoise: bool) -> Result<ExactFil
     let image = merged.resolve(&aovs)?;
     let end = merged.range.end.to_string();
     let (noise, mean_spp) = merged.noise_and_mean_spp().unwrap_or_default();
-    let metadata: Vec<(String, String)> = merged
+    let mut metadata: Vec<(String, String)> = merged
         .metadata
         .iter()
         .filter(|(k, _)| k != "aovs")
@@ -381,9 +380,8 @@ pub fn merge(parts: &[PathBuf], output: &Path, denoise: bool) -> Result<ExactFil
         })
         .collect();
     let mut report = RenderReport { image, ..Default::default() };
-    let mut metadata = metadata;
     if denoise {
-        denoise_report(&mut report, 0)?;
+        denoise_report(&mut report, &crate::denoise::Denoiser::new(0)?)?;
         metadata.extend(denoise_metadata(&report.image));
     }
     write_outputs(output, &report, &metadata)?;
@@ -431,9 +429,9 @@ fn with_denoise_guides(mut o: RenderOptions) -> RenderOptions {
 }
 
 /// Adds the denoised layers to a finished render's image and says what it did.
-pub fn denoise_report(report: &mut RenderReport, threads: usize) -> Result<()> {
+pub fn denoise_report(report: &mut RenderReport, denoiser: &crate::denoise::Denoiser) -> Result<()> {
     let t = Instant::now();
-    let added = crate::denoise::denoise_image(&mut report.image, threads)?;
+    let added = crate::denoise::denoise_image(&mut report.image, denoiser)?;
     eprintln!("denoised {} with Open Image Denoise in {:.0} ms", added.join(", "), t.elapsed().as_secs_f64() * 1e3);
     Ok(())
 }
