@@ -90,6 +90,10 @@ enum Command {
         /// startTimeCode, else 0).
         #[arg(long, conflicts_with = "frames")]
         frame: Option<f64>,
+        /// Refinement level of subdivision surfaces (meshes whose subdivisionScheme is not
+        /// none) that do not name their own: 2^level segments per cage edge; 0 renders cages.
+        #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
+        subdivision_level: u32,
         /// Render a frame range in one process: FIRST-LAST[xSTEP], comma-separated
         /// (`1-240x2`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
         #[arg(long)]
@@ -188,6 +192,9 @@ enum Command {
         /// Time code for animated attributes.
         #[arg(long)]
         frame: Option<f64>,
+        /// As `render --subdivision-level`.
+        #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
+        subdivision_level: u32,
     },
 }
 
@@ -463,14 +470,15 @@ async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing:
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what } => bench(what)?,
-        Command::Inspect { scene, json: _, frame } => {
+        Command::Inspect { scene, json: _, frame, subdivision_level } => {
+            let options = tessera::usd::LoadOptions { frame, subdivision_level };
             // A closed pipe (`| head`) is not an error worth a panic.
-            let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, frame)?);
+            let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, options)?);
         }
         Command::Farm { what } => farm(what).await?,
         Command::Merge { parts, output, denoise } => merge(&parts, &output, denoise)?,
-        Command::Render { scene, explain_plan: true, frame, .. } => {
-            print!("{}", tessera::commands::render::explain_plan(&scene, frame)?);
+        Command::Render { scene, explain_plan: true, frame, subdivision_level, .. } => {
+            print!("{}", tessera::commands::render::explain_plan(&scene, tessera::usd::LoadOptions { frame, subdivision_level })?);
         }
         cmd @ Command::Render { explain_plan: false, .. } => render_command(cmd).await?,
     }
@@ -497,6 +505,7 @@ async fn render_command(cmd: Command) -> Result<()> {
         light_splitting,
         light_split_budget,
         frame,
+        subdivision_level,
         frames,
         alf_progress,
         skip_existing,
@@ -563,7 +572,8 @@ async fn render_command(cmd: Command) -> Result<()> {
         (_, None) => PathBuf::new(),
     };
     let default_light = !no_default_light;
-    let job = RenderJob { scene, output, options, server, progress, frame, default_light, strict, alf_progress: None, film };
+    let job =
+        RenderJob { scene, output, options, server, progress, frame, subdivision_level, default_light, strict, alf_progress: None, film };
     match frames {
         None => render_one(job, alf_progress, skip_existing).await?,
         Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,

@@ -19,5 +19,6 @@ mod light_units;
 mod materials;
 mod preview_surface;
 mod sampling;
+mod subdivision;
 mod textures;
 mod usd;

@@ -58,6 +58,7 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
         server: None,
         progress: false,
         frame: None,
+        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         default_light: true,
         strict: true,
         alf_progress: None,

@@ -50,6 +50,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         server: None,
         progress: false,
         frame: None,
+        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         default_light: true,
         strict: false,
         alf_progress: None,
@@ -79,10 +80,10 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
 
 #[test]
 fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
-    let glass = tessera::commands::render::explain_plan(&fixture("furnace_rough_glass.usda"), None).unwrap();
+    let glass = tessera::commands::render::explain_plan(&fixture("furnace_rough_glass.usda"), Default::default()).unwrap();
     assert!(glass.contains("transmission") && glass.contains("/World/Looks/RoughGlass"), "{glass}");
     assert!(!glass.contains("+ metal"), "{glass}");
-    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda"), None).unwrap();
+    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda"), Default::default()).unwrap();
     assert!(cornell.contains("+ lights") && cornell.contains("/World/Lights/CeilingLight"), "{cornell}");
     assert!(!cornell.contains("+ transmission"), "a scene without glass pays nothing for it: {cornell}");
 }

@@ -27,7 +27,7 @@ async fn layered_coated_and_thin_materials_never_gain_energy_in_the_furnace() {
 /// with the material that calls for it.
 #[test]
 fn showcase_plan_lists_every_effect_by_material() {
-    let plan = tessera::commands::render::explain_plan(&fixture("materials/showcase.usda"), None).unwrap();
+    let plan = tessera::commands::render::explain_plan(&fixture("materials/showcase.usda"), Default::default()).unwrap();
     assert!(!plan.contains("  ! "), "warnings: {plan}");
     for (effect, material) in [
         ("metal", "/World/Looks/Gold"),
@@ -55,7 +55,7 @@ async fn subsurface_with_a_tiny_mean_free_path_looks_like_its_diffuse_colour() {
     let mean = furnace_mean("materials/furnace_subsurface.usda").await;
     println!("subsurface sphere, C = 0.5, mfp = radius/1000: furnace mean {mean}");
     assert!((mean - 0.5).abs() < 0.03, "subsurface sphere renders {mean}, its diffuse counterpart 0.5");
-    let plan = tessera::commands::render::explain_plan(&fixture("materials/furnace_subsurface.usda"), None).unwrap();
+    let plan = tessera::commands::render::explain_plan(&fixture("materials/furnace_subsurface.usda"), Default::default()).unwrap();
     assert!(plan.contains("+ subsurface") && plan.contains("/World/Looks/Skin"), "{plan}");
 }
 
@@ -100,7 +100,7 @@ async fn glitter_never_gains_energy_and_is_planned() {
     let mean = furnace_mean("materials/furnace_glitter.usda").await;
     println!("white glitter over white in the furnace: mean {mean}");
     assert!(mean <= 1.01 && mean > 0.70, "glitter furnace: {mean}");
-    let plan = tessera::commands::render::explain_plan(&fixture("materials/glitter.usda"), None).unwrap();
+    let plan = tessera::commands::render::explain_plan(&fixture("materials/glitter.usda"), Default::default()).unwrap();
     assert!(!plan.contains("  ! "), "warnings: {plan}");
     let line = plan.lines().position(|l| l.contains("+ glitter ")).unwrap_or_else(|| panic!("no glitter: {plan}"));
     assert!(plan.lines().nth(line + 1).unwrap_or_default().contains("/World/Looks/Glitter"), "{plan}");

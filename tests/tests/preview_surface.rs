@@ -95,7 +95,7 @@ async fn presence_lets_its_share_of_rays_through_unbent() {
     assert!((inside[3] - 0.51).abs() < 0.02, "alpha over the sphere {}", inside[3]);
     let outside = ring(&img, "beauty", SPHERE_RADIUS_PX + 2.0, 100.0);
     assert_eq!(outside[3], 0.0);
-    let plan = tessera::commands::render::explain_plan(&fixture("materials/preview/presence.usda"), None).unwrap();
+    let plan = tessera::commands::render::explain_plan(&fixture("materials/preview/presence.usda"), Default::default()).unwrap();
     assert!(plan.contains("+ partial-presence") && !plan.contains("  ! "), "{plan}");
 }
 

@@ -224,14 +224,14 @@ fn light_sampling_reads_textured_emission_where_it_samples() {
 fn the_render_plan_names_the_texture_machinery_a_scene_needs() {
     use tessera::commands::render::explain_plan;
     use tessera_tests::fixture;
-    let wrap = explain_plan(&fixture("textures/wrap_and_orientation.usda"), None).unwrap();
+    let wrap = explain_plan(&fixture("textures/wrap_and_orientation.usda"), Default::default()).unwrap();
     assert!(wrap.contains("+ textures") && wrap.contains("/World/Looks/Plain"), "{wrap}");
     assert!(wrap.contains("- normal-maps") && wrap.contains("- environment-map"), "{wrap}");
-    let bumpy = explain_plan(&fixture("hard/normal_map_furnace.usda"), None).unwrap();
+    let bumpy = explain_plan(&fixture("hard/normal_map_furnace.usda"), Default::default()).unwrap();
     assert!(bumpy.contains("+ normal-maps"), "{bumpy}");
-    let sky = explain_plan(&fixture("textures/dome.usda"), None).unwrap();
+    let sky = explain_plan(&fixture("textures/dome.usda"), Default::default()).unwrap();
     assert!(sky.contains("+ environment-map") && sky.contains("/World/Sky"), "{sky}");
-    let cornell = explain_plan(&fixture("cornell_box.usda"), None).unwrap();
+    let cornell = explain_plan(&fixture("cornell_box.usda"), Default::default()).unwrap();
     assert!(cornell.contains("- textures") && !cornell.contains("+ textures"), "{cornell}");
 }
 

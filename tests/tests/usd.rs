@@ -79,7 +79,8 @@ fn an_independent_reader_agrees_on_every_fixture() {
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
     for (scene, frame) in cases {
-        let ours = tessera::commands::inspect::inspect(&scene, frame).unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
+        let ours = tessera::commands::inspect::inspect(&scene, tessera::usd::LoadOptions { frame, ..Default::default() })
+            .unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
         let theirs = usd_core_reads(&scene, frame);
         for section in ["meshes", "instancers", "lights", "cameras"] {
             let mut found = Vec::new();
@@ -257,6 +258,7 @@ async fn render_settings_supply_camera_and_resolution_and_flags_override_them() 
         server: None,
         progress: false,
         frame: None,
+        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         default_light: true,
         strict: false,
         alf_progress: None,
@@ -380,6 +382,7 @@ async fn render_products_name_the_file_camera_resolution_and_aovs() {
         server: None,
         progress: false,
         frame: None,
+        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         default_light: true,
         strict: false,
         alf_progress: None,

@@ -42,21 +42,24 @@ pub fn to_json(t: &Translation) -> Value {
     let prototypes: std::collections::HashSet<&str> = native.iter().map(|&i| t.instancers[i].1.prototype.as_str()).collect();
     let mut meshes = Map::new();
     for n in &t.native_instances {
-        meshes.insert(
-            n.path.clone(),
-            json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible }),
-        );
+        let mut mesh = json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible });
+        if let Some(s) = t.subdivided.iter().find(|s| s.path == t.instancers[n.instancer].1.prototype) {
+            mesh["subdivision"] = subdivision_json(s);
+        }
+        meshes.insert(n.path.clone(), mesh);
     }
     for (path, m) in t.meshes.iter().filter(|(p, _)| !prototypes.contains(p.as_str())) {
-        meshes.insert(
-            path.clone(),
-            json!({
-                "world": usd_matrix(&m.transform),
-                "triangles": m.mesh.indices.len(),
-                "material": m.material,
-                "visible": m.visible,
-            }),
-        );
+        let mut mesh = json!({
+            "world": usd_matrix(&m.transform),
+            "triangles": m.mesh.indices.len(),
+            "material": m.material,
+            "visible": m.visible,
+        });
+        // GeomSubsets render as meshes of their own, named by the subset under the mesh.
+        if let Some(s) = t.subdivided.iter().find(|s| *path == s.path || path.starts_with(&format!("{}/", s.path))) {
+            mesh["subdivision"] = subdivision_json(s);
+        }
+        meshes.insert(path.clone(), mesh);
     }
     let mut instancers = Map::new();
     for (path, i) in t.instancers.iter().enumerate().filter(|(k, _)| !native.contains(k)).map(|(_, x)| x) {
@@ -114,7 +117,11 @@ pub fn to_json(t: &Translation) -> Value {
     })
 }
 
-/// Reads `scene` at `frame` and returns its JSON description.
-pub fn inspect(scene: &Path, frame: Option<f64>) -> Result<Value> {
-    Ok(to_json(&crate::usd::load_at(scene, frame)?))
+fn subdivision_json(s: &crate::usd::Subdivided) -> Value {
+    json!({ "scheme": s.scheme, "level": s.level, "cageFaces": s.cage_faces })
+}
+
+/// Reads `scene` and returns its JSON description.
+pub fn inspect(scene: &Path, options: crate::usd::LoadOptions) -> Result<Value> {
+    Ok(to_json(&crate::usd::load_with(scene, options)?))
 }

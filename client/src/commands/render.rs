@@ -27,6 +27,8 @@ pub struct RenderJob {
     pub progress: bool,
     /// Time code for animated attributes; `None` for the stage's default.
     pub frame: Option<f64>,
+    /// Refinement level of subdivision surfaces that name none (0: their cages).
+    pub subdivision_level: u32,
     /// Light a scene that has no lights with a white dome (see
     /// [`crate::usd::Translation::add_default_light`]).
     pub default_light: bool,
@@ -79,7 +81,14 @@ impl RenderJob {
     pub fn settings_hash(&self) -> Result<String> {
         let scene = std::fs::read(&self.scene).with_context(|| format!("cannot read {}", self.scene.display()))?;
         let options = RenderOptions { spp: 0, first_sample: 0, stream_film: false, ..self.options.clone() };
-        let asked = format!("{:?}|{:?}|{}|{}", options, self.frame, self.default_light, tessera_wire::content_hash(&scene));
+        let asked = format!(
+            "{:?}|{:?}|{}|{}|{}",
+            options,
+            self.frame,
+            self.default_light,
+            self.subdivision_level,
+            tessera_wire::content_hash(&scene)
+        );
         Ok(tessera_wire::content_hash(asked.as_bytes()))
     }
 
@@ -391,8 +400,9 @@ pub fn merge(parts: &[PathBuf], output: &Path, denoise: bool) -> Result<ExactFil
 /// The stage translated at the job's frame, with a default camera and light where it has
 /// none (each said once), and its warnings and unrendered prims reported.
 async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
-    let (scene, frame) = (job.scene.clone(), job.frame);
-    let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_at(&scene, frame)).await??;
+    let scene = job.scene.clone();
+    let options = crate::usd::LoadOptions { frame: job.frame, subdivision_level: job.subdivision_level };
+    let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_with(&scene, options)).await??;
     if translation.add_default_camera() {
         eprintln!("note: the Z-up stage has no camera; it is framed from -Y with Z up");
     }
@@ -549,8 +559,8 @@ pub fn output_of(given: &Path, translation: &crate::usd::Translation) -> Result<
 /// The render plan of a scene: what the renderer will simulate and which prims call for it,
 /// from the same commit the server performs (`render_core::scene::commit`), plus what the
 /// USD translation could not render.
-pub fn explain_plan(scene: &Path, frame: Option<f64>) -> Result<String> {
-    let translation = crate::usd::load_at(scene, frame)?;
+pub fn explain_plan(scene: &Path, options: crate::usd::LoadOptions) -> Result<String> {
+    let translation = crate::usd::load_with(scene, options)?;
     let committed = render_core::scene::commit(&translation.to_scene_desc(), &mut render_core::scene::BlasCache::default())
         .with_context(|| format!("{}: the scene does not commit", scene.display()))?;
     let mut out = format!("render plan for {}:\n{}", scene.display(), committed.plan);

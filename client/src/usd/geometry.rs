@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 
+use super::subdivision::{self, SubdivTags};
 use super::*;
 
 impl Reader<'_> {
@@ -57,19 +58,107 @@ impl Reader<'_> {
         let counts = values::int_array(&counts).with_context(|| format!("{p}: attribute 'faceVertexCounts' is not an int array"))?;
         let indices = req("faceVertexIndices")?;
         let indices = values::int_array(&indices).with_context(|| format!("{p}: attribute 'faceVertexIndices' is not an int array"))?;
-        let normals = self.normals(prim, p)?;
         let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
-        // UsdGeomMesh's default subdivisionScheme is catmullClark: smooth normals stand in for the limit surface.
-        let smooth = get(prim, "subdivisionScheme", time)?.as_ref().and_then(values::token).is_none_or(|s| s != "none");
+        let tags = self.subdivision_tags(prim, p)?;
+        let normals = self.normals(prim, p)?;
         let face_count = counts.len();
         let uvs = self.uvs(prim, p)?;
         let primvars = self.primvars(prim, p)?;
-        let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth };
+        let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth: tags.scheme != "none" };
         let mut warnings = Vec::new();
+        let (src, cage_face) = self.subdivide(prim, p, src, &tags, &mut warnings)?;
         let (mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        let face_of = match cage_face {
+            Some(cage) => face_of.iter().map(|&f| cage[f as usize]).collect(),
+            None => face_of,
+        };
         self.out.warnings.extend(warnings);
         Ok((mesh, face_of, face_count))
+    }
+
+    /// `src` refined at the mesh's level when its scheme subdivides (with the cage face of each
+    /// refined face), else `src` as it is. A cage OpenSubdiv cannot take (bad crease data, a
+    /// Loop mesh with quads) renders unrefined, with a warning naming the attribute.
+    fn subdivide(
+        &mut self,
+        prim: &Prim,
+        p: &str,
+        src: MeshSource,
+        tags: &SubdivTags,
+        warnings: &mut Vec<String>,
+    ) -> Result<(MeshSource, Option<Vec<u32>>)> {
+        let level = self.refinement_level(prim, p)?;
+        if !tags.is_subdivided() || level == 0 {
+            return Ok((src, None));
+        }
+        // Authored normals are for polygons: UsdGeomMesh says a subdivision surface ignores them.
+        let src = MeshSource { normals: None, ..src };
+        match subdivision::refine(&src, tags, level, |w| warnings.push(format!("{p}: {w}"))) {
+            Ok(r) => {
+                self.out.subdivided.push(Subdivided {
+                    path: p.to_string(),
+                    scheme: tags.scheme.clone(),
+                    level: r.level,
+                    cage_faces: src.counts.len(),
+                });
+                Ok((r.mesh, Some(r.cage_face)))
+            }
+            Err(e) => {
+                warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));
+                Ok((src, None))
+            }
+        }
+    }
+
+    /// The refinement level: the mesh's own (`primvars:tessera:refinementLevel`, else
+    /// `primvars:refinementLevel`, else Arnold's `primvars:arnold:subdiv_iterations`), else the
+    /// render's.
+    fn refinement_level(&self, prim: &Prim, p: &str) -> Result<u32> {
+        for name in ["primvars:tessera:refinementLevel", "primvars:refinementLevel", "primvars:arnold:subdiv_iterations"] {
+            if let Some(v) = get(prim, name, self.time)? {
+                let level = values::scalar(&v).with_context(|| format!("{p}: attribute '{name}' is not a number"))?;
+                anyhow::ensure!(level.is_finite() && level >= 0.0, "{p}: attribute '{name}' is {level}, not a level 0 or more");
+                return Ok((level as u32).min(subdivision::MAX_LEVEL));
+            }
+        }
+        Ok(self.subdivision_level)
+    }
+
+    /// `subdivisionScheme` and the tags that go with it, with USD's fallbacks.
+    fn subdivision_tags(&self, prim: &Prim, p: &str) -> Result<SubdivTags> {
+        let time = self.time;
+        let token = |name: &str, fallback: &str| -> Result<String> {
+            Ok(get(prim, name, time)?.as_ref().and_then(values::token).unwrap_or_else(|| fallback.to_string()))
+        };
+        let ints = |name: &str| -> Result<Vec<i64>> {
+            match get(prim, name, time)? {
+                Some(v) => values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array")),
+                None => Ok(Vec::new()),
+            }
+        };
+        let floats = |name: &str| -> Result<Vec<f32>> {
+            match get(prim, name, time)? {
+                Some(v) => values::float_array(&v).with_context(|| format!("{p}: attribute '{name}' is not a float array")),
+                None => Ok(Vec::new()),
+            }
+        };
+        let tags = SubdivTags {
+            scheme: token("subdivisionScheme", "catmullClark")?,
+            interpolate_boundary: token("interpolateBoundary", "edgeAndCorner")?,
+            face_varying_linear_interpolation: token("faceVaryingLinearInterpolation", "cornersPlus1")?,
+            triangle_subdivision_rule: token("triangleSubdivisionRule", "catmullClark")?,
+            crease_indices: ints("creaseIndices")?,
+            crease_lengths: ints("creaseLengths")?,
+            crease_sharpnesses: floats("creaseSharpnesses")?,
+            corner_indices: ints("cornerIndices")?,
+            corner_sharpnesses: floats("cornerSharpnesses")?,
+            hole_indices: ints("holeIndices")?,
+        };
+        if tags.scheme != "none" && !tags.is_subdivided() {
+            anyhow::bail!("{p}: attribute 'subdivisionScheme' is '{}', not none, catmullClark, loop or bilinear", tags.scheme);
+        }
+        Ok(tags)
     }
 
     /// The mesh's `materialBind` GeomSubsets of faces that carry a material binding, with

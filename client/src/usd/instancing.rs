@@ -29,6 +29,10 @@ impl Reader<'_> {
                 let (mesh, _, _) = self.read_mesh(prim, p)?;
                 let same_prototype = self.native.keys().filter(|(s, _)| s == shared).count();
                 let mesh_path = if same_prototype == 0 { shared.to_string() } else { format!("{shared}[{same_prototype}]") };
+                // Refined once, for every instance: named by the prototype mesh it became.
+                if let Some(s) = self.out.subdivided.last_mut().filter(|s| s.path == p) {
+                    s.path = mesh_path.clone();
+                }
                 let desc = MeshDesc { mesh: Arc::new(mesh), transform: Affine3A::IDENTITY, material: shared_material, visible: false };
                 self.out.meshes.push((mesh_path.clone(), desc));
                 self.out

@@ -18,6 +18,7 @@ mod render_settings;
 mod shading;
 pub mod shapes;
 mod stage;
+pub mod subdivision;
 mod values;
 
 use render_settings::valid_targets;
@@ -74,7 +75,38 @@ pub struct Translation {
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
     /// first one), which supply defaults the command line overrides.
     pub render_settings: Option<RenderSettingsDesc>,
+    /// Meshes rendered as subdivision surfaces, in reading order.
+    pub subdivided: Vec<Subdivided>,
 }
+
+/// A mesh refined as a subdivision surface.
+#[derive(Clone, Debug)]
+pub struct Subdivided {
+    pub path: String,
+    /// `catmullClark`, `loop` or `bilinear`.
+    pub scheme: String,
+    /// The level it was refined at (2^level segments per cage edge).
+    pub level: u32,
+    pub cage_faces: usize,
+}
+
+/// How to read a stage.
+#[derive(Clone, Copy, Debug)]
+pub struct LoadOptions {
+    /// The frame at which to evaluate time samples (by default the stage's start).
+    pub frame: Option<f64>,
+    /// Refinement level of subdivision surfaces whose mesh names none (0 renders cages).
+    pub subdivision_level: u32,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self { frame: None, subdivision_level: DEFAULT_SUBDIVISION_LEVEL }
+    }
+}
+
+/// Level 2 is usdrecord's default ("high" complexity): 16 faces per cage quad.
+pub const DEFAULT_SUBDIVISION_LEVEL: u32 = 2;
 
 /// A mesh under an instanceable prim (an instance proxy), rendered through an instancer.
 #[derive(Clone, Debug)]
@@ -235,6 +267,12 @@ pub fn load(path: &std::path::Path) -> Result<Translation> {
 /// Reads and translates the stage at `path`, evaluating time samples (linearly interpolated)
 /// at `frame`, by default the stage's `startTimeCode` when it authors a range, else 0.
 pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation> {
+    load_with(path, LoadOptions { frame, ..LoadOptions::default() })
+}
+
+/// Reads and translates the stage at `path` as `options` say.
+pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Translation> {
+    let frame = options.frame;
     let _span = tracing::info_span!("usd_load", path = %path.display()).entered();
     let path_str = path.to_str().context("scene path is not valid UTF-8")?;
     if !path.exists() {
@@ -259,6 +297,7 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
         instancer_roots: Vec::new(),
         native: HashMap::new(),
         bindings: HashMap::new(),
+        subdivision_level: options.subdivision_level.min(subdivision::MAX_LEVEL),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -328,4 +367,6 @@ struct Reader<'s> {
     /// Each prim's resolved material binding: a mesh asks for its own and its subsets' several
     /// times (material, texture coordinates, primvars), and a broken binding is reported once.
     bindings: HashMap<String, Option<String>>,
+    /// Refinement level of subdivision surfaces that name none.
+    subdivision_level: u32,
 }
