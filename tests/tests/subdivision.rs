@@ -65,6 +65,19 @@ fn creases_and_corners_shape_the_limit_surface() {
 }
 
 #[test]
+fn the_render_plan_lists_subdivision_with_its_prims() {
+    let plan = tessera::commands::render::explain_plan(&fixture("usd/subdivision.usda"), LoadOptions::default()).unwrap();
+    let line = plan.lines().position(|l| l.starts_with("  + subdivision")).unwrap_or_else(|| panic!("{plan}"));
+    let prims = plan.lines().nth(line + 1).unwrap();
+    assert!(
+        prims.contains("/World/PyramidCreased (catmullClark level 2)") && prims.contains("/World/LoopOctahedron (loop level 2)"),
+        "{prims}"
+    );
+    let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda"), LoadOptions::default()).unwrap();
+    assert!(!cornell.contains("subdivision"), "a scene without subdivision surfaces pays nothing and says nothing");
+}
+
+#[test]
 fn level_zero_renders_the_cages_and_scheme_none_is_never_refined() {
     let cages = load_with(&fixture("usd/subdivision.usda"), LoadOptions { subdivision_level: 0, ..Default::default() }).unwrap();
     assert!(cages.subdivided.is_empty());

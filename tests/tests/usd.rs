@@ -471,3 +471,35 @@ def SphereLight "Hidden" { float inputs:radius = 0.1  bool tessera:visibleToCame
     let seen: Vec<(&str, bool)> = t.lights.iter().map(|(p, l)| (p.as_str(), l.visible_to_camera)).collect();
     assert_eq!(seen, [("/Seen", true), ("/Hidden", false)]);
 }
+
+#[test]
+fn a_z_up_stage_without_a_camera_is_seen_from_above_the_ground_at_an_angle() {
+    let mut t = tessera_tests::load_text(
+        "z_up_ground",
+        r#"#usda 1.0
+(
+    upAxis = "Z"
+)
+def Mesh "Ground" {
+    point3f[] points = [(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)]
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    uniform token subdivisionScheme = "none"
+}
+"#,
+    );
+    assert!(t.add_default_camera());
+    let (_, camera) = &t.cameras[0];
+    // The camera looks down its local −Z: forward dips below the horizon by the elevation,
+    // with no roll (its right stays horizontal) and no turn (it faces +Y, the front view).
+    let forward = -camera.transform.matrix3.z_axis;
+    let dip = (-forward.z).asin().to_degrees();
+    assert!((dip - tessera::usd::Translation::DEFAULT_ELEVATION_DEGREES).abs() < 1e-3, "looks down {dip}°");
+    assert!(forward.y > 0.0 && forward.x.abs() < 1e-6 && camera.transform.matrix3.x_axis.z.abs() < 1e-6);
+    // Every corner of the ground is in front of the camera and inside its view.
+    let half = 0.5 * camera.vertical_aperture / camera.focal_length;
+    for corner in [(-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0)] {
+        let local = camera.transform.inverse().transform_point3(glam::Vec3::new(corner.0, corner.1, 0.0));
+        assert!(local.z < 0.0 && (local.y / -local.z).abs() < half && (local.x / -local.z).abs() < half, "{corner:?} at {local}");
+    }
+}

@@ -196,6 +196,9 @@ async fn render_synced(
                 for p in &s.plan {
                     say(format!("  + {:<16} {}", p.effect, p.reason));
                 }
+                if let Some(subdivision) = translation.subdivision_plan() {
+                    say(subdivision.trim_end().to_string());
+                }
             }
             for w in &s.warnings {
                 say(format!("warning: {w}"));
@@ -404,7 +407,7 @@ async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
     let options = crate::usd::LoadOptions { frame: job.frame, subdivision_level: job.subdivision_level };
     let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_with(&scene, options)).await??;
     if translation.add_default_camera() {
-        eprintln!("note: the Z-up stage has no camera; it is framed from -Y with Z up");
+        eprintln!("note: the Z-up stage has no camera; it is framed from the front (-Y), 25 degrees above the ground, Z up");
     }
     if job.default_light && translation.add_default_light() {
         eprintln!("note: the scene has no lights; it renders under a white dome of radiance 1 (--no-default-light renders it black)");
@@ -503,7 +506,15 @@ fn exr_metadata(
         ("primIdPaths".to_string(), report.started.prim_paths.join("\n")),
         (
             "plan".to_string(),
-            report.started.plan.iter().map(|p| p.effect.as_str()).chain(options.denoise.then_some("denoise")).collect::<Vec<_>>().join(","),
+            report
+                .started
+                .plan
+                .iter()
+                .map(|p| p.effect.as_str())
+                .chain((!translation.subdivided.is_empty()).then_some("subdivision"))
+                .chain(options.denoise.then_some("denoise"))
+                .collect::<Vec<_>>()
+                .join(","),
         ),
     ]
     .into_iter()
@@ -563,7 +574,11 @@ pub fn explain_plan(scene: &Path, options: crate::usd::LoadOptions) -> Result<St
     let translation = crate::usd::load_with(scene, options)?;
     let committed = render_core::scene::commit(&translation.to_scene_desc(), &mut render_core::scene::BlasCache::default())
         .with_context(|| format!("{}: the scene does not commit", scene.display()))?;
-    let mut out = format!("render plan for {}:\n{}", scene.display(), committed.plan);
+    // What the reader did goes with what the renderer does, before what it leaves out.
+    let plan = committed.plan.to_string();
+    let split = plan.find("  - ").unwrap_or(plan.len());
+    let subdivision = translation.subdivision_plan().unwrap_or_default();
+    let mut out = format!("render plan for {}:\n{}{subdivision}{}", scene.display(), &plan[..split], &plan[split..]);
     for w in translation.warnings.iter().chain(&committed.warnings) {
         out += &format!("  ! {w}\n");
     }

@@ -139,8 +139,9 @@ impl Translation {
     pub const DEFAULT_CAMERA: &'static str = "/TesseraDefaultCamera";
 
     /// A Z-up stage without cameras: the renderer's default view (from +Z, Y up) would look
-    /// down on it, so the client frames it as viewers do, from −Y with Z up, the bounding
-    /// sphere filling the default field of view. Returns whether it added one.
+    /// straight down on it, so the client frames it as a viewer's free camera does: from the
+    /// front (−Y) and [`Self::DEFAULT_ELEVATION_DEGREES`] above the ground plane, Z up, the
+    /// bounding sphere filling the default field of view. Returns whether it added one.
     pub fn add_default_camera(&mut self) -> bool {
         if !self.z_up || !self.cameras.is_empty() {
             return false;
@@ -148,6 +149,9 @@ impl Translation {
         self.add_z_up_camera();
         !self.cameras.is_empty()
     }
+
+    /// How far above the ground plane the default view of a Z-up stage looks down.
+    pub const DEFAULT_ELEVATION_DEGREES: f32 = 25.0;
 
     fn add_z_up_camera(&mut self) {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -164,9 +168,12 @@ impl Translation {
         let d = CameraDesc::default();
         let half = (0.5 * d.vertical_aperture / d.focal_length).atan();
         let dist = radius / half.sin();
-        // Camera looks down its local −Z: local +Z points back along −Y, local +Y is world +Z.
-        let rotation = glam::Mat3::from_cols(Vec3::X, Vec3::Z, -Vec3::Y);
-        let transform = Affine3A::from_mat3_translation(rotation, center - Vec3::Y * dist);
+        // Camera looks down its local −Z; local +X stays world +X (no turn about Z), local +Y
+        // leans back from world +Z by the elevation.
+        let elevation = Self::DEFAULT_ELEVATION_DEGREES.to_radians();
+        let back = Vec3::new(0.0, -elevation.cos(), elevation.sin());
+        let rotation = glam::Mat3::from_cols(Vec3::X, back.cross(Vec3::X), back);
+        let transform = Affine3A::from_mat3_translation(rotation, center + back * dist);
         self.cameras.push((Self::DEFAULT_CAMERA.to_string(), CameraDesc { transform, near: (dist - radius).max(1e-3) * 0.5, ..d }));
     }
 
@@ -203,6 +210,29 @@ impl Translation {
                 })
             })
             .collect()
+    }
+
+    /// The render plan's entry for what reading did: the subdivision surfaces refined, in the
+    /// plan's own layout (`None` when there are none). Refinement happens in the reader, so the
+    /// server's plan cannot list it.
+    pub fn subdivision_plan(&self) -> Option<String> {
+        if self.subdivided.is_empty() {
+            return None;
+        }
+        let mut levels: Vec<u32> = self.subdivided.iter().map(|s| s.level).collect();
+        levels.sort_unstable();
+        levels.dedup();
+        let levels = levels.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+        let reason = format!(
+            "limit surfaces of subdivision meshes (OpenSubdiv), 2^level segments per cage edge, level {levels}; --subdivision-level 0 renders cages"
+        );
+        const SHOWN: usize = 12;
+        let mut prims: Vec<String> =
+            self.subdivided.iter().take(SHOWN).map(|s| format!("{} ({} level {})", s.path, s.scheme, s.level)).collect();
+        if self.subdivided.len() > SHOWN {
+            prims.push(format!("and {} more", self.subdivided.len() - SHOWN));
+        }
+        Some(format!("  + {:<18} {reason}\n  {:<20} {}\n", "subdivision", "", prims.join(", ")))
     }
 
     /// Path of the light [`Self::add_default_light`] adds.

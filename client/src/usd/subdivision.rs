@@ -76,15 +76,26 @@ pub struct Refined {
 
 /// Refines `src` by `tags` at `level` (clamped to 1..=[`MAX_LEVEL`]). Errors name the
 /// attribute at fault; warnings (a level lowered, a primvar dropped) go to `warn`.
-pub fn refine(src: &MeshSource, tags: &SubdivTags, level: u32, mut warn: impl FnMut(String)) -> Result<Refined, String> {
+pub fn refine(src: &MeshSource, tags: &SubdivTags, level: u32, warn: impl FnMut(String)) -> Result<Refined, String> {
+    refine_within(src, tags, level, MAX_REFINED_FACES, warn)
+}
+
+/// [`refine`] with a face budget of its own (benchmarks measure past the default one).
+pub fn refine_within(
+    src: &MeshSource,
+    tags: &SubdivTags,
+    level: u32,
+    max_faces: usize,
+    mut warn: impl FnMut(String),
+) -> Result<Refined, String> {
     let cage = Cage::new(src, tags)?;
     let asked = level.clamp(1, MAX_LEVEL);
     let level = (1..=asked)
         .rev()
-        .find(|&l| cage.refined_faces(l) <= MAX_REFINED_FACES)
-        .ok_or_else(|| format!("{} cage faces refine to more than {MAX_REFINED_FACES} faces even at level 1", src.counts.len()))?;
+        .find(|&l| cage.refined_faces(l) <= max_faces)
+        .ok_or_else(|| format!("{} cage faces refine to more than {max_faces} faces even at level 1", src.counts.len()))?;
     if level < asked {
-        warn(format!("refined at level {level}, not {asked}: level {asked} would make more than {MAX_REFINED_FACES} faces"));
+        warn(format!("refined at level {level}, not {asked}: level {asked} would make more than {max_faces} faces"));
     }
     let refiner = build_refiner(src, tags, &cage)?;
     let primvars = Primvars::gather(src, &mut warn);
