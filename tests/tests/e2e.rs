@@ -17,6 +17,7 @@ mod images;
 mod interactive;
 mod light_units;
 mod materials;
+mod materialx;
 mod preview_surface;
 mod sampling;
 mod subdivision;

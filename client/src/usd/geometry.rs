@@ -26,14 +26,7 @@ impl Reader<'_> {
                 claimed[f as usize] = true;
             }
             let part = select_faces(&mesh, &face_of, |f| set.contains(&f));
-            let material = self.bound_material(subset)?;
-            let material = match material {
-                Some(m) => {
-                    self.material(&m)?;
-                    Some(m)
-                }
-                None => None,
-            };
+            let material = self.usable_material(subset)?;
             self.add_mesh_with(prim, subset.path().as_str(), part, visible, material)?;
         }
         let rest = select_faces(&mesh, &face_of, |f| !claimed[f as usize]);
@@ -194,14 +187,16 @@ impl Reader<'_> {
     /// Places a triangulated gprim: its world transform and its material (the bound one,
     /// else a preview surface of its `displayColor`, else the renderer's fallback).
     pub(super) fn add_mesh(&mut self, prim: &Prim, p: &str, mesh: render_core::geometry::Mesh, visible: bool) -> Result<()> {
-        let material = match self.bound_material(prim)? {
-            Some(m) => {
-                self.material(&m)?;
-                Some(m)
-            }
-            None => None,
-        };
+        let material = self.usable_material(prim)?;
         self.add_mesh_with(prim, p, mesh, visible, material)
+    }
+
+    /// The material bound to `prim`, read; `None` when there is none or it cannot be mapped
+    /// (the gprim then shows its displayColor).
+    pub(super) fn usable_material(&mut self, prim: &Prim) -> Result<Option<String>> {
+        let Some(m) = self.bound_material(prim)? else { return Ok(None) };
+        self.material(&m)?;
+        Ok((!self.unmappable.contains(&m)).then_some(m))
     }
 
     /// As [`Self::add_mesh`], with the material already resolved (`None`: the gprim's

@@ -22,6 +22,9 @@ impl Reader<'_> {
         let in_prototype = self.stage.prim(sdf::path(&material)?).prim_in_prototype()?;
         let shared_material = in_prototype.map_or_else(|| material.clone(), |m| m.path().as_str().to_string());
         self.material(&shared_material)?;
+        if self.unmappable.contains(&shared_material) {
+            return Ok(false);
+        }
         let key = (shared.to_string(), shared_material.clone());
         let index = match self.native.get(&key) {
             Some(&i) => i,

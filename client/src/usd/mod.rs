@@ -13,6 +13,7 @@ mod camera;
 mod geometry;
 mod instancing;
 mod lights;
+mod materialx;
 mod mesh;
 mod render_settings;
 mod shading;
@@ -328,6 +329,7 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
         native: HashMap::new(),
         bindings: HashMap::new(),
         subdivision_level: options.subdivision_level.min(subdivision::MAX_LEVEL),
+        unmappable: std::collections::HashSet::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -399,4 +401,6 @@ struct Reader<'s> {
     bindings: HashMap<String, Option<String>>,
     /// Refinement level of subdivision surfaces that name none.
     subdivision_level: u32,
+    /// Materials whose surface shader has no mapping: their meshes show displayColor.
+    unmappable: std::collections::HashSet<String>,
 }

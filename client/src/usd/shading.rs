@@ -2,6 +2,7 @@
 
 use anyhow::Result;
 
+use super::materialx;
 use super::*;
 
 pub(super) fn param(v: &Value) -> Option<ParamValue> {
@@ -91,6 +92,14 @@ impl Reader<'_> {
                 let node = self.shader_node(&node_path, &mut network.connections, &mut stack)?;
                 network.nodes.push(node);
             }
+        }
+        if materialx::is_materialx(&network)
+            && let Err(e) = materialx::translate(&mut network, &mut self.out.warnings)
+        {
+            // Meshes bound to it show their displayColor instead (geometry.rs asks).
+            self.out.warnings.push(format!("{e}; meshes bound to {path} show their displayColor"));
+            self.unmappable.insert(path.to_string());
+            return Ok(());
         }
         self.out.materials.push((path.to_string(), network));
         Ok(())

@@ -1,0 +1,473 @@
+//! MaterialX networks in their UsdShade form (`outputs:mtlx:surface`, shader ids `ND_…`), as
+//! Blender, Houdini and the USD-WG assets write them, rewritten onto the shaders the renderer
+//! knows. The surface node — Autodesk Standard Surface, OpenPBR Surface or MaterialX's
+//! UsdPreviewSurface — becomes a `UsdPreviewSurface` when that expresses it (diffuse,
+//! metal, dielectric specular, coat, emission, opacity, normal map), else a
+//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight).
+//!
+//! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
+//! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
+//! texture among the operands, sRGB decoding, `dot` and `convert` pass-throughs, and
+//! `normalmap`. Anything else is reported by node path and id, and the input keeps its default.
+//! The parameter table is in `docs/materials.md` ("MaterialX").
+
+use std::collections::BTreeMap;
+
+use glam::{Vec3, Vec4};
+use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+
+/// The surface shaders this module maps.
+const STANDARD_SURFACE: &str = "ND_standard_surface_surfaceshader";
+const OPEN_PBR: &str = "ND_open_pbr_surface_surfaceshader";
+const PREVIEW: &str = "ND_UsdPreviewSurface_surfaceshader";
+
+/// Longest upstream chain followed from one input (deeper is a cycle or a generated graph).
+const MAX_DEPTH: usize = 64;
+
+/// Whether the network's surface is a MaterialX node (and so needs [`translate`]).
+pub fn is_materialx(net: &MaterialNetwork) -> bool {
+    net.nodes.iter().any(|n| n.path == net.surface_node && n.node_type_id.starts_with("ND_"))
+}
+
+/// Rewrites a MaterialX network in place. `Err` names a surface shader no mapping exists for
+/// (the caller falls back to the gprim's displayColor). Unsupported nodes upstream are
+/// warnings naming each node once.
+pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Result<(), String> {
+    let surface = net.nodes.iter().find(|n| n.path == net.surface_node).cloned().ok_or("no surface node")?;
+    let graph = Graph { net, warned: std::cell::RefCell::new(Vec::new()) };
+    let inputs = match surface.node_type_id.as_str() {
+        STANDARD_SURFACE => standard_surface(&graph, &surface.path),
+        OPEN_PBR => open_pbr(&graph, &surface.path),
+        PREVIEW => preview(&graph, &surface.path),
+        other => {
+            return Err(format!(
+                "{}: MaterialX surface '{other}' is not supported (standard_surface, open_pbr_surface and UsdPreviewSurface are)",
+                surface.path
+            ));
+        }
+    };
+    warnings.extend(graph.warned.take());
+    *net = emit(&surface.path, inputs, net, warnings);
+    Ok(())
+}
+
+/// A value as the network computes it: `scale · texture + bias`, per component (floats in x).
+#[derive(Clone, Debug, PartialEq)]
+struct Lin {
+    texture: Option<Texture>,
+    scale: Vec4,
+    bias: Vec4,
+}
+
+/// An image node read through, and whether its texels are sRGB-encoded.
+#[derive(Clone, Debug, PartialEq)]
+struct Texture {
+    node: String,
+    srgb: bool,
+}
+
+impl Lin {
+    fn constant(v: Vec4) -> Self {
+        Lin { texture: None, scale: Vec4::ONE, bias: v }
+    }
+    fn value(&self) -> Option<Vec4> {
+        self.texture.is_none().then_some(self.bias)
+    }
+    fn times(self, k: Vec4) -> Self {
+        Lin { scale: self.scale * k, bias: self.bias * k, ..self }
+    }
+    fn mul(a: Lin, b: Lin) -> Option<Lin> {
+        match (a.value(), b.value()) {
+            (_, Some(k)) => Some(a.times(k)),
+            (Some(k), None) => Some(b.times(k)),
+            (None, None) => None,
+        }
+    }
+    fn add(a: Lin, b: Lin) -> Option<Lin> {
+        match (&a.texture, &b.texture) {
+            (Some(_), Some(_)) => None,
+            (_, None) => Some(Lin { bias: a.bias + b.bias, ..a }),
+            (None, _) => Some(Lin { bias: a.bias + b.bias, ..b }),
+        }
+    }
+}
+
+/// The MaterialX inputs a surface input is computed from.
+struct Graph<'n> {
+    net: &'n MaterialNetwork,
+    warned: std::cell::RefCell<Vec<String>>,
+}
+
+impl Graph<'_> {
+    fn node(&self, path: &str) -> Option<&MaterialNode> {
+        self.net.nodes.iter().find(|n| n.path == path)
+    }
+
+    /// `node.input`: its connection followed, else its authored value, else `default`.
+    fn input(&self, node: &str, input: &str, default: Vec4, depth: usize) -> Option<Lin> {
+        if let Some(c) = self.net.connections.iter().find(|c| c.downstream_node == node && c.downstream_input == input) {
+            return self.output(&c.upstream_node, depth + 1);
+        }
+        Some(match self.node(node).and_then(|n| n.parameters.get(input)) {
+            Some(v) => Lin::constant(vec4_of(v).unwrap_or(default)),
+            None => Lin::constant(default),
+        })
+    }
+
+    /// The output of `path`, folded; `None` (reported) where it cannot be.
+    fn output(&self, path: &str, depth: usize) -> Option<Lin> {
+        let node = self.node(path)?;
+        let id = node.node_type_id.as_str();
+        if depth > MAX_DEPTH {
+            return self.unsupported(path, id, "the graph is deeper than 64 nodes");
+        }
+        let input = |name: &str, default: f32| self.input(path, name, Vec4::splat(default), depth);
+        let family = id.strip_prefix("ND_").unwrap_or(id);
+        let kind = family.split('_').next().unwrap_or("");
+        match kind {
+            "constant" => input("value", 0.0),
+            "image" | "tiledimage" => {
+                if kind == "tiledimage" && node.parameters.get("uvtiling").is_some_and(|t| *t != ParamValue::Float2(glam::Vec2::ONE)) {
+                    self.unsupported(path, id, "uvtiling other than (1, 1)");
+                }
+                Some(Lin { texture: Some(Texture { node: path.to_string(), srgb: false }), scale: Vec4::ONE, bias: Vec4::ZERO })
+            }
+            "multiply" => Lin::mul(input("in1", 1.0)?, input("in2", 1.0)?).or_else(|| self.unsupported(path, id, "two textures")),
+            "add" => Lin::add(input("in1", 0.0)?, input("in2", 0.0)?).or_else(|| self.unsupported(path, id, "two textures")),
+            "subtract" => Lin::add(input("in1", 0.0)?, input("in2", 0.0)?.times(Vec4::splat(-1.0)))
+                .or_else(|| self.unsupported(path, id, "two textures")),
+            "mix" => {
+                let Some(m) = input("mix", 0.0)?.value() else {
+                    return self.unsupported(path, id, "a textured mix amount");
+                };
+                Lin::add(input("fg", 0.0)?.times(m), input("bg", 0.0)?.times(Vec4::ONE - m))
+                    .or_else(|| self.unsupported(path, id, "two textures"))
+            }
+            "dot" | "convert" => input("in", 0.0),
+            "srgb" if family.starts_with("srgb_texture_to_lin_rec709") => {
+                let x = input("in", 0.0)?;
+                match (&x.texture, x.value()) {
+                    (None, Some(v)) => Some(Lin::constant(srgb_to_linear(v))),
+                    (Some(t), _) if x.scale == Vec4::ONE && x.bias == Vec4::ZERO => {
+                        Some(Lin { texture: Some(Texture { srgb: true, ..t.clone() }), ..x })
+                    }
+                    _ => self.unsupported(path, id, "sRGB decoding of a scaled texture"),
+                }
+            }
+            _ => self.unsupported(path, id, "no mapping"),
+        }
+    }
+
+    fn unsupported(&self, path: &str, id: &str, why: &str) -> Option<Lin> {
+        let w = format!("{path}: MaterialX node '{id}' is not supported ({why}); the input it feeds keeps its default");
+        let mut warned = self.warned.borrow_mut();
+        if !warned.contains(&w) {
+            warned.push(w);
+        }
+        None
+    }
+
+    /// A surface input: its folded value, or `default` when it cannot be folded.
+    fn get(&self, surface: &str, name: &str, default: f32) -> Lin {
+        self.input(surface, name, Vec4::splat(default), 0).unwrap_or(Lin::constant(Vec4::splat(default)))
+    }
+
+    fn get3(&self, surface: &str, name: &str, default: Vec3) -> Lin {
+        self.input(surface, name, default.extend(1.0), 0).unwrap_or(Lin::constant(default.extend(1.0)))
+    }
+
+    /// A `normalmap` node's tangent-space normal (its image decoded as 2·t − 1), when the
+    /// surface's `input` is connected to one.
+    fn normal_map(&self, surface: &str, input: &str) -> Option<Lin> {
+        let c = self.net.connections.iter().find(|c| c.downstream_node == surface && c.downstream_input == input)?;
+        let node = self.node(&c.upstream_node)?;
+        if !node.node_type_id.starts_with("ND_normalmap") {
+            return self.output(&c.upstream_node, 1).filter(|l| l.texture.is_some());
+        }
+        let image = self.input(&node.path, "in", Vec4::new(0.5, 0.5, 1.0, 1.0), 1)?;
+        let scale = self.input(&node.path, "scale", Vec4::ONE, 1)?.value().unwrap_or(Vec4::ONE).x;
+        // n = 2·texel − 1, with x and y scaled by the node's `scale`.
+        let k = Vec4::new(2.0 * scale, 2.0 * scale, 2.0, 1.0);
+        let mut n = image.times(k);
+        n.bias -= Vec4::new(scale, scale, 1.0, 0.0);
+        Some(n)
+    }
+}
+
+/// What a surface asks of the target shader: its id and inputs, each a folded value and
+/// whether it is a colour.
+struct Inputs {
+    id: &'static str,
+    values: Vec<(&'static str, Lin, bool)>,
+}
+
+/// Autodesk Standard Surface 1.0.1 (defaults from its specification).
+fn standard_surface(g: &Graph, s: &str) -> Inputs {
+    let base = Lin::mul(g.get(s, "base", 0.8), g.get3(s, "base_color", Vec3::ONE)).unwrap_or(Lin::constant(Vec4::splat(0.8)));
+    let emission = Lin::mul(g.get(s, "emission", 0.0), g.get3(s, "emission_color", Vec3::ONE)).unwrap_or(Lin::constant(Vec4::ZERO));
+    let opacity = g.get3(s, "opacity", Vec3::ONE);
+    let opacity = Lin::constant(Vec4::splat(opacity.value().map_or(1.0, |o| (o.x + o.y + o.z) / 3.0)));
+    let lobes = Lobes {
+        base,
+        metalness: g.get(s, "metalness", 0.0),
+        specular_weight: g.get(s, "specular", 1.0),
+        roughness: g.get(s, "specular_roughness", 0.2),
+        ior: g.get(s, "specular_IOR", 1.5),
+        anisotropy: g.get(s, "specular_anisotropy", 0.0),
+        transmission: g.get(s, "transmission", 0.0),
+        transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
+        coat: g.get(s, "coat", 0.0),
+        coat_roughness: g.get(s, "coat_roughness", 0.1),
+        sheen: g.get(s, "sheen", 0.0),
+        subsurface: g.get(s, "subsurface", 0.0),
+        thin: g.get(s, "thin_walled", 0.0),
+        emission,
+        opacity,
+        normal: g.normal_map(s, "normal"),
+    };
+    lobes.inputs(s, &mut g.warned.borrow_mut())
+}
+
+/// OpenPBR Surface 1.1 (defaults from its specification). Emission luminance is taken as the
+/// radiance scale, as UsdLux intensities are.
+fn open_pbr(g: &Graph, s: &str) -> Inputs {
+    let base = Lin::mul(g.get(s, "base_weight", 1.0), g.get3(s, "base_color", Vec3::splat(0.8))).unwrap_or(Lin::constant(Vec4::splat(0.8)));
+    let emission =
+        Lin::mul(g.get(s, "emission_luminance", 0.0), g.get3(s, "emission_color", Vec3::ONE)).unwrap_or(Lin::constant(Vec4::ZERO));
+    let lobes = Lobes {
+        base,
+        metalness: g.get(s, "base_metalness", 0.0),
+        specular_weight: g.get(s, "specular_weight", 1.0),
+        roughness: g.get(s, "specular_roughness", 0.3),
+        ior: g.get(s, "specular_ior", 1.5),
+        anisotropy: g.get(s, "specular_roughness_anisotropy", 0.0),
+        transmission: g.get(s, "transmission_weight", 0.0),
+        transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
+        coat: g.get(s, "coat_weight", 0.0),
+        coat_roughness: g.get(s, "coat_roughness", 0.0),
+        sheen: g.get(s, "fuzz_weight", 0.0),
+        subsurface: g.get(s, "subsurface_weight", 0.0),
+        thin: g.get(s, "geometry_thin_walled", 0.0),
+        emission,
+        opacity: g.get(s, "geometry_opacity", 1.0),
+        normal: g.normal_map(s, "geometry_normal"),
+    };
+    lobes.inputs(s, &mut g.warned.borrow_mut())
+}
+
+/// MaterialX's UsdPreviewSurface node: the same inputs as the USD shader.
+fn preview(g: &Graph, s: &str) -> Inputs {
+    let colors = [("diffuseColor", Vec3::splat(0.18)), ("emissiveColor", Vec3::ZERO), ("specularColor", Vec3::ZERO)];
+    let floats = [
+        ("metallic", 0.0),
+        ("roughness", 0.5),
+        ("clearcoat", 0.0),
+        ("clearcoatRoughness", 0.01),
+        ("opacity", 1.0),
+        ("opacityThreshold", 0.0),
+        ("ior", 1.5),
+        ("useSpecularWorkflow", 0.0),
+    ];
+    let mut values: Vec<(&'static str, Lin, bool)> = colors.iter().map(|&(n, d)| (n, g.get3(s, n, d), true)).collect();
+    values.extend(floats.iter().map(|&(n, d)| (n, g.get(s, n, d), false)));
+    if let Some(n) = g.normal_map(s, "normal") {
+        values.push(("normal", n, true));
+    }
+    Inputs { id: "UsdPreviewSurface", values }
+}
+
+/// The lobes Standard Surface and OpenPBR share, by their meaning.
+struct Lobes {
+    base: Lin,
+    metalness: Lin,
+    specular_weight: Lin,
+    roughness: Lin,
+    ior: Lin,
+    anisotropy: Lin,
+    transmission: Lin,
+    transmission_color: Lin,
+    coat: Lin,
+    coat_roughness: Lin,
+    sheen: Lin,
+    subsurface: Lin,
+    thin: Lin,
+    emission: Lin,
+    opacity: Lin,
+    normal: Option<Lin>,
+}
+
+impl Lobes {
+    /// UsdPreviewSurface when it can say everything; `tessera:Principled` otherwise.
+    fn inputs(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
+        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
+        if !zero(&self.subsurface, 0.0) {
+            warnings.push(format!("{surface}: subsurface is rendered as diffuse reflection (not mapped yet)"));
+        }
+        let principled = !zero(&self.transmission, 0.0)
+            || !zero(&self.sheen, 0.0)
+            || !zero(&self.anisotropy, 0.0)
+            || !zero(&self.thin, 0.0)
+            || !zero(&self.specular_weight, 1.0);
+        if !principled {
+            let mut values = vec![
+                ("diffuseColor", self.base, true),
+                ("metallic", self.metalness, false),
+                ("roughness", self.roughness, false),
+                ("ior", self.ior, false),
+                ("clearcoat", self.coat, false),
+                ("clearcoatRoughness", self.coat_roughness, false),
+                ("emissiveColor", self.emission, true),
+                ("opacity", self.opacity, false),
+            ];
+            if let Some(n) = self.normal {
+                values.push(("normal", n, true));
+            }
+            return Inputs { id: "UsdPreviewSurface", values };
+        }
+        if self.normal.is_some() {
+            warnings.push(format!("{surface}: its normal map is not applied (tessera:Principled takes none yet)"));
+        }
+        // Disney's specular is F0 / 0.08; the MaterialX specular weight scales F0.
+        let f0 = |ior: f32| ((ior - 1.0) / (ior + 1.0)).powi(2);
+        let ior = self.ior.value().map_or(1.5, |v| v.x);
+        let specular = self.specular_weight.value().map_or(1.0, |w| w.x) * f0(ior) / 0.08;
+        let gloss = Lin::constant(Vec4::splat(1.0 - self.coat_roughness.value().map_or(0.0, |r| r.x)));
+        let thin = self.thin.value().is_some_and(|t| t.x > 0.5);
+        // Disney tints transmission by the base colour; MaterialX by its own transmission
+        // colour: blend the two by the transmission weight (a textured weight keeps the base).
+        let base = match self.transmission.value() {
+            Some(t) => Lin::add(self.base.clone().times(Vec4::ONE - t), self.transmission_color.times(t)).unwrap_or(self.base),
+            None => self.base,
+        };
+        let values = vec![
+            ("baseColor", base, true),
+            ("metallic", self.metalness, false),
+            ("roughness", self.roughness, false),
+            ("ior", self.ior, false),
+            ("specular", Lin::constant(Vec4::splat(specular.clamp(0.0, 1.0))), false),
+            ("specTrans", self.transmission, false),
+            ("clearcoat", self.coat, false),
+            ("clearcoatGloss", gloss, false),
+            ("sheen", self.sheen, false),
+            ("anisotropic", self.anisotropy, false),
+            ("emission", self.emission, true),
+            ("thin", Lin::constant(Vec4::splat(if thin { 1.0 } else { 0.0 })), false),
+        ];
+        Inputs { id: "tessera:Principled", values }
+    }
+}
+
+/// The rewritten network: the surface node with constant inputs as parameters, and one
+/// `UsdUVTexture` (fed by a `UsdPrimvarReader_float2`) per textured input.
+fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec<String>) -> MaterialNetwork {
+    let mut net = MaterialNetwork { surface_node: surface.to_string(), ..Default::default() };
+    let mut params = BTreeMap::new();
+    for (name, lin, color) in inputs.values {
+        let Some(texture) = &lin.texture else {
+            let v = lin.bias;
+            let p = match (name, color) {
+                ("thin", _) => ParamValue::Bool(v.x > 0.5),
+                ("useSpecularWorkflow", _) => ParamValue::Int(v.x as i32),
+                (_, true) => ParamValue::Float3(v.truncate()),
+                (_, false) => ParamValue::Float(v.x),
+            };
+            params.insert(name.to_string(), p);
+            continue;
+        };
+        let Some(image) = old.nodes.iter().find(|n| n.path == texture.node) else { continue };
+        let tex_path = format!("{}_{name}", texture.node);
+        net.nodes.push(uv_texture(&tex_path, image, &lin, texture.srgb, name == "normal"));
+        net.connections.push(MaterialConnection {
+            downstream_node: surface.to_string(),
+            downstream_input: name.to_string(),
+            upstream_node: tex_path.clone(),
+            upstream_output: if color { "rgb" } else { "r" }.to_string(),
+        });
+        net.nodes.push(texcoord_reader(&tex_path, image, old, &mut net.connections, warnings));
+    }
+    net.nodes.push(MaterialNode { path: surface.to_string(), node_type_id: inputs.id.to_string(), parameters: params });
+    net
+}
+
+/// A `UsdUVTexture` for `image`, with the folded scale and bias.
+fn uv_texture(path: &str, image: &MaterialNode, lin: &Lin, srgb: bool, normal: bool) -> MaterialNode {
+    let mut p = BTreeMap::new();
+    if let Some(file) = image.parameters.get("file") {
+        p.insert("file".to_string(), file.clone());
+    }
+    if let Some(fallback) = image.parameters.get("default").and_then(vec4_of) {
+        p.insert("fallback".to_string(), ParamValue::Float4(fallback));
+    }
+    for (mx, usd) in [("uaddressmode", "wrapS"), ("vaddressmode", "wrapT")] {
+        let mode = match image.parameters.get(mx) {
+            Some(ParamValue::String(m)) if m == "clamp" => "clamp",
+            Some(ParamValue::String(m)) if m == "mirror" => "mirror",
+            Some(ParamValue::String(m)) if m == "constant" => "black",
+            _ => "repeat",
+        };
+        p.insert(usd.to_string(), ParamValue::String(mode.into()));
+    }
+    // Normal maps and data are raw; colour images decode sRGB when asked, else by their bit depth.
+    let space = if normal {
+        "raw"
+    } else if srgb {
+        "sRGB"
+    } else {
+        "auto"
+    };
+    p.insert("sourceColorSpace".to_string(), ParamValue::String(space.into()));
+    p.insert("scale".to_string(), ParamValue::Float4(lin.scale));
+    p.insert("bias".to_string(), ParamValue::Float4(lin.bias));
+    MaterialNode { path: path.to_string(), node_type_id: "UsdUVTexture".into(), parameters: p }
+}
+
+/// The primvar reader for an image's `texcoord`: the primvar a `geompropvalue` names, else
+/// `st` (MaterialX's default texture coordinates, UV set 0).
+fn texcoord_reader(
+    texture: &str,
+    image: &MaterialNode,
+    old: &MaterialNetwork,
+    connections: &mut Vec<MaterialConnection>,
+    warnings: &mut Vec<String>,
+) -> MaterialNode {
+    let upstream = old.connections.iter().find(|c| c.downstream_node == image.path && c.downstream_input == "texcoord");
+    let varname = match upstream.and_then(|c| old.nodes.iter().find(|n| n.path == c.upstream_node)) {
+        Some(n) if n.node_type_id.starts_with("ND_geompropvalue") => match n.parameters.get("geomprop") {
+            Some(ParamValue::String(name)) => name.clone(),
+            _ => "st".into(),
+        },
+        Some(n) if n.node_type_id.starts_with("ND_texcoord") => "st".into(),
+        Some(n) => {
+            warnings.push(format!("{}: MaterialX node '{}' as texture coordinates is not supported; st is used", n.path, n.node_type_id));
+            "st".into()
+        }
+        None => "st".into(),
+    };
+    let path = format!("{texture}_st");
+    connections.push(MaterialConnection {
+        downstream_node: texture.to_string(),
+        downstream_input: "st".into(),
+        upstream_node: path.clone(),
+        upstream_output: "result".into(),
+    });
+    let parameters = BTreeMap::from([("varname".to_string(), ParamValue::String(varname))]);
+    MaterialNode { path, node_type_id: "UsdPrimvarReader_float2".into(), parameters }
+}
+
+fn vec4_of(v: &ParamValue) -> Option<Vec4> {
+    Some(match v {
+        ParamValue::Float(x) => Vec4::splat(*x),
+        ParamValue::Int(i) => Vec4::splat(*i as f32),
+        ParamValue::Bool(b) => Vec4::splat(if *b { 1.0 } else { 0.0 }),
+        ParamValue::Float2(v) => Vec4::new(v.x, v.y, 0.0, 1.0),
+        ParamValue::Float3(v) => v.extend(1.0),
+        ParamValue::Float4(v) => *v,
+        _ => return None,
+    })
+}
+
+/// The sRGB transfer function's inverse, per component (IEC 61966-2-1).
+fn srgb_to_linear(v: Vec4) -> Vec4 {
+    let f = |c: f32| if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) };
+    Vec4::new(f(v.x), f(v.y), f(v.z), v.w)
+}

@@ -1,0 +1,210 @@
+//! MaterialX networks in their UsdShade form: Standard Surface, OpenPBR Surface and
+//! MaterialX's UsdPreviewSurface mapped onto the renderer's shaders, with their texture nodes.
+
+use render_core::material::{MaterialNetwork, ParamValue};
+use tessera_tests::*;
+
+/// A stage: a unit sphere bound to a Material whose `outputs:mtlx:surface` is a shader of
+/// `id` with `inputs` (USD text), `extra` shader prims beside it, in a unit white dome, seen
+/// from 4 units away.
+fn stage(id: &str, inputs: &str, extra: &str) -> String {
+    format!(
+        r#"#usda 1.0
+def Sphere "Ball" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+) {{
+    color3f[] primvars:displayColor = [(0.1, 0.7, 0.2)]
+    rel material:binding = </Looks/M>
+}}
+def Scope "Looks" {{
+    def Material "M" {{
+        token outputs:mtlx:surface.connect = </Looks/M/Surface.outputs:out>
+        def Shader "Surface" {{
+            uniform token info:id = "{id}"
+            {inputs}
+            token outputs:out
+        }}
+        {extra}
+    }}
+}}
+def DomeLight "Dome" {{
+    float inputs:intensity = 1
+}}
+def Camera "Camera" {{
+    float focalLength = 50
+    float horizontalAperture = 36
+    float verticalAperture = 36
+    double3 xformOp:translate = (0, 0, 4)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+"#
+    )
+}
+
+fn network(t: &tessera::usd::Translation) -> &MaterialNetwork {
+    &t.materials.iter().find(|(p, _)| p == "/Looks/M").expect("the material is read").1
+}
+
+fn surface_param<'a>(net: &'a MaterialNetwork, name: &str) -> Option<&'a ParamValue> {
+    net.nodes.iter().find(|n| n.path == net.surface_node).and_then(|n| n.parameters.get(name))
+}
+
+#[test]
+fn standard_surface_maps_onto_usd_preview_surface_by_meaning() {
+    let t = load_text(
+        "mtlx_standard",
+        &stage(
+            "ND_standard_surface_surfaceshader",
+            "float inputs:base = 0.5\n color3f inputs:base_color = (0.2, 0.4, 0.6)\n float inputs:metalness = 0.3\n float inputs:specular_roughness = 0.25\n float inputs:coat = 0.5\n float inputs:emission = 2\n color3f inputs:emission_color = (1, 0.5, 0)",
+            "",
+        ),
+    );
+    let net = network(&t);
+    let surface = net.nodes.iter().find(|n| n.path == net.surface_node).unwrap();
+    assert_eq!(surface.node_type_id, "UsdPreviewSurface");
+    // diffuse = base · base_color; emission = emission · emission_color; the rest by name.
+    assert_eq!(surface_param(net, "diffuseColor"), Some(&ParamValue::Float3(glam::Vec3::new(0.1, 0.2, 0.3))));
+    assert_eq!(surface_param(net, "emissiveColor"), Some(&ParamValue::Float3(glam::Vec3::new(2.0, 1.0, 0.0))));
+    assert_eq!(surface_param(net, "metallic"), Some(&ParamValue::Float(0.3)));
+    assert_eq!(surface_param(net, "roughness"), Some(&ParamValue::Float(0.25)));
+    assert_eq!(surface_param(net, "clearcoat"), Some(&ParamValue::Float(0.5)));
+    // Standard Surface's own default coat roughness (0.1), not UsdPreviewSurface's.
+    assert_eq!(surface_param(net, "clearcoatRoughness"), Some(&ParamValue::Float(0.1)));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+}
+
+#[test]
+fn open_pbr_textures_fold_constants_into_scale_and_bias() {
+    // base_color = mix(image · 0.5, constant 0.2, mix 0.25) = 0.125 · image + 0.15, read
+    // through a texcoord node; anisotropy makes it a tessera:Principled.
+    let extra = r#"
+        def Shader "Image" {
+            uniform token info:id = "ND_image_color3"
+            asset inputs:file = @missing.png@
+            color3f inputs:default = (0.5, 0.5, 0.5)
+            string inputs:uaddressmode = "clamp"
+            float2 inputs:texcoord.connect = </Looks/M/Uv.outputs:out>
+            color3f outputs:out
+        }
+        def Shader "Uv" {
+            uniform token info:id = "ND_texcoord_vector2"
+            float2 outputs:out
+        }
+        def Shader "Half" {
+            uniform token info:id = "ND_multiply_color3FA"
+            color3f inputs:in1.connect = </Looks/M/Image.outputs:out>
+            float inputs:in2 = 0.5
+            color3f outputs:out
+        }
+        def Shader "Grey" {
+            uniform token info:id = "ND_constant_color3"
+            color3f inputs:value = (0.2, 0.2, 0.2)
+            color3f outputs:out
+        }
+        def Shader "Mix" {
+            uniform token info:id = "ND_mix_color3"
+            color3f inputs:fg.connect = </Looks/M/Half.outputs:out>
+            color3f inputs:bg.connect = </Looks/M/Grey.outputs:out>
+            float inputs:mix = 0.25
+            color3f outputs:out
+        }
+        def Shader "Noise" {
+            uniform token info:id = "ND_noise3d_float"
+            float outputs:out
+        }"#;
+    let t = load_text(
+        "mtlx_open_pbr",
+        &stage(
+            "ND_open_pbr_surface_surfaceshader",
+            "color3f inputs:base_color.connect = </Looks/M/Mix.outputs:out>\n float inputs:specular_roughness_anisotropy = 0.5\n float inputs:specular_roughness.connect = </Looks/M/Noise.outputs:out>",
+            extra,
+        ),
+    );
+    let net = network(&t);
+    let surface = net.nodes.iter().find(|n| n.path == net.surface_node).unwrap();
+    assert_eq!(surface.node_type_id, "tessera:Principled");
+    assert_eq!(surface_param(net, "anisotropic"), Some(&ParamValue::Float(0.5)));
+    let c = net.connections.iter().find(|c| c.downstream_input == "baseColor").expect("baseColor is textured");
+    assert_eq!(c.upstream_output, "rgb");
+    let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
+    assert_eq!(tex.node_type_id, "UsdUVTexture");
+    assert_eq!(tex.parameters.get("scale"), Some(&ParamValue::Float4(glam::Vec4::new(0.125, 0.125, 0.125, 0.125))));
+    let bias = match tex.parameters.get("bias") {
+        Some(ParamValue::Float4(b)) => *b,
+        other => panic!("{other:?}"),
+    };
+    assert!((bias.truncate() - glam::Vec3::splat(0.15)).length() < 1e-6, "{bias}");
+    assert_eq!(tex.parameters.get("wrapS"), Some(&ParamValue::String("clamp".into())));
+    assert!(net.connections.iter().any(|k| k.downstream_node == tex.path && k.downstream_input == "st"), "read through st");
+    // The noise is not mapped: said once, by node path, and roughness keeps OpenPBR's 0.3.
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Noise") && w.contains("ND_noise3d_float")).count(), 1, "{:?}", t.warnings);
+    assert_eq!(surface_param(net, "roughness"), Some(&ParamValue::Float(0.3)));
+}
+
+#[test]
+fn an_unmappable_surface_falls_back_to_display_color_said_once() {
+    let t = load_text("mtlx_unknown", &stage("ND_gooch_surfaceshader", "", ""));
+    let warnings: Vec<_> = t.warnings.iter().filter(|w| w.contains("ND_gooch_surfaceshader")).collect();
+    assert_eq!(warnings.len(), 1, "{:?}", t.warnings);
+    assert!(warnings[0].contains("displayColor"));
+    let (_, ball) = t.meshes.iter().find(|(p, _)| p == "/Ball").unwrap();
+    assert_ne!(ball.material, "/Looks/M");
+    let (_, shown) = t.materials.iter().find(|(p, _)| *p == ball.material).expect("a displayColor material");
+    assert_eq!(surface_param(shown, "diffuseColor"), Some(&ParamValue::Float3(glam::Vec3::new(0.1, 0.7, 0.2))));
+}
+
+/// Mean radiance of the sphere in the unit white dome.
+async fn furnace(id: &str, inputs: &str) -> f64 {
+    let t = load_text("mtlx_furnace", &stage(id, inputs, ""));
+    let (server, mut conn) = session_with(&t).await;
+    // Deep paths, as tests/tests/energy.rs: light crosses a glass sphere many times.
+    let opts = tessera::remote::RenderOptions { max_depth: 64, ..small(48, 48, 64) };
+    let report = conn.render(&opts, |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    let img = &report.image;
+    assert_all_finite(img);
+    mean_where(img, "beauty", 0, |x, y| img.pixel("beauty", x, y)[3] == 1.0).0
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_lobe_family_keeps_its_energy_in_the_furnace() {
+    const OPEN_PBR: &str = "ND_open_pbr_surface_surfaceshader";
+    const STANDARD: &str = "ND_standard_surface_surfaceshader";
+    // White, non-absorbing lobes reflect (or pass) everything. Bounds: compensated metal
+    // and rough glass are within 1% and 2% of 1 in docs/materials.md's probes; Disney's
+    // diffuse (a specular weight of 0 selects tessera:Principled) measures 0.987 here; a
+    // dielectric coat or specular over a white base may lose a few percent to the layering
+    // (measured 0.967 and 0.999) but must gain nothing beyond the noise (~0.3% at 64 spp).
+    let cases = [
+        (
+            "open_pbr metal",
+            OPEN_PBR,
+            "color3f inputs:base_color = (1, 1, 1)\n float inputs:base_metalness = 1\n float inputs:specular_roughness = 0.5",
+            0.99,
+            1.01,
+        ),
+        ("open_pbr rough glass", OPEN_PBR, "float inputs:transmission_weight = 1\n float inputs:specular_roughness = 0.3", 0.98, 1.02),
+        ("open_pbr smooth glass", OPEN_PBR, "float inputs:transmission_weight = 1\n float inputs:specular_roughness = 0", 0.99, 1.01),
+        ("open_pbr diffuse", OPEN_PBR, "color3f inputs:base_color = (1, 1, 1)\n float inputs:specular_weight = 0", 0.97, 1.01),
+        (
+            "open_pbr coated diffuse",
+            OPEN_PBR,
+            "color3f inputs:base_color = (1, 1, 1)\n float inputs:coat_weight = 1\n float inputs:coat_roughness = 0.2",
+            0.94,
+            1.005,
+        ),
+        (
+            "standard metal",
+            STANDARD,
+            "float inputs:base = 1\n float inputs:metalness = 1\n float inputs:specular_roughness = 0.5",
+            0.99,
+            1.01,
+        ),
+        ("standard plastic", STANDARD, "float inputs:base = 1", 0.97, 1.005),
+    ];
+    for (name, id, inputs, lo, hi) in cases {
+        let mean = furnace(id, inputs).await;
+        println!("{name}: {mean:.4}");
+        assert!(mean > lo && mean < hi, "{name}: furnace mean {mean}, expected {lo}..{hi}");
+    }
+}
