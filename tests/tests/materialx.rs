@@ -208,3 +208,60 @@ async fn each_lobe_family_keeps_its_energy_in_the_furnace() {
         assert!(mean > lo && mean < hi, "{name}: furnace mean {mean}, expected {lo}..{hi}");
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_referenced_mtlx_document_supplies_its_materials() {
+    // fixtures/usd/materialx/materialx.usda references materials.mtlx for /World/Looks/Gold
+    // (Standard Surface) and /World/Looks/Checker (OpenPBR, an image × 0.9 in a nodegraph).
+    let t = load("usd/materialx/materialx.usda");
+    assert!(!t.warnings.iter().any(|w| w.contains(".mtlx") || w.contains("not a Material prim")), "{:?}", t.warnings);
+    let net = |p: &str| &t.materials.iter().find(|(m, _)| m == p).unwrap_or_else(|| panic!("{p} read")).1;
+    let gold = net("/World/Looks/Gold");
+    assert_eq!(surface_param(gold, "diffuseColor"), Some(&ParamValue::Float3(glam::Vec3::new(0.944, 0.776, 0.373))));
+    assert_eq!(surface_param(gold, "metallic"), Some(&ParamValue::Float(1.0)));
+    let checker = net("/World/Looks/Checker");
+    let tex = checker.nodes.iter().find(|n| n.node_type_id == "UsdUVTexture").expect("the image");
+    assert!(
+        matches!(tex.parameters.get("file"), Some(ParamValue::Texture { .. })),
+        "the image file is read: {:?}",
+        tex.parameters.get("file")
+    );
+    assert_eq!(tex.parameters.get("scale"), Some(&ParamValue::Float4(glam::Vec4::new(0.9, 0.9, 0.9, 1.0))), "colour × colour leaves alpha");
+    let authored: Vec<&str> = t.materialx_surfaces.iter().map(|(_, id)| id.as_str()).collect();
+    assert!(authored.contains(&"ND_standard_surface_surfaceshader") && authored.contains(&"ND_open_pbr_surface_surfaceshader"));
+    // The gold ball (left) renders gold under the distant light.
+    let (server, mut conn) = session_with(&t).await;
+    let report = conn.render(&small(96, 48, 16), |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    assert_all_finite(&report.image);
+    // The gold ball covers about x 30..40, y 20..28 of the 96×48 frame (the camera's 36 mm
+    // square aperture, fitted vertically).
+    let img = &report.image;
+    let on_gold = |x: u32, y: u32| (28..42).contains(&x) && (18..30).contains(&y) && img.pixel("beauty", x, y)[3] == 1.0;
+    let ((r, n), (b, _)) = (mean_where(img, "beauty", 0, on_gold), mean_where(img, "beauty", 2, on_gold));
+    assert!(n > 20 && r > 1.5 * b, "gold: red {r:.3}, blue {b:.3} over {n} pixels");
+}
+
+#[test]
+fn a_missing_or_broken_mtlx_document_is_reported_and_display_color_shown() {
+    let t = load_text(
+        "mtlx_missing",
+        r#"#usda 1.0
+def Sphere "Ball" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+) {
+    color3f[] primvars:displayColor = [(0.1, 0.7, 0.2)]
+    rel material:binding = </M>
+}
+def Material "M" (
+    prepend references = @./nowhere.mtlx@</MaterialX/Materials/M>
+) {
+}
+"#,
+    );
+    let said: Vec<_> = t.warnings.iter().filter(|w| w.contains("nowhere.mtlx")).collect();
+    assert_eq!(said.len(), 1, "{:?}", t.warnings);
+    assert!(said[0].contains("/M") && said[0].contains("displayColor"), "{}", said[0]);
+    let (_, ball) = t.meshes.iter().find(|(p, _)| p == "/Ball").unwrap();
+    assert_ne!(ball.material, "/M");
+}

@@ -91,6 +91,11 @@ fn an_independent_reader_agrees_on_every_fixture() {
         // shader type usd-core's ComputeSurfaceSource finds.
         for (path, m) in ours["materials"].as_object().expect("materials") {
             let Some(expected) = theirs["materials"].get(path) else { continue };
+            // PyPI's usd-core has no MaterialX file format: materials from .mtlx documents are
+            // checked by tests/tests/materialx.rs instead.
+            if expected["mtlxDocument"] == true {
+                continue;
+            }
             materials_compared += 1;
             if expected["surface"] != m["surface"] {
                 problems.push(format!(

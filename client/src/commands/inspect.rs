@@ -103,7 +103,13 @@ pub fn to_json(t: &Translation) -> Value {
         let surface = n.nodes.iter().find(|node| node.path == n.surface_node);
         let inputs: Map<String, Value> =
             surface.map(|s| s.parameters.iter().map(|(k, v)| (k.clone(), param(v))).collect()).unwrap_or_default();
-        materials.insert(path.clone(), json!({ "surface": surface.map_or("", |s| s.node_type_id.as_str()), "inputs": inputs }));
+        // A MaterialX surface is listed as authored (what usd-core finds), with what it became.
+        let mut entry = json!({ "surface": surface.map_or("", |s| s.node_type_id.as_str()), "inputs": inputs });
+        if let Some((_, authored)) = t.materialx_surfaces.iter().find(|(p, _)| p == path) {
+            entry["mappedTo"] = entry["surface"].clone();
+            entry["surface"] = json!(authored);
+        }
+        materials.insert(path.clone(), entry);
     }
     json!({
         "stage": { "metersPerUnit": t.meters_per_unit, "upAxis": if t.z_up { "Z" } else { "Y" } },

@@ -15,6 +15,7 @@ mod instancing;
 mod lights;
 mod materialx;
 mod mesh;
+mod mtlx_document;
 mod render_settings;
 mod shading;
 pub mod shapes;
@@ -76,6 +77,9 @@ pub struct Translation {
     /// The stage's `UsdRender` settings (the prim `renderSettingsPrimPath` names, else the
     /// first one), which supply defaults the command line overrides.
     pub render_settings: Option<RenderSettingsDesc>,
+    /// MaterialX materials: (material path, the surface shader id as authored), for
+    /// `inspect` (the network itself holds the shader it was mapped onto).
+    pub materialx_surfaces: Vec<(String, String)>,
     /// Meshes rendered as subdivision surfaces, in reading order.
     pub subdivided: Vec<Subdivided>,
 }
@@ -330,6 +334,7 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
         bindings: HashMap::new(),
         subdivision_level: options.subdivision_level.min(subdivision::MAX_LEVEL),
         unmappable: std::collections::HashSet::new(),
+        mtlx_documents: std::collections::HashSet::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -355,7 +360,12 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
     }
     // After the traversal: arcs are composed (and found unresolved) as their prims are read.
     for e in stage.composition_errors() {
-        reader.out.warnings.push(format!("composition: {e}"));
+        // A .mtlx reference is an arc the crate cannot compose, and one the reader follows.
+        let e = e.to_string();
+        let asset = e.split('@').nth(1).unwrap_or("\0").trim_start_matches("./");
+        if !reader.mtlx_documents.iter().any(|d| d.ends_with(asset)) {
+            reader.out.warnings.push(format!("composition: {e}"));
+        }
     }
     let hidden = reader.out.cameras_clipping_everything();
     reader.out.warnings.extend(hidden);
@@ -403,4 +413,6 @@ struct Reader<'s> {
     subdivision_level: u32,
     /// Materials whose surface shader has no mapping: their meshes show displayColor.
     unmappable: std::collections::HashSet<String>,
+    /// MaterialX documents read for materials that reference them.
+    mtlx_documents: std::collections::HashSet<String>,
 }

@@ -2,8 +2,8 @@
 
 use anyhow::Result;
 
-use super::materialx;
 use super::*;
+use super::{materialx, mtlx_document};
 
 pub(super) fn param(v: &Value) -> Option<ParamValue> {
     Some(match v {
@@ -73,13 +73,20 @@ impl Reader<'_> {
         self.materials_seen.insert(path.to_string(), ());
         let mut network = MaterialNetwork::default();
         let Some(material) = Material::get(self.stage, sdf::path(path)?)? else {
-            self.out.warnings.push(format!("{path}: bound material is not a Material prim; the default material is used"));
+            if !self.material_from_document(path)? {
+                self.out.warnings.push(format!("{path}: bound material is not a Material prim; the default material is used"));
+            }
             return Ok(());
         };
         if !self.outputs_well_formed(path)? {
             return Ok(());
         }
         let Some(surface) = self.surface_shader(&material)? else {
+            // `def Material "M" (references = @m.mtlx@</MaterialX/Materials/M>)`: the
+            // document holds the network.
+            if self.material_from_document(path)? {
+                return Ok(());
+            }
             self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
             self.out.materials.push((path.to_string(), network));
             return Ok(());
@@ -93,16 +100,96 @@ impl Reader<'_> {
                 network.nodes.push(node);
             }
         }
-        if materialx::is_materialx(&network)
-            && let Err(e) = materialx::translate(&mut network, &mut self.out.warnings)
-        {
-            // Meshes bound to it show their displayColor instead (geometry.rs asks).
-            self.out.warnings.push(format!("{e}; meshes bound to {path} show their displayColor"));
-            self.unmappable.insert(path.to_string());
-            return Ok(());
+        self.keep_material(path, network);
+        Ok(())
+    }
+
+    /// Keeps a material's network, MaterialX mapped first; one that cannot be mapped is
+    /// left out, and meshes bound to it show their displayColor (geometry.rs asks).
+    fn keep_material(&mut self, path: &str, mut network: MaterialNetwork) {
+        if materialx::is_materialx(&network) {
+            let authored = network.nodes.iter().find(|n| n.path == network.surface_node).map(|n| n.node_type_id.clone());
+            self.out.materialx_surfaces.push((path.to_string(), authored.unwrap_or_default()));
+            if let Err(e) = materialx::translate(&mut network, &mut self.out.warnings) {
+                self.out.warnings.push(format!("{e}; meshes bound to {path} show their displayColor"));
+                self.unmappable.insert(path.to_string());
+                return;
+            }
         }
         self.out.materials.push((path.to_string(), network));
-        Ok(())
+    }
+
+    /// A material prim that references a MaterialX document (`@file.mtlx@</MaterialX/
+    /// Materials/Name>`, usdMtlx's form), which the openusd crate cannot compose: read from the
+    /// document. False when the prim references none.
+    fn material_from_document(&mut self, path: &str) -> Result<bool> {
+        let Some((file, target)) = self.mtlx_reference(path)? else { return Ok(false) };
+        // Reported here, whatever happens: not again as an arc the crate could not compose.
+        self.mtlx_documents.insert(file.display().to_string());
+        let fail = |reader: &mut Self, why: String| {
+            reader
+                .out
+                .warnings
+                .push(format!("{path}: MaterialX document {}: {why}; meshes bound to it show their displayColor", file.display()));
+            reader.unmappable.insert(path.to_string());
+        };
+        let xml = match std::fs::read_to_string(&file) {
+            Ok(x) => x,
+            Err(e) => {
+                fail(self, e.to_string());
+                return Ok(true);
+            }
+        };
+        let dir = file.parent().unwrap_or(std::path::Path::new("."));
+        match mtlx_document::read(&xml, &target, dir, path) {
+            Ok(doc) => {
+                let mut network = doc.network;
+                for (node, input, image) in doc.files {
+                    let value = self.texture_file(&node, &input, &image);
+                    if let Some(n) = network.nodes.iter_mut().find(|n| n.path == node) {
+                        n.parameters.insert(input, value);
+                    }
+                }
+                self.keep_material(path, network);
+            }
+            Err(e) => fail(self, e),
+        }
+        Ok(true)
+    }
+
+    /// The `.mtlx` file that supplies the material at `path` (resolved against the layer that
+    /// authors the reference) and the material's path in the document's namespace. The
+    /// reference may sit on the material itself or on an ancestor (`</MaterialX>` referenced
+    /// whole, the material bound below it, as the USD-WG's MaterialXTest does).
+    fn mtlx_reference(&self, path: &str) -> Result<Option<(std::path::PathBuf, String)>> {
+        let mut at = sdf::path(path)?;
+        loop {
+            if let Some((file, target)) = self.mtlx_reference_on(&at)? {
+                let below = path.strip_prefix(at.as_str()).unwrap_or("");
+                return Ok(Some((file, format!("{target}{below}"))));
+            }
+            match at.parent() {
+                Some(parent) if !parent.as_str().is_empty() && parent != at && parent.as_str() != "/" => at = parent,
+                _ => return Ok(None),
+            }
+        }
+    }
+
+    /// A `.mtlx` reference authored on the prim at `at`, in any layer of its prim stack.
+    fn mtlx_reference_on(&self, at: &sdf::Path) -> Result<Option<(std::path::PathBuf, String)>> {
+        let prim = self.stage.prim(at.clone());
+        let Ok(stack) = prim.prim_stack() else { return Ok(None) };
+        for (layer_id, spec_path) in stack {
+            let Some(layer) = self.stage.layer(&layer_id) else { continue };
+            let Some(spec) = layer.prim(spec_path) else { continue };
+            let Ok(Some(Value::ReferenceListOp(op))) = spec.field("references") else { continue };
+            let items = op.explicit_items.iter().chain(&op.prepended_items).chain(&op.appended_items).chain(&op.added_items);
+            if let Some(r) = items.into_iter().find(|r| r.asset_path.ends_with(".mtlx")) {
+                let dir = std::path::Path::new(&layer_id).parent().unwrap_or(std::path::Path::new("."));
+                return Ok(Some((lexically_normal(&dir.join(&r.asset_path)), r.prim_path.as_str().to_string())));
+            }
+        }
+        Ok(None)
     }
 
     /// The shader prim behind the material's surface terminal (`outputs:surface`, else the
@@ -279,18 +366,45 @@ impl Reader<'_> {
         if let Some(resolved) = a.resolved_path() {
             self.out.texture_paths.push((format!("{node}.inputs:{input}"), resolved.to_string()));
         }
-        match read_asset(a) {
+        self.keep_texture(node, input, a.as_str(), read_asset(a))
+    }
+
+    /// An image file a MaterialX document names, read as [`Self::texture_param`] reads assets.
+    fn texture_file(&mut self, node: &str, input: &str, file: &std::path::Path) -> ParamValue {
+        let source = file.display().to_string();
+        self.keep_texture(node, input, &source, std::fs::read(file))
+    }
+
+    /// A texture's bytes kept for upload by content hash, or the failure reported.
+    fn keep_texture(&mut self, node: &str, input: &str, source: &str, bytes: std::io::Result<Vec<u8>>) -> ParamValue {
+        match bytes {
             Ok(bytes) => {
                 let hash = tessera_wire::content_hash(&bytes);
-                self.out.textures.entry(hash.clone()).or_insert(TextureFile { source: a.as_str().to_string(), bytes: Arc::new(bytes) });
-                ParamValue::Texture { hash, source: a.as_str().to_string() }
+                self.out.textures.entry(hash.clone()).or_insert(TextureFile { source: source.to_string(), bytes: Arc::new(bytes) });
+                ParamValue::Texture { hash, source: source.to_string() }
             }
             Err(e) => {
-                self.out.warnings.push(format!("{node}: input '{input}': cannot read '{}': {e}", a.as_str()));
-                ParamValue::Asset(a.as_str().to_string())
+                self.out.warnings.push(format!("{node}: input '{input}': cannot read '{source}': {e}"));
+                ParamValue::Asset(source.to_string())
             }
         }
     }
+}
+
+/// `path` without `.` components and with each `..` taking its parent off, as the stage
+/// names resolved layers (so a document read matches the arc the crate reports).
+fn lexically_normal(path: &std::path::Path) -> std::path::PathBuf {
+    let mut out = std::path::PathBuf::new();
+    for c in path.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
 }
 
 /// What a connection leads to after NodeGraph outputs and interface inputs.
