@@ -236,3 +236,50 @@ fn textured_roughness_matches_constant_roughness() {
         assert!((a[1] - b[1]).abs() < 0.1 * b[1] + 0.01, "{tex} {:.4} vs {konst} {:.4}", a[1], b[1]);
     }
 }
+
+#[test]
+fn spinning_pyramids_keep_the_creases_and_corners_they_author() {
+    // README: Pyramid_EdgeCreases sharpens the outer edges (infinitely: sharpness 100),
+    // Pyramid_CornerCreases two points (sharpness 25), Pyramid_NoCreases is the smooth
+    // subdivision surface for comparison; the Storm screenshot shows a sharp-based, a
+    // two-pointed and a rounded pyramid.
+    let scene = "SubdivisionSurfaces/Creases_SpinningPyramids.usda";
+    let t = asset(scene);
+    let cage = tessera::usd::load_with(
+        &tessera_tests::fixture(&format!("usd-wg/{scene}")),
+        tessera::usd::LoadOptions { subdivision_level: 0, ..Default::default() },
+    )
+    .expect("reads");
+    // The pyramids are instanceable: each is drawn through the prototype mesh it shares.
+    let points = |t: &Translation, name: &str| -> Vec<glam::Vec3> {
+        let proxy = t.native_instances.iter().find(|n| n.path == format!("/World/{name}/geo/shape")).expect("the pyramid");
+        let prototype = &t.instancers[proxy.instancer].1.prototype;
+        t.meshes.iter().find(|(p, _)| p == prototype).expect("its prototype").1.mesh.positions.clone()
+    };
+    let width = |p: &[glam::Vec3]| p.iter().map(|v| v.x).fold(f32::NEG_INFINITY, f32::max) - p.iter().map(|v| v.x).fold(f32::INFINITY, f32::min);
+    let cage_width = width(&points(&cage, "Pyramid_NoCreases"));
+    let (edges, none) = (width(&points(&t, "Pyramid_EdgeCreases")), width(&points(&t, "Pyramid_NoCreases")));
+    assert!((edges - cage_width).abs() < 1e-4 * cage_width, "sharp outer edges keep the cage's width: {edges} vs {cage_width}");
+    assert!(none < 0.9 * cage_width, "the smooth pyramid shrinks inside its cage: {none} vs {cage_width}");
+    // The two sharp corners (cage points 0 and 2) stay where the cage puts them.
+    let corner_cage = points(&cage, "Pyramid_CornerCreases");
+    let cornered = points(&t, "Pyramid_CornerCreases");
+    for k in [0, 2] {
+        let nearest = cornered.iter().map(|p| p.distance(corner_cage[k])).fold(f32::INFINITY, f32::min);
+        assert!(nearest < 1e-4, "corner {k} moved by {nearest}");
+    }
+    let r = render(t, (120, 50), 2);
+    assert!(r.scene.prim_paths.len() >= 3);
+}
+
+#[test]
+fn the_materialx_plastic_sphere_is_blue() {
+    // README: basic.usda binds USD_Plastic from usd_preview_surface_plastic.mtlx (MaterialX's
+    // UsdPreviewSurface node, diffuse (0.105, 0.242, 0.818)); the screenshot shows a blue
+    // plastic sphere.
+    let t = asset("MaterialXTest/basic.usda");
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let r = render(t, (96, 96), 16);
+    let ([red, green, blue], n) = r.mean_of("/sphere");
+    assert!(n > 1000 && blue > 2.0 * red && blue > 1.5 * green, "sphere mean {red:.3} {green:.3} {blue:.3} over {n}");
+}
