@@ -204,6 +204,11 @@ pub fn delta(path: &str, kind: pb::PrimKind, payload: pb::prim_delta::Payload) -
 
 /// Wraps items into a stream of requests; the first carries the session id.
 pub fn requests(session_id: &str, items: Vec<pb::sync_request::Item>) -> Vec<pb::SyncRequest> {
+    if items.is_empty() {
+        // A stage with nothing to render (a materials-only layer) still commits: the stream
+        // must carry the session.
+        return vec![pb::SyncRequest { session_id: session_id.to_string(), item: None }];
+    }
     items
         .into_iter()
         .enumerate()

@@ -256,7 +256,8 @@ fn spinning_pyramids_keep_the_creases_and_corners_they_author() {
         let prototype = &t.instancers[proxy.instancer].1.prototype;
         t.meshes.iter().find(|(p, _)| p == prototype).expect("its prototype").1.mesh.positions.clone()
     };
-    let width = |p: &[glam::Vec3]| p.iter().map(|v| v.x).fold(f32::NEG_INFINITY, f32::max) - p.iter().map(|v| v.x).fold(f32::INFINITY, f32::min);
+    let width =
+        |p: &[glam::Vec3]| p.iter().map(|v| v.x).fold(f32::NEG_INFINITY, f32::max) - p.iter().map(|v| v.x).fold(f32::INFINITY, f32::min);
     let cage_width = width(&points(&cage, "Pyramid_NoCreases"));
     let (edges, none) = (width(&points(&t, "Pyramid_EdgeCreases")), width(&points(&t, "Pyramid_NoCreases")));
     assert!((edges - cage_width).abs() < 1e-4 * cage_width, "sharp outer edges keep the cage's width: {edges} vs {cage_width}");
