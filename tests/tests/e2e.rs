@@ -18,6 +18,7 @@ mod interactive;
 mod light_units;
 mod materials;
 mod materialx;
+mod points;
 mod preview_surface;
 mod sampling;
 mod subdivision;

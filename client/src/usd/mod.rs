@@ -16,6 +16,7 @@ mod lights;
 mod materialx;
 mod mesh;
 mod mtlx_document;
+pub mod points;
 mod render_settings;
 mod shading;
 pub mod shapes;

@@ -74,6 +74,7 @@ impl Reader<'_> {
             "Mesh" => self.mesh(&prim, &p, visible),
             t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
             "PointInstancer" => self.point_instancer(&prim, &p, visible),
+            "Points" => self.points(&prim, &p, visible),
             "RenderSettings" => self.render_settings(&prim, &p),
             // Read through the RenderSettings that names them.
             "RenderProduct" | "RenderVar" => Ok(()),
