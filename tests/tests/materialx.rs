@@ -227,6 +227,7 @@ async fn a_referenced_mtlx_document_supplies_its_materials() {
         tex.parameters.get("file")
     );
     assert_eq!(tex.parameters.get("scale"), Some(&ParamValue::Float4(glam::Vec4::new(0.9, 0.9, 0.9, 1.0))), "colour × colour leaves alpha");
+    assert_eq!(tex.parameters.get("sourceColorSpace"), Some(&ParamValue::String("sRGB".into())), "the file's colorspace");
     let authored: Vec<&str> = t.materialx_surfaces.iter().map(|(_, id)| id.as_str()).collect();
     assert!(authored.contains(&"ND_standard_surface_surfaceshader") && authored.contains(&"ND_open_pbr_surface_surfaceshader"));
     // The gold ball (left) renders gold under the distant light.

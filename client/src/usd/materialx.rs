@@ -407,13 +407,19 @@ fn uv_texture(path: &str, image: &MaterialNode, lin: &Lin, srgb: bool, normal: b
         };
         p.insert(usd.to_string(), ParamValue::String(mode.into()));
     }
-    // Normal maps and data are raw; colour images decode sRGB when asked, else by their bit depth.
+    // Normal maps are raw; otherwise the file's MaterialX colour space decides (sRGB-encoded
+    // or linear), else an sRGB-decoding node, else UsdUVTexture's rule by bit depth.
+    let declared = match image.parameters.get("colorspace") {
+        Some(ParamValue::String(s)) if s == "srgb_texture" || s == "srgb_displayp3" => Some("sRGB"),
+        Some(ParamValue::String(s)) if !s.is_empty() => Some("raw"),
+        _ => None,
+    };
     let space = if normal {
         "raw"
     } else if srgb {
         "sRGB"
     } else {
-        "auto"
+        declared.unwrap_or("auto")
     };
     p.insert("sourceColorSpace".to_string(), ParamValue::String(space.into()));
     p.insert("scale".to_string(), ParamValue::Float4(lin.scale));

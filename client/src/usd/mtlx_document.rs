@@ -119,6 +119,10 @@ impl Reader<'_> {
         if kind == "filename" {
             let prefix = inherited(input, "fileprefix").unwrap_or_default();
             self.files.push((node.path.clone(), name.to_string(), self.dir.join(format!("{prefix}{value}"))));
+            // The file's colour space: on the input, else the nearest ancestor that says.
+            if let Some(space) = inherited(input, "colorspace") {
+                node.parameters.insert("colorspace".to_string(), ParamValue::String(space));
+            }
             return Ok(());
         }
         if let Some(v) = parse_value(kind, value) {
@@ -181,11 +185,11 @@ mod tests {
     use super::*;
 
     const DOC: &str = r#"<?xml version="1.0"?>
-<materialx version="1.39" fileprefix="maps/">
+<materialx version="1.39" fileprefix="maps/" colorspace="lin_rec709">
   <nodegraph name="NG">
     <input name="tint" type="color3" value="0.9, 0.9, 0.9"/>
     <image name="tex" type="color3">
-      <input name="file" type="filename" value="checker.png"/>
+      <input name="file" type="filename" value="checker.png" colorspace="srgb_texture"/>
     </image>
     <multiply name="tinted" type="color3">
       <input name="in1" type="color3" nodename="tex"/>
@@ -214,6 +218,12 @@ mod tests {
         let tinted = net.nodes.iter().find(|n| n.path.ends_with("tinted")).unwrap();
         assert_eq!(tinted.parameters.get("in2"), Some(&ParamValue::Float3(Vec3::splat(0.9))), "the interface value");
         assert!(net.connections.iter().any(|c| c.downstream_input == "base_color" && c.upstream_node.ends_with("NG/tinted")));
+        let tex = net.nodes.iter().find(|n| n.path.ends_with("/tex")).unwrap();
+        assert_eq!(
+            tex.parameters.get("colorspace"),
+            Some(&ParamValue::String("srgb_texture".into())),
+            "the input's own, not the document's"
+        );
         assert_eq!(m.files, vec![("/World/Looks/Board/NG/tex".to_string(), "file".to_string(), PathBuf::from("/assets/maps/checker.png"))]);
     }
 
