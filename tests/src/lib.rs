@@ -252,3 +252,25 @@ mod production {
     }
 }
 pub use production::production_scene;
+
+/// This process's peak resident memory (`VmHWM` in `/proc/self/status`), in bytes.
+pub fn peak_rss() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").expect("Linux /proc");
+    let kib: u64 = status.lines().find_map(|l| l.strip_prefix("VmHWM:")).and_then(|v| v.split_whitespace().next()?.parse().ok()).unwrap();
+    kib * 1024
+}
+
+/// A USD camera 4 units up +Z looking down −Z with a square aperture, as stage text: the
+/// framing of the closed-form silhouette tests.
+pub fn camera_usda(focal_length: f32, aperture: f32) -> String {
+    format!(
+        r#"def Camera "Camera" {{
+    float focalLength = {focal_length}
+    float horizontalAperture = {aperture}
+    float verticalAperture = {aperture}
+    double3 xformOp:translate = (0, 0, 4)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+"#
+    )
+}

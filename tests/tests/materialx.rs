@@ -30,14 +30,8 @@ def Scope "Looks" {{
 def DomeLight "Dome" {{
     float inputs:intensity = 1
 }}
-def Camera "Camera" {{
-    float focalLength = 50
-    float horizontalAperture = 36
-    float verticalAperture = 36
-    double3 xformOp:translate = (0, 0, 4)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}}
-"#
+{}"#,
+        camera_usda(50.0, 36.0)
     )
 }
 

@@ -8,12 +8,6 @@ use tessera_proto::v1 as pb;
 use tessera_proto::v1::render_client::RenderClient;
 use tessera_server::{EmbeddedServer, ServerConfig};
 
-fn peak_rss() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("Linux /proc");
-    let kib: u64 = status.lines().find_map(|l| l.strip_prefix("VmHWM:")).and_then(|v| v.split_whitespace().next()?.parse().ok()).unwrap();
-    kib * 1024
-}
-
 use tessera_tests::hostile_inputs as inputs;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -52,7 +46,7 @@ async fn the_server_stays_under_its_memory_budget() {
     let ok = pb::RenderSettings { width: 256, height: 256, spp: 4, ..Default::default() };
     let mut stream = c.render(pb::RenderRequest { session_id: s.clone(), settings: Some(ok) }).await.unwrap().into_inner();
     while stream.message().await.unwrap().is_some() {}
-    let peak = peak_rss();
+    let peak = tessera_tests::peak_rss();
     eprintln!("peak RSS {:.0} MiB under a {} budget", peak as f64 / (1 << 20) as f64, tessera_server::budget::human(budget));
     assert!(peak < budget, "peak RSS {peak} bytes over the {budget}-byte budget");
 }

@@ -10,14 +10,8 @@ def Points "Dots" {{
     {widths}
     color3f[] primvars:displayColor = [(0.8, 0.2, 0.1)]
 }}
-def Camera "Camera" {{
-    float focalLength = 35
-    float horizontalAperture = 20
-    float verticalAperture = 20
-    double3 xformOp:translate = (0, 0, 4)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}}
-"#
+{}"#,
+        camera_usda(35.0, 20.0)
     )
 }
 

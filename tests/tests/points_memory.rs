@@ -11,12 +11,6 @@ use render_core::camera::CameraDesc;
 use render_core::scene::{InstancerDesc, MeshDesc};
 use std::sync::Arc;
 
-fn peak_rss() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("Linux /proc");
-    let kib: u64 = status.lines().find_map(|l| l.strip_prefix("VmHWM:")).and_then(|v| v.split_whitespace().next()?.parse().ok()).unwrap();
-    kib * 1024
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_million_points_render_in_under_a_gibibyte() {
     // A 1000 × 1000 grid of points 1 apart, width 0.8, in the plane z = −600.
@@ -34,7 +28,7 @@ async fn a_million_points_render_in_under_a_gibibyte() {
     let report = conn.render(&tessera_tests::small(64, 64, 4), |_| {}).await.expect("renders");
     server.stop().await.expect("stops");
     let covered = (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).filter(|&(x, y)| report.image.pixel("beauty", x, y)[3] > 0.0).count();
-    let peak = peak_rss();
+    let peak = tessera_tests::peak_rss();
     eprintln!("a million points: peak RSS {:.0} MiB, {covered} of 4096 pixels covered", peak as f64 / (1 << 20) as f64);
     // Spheres of radius 0.4 on a unit grid cover half of each pixel's footprint: 4 samples
     // miss them all in 1/16 of the pixels.
