@@ -269,8 +269,16 @@ fn spinning_pyramids_keep_the_creases_and_corners_they_author() {
         let nearest = cornered.iter().map(|p| p.distance(corner_cage[k])).fold(f32::INFINITY, f32::min);
         assert!(nearest < 1e-4, "corner {k} moved by {nearest}");
     }
-    let r = render(t, (120, 50), 2);
-    assert!(r.scene.prim_paths.len() >= 3);
+    // On screen (primId names each pyramid by the instancer of its prototype), the
+    // sharp-based pyramid covers more than the rounded one.
+    let instancer = |t: &Translation, name: &str| {
+        let proxy = t.native_instances.iter().find(|n| n.path == format!("/World/{name}/geo/shape")).expect("the pyramid");
+        t.instancers[proxy.instancer].0.clone()
+    };
+    let (edge_key, none_key) = (instancer(&t, "Pyramid_EdgeCreases"), instancer(&t, "Pyramid_NoCreases"));
+    let r = render(t, (240, 100), 2);
+    let ((_, edge_px), (_, none_px)) = (r.mean_of(&edge_key), r.mean_of(&none_key));
+    assert!(edge_px as f64 > 1.1 * none_px as f64, "edge-creased {edge_px} pixels, smooth {none_px}");
 }
 
 #[test]

@@ -41,9 +41,14 @@ pub fn to_json(t: &Translation) -> Value {
     let native: std::collections::HashSet<usize> = t.native_instances.iter().map(|n| n.instancer).collect();
     let prototypes: std::collections::HashSet<&str> = native.iter().map(|&i| t.instancers[i].1.prototype.as_str()).collect();
     let mut meshes = Map::new();
+    // A mesh's subdivision, by its path; a GeomSubset's mesh is named by the subset, one level below.
+    let subdivided: std::collections::HashMap<&str, &crate::usd::Subdivided> = t.subdivided.iter().map(|s| (s.path.as_str(), s)).collect();
+    let subdivision_of = |path: &str| {
+        subdivided.get(path).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| subdivided.get(mesh))).map(|s| subdivision_json(s))
+    };
     for n in &t.native_instances {
         let mut mesh = json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible });
-        if let Some(s) = t.subdivided.iter().find(|s| s.path == t.instancers[n.instancer].1.prototype) {
+        if let Some(s) = subdivided.get(t.instancers[n.instancer].1.prototype.as_str()) {
             mesh["subdivision"] = subdivision_json(s);
         }
         meshes.insert(n.path.clone(), mesh);
@@ -56,8 +61,8 @@ pub fn to_json(t: &Translation) -> Value {
             "visible": m.visible,
         });
         // GeomSubsets render as meshes of their own, named by the subset under the mesh.
-        if let Some(s) = t.subdivided.iter().find(|s| *path == s.path || path.starts_with(&format!("{}/", s.path))) {
-            mesh["subdivision"] = subdivision_json(s);
+        if let Some(s) = subdivision_of(path) {
+            mesh["subdivision"] = s;
         }
         meshes.insert(path.clone(), mesh);
     }

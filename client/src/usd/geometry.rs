@@ -124,22 +124,11 @@ impl Reader<'_> {
         let token = |name: &str, fallback: &str| -> Result<String> {
             Ok(get(prim, name, time)?.as_ref().and_then(values::token).unwrap_or_else(|| fallback.to_string()))
         };
-        let ints = |name: &str| -> Result<Vec<i64>> {
-            match get(prim, name, time)? {
-                Some(v) => values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array")),
-                None => Ok(Vec::new()),
-            }
-        };
-        let floats = |name: &str| -> Result<Vec<f32>> {
-            match get(prim, name, time)? {
-                Some(v) => values::float_array(&v).with_context(|| format!("{p}: attribute '{name}' is not a float array")),
-                None => Ok(Vec::new()),
-            }
-        };
+        let ints = |name: &str| Ok::<_, anyhow::Error>(get_ints(prim, p, name, time)?.unwrap_or_default());
+        let floats = |name: &str| Ok::<_, anyhow::Error>(get_floats(prim, p, name, time)?.unwrap_or_default());
         let tags = SubdivTags {
             scheme: token("subdivisionScheme", "catmullClark")?,
             interpolate_boundary: token("interpolateBoundary", "edgeAndCorner")?,
-            face_varying_linear_interpolation: token("faceVaryingLinearInterpolation", "cornersPlus1")?,
             triangle_subdivision_rule: token("triangleSubdivisionRule", "catmullClark")?,
             crease_indices: ints("creaseIndices")?,
             crease_lengths: ints("creaseLengths")?,
@@ -169,10 +158,7 @@ impl Reader<'_> {
             if family != "materialBind" || element != "face" {
                 continue;
             }
-            let indices = match get(&child, "indices", time)? {
-                Some(v) => values::int_array(&v).with_context(|| format!("{c}: attribute 'indices' is not an int array"))?,
-                None => Vec::new(),
-            };
+            let indices = get_ints(&child, &c, "indices", time)?.unwrap_or_default();
             if let Some((i, &f)) = indices.iter().enumerate().find(|(_, f)| **f < 0 || **f as usize >= face_count) {
                 anyhow::bail!("{c}: attribute 'indices': entry {i} is face {f}, but {p} has {face_count} faces");
             }

@@ -76,12 +76,7 @@ impl Reader<'_> {
     /// instances hidden by `invisibleIds` left out.
     fn instance_transforms(&mut self, prim: &Prim, p: &str, prototypes: usize) -> Result<Vec<Vec<DMat4>>> {
         let time = self.time;
-        let ints = |name: &str| -> Result<Option<Vec<i64>>> {
-            match get(prim, name, time)? {
-                None => Ok(None),
-                Some(v) => Ok(Some(values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array"))?)),
-            }
-        };
+        let ints = |name: &str| get_ints(prim, p, name, time);
         let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
         let n = proto_indices.len();
         let positions = match get(prim, "positions", time)? {

@@ -115,6 +115,36 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
     Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs, primvars }, face_of))
 }
 
+/// How many values each primvar interpolation takes on a mesh.
+pub(super) struct Sizes {
+    pub points: usize,
+    pub face_vertices: usize,
+    pub faces: usize,
+}
+
+impl Sizes {
+    /// Whether `len` values fit `interp`; when not (or the interpolation is unknown), a
+    /// warning naming the primvar. A face-varying primvar may cover more face-vertices than
+    /// the faces use.
+    pub(super) fn fits(&self, name: &str, len: usize, interp: &str, warn: &mut impl FnMut(String)) -> bool {
+        let want = match interp {
+            "vertex" | "varying" => self.points,
+            "faceVarying" => self.face_vertices,
+            "uniform" => self.faces,
+            "constant" => 1,
+            other => {
+                warn(format!("{name}: unknown interpolation '{other}'; ignoring it"));
+                return false;
+            }
+        };
+        let fits = if interp == "faceVarying" { len >= want } else { len == want };
+        if !fits {
+            warn(format!("{name}: {len} values for {interp} interpolation, {want} expected; ignoring them"));
+        }
+        fits
+    }
+}
+
 /// Where each triangle corner came from, to lay out primvars of any interpolation.
 struct Layout<'a> {
     points: usize,
@@ -130,20 +160,8 @@ impl Layout<'_> {
     /// that does not match its interpolation is a warning naming the primvar, and it is ignored.
     fn expand<T: Copy>(&self, name: &str, v: &[T], interp: &str, warn: &mut impl FnMut(String)) -> Attribute<T> {
         let face_vertices: usize = self.corners.iter().flatten().max().map_or(0, |m| m + 1);
-        let want = match interp {
-            "vertex" | "varying" => self.points,
-            "faceVarying" => face_vertices,
-            "uniform" => self.faces,
-            "constant" => 1,
-            other => {
-                warn(format!("{name}: unknown interpolation '{other}'; ignoring it"));
-                return Attribute::None;
-            }
-        };
-        // A face-varying primvar may cover more face-vertices than triangulated corners use.
-        let fits = if interp == "faceVarying" { v.len() >= want } else { v.len() == want };
-        if !fits {
-            warn(format!("{name}: {} values for {interp} interpolation, {want} expected; ignoring them", v.len()));
+        let sizes = Sizes { points: self.points, face_vertices, faces: self.faces };
+        if !sizes.fits(name, v.len(), interp, warn) {
             return Attribute::None;
         }
         match interp {

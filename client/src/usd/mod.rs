@@ -26,7 +26,7 @@ mod values;
 
 use render_settings::valid_targets;
 pub use render_settings::{RenderProductDesc, RenderSettingsDesc};
-use stage::{get, to_affine, under, usd_rotation};
+use stage::{get, get_floats, get_ints, to_affine, under, usd_rotation};
 
 use std::collections::HashMap;
 use std::sync::Arc;

@@ -45,7 +45,7 @@ impl Reader<'_> {
         let material = self.usable_material(prim)?;
         let sphere = shapes::tessellate(shapes::Shape::Sphere { radius: 1.0 });
         self.add_mesh_with(prim, &proto, sphere, false, material)?;
-        let transforms = if visible { sphere_instances(self.world_transform(&prim.path().clone())?, &points, &widths) } else { Vec::new() };
+        let transforms = if visible { sphere_instances(self.world_transform(prim.path())?, &points, &widths) } else { Vec::new() };
         self.out.instancers.push((format!("{p}[points]"), InstancerDesc { prototype: proto, transforms }));
         Ok(())
     }
@@ -53,8 +53,7 @@ impl Reader<'_> {
     /// `widths`: one per point, or one for all; unauthored, 1 (Hydra's default). A count that
     /// fits neither is a warning and the default; a negative or non-finite width an error.
     fn widths(&mut self, prim: &Prim, p: &str, n: usize) -> Result<Vec<f32>> {
-        let Some(v) = get(prim, "widths", self.time)? else { return Ok(vec![1.0]) };
-        let widths = values::float_array(&v).with_context(|| format!("{p}: attribute 'widths' is not a float array"))?;
+        let Some(widths) = get_floats(prim, p, "widths", self.time)? else { return Ok(vec![1.0]) };
         if let Some((i, w)) = widths.iter().enumerate().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
             anyhow::bail!("{p}: attribute 'widths': width {i} is {w}; widths are finite and not negative");
         }

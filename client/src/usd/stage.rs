@@ -39,6 +39,21 @@ pub(super) fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Valu
     prim.attribute(name).get_at::<Value>(time).map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
 }
 
+/// An int array attribute of the prim at `p` (`None` unauthored); another type is an error
+/// naming the prim and attribute.
+pub(super) fn get_ints(prim: &Prim, p: &str, name: &str, time: TimeCode) -> Result<Option<Vec<i64>>> {
+    get(prim, name, time)?
+        .map(|v| values::int_array(&v).with_context(|| format!("{p}: attribute '{name}' is not an int array")))
+        .transpose()
+}
+
+/// As [`get_ints`], for float arrays.
+pub(super) fn get_floats(prim: &Prim, p: &str, name: &str, time: TimeCode) -> Result<Option<Vec<f32>>> {
+    get(prim, name, time)?
+        .map(|v| values::float_array(&v).with_context(|| format!("{p}: attribute '{name}' is not a float array")))
+        .transpose()
+}
+
 impl Reader<'_> {
     pub(super) fn visit(&mut self, path: &sdf::Path) -> Result<()> {
         if !well_formed_path(path.as_str()) {

@@ -19,7 +19,7 @@ use opensubdiv_petite::far::{
     LimitStencilTableOptions, LocationArray, Scheme, TopologyDescriptor, TopologyRefiner, TopologyRefinerOptions, TriangleSubdivision,
 };
 
-use super::mesh::MeshSource;
+use super::mesh::{MeshSource, Sizes};
 
 /// The subdivision attributes of a `UsdGeomMesh`, as authored.
 #[derive(Clone, Debug, Default)]
@@ -28,8 +28,6 @@ pub struct SubdivTags {
     pub scheme: String,
     /// `interpolateBoundary`: `none`, `edgeOnly` or `edgeAndCorner` (the fallback).
     pub interpolate_boundary: String,
-    /// `faceVaryingLinearInterpolation` (read for the record: see the module comment).
-    pub face_varying_linear_interpolation: String,
     /// `triangleSubdivisionRule`: `catmullClark` (the fallback) or `smooth`.
     pub triangle_subdivision_rule: String,
     /// `creaseIndices`, `creaseLengths`, `creaseSharpnesses`.
@@ -102,15 +100,17 @@ pub fn refine_within(
     let mut out = Tessellation::new(&cage, level, src.left_handed, &primvars);
     let mut rest = &cage.ptex[..];
     while !rest.is_empty() {
-        let mut take = 0;
-        let mut locations = 0;
-        while take < rest.len() && (take == 0 || locations + out.grid(&rest[take]).len() <= LOCATIONS_PER_CHUNK) {
-            locations += out.grid(&rest[take]).len();
-            take += 1;
+        let (mut take, mut locations) = (0, 0);
+        while let Some(p) = rest.get(take) {
+            let n = out.grid(p).len();
+            if take > 0 && locations + n > LOCATIONS_PER_CHUNK {
+                break;
+            }
+            (take, locations) = (take + 1, locations + n);
         }
         let (chunk, tail) = rest.split_at(take);
         let table = limit_stencils(&refiner, chunk, &out)?;
-        out.add(chunk, &table, src, &primvars);
+        out.add(chunk, &table, &primvars);
         rest = tail;
     }
     Ok(out.finish(level))
@@ -124,6 +124,8 @@ struct Cage<'a> {
     starts: Vec<usize>,
     /// The ptex faces that are not holes, in ptex order.
     ptex: Vec<Ptex>,
+    /// Crease edges as OpenSubdiv's vertex pairs, and their sharpnesses.
+    creases: (Vec<u32>, Vec<f32>),
 }
 
 /// One ptex face: a whole quad (or a Loop triangle), or sub-quad `k` of an n-gon, which runs
@@ -138,7 +140,7 @@ struct Ptex {
 
 impl<'a> Cage<'a> {
     fn new(src: &'a MeshSource, tags: &SubdivTags) -> Result<Self, String> {
-        validate(src, tags)?;
+        let creases = validate(src, tags)?;
         let scheme = match tags.scheme.as_str() {
             "loop" => Scheme::Loop,
             "bilinear" => Scheme::Bilinear,
@@ -172,7 +174,7 @@ impl<'a> Cage<'a> {
             }
             index += subs;
         }
-        Ok(Self { src, scheme, starts, ptex })
+        Ok(Self { src, scheme, starts, ptex, creases })
     }
 
     /// Faces uniform refinement to `level` would make (what the tessellation makes).
@@ -207,8 +209,8 @@ fn boundary_faces(src: &MeshSource, starts: &[usize]) -> Vec<usize> {
 }
 
 /// Checks everything OpenSubdiv would otherwise trust: counts, index ranges, crease chains,
-/// sharpnesses, corners and holes. Errors name the attribute.
-fn validate(src: &MeshSource, tags: &SubdivTags) -> Result<(), String> {
+/// sharpnesses, corners and holes; returns the crease edges. Errors name the attribute.
+fn validate(src: &MeshSource, tags: &SubdivTags) -> Result<(Vec<u32>, Vec<f32>), String> {
     let points = src.points.len() as i64;
     let total: i64 = src.counts.iter().sum();
     if src.counts.iter().any(|&c| c < 3) {
@@ -232,7 +234,7 @@ fn validate(src: &MeshSource, tags: &SubdivTags) -> Result<(), String> {
     in_range("creaseIndices", &tags.crease_indices, points)?;
     in_range("cornerIndices", &tags.corner_indices, points)?;
     in_range("holeIndices", &tags.hole_indices, src.counts.len() as i64)?;
-    crease_edges(tags)?;
+    let creases = crease_edges(tags)?;
     if tags.corner_sharpnesses.len() != tags.corner_indices.len() {
         return Err(format!(
             "cornerSharpnesses has {} values for {} cornerIndices",
@@ -243,7 +245,7 @@ fn validate(src: &MeshSource, tags: &SubdivTags) -> Result<(), String> {
     if tags.corner_sharpnesses.iter().any(|s| !s.is_finite()) {
         return Err("cornerSharpnesses: a value is NaN or infinite".into());
     }
-    Ok(())
+    Ok(creases)
 }
 
 /// USD's crease chains as OpenSubdiv's vertex pairs with a sharpness each. USD gives one
@@ -287,13 +289,13 @@ fn crease_edges(tags: &SubdivTags) -> Result<(Vec<u32>, Vec<f32>), String> {
 fn build_refiner(src: &MeshSource, tags: &SubdivTags, cage: &Cage) -> Result<TopologyRefiner, String> {
     let counts: Vec<u32> = src.counts.iter().map(|&c| c as u32).collect();
     let indices: Vec<u32> = src.indices.iter().map(|&i| i as u32).collect();
-    let (crease_pairs, crease_weights) = crease_edges(tags)?;
+    let (crease_pairs, crease_weights) = &cage.creases;
     let corners: Vec<u32> = tags.corner_indices.iter().map(|&i| i as u32).collect();
     let corner_weights: Vec<f32> = tags.corner_sharpnesses.iter().map(|s| s.max(0.0)).collect();
     let holes: Vec<u32> = tags.hole_indices.iter().map(|&i| i as u32).collect();
     let mut desc = TopologyDescriptor::new(src.points.len(), &counts, &indices).map_err(|e| format!("OpenSubdiv: {e}"))?;
     if !crease_pairs.is_empty() {
-        desc.creases(&crease_pairs, &crease_weights);
+        desc.creases(crease_pairs, crease_weights);
     }
     if !corners.is_empty() {
         desc.corners(&corners, &corner_weights);
@@ -447,23 +449,17 @@ impl Primvars {
 
     /// The interpolation, if `len` values fit it; else a warning naming the primvar.
     fn interp(src: &MeshSource, name: &str, len: usize, interp: &str, warn: &mut impl FnMut(String)) -> Option<Interp> {
-        let (i, want) = match interp {
-            "vertex" => (Interp::Vertex, src.points.len()),
-            "varying" => (Interp::Varying, src.points.len()),
-            "faceVarying" => (Interp::FaceVarying, src.indices.len()),
-            "uniform" => (Interp::Uniform, src.counts.len()),
-            "constant" => (Interp::Constant, 1),
-            other => {
-                warn(format!("{name}: unknown interpolation '{other}'; ignoring it"));
-                return None;
-            }
-        };
-        let fits = if i == Interp::FaceVarying { len >= want } else { len == want };
-        if !fits {
-            warn(format!("{name}: {len} values for {interp} interpolation, {want} expected; ignoring them"));
+        let sizes = Sizes { points: src.points.len(), face_vertices: src.indices.len(), faces: src.counts.len() };
+        if !sizes.fits(name, len, interp, warn) {
             return None;
         }
-        Some(i)
+        Some(match interp {
+            "vertex" => Interp::Vertex,
+            "varying" => Interp::Varying,
+            "faceVarying" => Interp::FaceVarying,
+            "uniform" => Interp::Uniform,
+            _ => Interp::Constant,
+        })
     }
 }
 
@@ -555,7 +551,7 @@ impl<'c> Tessellation<'c> {
     }
 
     /// Adds the refined faces of `chunk`, whose grid points `table` holds in order.
-    fn add(&mut self, chunk: &[Ptex], table: &LimitStencilTable, src: &MeshSource, primvars: &Primvars) {
+    fn add(&mut self, chunk: &[Ptex], table: &LimitStencilTable, primvars: &Primvars) {
         let stencils = Stencils {
             offsets: table.offsets(),
             sizes: table.sizes(),
@@ -567,8 +563,8 @@ impl<'c> Tessellation<'c> {
         let mut at = 0usize;
         for p in chunk {
             let g = self.grid(p);
-            let samples: Vec<Sample> =
-                g.points().enumerate().map(|(n, (i, j))| self.sample(p, g, (i, j), &stencils, at + n, src, primvars)).collect();
+            let on_face: Vec<FacePrimvar> = primvars.list.iter().map(|(_, v, interp)| self.on_face(p, g.triangle, v, *interp)).collect();
+            let samples: Vec<Sample> = g.points().enumerate().map(|(n, ij)| self.sample(p, g, ij, &stencils, at + n, &on_face)).collect();
             for cell in g.cells() {
                 self.counts.push(cell.len() as i64);
                 self.cage_face.push(p.face);
@@ -586,9 +582,8 @@ impl<'c> Tessellation<'c> {
     }
 
     /// Evaluates grid point `ij` of `p` (stencil `k`) and welds it.
-    #[allow(clippy::too_many_arguments)]
-    fn sample(&mut self, p: &Ptex, g: Grid, ij: (u32, u32), st: &Stencils, k: usize, src: &MeshSource, pv: &Primvars) -> Sample {
-        let (pos, du, dv) = st.eval(k, &src.points);
+    fn sample(&mut self, p: &Ptex, g: Grid, ij: (u32, u32), st: &Stencils, k: usize, on_face: &[FacePrimvar]) -> Sample {
+        let (pos, du, dv) = st.eval(k, &self.cage.src.points);
         let mut normal = du.cross(dv);
         if self.left_handed {
             normal = -normal;
@@ -605,7 +600,7 @@ impl<'c> Tessellation<'c> {
             None => self.push_point(pos, None),
         };
         let (s, t) = (ij.0 as f32 / g.r as f32, ij.1 as f32 / g.r as f32);
-        let values = pv.list.iter().map(|(_, v, interp)| self.value(p, g.triangle, (s, t), v, *interp, st, k)).collect();
+        let values = on_face.iter().map(|f| f.at((s, t), st, k)).collect();
         Sample { vertex, normal, values }
     }
 
@@ -618,37 +613,31 @@ impl<'c> Tessellation<'c> {
         v
     }
 
-    /// A primvar's value at (s, t) of `p`.
-    #[allow(clippy::too_many_arguments)]
-    fn value(&self, p: &Ptex, triangle: bool, (s, t): (f32, f32), v: &[Vec3], interp: Interp, st: &Stencils, k: usize) -> Vec3 {
+    /// A primvar as one ptex face sees it: linear interpolations need the face's four corner
+    /// values (an n-gon's sub-face: its corner, two edge midpoints and the centre), found
+    /// once per face rather than per grid point.
+    fn on_face<'v>(&self, p: &Ptex, triangle: bool, v: &'v [Vec3], interp: Interp) -> FacePrimvar<'v> {
         let f = p.face as usize;
         let start = self.cage.starts[f];
         let corner = |c: usize| match interp {
             Interp::FaceVarying => v[start + c],
             _ => v[self.cage.src.indices[start + c] as usize],
         };
-        match interp {
-            Interp::Vertex => st.eval_values(k, v),
-            Interp::Uniform => v[f],
-            Interp::Constant => v[0],
-            Interp::Varying | Interp::FaceVarying => {
-                let n = self.cage.src.counts[f] as usize;
-                let c = match p.sub {
-                    None => [corner(0), corner(1), corner(2), if triangle { Vec3::ZERO } else { corner(3) }],
-                    Some(k) => {
-                        let k = k as usize;
-                        let (here, next, prev) = (corner(k), corner((k + 1) % n), corner((k + n - 1) % n));
-                        let centre = (0..n).map(corner).sum::<Vec3>() / n as f32;
-                        [here, 0.5 * (here + next), centre, 0.5 * (here + prev)]
-                    }
-                };
-                if triangle {
-                    (1.0 - s - t) * c[0] + s * c[1] + t * c[2]
-                } else {
-                    (1.0 - s) * (1.0 - t) * c[0] + s * (1.0 - t) * c[1] + s * t * c[2] + (1.0 - s) * t * c[3]
-                }
+        let corners = match (interp, p.sub) {
+            (Interp::Varying | Interp::FaceVarying, None) => {
+                [corner(0), corner(1), corner(2), if triangle { Vec3::ZERO } else { corner(3) }]
             }
-        }
+            (Interp::Varying | Interp::FaceVarying, Some(k)) => {
+                let (k, n) = (k as usize, self.cage.src.counts[f] as usize);
+                let (here, next, prev) = (corner(k), corner((k + 1) % n), corner((k + n - 1) % n));
+                let centre = (0..n).map(corner).sum::<Vec3>() / n as f32;
+                [here, 0.5 * (here + next), centre, 0.5 * (here + prev)]
+            }
+            (Interp::Uniform, _) => [v[f]; 4],
+            (Interp::Constant, _) => [v[0]; 4],
+            (Interp::Vertex, _) => [Vec3::ZERO; 4],
+        };
+        FacePrimvar { values: v, interp, corners, triangle }
     }
 
     /// The cage face's own normal (Newell's), where the limit tangents are degenerate.
@@ -679,6 +668,27 @@ impl<'c> Tessellation<'c> {
             smooth: false,
         };
         Refined { mesh, cage_face: self.cage_face, level, weld_gap: self.weld_gap }
+    }
+}
+
+/// A primvar on one ptex face: its values, how they vary, and the face's corner values.
+struct FacePrimvar<'v> {
+    values: &'v [Vec3],
+    interp: Interp,
+    corners: [Vec3; 4],
+    triangle: bool,
+}
+
+impl FacePrimvar<'_> {
+    /// The value at (s, t) of the face, stencil `k` being that point's.
+    fn at(&self, (s, t): (f32, f32), st: &Stencils, k: usize) -> Vec3 {
+        let c = &self.corners;
+        match self.interp {
+            Interp::Vertex => st.eval_values(k, self.values),
+            Interp::Uniform | Interp::Constant => c[0],
+            _ if self.triangle => (1.0 - s - t) * c[0] + s * c[1] + t * c[2],
+            _ => (1.0 - s) * (1.0 - t) * c[0] + s * (1.0 - t) * c[1] + s * t * c[2] + (1.0 - s) * t * c[3],
+        }
     }
 }
 
