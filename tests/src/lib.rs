@@ -32,6 +32,23 @@ pub fn all_fixtures() -> Vec<PathBuf> {
     out
 }
 
+/// What usd-core reads, from `fixtures/inspect_usd.py`.
+pub fn usd_core_reads(scene: &Path, frame: Option<f64>) -> serde_json::Value {
+    let mut cmd = std::process::Command::new("python3");
+    cmd.arg(fixture("inspect_usd.py")).arg(scene);
+    if let Some(f) = frame {
+        cmd.arg("--frame").arg(f.to_string());
+    }
+    let out = cmd.output().expect("python3 runs (the tests use Pixar's usd-core as an independent reader)");
+    assert!(
+        out.status.success(),
+        "inspect_usd.py failed on {} (is usd-core installed? pip install -r fixtures/requirements.txt):\n{}",
+        scene.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON")
+}
+
 /// Reads a fixture with the client's USD reader.
 pub fn load(rel: &str) -> Translation {
     tessera::usd::load(&fixture(rel)).unwrap_or_else(|e| panic!("{rel}: {e:#}"))

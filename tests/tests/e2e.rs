@@ -21,6 +21,7 @@ mod materialx;
 mod points;
 mod preview_surface;
 mod sampling;
+mod skinning;
 mod subdivision;
 mod textures;
 mod usd;

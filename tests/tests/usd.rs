@@ -8,23 +8,6 @@ use serde_json::Value;
 use tessera::usd::load_at;
 use tessera_tests::*;
 
-/// What usd-core reads, from `fixtures/inspect_usd.py`.
-fn usd_core_reads(scene: &Path, frame: Option<f64>) -> Value {
-    let mut cmd = std::process::Command::new("python3");
-    cmd.arg(fixture("inspect_usd.py")).arg(scene);
-    if let Some(f) = frame {
-        cmd.arg("--frame").arg(f.to_string());
-    }
-    let out = cmd.output().expect("python3 runs (the tests use Pixar's usd-core as an independent reader)");
-    assert!(
-        out.status.success(),
-        "inspect_usd.py failed on {} (is usd-core installed? pip install -r fixtures/requirements.txt):\n{}",
-        scene.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON")
-}
-
 /// Compares `expected` (usd-core) with `actual` (ours) recursively; numbers to 1e-4
 /// relative, since our transforms are f32. Returns the differences found.
 fn differences(expected: &Value, actual: &Value, at: &str, ours: &Value, out: &mut Vec<String>) {
@@ -76,6 +59,9 @@ fn an_independent_reader_agrees_on_every_fixture() {
     assert!(fixtures.len() >= 15, "found only {} fixtures", fixtures.len());
     let mut cases: Vec<(PathBuf, Option<f64>)> = fixtures.into_iter().map(|f| (f, None)).collect();
     cases.push((fixture("usd/animated.usda"), Some(5.5)));
+    // Skinning between time samples: slerped joint rotations, interpolated blend shape weights.
+    cases.push((fixture("usd/skinned_arm.usda"), Some(5.5)));
+    cases.push((fixture("usd-wg/UsdSkel/CesiumMan.usdz"), Some(7.3)));
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
     for (scene, frame) in cases {
@@ -303,11 +289,13 @@ async fn light_diffuse_and_specular_multipliers_select_the_lobes_they_light() {
 }
 
 #[test]
-fn skinned_meshes_render_in_rest_pose_with_a_warning() {
+fn a_mesh_bound_to_a_skeleton_without_animation_takes_its_rest_pose() {
     let t = load("usd/skinned.usda");
     assert!(t.meshes.iter().any(|(p, m)| p == "/World/Character/Body" && m.mesh.indices.len() == 2), "the bound mesh is kept");
-    assert!(t.warnings.iter().any(|w| w.contains("/World/Character") && w.contains("rest pose")), "{:?}", t.warnings);
-    assert_eq!(t.skipped, vec!["/World/Character/Skel".to_string()]);
+    assert_eq!(t.skinned.len(), 1);
+    assert_eq!(t.skinned[0].animation, None);
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    assert_eq!(t.skipped, vec!["/World/Character/Skel".to_string()], "the Skeleton itself does not render");
 }
 
 #[test]

@@ -43,6 +43,7 @@ pub fn to_json(t: &Translation) -> Value {
     let mut meshes = Map::new();
     // A mesh's subdivision, by its path; a GeomSubset's mesh is named by the subset, one level below.
     let subdivided: std::collections::HashMap<&str, &crate::usd::Subdivided> = t.subdivided.iter().map(|s| (s.path.as_str(), s)).collect();
+    let skinned: std::collections::HashMap<&str, &crate::usd::Skinned> = t.skinned.iter().map(|s| (s.path.as_str(), s)).collect();
     let subdivision_of = |path: &str| {
         subdivided.get(path).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| subdivided.get(mesh))).map(|s| subdivision_json(s))
     };
@@ -63,6 +64,9 @@ pub fn to_json(t: &Translation) -> Value {
         // GeomSubsets render as meshes of their own, named by the subset under the mesh.
         if let Some(s) = subdivision_of(path) {
             mesh["subdivision"] = s;
+        }
+        if let Some(s) = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh))) {
+            mesh["skinning"] = skinning_json(s, m, subdivision_of(path).is_none());
         }
         meshes.insert(path.clone(), mesh);
     }
@@ -126,6 +130,17 @@ pub fn to_json(t: &Translation) -> Value {
         "textures": t.texture_paths.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<Map<String, Value>>(),
         "skipped": t.skipped,
     })
+}
+
+/// A skinned mesh's skeleton and animation, and (unless refined, when the points are no longer
+/// the authored ones) its posed points in world space.
+fn skinning_json(s: &crate::usd::Skinned, m: &render_core::scene::MeshDesc, with_points: bool) -> Value {
+    let mut out = json!({ "skeleton": s.skeleton, "animation": s.animation });
+    if with_points {
+        let points: Vec<Value> = m.mesh.positions.iter().map(|&p| json!(m.transform.transform_point3(p).to_array())).collect();
+        out["worldPoints"] = Value::Array(points);
+    }
+    out
 }
 
 fn subdivision_json(s: &crate::usd::Subdivided) -> Value {

@@ -196,8 +196,8 @@ async fn render_synced(
                 for p in &s.plan {
                     say(format!("  + {:<16} {}", p.effect, p.reason));
                 }
-                if let Some(subdivision) = translation.subdivision_plan() {
-                    say(subdivision.trim_end().to_string());
+                for line in translation.reader_plan().lines() {
+                    say(line.to_string());
                 }
             }
             for w in &s.warnings {
@@ -512,6 +512,7 @@ fn exr_metadata(
                 .iter()
                 .map(|p| p.effect.as_str())
                 .chain((!translation.subdivided.is_empty()).then_some("subdivision"))
+                .chain((!translation.skinned.is_empty()).then_some("skinning"))
                 .chain(options.denoise.then_some("denoise"))
                 .collect::<Vec<_>>()
                 .join(","),
@@ -577,8 +578,8 @@ pub fn explain_plan(scene: &Path, options: crate::usd::LoadOptions) -> Result<St
     // What the reader did goes with what the renderer does, before what it leaves out.
     let plan = committed.plan.to_string();
     let split = plan.find("  - ").unwrap_or(plan.len());
-    let subdivision = translation.subdivision_plan().unwrap_or_default();
-    let mut out = format!("render plan for {}:\n{}{subdivision}{}", scene.display(), &plan[..split], &plan[split..]);
+    let reader = translation.reader_plan();
+    let mut out = format!("render plan for {}:\n{}{reader}{}", scene.display(), &plan[..split], &plan[split..]);
     for w in translation.warnings.iter().chain(&committed.warnings) {
         out += &format!("  ! {w}\n");
     }

@@ -54,6 +54,7 @@ impl Reader<'_> {
         let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
         let tags = self.subdivision_tags(prim, p)?;
         let normals = self.normals(prim, p)?;
+        let (points, normals) = self.skinned(p, points, normals, &indices);
         let face_count = counts.len();
         let uvs = self.uvs(prim, p)?;
         let primvars = self.primvars(prim, p)?;
@@ -68,6 +69,27 @@ impl Reader<'_> {
         };
         self.out.warnings.extend(warnings);
         Ok((mesh, face_of, face_count))
+    }
+
+    /// The mesh's points and normals posed by its skeleton, when it has one. Influences that
+    /// do not fit its points leave it in its rest pose, with a warning.
+    fn skinned(
+        &mut self,
+        p: &str,
+        points: Vec<Vec3>,
+        normals: skinning::AuthoredNormals,
+        indices: &[i64],
+    ) -> (Vec<Vec3>, skinning::AuthoredNormals) {
+        let Some(skin) = self.skins.get(p) else { return (points, normals) };
+        match skin.deform(&points, normals.as_ref(), indices) {
+            Ok(posed) => posed,
+            Err(e) => {
+                self.skins.remove(p);
+                self.out.skinned.retain(|s| s.path != p);
+                self.out.warnings.push(format!("{p}: {e}; the mesh renders in its rest pose"));
+                (points, normals)
+            }
+        }
     }
 
     /// `src` refined at the mesh's level when its scheme subdivides (with the cage face of each

@@ -20,6 +20,7 @@ pub mod points;
 mod render_settings;
 mod shading;
 pub mod shapes;
+mod skinning;
 mod stage;
 pub mod subdivision;
 mod values;
@@ -43,6 +44,7 @@ use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, P
 use render_core::scene::{InstancerDesc, MeshDesc, SceneDesc};
 
 pub use mesh::{MeshSource, select_faces, triangulate, triangulate_with_faces};
+pub use skinning::Skinned;
 
 /// A stage translated into what the renderer consumes, plus what it could not render.
 #[derive(Clone, Debug, Default)]
@@ -83,6 +85,19 @@ pub struct Translation {
     pub materialx_surfaces: Vec<(String, String)>,
     /// Meshes rendered as subdivision surfaces, in reading order.
     pub subdivided: Vec<Subdivided>,
+    /// Meshes posed by a UsdSkel skeleton, in reading order.
+    pub skinned: Vec<Skinned>,
+}
+
+/// One effect of the render plan with the prims calling for it (the first dozen named).
+fn plan_entry(effect: &str, reason: &str, prims: impl ExactSizeIterator<Item = String>) -> String {
+    const SHOWN: usize = 12;
+    let count = prims.len();
+    let mut named: Vec<String> = prims.take(SHOWN).collect();
+    if count > SHOWN {
+        named.push(format!("and {} more", count - SHOWN));
+    }
+    format!("  + {effect:<18} {reason}\n  {:<20} {}\n", "", named.join(", "))
 }
 
 /// A mesh refined as a subdivision surface.
@@ -218,27 +233,31 @@ impl Translation {
             .collect()
     }
 
-    /// The render plan's entry for what reading did: the subdivision surfaces refined, in the
-    /// plan's own layout (`None` when there are none). Refinement happens in the reader, so the
-    /// server's plan cannot list it.
-    pub fn subdivision_plan(&self) -> Option<String> {
-        if self.subdivided.is_empty() {
-            return None;
+    /// The render plan's entries for what reading did: the subdivision surfaces refined and
+    /// the meshes skinned, in the plan's own layout (empty when there are none). Both happen in
+    /// the reader, so the server's plan cannot list them.
+    pub fn reader_plan(&self) -> String {
+        let mut out = String::new();
+        if !self.subdivided.is_empty() {
+            let mut levels: Vec<u32> = self.subdivided.iter().map(|s| s.level).collect();
+            levels.sort_unstable();
+            levels.dedup();
+            let levels = levels.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+            let reason = format!(
+                "limit surfaces of subdivision meshes (OpenSubdiv), 2^level segments per cage edge, level {levels}; --subdivision-level 0 renders cages"
+            );
+            out +=
+                &plan_entry("subdivision", &reason, self.subdivided.iter().map(|s| format!("{} ({} level {})", s.path, s.scheme, s.level)));
         }
-        let mut levels: Vec<u32> = self.subdivided.iter().map(|s| s.level).collect();
-        levels.sort_unstable();
-        levels.dedup();
-        let levels = levels.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
-        let reason = format!(
-            "limit surfaces of subdivision meshes (OpenSubdiv), 2^level segments per cage edge, level {levels}; --subdivision-level 0 renders cages"
-        );
-        const SHOWN: usize = 12;
-        let mut prims: Vec<String> =
-            self.subdivided.iter().take(SHOWN).map(|s| format!("{} ({} level {})", s.path, s.scheme, s.level)).collect();
-        if self.subdivided.len() > SHOWN {
-            prims.push(format!("and {} more", self.subdivided.len() - SHOWN));
+        if !self.skinned.is_empty() {
+            let posed = |s: &Skinned| match &s.animation {
+                Some(a) => format!("{} ({a})", s.path),
+                None => format!("{} (rest pose)", s.path),
+            };
+            let reason = "UsdSkel meshes posed at the frame: blend shapes, then linear blend skinning";
+            out += &plan_entry("skinning", reason, self.skinned.iter().map(posed));
         }
-        Some(format!("  + {:<18} {reason}\n  {:<20} {}\n", "subdivision", "", prims.join(", ")))
+        out
     }
 
     /// Path of the light [`Self::add_default_light`] adds.
@@ -336,6 +355,7 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
         subdivision_level: options.subdivision_level.min(subdivision::MAX_LEVEL),
         unmappable: std::collections::HashSet::new(),
         mtlx_documents: std::collections::HashSet::new(),
+        skins: HashMap::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -416,4 +436,6 @@ struct Reader<'s> {
     unmappable: std::collections::HashSet<String>,
     /// MaterialX documents read for materials that reference them.
     mtlx_documents: std::collections::HashSet<String>,
+    /// Skinned meshes' poses, by mesh path, found when their SkelRoot is visited.
+    skins: HashMap<String, skinning::Skin>,
 }

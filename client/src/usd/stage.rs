@@ -95,13 +95,8 @@ impl Reader<'_> {
             "RenderProduct" | "RenderVar" => Ok(()),
             "Camera" => self.camera(&prim, &p),
             t if LIGHTS.contains(&t) => self.light(&prim, &p, t, visible),
-            // UsdSkel: the meshes under a SkelRoot are ordinary meshes in their rest pose.
-            "SkelRoot" => {
-                self.out
-                    .warnings
-                    .push(format!("{p}: skinning (UsdSkel) is not supported yet: the meshes under it render in their rest pose"));
-                Ok(())
-            }
+            // UsdSkel: the SkelRoot comes before its meshes, which find their pose ready.
+            "SkelRoot" => self.skel_root(&p),
             "Skeleton" | "SkelAnimation" | "BlendShape" => {
                 self.out.skipped.push(p);
                 Ok(())
@@ -143,8 +138,12 @@ impl Reader<'_> {
         Ok(m)
     }
 
+    /// The world transform a gprim renders with: a skinned mesh's is its skeleton's.
     pub(super) fn affine(&mut self, prim: &Prim, p: &str) -> Result<Affine3A> {
-        let m = self.world_transform(prim.path())?;
+        let m = match self.skins.get(prim.path().as_str()).and_then(|s| s.world()) {
+            Some(skeleton) => skeleton,
+            None => self.world_transform(prim.path())?,
+        };
         to_affine(&m).with_context(|| format!("{p}: xformOps compose to a non-finite transform"))
     }
 }
