@@ -28,6 +28,9 @@ pub enum Shape {
     Cone { radius: f32, height: f32, axis: Axis },
     /// `Capsule`: a cylinder of `height` with hemispherical ends of `radius`.
     Capsule { radius: f32, height: f32, axis: Axis },
+    /// A flat round disc in the XY plane facing +Z (not a UsdGeom prim: `Points` with
+    /// `normals` draw one per point).
+    Disc { radius: f32 },
     /// `Plane`: `width` along the first other axis, `length` along the second, facing +axis.
     Plane { width: f32, length: f32, axis: Axis },
 }
@@ -193,6 +196,10 @@ pub fn tessellate(shape: Shape) -> Mesh {
                     b.indices.push([i[0], i[2], i[3]]);
                 }
             }
+            b.finish(Axis::Z)
+        }
+        Shape::Disc { radius } => {
+            b.cap(radius, 0.0, true);
             b.finish(Axis::Z)
         }
         Shape::Plane { width, length, axis } => {
