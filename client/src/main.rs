@@ -94,6 +94,14 @@ enum Command {
         /// none) that do not name their own: 2^level segments per cage edge; 0 renders cages.
         #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
         subdivision_level: u32,
+        /// Shutter interval OPEN,CLOSE in frames relative to the frame (`-0.25,0.25`),
+        /// overriding the camera's shutter:open/close; equal ends render without motion blur.
+        #[arg(long, value_parser = parse_shutter, allow_hyphen_values = true)]
+        shutter: Option<(f64, f64)>,
+        /// Transform samples over the shutter for prims and cameras that move (more follow
+        /// a rotation's arc more closely; docs/accuracy-vs-time.md).
+        #[arg(long, default_value_t = tessera::usd::DEFAULT_MOTION_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(2..=64))]
+        motion_samples: u64,
         /// Render a frame range in one process: FIRST-LAST[xSTEP], comma-separated
         /// (`1-240x2`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
         #[arg(long)]
@@ -471,14 +479,15 @@ async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what } => bench(what)?,
         Command::Inspect { scene, json: _, frame, subdivision_level } => {
-            let options = tessera::usd::LoadOptions { frame, subdivision_level };
+            let options = tessera::usd::LoadOptions { frame, subdivision_level, ..Default::default() };
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, options)?);
         }
         Command::Farm { what } => farm(what).await?,
         Command::Merge { parts, output, denoise } => merge(&parts, &output, denoise)?,
-        Command::Render { scene, explain_plan: true, frame, subdivision_level, .. } => {
-            print!("{}", tessera::commands::render::explain_plan(&scene, tessera::usd::LoadOptions { frame, subdivision_level })?);
+        Command::Render { scene, explain_plan: true, frame, subdivision_level, shutter, motion_samples, .. } => {
+            let options = tessera::usd::LoadOptions { frame, subdivision_level, shutter, motion_samples: motion_samples as usize };
+            print!("{}", tessera::commands::render::explain_plan(&scene, options)?);
         }
         cmd @ Command::Render { explain_plan: false, .. } => render_command(cmd).await?,
     }
@@ -506,6 +515,8 @@ async fn render_command(cmd: Command) -> Result<()> {
         light_split_budget,
         frame,
         subdivision_level,
+        shutter,
+        motion_samples,
         frames,
         alf_progress,
         skip_existing,
@@ -572,8 +583,21 @@ async fn render_command(cmd: Command) -> Result<()> {
         (_, None) => PathBuf::new(),
     };
     let default_light = !no_default_light;
-    let job =
-        RenderJob { scene, output, options, server, progress, frame, subdivision_level, default_light, strict, alf_progress: None, film };
+    let job = RenderJob {
+        scene,
+        output,
+        options,
+        server,
+        progress,
+        frame,
+        subdivision_level,
+        shutter,
+        motion_samples: motion_samples as usize,
+        default_light,
+        strict,
+        alf_progress: None,
+        film,
+    };
     match frames {
         None => render_one(job, alf_progress, skip_existing).await?,
         Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
@@ -622,4 +646,20 @@ async fn render_one(job: RenderJob, alf: bool, skip_existing: bool) -> Result<()
         tessera::commands::frames::alf_progress(0, 1, 100.0);
     }
     Ok(())
+}
+
+/// `--shutter OPEN,CLOSE`: two finite frame offsets, open not after close.
+fn parse_shutter(s: &str) -> Result<(f64, f64), String> {
+    let (a, b) = s.split_once(',').ok_or("expected OPEN,CLOSE, e.g. -0.25,0.25")?;
+    let parse = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .map_err(|e| format!("'{x}': {e}"))
+            .and_then(|v| if v.is_finite() { Ok(v) } else { Err(format!("'{x}' is not finite")) })
+    };
+    let (open, close) = (parse(a)?, parse(b)?);
+    if open > close {
+        return Err(format!("the shutter opens at {open}, after it closes at {close}"));
+    }
+    Ok((open, close))
 }

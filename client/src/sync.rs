@@ -78,6 +78,7 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             uvs_len: uvs.len() as u64,
             uv_interpolation: uv_interp as i32,
             primvars: Vec::new(),
+            motion: convert::motion_to_wire(&m.motion),
         };
         let primvars: Vec<(pb::PrimvarInfo, Vec<f32>)> = m
             .mesh
@@ -164,6 +165,7 @@ fn prim_paths(t: &Translation) -> std::collections::BTreeSet<&str> {
 pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
     let prim = pb::MeshPrim {
         transform: Some(convert::matrix(&m.transform)),
+        motion: convert::motion_to_wire(&m.motion),
         material_path: m.material.clone(),
         visible: m.visible,
         double_sided: true,
@@ -183,7 +185,7 @@ pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &rend
     let mut item = mesh_placement(path, after);
     if let pb::sync_request::Item::Prim(d) = &mut item {
         let bits = [
-            (before.transform != after.transform, pb::DirtyBits::DirtyTransform),
+            (before.transform != after.transform || before.motion != after.motion, pb::DirtyBits::DirtyTransform),
             (before.material != after.material, pb::DirtyBits::DirtyMaterialId),
             (before.visible != after.visible, pb::DirtyBits::DirtyVisibility),
         ];

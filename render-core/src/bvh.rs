@@ -266,13 +266,21 @@ pub struct TlasInstance {
     pub blas: usize,
     /// Placement.
     pub transform: Transform,
+    /// Placements over the shutter when it moves ([`crate::motion`]); `transform` is then
+    /// unused by traversal.
+    pub motion: Option<std::sync::Arc<[glam::Affine3A]>>,
 }
+
+/// An instance as the TLAS leaves hold it: original index, BLAS, placement, motion.
+type Placed = (u32, usize, Transform, Option<std::sync::Arc<[glam::Affine3A]>>);
 
 /// A closest hit.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
     /// Distance along the world ray (in units of its direction's length).
     pub t: f32,
+    /// The ray's shutter time: where moving instances were when hit.
+    pub time: f32,
     /// Index of the instance hit.
     pub instance: u32,
     /// Triangle index within the instance's mesh.
@@ -298,7 +306,7 @@ enum Accel {
     /// A BVH over instance bounds whose leaves send the ray, moved into object space, down
     /// the instance's BLAS. `ordered`: instances in BVH order (original index, BLAS,
     /// placement).
-    Instances { bvh: CwBvh, ordered: Vec<(u32, usize, Transform)> },
+    Instances { bvh: CwBvh, ordered: Vec<Placed> },
     /// One BVH over every instance's triangles placed in the world, with the (instance,
     /// triangle) of each, by the index the BVH reports: no second traversal and no ray
     /// transform per instance. Built for scenes of few triangles in all (see
@@ -326,13 +334,18 @@ impl Tlas {
             return Tlas { accel: None, ray_scale: 1.0 };
         }
         let total: usize = instances.iter().map(|i| blases[i.blas].tris.len()).sum();
-        if total <= flat_limit {
+        // Moving instances are placed per ray: only the two-level walk can.
+        if total <= flat_limit && instances.iter().all(|i| i.motion.is_none()) {
             return Self::build_flat(blases, instances);
         }
         let bounds: Vec<Aabb> = instances
             .iter()
             .map(|inst| {
                 let (lo, hi) = blases[inst.blas].bounds();
+                if let Some(m) = &inst.motion {
+                    let (lo, hi) = crate::motion::bounds_over(m, lo, hi);
+                    return Aabb::new(lo.into(), hi.into());
+                }
                 let mut aabb = Aabb::empty();
                 for i in 0..8 {
                     let corner = Vec3::new(
@@ -346,7 +359,14 @@ impl Tlas {
             })
             .collect();
         let bvh = build_bounded(&bounds, BuildQuality::Medium.params());
-        let ordered = bvh.primitive_indices.iter().map(|&i| (i, instances[i as usize].blas, instances[i as usize].transform)).collect();
+        let ordered = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| {
+                let inst = &instances[i as usize];
+                (i, inst.blas, inst.transform, inst.motion.clone())
+            })
+            .collect();
         let ray_scale = ray_scale(&bvh.total_aabb);
         Tlas { accel: Some(Accel::Instances { bvh, ordered }), ray_scale }
     }
@@ -388,17 +408,25 @@ impl Tlas {
             Accel::Flat { world, ids } => {
                 return world.intersect(wray.origin, wray.direction, wray.tmax).map(|(t, id, bary)| {
                     let (instance, triangle) = ids[id as usize];
-                    Hit { t: t * k, instance, triangle, bary }
+                    Hit { t: t * k, time: ray.time, instance, triangle, bary }
                 });
             }
         };
         bvh.ray_traverse(wray, &mut rh, |r, id| {
-            let (inst, blas, xf) = &ordered[id];
+            let (inst, blas, xf, motion) = &ordered[id];
+            let moved;
+            let xf = match motion {
+                None => xf,
+                Some(m) => {
+                    moved = crate::motion::placement_at(m, ray.time);
+                    &moved
+                }
+            };
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
             match blases[*blas].intersect(o, d, r.tmax) {
                 Some((t, tri, bary)) => {
-                    best = Some(Hit { t: t * k, instance: *inst, triangle: tri, bary });
+                    best = Some(Hit { t: t * k, time: ray.time, instance: *inst, triangle: tri, bary });
                     t
                 }
                 None => f32::INFINITY,
@@ -417,7 +445,15 @@ impl Tlas {
             Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax),
         };
         !bvh.ray_traverse_miss(wray, |r, id| {
-            let (_, blas, xf) = &ordered[id];
+            let (_, blas, xf, motion) = &ordered[id];
+            let moved;
+            let xf = match motion {
+                None => xf,
+                Some(m) => {
+                    moved = crate::motion::placement_at(m, ray.time);
+                    &moved
+                }
+            };
             let o = xf.to_object.transform_point3a(r.origin);
             let d = xf.to_object.transform_vector3a(r.direction);
             // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
@@ -457,7 +493,7 @@ mod tests {
         let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
         let xf = Transform::new(Affine3A::from_scale(Vec3::splat(1e-4))).unwrap();
         for flat_limit in BOTH_KINDS {
-            let tlas = Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: xf }], flat_limit);
+            let tlas = Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: xf, motion: None }], flat_limit);
             let ray = Ray::new(Vec3::new(2e-5, -3e-5, 5e-5), -Vec3::Z);
             let hit = tlas.intersect(&blas, &ray).expect("a hit 5e-5 away");
             assert!((hit.t - 5e-5).abs() < 1e-9, "t = {}, flat {}", hit.t, tlas.is_flat());
@@ -492,7 +528,7 @@ mod tests {
     fn identical_instances_build_a_shallow_tlas() {
         let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
         let xf = Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -5.0))).unwrap();
-        let instances: Vec<TlasInstance> = (0..100_000).map(|_| TlasInstance { blas: 0, transform: xf }).collect();
+        let instances: Vec<TlasInstance> = (0..100_000).map(|_| TlasInstance { blas: 0, transform: xf, motion: None }).collect();
         let tlas = Tlas::build(&blas, &instances);
         assert!(!tlas.is_flat());
         let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.5, 0.5, 0.0), -Vec3::Z)).expect("hit");
@@ -505,7 +541,8 @@ mod tests {
         let m = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]], ..Default::default() };
         let blas = vec![Arc::new(Blas::build(&m, BuildQuality::Medium))];
         for flat_limit in BOTH_KINDS {
-            let tlas = Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: Transform::identity() }], flat_limit);
+            let tlas =
+                Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: Transform::identity(), motion: None }], flat_limit);
             let hit = tlas.intersect(&blas, &Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z)).expect("hit");
             assert_eq!((hit.instance, hit.triangle), (0, 0));
         }
@@ -518,8 +555,12 @@ mod tests {
             Transform::new(Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), glam::Quat::IDENTITY, Vec3::new(0.0, 0.0, -5.0)))
                 .unwrap();
         let instances = [
-            TlasInstance { blas: 0, transform: xf },
-            TlasInstance { blas: 0, transform: Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0))).unwrap() },
+            TlasInstance { blas: 0, transform: xf, motion: None },
+            TlasInstance {
+                blas: 0,
+                transform: Transform::new(Affine3A::from_translation(Vec3::new(0.0, 0.0, -10.0))).unwrap(),
+                motion: None,
+            },
         ];
         for flat_limit in BOTH_KINDS {
             let tlas = Tlas::build_with_flat_limit(&blas, &instances, flat_limit);
@@ -563,7 +604,7 @@ mod tests {
                 let r = glam::Quat::from_axis_angle(crate::sampling::uniform_sphere(rng.next_2d()), 6.0 * rng.next_f32());
                 let t = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
                 let xf = Affine3A::from_scale_rotation_translation(Vec3::new(0.5, 1.0, 1.5) * (0.5 + rng.next_f32()), r, t);
-                TlasInstance { blas: i % 2, transform: Transform::new(xf).unwrap() }
+                TlasInstance { blas: i % 2, transform: Transform::new(xf).unwrap(), motion: None }
             })
             .collect();
         let two_level = Tlas::build_with_flat_limit(&blas, &instances, 0);
@@ -601,5 +642,31 @@ mod tests {
         assert!(hits > 2000, "only {hits} hits");
         // Rays within rounding of an edge may go either way.
         assert!(disagreements <= 4, "{disagreements} disagreements in {hits} hits");
+    }
+
+    #[test]
+    fn a_moving_instance_is_where_the_ray_time_places_it() {
+        // A quad 2 wide sliding from x = 0 to x = 4 over the shutter (three samples), beside a
+        // still one far off: a ray down x = 1.5 meets it while its centre is within 1, from
+        // time 1/8 to 5/8; a shadow ray likewise.
+        let blas = vec![Arc::new(Blas::build(&quad(), BuildQuality::Medium))];
+        let motion: Arc<[Affine3A]> = (0..3).map(|i| Affine3A::from_translation(Vec3::new(2.0 * i as f32, 0.0, 0.0))).collect();
+        let moving = TlasInstance { blas: 0, transform: Transform::identity(), motion: Some(motion) };
+        let still = TlasInstance {
+            blas: 0,
+            transform: Transform::new(Affine3A::from_translation(Vec3::new(50.0, 0.0, 0.0))).unwrap(),
+            motion: None,
+        };
+        // The flat BVH cannot place per ray: any motion builds two levels, whatever the cap.
+        let tlas = Tlas::build_with_flat_limit(&blas, &[moving, still], usize::MAX);
+        assert!(!tlas.is_flat());
+        let down = |x: f32, time: f32| Ray::new(Vec3::new(x, 0.0, 1.0), -Vec3::Z).with_time(time);
+        for (time, hit) in [(0.0, false), (0.1, false), (0.15, true), (0.5, true), (0.6, true), (0.65, false), (1.0, false)] {
+            assert_eq!(tlas.intersect(&blas, &down(1.5, time)).is_some(), hit, "time {time}");
+            assert_eq!(tlas.occluded(&blas, &down(1.5, time), 2.0), hit, "shadow at time {time}");
+        }
+        let h = tlas.intersect(&blas, &down(4.5, 1.0)).expect("at the end of its slide");
+        assert_eq!((h.instance, h.time), (0, 1.0));
+        assert!(tlas.intersect(&blas, &down(50.0, 0.3)).is_some(), "the still quad");
     }
 }

@@ -37,11 +37,14 @@ pub struct CameraDesc {
     pub f_stop: f32,
     /// `focusDistance`, in scene units.
     pub focus_distance: f32,
-    /// `shutter:open`, in frames relative to the frame rendered. Kept for motion blur,
-    /// which is not simulated yet: every ray sees the frame's own time.
+    /// `shutter:open`, in frames relative to the frame rendered (for the record: the reader
+    /// samples motion over the shutter into [`Self::motion`] and meshes' motions).
     pub shutter_open: f32,
     /// `shutter:close`; see [`Self::shutter_open`].
     pub shutter_close: f32,
+    /// Camera to world at evenly spaced times over the shutter when the camera moves
+    /// ([`crate::motion`]); empty when it does not.
+    pub motion: Vec<Affine3A>,
 }
 
 impl Default for CameraDesc {
@@ -61,6 +64,7 @@ impl Default for CameraDesc {
             focus_distance: 0.0,
             shutter_open: 0.0,
             shutter_close: 0.0,
+            motion: Vec::new(),
         }
     }
 }
@@ -69,6 +73,8 @@ impl Default for CameraDesc {
 #[derive(Clone, Debug)]
 pub struct Camera {
     to_world: Affine3A,
+    /// Camera to world over the shutter when the camera moves ([`crate::motion`]).
+    motion: Vec<Affine3A>,
     forward: Vec3,
     /// Film window on the plane z = −1: (left, top) and size.
     window_min: Vec2,
@@ -121,6 +127,7 @@ impl Camera {
         let forward = (-Vec3::from(desc.transform.matrix3.z_axis)).normalize_or(-Vec3::Z);
         Camera {
             to_world: desc.transform,
+            motion: if crate::motion::check_samples(&desc.motion).is_ok() { desc.motion.clone() } else { Vec::new() },
             forward,
             window_min,
             window_size: size,
@@ -144,6 +151,12 @@ impl Camera {
     /// [`Camera::ray`] through the lens point that `lens` (in [0, 1)²) picks: with a thin
     /// lens, rays from every lens point through a pixel meet on the plane of focus.
     pub fn ray_through_lens(&self, x: f32, y: f32, lens: Vec2) -> (Ray, f32) {
+        self.ray_at(x, y, lens, 0.0)
+    }
+
+    /// [`Camera::ray_through_lens`] at shutter time `time` (0 open, 1 close): from where a
+    /// moving camera is then, and seeing moving geometry where it is then.
+    pub fn ray_at(&self, x: f32, y: f32, lens: Vec2, time: f32) -> (Ray, f32) {
         let sx = x / self.width as f32;
         let sy = y / self.height as f32;
         let film = Vec2::new(self.window_min.x + sx * self.window_size.x, self.window_min.y - sy * self.window_size.y);
@@ -156,11 +169,14 @@ impl Camera {
         } else {
             (Vec3::ZERO, film.extend(-1.0).normalize())
         };
-        let dir = self.to_world.transform_vector3(dir_local).normalize();
-        let origin = self.to_world.transform_point3(origin_local);
-        let cos = dir.dot(self.forward).max(1e-6);
+        let to_world = if self.motion.is_empty() { self.to_world } else { crate::motion::transform_at(&self.motion, time) };
+        let dir = to_world.transform_vector3(dir_local).normalize();
+        let origin = to_world.transform_point3(origin_local);
+        // Depth is along the view axis of the moment: a camera turning over the shutter turns it.
+        let forward = if self.motion.is_empty() { self.forward } else { (-Vec3::from(to_world.matrix3.z_axis)).normalize_or(self.forward) };
+        let cos = dir.dot(forward).max(1e-6);
         let t0 = self.near / cos;
-        let mut ray = Ray::new(origin + dir * t0, dir);
+        let mut ray = Ray::new(origin + dir * t0, dir).with_time(time);
         ray.tmax = self.far / cos - t0;
         (ray, cos)
     }

@@ -11,12 +11,20 @@ pub struct Ray {
     pub dir: Vec3,
     /// Maximum t.
     pub tmax: f32,
+    /// When in the shutter the ray travels (0 open, 1 close): what moving geometry it sees.
+    pub time: f32,
 }
 
 impl Ray {
     /// A ray of unbounded length.
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        Ray { origin, dir, tmax: f32::INFINITY }
+        Ray { origin, dir, tmax: f32::INFINITY, time: 0.0 }
+    }
+
+    /// The same ray at shutter time `time`.
+    #[inline]
+    pub fn with_time(self, time: f32) -> Self {
+        Ray { time, ..self }
     }
 
     /// The same ray ending at `tmax`.

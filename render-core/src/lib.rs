@@ -29,6 +29,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod motion;
 pub mod plan;
 pub mod render;
 pub mod sampling;

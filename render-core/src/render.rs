@@ -544,8 +544,10 @@ fn trace_camera_sample(
     counters: &mut PathCounters,
 ) -> crate::film::PixelSample {
     let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
-    // The camera's 4D set: pixel jitter and the lens point.
+    // The camera's 4D set: pixel jitter and the lens point; and, only in scenes that move
+    // (so still ones draw the same numbers as ever), a set whose first dimension is the time.
     let [jx, jy, lx, ly] = rng.next_4d();
-    let (ray, cos) = camera.ray_through_lens(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly));
+    let time = if scene.plan.has(crate::plan::Feature::MotionBlur) { rng.next_4d()[0] } else { 0.0 };
+    let (ray, cos) = camera.ray_at(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly), time);
     trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, integrator, counters)
 }

@@ -47,7 +47,7 @@ fn a_hundred_thousand_instances_of_ten_thousand_triangles_fit_in_a_few_hundred_m
     let mut desc = SceneDesc::default();
     desc.meshes.insert(
         "/Proto".into(),
-        MeshDesc { mesh: Arc::new(proto), transform: Affine3A::IDENTITY, material: String::new(), visible: false },
+        MeshDesc { mesh: Arc::new(proto), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: false },
     );
     desc.instancers = BTreeMap::from([("/Forest".into(), InstancerDesc { prototype: "/Proto".into(), transforms })]);
 

@@ -525,6 +525,7 @@ impl Transaction {
             let bit = |b: pb::DirtyBits| dirty & b as u32 != 0;
             if bit(pb::DirtyBits::DirtyTransform) {
                 existing.transform = convert::affine(&path, "transform", &m.transform)?;
+                existing.motion = convert::motion_from_wire(&path, "motion", &m.motion)?;
             }
             if bit(pb::DirtyBits::DirtyMaterialId) {
                 existing.material = m.material_path;
@@ -721,9 +722,10 @@ impl Transaction {
             let mesh = Mesh { positions, indices, normals, uvs, primvars };
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
+            let motion = convert::motion_from_wire(&path, "motion", &p.motion)?;
             self.desc
                 .meshes
-                .insert(path, MeshDesc { mesh: Arc::new(mesh), transform, material: p.material_path.clone(), visible: p.visible });
+                .insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material: p.material_path.clone(), visible: p.visible });
         }
         for (path, (prototype, data, _)) in self.instancers {
             let transforms = data

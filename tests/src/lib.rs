@@ -247,6 +247,7 @@ mod production {
         let mesh = |m: Mesh, xf: Affine3A, material: &str, visible: bool| MeshDesc {
             mesh: Arc::new(m),
             transform: xf,
+            motion: Vec::new(),
             material: material.into(),
             visible,
         };

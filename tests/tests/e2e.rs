@@ -18,6 +18,7 @@ mod interactive;
 mod light_units;
 mod materials;
 mod materialx;
+mod motion;
 mod points;
 mod preview_surface;
 mod sampling;

@@ -59,6 +59,8 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
         progress: false,
         frame: None,
         subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
+        shutter: None,
+        motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
         default_light: true,
         strict: true,
         alf_progress: None,

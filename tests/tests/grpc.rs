@@ -55,7 +55,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
     assert!(mesh.indices.len() * 12 + mesh.positions.len() * 24 > 4 << 20);
     t.meshes.push((
         "/Grid".into(),
-        MeshDesc { mesh: Arc::new(mesh), transform: glam::Affine3A::IDENTITY, material: String::new(), visible: true },
+        MeshDesc { mesh: Arc::new(mesh), transform: glam::Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true },
     ));
     t.lights.push((
         "/Dome".into(),

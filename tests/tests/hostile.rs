@@ -320,6 +320,48 @@ async fn huge_and_deep_material_networks_are_refused_by_their_limits() {
     bystander_renders(&server).await;
 }
 
+/// Motion samples are a count the client controls: 100 000 of them (13 MB) pass no message
+/// limit, and 20 000 (2.7 MB, within it), a single one, a singular one and a NaN one are
+/// refused naming the field, for meshes and cameras.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let identity = || pb::Matrix4 { m: vec![1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] };
+    let with_motion = |motion: Vec<pb::Matrix4>| {
+        let mut items = mesh("/Evil/Mover", TRIANGLE.to_vec(), vec![0, 1, 2]);
+        if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
+            m.motion = motion;
+        }
+        items
+    };
+    let singular = pb::Matrix4 { m: vec![0.0; 16] };
+    let nan = pb::Matrix4 { m: vec![f64::NAN; 16] };
+    for (what, motion, needle) in [
+        ("20 000 samples", vec![identity(); 20_000], "20000 motion samples"),
+        ("one sample", vec![identity()], "1 motion samples"),
+        ("a singular sample", vec![identity(), singular], "singular"),
+        ("a NaN sample", vec![identity(), nan], "NaN"),
+    ] {
+        let r = raw.sync(&s, with_motion(motion.clone())).await;
+        assert!(r.is_err(), "{what}");
+        assert_status(r, Code::InvalidArgument, &["/Evil/Mover", "motion", needle]);
+        let camera =
+            pb::CameraPrim { focal_length: 50.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, motion, ..Default::default() };
+        let r = raw.sync(&s, vec![tessera::sync::delta("/Evil/Cam", pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(camera))]).await;
+        assert_status(r, Code::InvalidArgument, &["/Evil/Cam", "motion", needle]);
+    }
+    assert_status(raw.sync(&s, with_motion(vec![identity(); 100_000])).await, Code::OutOfRange, &["message length too large"]);
+    // A valid motion syncs and renders.
+    let mut items = with_motion(vec![identity(), identity()]);
+    items.extend(camera_and_light());
+    raw.sync(&s, items).await.expect("two samples sync");
+    let f = raw.render(&s, tiny(8, 2)).await.expect("renders");
+    assert_eq!(f.spp, 2);
+    bystander_renders(&server).await;
+}
+
 // ------------------------------------------------------------------ memory
 
 /// A server with a 2 GiB budget, as the memory test and an operator's small box would run it.

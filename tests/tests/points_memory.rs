@@ -19,7 +19,13 @@ async fn a_million_points_render_in_under_a_gibibyte() {
     drop(points);
     let mut t = tessera::usd::Translation::default();
     let sphere = tessera::usd::shapes::tessellate(tessera::usd::shapes::Shape::Sphere { radius: 1.0 });
-    let desc = MeshDesc { mesh: Arc::new(sphere), transform: glam::Affine3A::IDENTITY, material: String::new(), visible: false };
+    let desc = MeshDesc {
+        mesh: Arc::new(sphere),
+        transform: glam::Affine3A::IDENTITY,
+        motion: Vec::new(),
+        material: String::new(),
+        visible: false,
+    };
     t.meshes.push(("/Dots[sphere]".into(), desc));
     t.instancers.push(("/Dots[points]".into(), InstancerDesc { prototype: "/Dots[sphere]".into(), transforms }));
     t.cameras.push(("/Camera".into(), CameraDesc::default()));

@@ -142,6 +142,27 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
     w
 }
 
+/// Placements over the shutter (`field` of `prim`): 2 to
+/// [`render_core::motion::MAX_MOTION_SAMPLES`] finite, invertible matrices, or none.
+pub fn motion_from_wire(prim: &str, field: &str, samples: &[pb::Matrix4]) -> Result<Vec<Affine3A>, Status> {
+    // Counted before anything is converted: a client may send millions.
+    if samples.len() > render_core::motion::MAX_MOTION_SAMPLES {
+        return Err(invalid(
+            prim,
+            field,
+            format!("{} motion samples; a motion has 2 to {}", samples.len(), render_core::motion::MAX_MOTION_SAMPLES),
+        ));
+    }
+    let motion = samples.iter().map(|m| affine(prim, field, &Some(m.clone()))).collect::<Result<Vec<_>, _>>()?;
+    render_core::motion::check_samples(&motion).map_err(|e| invalid(prim, field, e))?;
+    Ok(motion)
+}
+
+/// render-core placements over the shutter to wire.
+pub fn motion_to_wire(motion: &[Affine3A]) -> Vec<pb::Matrix4> {
+    motion.iter().map(matrix).collect()
+}
+
 /// Wire camera to render-core.
 pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, Status> {
     for (name, v) in
@@ -165,6 +186,7 @@ pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, St
         focus_distance: c.focus_distance,
         shutter_open: c.shutter_open,
         shutter_close: c.shutter_close,
+        motion: motion_from_wire(prim, "motion", &c.motion)?,
     })
 }
 
@@ -184,6 +206,7 @@ pub fn camera_to_wire(c: &CameraDesc) -> pb::CameraPrim {
         focus_distance: c.focus_distance,
         shutter_open: c.shutter_open,
         shutter_close: c.shutter_close,
+        motion: motion_to_wire(&c.motion),
     }
 }
 

@@ -29,6 +29,10 @@ pub struct RenderJob {
     pub frame: Option<f64>,
     /// Refinement level of subdivision surfaces that name none (0: their cages).
     pub subdivision_level: u32,
+    /// Shutter interval (open, close) in frames relative to the frame, overriding the camera's.
+    pub shutter: Option<(f64, f64)>,
+    /// Transform samples over the shutter for prims that move.
+    pub motion_samples: usize,
     /// Light a scene that has no lights with a white dome (see
     /// [`crate::usd::Translation::add_default_light`]).
     pub default_light: bool,
@@ -73,6 +77,16 @@ pub fn checkpoint_path(output: &Path) -> PathBuf {
 }
 
 impl RenderJob {
+    /// How the scene is read for this job.
+    pub fn load_options(&self) -> crate::usd::LoadOptions {
+        crate::usd::LoadOptions {
+            frame: self.frame,
+            subdivision_level: self.subdivision_level,
+            shutter: self.shutter,
+            motion_samples: self.motion_samples,
+        }
+    }
+
     /// What the frame's output depends on: the settings asked for, the scene file's bytes
     /// and the frame. Recorded in the EXR header; `--skip-existing` re-renders a frame whose
     /// file records another.
@@ -82,11 +96,13 @@ impl RenderJob {
         let scene = std::fs::read(&self.scene).with_context(|| format!("cannot read {}", self.scene.display()))?;
         let options = RenderOptions { spp: 0, first_sample: 0, stream_film: false, ..self.options.clone() };
         let asked = format!(
-            "{:?}|{:?}|{}|{}|{}",
+            "{:?}|{:?}|{}|{}|{:?}|{}|{}",
             options,
             self.frame,
             self.default_light,
             self.subdivision_level,
+            self.shutter,
+            self.motion_samples,
             tessera_wire::content_hash(&scene)
         );
         Ok(tessera_wire::content_hash(asked.as_bytes()))
@@ -404,7 +420,7 @@ pub fn merge(parts: &[PathBuf], output: &Path, denoise: bool) -> Result<ExactFil
 /// none (each said once), and its warnings and unrendered prims reported.
 async fn load_translation(job: &RenderJob) -> Result<crate::usd::Translation> {
     let scene = job.scene.clone();
-    let options = crate::usd::LoadOptions { frame: job.frame, subdivision_level: job.subdivision_level };
+    let options = job.load_options();
     let mut translation = tokio::task::spawn_blocking(move || crate::usd::load_with(&scene, options)).await??;
     if translation.add_default_camera() {
         eprintln!("note: the Z-up stage has no camera; it is framed from the front (-Y), 25 degrees above the ground, Z up");

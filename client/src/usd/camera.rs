@@ -31,13 +31,8 @@ impl Reader<'_> {
             focus_distance: float("focusDistance", 0.0)?,
             shutter_open: float("shutter:open", 0.0)?,
             shutter_close: float("shutter:close", 0.0)?,
+            motion: self.motion(prim, p)?,
         };
-        if desc.shutter_close > desc.shutter_open {
-            self.out.warnings.push(format!(
-                "{p}: the shutter is open from {} to {} frames; motion blur is not simulated yet, so the frame's own time is rendered",
-                desc.shutter_open, desc.shutter_close
-            ));
-        }
         self.out.cameras.push((p.to_string(), desc));
         Ok(())
     }

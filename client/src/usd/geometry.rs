@@ -221,11 +221,13 @@ impl Reader<'_> {
         if visible && render_core::geometry::Transform::new(transform).is_none() {
             anyhow::bail!("{p}: xformOps compose to a singular transform (a zero scale?), which places the mesh nowhere");
         }
+        // A skinned mesh is placed by its skeleton at the frame (deformation blur: not yet).
+        let motion = if visible && !self.skins.contains_key(prim.path().as_str()) { self.motion(prim, p)? } else { Vec::new() };
         let material = match material {
             Some(m) => m,
             None => self.display_color_material(prim, p)?.unwrap_or_default(),
         };
-        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, material, visible }));
+        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible }));
         Ok(())
     }
 

@@ -36,7 +36,13 @@ impl Reader<'_> {
                 if let Some(s) = self.out.subdivided.last_mut().filter(|s| s.path == p) {
                     s.path = mesh_path.clone();
                 }
-                let desc = MeshDesc { mesh: Arc::new(mesh), transform: Affine3A::IDENTITY, material: shared_material, visible: false };
+                let desc = MeshDesc {
+                    mesh: Arc::new(mesh),
+                    transform: Affine3A::IDENTITY,
+                    motion: Vec::new(),
+                    material: shared_material,
+                    visible: false,
+                };
                 self.out.meshes.push((mesh_path.clone(), desc));
                 self.out
                     .instancers

@@ -109,6 +109,37 @@ impl Reader<'_> {
         }
     }
 
+    /// openusd 0.6 reads a whole-number scalar time sample (the `90` of `{0: 0, 1: 90}`, as
+    /// usdcat writes whole floats) as an int, and holds int samples where it should
+    /// interpolate: a rotation keyed in whole degrees stood still between its keys. The prim's
+    /// time-sampled xformOps get such samples re-authored as doubles, in memory (the file is
+    /// never written), once per prim.
+    pub(super) fn fix_integral_samples(&mut self, prim: &Prim, p: &str) {
+        if !self.samples_fixed.insert(p.to_string()) {
+            return;
+        }
+        let Ok(Some(order)) = get(prim, "xformOpOrder", self.time) else { return };
+        for op in values::token_array(&order).unwrap_or_default() {
+            let name = op.trim_start_matches("!invert!");
+            if op == "!resetXformStack!" || !well_formed_name(name) {
+                continue;
+            }
+            let attr = prim.attribute(name);
+            let Ok(Some(samples)) = attr.time_samples() else { continue };
+            let integral = |v: &Value| matches!(v, Value::Int(_) | Value::Int64(_));
+            if samples.len() < 2 || !samples.iter().any(|(_, v)| integral(v)) {
+                continue;
+            }
+            for (t, v) in samples.into_iter().filter(|(_, v)| integral(v)) {
+                let Some(x) = values::scalar(&v) else { continue };
+                if prim.attribute(name).set_at(Value::Double(x), TimeCode::new(t)).is_err() {
+                    self.out.warnings.push(format!("{p}: attribute '{name}' has whole-number time samples, held between keys"));
+                    break;
+                }
+            }
+        }
+    }
+
     /// Local-to-world, composing parents and honouring `!resetXformStack!`.
     pub(super) fn world_transform(&mut self, path: &sdf::Path) -> Result<DMat4> {
         if let Some(m) = self.world.get(path.as_str()) {
@@ -125,6 +156,7 @@ impl Reader<'_> {
                 }
             }
         }
+        self.fix_integral_samples(&prim, path.as_str());
         let view = AnyXformable(prim);
         let local = values::matrix(&view.local_to_parent_transform(self.time)?);
         let parent = match path.parent() {

@@ -86,7 +86,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         if f == Vec3::ZERO {
             return;
         }
-        let shadow = shadow_ray(v.leave(ls.wi).origin, v.s.p, ls);
+        let shadow = shadow_ray(v.leave(ls.wi).origin, v.s.p, ls).with_time(v.s.time);
         counters.rays += 1;
         let Some(glass) = self.shadow_pass(&shadow, v.a_roughness) else { return };
         let w = match glass {

@@ -31,6 +31,8 @@ struct MediumPoint {
     beta: Vec3,
     /// The kind of lobe that led into the medium, for lights' multipliers.
     kind: PathKind,
+    /// The path's shutter time.
+    time: f32,
 }
 
 /// Where a step of the walk took the path.
@@ -71,7 +73,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let kind = path.prev.map_or(PathKind::Transmission, |p| p.kind);
         if self.avoid() && path.walk.shadows && !self.scene.lights.is_empty() && self.settings.strategy != LightStrategy::BsdfOnly {
             let [ul_x, ul_y, u_sel, _] = rng.next_4d();
-            let at = MediumPoint { medium, p, dir: ray.dir, beta: path.beta, kind };
+            let at = MediumPoint { medium, p, dir: ray.dir, beta: path.beta, kind, time: ray.time };
             let c = self.light_through_boundary(&at, [ul_x, ul_y, u_sel], counters);
             let (first, in_walk) = (path.light.first, path.light.in_walk);
             path.light.add(first, c, in_walk);
@@ -85,7 +87,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             roughness: MEDIUM_ROUGHNESS,
             in_medium: true,
         });
-        path.ray = Ray::new(p, wi);
+        path.ray = Ray::new(p, wi).with_time(path.ray.time);
         WalkStep::Scattered
     }
 
@@ -121,7 +123,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
                 return;
             }
-            let shadow = shadow_ray(at.p, at.p, &ls);
+            let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
             let Some(pass) = scene.shadow_transmittance_from(&shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)
             else {

@@ -46,6 +46,7 @@ impl Vertex {
     #[inline]
     pub fn leave(&self, dir: Vec3) -> Ray {
         Ray::new(offset_ray_origin(self.s.p, if dir.dot(self.ng) > 0.0 { self.ng } else { -self.ng }, self.s.offset_scale), dir)
+            .with_time(self.s.time)
     }
 }
 
@@ -79,7 +80,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
                 return Landing::Stopped;
             }
             path.cone.width = cone_here;
-            path.ray = Ray::new(offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ray.dir);
+            path.ray = Ray { origin: offset_ray_origin(s.p, if ray.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale), ..ray };
+            path.ray.tmax = f32::INFINITY;
             return Landing::PassedThrough;
         }
         if let Some((_, Some(n))) = &local {
@@ -140,7 +142,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
 
     /// Adds a glitter material's flakes at `s` to `bsdf`.
     fn apply_glitter(&self, u: &Uber, s: &SurfaceHit, ns: Vec3, frame: &Frame, cone_here: f32, bsdf: &mut Bsdf) {
-        let t = &self.scene.instances[s.instance as usize].transform;
+        let placement = self.scene.placement(s.instance, s.time);
+        let t = placement.as_ref();
         let m3 = t.to_world.matrix3;
         // Flakes live in object space (Xie & Lanz 2017, "Physically Based Shading at DreamWorks
         // Animation", section 3.5); so does the footprint.

@@ -9,7 +9,7 @@ use glam::{Affine3A, Vec3};
 
 use super::features::plan_of;
 use super::materials::Materials;
-use super::{BlasCache, CommittedScene, InstanceData, MAX_COORDINATE, SceneDesc, SceneError, validate_mesh};
+use super::{BlasCache, CommittedScene, InstanceData, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
 use crate::bvh::{Blas, BuildQuality, Tlas, TlasInstance};
 use crate::caustics::ShadowGlass;
 use crate::geometry::{Attribute, Mesh, Transform};
@@ -23,14 +23,15 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let mut warnings = Vec::new();
     let materials = Materials::resolve(desc, cache, &mut warnings);
     let geometry = Geometry::build(desc, cache, &mut warnings)?;
-    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
+    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials, &mut warnings)?;
     let mut plan = plan_of(desc, &materials);
     let tangents = match plan.has(Feature::NormalMaps) {
         true => tangents_of(&instances, &geometry.meshes, &materials, cache),
         false => vec![None; geometry.meshes.len()],
     };
     let (lo, hi) = bounds_of(&instances, &geometry.blases, &prim_paths)?;
-    let tlas_instances: Vec<TlasInstance> = instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform }).collect();
+    let tlas_instances: Vec<TlasInstance> =
+        instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform, motion: i.motion.clone() }).collect();
     let tlas = Tlas::build(&geometry.blases, &tlas_instances);
     let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
     let lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
@@ -123,10 +124,15 @@ impl<'d> Geometry<'d> {
 
 /// The instances in the TLAS: visible meshes, then instancer instances; and the prim path
 /// each comes from.
-fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials) -> Result<(Vec<InstanceData>, Vec<String>), SceneError> {
+fn place_instances(
+    desc: &SceneDesc,
+    geometry: &Geometry,
+    materials: &Materials,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<InstanceData>, Vec<String>), SceneError> {
     let mut instances = Vec::new();
     let mut prim_paths: Vec<String> = Vec::new();
-    let mut push = |path: &str, mesh: usize, xf: &Affine3A, material: u32| -> Result<(), SceneError> {
+    let mut push = |path: &str, mesh: usize, xf: &Affine3A, material: u32, motion: Option<Arc<[Affine3A]>>| -> Result<(), SceneError> {
         let transform = Transform::new(*xf).ok_or_else(|| SceneError::Invalid {
             prim: path.to_string(),
             field: "transform".into(),
@@ -135,14 +141,14 @@ fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials)
         if prim_paths.last().is_none_or(|p| p != path) {
             prim_paths.push(path.to_string());
         }
-        instances.push(InstanceData { mesh, transform, material, emitter_base: None, prim: prim_paths.len() as u32 - 1 });
+        instances.push(InstanceData { mesh, transform, motion, material, emitter_base: None, prim: prim_paths.len() as u32 - 1 });
         Ok(())
     };
     for (path, m) in desc.meshes.iter().filter(|(_, m)| m.visible) {
         if let Some(&slot) = geometry.slot.get(path.as_str()) {
             let material = materials.of(path, &m.material);
             if !materials.removes_its_surfaces(material) {
-                push(path, slot, &m.transform, material)?;
+                push(path, slot, &m.transform, material, motion_of(path, m, materials.list[material as usize].is_emissive(), warnings)?)?;
             }
         }
     }
@@ -158,10 +164,28 @@ fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials)
             continue;
         }
         for xf in &inst.transforms {
-            push(path, slot, xf, material)?;
+            push(path, slot, xf, material, None)?;
         }
     }
     Ok((instances, prim_paths))
+}
+
+/// A mesh's motion over the shutter, checked. Light sampling places emitters once, so an
+/// emissive mesh keeps its frame-time placement (said, once).
+fn motion_of(path: &str, m: &MeshDesc, emissive: bool, warnings: &mut Vec<String>) -> Result<Option<Arc<[Affine3A]>>, SceneError> {
+    crate::motion::check_samples(&m.motion).map_err(|problem| SceneError::Invalid {
+        prim: path.into(),
+        field: "motion".into(),
+        problem,
+    })?;
+    if m.motion.is_empty() {
+        return Ok(None);
+    }
+    if emissive {
+        warnings.push(format!("{path}: an emissive mesh does not blur with its motion yet; it renders at the frame's placement"));
+        return Ok(None);
+    }
+    Ok(Some(m.motion.iter().copied().collect()))
 }
 
 /// MikkTSpace tangents for the meshes drawn with a normal map, each computed once per
@@ -202,6 +226,20 @@ fn bounds_of(instances: &[InstanceData], blases: &[Arc<Blas>], prim_paths: &[Str
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     for inst in instances {
         let (a, b) = blases[inst.mesh].bounds();
+        // A moving instance: its bounds over the shutter, checked the same way.
+        if let Some(m) = &inst.motion {
+            let (ml, mh) = crate::motion::bounds_over(m, a, b);
+            for w in [ml, mh] {
+                if !w.is_finite() || w.abs().max_element() > MAX_COORDINATE {
+                    return Err(SceneError::Invalid {
+                        prim: prim_paths[inst.prim as usize].clone(),
+                        field: "motion".into(),
+                        problem: format!("moves the geometry to {w}, beyond ±{MAX_COORDINATE:e}"),
+                    });
+                }
+            }
+            (lo, hi) = (lo.min(ml), hi.max(mh));
+        }
         for i in 0..8 {
             let c = Vec3::new(if i & 1 == 0 { a.x } else { b.x }, if i & 2 == 0 { a.y } else { b.y }, if i & 4 == 0 { a.z } else { b.z });
             let w = inst.transform.to_world.transform_point3(c);

@@ -17,8 +17,10 @@ use crate::plan::RenderPlan;
 pub struct InstanceData {
     /// Index into [`CommittedScene::meshes`].
     pub mesh: usize,
-    /// Placement.
+    /// Placement (at shutter open when it moves).
     pub transform: Transform,
+    /// Placements over the shutter when the instance moves ([`crate::motion`]).
+    pub motion: Option<Arc<[glam::Affine3A]>>,
     /// Index into [`CommittedScene::materials`].
     pub material: u32,
     /// Index of the first triangle light of this instance, if its material emits.
@@ -120,6 +122,8 @@ pub struct SurfaceHit {
     /// World-space MikkTSpace tangent (xyz, interpolated) and bitangent sign (w) where the
     /// mesh is normal-mapped; zero elsewhere.
     pub tangent: glam::Vec4,
+    /// The shutter time of the ray that found it: rays leaving it travel then too.
+    pub time: f32,
 }
 
 /// A uniform number in [0, 1) for a ray meeting a partially present surface at `p` along

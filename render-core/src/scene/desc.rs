@@ -17,6 +17,9 @@ pub struct MeshDesc {
     pub mesh: Arc<Mesh>,
     /// Object to world.
     pub transform: Affine3A,
+    /// Object to world at evenly spaced times from shutter open to close when the mesh moves
+    /// ([`crate::motion`]); empty when it does not.
+    pub motion: Vec<Affine3A>,
     /// Bound material path; empty for none.
     pub material: String,
     /// Rendered at all (false for invisible meshes and instancer prototypes).

@@ -55,8 +55,10 @@ mod tests {
     #[test]
     fn moving_a_mesh_reuses_its_blas() {
         let mut desc = SceneDesc::default();
-        desc.meshes
-            .insert("/A".into(), MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, material: String::new(), visible: true });
+        desc.meshes.insert(
+            "/A".into(),
+            MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true },
+        );
         let mut cache = BlasCache::default();
         commit(&desc, &mut cache).unwrap();
         assert_eq!(cache.last_builds, 1);
@@ -85,8 +87,10 @@ mod tests {
         for (opacity, hit) in [(0.2, false), (0.7, true)] {
             let mut desc = SceneDesc::default();
             desc.materials.insert("/M".into(), network(opacity));
-            desc.meshes
-                .insert("/A".into(), MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, material: "/M".into(), visible: true });
+            desc.meshes.insert(
+                "/A".into(),
+                MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: "/M".into(), visible: true },
+            );
             let scene = commit(&desc, &mut BlasCache::default()).unwrap();
             let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);
             assert_eq!(scene.intersect(&ray).is_some(), hit, "opacity {opacity} against threshold 0.5");

@@ -173,28 +173,40 @@ impl CommittedScene {
             if left <= 0.0 {
                 return false;
             }
-            r = Ray::new(origin, r.dir).with_tmax(left);
+            r = Ray { origin, tmax: left, ..r };
         }
         true
+    }
+
+    /// Where instance `index` is at shutter time `time`.
+    #[inline]
+    pub fn placement(&self, index: u32, time: f32) -> std::borrow::Cow<'_, crate::geometry::Transform> {
+        let inst = &self.instances[index as usize];
+        match &inst.motion {
+            None => std::borrow::Cow::Borrowed(&inst.transform),
+            Some(m) => std::borrow::Cow::Owned(crate::motion::placement_at(m, time)),
+        }
     }
 
     /// World-space surface data at `hit`.
     pub fn surface(&self, hit: &Hit) -> SurfaceHit {
         let inst = &self.instances[hit.instance as usize];
+        let placement = self.placement(hit.instance, hit.time);
+        let xf = placement.as_ref();
         let mesh = &self.meshes[inst.mesh];
         let tri = hit.triangle as usize;
         let [a, b, c] = mesh.triangle(tri);
         let w = Vec2::new(hit.bary.x, hit.bary.y);
         let p_obj = a * (1.0 - w.x - w.y) + b * w.x + c * w.y;
-        let p = inst.transform.to_world.transform_point3(p_obj);
-        let ng = (inst.transform.normal_matrix * (b - a).cross(c - a)).normalize_or_zero();
+        let p = xf.to_world.transform_point3(p_obj);
+        let ng = (xf.normal_matrix * (b - a).cross(c - a)).normalize_or_zero();
         let ng = if ng == Vec3::ZERO { Vec3::Z } else { ng };
         let ns = mesh
             .shading_normal(tri, w)
-            .map(|n| (inst.transform.normal_matrix * n).normalize_or_zero())
+            .map(|n| (xf.normal_matrix * n).normalize_or_zero())
             .filter(|n| *n != Vec3::ZERO && n.is_finite())
             .unwrap_or(ng);
-        let m = inst.transform.to_world.matrix3;
+        let m = xf.to_world.matrix3;
         let edges = (m * glam::Vec3A::from(b - a)).abs().max((m * glam::Vec3A::from(c - a)).abs()).max_element();
         let offset_scale = p.abs().max_element().max(edges);
         let up = Vec3::from(m * glam::Vec3A::Y);
@@ -214,6 +226,7 @@ impl CommittedScene {
             triangle: hit.triangle,
             bary: w,
             tangent: glam::Vec4::ZERO,
+            time: hit.time,
         };
         if let Some(v) = self.tangents[inst.mesh].as_ref().and_then(|t| t.interpolate(tri, mesh.indices[tri], w)) {
             s.tangent = Vec3::from(m * glam::Vec3A::from(v.truncate())).extend(if v.w < 0.0 { -1.0 } else { 1.0 });

@@ -1,0 +1,191 @@
+//! Motion blur: transform motion over the camera's shutter against closed forms, still scenes
+//! untouched by an open shutter, and motion data a client cannot send.
+
+use tessera::usd::{LoadOptions, Translation, load_with};
+use tessera_tests::*;
+
+/// Image size and scale of [`ortho_stage`]'s camera: 128 pixels over 4 units.
+const SIZE: u32 = 128;
+const PX_PER_UNIT: f64 = 32.0;
+
+/// A layer with an orthographic camera looking down −Z at 4×4 units around the origin, its
+/// shutter open from frame 0 to 1, and `body` (prims, time-sampled over frames 0 to 1).
+fn ortho_stage(body: &str) -> String {
+    format!(
+        r#"#usda 1.0
+(
+    startTimeCode = 0
+    endTimeCode = 1
+)
+def Camera "Camera"
+{{
+    token projection = "orthographic"
+    float horizontalAperture = 40
+    float verticalAperture = 40
+    double shutter:open = 0
+    double shutter:close = 1
+    double3 xformOp:translate = (0, 0, 10)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+{body}
+"#
+    )
+}
+
+/// A sphere of radius `r` translating along x from `x0` at frame 0 to `x1` at frame 1.
+fn moving_sphere(r: f64, x0: f64, x1: f64) -> String {
+    format!(
+        r#"def Sphere "Ball"
+{{
+    double radius = {r}
+    double3 xformOp:translate.timeSamples = {{ 0: ({x0}, 0, 0), 1: ({x1}, 0, 0) }}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}"#
+    )
+}
+
+/// The coverage (alpha) image of `t`, 128² at `spp`.
+async fn coverage(t: &Translation, spp: u32) -> Vec<f64> {
+    let (server, mut conn) = session_with(t).await;
+    let report = conn.render(&small(SIZE, SIZE, spp), |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).map(|(x, y)| report.image.pixel("beauty", x, y)[3] as f64).collect()
+}
+
+/// The fraction of the shutter during which a disc of radius `r` sliding from `x0` to `x1`
+/// covers pixel (`px`, `py`), averaged over the pixel (8×8 points): the closed form of a
+/// streak, a box filter of the silhouette along the path.
+fn streak(px: u32, py: u32, r: f64, x0: f64, x1: f64) -> f64 {
+    let mut sum = 0.0;
+    for (i, j) in (0..8).flat_map(|i| (0..8).map(move |j| (i, j))) {
+        let x = (px as f64 + (i as f64 + 0.5) / 8.0 - 64.0) / PX_PER_UNIT;
+        let y = (64.0 - py as f64 - (j as f64 + 0.5) / 8.0) / PX_PER_UNIT;
+        if y.abs() >= r {
+            continue;
+        }
+        let h = (r * r - y * y).sqrt();
+        // Centres s in [x0, x1] with |x − s| < h.
+        let overlap = ((x + h).min(x1.max(x0)) - (x - h).max(x1.min(x0))).max(0.0);
+        sum += overlap / (x1 - x0).abs();
+    }
+    sum / 64.0
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sphere_moving_in_a_line_renders_the_streak_of_its_silhouette() {
+    let (r, x0, x1) = (0.5, -1.0, 1.0);
+    let t = load_text("motion_line", &ortho_stage(&moving_sphere(r, x0, x1)));
+    assert!(t.meshes.iter().any(|(p, m)| p == "/Ball" && m.motion.len() == tessera::usd::DEFAULT_MOTION_SAMPLES), "the ball moves");
+    let seen = coverage(&t, 64).await;
+    let expected: Vec<f64> = (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).map(|(x, y)| streak(x, y, r, x0, x1)).collect();
+    let mean_error =
+        seen.iter().zip(&expected).map(|(a, b)| (a - b).abs()).sum::<f64>() / expected.iter().filter(|e| **e > 0.0).count() as f64;
+    // Per covered pixel, 64 time samples stratified by Sobol: the streak's edges carry the
+    // error (about 1/64 each); 0.01 also allows the tessellated silhouette.
+    assert!(mean_error < 0.01, "mean |error| over the streak {mean_error:.4}");
+    // The plateau in the middle: covered half the shutter (2h / |x1 − x0| = 1/2).
+    let centre = seen[(63 * SIZE + 64) as usize];
+    assert!((centre - 0.5).abs() < 0.03, "centre coverage {centre}");
+    // Area is conserved: the streak holds the disc's π r² (in pixels), as a still one does.
+    let total: f64 = seen.iter().sum();
+    let disc = std::f64::consts::PI * (r * PX_PER_UNIT).powi(2);
+    assert!((total / disc - 1.0).abs() < 0.01, "total coverage {total:.1}, a disc {disc:.1}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_moving_camera_blurs_still_geometry_as_the_geometry_moving_the_other_way_would() {
+    let still_ball = "def Sphere \"Ball\" { double radius = 0.5 }";
+    let layer = ortho_stage(still_ball)
+        .replace("double3 xformOp:translate = (0, 0, 10)", "double3 xformOp:translate.timeSamples = { 0: (1, 0, 10), 1: (-1, 0, 10) }");
+    let t = load_text("motion_camera", &layer);
+    assert!(t.cameras[0].1.motion.len() >= 2, "the camera moves");
+    let seen = coverage(&t, 64).await;
+    let expected: Vec<f64> = (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).map(|(x, y)| streak(x, y, 0.5, -1.0, 1.0)).collect();
+    let mean_error =
+        seen.iter().zip(&expected).map(|(a, b)| (a - b).abs()).sum::<f64>() / expected.iter().filter(|e| **e > 0.0).count() as f64;
+    assert!(mean_error < 0.01, "mean |error| over the streak {mean_error:.4}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rotating_object_blurs_along_its_arc_not_its_chord() {
+    // A ball of radius 0.15 one unit from the origin, its parent turning 90° about z over the
+    // shutter: the streak follows the quarter circle. At 45° on the arc it is covered for
+    // the ball's angular width over the sweep, 2·asin(0.15)/(π/2) = 19% of the shutter; the
+    // chord's midpoint, 0.29 units inside the arc, is never covered.
+    let body = r#"def Xform "Turn"
+{
+    float xformOp:rotateZ.timeSamples = { 0: 0, 1: 90 }
+    uniform token[] xformOpOrder = ["xformOp:rotateZ"]
+    def Sphere "Ball"
+    {
+        double radius = 0.15
+        double3 xformOp:translate = (1, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+}"#;
+    let t = load_text("motion_arc", &ortho_stage(body));
+    let seen = coverage(&t, 64).await;
+    let at = |x: f64, y: f64| seen[((64.0 - y * PX_PER_UNIT) as u32 * SIZE + (64.0 + x * PX_PER_UNIT) as u32) as usize];
+    let d = std::f64::consts::FRAC_1_SQRT_2;
+    let on_arc = at(d, d);
+    let expected = 2.0 * 0.15f64.asin() / std::f64::consts::FRAC_PI_2;
+    assert!((on_arc - expected).abs() < 0.03, "on the arc {on_arc:.3}, expected {expected:.3}");
+    assert_eq!(at(0.5, 0.5), 0.0, "the chord's midpoint");
+    // The ends of the sweep are where the ball starts and stops.
+    assert!(at(1.0, 0.0) > 0.0 && at(0.0, 1.0) > 0.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_still_scene_renders_the_same_with_the_shutter_open_or_closed() {
+    let scene = fixture("cornell_box.usda");
+    let closed = load_with(&scene, LoadOptions { shutter: Some((0.0, 0.0)), ..Default::default() }).expect("loads");
+    let open = load_with(&scene, LoadOptions { shutter: Some((-0.5, 0.5)), ..Default::default() }).expect("loads");
+    assert!(open.meshes.iter().all(|(_, m)| m.motion.is_empty()), "nothing moves");
+    let render = |t: Translation| async move {
+        let (server, mut conn) = session_with(&t).await;
+        let report = conn.render(&small(32, 32, 4), |_| {}).await.expect("renders");
+        server.stop().await.expect("stops");
+        report
+    };
+    let (a, b) = (render(closed).await, render(open).await);
+    assert!(!a.started.plan.iter().any(|p| p.effect == "motion-blur"), "{:?}", a.started.plan);
+    assert!(!b.started.plan.iter().any(|p| p.effect == "motion-blur"), "an open shutter over a still scene costs nothing");
+    assert_eq!(a.image.layers["beauty"].1, b.image.layers["beauty"].1, "bit for bit");
+}
+
+#[test]
+fn the_plan_names_what_moves_and_the_shutter_can_be_overridden() {
+    let layer = ortho_stage(&moving_sphere(0.5, -1.0, 1.0));
+    let dir = std::env::temp_dir().join(format!("tessera-motion-plan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("moving.usda");
+    std::fs::write(&file, layer).unwrap();
+    let plan = tessera::commands::render::explain_plan(&file, LoadOptions::default()).expect("plan");
+    assert!(plan.lines().any(|l| l.contains("+ motion-blur")), "{plan}");
+    // A closed shutter given on the command line: the ball stands at its frame-0 place.
+    let closed = load_with(&file, LoadOptions { shutter: Some((0.0, 0.0)), ..Default::default() }).unwrap();
+    assert!(closed.meshes.iter().all(|(_, m)| m.motion.is_empty()));
+    // More samples, as asked.
+    let dense = load_with(&file, LoadOptions { motion_samples: 17, ..Default::default() }).unwrap();
+    assert_eq!(dense.meshes.iter().find(|(p, _)| p == "/Ball").unwrap().1.motion.len(), 17);
+    std::fs::remove_dir_all(&dir).ok();
+}
+#[test]
+fn whole_number_time_samples_interpolate_between_keys() {
+    // openusd 0.6 held `{0: 0, 1: 90}` (ints, as usdcat writes whole floats) at 0 until frame
+    // 1; usd-core interpolates to 45° at frame 0.5, and so must we.
+    let layer = ortho_stage("").replace(
+        "def DomeLight",
+        "def Xform \"Turn\" {\n    float xformOp:rotateZ.timeSamples = { 0: 0, 1: 90 }\n    uniform token[] xformOpOrder = [\"xformOp:rotateZ\"]\n    def Cube \"Box\" { double3 xformOp:translate = (1, 0, 0)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n}\ndef DomeLight",
+    );
+    let dir = std::env::temp_dir().join(format!("tessera-motion-int-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("turn.usda");
+    std::fs::write(&file, layer).unwrap();
+    let t = load_with(&file, LoadOptions { frame: Some(0.5), shutter: Some((0.0, 0.0)), ..Default::default() }).unwrap();
+    let placed = t.meshes.iter().find(|(p, _)| p == "/Turn/Box").unwrap().1.transform.translation;
+    let d = std::f32::consts::FRAC_1_SQRT_2;
+    assert!((placed - glam::Vec3A::new(d, d, 0.0)).length() < 1e-6, "{placed}");
+    std::fs::remove_dir_all(&dir).ok();
+}
