@@ -62,6 +62,8 @@ fn an_independent_reader_agrees_on_every_fixture() {
     // Skinning between time samples: slerped joint rotations, interpolated blend shape weights.
     cases.push((fixture("usd/skinned_arm.usda"), Some(5.5)));
     cases.push((fixture("usd-wg/UsdSkel/CesiumMan.usdz"), Some(7.3)));
+    // Transforms over an open shutter, mid-animation: whole-degree rotation keys included.
+    cases.push((fixture("usd/motion_blur.usda"), Some(6.0)));
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
     for (scene, frame) in cases {

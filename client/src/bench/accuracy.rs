@@ -87,6 +87,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     r.subsurface()?;
     r.smooth_subsurface()?;
     r.texture_filtering()?;
+    r.motion_samples()?;
     r.many_lights()?;
     r.md.push_str(DENOISING);
     std::fs::write(&b.out, &r.md).with_context(|| format!("cannot write {}", b.out.display()))?;
@@ -408,6 +409,38 @@ impl Report<'_> {
         table(&mut self.md, "Texture filtering (max depth 2)", &filter_rows)?;
 
         Ok(())
+    }
+
+    /// Transform samples over the shutter, on the turntable of `usd/motion_blur.usda` at frame 6
+    /// (a cube turning 15° and a ball sliding 0.27 units within the shutter).
+    fn motion_samples(&mut self) -> Result<()> {
+        let res = (self.res.0, self.res.1 * 3 / 4);
+        let path = self.b.fixtures.join("usd/motion_blur.usda");
+        let at = |options: crate::usd::LoadOptions| -> Result<CommittedScene> {
+            let t = crate::usd::load_with(&path, crate::usd::LoadOptions { frame: Some(6.0), ..options })?;
+            Ok(commit(&t.to_scene_desc(), &mut BlasCache::default())?)
+        };
+        let (spp, seed) = (64, 17);
+        let samples = |n: usize| crate::usd::LoadOptions { motion_samples: n, ..Default::default() };
+        let most = render_core::motion::MAX_MOTION_SAMPLES;
+        let reference = render(&at(samples(most))?, res, Knobs { spp, ..self.base }, seed).rgb;
+        writeln!(
+            self.md,
+            "\n## Motion samples (`fixtures/usd/motion_blur.usda` at frame 6, {}x{})\n\nEach prim that moves over the shutter is placed at `--motion-samples` evenly spaced times and interpolated linearly between them, so a rotation follows chords of its arc. The reference takes {most} samples (the most a motion holds); every row renders {spp} spp with the reference's seed, so their sampling noise is shared and the error left is the interpolation's (and, for the closed shutter, the blur itself).\n",
+            res.0, res.1
+        )?;
+        let mut rows = Vec::new();
+        for n in [2usize, 3, 5, 9, 17] {
+            let r = render(&at(samples(n))?, res, Knobs { spp, ..self.base }, seed);
+            rows.push(Row::of(
+                format!("{n} samples{}", if n == crate::usd::DEFAULT_MOTION_SAMPLES { " (default)" } else { "" }),
+                &r,
+                &reference,
+            ));
+        }
+        let closed = at(crate::usd::LoadOptions { shutter: Some((0.0, 0.0)), ..Default::default() })?;
+        rows.push(Row::of("shutter closed (no blur)".into(), &render(&closed, res, Knobs { spp, ..self.base }, seed), &reference));
+        table(&mut self.md, "Motion samples (64 spp)", &rows)
     }
 
     /// 10 000 lights against one, at equal time.

@@ -65,6 +65,9 @@ pub fn to_json(t: &Translation) -> Value {
         if let Some(s) = subdivision_of(path) {
             mesh["subdivision"] = s;
         }
+        if !m.motion.is_empty() {
+            mesh["motion"] = Value::Array(m.motion.iter().map(usd_matrix).collect());
+        }
         if let Some(s) = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh))) {
             mesh["skinning"] = skinning_json(s, m, subdivision_of(path).is_none());
         }
