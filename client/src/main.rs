@@ -542,10 +542,7 @@ async fn render_command(cmd: Command) -> Result<()> {
     let preset = quality.preset();
     let (spp, max_depth, clamp) = (spp.unwrap_or(preset.spp), max_depth.unwrap_or(preset.max_depth), clamp.or(preset.clamp));
     // 0x0: not given; the scene's RenderSettings or 512x512 decide (RenderJob::run).
-    let (width, height) = match &res {
-        Some(r) => parse_res(r)?,
-        None => (0, 0),
-    };
+    let (width, height) = res.as_deref().map(parse_res).transpose()?.unwrap_or((0, 0));
     let energy_compensation = energy_compensation == OnOff::On;
     let options = RenderOptions {
         width,
@@ -575,17 +572,10 @@ async fn render_command(cmd: Command) -> Result<()> {
         denoise,
     };
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    // Empty: the scene's RenderProduct names the file (RenderJob::run).
-    let output = match (&film, output) {
-        (_, Some(o)) => o,
-        // A slice writes no image: its film is the output.
-        (FilmMode::Slice { partial, .. }, None) => partial.clone(),
-        (_, None) => PathBuf::new(),
-    };
     let default_light = !no_default_light;
     let job = RenderJob {
         scene,
-        output,
+        output: output_path(&film, output),
         options,
         server,
         progress,
@@ -603,6 +593,16 @@ async fn render_command(cmd: Command) -> Result<()> {
         Some(spec) => render_frames(job, &tessera::commands::frames::parse_frames(&spec)?, alf_progress, skip_existing).await?,
     }
     Ok(())
+}
+
+/// Where a render writes: the path given, else a slice's film, else nothing yet (the scene's
+/// RenderProduct names the file, RenderJob::run).
+fn output_path(film: &FilmMode, output: Option<PathBuf>) -> PathBuf {
+    match (film, output) {
+        (_, Some(o)) => o,
+        (FilmMode::Slice { partial, .. }, None) => partial.clone(),
+        (_, None) => PathBuf::new(),
+    }
 }
 
 /// `tessera bench ...`: the renderer's benchmarks that write the docs' reports.

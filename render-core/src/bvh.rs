@@ -413,17 +413,8 @@ impl Tlas {
             }
         };
         bvh.ray_traverse(wray, &mut rh, |r, id| {
-            let (inst, blas, xf, motion) = &ordered[id];
-            let moved;
-            let xf = match motion {
-                None => xf,
-                Some(m) => {
-                    moved = crate::motion::placement_at(m, ray.time);
-                    &moved
-                }
-            };
-            let o = xf.to_object.transform_point3a(r.origin);
-            let d = xf.to_object.transform_vector3a(r.direction);
+            let (inst, blas, _, _) = &ordered[id];
+            let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
             match blases[*blas].intersect(o, d, r.tmax) {
                 Some((t, tri, bary)) => {
                     best = Some(Hit { t: t * k, time: ray.time, instance: *inst, triangle: tri, bary });
@@ -445,22 +436,28 @@ impl Tlas {
             Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax),
         };
         !bvh.ray_traverse_miss(wray, |r, id| {
-            let (_, blas, xf, motion) = &ordered[id];
-            let moved;
-            let xf = match motion {
-                None => xf,
-                Some(m) => {
-                    moved = crate::motion::placement_at(m, ray.time);
-                    &moved
-                }
-            };
-            let o = xf.to_object.transform_point3a(r.origin);
-            let d = xf.to_object.transform_vector3a(r.direction);
+            let blas = ordered[id].1;
+            let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
             // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
             // shadow rays towards dome and distant lights and let them pass through everything.
-            if blases[*blas].occluded(o, d, r.tmax) { 0.0 } else { f32::INFINITY }
+            if blases[blas].occluded(o, d, r.tmax) { 0.0 } else { f32::INFINITY }
         })
     }
+}
+
+/// The ray (`o`, `d`) in the object space of `placed`, where the instance is at shutter `time`.
+#[inline(always)]
+fn into_object(placed: &Placed, time: f32, o: Vec3A, d: Vec3A) -> (Vec3A, Vec3A) {
+    let (_, _, xf, motion) = placed;
+    let moved;
+    let xf = match motion {
+        None => xf,
+        Some(m) => {
+            moved = crate::motion::placement_at(m, time);
+            &moved
+        }
+    };
+    (xf.to_object.transform_point3a(o), xf.to_object.transform_vector3a(d))
 }
 
 /// The direction scale of [`Tlas::ray_scale`] for a scene with these bounds.

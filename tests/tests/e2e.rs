@@ -4,6 +4,7 @@
 mod aovs;
 mod caustics;
 mod conformance;
+mod curves;
 mod denoise;
 mod energy;
 mod environment;

@@ -529,6 +529,7 @@ fn exr_metadata(
                 .map(|p| p.effect.as_str())
                 .chain((!translation.subdivided.is_empty()).then_some("subdivision"))
                 .chain((!translation.skinned.is_empty()).then_some("skinning"))
+                .chain((!translation.curves.is_empty()).then_some("curves"))
                 .chain(options.denoise.then_some("denoise"))
                 .collect::<Vec<_>>()
                 .join(","),

@@ -10,6 +10,7 @@ mod lint;
 use lint::{well_formed_name, well_formed_path};
 mod binding;
 mod camera;
+pub mod curves;
 mod geometry;
 mod instancing;
 mod lights;
@@ -89,6 +90,8 @@ pub struct Translation {
     pub subdivided: Vec<Subdivided>,
     /// Meshes posed by a UsdSkel skeleton, in reading order.
     pub skinned: Vec<Skinned>,
+    /// BasisCurves prims rendered as tubes, in reading order.
+    pub curves: Vec<String>,
 }
 
 /// One effect of the render plan with the prims calling for it (the first dozen named).
@@ -255,6 +258,14 @@ impl Translation {
             );
             out +=
                 &plan_entry("subdivision", &reason, self.subdivided.iter().map(|s| format!("{} ({} level {})", s.path, s.scheme, s.level)));
+        }
+        if !self.curves.is_empty() {
+            let reason = format!(
+                "BasisCurves as round tubes: {}-sided, {} samples per cubic span, through the bound material",
+                curves::SIDES,
+                curves::CUBIC_SAMPLES
+            );
+            out += &plan_entry("curves", &reason, self.curves.iter().cloned());
         }
         if !self.skinned.is_empty() {
             let posed = |s: &Skinned| match &s.animation {

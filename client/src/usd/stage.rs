@@ -90,6 +90,7 @@ impl Reader<'_> {
             t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
             "PointInstancer" => self.point_instancer(&prim, &p, visible),
             "Points" => self.points(&prim, &p, visible),
+            "BasisCurves" => self.basis_curves(&prim, &p, visible),
             "RenderSettings" => self.render_settings(&prim, &p),
             // Read through the RenderSettings that names them.
             "RenderProduct" | "RenderVar" => Ok(()),

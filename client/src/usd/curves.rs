@@ -1,0 +1,381 @@
+//! `UsdGeomBasisCurves` as round tubes: each curve evaluated with its basis (linear, or cubic
+//! `bezier`, `bspline`, `catmullRom`; `nonperiodic`, `periodic` or `pinned`), sampled along
+//! every span, and swept by a polygon of its `widths` carried along by parallel transport.
+//! One triangle mesh per prim, so curves render through the ordinary path with the bound
+//! material. The polygon's circumradius is widened so its width averaged over directions is
+//! the curve's width (a regular n-gon's mean width is its perimeter over π).
+
+use anyhow::{Context, Result};
+use glam::Vec3;
+use render_core::geometry::{Attribute, Mesh};
+
+use super::*;
+
+/// Points a cubic span is sampled at along its length (linear spans need only their ends).
+pub const CUBIC_SAMPLES: usize = 8;
+/// Sides of the polygon swept along a curve.
+pub const SIDES: usize = 12;
+/// Most tube vertices one prim may make (16 bytes of position and normal each, before the
+/// BVH): a fur of a million 10-span curves is past it and is refused naming the prim.
+pub const MAX_TUBE_VERTICES: usize = 24 << 20;
+
+/// The curve types and bases UsdGeomBasisCurves defines.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Basis {
+    Linear,
+    Bezier,
+    Bspline,
+    CatmullRom,
+}
+
+/// `wrap`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Wrap {
+    Nonperiodic,
+    Periodic,
+    Pinned,
+}
+
+/// A prim's curves, read and checked.
+pub struct Curves {
+    pub basis: Basis,
+    pub wrap: Wrap,
+    pub counts: Vec<usize>,
+    pub points: Vec<Vec3>,
+    /// Widths and their interpolation (`constant`, `uniform`, `varying`, `vertex`).
+    pub widths: (Vec<f32>, String),
+}
+
+/// The weights of the four control points of a cubic span at `u` (USD's, RenderMan's bases).
+fn cubic_weights(basis: Basis, u: f32) -> [f32; 4] {
+    let (u2, u3, v) = (u * u, u * u * u, 1.0 - u);
+    match basis {
+        Basis::Bezier => [v * v * v, 3.0 * u * v * v, 3.0 * u2 * v, u3],
+        Basis::Bspline => [v * v * v / 6.0, (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0, (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0, u3 / 6.0],
+        Basis::CatmullRom => {
+            [(-u3 + 2.0 * u2 - u) / 2.0, (3.0 * u3 - 5.0 * u2 + 2.0) / 2.0, (-3.0 * u3 + 4.0 * u2 + u) / 2.0, (u3 - u2) / 2.0]
+        }
+        Basis::Linear => [v, u, 0.0, 0.0],
+    }
+}
+
+/// The control points a curve's spans read, padded for `pinned` B-spline and Catmull-Rom
+/// curves (P₋₁ = 2P₀ − P₁ and likewise at the end, so the curve reaches its end points), and
+/// the number of spans; `None` when the count does not make a curve of this kind.
+fn spans<T: Copy + std::ops::Sub<Output = T> + std::ops::Add<Output = T>>(basis: Basis, wrap: Wrap, cv: &[T]) -> Option<(Vec<T>, usize)> {
+    let n = cv.len();
+    let pad = |v: &[T]| {
+        let (first, last) = (v[0] + (v[0] - v[1]), v[n - 1] + (v[n - 1] - v[n - 2]));
+        std::iter::once(first).chain(v.iter().copied()).chain(std::iter::once(last)).collect::<Vec<T>>()
+    };
+    let wrapped = |extra: usize| cv.iter().chain(cv.iter().take(extra)).copied().collect::<Vec<T>>();
+    let count = span_count(basis, wrap, n)?;
+    let ctrl = match (basis, wrap) {
+        (Basis::Linear | Basis::Bezier, Wrap::Periodic) => wrapped(1),
+        (Basis::Linear | Basis::Bezier, _) => cv.to_vec(),
+        (_, Wrap::Periodic) => wrapped(3),
+        (_, Wrap::Pinned) => pad(cv),
+        (_, Wrap::Nonperiodic) => cv.to_vec(),
+    };
+    Some((ctrl, count))
+}
+
+/// The spans of a curve of `n` vertices, as UsdGeomBasisCurves counts its segments; `None`
+/// when `n` makes no curve of this kind (pinned linear and Bézier curves are nonperiodic ones).
+fn span_count(basis: Basis, wrap: Wrap, n: usize) -> Option<usize> {
+    match (basis, wrap) {
+        (Basis::Linear, Wrap::Periodic) if n >= 2 => Some(n),
+        (Basis::Linear, _) if n >= 2 => Some(n - 1),
+        (Basis::Bezier, Wrap::Periodic) if n >= 3 && n.is_multiple_of(3) => Some(n / 3),
+        (Basis::Bezier, _) if n >= 4 && (n - 4).is_multiple_of(3) => Some((n - 1) / 3),
+        (Basis::Linear | Basis::Bezier, _) => None,
+        (_, Wrap::Periodic) if n >= 3 => Some(n),
+        (_, Wrap::Pinned) if n >= 2 => Some(n - 1),
+        (_, Wrap::Nonperiodic) if n >= 4 => Some(n - 3),
+        _ => None,
+    }
+}
+
+/// The first control point of span `k` in [`spans`]'s list.
+fn span_start(basis: Basis, k: usize) -> usize {
+    match basis {
+        Basis::Bezier => 3 * k,
+        _ => k,
+    }
+}
+
+impl Curves {
+    /// The tube mesh of every curve, or an error naming what does not fit.
+    pub fn tessellate(&self) -> Result<Mesh, String> {
+        // Counted before anything is built: one curve may ask for billions of rings.
+        let vertices = self.counts.iter().map(|&n| self.rings(n)).try_fold(0usize, |a, r| a.checked_add(r.checked_mul(SIDES)?));
+        if vertices.is_none_or(|v| v > MAX_TUBE_VERTICES) {
+            return Err(format!("the tubes of its curves need more than {MAX_TUBE_VERTICES} vertices"));
+        }
+        let mut mesh = Mesh::default();
+        let mut normals = Vec::new();
+        let (mut first, mut first_width) = (0, 0);
+        for (c, &count) in self.counts.iter().enumerate() {
+            let cv = &self.points[first..first + count];
+            let (centres, widths) = self.centreline(c, cv, first, &mut first_width)?;
+            sweep(&centres, &widths, self.wrap == Wrap::Periodic, &mut mesh, &mut normals);
+            first += count;
+        }
+        mesh.normals = Attribute::Vertex(normals);
+        Ok(mesh)
+    }
+
+    /// Rings (samples along the centre line) of a curve of `n` vertices; 0 when it is no curve.
+    fn rings(&self, n: usize) -> usize {
+        let spans = span_count(self.basis, self.wrap, n).unwrap_or(0);
+        let samples = if self.basis == Basis::Linear { 1 } else { CUBIC_SAMPLES };
+        spans * samples + usize::from(self.wrap != Wrap::Periodic && spans > 0)
+    }
+
+    /// Curve `c`'s sampled centre line and widths along it. `first` indexes its first control
+    /// point; `first_width` its first `varying` width, advanced past its own.
+    fn centreline(&self, c: usize, cv: &[Vec3], first: usize, first_width: &mut usize) -> Result<(Vec<Vec3>, Vec<f32>), String> {
+        let (ctrl, n_spans) = spans(self.basis, self.wrap, cv)
+            .ok_or_else(|| format!("curve {c} has {} vertices, which make no {:?} {:?} curve", cv.len(), self.wrap, self.basis))?;
+        let samples = if self.basis == Basis::Linear { 1 } else { CUBIC_SAMPLES };
+        let (w, interp) = (&self.widths.0, self.widths.1.as_str());
+        // Per-vertex widths follow the curve's own basis; varying ones are linear per span.
+        let vertex_widths: Vec<f32> = match interp {
+            "vertex" => spans(self.basis, self.wrap, &w[first..first + cv.len()]).map(|(v, _)| v).unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        let varying = |k: usize, u: f32| {
+            let at = |i: usize| w[*first_width + if self.wrap == Wrap::Periodic { i % n_spans } else { i }];
+            at(k) * (1.0 - u) + at(k + 1) * u
+        };
+        let mut centres = Vec::new();
+        let mut widths = Vec::new();
+        for k in 0..n_spans {
+            let s = span_start(self.basis, k);
+            let last = k + 1 == n_spans && self.wrap != Wrap::Periodic;
+            for j in 0..samples + usize::from(last) {
+                let u = j as f32 / samples as f32;
+                let b = cubic_weights(self.basis, u);
+                centres.push((0..4).filter(|&i| b[i] != 0.0).map(|i| ctrl[s + i] * b[i]).sum());
+                widths.push(match interp {
+                    "constant" => w[0],
+                    "uniform" => w[c],
+                    "varying" => varying(k, u),
+                    _ => (0..4).filter(|&i| b[i] != 0.0).map(|i| vertex_widths[s + i] * b[i]).sum(),
+                });
+            }
+        }
+        if interp == "varying" {
+            *first_width += if self.wrap == Wrap::Periodic { n_spans } else { n_spans + 1 };
+        }
+        Ok((centres, widths))
+    }
+}
+
+/// Sweeps a polygon of [`SIDES`] along `centres` (closed when `closed`), appending its quads
+/// to `mesh` and its radial normals to `normals`.
+fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normals: &mut Vec<Vec3>) {
+    let n = centres.len();
+    if n < 2 {
+        return;
+    }
+    let tangent = |i: usize| {
+        let (a, b) = match (i, closed) {
+            (0, false) => (centres[0], centres[1]),
+            (i, false) if i == n - 1 => (centres[n - 2], centres[n - 1]),
+            (i, _) => (centres[(i + n - 1) % n], centres[(i + 1) % n]),
+        };
+        (b - a).normalize_or(Vec3::X)
+    };
+    // The mean width of a regular n-gon of circumradius ρ is 2nρ·sin(π/n)/π.
+    let widen = std::f32::consts::PI / (SIDES as f32 * (std::f32::consts::PI / SIDES as f32).sin());
+    let base = mesh.positions.len() as u32;
+    let mut normal = tangent(0).any_orthonormal_vector();
+    for i in 0..n {
+        let t = tangent(i);
+        // Parallel transport: the previous normal, made perpendicular to this tangent.
+        normal = (normal - t * normal.dot(t)).normalize_or(t.any_orthonormal_vector());
+        let binormal = t.cross(normal);
+        let rho = 0.5 * widths[i] * widen;
+        for s in 0..SIDES {
+            let (sin, cos) = (std::f32::consts::TAU * s as f32 / SIDES as f32).sin_cos();
+            let radial = normal * cos + binormal * sin;
+            mesh.positions.push(centres[i] + radial * rho);
+            normals.push(radial);
+        }
+    }
+    let rings = if closed { n } else { n - 1 };
+    for i in 0..rings {
+        let (a, b) = (base + (i * SIDES) as u32, base + (((i + 1) % n) * SIDES) as u32);
+        for s in 0..SIDES as u32 {
+            let s1 = (s + 1) % SIDES as u32;
+            mesh.indices.push([a + s, b + s, b + s1]);
+            mesh.indices.push([a + s, b + s1, a + s1]);
+        }
+    }
+}
+
+/// How many width values `interp` needs for these curves; `None` for an unknown interpolation.
+fn widths_needed(curves: &Curves, interp: &str) -> Option<usize> {
+    Some(match interp {
+        "constant" => 1,
+        "uniform" => curves.counts.len(),
+        "vertex" => curves.points.len(),
+        "varying" => curves
+            .counts
+            .iter()
+            .map(|&n| {
+                let spans = span_count(curves.basis, curves.wrap, n).unwrap_or(0);
+                if curves.wrap == Wrap::Periodic { spans } else { spans + 1 }
+            })
+            .sum(),
+        _ => return None,
+    })
+}
+
+impl Reader<'_> {
+    pub(super) fn basis_curves(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
+        let curves = self.read_curves(prim, p)?;
+        let mesh = curves.tessellate().map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        self.out.curves.push(p.to_string());
+        let material = self.usable_material(prim)?;
+        self.add_mesh_with(prim, p, mesh, visible, material)
+    }
+
+    /// The prim's curves, checked: counts against the points, each count against the curve's
+    /// kind, widths against their interpolation.
+    fn read_curves(&mut self, prim: &Prim, p: &str) -> Result<Curves> {
+        let time = self.time;
+        let token = |name: &str, fallback: &str| -> Result<String> {
+            Ok(get(prim, name, time)?.as_ref().and_then(values::token).unwrap_or_else(|| fallback.to_string()))
+        };
+        let basis = match (token("type", "cubic")?.as_str(), token("basis", "bezier")?.as_str()) {
+            ("linear", _) => Basis::Linear,
+            ("cubic", "bezier") => Basis::Bezier,
+            ("cubic", "bspline") => Basis::Bspline,
+            ("cubic", "catmullRom") => Basis::CatmullRom,
+            (t, b) => anyhow::bail!("{p}: attributes 'type' and 'basis' are '{t}' and '{b}', not a curve type USD defines"),
+        };
+        let wrap = match token("wrap", "nonperiodic")?.as_str() {
+            "nonperiodic" => Wrap::Nonperiodic,
+            "periodic" => Wrap::Periodic,
+            "pinned" => Wrap::Pinned,
+            other => anyhow::bail!("{p}: attribute 'wrap' is '{other}', not nonperiodic, periodic or pinned"),
+        };
+        let points = get(prim, "points", time)?
+            .as_ref()
+            .and_then(values::vec3_array)
+            .with_context(|| format!("{p}: attribute 'points' is missing or not a point3f[]"))?;
+        if let Some((i, v)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            anyhow::bail!("{p}: attribute 'points': point {i} is {v} (NaN or Inf)");
+        }
+        let counts =
+            get_ints(prim, p, "curveVertexCounts", time)?.with_context(|| format!("{p}: attribute 'curveVertexCounts' is missing"))?;
+        if let Some(bad) = counts.iter().find(|&&c| c < 0) {
+            anyhow::bail!("{p}: attribute 'curveVertexCounts' holds {bad}");
+        }
+        let counts: Vec<usize> = counts.into_iter().map(|c| c as usize).collect();
+        let total = counts.iter().try_fold(0usize, |a, &c| a.checked_add(c)).unwrap_or(usize::MAX);
+        anyhow::ensure!(
+            total == points.len(),
+            "{p}: attribute 'curveVertexCounts' adds up to {total} vertices for {} points",
+            points.len()
+        );
+        if get(prim, "normals", time)?.is_some() {
+            self.out
+                .warnings
+                .push(format!("{p}: curves oriented by 'normals' (ribbons) render as round tubes; ribbons are not supported yet"));
+        }
+        let mut curves = Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()) };
+        if let Some(widths) = get_floats(prim, p, "widths", time)? {
+            let interp = prim
+                .attribute("widths")
+                .get_metadata::<openusd::tf::Token>("interpolation")
+                .ok()
+                .flatten()
+                .map_or_else(|| "vertex".to_string(), |t| t.as_str().to_string());
+            let want = widths_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'widths' has interpolation '{interp}'"))?;
+            if let Some((i, w)) = widths.iter().enumerate().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
+                anyhow::bail!("{p}: attribute 'widths': width {i} is {w}; widths are finite and not negative");
+            }
+            anyhow::ensure!(widths.len() == want, "{p}: attribute 'widths' has {} {interp} values for {want}", widths.len());
+            curves.widths = (widths, interp);
+        }
+        Ok(curves)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve(basis: Basis, wrap: Wrap, points: Vec<Vec3>, widths: (Vec<f32>, &str)) -> Curves {
+        Curves { basis, wrap, counts: vec![points.len()], points, widths: (widths.0, widths.1.into()) }
+    }
+
+    #[test]
+    fn every_basis_weighs_to_one() {
+        for basis in [Basis::Bezier, Basis::Bspline, Basis::CatmullRom, Basis::Linear] {
+            for k in 0..=10 {
+                let s: f32 = cubic_weights(basis, k as f32 / 10.0).iter().sum();
+                assert!((s - 1.0).abs() < 1e-6, "{basis:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn bezier_and_catmull_rom_pass_through_their_end_points_and_knots() {
+        let p = vec![Vec3::ZERO, Vec3::new(1.0, 2.0, 0.0), Vec3::new(3.0, 2.0, 0.0), Vec3::new(4.0, 0.0, 0.0)];
+        let c = curve(Basis::Bezier, Wrap::Nonperiodic, p.clone(), (vec![0.1], "constant"));
+        let (centres, _) = c.centreline(0, &p, 0, &mut 0).unwrap();
+        assert_eq!((centres[0], *centres.last().unwrap()), (p[0], p[3]));
+        // Pinned Catmull-Rom interpolates every control point, ends included.
+        let c = curve(Basis::CatmullRom, Wrap::Pinned, p.clone(), (vec![0.1], "constant"));
+        let (centres, _) = c.centreline(0, &p, 0, &mut 0).unwrap();
+        for (k, q) in p.iter().enumerate() {
+            assert!((centres[k * CUBIC_SAMPLES] - *q).length() < 1e-5, "knot {k}");
+        }
+    }
+
+    #[test]
+    fn span_counts_follow_the_kind_of_curve() {
+        let n = |basis, wrap, count| spans(basis, wrap, &vec![0.0f32; count]).map(|(_, s)| s);
+        assert_eq!(n(Basis::Linear, Wrap::Nonperiodic, 5), Some(4));
+        assert_eq!(n(Basis::Linear, Wrap::Periodic, 5), Some(5));
+        assert_eq!(n(Basis::Bezier, Wrap::Nonperiodic, 7), Some(2));
+        assert_eq!(n(Basis::Bezier, Wrap::Nonperiodic, 6), None);
+        assert_eq!(n(Basis::Bezier, Wrap::Pinned, 5), None);
+        assert_eq!(n(Basis::Linear, Wrap::Nonperiodic, 1), None);
+        assert_eq!(n(Basis::Bezier, Wrap::Periodic, 6), Some(2));
+        assert_eq!(n(Basis::Bspline, Wrap::Nonperiodic, 6), Some(3));
+        assert_eq!(n(Basis::Bspline, Wrap::Periodic, 6), Some(6));
+        assert_eq!(n(Basis::CatmullRom, Wrap::Pinned, 6), Some(5));
+        assert_eq!(n(Basis::Bspline, Wrap::Nonperiodic, 3), None);
+    }
+
+    #[test]
+    fn a_periodic_curve_closes_its_tube() {
+        let ring: Vec<Vec3> = (0..6).map(|k| Vec3::new((k as f32).cos(), (k as f32).sin(), 0.0)).collect();
+        let c = curve(Basis::Bspline, Wrap::Periodic, ring, (vec![0.1], "constant"));
+        let m = c.tessellate().unwrap();
+        // 6 spans of 8 samples, a ring each, every ring joined to the next and the last to the first.
+        assert_eq!(m.positions.len(), 6 * CUBIC_SAMPLES * SIDES);
+        assert_eq!(m.indices.len(), 6 * CUBIC_SAMPLES * SIDES * 2);
+    }
+
+    #[test]
+    fn a_curve_asking_for_too_many_rings_is_refused_before_any_is_built() {
+        // 3M linear spans: 36M ring vertices, past the limit.
+        let c = curve(Basis::Linear, Wrap::Nonperiodic, vec![Vec3::ZERO; 3_000_000], (vec![0.1], "constant"));
+        assert!(c.tessellate().unwrap_err().contains("more than"));
+    }
+
+    #[test]
+    fn the_tube_widens_its_polygon_to_the_mean_width() {
+        let c = curve(Basis::Linear, Wrap::Nonperiodic, vec![Vec3::ZERO, Vec3::X], (vec![0.5, 2.0], "vertex"));
+        let m = c.tessellate().unwrap();
+        let widen = std::f32::consts::PI / (SIDES as f32 * (std::f32::consts::PI / SIDES as f32).sin());
+        assert!((m.positions[0].length() - 0.25 * widen).abs() < 1e-6);
+        assert!((m.positions[SIDES].distance(Vec3::X) - 1.0 * widen).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,104 @@
+//! `UsdGeomBasisCurves` render as tubes of their widths: coverage against closed forms, and
+//! curve data that makes no curve.
+
+use tessera_tests::*;
+
+/// A layer with an orthographic camera looking down −Z at 4×4 units around the origin (128²
+/// pixels: 32 per unit), a dome, and the curves prim `curves` (its body).
+fn stage(curves: &str) -> String {
+    format!(
+        r#"#usda 1.0
+def Camera "Camera"
+{{
+    token projection = "orthographic"
+    float horizontalAperture = 40
+    float verticalAperture = 40
+    double3 xformOp:translate = (0, 0, 10)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+def BasisCurves "Hair"
+{{
+    {curves}
+}}
+"#
+    )
+}
+
+/// Pixels covered (alpha summed) in a 128² render of `t`.
+async fn coverage(t: &tessera::usd::Translation) -> f64 {
+    let (server, mut conn) = session_with(t).await;
+    let report = conn.render(&small(128, 128, 16), |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    (0..128).flat_map(|y| (0..128).map(move |x| (x, y))).map(|(x, y)| report.image.pixel("beauty", x, y)[3] as f64).sum()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_straight_curve_covers_its_length_times_its_width() {
+    // A linear curve 3 units long and 0.25 wide, across the view: a 96 × 8 pixel strip. The
+    // tube is a 12-gon whose mean width is the curve's; seen from one side its width is within
+    // 1.2% of that (2ρ·cos 15° to 2ρ), hence the 2% bound.
+    let t = load_text(
+        "curve_line",
+        &stage(
+            "uniform token type = \"linear\"\n    point3f[] points = [(-1.5, 0, 0), (1.5, 0, 0)]\n    int[] curveVertexCounts = [2]\n    float[] widths = [0.25] (interpolation = \"constant\")",
+        ),
+    );
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    assert_eq!(t.curves, vec!["/Hair".to_string()]);
+    let seen = coverage(&t).await;
+    assert!((seen / 768.0 - 1.0).abs() < 0.02, "coverage {seen:.1}, a 96 x 8 strip 768");
+    // Tapered from 0.4 to nothing by per-vertex widths: a triangle of 3 × 0.4 / 2 units², 614 px.
+    let t = load_text(
+        "curve_taper",
+        &stage(
+            "uniform token type = \"linear\"\n    point3f[] points = [(-1.5, 0, 0), (1.5, 0, 0)]\n    int[] curveVertexCounts = [2]\n    float[] widths = [0.4, 0] (interpolation = \"vertex\")",
+        ),
+    );
+    let seen = coverage(&t).await;
+    assert!((seen / 614.4 - 1.0).abs() < 0.02, "coverage {seen:.1}, a triangle 614.4");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bezier_arc_covers_the_sweep_of_its_width_along_it() {
+    // A cubic Bézier approximating a half circle of radius 1 (control arm 4/3·tan(π/4)·... the
+    // classic 0.5523 per quarter; here two quarters), 0.1 wide: the sweep covers π·r·w units²
+    // = 0.314 units², 321.7 px.
+    let k = 0.552_284_8;
+    let pts = format!("[(-1, 0, 0), (-1, {k}, 0), (-{k}, 1, 0), (0, 1, 0), ({k}, 1, 0), (1, {k}, 0), (1, 0, 0)]");
+    let t = load_text(
+        "curve_arc",
+        &stage(&format!(
+            "uniform token type = \"cubic\"\n    uniform token basis = \"bezier\"\n    point3f[] points = {pts}\n    int[] curveVertexCounts = [7]\n    float[] widths = [0.1] (interpolation = \"constant\")"
+        )),
+    );
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let seen = coverage(&t).await;
+    let expected = std::f64::consts::PI * 0.1 * 32.0 * 32.0;
+    // 2%: the 12-gon as above, and 8 chords per quarter (their sagitta is 0.05% of the radius).
+    assert!((seen / expected - 1.0).abs() < 0.02, "coverage {seen:.1}, the sweep {expected:.1}");
+}
+
+#[test]
+fn curves_that_make_no_curve_are_reported_by_attribute() {
+    let line = "uniform token type = \"linear\"\n    point3f[] points = [(0, 0, 0), (1, 0, 0)]";
+    let cases = [
+        ("counts", format!("{line}\n    int[] curveVertexCounts = [3]"), "'curveVertexCounts' adds up to 3 vertices for 2 points"),
+        ("negative count", format!("{line}\n    int[] curveVertexCounts = [-2, 4]"), "'curveVertexCounts' holds -2"),
+        (
+            "a Bézier of six",
+            "uniform token type = \"cubic\"\n    point3f[] points = [(0,0,0),(1,0,0),(2,0,0),(3,0,0),(4,0,0),(5,0,0)]\n    int[] curveVertexCounts = [6]".into(),
+            "curve 0 has 6 vertices",
+        ),
+        ("a basis", format!("{line}\n    int[] curveVertexCounts = [2]").replace("\"linear\"", "\"cubic\"\n    uniform token basis = \"hermite\""), "'basis'"),
+        ("a wrap", format!("{line}\n    int[] curveVertexCounts = [2]\n    uniform token wrap = \"spiral\""), "'wrap' is 'spiral'"),
+        ("a negative width", format!("{line}\n    int[] curveVertexCounts = [2]\n    float[] widths = [-1]"), "width 0 is -1"),
+        ("a width count", format!("{line}\n    int[] curveVertexCounts = [2]\n    float[] widths = [1, 2, 3]"), "3 vertex values for 2"),
+        ("no points", "int[] curveVertexCounts = [2]".into(), "'points' is missing"),
+    ];
+    for (what, body, expected) in cases {
+        let t = load_text("curve_bad", &stage(&body));
+        assert!(t.warnings.iter().any(|w| w.contains("/Hair") && w.contains(expected)), "{what}: {:?}", t.warnings);
+        assert!(t.meshes.is_empty() && t.curves.is_empty(), "{what}: the prim is skipped");
+    }
+}
