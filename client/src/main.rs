@@ -203,6 +203,12 @@ enum Command {
         /// As `render --subdivision-level`.
         #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
         subdivision_level: u32,
+        /// As `render --shutter`.
+        #[arg(long, value_parser = parse_shutter, allow_hyphen_values = true)]
+        shutter: Option<(f64, f64)>,
+        /// As `render --motion-samples`.
+        #[arg(long, default_value_t = tessera::usd::DEFAULT_MOTION_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(2..=64))]
+        motion_samples: u64,
     },
 }
 
@@ -478,8 +484,8 @@ async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing:
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what } => bench(what)?,
-        Command::Inspect { scene, json: _, frame, subdivision_level } => {
-            let options = tessera::usd::LoadOptions { frame, subdivision_level, ..Default::default() };
+        Command::Inspect { scene, json: _, frame, subdivision_level, shutter, motion_samples } => {
+            let options = tessera::usd::LoadOptions { frame, subdivision_level, shutter, motion_samples: motion_samples as usize };
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, options)?);
         }
@@ -662,4 +668,19 @@ fn parse_shutter(s: &str) -> Result<(f64, f64), String> {
         return Err(format!("the shutter opens at {open}, after it closes at {close}"));
     }
     Ok((open, close))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shutter_flags_parse_and_refuse_what_is_no_interval() {
+        assert_eq!(parse_shutter("-0.25,0.25"), Ok((-0.25, 0.25)));
+        assert_eq!(parse_shutter(" 0 , 0 "), Ok((0.0, 0.0)), "equal ends: no blur");
+        assert!(parse_shutter("0.5,0").unwrap_err().contains("after it closes"));
+        assert!(parse_shutter("0,inf").unwrap_err().contains("not finite"));
+        assert!(parse_shutter("0.5").unwrap_err().contains("OPEN,CLOSE"));
+        assert!(parse_shutter("a,1").is_err());
+    }
 }
