@@ -16,6 +16,30 @@ struct Cli {
     command: Command,
 }
 
+/// How finely the reader samples what moves and what curves: flags `render` and `inspect` share.
+#[derive(clap::Args, Clone, Copy, Debug)]
+struct SceneSampling {
+    /// Shutter interval OPEN,CLOSE in frames relative to the frame (`-0.25,0.25`),
+    /// overriding the camera's shutter:open/close; equal ends render without motion blur.
+    #[arg(long, value_parser = parse_shutter, allow_hyphen_values = true)]
+    shutter: Option<(f64, f64)>,
+    /// Transform samples over the shutter for prims and cameras that move (more follow
+    /// a rotation's arc more closely; docs/accuracy-vs-time.md).
+    #[arg(long, default_value_t = tessera::usd::DEFAULT_MOTION_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(2..=64))]
+    motion_samples: u64,
+    /// Samples along each cubic span of BasisCurves' tubes (docs/accuracy-vs-time.md).
+    #[arg(long, default_value_t = tessera::usd::curves::DEFAULT_CURVE_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(1..=64))]
+    curve_samples: u64,
+}
+
+impl SceneSampling {
+    /// The reader's options with these and the frame and subdivision level given.
+    fn load_options(self, frame: Option<f64>, subdivision_level: u32) -> tessera::usd::LoadOptions {
+        let (motion_samples, curve_samples) = (self.motion_samples as usize, self.curve_samples as usize);
+        tessera::usd::LoadOptions { frame, subdivision_level, shutter: self.shutter, motion_samples, curve_samples }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Render a USD file (.usda, .usdc, .usdz) to a multi-layer EXR and a PNG preview.
@@ -94,14 +118,8 @@ enum Command {
         /// none) that do not name their own: 2^level segments per cage edge; 0 renders cages.
         #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
         subdivision_level: u32,
-        /// Shutter interval OPEN,CLOSE in frames relative to the frame (`-0.25,0.25`),
-        /// overriding the camera's shutter:open/close; equal ends render without motion blur.
-        #[arg(long, value_parser = parse_shutter, allow_hyphen_values = true)]
-        shutter: Option<(f64, f64)>,
-        /// Transform samples over the shutter for prims and cameras that move (more follow
-        /// a rotation's arc more closely; docs/accuracy-vs-time.md).
-        #[arg(long, default_value_t = tessera::usd::DEFAULT_MOTION_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(2..=64))]
-        motion_samples: u64,
+        #[command(flatten)]
+        sampling: SceneSampling,
         /// Render a frame range in one process: FIRST-LAST[xSTEP], comma-separated
         /// (`1-240x2`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
         #[arg(long)]
@@ -203,12 +221,8 @@ enum Command {
         /// As `render --subdivision-level`.
         #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
         subdivision_level: u32,
-        /// As `render --shutter`.
-        #[arg(long, value_parser = parse_shutter, allow_hyphen_values = true)]
-        shutter: Option<(f64, f64)>,
-        /// As `render --motion-samples`.
-        #[arg(long, default_value_t = tessera::usd::DEFAULT_MOTION_SAMPLES as u64, value_parser = clap::value_parser!(u64).range(2..=64))]
-        motion_samples: u64,
+        #[command(flatten)]
+        sampling: SceneSampling,
     },
 }
 
@@ -484,16 +498,15 @@ async fn render_frames(job: RenderJob, frames: &[i64], alf: bool, skip_existing:
 async fn real_main() -> Result<()> {
     match Cli::parse().command {
         Command::Bench { what } => bench(what)?,
-        Command::Inspect { scene, json: _, frame, subdivision_level, shutter, motion_samples } => {
-            let options = tessera::usd::LoadOptions { frame, subdivision_level, shutter, motion_samples: motion_samples as usize };
+        Command::Inspect { scene, json: _, frame, subdivision_level, sampling } => {
+            let options = sampling.load_options(frame, subdivision_level);
             // A closed pipe (`| head`) is not an error worth a panic.
             let _ = writeln!(std::io::stdout(), "{:#}", tessera::commands::inspect::inspect(&scene, options)?);
         }
         Command::Farm { what } => farm(what).await?,
         Command::Merge { parts, output, denoise } => merge(&parts, &output, denoise)?,
-        Command::Render { scene, explain_plan: true, frame, subdivision_level, shutter, motion_samples, .. } => {
-            let options = tessera::usd::LoadOptions { frame, subdivision_level, shutter, motion_samples: motion_samples as usize };
-            print!("{}", tessera::commands::render::explain_plan(&scene, options)?);
+        Command::Render { scene, explain_plan: true, frame, subdivision_level, sampling, .. } => {
+            print!("{}", tessera::commands::render::explain_plan(&scene, sampling.load_options(frame, subdivision_level))?);
         }
         cmd @ Command::Render { explain_plan: false, .. } => render_command(cmd).await?,
     }
@@ -521,8 +534,7 @@ async fn render_command(cmd: Command) -> Result<()> {
         light_split_budget,
         frame,
         subdivision_level,
-        shutter,
-        motion_samples,
+        sampling,
         frames,
         alf_progress,
         skip_existing,
@@ -578,7 +590,6 @@ async fn render_command(cmd: Command) -> Result<()> {
         denoise,
     };
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let default_light = !no_default_light;
     let job = RenderJob {
         scene,
         output: output_path(&film, output),
@@ -587,9 +598,10 @@ async fn render_command(cmd: Command) -> Result<()> {
         progress,
         frame,
         subdivision_level,
-        shutter,
-        motion_samples: motion_samples as usize,
-        default_light,
+        shutter: sampling.shutter,
+        motion_samples: sampling.motion_samples as usize,
+        curve_samples: sampling.curve_samples as usize,
+        default_light: !no_default_light,
         strict,
         alf_progress: None,
         film,

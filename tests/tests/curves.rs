@@ -102,3 +102,23 @@ fn curves_that_make_no_curve_are_reported_by_attribute() {
         assert!(t.meshes.is_empty() && t.curves.is_empty(), "{what}: the prim is skipped");
     }
 }
+
+#[test]
+fn curve_samples_set_how_finely_cubic_spans_are_swept() {
+    // usd/curves.usda: spans of cubic curves scale with the samples, linear ones do not; the
+    // plan says how many were used.
+    let triangles = |n: usize| -> usize {
+        let options = tessera::usd::LoadOptions { curve_samples: n, ..Default::default() };
+        let t = tessera::usd::load_with(&fixture("usd/curves.usda"), options).expect("loads");
+        assert_eq!(t.curve_samples, n);
+        assert!(t.reader_plan().contains(&format!("{n} samples per cubic span")), "{}", t.reader_plan());
+        t.meshes.iter().map(|(_, m)| m.mesh.indices.len()).sum()
+    };
+    // Linear: 4 + 6 spans, a ring pair (24 triangles) each. Cubic: 2 + 2 + 3 + 5 + 4 spans;
+    // the nonperiodic ones (2 + 3 + 4 spans) add one ring, but no extra gap.
+    let linear = (4 + 6) * 24;
+    let cubic_spans = 2 + 2 + 3 + 5 + 4;
+    for n in [1, 8, 16] {
+        assert_eq!(triangles(n), linear + cubic_spans * n * 24, "{n} samples");
+    }
+}

@@ -61,6 +61,7 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
         subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         shutter: None,
         motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
+        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
         default_light: true,
         strict: true,
         alf_progress: None,

@@ -53,6 +53,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
         subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
         shutter: None,
         motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
+        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
         default_light: true,
         strict: false,
         alf_progress: None,

@@ -88,6 +88,7 @@ pub fn accuracy(b: &AccuracyBench) -> Result<(String, AccuracySummary)> {
     r.smooth_subsurface()?;
     r.texture_filtering()?;
     r.motion_samples()?;
+    r.curve_samples()?;
     r.many_lights()?;
     r.md.push_str(DENOISING);
     std::fs::write(&b.out, &r.md).with_context(|| format!("cannot write {}", b.out.display()))?;
@@ -441,6 +442,33 @@ impl Report<'_> {
         let closed = at(crate::usd::LoadOptions { shutter: Some((0.0, 0.0)), ..Default::default() })?;
         rows.push(Row::of("shutter closed (no blur)".into(), &render(&closed, res, Knobs { spp, ..self.base }, seed), &reference));
         table(&mut self.md, "Motion samples (64 spp)", &rows)
+    }
+
+    /// Samples per cubic span of the tubes of `usd/curves.usda` (every kind of curve).
+    fn curve_samples(&mut self) -> Result<()> {
+        let res = (self.res.0, self.res.1 / 2);
+        let path = self.b.fixtures.join("usd/curves.usda");
+        let at = |n: usize| -> Result<(CommittedScene, usize)> {
+            let t = crate::usd::load_with(&path, crate::usd::LoadOptions { curve_samples: n, ..Default::default() })?;
+            let triangles = t.meshes.iter().map(|(_, m)| m.mesh.indices.len()).sum();
+            Ok((commit(&t.to_scene_desc(), &mut BlasCache::default())?, triangles))
+        };
+        let (spp, seed) = (64, 19);
+        let most = crate::usd::curves::MAX_CURVE_SAMPLES;
+        let reference = render(&at(most)?.0, res, Knobs { spp, ..self.base }, seed).rgb;
+        writeln!(
+            self.md,
+            "\n## Curve samples (`fixtures/usd/curves.usda`, {}x{})\n\nBasisCurves render as tubes swept along each cubic span at `--curve-samples` points; fewer make the tubes polylines, and the seams show at the bends. The reference takes {most} per span; every row renders {spp} spp with its seed, so the error left is the tessellation's.\n",
+            res.0, res.1
+        )?;
+        let mut rows = Vec::new();
+        for n in [1usize, 2, 4, 8, 16] {
+            let (scene, triangles) = at(n)?;
+            let r = render(&scene, res, Knobs { spp, ..self.base }, seed);
+            let default = if n == crate::usd::curves::DEFAULT_CURVE_SAMPLES { " (default)" } else { "" };
+            rows.push(Row::of(format!("{n} per span{default}, {triangles} triangles"), &r, &reference));
+        }
+        table(&mut self.md, "Curve samples (64 spp)", &rows)
     }
 
     /// 10 000 lights against one, at equal time.

@@ -33,6 +33,8 @@ pub struct RenderJob {
     pub shutter: Option<(f64, f64)>,
     /// Transform samples over the shutter for prims that move.
     pub motion_samples: usize,
+    /// Samples per cubic span of BasisCurves' tubes.
+    pub curve_samples: usize,
     /// Light a scene that has no lights with a white dome (see
     /// [`crate::usd::Translation::add_default_light`]).
     pub default_light: bool,
@@ -84,6 +86,7 @@ impl RenderJob {
             subdivision_level: self.subdivision_level,
             shutter: self.shutter,
             motion_samples: self.motion_samples,
+            curve_samples: self.curve_samples,
         }
     }
 
@@ -96,13 +99,14 @@ impl RenderJob {
         let scene = std::fs::read(&self.scene).with_context(|| format!("cannot read {}", self.scene.display()))?;
         let options = RenderOptions { spp: 0, first_sample: 0, stream_film: false, ..self.options.clone() };
         let asked = format!(
-            "{:?}|{:?}|{}|{}|{:?}|{}|{}",
+            "{:?}|{:?}|{}|{}|{:?}|{}|{}|{}",
             options,
             self.frame,
             self.default_light,
             self.subdivision_level,
             self.shutter,
             self.motion_samples,
+            self.curve_samples,
             tessera_wire::content_hash(&scene)
         );
         Ok(tessera_wire::content_hash(asked.as_bytes()))

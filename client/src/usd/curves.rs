@@ -1,6 +1,6 @@
 //! `UsdGeomBasisCurves` as round tubes: each curve evaluated with its basis (linear, or cubic
 //! `bezier`, `bspline`, `catmullRom`; `nonperiodic`, `periodic` or `pinned`), sampled along
-//! every span, and swept by a polygon of its `widths` carried along by parallel transport.
+//! every span (`--curve-samples` times, a quality knob: docs/accuracy-vs-time.md), and swept by a polygon of its `widths` carried along by parallel transport.
 //! One triangle mesh per prim, so curves render through the ordinary path with the bound
 //! material. The polygon's circumradius is widened so its width averaged over directions is
 //! the curve's width (a regular n-gon's mean width is its perimeter over π).
@@ -11,8 +11,11 @@ use render_core::geometry::{Attribute, Mesh};
 
 use super::*;
 
-/// Points a cubic span is sampled at along its length (linear spans need only their ends).
-pub const CUBIC_SAMPLES: usize = 8;
+/// Points a cubic span is sampled at along its length when none are asked for
+/// (`--curve-samples`; linear spans need only their ends).
+pub const DEFAULT_CURVE_SAMPLES: usize = 8;
+/// The most samples per span one may ask for.
+pub const MAX_CURVE_SAMPLES: usize = 64;
 /// Sides of the polygon swept along a curve.
 pub const SIDES: usize = 12;
 /// Most tube vertices one prim may make (16 bytes of position and normal each, before the
@@ -44,6 +47,8 @@ pub struct Curves {
     pub points: Vec<Vec3>,
     /// Widths and their interpolation (`constant`, `uniform`, `varying`, `vertex`).
     pub widths: (Vec<f32>, String),
+    /// Samples per cubic span.
+    pub samples: usize,
 }
 
 /// The weights of the four control points of a cubic span at `u` (USD's, RenderMan's bases).
@@ -128,7 +133,7 @@ impl Curves {
     /// Rings (samples along the centre line) of a curve of `n` vertices; 0 when it is no curve.
     fn rings(&self, n: usize) -> usize {
         let spans = span_count(self.basis, self.wrap, n).unwrap_or(0);
-        let samples = if self.basis == Basis::Linear { 1 } else { CUBIC_SAMPLES };
+        let samples = if self.basis == Basis::Linear { 1 } else { self.samples };
         spans * samples + usize::from(self.wrap != Wrap::Periodic && spans > 0)
     }
 
@@ -137,7 +142,7 @@ impl Curves {
     fn centreline(&self, c: usize, cv: &[Vec3], first: usize, first_width: &mut usize) -> Result<(Vec<Vec3>, Vec<f32>), String> {
         let (ctrl, n_spans) = spans(self.basis, self.wrap, cv)
             .ok_or_else(|| format!("curve {c} has {} vertices, which make no {:?} {:?} curve", cv.len(), self.wrap, self.basis))?;
-        let samples = if self.basis == Basis::Linear { 1 } else { CUBIC_SAMPLES };
+        let samples = if self.basis == Basis::Linear { 1 } else { self.samples };
         let (w, interp) = (&self.widths.0, self.widths.1.as_str());
         // Per-vertex widths follow the curve's own basis; varying ones are linear per span.
         let vertex_widths: Vec<f32> = match interp {
@@ -238,6 +243,7 @@ impl Reader<'_> {
         let curves = self.read_curves(prim, p)?;
         let mesh = curves.tessellate().map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         self.out.curves.push(p.to_string());
+        self.out.curve_samples = self.curve_samples;
         let material = self.usable_material(prim)?;
         self.add_mesh_with(prim, p, mesh, visible, material)
     }
@@ -286,7 +292,7 @@ impl Reader<'_> {
                 .warnings
                 .push(format!("{p}: curves oriented by 'normals' (ribbons) render as round tubes; ribbons are not supported yet"));
         }
-        let mut curves = Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()) };
+        let mut curves = Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()), samples: self.curve_samples };
         if let Some(widths) = get_floats(prim, p, "widths", time)? {
             let interp = prim
                 .attribute("widths")
@@ -310,7 +316,7 @@ mod tests {
     use super::*;
 
     fn curve(basis: Basis, wrap: Wrap, points: Vec<Vec3>, widths: (Vec<f32>, &str)) -> Curves {
-        Curves { basis, wrap, counts: vec![points.len()], points, widths: (widths.0, widths.1.into()) }
+        Curves { basis, wrap, counts: vec![points.len()], points, widths: (widths.0, widths.1.into()), samples: DEFAULT_CURVE_SAMPLES }
     }
 
     #[test]
@@ -333,7 +339,7 @@ mod tests {
         let c = curve(Basis::CatmullRom, Wrap::Pinned, p.clone(), (vec![0.1], "constant"));
         let (centres, _) = c.centreline(0, &p, 0, &mut 0).unwrap();
         for (k, q) in p.iter().enumerate() {
-            assert!((centres[k * CUBIC_SAMPLES] - *q).length() < 1e-5, "knot {k}");
+            assert!((centres[k * DEFAULT_CURVE_SAMPLES] - *q).length() < 1e-5, "knot {k}");
         }
     }
 
@@ -359,8 +365,8 @@ mod tests {
         let c = curve(Basis::Bspline, Wrap::Periodic, ring, (vec![0.1], "constant"));
         let m = c.tessellate().unwrap();
         // 6 spans of 8 samples, a ring each, every ring joined to the next and the last to the first.
-        assert_eq!(m.positions.len(), 6 * CUBIC_SAMPLES * SIDES);
-        assert_eq!(m.indices.len(), 6 * CUBIC_SAMPLES * SIDES * 2);
+        assert_eq!(m.positions.len(), 6 * DEFAULT_CURVE_SAMPLES * SIDES);
+        assert_eq!(m.indices.len(), 6 * DEFAULT_CURVE_SAMPLES * SIDES * 2);
     }
 
     #[test]

@@ -92,6 +92,8 @@ pub struct Translation {
     pub skinned: Vec<Skinned>,
     /// BasisCurves prims rendered as tubes, in reading order.
     pub curves: Vec<String>,
+    /// Samples per cubic span their tubes were swept with.
+    pub curve_samples: usize,
 }
 
 /// One effect of the render plan with the prims calling for it (the first dozen named).
@@ -128,11 +130,19 @@ pub struct LoadOptions {
     pub shutter: Option<(f64, f64)>,
     /// Transform samples over the shutter for prims that move (2 or more).
     pub motion_samples: usize,
+    /// Samples per cubic span of BasisCurves' tubes.
+    pub curve_samples: usize,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        Self { frame: None, subdivision_level: DEFAULT_SUBDIVISION_LEVEL, shutter: None, motion_samples: DEFAULT_MOTION_SAMPLES }
+        Self {
+            frame: None,
+            subdivision_level: DEFAULT_SUBDIVISION_LEVEL,
+            shutter: None,
+            motion_samples: DEFAULT_MOTION_SAMPLES,
+            curve_samples: curves::DEFAULT_CURVE_SAMPLES,
+        }
     }
 }
 
@@ -261,9 +271,9 @@ impl Translation {
         }
         if !self.curves.is_empty() {
             let reason = format!(
-                "BasisCurves as round tubes: {}-sided, {} samples per cubic span, through the bound material",
+                "BasisCurves as round tubes: {}-sided, {} samples per cubic span (--curve-samples), through the bound material",
                 curves::SIDES,
-                curves::CUBIC_SAMPLES
+                self.curve_samples
             );
             out += &plan_entry("curves", &reason, self.curves.iter().cloned());
         }
@@ -376,6 +386,7 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
         skins: HashMap::new(),
         shutter: None,
         samples_fixed: std::collections::HashSet::new(),
+        curve_samples: options.curve_samples.clamp(1, curves::MAX_CURVE_SAMPLES),
         motion_samples: options.motion_samples.clamp(2, render_core::motion::MAX_MOTION_SAMPLES),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
@@ -467,4 +478,6 @@ struct Reader<'s> {
     motion_samples: usize,
     /// Prims whose whole-number xformOp samples were re-authored (see `fix_integral_samples`).
     samples_fixed: std::collections::HashSet<String>,
+    /// Samples per cubic span of curves' tubes.
+    curve_samples: usize,
 }
