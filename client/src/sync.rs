@@ -104,8 +104,13 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
     }
     // Instancers after meshes: the server resolves each prototype by path at commit.
     for (path, inst) in &t.instancers {
-        let transforms: Vec<f64> = inst.transforms.iter().flat_map(|xf| convert::matrix(xf).m).collect();
-        let prim = pb::InstancerPrim { prototype_path: inst.prototype.clone(), transforms_len: transforms.len() as u64 };
+        // The placements at the frame, then each instance's over the shutter.
+        let transforms: Vec<f64> = inst.transforms.iter().chain(&inst.motion).flat_map(|xf| convert::matrix(xf).m).collect();
+        let prim = pb::InstancerPrim {
+            prototype_path: inst.prototype.clone(),
+            transforms_len: transforms.len() as u64,
+            motion_samples: inst.motion_samples() as u32,
+        };
         items.push(delta(path, pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim)));
         items.extend(chunks(path, pb::ArrayField::InstanceTransforms, &transforms, |c, v| c.doubles = v));
     }

@@ -135,7 +135,9 @@ pub struct Transaction {
     textures: HashMap<String, StagedTexture>,
     store: Arc<TextureStore>,
     meshes: HashMap<String, StagedMesh>,
-    instancers: HashMap<String, (String, Vec<f64>, u64)>,
+    /// Instancers staged: prototype, transforms (then motion) as they arrive, declared length,
+    /// motion samples per instance.
+    instancers: HashMap<String, (String, Vec<f64>, u64, u64)>,
     /// Prims applied.
     pub applied: u32,
     limits: Limits,
@@ -174,7 +176,8 @@ pub fn scene_bytes(desc: &SceneDesc) -> u64 {
             mesh.indices.len() as u64 * BYTES_PER_TRIANGLE + mesh.positions.len() as u64 * 12 + attribute_bytes(mesh)
         })
         .sum();
-    let instances: u64 = desc.instancers.values().map(|i| i.transforms.len() as u64 * BYTES_PER_INSTANCE).sum();
+    let instances: u64 =
+        desc.instancers.values().map(|i| i.transforms.len() as u64 * BYTES_PER_INSTANCE + i.motion.len() as u64 * 48).sum();
     // Mip levels add a third; the environment's importance map and tangents stay below that.
     let textures: u64 = desc.textures.values().map(|t| t.bytes() as u64 * 2).sum();
     meshes + instances + textures
@@ -539,20 +542,29 @@ impl Transaction {
 
     /// An instancer delta: its transforms follow as chunks.
     fn apply_instancer(&mut self, path: String, i: pb::InstancerPrim) -> Result<(), Status> {
-        if i.transforms_len > 16 * self.limits.max_instances {
+        let k = i.motion_samples as u64;
+        if k == 1 || k > render_core::motion::MAX_MOTION_SAMPLES as u64 {
+            return Err(invalid(
+                &path,
+                "motion_samples",
+                format!("{k}; moving instances have 2 to {}", render_core::motion::MAX_MOTION_SAMPLES),
+            ));
+        }
+        let per_instance = 16 * (1 + k);
+        if !i.transforms_len.is_multiple_of(per_instance) {
+            return Err(invalid(&path, "transforms", format!("length must be a multiple of {per_instance}")));
+        }
+        let instances = i.transforms_len / per_instance;
+        if instances > self.limits.max_instances {
             return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
         }
-        if i.transforms_len % 16 != 0 {
-            return Err(invalid(&path, "transforms", "length must be a multiple of 16"));
-        }
         check_prim_path(&i.prototype_path)?;
-        let instances = i.transforms_len / 16;
         Budget::check_fits(
             &self.budgets,
-            instances.saturating_mul(BYTES_PER_INSTANCE + 128),
+            instances.saturating_mul(BYTES_PER_INSTANCE + 128 + 48 * k),
             &format!("{path}: {instances} instances as declared"),
         )?;
-        self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len));
+        self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len, k));
         Ok(())
     }
 
@@ -580,7 +592,7 @@ impl Transaction {
             return fill(&t.source, "texture bytes", &mut t.bytes, t.declared, c.offset, &c.data, &mut filled);
         }
         if field == pb::ArrayField::InstanceTransforms {
-            let (_, data, declared) =
+            let (_, data, declared, _) =
                 self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
             let mut filled = 0;
             return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
@@ -727,12 +739,17 @@ impl Transaction {
                 .meshes
                 .insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material: p.material_path.clone(), visible: p.visible });
         }
-        for (path, (prototype, data, _)) in self.instancers {
-            let transforms = data
-                .chunks_exact(16)
-                .map(|m| convert::affine(&path, "transforms", &Some(pb::Matrix4 { m: m.to_vec() })))
-                .collect::<Result<Vec<_>, _>>()?;
-            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms });
+        for (path, (prototype, data, _, k)) in self.instancers {
+            let affines = |field: &str, values: &[f64]| {
+                values
+                    .chunks_exact(16)
+                    .map(|m| convert::affine(&path, field, &Some(pb::Matrix4 { m: m.to_vec() })))
+                    .collect::<Result<Vec<_>, _>>()
+            };
+            let instances = data.len() / (16 * (1 + k as usize));
+            let transforms = affines("transforms", &data[..16 * instances])?;
+            let motion = affines("motion", &data[16 * instances..])?;
+            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms, motion });
         }
         let total: u64 = self.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
         if total > self.limits.max_total_triangles {

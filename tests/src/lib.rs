@@ -259,7 +259,7 @@ mod production {
                 Affine3A::from_scale_rotation_translation(Vec3::splat(0.2), glam::Quat::from_rotation_y(i as f32), Vec3::new(x, -2.0, z))
             })
             .collect();
-        desc.instancers.insert("/World/Scatter".into(), InstancerDesc { prototype: "/World/Rock".into(), transforms });
+        desc.instancers.insert("/World/Scatter".into(), InstancerDesc { prototype: "/World/Rock".into(), transforms, motion: Vec::new() });
         desc.materials.insert("/M/Hero".into(), preview("/M/Hero", Vec3::new(0.8, 0.2, 0.1), 0.3));
         desc.materials.insert("/M/Rock".into(), preview("/M/Rock", Vec3::splat(0.4), 0.8));
         desc.lights.insert("/Lights/Key".into(), light(LightKind::Sphere { radius: 0.5 }, Vec3::new(3.0, 5.0, 3.0), 50.0));

@@ -185,7 +185,7 @@ async fn a_hundred_thousand_identical_instances_render() {
     let n = 100_000usize;
     let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let transforms: Vec<f64> = (0..n).flat_map(|_| identity).collect();
-    let inst = pb::InstancerPrim { prototype_path: "/Proto".into(), transforms_len: transforms.len() as u64 };
+    let inst = pb::InstancerPrim { prototype_path: "/Proto".into(), transforms_len: transforms.len() as u64, motion_samples: 0 };
     items.push(tessera::sync::delta("/Evil/Instancer", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(inst)));
     for (k, c) in transforms.chunks(tessera::sync::CHUNK_ELEMENTS).enumerate() {
         items.push(Item::Chunk(pb::ArrayChunk {
@@ -359,6 +359,24 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
     raw.sync(&s, items).await.expect("two samples sync");
     let f = raw.render(&s, tiny(8, 2)).await.expect("renders");
     assert_eq!(f.spp, 2);
+    bystander_renders(&server).await;
+}
+
+/// Instancer motion is counts too: motion samples outside 2..=64 and a transforms array
+/// that fits no number of instances are refused naming the field.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn instancer_motion_that_fits_no_instances_is_refused() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let instancer = |motion_samples: u32, transforms_len: u64| {
+        let prim = pb::InstancerPrim { prototype_path: "/Evil/Proto".into(), transforms_len, motion_samples };
+        vec![tessera::sync::delta("/Evil/Crowd", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim))]
+    };
+    assert_status(raw.sync(&s, instancer(1, 32)).await, Code::InvalidArgument, &["/Evil/Crowd", "motion_samples", "2 to 64"]);
+    assert_status(raw.sync(&s, instancer(65, 16 * 66)).await, Code::InvalidArgument, &["/Evil/Crowd", "motion_samples"]);
+    assert_status(raw.sync(&s, instancer(3, 16 * 3)).await, Code::InvalidArgument, &["/Evil/Crowd", "multiple of 64"]);
+    assert_status(raw.sync(&s, instancer(64, u64::MAX - 7)).await, Code::InvalidArgument, &["/Evil/Crowd", "transforms"]);
     bystander_renders(&server).await;
 }
 

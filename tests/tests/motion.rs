@@ -93,6 +93,42 @@ async fn a_sphere_moving_in_a_line_renders_the_streak_of_its_silhouette() {
     assert!((total / disc - 1.0).abs() < 0.01, "total coverage {total:.1}, a disc {disc:.1}");
 }
 
+/// A PointInstancer placing one ball (radius `r`) at x = `x0` at frame 0; its motion comes
+/// from `motion` (time samples of `positions`, or `velocities`).
+fn instanced_ball(r: f64, motion: &str) -> String {
+    format!(
+        r#"def PointInstancer "Balls"
+{{
+    rel prototypes = </Balls/Protos/Ball>
+    int[] protoIndices = [0]
+    {motion}
+    def Scope "Protos"
+    {{
+        def Sphere "Ball" {{ double radius = {r} }}
+    }}
+}}"#
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn point_instances_blur_with_their_positions_and_velocities() {
+    // The same streak as the lone sphere's, from time-sampled positions, and from velocities
+    // (2 units over the shutter's one frame at 24 frames per second: 48 units per second).
+    let expected: Vec<f64> = (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).map(|(x, y)| streak(x, y, 0.5, -1.0, 1.0)).collect();
+    for (what, motion) in [
+        ("positions", "point3f[] positions.timeSamples = { 0: [(-1, 0, 0)], 1: [(1, 0, 0)] }"),
+        ("velocities", "point3f[] positions = [(-1, 0, 0)]\n    vector3f[] velocities = [(48, 0, 0)]"),
+    ] {
+        let t = load_text("motion_instances", &ortho_stage(&instanced_ball(0.5, motion)));
+        let (_, inst) = t.instancers.iter().find(|(k, _)| k.starts_with("/Balls")).expect("an instancer");
+        assert_eq!(inst.motion_samples(), tessera::usd::DEFAULT_MOTION_SAMPLES, "{what}");
+        let seen = coverage(&t, 64).await;
+        let covered = expected.iter().filter(|e| **e > 0.0).count() as f64;
+        let mean_error = seen.iter().zip(&expected).map(|(a, b)| (a - b).abs()).sum::<f64>() / covered;
+        assert!(mean_error < 0.01, "{what}: mean |error| over the streak {mean_error:.4}");
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_moving_camera_blurs_still_geometry_as_the_geometry_moving_the_other_way_would() {
     let still_ball = "def Sphere \"Ball\" { double radius = 0.5 }";

@@ -27,7 +27,7 @@ async fn a_million_points_render_in_under_a_gibibyte() {
         visible: false,
     };
     t.meshes.push(("/Dots[sphere]".into(), desc));
-    t.instancers.push(("/Dots[points]".into(), InstancerDesc { prototype: "/Dots[sphere]".into(), transforms }));
+    t.instancers.push(("/Dots[points]".into(), InstancerDesc { prototype: "/Dots[sphere]".into(), transforms, motion: Vec::new() }));
     t.cameras.push(("/Camera".into(), CameraDesc::default()));
     t.add_default_light();
     let (server, mut conn) = tessera_tests::session_with(&t).await;

@@ -44,9 +44,10 @@ impl Reader<'_> {
                     visible: false,
                 };
                 self.out.meshes.push((mesh_path.clone(), desc));
-                self.out
-                    .instancers
-                    .push((format!("{mesh_path}[instances]"), InstancerDesc { prototype: mesh_path, transforms: Vec::new() }));
+                self.out.instancers.push((
+                    format!("{mesh_path}[instances]"),
+                    InstancerDesc { prototype: mesh_path, transforms: Vec::new(), motion: Vec::new() },
+                ));
                 self.native.insert(key.clone(), self.out.instancers.len() - 1);
                 self.out.instancers.len() - 1
             }
@@ -70,25 +71,63 @@ impl Reader<'_> {
         let _span = tracing::debug_span!("point_instancer", path = p).entered();
         self.instancer_roots.push(p.to_string());
         let prototypes = valid_targets(prim, p, "prototypes")?;
-        let per_proto = self.instance_transforms(prim, p, prototypes.len())?;
-        for (proto, instances) in prototypes.iter().zip(&per_proto) {
-            self.instance_prototype(p, proto, instances, visible)?;
+        let world = self.world_transform(prim.path())?;
+        let per_proto = self.instance_transforms(prim, p, prototypes.len(), self.time, world)?;
+        let motion = if visible { self.instance_motion(prim, p, &per_proto)? } else { Vec::new() };
+        for (k, (proto, instances)) in prototypes.iter().zip(&per_proto).enumerate() {
+            self.instance_prototype(p, proto, instances, motion.get(k).map(Vec::as_slice), visible)?;
         }
         Ok(())
+    }
+
+    /// Each instance's world transforms at the motion samples over an open shutter, by
+    /// prototype (as `per_proto`, the frame's); empty when the shutter is closed or nothing
+    /// moves. Instances that come and go within the shutter (a changing count) keep still,
+    /// with a warning.
+    fn instance_motion(&mut self, prim: &Prim, p: &str, per_proto: &[Vec<DMat4>]) -> Result<Vec<Vec<Vec<DMat4>>>> {
+        let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
+        if get(prim, "angularVelocities", self.time)?.is_some() {
+            self.out
+                .warnings
+                .push(format!("{p}: angularVelocities are not simulated yet; the instances turn only as their orientations are sampled"));
+        }
+        let n = self.motion_samples.max(2);
+        let mut motion: Vec<Vec<Vec<DMat4>>> = per_proto.iter().map(|v| vec![Vec::with_capacity(n); v.len()]).collect();
+        for s in 0..n {
+            let t = TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64);
+            let world = self.world_at(prim.path(), t)?;
+            let at_t = self.instance_transforms(prim, p, per_proto.len(), t, world)?;
+            if at_t.iter().zip(per_proto).any(|(a, b)| a.len() != b.len()) {
+                self.out
+                    .warnings
+                    .push(format!("{p}: the instance count changes within the shutter; the instances render without motion blur"));
+                return Ok(Vec::new());
+            }
+            for (k, instances) in at_t.into_iter().enumerate() {
+                for (j, m) in instances.into_iter().enumerate() {
+                    motion[k][j].push(m);
+                }
+            }
+        }
+        let still = motion.iter().flatten().all(|samples| samples.iter().all(|m| *m == samples[0]));
+        Ok(if still { Vec::new() } else { motion })
     }
 
     /// The world transform of each visible instance of a PointInstancer, by prototype index:
     /// positions, orientations and scales composed as UsdGeomPointInstancer defines them,
     /// instances hidden by `invisibleIds` left out.
-    fn instance_transforms(&mut self, prim: &Prim, p: &str, prototypes: usize) -> Result<Vec<Vec<DMat4>>> {
-        let time = self.time;
+    fn instance_transforms(
+        &mut self,
+        prim: &Prim,
+        p: &str,
+        prototypes: usize,
+        time: TimeCode,
+        instancer_world: DMat4,
+    ) -> Result<Vec<Vec<DMat4>>> {
         let ints = |name: &str| get_ints(prim, p, name, time);
         let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
         let n = proto_indices.len();
-        let positions = match get(prim, "positions", time)? {
-            Some(v) => values::vec3_array(&v).with_context(|| format!("{p}: attribute 'positions' is not a point3f[]"))?,
-            None => anyhow::bail!("{p}: attribute 'positions' is missing"),
-        };
+        let positions = self.instance_positions(prim, p, time)?;
         let orientations = match get(prim, "orientations", time)?.or(get(prim, "orientationsf", time)?) {
             Some(v) => Some(values::quat_array(&v).with_context(|| format!("{p}: attribute 'orientations' is not a quath[]"))?),
             None => None,
@@ -112,7 +151,6 @@ impl Reader<'_> {
         // Instances hidden by id (ids default to the instance index).
         let hidden: std::collections::HashSet<i64> = ints("invisibleIds")?.unwrap_or_default().into_iter().collect();
         let ids = ints("ids")?;
-        let instancer_world = self.world_transform(prim.path())?;
         let mut per_proto: Vec<Vec<DMat4>> = vec![Vec::new(); prototypes];
         for i in 0..n {
             let id = ids.as_ref().and_then(|ids| ids.get(i).copied()).unwrap_or(i as i64);
@@ -131,10 +169,49 @@ impl Reader<'_> {
         Ok(per_proto)
     }
 
+    /// `positions` at `time`. With `velocities` authored (one per position), USD's
+    /// velocity-based motion: the frame's positions moved by velocity × elapsed seconds
+    /// (`timeCodesPerSecond`, 24 unless authored), rather than positions interpolated
+    /// between samples.
+    fn instance_positions(&self, prim: &Prim, p: &str, time: TimeCode) -> Result<Vec<Vec3>> {
+        let read = |name: &str, t: TimeCode| -> Result<Option<Vec<Vec3>>> {
+            get(prim, name, t)?
+                .map(|v| values::vec3_array(&v).with_context(|| format!("{p}: attribute '{name}' is not a vector3f[]")))
+                .transpose()
+        };
+        if time == self.time {
+            return read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing"));
+        }
+        let base = read("positions", self.time)?.with_context(|| format!("{p}: attribute 'positions' is missing"))?;
+        match read("velocities", self.time)?.filter(|v| v.len() == base.len()) {
+            Some(velocities) => {
+                let per_second = self
+                    .stage
+                    .stage_metadata("timeCodesPerSecond")
+                    .ok()
+                    .flatten()
+                    .as_ref()
+                    .and_then(values::scalar)
+                    .filter(|t| *t > 0.0)
+                    .unwrap_or(24.0);
+                let dt = ((time.value() - self.time.value()) / per_second) as f32;
+                Ok(base.iter().zip(&velocities).map(|(p, v)| *p + *v * dt).collect())
+            }
+            None => read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing")),
+        }
+    }
+
     /// The meshes of one PointInstancer prototype (the subtree at `proto`), each as a hidden
     /// prototype mesh and an instancer placing it at `instances` (none when the instancer is
     /// invisible).
-    fn instance_prototype(&mut self, p: &str, proto: &sdf::Path, instances: &[DMat4], visible: bool) -> Result<()> {
+    fn instance_prototype(
+        &mut self,
+        p: &str,
+        proto: &sdf::Path,
+        instances: &[DMat4],
+        motion: Option<&[Vec<DMat4>]>,
+        visible: bool,
+    ) -> Result<()> {
         let root = proto.as_str().to_string();
         let root_parent = match proto.parent() {
             Some(pp) if pp.as_str() != "/" && !pp.as_str().is_empty() => self.world_transform(&pp)?.inverse(),
@@ -176,14 +253,24 @@ impl Reader<'_> {
                     .with_context(|| format!("{p}: instances of {root}"))?,
                 false => Vec::new(),
             };
+            let motion = match (visible, motion) {
+                (true, Some(m)) => m
+                    .iter()
+                    .flatten()
+                    .map(|w| to_affine(&(*w * relative)))
+                    .collect::<Result<Vec<_>>>()
+                    .with_context(|| format!("{p}: motion of the instances of {root}"))?,
+                _ => Vec::new(),
+            };
             for (mesh_key, _) in &mut self.out.meshes[before..] {
                 let part = mesh_key.clone();
                 if !under(&part, p) {
                     *mesh_key = format!("{part}@{p}");
                 }
-                self.out
-                    .instancers
-                    .push((format!("{p}[{part}]"), InstancerDesc { prototype: mesh_key.clone(), transforms: transforms.clone() }));
+                self.out.instancers.push((
+                    format!("{p}[{part}]"),
+                    InstancerDesc { prototype: mesh_key.clone(), transforms: transforms.clone(), motion: motion.clone() },
+                ));
             }
         }
         Ok(())

@@ -65,7 +65,7 @@ impl Reader<'_> {
     }
 
     /// Local-to-world at `time` (uncached: the cache holds the frame's own time).
-    fn world_at(&mut self, path: &sdf::Path, time: TimeCode) -> Result<DMat4> {
+    pub(super) fn world_at(&mut self, path: &sdf::Path, time: TimeCode) -> Result<DMat4> {
         let prim = self.stage.prim(path.clone());
         self.fix_integral_samples(&prim, path.as_str());
         let view = AnyXformable(prim);

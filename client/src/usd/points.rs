@@ -72,7 +72,7 @@ impl Reader<'_> {
             (Some(n), true) => disc_instances(world, &points, &widths, n),
             (None, true) => sphere_instances(world, &points, &widths),
         };
-        self.out.instancers.push((format!("{p}[points]"), InstancerDesc { prototype: proto, transforms }));
+        self.out.instancers.push((format!("{p}[points]"), InstancerDesc { prototype: proto, transforms, motion: Vec::new() }));
         Ok(())
     }
 

@@ -163,8 +163,25 @@ fn place_instances(
         if materials.removes_its_surfaces(material) {
             continue;
         }
-        for xf in &inst.transforms {
-            push(path, slot, xf, material, None)?;
+        let k = inst.motion_samples();
+        if !inst.motion.is_empty() && (k * inst.transforms.len() != inst.motion.len() || k < 2) {
+            let problem = format!("{} placements for {} instances", inst.motion.len(), inst.transforms.len());
+            return Err(SceneError::Invalid { prim: path.clone(), field: "motion".into(), problem });
+        }
+        for (i, xf) in inst.transforms.iter().enumerate() {
+            let motion = match k {
+                0 => None,
+                _ => {
+                    let samples = &inst.motion[i * k..(i + 1) * k];
+                    crate::motion::check_samples(samples).map_err(|problem| SceneError::Invalid {
+                        prim: path.clone(),
+                        field: format!("motion of instance {i}"),
+                        problem,
+                    })?;
+                    Some(samples.into())
+                }
+            };
+            push(path, slot, xf, material, motion)?;
         }
     }
     Ok((instances, prim_paths))

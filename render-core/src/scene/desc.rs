@@ -33,6 +33,17 @@ pub struct InstancerDesc {
     pub prototype: String,
     /// Object-to-world transform of each instance.
     pub transforms: Vec<Affine3A>,
+    /// When the instances move: each instance's placements at the same number of evenly
+    /// spaced times over the shutter ([`crate::motion`]), instance after instance; empty
+    /// when they do not.
+    pub motion: Vec<Affine3A>,
+}
+
+impl InstancerDesc {
+    /// Placements over the shutter per instance (0 when the instances do not move).
+    pub fn motion_samples(&self) -> usize {
+        if self.transforms.is_empty() { 0 } else { self.motion.len() / self.transforms.len() }
+    }
 }
 
 /// Everything a session has synced, keyed by USD path.

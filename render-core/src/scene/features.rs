@@ -58,6 +58,8 @@ pub(super) fn plan_of(desc: &SceneDesc, materials: &Materials) -> RenderPlan {
     plan.call_for(Feature::DepthOfField, thin_lens.map(|(p, _)| p.clone()));
     let moving_meshes = desc.meshes.iter().filter(|(_, m)| m.visible && !m.motion.is_empty());
     let moving_cameras = desc.cameras.iter().filter(|(_, c)| !c.motion.is_empty());
-    plan.call_for(Feature::MotionBlur, moving_meshes.map(|(p, _)| p.clone()).chain(moving_cameras.map(|(p, _)| p.clone())));
+    let moving_instancers = desc.instancers.iter().filter(|(_, i)| !i.motion.is_empty());
+    let moving = moving_meshes.map(|(p, _)| p).chain(moving_instancers.map(|(p, _)| p)).chain(moving_cameras.map(|(p, _)| p));
+    plan.call_for(Feature::MotionBlur, moving.cloned());
     plan
 }
