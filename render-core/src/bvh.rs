@@ -450,14 +450,14 @@ impl Tlas {
 fn into_object(placed: &Placed, time: f32, o: Vec3A, d: Vec3A) -> (Vec3A, Vec3A) {
     let (_, _, xf, motion) = placed;
     let moved;
-    let xf = match motion {
-        None => xf,
+    let to_object = match motion {
+        None => &xf.to_object,
         Some(m) => {
-            moved = crate::motion::placement_at(m, time);
+            moved = crate::motion::to_object_at(m, time);
             &moved
         }
     };
-    (xf.to_object.transform_point3a(o), xf.to_object.transform_vector3a(d))
+    (to_object.transform_point3a(o), to_object.transform_vector3a(d))
 }
 
 /// The direction scale of [`Tlas::ray_scale`] for a scene with these bounds.

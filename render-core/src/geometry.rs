@@ -217,13 +217,19 @@ impl Transform {
     /// Builds from an object-to-world affine map. Returns `None` when it is singular or
     /// not finite.
     pub fn new(to_world: Affine3A) -> Option<Self> {
-        let det = to_world.matrix3.determinant();
-        if !det.is_finite() || det.abs() < 1e-30 || !to_world.translation.is_finite() {
+        if !Self::invertible(&to_world) {
             return None;
         }
         let to_object = to_world.inverse();
         let normal_matrix = Mat3::from(to_world.matrix3).inverse().transpose();
         Some(Transform { to_world, to_object, normal_matrix })
+    }
+
+    /// True when `to_world` places geometry somewhere: finite and not singular.
+    #[inline]
+    pub fn invertible(to_world: &Affine3A) -> bool {
+        let det = to_world.matrix3.determinant();
+        det.is_finite() && det.abs() >= 1e-30 && to_world.translation.is_finite()
     }
 
     /// The identity.

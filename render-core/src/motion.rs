@@ -34,6 +34,13 @@ pub fn placement_at(samples: &[Affine3A], time: f32) -> Transform {
     })
 }
 
+/// World to object at `time`: all traversal needs of [`placement_at`] (no normal matrix).
+#[inline]
+pub fn to_object_at(samples: &[Affine3A], time: f32) -> Affine3A {
+    let m = transform_at(samples, time);
+    if Transform::invertible(&m) { m.inverse() } else { placement_at(samples, time).to_object }
+}
+
 /// World bounds of object-space box (`lo`, `hi`) over the whole motion.
 pub fn bounds_over(samples: &[Affine3A], lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
     let mut out = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -76,6 +83,9 @@ mod tests {
         assert_eq!(transform_at(&samples, 0.625).translation.x, 6.5);
         assert_eq!(transform_at(&samples, 1.0).translation.x, 16.0);
         assert_eq!(transform_at(&samples, 7.0).translation.x, 16.0, "clamped");
+        // Traversal's inverse is the full placement's.
+        let turning: Vec<Affine3A> = (0..3).map(|i| Affine3A::from_rotation_z(i as f32) * Affine3A::from_scale(Vec3::splat(2.0))).collect();
+        assert_eq!(to_object_at(&turning, 0.3), placement_at(&turning, 0.3).to_object);
     }
 
     #[test]

@@ -63,19 +63,4 @@ impl Reader<'_> {
         }
         Ok(samples)
     }
-
-    /// Local-to-world at `time` (uncached: the cache holds the frame's own time).
-    pub(super) fn world_at(&mut self, path: &sdf::Path, time: TimeCode) -> Result<DMat4> {
-        let prim = self.stage.prim(path.clone());
-        self.fix_integral_samples(&prim, path.as_str());
-        let view = AnyXformable(prim);
-        let local = values::matrix(&view.local_to_parent_transform(time)?);
-        let parent = match path.parent() {
-            Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => {
-                self.world_at(&parent, time)?
-            }
-            _ => DMat4::IDENTITY,
-        };
-        Ok(parent * local)
-    }
 }

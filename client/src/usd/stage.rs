@@ -146,6 +146,27 @@ impl Reader<'_> {
         if let Some(m) = self.world.get(path.as_str()) {
             return Ok(*m);
         }
+        let (local, parent) = self.local_at(path, self.time)?;
+        let m = match parent {
+            Some(parent) => self.world_transform(&parent)? * local,
+            None => local,
+        };
+        self.world.insert(path.as_str().to_string(), m);
+        Ok(m)
+    }
+
+    /// Local-to-world at `time` (uncached: the cache holds the frame's own time).
+    pub(super) fn world_at(&mut self, path: &sdf::Path, time: TimeCode) -> Result<DMat4> {
+        let (local, parent) = self.local_at(path, time)?;
+        Ok(match parent {
+            Some(parent) => self.world_at(&parent, time)? * local,
+            None => local,
+        })
+    }
+
+    /// The prim's local-to-parent transform at `time`, and the parent its world transform
+    /// composes with (`None` at the root or past `!resetXformStack!`).
+    fn local_at(&mut self, path: &sdf::Path, time: TimeCode) -> Result<(DMat4, Option<sdf::Path>)> {
         let prim = self.stage.prim(path.clone());
         // The schema looks each op up by name: check the names first (a garbled one sent the
         // openusd crate into an endless loop, found by fuzzing).
@@ -159,16 +180,12 @@ impl Reader<'_> {
         }
         self.fix_integral_samples(&prim, path.as_str());
         let view = AnyXformable(prim);
-        let local = values::matrix(&view.local_to_parent_transform(self.time)?);
+        let local = values::matrix(&view.local_to_parent_transform(time)?);
         let parent = match path.parent() {
-            Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => {
-                self.world_transform(&parent)?
-            }
-            _ => DMat4::IDENTITY,
+            Some(parent) if !view.resets_xform_stack()? && parent.as_str() != "/" && !parent.as_str().is_empty() => Some(parent),
+            _ => None,
         };
-        let m = parent * local;
-        self.world.insert(path.as_str().to_string(), m);
-        Ok(m)
+        Ok((local, parent))
     }
 
     /// The world transform a gprim renders with: a skinned mesh's is its skeleton's.

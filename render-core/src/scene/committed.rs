@@ -17,7 +17,7 @@ use crate::plan::RenderPlan;
 pub struct InstanceData {
     /// Index into [`CommittedScene::meshes`].
     pub mesh: usize,
-    /// Placement (at shutter open when it moves).
+    /// Placement at the frame (traversal and shading use [`Self::motion`] when it moves).
     pub transform: Transform,
     /// Placements over the shutter when the instance moves ([`crate::motion`]).
     pub motion: Option<Arc<[glam::Affine3A]>>,
