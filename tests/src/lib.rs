@@ -278,6 +278,25 @@ pub fn peak_rss() -> u64 {
     kib * 1024
 }
 
+/// An orthographic `/Camera` looking down −Z from z = 10 at `aperture / 10` units square
+/// around the origin, with `extra` attributes spliced in (a shutter), and `/Sky`, a white dome
+/// of radiance 1.
+pub fn ortho_camera_and_dome_usda(aperture: f32, extra: &str) -> String {
+    format!(
+        r#"def Camera "Camera"
+{{
+    token projection = "orthographic"
+    float horizontalAperture = {aperture}
+    float verticalAperture = {aperture}
+    {extra}
+    double3 xformOp:translate = (0, 0, 10)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+"#
+    )
+}
+
 /// A USD camera 4 units up +Z looking down −Z with a square aperture, as stage text: the
 /// framing of the closed-form silhouette tests.
 pub fn camera_usda(focal_length: f32, aperture: f32) -> String {

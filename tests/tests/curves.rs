@@ -8,20 +8,13 @@ use tessera_tests::*;
 fn stage(curves: &str) -> String {
     format!(
         r#"#usda 1.0
-def Camera "Camera"
-{{
-    token projection = "orthographic"
-    float horizontalAperture = 40
-    float verticalAperture = 40
-    double3 xformOp:translate = (0, 0, 10)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}}
-def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+{}
 def BasisCurves "Hair"
 {{
     {curves}
 }}
-"#
+"#,
+        ortho_camera_and_dome_usda(40.0, "")
     )
 }
 

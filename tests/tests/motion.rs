@@ -17,19 +17,10 @@ fn ortho_stage(body: &str) -> String {
     startTimeCode = 0
     endTimeCode = 1
 )
-def Camera "Camera"
-{{
-    token projection = "orthographic"
-    float horizontalAperture = 40
-    float verticalAperture = 40
-    double shutter:open = 0
-    double shutter:close = 1
-    double3 xformOp:translate = (0, 0, 10)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}}
-def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+{}
 {body}
-"#
+"#,
+        ortho_camera_and_dome_usda(40.0, "double shutter:open = 0\n    double shutter:close = 1")
     )
 }
 
