@@ -18,6 +18,7 @@ pub mod energy;
 pub mod fabric;
 pub mod flake;
 pub mod fresnel;
+pub mod hair;
 mod lambert;
 pub mod microfacet;
 mod reflection;
@@ -30,6 +31,7 @@ pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
 pub use flake::Flake;
+pub use hair::Hair;
 pub use lambert::Lambert;
 pub use reflection::{GgxReflection, SpecularFresnel};
 pub use thin::{ThinDielectric, sheet_series};
@@ -90,6 +92,8 @@ pub enum Lobe {
     Fabric(Fabric),
     /// One DreamWorks glitter flake.
     Flake(Flake),
+    /// A hair or fur fibre (Chiang et al. 2016); its frame's x runs along the fibre.
+    Hair(Hair),
 }
 
 impl Lobe {
@@ -108,6 +112,7 @@ impl Lobe {
             Lobe::ThinDielectric(l) => l.eval(wo, wi),
             Lobe::Fabric(l) => l.eval(wo, wi),
             Lobe::Flake(l) => l.eval(wo, wi),
+            Lobe::Hair(l) => l.eval(wo, wi),
         }
     }
 
@@ -126,6 +131,7 @@ impl Lobe {
             Lobe::ThinDielectric(l) => l.sample(wo, uc, u),
             Lobe::Fabric(l) => l.sample(wo, uc, u),
             Lobe::Flake(l) => l.sample(wo, uc, u),
+            Lobe::Hair(l) => l.sample(wo, uc, u),
         }
     }
 
@@ -144,6 +150,7 @@ impl Lobe {
             Lobe::ThinDielectric(l) => l.pdf(wo, wi),
             Lobe::Fabric(l) => l.pdf(wo, wi),
             Lobe::Flake(l) => l.pdf(wo, wi),
+            Lobe::Hair(l) => l.pdf(wo, wi),
         }
     }
 
@@ -162,6 +169,7 @@ impl Lobe {
             Lobe::ThinDielectric(l) => l.albedo(wo),
             Lobe::Fabric(l) => l.albedo(wo),
             Lobe::Flake(l) => l.albedo(wo),
+            Lobe::Hair(l) => l.albedo(wo),
         }
     }
 
@@ -180,6 +188,7 @@ impl Lobe {
             Lobe::ThinDielectric(t) => t.flags(),
             Lobe::Fabric(_) => Fabric::FLAGS,
             Lobe::Flake(_) => Flake::FLAGS,
+            Lobe::Hair(_) => Hair::FLAGS,
         }
     }
 
@@ -199,6 +208,7 @@ impl Lobe {
             Lobe::ThinDielectric(t) => r(t.reflect.ax.max(t.reflect.ay)),
             Lobe::Clearcoat(c) => r(c.alpha),
             Lobe::Flake(f) => r(f.alpha),
+            Lobe::Hair(h) => h.roughness(),
         }
     }
 
@@ -208,8 +218,8 @@ impl Lobe {
             Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
             Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) | Lobe::Flake(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
-            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
-            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) => PathKind::Transmission,
+            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) | Lobe::Hair(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
+            Lobe::Dielectric(_) | Lobe::ThinDielectric(_) | Lobe::Hair(_) => PathKind::Transmission,
         }
     }
 }
@@ -335,6 +345,11 @@ impl Bsdf {
             Lobe::Fabric(_) => true,
             _ => false,
         })
+    }
+
+    /// True when a lobe is a fibre's: the shading frame's x must run along the fibre.
+    pub fn is_fibre(&self) -> bool {
+        self.lobes().any(|(_, l)| matches!(l, Lobe::Hair(_)))
     }
 
     /// True when any lobe transmits.
@@ -485,7 +500,9 @@ mod finite_everywhere {
                 .prop_map(|(r, a, eta, c, comp)| Lobe::ThinDielectric(ThinDielectric::new(r, a, eta, c, comp))),
             (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::CharlieSheen(CharlieSheen::new(c, r))),
             (c.clone(), r.clone(), a).prop_map(|(c, r, a)| Lobe::Fabric(Fabric::new(c, r, a * 3.0))),
-            (dir(), r, c).prop_map(|(n, r, c)| Lobe::Flake(Flake::new(n, r, c))),
+            (dir(), r.clone(), c.clone()).prop_map(|(n, r, c)| Lobe::Flake(Flake::new(n, r, c))),
+            (c, r.clone(), r, prop_oneof![Just(1.0f32), 1.0f32..3.0], -10.0f32..10.0)
+                .prop_map(|(s, bm, bn, eta, a)| Lobe::Hair(Hair::new(s * 10.0, eta, bm, bn, a))),
         ]
     }
 
