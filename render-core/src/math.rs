@@ -39,6 +39,18 @@ impl Frame {
         Frame { t, b: n.cross(t), n }
     }
 
+    /// A frame whose tangent is `along` made perpendicular to `n` (a fibre's direction on its
+    /// tube), or [`Frame::from_normal_around`] `fallback` where `along` is parallel to `n` or zero.
+    pub fn from_normal_along(n: Vec3, along: Vec3, fallback: Vec3) -> Self {
+        let t = along - n * n.dot(along);
+        let len = t.length();
+        if !(len > 1e-6 * along.length()) || !len.is_finite() {
+            return Frame::from_normal_around(n, fallback);
+        }
+        let t = t / len;
+        Frame { t, b: n.cross(t), n }
+    }
+
     /// World direction to local coordinates.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {

@@ -6,7 +6,7 @@
 //! the curve's width (a regular n-gon's mean width is its perimeter over π).
 
 use anyhow::{Context, Result};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use render_core::geometry::{Attribute, Mesh};
 
 use super::*;
@@ -18,8 +18,8 @@ pub const DEFAULT_CURVE_SAMPLES: usize = 8;
 pub const MAX_CURVE_SAMPLES: usize = 64;
 /// Sides of the polygon swept along a curve.
 pub const SIDES: usize = 12;
-/// Most tube vertices one prim may make (16 bytes of position and normal each, before the
-/// BVH): a fur of a million 10-span curves is past it and is refused naming the prim.
+/// Most tube vertices one prim may make (32 bytes of position, normal and texture coordinate
+/// each, before the BVH): a fur of a million 10-span curves is past it and is refused naming the prim.
 pub const MAX_TUBE_VERTICES: usize = 24 << 20;
 
 /// The curve types and bases UsdGeomBasisCurves defines.
@@ -113,20 +113,23 @@ impl Curves {
     /// The tube mesh of every curve, or an error naming what does not fit.
     pub fn tessellate(&self) -> Result<Mesh, String> {
         // Counted before anything is built: one curve may ask for billions of rings.
-        let vertices = self.counts.iter().map(|&n| self.rings(n)).try_fold(0usize, |a, r| a.checked_add(r.checked_mul(SIDES)?));
+        let closing = usize::from(self.wrap == Wrap::Periodic);
+        let vertices =
+            self.counts.iter().map(|&n| self.rings(n)).try_fold(0usize, |a, r| a.checked_add((r + closing).checked_mul(SIDES + 1)?));
         if vertices.is_none_or(|v| v > MAX_TUBE_VERTICES) {
             return Err(format!("the tubes of its curves need more than {MAX_TUBE_VERTICES} vertices"));
         }
         let mut mesh = Mesh::default();
-        let mut normals = Vec::new();
+        let (mut normals, mut uvs) = (Vec::new(), Vec::new());
         let (mut first, mut first_width) = (0, 0);
         for (c, &count) in self.counts.iter().enumerate() {
             let cv = &self.points[first..first + count];
             let (centres, widths) = self.centreline(c, cv, first, &mut first_width)?;
-            sweep(&centres, &widths, self.wrap == Wrap::Periodic, &mut mesh, &mut normals);
+            sweep(&centres, &widths, self.wrap == Wrap::Periodic, &mut mesh, &mut normals, &mut uvs);
             first += count;
         }
         mesh.normals = Attribute::Vertex(normals);
+        mesh.uvs = Attribute::Vertex(uvs);
         Ok(mesh)
     }
 
@@ -178,8 +181,11 @@ impl Curves {
 }
 
 /// Sweeps a polygon of [`SIDES`] along `centres` (closed when `closed`), appending its quads
-/// to `mesh` and its radial normals to `normals`.
-fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normals: &mut Vec<Vec3>) {
+/// to `mesh`, its radial normals to `normals` and its texture coordinates to `uvs`: s around
+/// the tube, t from 0 at the curve's first point to 1 at its last. The fibre's direction is
+/// ∂p/∂t, which the hair BSDF's frame follows; the seams (s = 1, and a closed curve's last
+/// ring) repeat their vertices so that t and s never jump inside a triangle.
+fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normals: &mut Vec<Vec3>, uvs: &mut Vec<Vec2>) {
     let n = centres.len();
     if n < 2 {
         return;
@@ -195,32 +201,47 @@ fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normal
     // The mean width of a regular n-gon of circumradius ρ is 2nρ·sin(π/n)/π.
     let widen = std::f32::consts::PI / (SIDES as f32 * (std::f32::consts::PI / SIDES as f32).sin());
     let base = mesh.positions.len() as u32;
+    let rings = n + usize::from(closed);
     let mut normal = tangent(0).any_orthonormal_vector();
-    for i in 0..n {
+    let mut first_ring = Vec::new();
+    for i in 0..rings {
+        let t_coord = i as f32 / (rings - 1) as f32;
+        if i == n {
+            // A closed curve's last ring is its first again, at t = 1.
+            for (k, &(p, r)) in first_ring.iter().enumerate() {
+                mesh.positions.push(p);
+                normals.push(r);
+                uvs.push(Vec2::new(k as f32 / SIDES as f32, 1.0));
+            }
+            break;
+        }
         let t = tangent(i);
         // Parallel transport: the previous normal, made perpendicular to this tangent.
         normal = (normal - t * normal.dot(t)).normalize_or(t.any_orthonormal_vector());
         let binormal = t.cross(normal);
         let rho = 0.5 * widths[i] * widen;
-        for s in 0..SIDES {
-            let (sin, cos) = (std::f32::consts::TAU * s as f32 / SIDES as f32).sin_cos();
+        for s in 0..=SIDES {
+            let (sin, cos) = (std::f32::consts::TAU * (s % SIDES) as f32 / SIDES as f32).sin_cos();
             let radial = normal * cos + binormal * sin;
-            mesh.positions.push(centres[i] + radial * rho);
+            let p = centres[i] + radial * rho;
+            if i == 0 {
+                first_ring.push((p, radial));
+            }
+            mesh.positions.push(p);
             normals.push(radial);
+            uvs.push(Vec2::new(s as f32 / SIDES as f32, t_coord));
         }
     }
-    let rings = if closed { n } else { n - 1 };
-    for i in 0..rings {
-        let (a, b) = (base + (i * SIDES) as u32, base + (((i + 1) % n) * SIDES) as u32);
+    let stride = (SIDES + 1) as u32;
+    for i in 0..rings as u32 - 1 {
+        let (a, b) = (base + i * stride, base + (i + 1) * stride);
         for s in 0..SIDES as u32 {
-            let s1 = (s + 1) % SIDES as u32;
-            mesh.indices.push([a + s, b + s, b + s1]);
-            mesh.indices.push([a + s, b + s1, a + s1]);
+            mesh.indices.push([a + s, b + s, b + s + 1]);
+            mesh.indices.push([a + s, b + s + 1, a + s + 1]);
         }
     }
 }
 
-/// How many width values `interp` needs for these curves; `None` for an unknown interpolation.
 fn widths_needed(curves: &Curves, interp: &str) -> Option<usize> {
     Some(match interp {
         "constant" => 1,
@@ -364,9 +385,30 @@ mod tests {
         let ring: Vec<Vec3> = (0..6).map(|k| Vec3::new((k as f32).cos(), (k as f32).sin(), 0.0)).collect();
         let c = curve(Basis::Bspline, Wrap::Periodic, ring, (vec![0.1], "constant"));
         let m = c.tessellate().unwrap();
-        // 6 spans of 8 samples, a ring each, every ring joined to the next and the last to the first.
-        assert_eq!(m.positions.len(), 6 * DEFAULT_CURVE_SAMPLES * SIDES);
-        assert_eq!(m.indices.len(), 6 * DEFAULT_CURVE_SAMPLES * SIDES * 2);
+        // 6 spans of 8 samples, a ring each, every ring joined to the next and the last to the
+        // first again (repeated at t = 1), each ring's seam vertex repeated at s = 1.
+        let rings = 6 * DEFAULT_CURVE_SAMPLES;
+        assert_eq!(m.positions.len(), (rings + 1) * (SIDES + 1));
+        assert_eq!(m.indices.len(), rings * SIDES * 2);
+        assert_eq!(m.positions[..SIDES + 1], m.positions[rings * (SIDES + 1)..]);
+    }
+
+    /// The texture coordinates run s around the tube and t from root to tip, so ∂p/∂t on every
+    /// triangle points along the curve, as the hair BSDF's frame needs, seams included.
+    #[test]
+    fn texture_t_runs_along_the_curve() {
+        let p = vec![Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.5)];
+        let m = curve(Basis::CatmullRom, Wrap::Nonperiodic, p, (vec![0.05], "constant")).tessellate().unwrap();
+        let Attribute::Vertex(uv) = &m.uvs else { panic!("tube has vertex texture coordinates") };
+        for tri in &m.indices {
+            let [a, b, c] = tri.map(|i| m.positions[i as usize]);
+            let [ta, tb, tc] = tri.map(|i| uv[i as usize]);
+            let (d1, d2, e1, e2) = (tb - ta, tc - ta, b - a, c - a);
+            let dpdt = (e2 * d1.x - e1 * d2.x) / d1.perp_dot(d2);
+            // The centre line's direction here: from the triangle's first ring to the next.
+            let along = (m.positions[tri[1] as usize] - m.positions[tri[0] as usize]).normalize();
+            assert!(dpdt.normalize().dot(along) > 0.9, "∂p/∂t {dpdt:?} against the curve {along:?}");
+        }
     }
 
     #[test]
@@ -382,6 +424,6 @@ mod tests {
         let m = c.tessellate().unwrap();
         let widen = std::f32::consts::PI / (SIDES as f32 * (std::f32::consts::PI / SIDES as f32).sin());
         assert!((m.positions[0].length() - 0.25 * widen).abs() < 1e-6);
-        assert!((m.positions[SIDES].distance(Vec3::X) - 1.0 * widen).abs() < 1e-6);
+        assert!((m.positions[SIDES + 1].distance(Vec3::X) - 1.0 * widen).abs() < 1e-6);
     }
 }

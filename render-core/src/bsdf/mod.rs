@@ -349,7 +349,7 @@ impl Bsdf {
 
     /// True when a lobe is a fibre's: the shading frame's x must run along the fibre.
     pub fn is_fibre(&self) -> bool {
-        self.lobes().any(|(_, l)| matches!(l, Lobe::Hair(_)))
+        self.lobes().any(|(i, l)| matches!(l, Lobe::Hair(_)) && self.weights[i] > 0.0)
     }
 
     /// True when any lobe transmits.

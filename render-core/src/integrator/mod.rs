@@ -74,7 +74,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
 }
 
 /// Features whose machinery only the general path loop holds.
-const FULL_LOOP_FEATURES: [Feature; 4] = [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter];
+const FULL_LOOP_FEATURES: [Feature; 5] =
+    [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair];
 
 /// True when the scene's features or the render's settings need the general path loop.
 pub fn needs_full_loop(features: Features, settings: &IntegratorSettings) -> bool {

@@ -31,15 +31,20 @@ pub(super) struct Vertex {
     pub a_roughness: f32,
     /// The ray cone's width here.
     pub cone_here: f32,
+    /// The BSDF is a hair fibre's, which stands for the whole fibre rather than the facet.
+    pub fibre: bool,
 }
 
 impl Vertex {
     /// Where an interpolated normal and the facet disagree about which side a direction is
     /// on, following it would reflect into the surface or refract out of the wrong side
     /// (light leaks through tessellated glass); such directions carry no light instead.
+    /// A fibre's directions all leave the fibre, whichever side of the facet they take: the
+    /// ray is spawned on that side and crosses the tube if it points in (at a lone fibre's
+    /// silhouette, dropping them lost 12% of a white fibre's light).
     #[inline]
     pub fn sides_agree(&self, w: Vec3, local_z: f32) -> bool {
-        w.dot(self.ng) * local_z > 0.0
+        self.fibre || w.dot(self.ng) * local_z > 0.0
     }
 
     /// A ray leaving the surface along `dir`, its origin offset to the side `dir` is on.
@@ -91,20 +96,28 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let glitter = self.choose_bsdf(path, &s, &local, bsdf);
         let a_roughness = self.own_roughness(&s, &local);
         let (ns, ng) = orient(&s, wo, bsdf.transmits());
-        let frame = if self.force() || bsdf.is_anisotropic() { Frame::from_normal_around(ns, s.up) } else { Frame::from_normal(ns) };
+        let fibre = FULL && bsdf.is_fibre();
+        let frame = if fibre {
+            // A fibre's frame runs along the curve (the tube's texture t), root to tip.
+            Frame::from_normal_along(ns, s.dpdt, s.up)
+        } else if self.force() || bsdf.is_anisotropic() {
+            Frame::from_normal_around(ns, s.up)
+        } else {
+            Frame::from_normal(ns)
+        };
         if let Some(u) = &glitter {
             self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
         }
         let wo_local = frame.to_local(wo);
-        Landing::Surface(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here })
+        Landing::Surface(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
     }
 
-    /// True when the ray passes `s` untouched: cut out here, or not present for this ray
-    /// where the surface is partially present.
+    /// True when the ray passes `s` untouched: cut out here, not present for this ray where
+    /// the surface is partially present, or the inside of a hair tube.
     fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &Option<(Material, Option<Vec3>)>) -> bool {
         let pass_through = local.as_ref().map_or(self.scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
         let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, dir) < pass_through;
-        absent || local.as_ref().is_some_and(|(m, _)| m.cut_out)
+        absent || local.as_ref().is_some_and(|(m, _)| m.cut_out) || self.scene.inside_fibre(s, dir)
     }
 
     /// Writes the BSDF at `s` into `bsdf`: the material's (at caustic avoidance's roughness

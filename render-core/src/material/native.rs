@@ -1,6 +1,7 @@
 //! Tessera's own shaders, reachable from any USD file by `info:id`: the DreamWorks-style
 //! specialized materials (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.3) `tessera:Metal`, `tessera:Refractive`,
-//! `tessera:SolidDielectric`, and `tessera:Fabric` (section 4). Each is declared once here,
+//! `tessera:SolidDielectric`, and `tessera:Fabric` (section 4), and `tessera:Hair` (Chiang et al.
+//! 2016, [`crate::bsdf::hair`]). Each is declared once here,
 //! inputs with types, defaults and ranges, and that declaration both reads a node and writes
 //! the reference table in docs/materials.md (a test checks the two agree; an ignored test
 //! rewrites the table: `cargo test -p render-core write_shader_reference -- --ignored`).
@@ -13,7 +14,7 @@ use super::Material;
 use super::desc::ParamValue;
 use super::glitter::GlitterParams;
 use super::inputs::{Inputs, ResolveReport};
-use super::uber::{ClearcoatParams, FabricParams, Glass, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
+use super::uber::{ClearcoatParams, FabricParams, Glass, HairParams, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
 use crate::bsdf::SpecularFresnel;
 
 /// An input's type.
@@ -188,6 +189,28 @@ pub const SHADERS: &[Shader] = &[
         shared: false,
         materials: &[("base", "the material between and beneath the flakes (any material's surface output)")],
     },
+    Shader {
+        id: "tessera:Hair",
+        doc: "Hair and fur fibres for BasisCurves: Chiang et al. 2016's model with Cycles' Principled Hair inputs (absorption from melanin, plus a tint and a coefficient added to it).",
+        inputs: &[
+            float("melanin", 0.8, (0.0, 1.0), "melanin amount: 0 white, 1 black (concentration −ln(1 − melanin))"),
+            float("melaninRedness", 1.0, (0.0, 1.0), "share of pheomelanin (red) in the melanin"),
+            color("tint", 1.0, "a colour the fibre takes on top of the melanin's (absorption by Chiang's fit; white adds none)"),
+            Input {
+                name: "absorptionCoefficient",
+                kind: Kind::Color,
+                default: [0.0; 3],
+                range: (0.0, 1e4),
+                doc: "absorption per unit of fibre radius, added to the rest",
+            },
+            float("roughness", 0.3, (0.0, 1.0), "longitudinal roughness βm: the highlights' width along the fibre"),
+            float("radialRoughness", 0.3, (0.0, 1.0), "azimuthal roughness βn: how far light spreads around the fibre"),
+            float("ior", 1.55, (1.0, 3.0), "refractive index of the fibre"),
+            float("offset", 2.0, (-45.0, 45.0), "tilt of the cuticle scales in degrees: shifts the highlights along the fibre"),
+        ],
+        shared: false,
+        materials: &[],
+    },
 ];
 
 /// A node's values by input name, defaults filled in, ranges applied.
@@ -313,6 +336,14 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 },
             };
         }
+        "tessera:Hair" => {
+            let bn = v.f("radialRoughness");
+            let sigma_a = crate::bsdf::hair::sigma_a_from_melanin(v.f("melanin"), v.f("melaninRedness"))
+                + crate::bsdf::hair::sigma_a_from_color(v.c("tint"), bn)
+                + v.c("absorptionCoefficient");
+            let params = HairParams { sigma_a, ior: v.f("ior"), roughness: v.f("roughness"), radial_roughness: bn, tilt: v.f("offset") };
+            u.hair = Weighted { weight: 1.0, params };
+        }
         _ => unreachable!("every declared shader is mapped"),
     }
     let mut emission = Vec3::ZERO;
@@ -407,7 +438,7 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 8] = [
+        let cases: [(&str, Vec<(&str, ParamValue)>); 9] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -418,6 +449,7 @@ mod tests {
             ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseTransmission", ParamValue::Float3(Vec3::splat(0.4)))]),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
             ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
+            ("tessera:Hair", vec![("melanin", ParamValue::Float(0.0)), ("roughness", ParamValue::Float(0.5))]),
             (
                 "tessera:Metal",
                 vec![("reflectivity", white.clone()), ("iridescence", ParamValue::Float(1.0)), ("clearcoat", ParamValue::Float(1.0))],
@@ -435,8 +467,9 @@ mod tests {
                     assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{id} {params:?} at {wo:?}: {a:?}");
                 }
             }
-            // Refraction scales radiance by 1/η'², so only its energy form is reciprocal.
-            if !m.surface.has_refraction() {
+            // Refraction scales radiance by 1/η'², so only its energy form is reciprocal; Chiang's
+            // hair model is not reciprocal at all (crate::bsdf::hair).
+            if !m.surface.has_refraction() && m.surface.hair.weight == 0.0 {
                 testing::assert_reciprocal(&bsdf);
             }
         }

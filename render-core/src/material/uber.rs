@@ -15,7 +15,7 @@ use glam::Vec3;
 use super::glitter::GlitterParams;
 pub use super::mix::Mix;
 use crate::bsdf::{
-    Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Lobe,
+    Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Hair, Lobe,
     Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
 };
 
@@ -227,6 +227,39 @@ impl Mix for Glass {
     }
 }
 
+/// The hair family: a fibre of Chiang et al. 2016 (`tessera:Hair`), for curves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HairParams {
+    /// Absorption inside the fibre, per unit of its radius.
+    pub sigma_a: Vec3,
+    /// Refractive index.
+    pub ior: f32,
+    /// Longitudinal roughness βm.
+    pub roughness: f32,
+    /// Azimuthal roughness βn.
+    pub radial_roughness: f32,
+    /// Cuticle tilt, degrees.
+    pub tilt: f32,
+}
+
+impl Default for HairParams {
+    fn default() -> Self {
+        HairParams { sigma_a: Vec3::ZERO, ior: 1.55, roughness: 0.3, radial_roughness: 0.3, tilt: 2.0 }
+    }
+}
+
+impl Mix for HairParams {
+    fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
+        HairParams {
+            sigma_a: self.sigma_a.mix(wa, &o.sigma_a, wb),
+            ior: self.ior.mix(wa, &o.ior, wb),
+            roughness: self.roughness.mix(wa, &o.roughness, wb),
+            radial_roughness: self.radial_roughness.mix(wa, &o.radial_roughness, wb),
+            tilt: self.tilt.mix(wa, &o.tilt, wb),
+        }
+    }
+}
+
 /// The fabric family: the DreamWorks cone over a Lambertian base, in proportion.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FabricParams {
@@ -363,6 +396,8 @@ pub struct Uber {
     pub glass: Weighted<Glass>,
     /// Fabric.
     pub fabric: Weighted<FabricParams>,
+    /// Hair fibres.
+    pub hair: Weighted<HairParams>,
     /// Clearcoat over everything.
     pub clearcoat: Weighted<ClearcoatParams>,
     /// Thin film over the clearcoat and everything beneath.
@@ -383,6 +418,7 @@ impl Default for Uber {
             plastic: Weighted { weight: 1.0, params: Plastic::default() },
             glass: Weighted { weight: 0.0, params: Glass::default() },
             fabric: Weighted { weight: 0.0, params: FabricParams::default() },
+            hair: Weighted { weight: 0.0, params: HairParams::default() },
             clearcoat: Weighted { weight: 0.0, params: ClearcoatParams::Disney { gloss: 1.0 } },
             thin_film: Weighted { weight: 0.0, params: ThinFilmParams { ior: 1.33, thickness: 400.0, roughness: 0.1 } },
             sheen: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.3 } },
@@ -401,6 +437,7 @@ impl Uber {
             plastic: self.plastic.over(&a.plastic, m),
             glass: self.glass.over(&a.glass, m),
             fabric: self.fabric.over(&a.fabric, m),
+            hair: self.hair.over(&a.hair, m),
             clearcoat: self.clearcoat.over(&a.clearcoat, m),
             thin_film: self.thin_film.over(&a.thin_film, m),
             sheen: self.sheen.over(&a.sheen, m),
@@ -425,6 +462,7 @@ impl Uber {
         u.glass.params.roughness = u.glass.params.roughness.max(floor);
         u.thin_film.params.roughness = u.thin_film.params.roughness.max(floor);
         u.glitter.params.roughness = u.glitter.params.roughness.max(floor);
+        u.hair.params.roughness = u.hair.params.roughness.max(floor);
         u.clearcoat.params = match u.clearcoat.params {
             // Disney's coat: α = lerp(0.1, 0.001, gloss); roughness r ↔ α = r², so cap the gloss.
             ClearcoatParams::Disney { gloss } => {
@@ -454,7 +492,7 @@ impl Uber {
     }
 
     /// The BSDF, holding only its non-zero lobes, in the order: plastic (diffuse, diffuse
-    /// transmission, specular, Disney sheen), metal, glass, fabric, then the coats. Glitter
+    /// transmission, specular, Disney sheen), metal, glass, fabric, hair, then the coats. Glitter
     /// is here as seen from far away ([`GlitterParams::far_field`]); a renderer that knows the
     /// shading point uses [`Uber::base_bsdf`] and [`GlitterParams::apply`] there.
     pub fn bsdf(&self, compensate: bool) -> Bsdf {
@@ -560,6 +598,11 @@ impl Uber {
             let s = finite(f.specular);
             bsdf.push_weighted(Lobe::Fabric(Fabric::new(f.color, f.roughness, f.angle)), fabric_w * s * spec_scale);
             bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
+        }
+        let hair_w = finite(self.hair.weight);
+        if hair_w > 0.0 || every {
+            let h = &self.hair.params;
+            bsdf.push_weighted(Lobe::Hair(Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)), hair_w);
         }
         let coat_w = finite(self.clearcoat.weight) * spec_scale;
         if coat_w > 0.0 || every {

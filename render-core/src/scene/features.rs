@@ -8,7 +8,7 @@ use crate::material::{Material, TexturedMaterial, Uber};
 use crate::plan::{Feature, RenderPlan};
 
 /// What each material-borne feature asks of a material's lobes.
-const LOBE_FEATURES: [(Feature, fn(&Uber) -> bool); 12] = [
+const LOBE_FEATURES: [(Feature, fn(&Uber) -> bool); 13] = [
     (Feature::Diffuse, |u| u.plastic.weight > 0.0 || (u.fabric.weight > 0.0 && u.fabric.params.specular < 1.0)),
     (Feature::Metal, |u| u.metal.weight > 0.0),
     (Feature::Transmission, |u| u.has_refraction()),
@@ -17,6 +17,7 @@ const LOBE_FEATURES: [(Feature, fn(&Uber) -> bool); 12] = [
     (Feature::Clearcoat, |u| u.clearcoat.weight > 0.0 && u.specular_control > 0.0),
     (Feature::Sheen, |u| u.sheen.weight > 0.0 || (u.plastic.weight > 0.0 && u.plastic.params.disney_sheen.max_element() > 0.0)),
     (Feature::Fabric, |u| u.fabric.weight > 0.0 && u.fabric.params.specular > 0.0),
+    (Feature::Hair, |u| u.hair.weight > 0.0),
     (Feature::Glitter, |u| u.has_glitter()),
     (Feature::ThinFilm, |u| u.thin_film.weight > 0.0 && u.specular_control > 0.0),
     (Feature::DoubleSpecular, |u| {

@@ -136,6 +136,9 @@ impl CommittedScene {
     /// not present for this ray where the surface is partially present
     /// ([`crate::material::Material::pass_through`]: a coin with that chance, tossed by [`see_through_coin`]).
     pub fn see_through_at(&self, s: &SurfaceHit, dir: Vec3) -> bool {
+        if self.inside_fibre(s, dir) {
+            return true;
+        }
         let pass = match self.textured(s.material).filter(|t| t.may_see_through()) {
             Some(t) => {
                 let m = t.at(&self.shading_point(s, 0.0, 1.0)).0;
@@ -149,10 +152,23 @@ impl CommittedScene {
         pass > 0.0 && see_through_coin(s.p, dir) < pass
     }
 
+    /// True when a ray along `dir` meets the hair tube `s` from inside. The hair BSDF accounts
+    /// for every path through the fibre, so a ray it sends into the tube (TT, TRT) leaves
+    /// through the far wall untouched; the wall faces the ray when the facet, turned to the
+    /// outward shading normal, faces away from it.
+    #[inline]
+    pub fn inside_fibre(&self, s: &SurfaceHit, dir: Vec3) -> bool {
+        if !(self.materials[s.material as usize].surface.hair.weight > 0.0) {
+            return false;
+        }
+        let outward = if s.ng.dot(s.ns) < 0.0 { -s.ng } else { s.ng };
+        dir.dot(outward) > 0.0
+    }
+
     /// True when a surface blocks the ray before `tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
-        if self.plan.features.has_any(&[Feature::TexturedCutouts, Feature::PartialPresence]) {
+        if self.plan.features.has_any(&[Feature::TexturedCutouts, Feature::PartialPresence, Feature::Hair]) {
             return self.occluded_past_cutouts(ray, tmax);
         }
         self.tlas.occluded(&self.blases, ray, tmax)
