@@ -152,7 +152,12 @@ async fn a_rotating_object_blurs_along_its_arc_not_its_chord() {
     }
 }"#;
     let t = load_text("motion_arc", &ortho_stage(body));
-    let seen = coverage(&t, 64).await;
+    assert_quarter_arc(&coverage(&t, 64).await);
+}
+
+/// The coverage of a ball of radius 0.15 turned 90° about z over the shutter from (1, 0, 0):
+/// 19% at 45° on the arc, nothing at the chord's midpoint, something at both ends.
+fn assert_quarter_arc(seen: &[f64]) {
     let at = |x: f64, y: f64| seen[((64.0 - y * PX_PER_UNIT) as u32 * SIZE + (64.0 + x * PX_PER_UNIT) as u32) as usize];
     let d = std::f64::consts::FRAC_1_SQRT_2;
     let on_arc = at(d, d);
@@ -161,6 +166,49 @@ async fn a_rotating_object_blurs_along_its_arc_not_its_chord() {
     assert_eq!(at(0.5, 0.5), 0.0, "the chord's midpoint");
     // The ends of the sweep are where the ball starts and stops.
     assert!(at(1.0, 0.0) > 0.0 && at(0.0, 1.0) > 0.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn point_instances_turn_with_their_angular_velocities() {
+    // One instance at the origin of a prototype ball one unit out along x, turning at 2160°/s
+    // about z: 90° over the shutter's one frame at 24 frames per second, the arc above.
+    let spin = |orientation: &str| {
+        format!(
+            r#"def PointInstancer "Spin"
+{{
+    rel prototypes = </Spin/Protos/Ball>
+    int[] protoIndices = [0]
+    point3f[] positions = [(0, 0, 0)]
+    quath[] orientations = [{orientation}]
+    vector3f[] angularVelocities = [(0, 0, 2160)]
+    def Scope "Protos"
+    {{
+        def Sphere "Ball"
+        {{
+            double radius = 0.15
+            double3 xformOp:translate = (1, 0, 0)
+            uniform token[] xformOpOrder = ["xformOp:translate"]
+        }}
+    }}
+}}"#
+        )
+    };
+    let t = load_text("motion_spin", &ortho_stage(&spin("(1, 0, 0, 0)")));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    assert_quarter_arc(&coverage(&t, 64).await);
+    // The turn follows the orientation about the instancer's axes, as usd-core's
+    // ComputeInstanceTransformsAtTime composes them (checked there): a ball first turned 90°
+    // about y to (0, 0, -1) lies on the z axis and stays there, a still disc at the centre.
+    let t = load_text("motion_spin_oriented", &ortho_stage(&spin("(0.7071068, 0, 0.7071068, 0)")));
+    let seen = coverage(&t, 64).await;
+    let disc = std::f64::consts::PI * (0.15 * PX_PER_UNIT).powi(2);
+    let total: f64 = seen.iter().sum();
+    assert!((total / disc - 1.0).abs() < 0.05, "coverage {total:.1}, a still disc {disc:.1}");
+    assert!(seen[(64 * SIZE + 64) as usize] > 0.99, "the disc sits at the centre");
+    // One angular velocity too many: said, and the instance keeps its sampled orientation.
+    let t = load_text("motion_spin_bad", &ortho_stage(&spin("(1, 0, 0, 0)").replace("[(0, 0, 2160)]", "[(0, 0, 2160), (0, 0, 1)]")));
+    assert!(t.warnings.iter().any(|w| w.contains("'angularVelocities' has 2 entries for 1 instances")), "{:?}", t.warnings);
+    assert!(t.instancers.iter().all(|(_, i)| i.motion.is_empty()), "nothing turns");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

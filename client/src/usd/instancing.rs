@@ -86,10 +86,14 @@ impl Reader<'_> {
     /// with a warning.
     fn instance_motion(&mut self, prim: &Prim, p: &str, per_proto: &[Vec<DMat4>]) -> Result<Vec<Vec<Vec<DMat4>>>> {
         let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
-        if get(prim, "angularVelocities", self.time)?.is_some() {
-            self.out
-                .warnings
-                .push(format!("{p}: angularVelocities are not simulated yet; the instances turn only as their orientations are sampled"));
+        if let Some(w) = get(prim, "angularVelocities", self.time)? {
+            let (turns, count) =
+                (values::vec3_array(&w).map_or(0, |w| w.len()), get_ints(prim, p, "protoIndices", self.time)?.map_or(0, |i| i.len()));
+            if turns != count {
+                self.out.warnings.push(format!(
+                    "{p}: attribute 'angularVelocities' has {turns} entries for {count} instances and is ignored; the instances turn only as their orientations are sampled"
+                ));
+            }
         }
         let n = self.motion_samples.max(2);
         let mut motion: Vec<Vec<Vec<DMat4>>> = per_proto.iter().map(|v| vec![Vec::with_capacity(n); v.len()]).collect();
@@ -128,10 +132,7 @@ impl Reader<'_> {
         let proto_indices = ints("protoIndices")?.with_context(|| format!("{p}: attribute 'protoIndices' is missing"))?;
         let n = proto_indices.len();
         let positions = self.instance_positions(prim, p, time)?;
-        let orientations = match get(prim, "orientations", time)?.or(get(prim, "orientationsf", time)?) {
-            Some(v) => Some(values::quat_array(&v).with_context(|| format!("{p}: attribute 'orientations' is not a quath[]"))?),
-            None => None,
-        };
+        let orientations = self.instance_orientations(prim, p, time)?;
         let scales = match get(prim, "scales", time)? {
             Some(v) => Some(values::vec3_array(&v).with_context(|| format!("{p}: attribute 'scales' is not a float3[]"))?),
             None => None,
@@ -158,7 +159,7 @@ impl Reader<'_> {
                 continue;
             }
             let t = positions[i].as_dvec3();
-            let r = orientations.as_ref().map_or(glam::DMat3::IDENTITY, |o| usd_rotation(o[i]));
+            let r = orientations.as_ref().map_or(glam::DMat3::IDENTITY, |o| o[i]);
             let s = scales.as_ref().map_or(glam::DVec3::ONE, |s| s[i].as_dvec3());
             if !(t.is_finite() && r.is_finite() && s.is_finite()) {
                 anyhow::bail!("{p}: instance {i} has a non-finite position, orientation or scale");
@@ -185,20 +186,58 @@ impl Reader<'_> {
         let base = read("positions", self.time)?.with_context(|| format!("{p}: attribute 'positions' is missing"))?;
         match read("velocities", self.time)?.filter(|v| v.len() == base.len()) {
             Some(velocities) => {
-                let per_second = self
-                    .stage
-                    .stage_metadata("timeCodesPerSecond")
-                    .ok()
-                    .flatten()
-                    .as_ref()
-                    .and_then(values::scalar)
-                    .filter(|t| *t > 0.0)
-                    .unwrap_or(24.0);
-                let dt = ((time.value() - self.time.value()) / per_second) as f32;
+                let dt = self.seconds_since_frame(time) as f32;
                 Ok(base.iter().zip(&velocities).map(|(p, v)| *p + *v * dt).collect())
             }
             None => read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing")),
         }
+    }
+
+    /// Each instance's rotation at `time`, None without `orientations`. With
+    /// `angularVelocities` authored (degrees per second, one per instance), the frame's
+    /// orientation followed by a turn about the angular velocity's axis for the elapsed time,
+    /// as UsdGeomPointInstancer composes them (rotation, then the turn, in the instancer's
+    /// frame); USD ignores angular velocities where there are no orientations, and so do we.
+    fn instance_orientations(&self, prim: &Prim, p: &str, time: TimeCode) -> Result<Option<Vec<glam::DMat3>>> {
+        let read = |t: TimeCode| -> Result<Option<Vec<glam::DQuat>>> {
+            match get(prim, "orientations", t)?.or(get(prim, "orientationsf", t)?) {
+                Some(v) => Ok(Some(values::quat_array(&v).with_context(|| format!("{p}: attribute 'orientations' is not a quath[]"))?)),
+                None => Ok(None),
+            }
+        };
+        let rotations = |q: Vec<glam::DQuat>| q.into_iter().map(usd_rotation).collect::<Vec<_>>();
+        if time == self.time {
+            return Ok(read(time)?.map(rotations));
+        }
+        let Some(base) = read(self.time)? else { return Ok(None) };
+        let turns = get(prim, "angularVelocities", self.time)?.as_ref().and_then(values::vec3_array).filter(|w| w.len() == base.len());
+        let Some(turns) = turns else { return Ok(read(time)?.map(rotations)) };
+        let dt = self.seconds_since_frame(time);
+        let turned = base.into_iter().zip(turns).map(|(q, w)| {
+            let w = w.as_dvec3();
+            let turn = if w.length() > 0.0 {
+                glam::DMat3::from_axis_angle(w.normalize(), (w.length() * dt).to_radians())
+            } else {
+                glam::DMat3::IDENTITY
+            };
+            turn * usd_rotation(q)
+        });
+        Ok(Some(turned.collect()))
+    }
+
+    /// Seconds from the frame to `time` (`timeCodesPerSecond`, 24 unless authored): the clock
+    /// of USD's velocity-based motion.
+    fn seconds_since_frame(&self, time: TimeCode) -> f64 {
+        let per_second = self
+            .stage
+            .stage_metadata("timeCodesPerSecond")
+            .ok()
+            .flatten()
+            .as_ref()
+            .and_then(values::scalar)
+            .filter(|t| *t > 0.0)
+            .unwrap_or(24.0);
+        (time.value() - self.time.value()) / per_second
     }
 
     /// The meshes of one PointInstancer prototype (the subtree at `proto`), each as a hidden
