@@ -62,7 +62,8 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
         items.push(delta(path, pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(convert::camera_to_wire(c))));
     }
     for (path, m) in &t.meshes {
-        let points: Vec<f32> = m.mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        // The frame's positions, then the deformation's sets.
+        let points: Vec<f32> = m.mesh.positions.iter().chain(&m.mesh.deformation).flat_map(|p| p.to_array()).collect();
         let indices: Vec<u32> = m.mesh.indices.iter().flatten().copied().collect();
         let (normals, interp) = convert::attribute_to_wire(&m.mesh.normals, |v| v.to_array());
         let (uvs, uv_interp) = convert::attribute_to_wire(&m.mesh.uvs, |v| v.to_array());
@@ -79,6 +80,7 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             uv_interpolation: uv_interp as i32,
             primvars: Vec::new(),
             motion: convert::motion_to_wire(&m.motion),
+            point_samples: m.mesh.deformation_samples() as u32,
         };
         let primvars: Vec<(pb::PrimvarInfo, Vec<f32>)> = m
             .mesh

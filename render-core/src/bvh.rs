@@ -36,6 +36,13 @@ struct RtTriangle {
 }
 
 impl RtTriangle {
+    /// The triangle a fraction `f` of the way from `self` to `next` (corners interpolated
+    /// linearly, so vertex and edges are too).
+    #[inline(always)]
+    fn lerp(&self, next: &RtTriangle, f: f32) -> RtTriangle {
+        RtTriangle { v0: self.v0.lerp(next.v0, f), e1: self.e1.lerp(next.e1, f), e2: self.e2.lerp(next.e2, f) }
+    }
+
     /// Möller & Trumbore, "Fast, Minimum Storage Ray/Triangle Intersection" (1997).
     /// Returns (t, b1, b2) for a hit inside (tmin, tmax).
     #[inline(always)]
@@ -68,6 +75,25 @@ pub struct Blas {
     /// Original triangle index of each triangle in BVH order.
     tri_ids: Vec<u32>,
     bounds: Aabb,
+    /// A deforming mesh's triangles at each of its `keys` deformation samples, triangle after
+    /// triangle in BVH order (`keys` per triangle); the BVH bounds each over all of them, so
+    /// a ray finds it at any time, and the triangle is interpolated to the ray's.
+    deforming: Option<Deforming>,
+}
+
+struct Deforming {
+    keys: usize,
+    tris: Vec<RtTriangle>,
+}
+
+impl Deforming {
+    /// Triangle `id` (BVH order) at shutter `time`.
+    #[inline(always)]
+    fn at(&self, id: usize, time: f32) -> RtTriangle {
+        let (k, f) = crate::motion::segment(time, self.keys);
+        let base = id * self.keys + k;
+        self.tris[base].lerp(&self.tris[base + 1], f)
+    }
 }
 
 /// How much effort a BVH build spends on quality.
@@ -101,13 +127,47 @@ impl Blas {
                 Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
-        Self::of_triangles(&tris, quality)
+        let keys = mesh.deformation_samples();
+        if keys < 2 {
+            return Self::of_triangles(&tris, quality);
+        }
+        let n = mesh.positions.len();
+        let key = |i: usize, k: usize| -> RtTriangle {
+            let [a, b, c] = mesh.indices[i].map(|v| Vec3A::from(mesh.deformation[k * n + v as usize]));
+            RtTriangle { v0: a, e1: b - a, e2: c - a }
+        };
+        // Each triangle bounded over its keys: linear interpolation keeps it inside them.
+        let aabbs: Vec<Aabb> = (0..tris.len())
+            .map(|i| {
+                let mut aabb = Aabb::empty();
+                for t in (0..keys).map(|k| key(i, k)) {
+                    [t.v0, t.v0 + t.e1, t.v0 + t.e2].into_iter().for_each(|v| {
+                        aabb.extend(v);
+                    });
+                }
+                aabb
+            })
+            .collect();
+        let mut blas = Self::of_bounds(&tris, &aabbs, quality);
+        let deforming = blas.tri_ids.iter().flat_map(|&i| (0..keys).map(move |k| (i as usize, k))).map(|(i, k)| key(i, k)).collect();
+        blas.deforming = Some(Deforming { keys, tris: deforming });
+        blas
+    }
+
+    /// True when the mesh deforms over the shutter.
+    pub fn deforms(&self) -> bool {
+        self.deforming.is_some()
     }
 
     /// Builds the BVH of `tris` (at least one); hits report indices into `tris`.
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
-        let bvh = build_bounded(&aabbs, quality.params());
+        Self::of_bounds(tris, &aabbs, quality)
+    }
+
+    /// Builds over `aabbs`, one per triangle of `tris`.
+    fn of_bounds(tris: &[Triangle], aabbs: &[Aabb], quality: BuildQuality) -> Self {
+        let bvh = build_bounded(aabbs, quality.params());
         let rt = bvh
             .primitive_indices
             .iter()
@@ -118,16 +178,25 @@ impl Blas {
             .collect();
         let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        Blas { bvh, tris: rt, tri_ids, bounds }
+        Blas { bvh, tris: rt, tri_ids, bounds, deforming: None }
     }
 
-    /// Closest hit in object space: (t, original triangle index, barycentrics).
+    /// Closest hit in object space at shutter `time`: (t, original triangle index,
+    /// barycentrics).
     #[inline]
-    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, u32, Vec2)> {
+    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> Option<(f32, u32, Vec2)> {
+        match &self.deforming {
+            None => self.intersect_with(o, d, tmax, |id| self.tris[id]),
+            Some(m) => self.intersect_with(o, d, tmax, |id| m.at(id, time)),
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_with(&self, o: Vec3A, d: Vec3A, tmax: f32, tri: impl Fn(usize) -> RtTriangle) -> Option<(f32, u32, Vec2)> {
         let ray = bvh_ray(o, d, tmax);
         let mut hit = RayHit::none();
         let mut bary = Vec2::ZERO;
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| match self.tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| match tri(id).intersect(r.origin, r.direction, r.tmin, r.tmax) {
             Some((t, u, v)) => {
                 bary = Vec2::new(u, v);
                 t
@@ -137,13 +206,19 @@ impl Blas {
         found.then(|| (hit.t, self.tri_ids[hit.primitive_id as usize], bary))
     }
 
-    /// True when anything lies on the segment (0, tmax).
+    /// True when anything lies on the segment (0, tmax) at shutter `time`.
     #[inline]
-    pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
+    pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
+        match &self.deforming {
+            None => self.occluded_with(o, d, tmax, |id| self.tris[id]),
+            Some(m) => self.occluded_with(o, d, tmax, |id| m.at(id, time)),
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_with(&self, o: Vec3A, d: Vec3A, tmax: f32, tri: impl Fn(usize) -> RtTriangle) -> bool {
         let ray = bvh_ray(o, d, tmax);
-        !self
-            .bvh
-            .ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
+        !self.bvh.ray_traverse_miss(ray, |r, id| tri(id).intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
     }
 
     /// Object-space bounds.
@@ -334,8 +409,9 @@ impl Tlas {
             return Tlas { accel: None, ray_scale: 1.0 };
         }
         let total: usize = instances.iter().map(|i| blases[i.blas].tris.len()).sum();
-        // Moving instances are placed per ray: only the two-level walk can.
-        if total <= flat_limit && instances.iter().all(|i| i.motion.is_none()) {
+        // Moving instances are placed and deforming meshes shaped per ray: only the two-level
+        // walk can.
+        if total <= flat_limit && instances.iter().all(|i| i.motion.is_none() && !blases[i.blas].deforms()) {
             return Self::build_flat(blases, instances);
         }
         let bounds: Vec<Aabb> = instances
@@ -406,7 +482,7 @@ impl Tlas {
         let (bvh, ordered) = match self.accel.as_ref()? {
             Accel::Instances { bvh, ordered } => (bvh, ordered),
             Accel::Flat { world, ids } => {
-                return world.intersect(wray.origin, wray.direction, wray.tmax).map(|(t, id, bary)| {
+                return world.intersect(wray.origin, wray.direction, wray.tmax, ray.time).map(|(t, id, bary)| {
                     let (instance, triangle) = ids[id as usize];
                     Hit { t: t * k, time: ray.time, instance, triangle, bary }
                 });
@@ -415,7 +491,7 @@ impl Tlas {
         bvh.ray_traverse(wray, &mut rh, |r, id| {
             let (inst, blas, _, _) = &ordered[id];
             let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
-            match blases[*blas].intersect(o, d, r.tmax) {
+            match blases[*blas].intersect(o, d, r.tmax, ray.time) {
                 Some((t, tri, bary)) => {
                     best = Some(Hit { t: t * k, time: ray.time, instance: *inst, triangle: tri, bary });
                     t
@@ -433,14 +509,14 @@ impl Tlas {
         let (bvh, ordered) = match &self.accel {
             None => return false,
             Some(Accel::Instances { bvh, ordered }) => (bvh, ordered),
-            Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax),
+            Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax, ray.time),
         };
         !bvh.ray_traverse_miss(wray, |r, id| {
             let blas = ordered[id].1;
             let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
             // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
             // shadow rays towards dome and distant lights and let them pass through everything.
-            if blases[blas].occluded(o, d, r.tmax) { 0.0 } else { f32::INFINITY }
+            if blases[blas].occluded(o, d, r.tmax, ray.time) { 0.0 } else { f32::INFINITY }
         })
     }
 }
@@ -514,10 +590,10 @@ mod tests {
         let depth = bvh2_depth(&median_split_bvh2(&aabbs));
         assert_eq!(depth, 18, "ceil(log2 100000) + 1 levels");
         let blas = Blas::build(&m, BuildQuality::Medium);
-        let (t, tri, _) = blas.intersect(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, f32::INFINITY).expect("hit");
+        let (t, tri, _) = blas.intersect(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, f32::INFINITY, 0.0).expect("hit");
         assert!((t - 1.0).abs() < 1e-6 && tri < n);
-        assert!(blas.occluded(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, 2.0));
-        assert!(blas.intersect(Vec3A::new(0.8, 0.8, 1.0), Vec3A::NEG_Z, f32::INFINITY).is_none(), "outside the triangle");
+        assert!(blas.occluded(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z, 2.0, 0.0));
+        assert!(blas.intersect(Vec3A::new(0.8, 0.8, 1.0), Vec3A::NEG_Z, f32::INFINITY, 0.0).is_none(), "outside the triangle");
     }
 
     /// The same through the top level: 100 000 instances with one transform.
@@ -639,6 +715,37 @@ mod tests {
         assert!(hits > 2000, "only {hits} hits");
         // Rays within rounding of an edge may go either way.
         assert!(disagreements <= 4, "{disagreements} disagreements in {hits} hits");
+    }
+
+    #[test]
+    fn a_deforming_mesh_is_shaped_as_the_ray_time_finds_it() {
+        // The quad (corners at z = 0) rising to z = 0.5 and sliding by 4 in x over the shutter,
+        // three samples: a ray down x = 0.5 meets it at height 0.5 t while its x range
+        // [4t − 1, 4t + 1] holds 0.5, until time 3/8; a ray down x = 4.5 from time 7/8.
+        let mut mesh = quad();
+        let n = mesh.positions.len();
+        mesh.deformation =
+            (0..3).flat_map(|k| mesh.positions.iter().map(move |p| *p + Vec3::new(2.0 * k as f32, 0.0, 0.25 * k as f32))).collect();
+        assert_eq!(mesh.deformation.len(), 3 * n);
+        let blas = vec![Arc::new(Blas::build(&mesh, BuildQuality::Medium))];
+        assert!(blas[0].deforms());
+        let tlas =
+            Tlas::build_with_flat_limit(&blas, &[TlasInstance { blas: 0, transform: Transform::identity(), motion: None }], usize::MAX);
+        assert!(!tlas.is_flat(), "a deforming mesh is shaped per ray, by the two-level walk");
+        let down = |x: f32, time: f32| Ray::new(Vec3::new(x, 0.5, 2.0), -Vec3::Z).with_time(time);
+        let h = tlas.intersect(&blas, &down(0.5, 0.0)).expect("at the start");
+        assert!((h.t - 2.0).abs() < 1e-5, "height 0 at time 0: t {}", h.t);
+        let h = tlas.intersect(&blas, &down(0.5, 0.1)).expect("still over x = 0.5");
+        assert!((h.t - (2.0 - 0.05)).abs() < 1e-5, "height 0.05 at time 0.1: t {}", h.t);
+        for (x, time, hit) in [(0.5, 0.35, true), (0.5, 0.4, false), (4.5, 0.85, false), (4.5, 0.9, true), (4.5, 1.0, true)] {
+            assert_eq!(tlas.intersect(&blas, &down(x, time)).is_some(), hit, "x {x} time {time}");
+            assert_eq!(tlas.occluded(&blas, &down(x, time), 3.0), hit, "shadow at x {x} time {time}");
+        }
+        let h = tlas.intersect(&blas, &down(4.5, 1.0)).unwrap();
+        assert!((h.t - 1.5).abs() < 1e-5, "height 0.5 at the end: t {}", h.t);
+        // The BLAS bounds every sample.
+        let (lo, hi) = blas[0].bounds();
+        assert!(lo.z <= 0.0 && hi.z >= 0.5 && hi.x >= 5.0, "bounds {lo} {hi}");
     }
 
     #[test]

@@ -140,6 +140,10 @@ pub struct Mesh {
     /// The other primvars the mesh's materials read (`UsdPrimvarReader_float`, `_float3`,
     /// `_int`).
     pub primvars: Vec<Primvar>,
+    /// Deformation over the shutter: the positions at evenly spaced times from shutter open
+    /// to close, one full set after another (2 to [`crate::motion::MAX_MOTION_SAMPLES`]
+    /// sets); empty when the mesh keeps its shape.
+    pub deformation: Vec<Vec3>,
 }
 
 /// A named primvar a material reads: float and int primvars in `x`, float3 in all three.
@@ -180,6 +184,32 @@ impl Mesh {
     pub fn triangle(&self, tri: usize) -> [Vec3; 3] {
         let [a, b, c] = self.indices[tri];
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Sets of positions over the shutter (0 when the mesh keeps its shape).
+    #[inline]
+    pub fn deformation_samples(&self) -> usize {
+        if self.positions.is_empty() { 0 } else { self.deformation.len() / self.positions.len() }
+    }
+
+    /// Triangle `tri` as it is at shutter time `time` in [0, 1]: its corners interpolated
+    /// linearly between the two deformation samples around `time` (the frame's triangle when
+    /// the mesh keeps its shape).
+    #[inline]
+    pub fn triangle_at(&self, tri: usize, time: f32) -> [Vec3; 3] {
+        let k = self.deformation_samples();
+        if k < 2 {
+            return self.triangle(tri);
+        }
+        let (seg, f) = crate::motion::segment(time, k);
+        let n = self.positions.len();
+        let at = |v: u32| self.deformation[seg * n + v as usize].lerp(self.deformation[(seg + 1) * n + v as usize], f);
+        self.indices[tri].map(at)
+    }
+
+    /// The same mesh keeping the frame's shape.
+    pub fn without_deformation(&self) -> Mesh {
+        Mesh { deformation: Vec::new(), ..self.clone() }
     }
 
     /// Interpolated, unnormalised shading normal at barycentrics (`b1`, `b2`), or `None`

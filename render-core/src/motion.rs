@@ -1,4 +1,5 @@
-//! Transform motion over the shutter: a prim's placement sampled at evenly spaced times from
+//! Transform motion (and, by the same clock, deformation: [`crate::geometry::Mesh::triangle_at`])
+//! over the shutter: a prim's placement sampled at evenly spaced times from
 //! shutter open (normalized time 0) to close (1), interpolated linearly between samples as
 //! pbrt-v4's and Cycles' motion transforms are between their keys (the samples are taken
 //! densely enough by the USD reader that the chord of a rotation stays close to its arc).
@@ -14,14 +15,21 @@ use crate::geometry::Transform;
 /// Most samples one prim's motion may have: clients send them, so they are bounded.
 pub const MAX_MOTION_SAMPLES: usize = 64;
 
+/// Where normalized shutter time `time` (clamped to [0, 1]) falls among `count` evenly spaced
+/// samples (at least one): the sample before it and the fraction of the way to the next.
+#[inline]
+pub fn segment(time: f32, count: usize) -> (usize, f32) {
+    let last = count - 1;
+    let x = time.clamp(0.0, 1.0) * last as f32;
+    let i = (x as usize).min(last.saturating_sub(1));
+    (i, x - i as f32)
+}
+
 /// Placement at normalized shutter time `time` (clamped to [0, 1]) of `samples`, which are
 /// evenly spaced over the shutter (at least two).
 pub fn transform_at(samples: &[Affine3A], time: f32) -> Affine3A {
-    let last = samples.len() - 1;
-    let x = time.clamp(0.0, 1.0) * last as f32;
-    let i = (x as usize).min(last.saturating_sub(1));
-    let f = x - i as f32;
-    let (a, b) = (&samples[i], &samples[(i + 1).min(last)]);
+    let (i, f) = segment(time, samples.len());
+    let (a, b) = (&samples[i], &samples[(i + 1).min(samples.len() - 1)]);
     Affine3A { matrix3: a.matrix3 * (1.0 - f) + b.matrix3 * f, translation: a.translation * (1.0 - f) + b.translation * f }
 }
 

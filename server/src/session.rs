@@ -493,7 +493,18 @@ impl Transaction {
                 )));
             }
             let cap = 9 * self.limits.max_triangles_per_mesh;
-            if m.points_len > cap || m.normals_len > cap {
+            let sets = 1 + m.point_samples as u64;
+            if m.point_samples == 1 || m.point_samples as usize > render_core::motion::MAX_MOTION_SAMPLES {
+                return Err(invalid(
+                    &path,
+                    "point_samples",
+                    format!("{} deformation samples; 0, or 2 to {}", m.point_samples, render_core::motion::MAX_MOTION_SAMPLES),
+                ));
+            }
+            if m.points_len % (3 * sets) != 0 {
+                return Err(invalid(&path, "points", format!("{} values are not {sets} whole sets of points", m.points_len)));
+            }
+            if m.points_len / sets > cap || m.normals_len > cap {
                 return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
             }
             if m.uvs_len > cap {
@@ -713,7 +724,9 @@ impl Transaction {
                     ));
                 }
             }
-            let positions = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            let mut positions: Vec<glam::Vec3> = s.points.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
+            // The frame's points first, then the deformation's sets.
+            let deformation = positions.split_off(positions.len() / (1 + p.point_samples as usize));
             let indices = s.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
             let nrm: Vec<glam::Vec3> = s.normals.chunks_exact(3).map(|v| glam::Vec3::new(v[0], v[1], v[2])).collect();
             let normals = convert::attribute_from_wire(nrm, p.normal_interpolation);
@@ -731,7 +744,7 @@ impl Transaction {
                     ),
                 })
                 .collect();
-            let mesh = Mesh { positions, indices, normals, uvs, primvars };
+            let mesh = Mesh { positions, indices, normals, uvs, primvars, deformation };
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
             let motion = convert::motion_from_wire(&path, "motion", &p.motion)?;

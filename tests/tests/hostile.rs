@@ -362,6 +362,41 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
     bystander_renders(&server).await;
 }
 
+/// Deformation samples are a count and an array the client controls: a count outside 2..=64
+/// (u32::MAX included), points that are no whole number of sets, and a NaN in a later set are
+/// refused naming the field; a valid deformation syncs and renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deformation_samples_that_fit_no_mesh_are_refused() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let deforming = |samples: u32, points: Vec<f32>| {
+        let mut items = mesh("/Evil/Blob", points, vec![0, 1, 2]);
+        if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
+            m.point_samples = samples;
+        }
+        items
+    };
+    let sets = |n: usize| TRIANGLE.repeat(n);
+    for (samples, points, needle) in [
+        (1, sets(2), "point_samples"),
+        (65, sets(66), "point_samples"),
+        (u32::MAX, sets(2), "point_samples"),
+        (2, [TRIANGLE.as_slice(), &[0.0, 0.0, 1.0]].concat(), "whole sets"),
+    ] {
+        let r = raw.sync(&s, deforming(samples, points)).await;
+        assert_status(r, Code::InvalidArgument, &["/Evil/Blob", needle]);
+    }
+    let mut nan = sets(3);
+    nan[9 + 4] = f32::NAN;
+    assert_status(raw.sync(&s, deforming(2, nan)).await, Code::InvalidArgument, &["/Evil/Blob", "deformation", "sample 0"]);
+    let mut items = deforming(2, sets(3));
+    items.extend(camera_and_light());
+    raw.sync(&s, items).await.expect("a deformation of two samples syncs");
+    assert_eq!(raw.render(&s, tiny(8, 2)).await.expect("renders").spp, 2);
+    bystander_renders(&server).await;
+}
+
 /// Instancer motion is counts too: motion samples outside 2..=64 and a transforms array
 /// that fits no number of instances are refused naming the field.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -264,3 +264,75 @@ fn whole_number_time_samples_interpolate_between_keys() {
     assert!((placed - glam::Vec3A::new(d, d, 0.0)).length() < 1e-6, "{placed}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A UV sphere mesh of radius 1 (`rings` × `segments` quads) whose points are scaled from
+/// `r0` at frame 0 to `r1` at frame 1, as USD interpolates time-sampled points: linearly.
+fn pulsing_sphere(r0: f64, r1: f64, rings: usize, segments: usize) -> String {
+    let mut unit = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let phi = std::f64::consts::TAU * j as f64 / segments as f64;
+            unit.push((theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()));
+        }
+    }
+    let points = |r: f64| unit.iter().map(|(x, y, z)| format!("({}, {}, {})", x * r, y * r, z * r)).collect::<Vec<_>>().join(", ");
+    let quads: Vec<String> = (0..rings)
+        .flat_map(|i| (0..segments).map(move |j| (i, j)))
+        .map(|(i, j)| {
+            let (a, b) = (i * segments, (i + 1) * segments);
+            let j1 = (j + 1) % segments;
+            format!("{}, {}, {}, {}", a + j, b + j, b + j1, a + j1)
+        })
+        .collect();
+    format!(
+        r#"def Mesh "Pulse"
+{{
+    uniform token subdivisionScheme = "none"
+    int[] faceVertexCounts = [{}]
+    int[] faceVertexIndices = [{}]
+    point3f[] points.timeSamples = {{ 0: [{}], 1: [{}] }}
+}}"#,
+        vec!["4"; rings * segments].join(", "),
+        quads.join(", "),
+        points(r0),
+        points(r1)
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pulsing_sphere_blurs_over_the_radii_it_takes() {
+    // The radius grows linearly from 0.5 to 1 over the shutter. A pixel at distance d from
+    // the centre is covered while r(t) ≥ d: always inside 0.5, a fraction (1 − d)/0.5 of the
+    // shutter between; the coverage sums to ∫ π r(t)² dt = π(1³ − 0.5³)/(3·0.5) = 1.833 units².
+    let (r0, r1) = (0.5, 1.0);
+    let t = load_text("motion_pulse", &ortho_stage(&pulsing_sphere(r0, r1, 32, 96)));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let (_, pulse) = t.meshes.iter().find(|(p, _)| p == "/Pulse").expect("the sphere");
+    assert_eq!(pulse.mesh.deformation_samples(), tessera::usd::DEFAULT_MOTION_SAMPLES);
+    let seen = coverage(&t, 64).await;
+    let fraction = |px: u32, py: u32| -> f64 {
+        let mut sum = 0.0;
+        for (i, j) in (0..8).flat_map(|i| (0..8).map(move |j| (i, j))) {
+            let x = (px as f64 + (i as f64 + 0.5) / 8.0 - 64.0) / PX_PER_UNIT;
+            let y = (64.0 - py as f64 - (j as f64 + 0.5) / 8.0) / PX_PER_UNIT;
+            let d = x.hypot(y);
+            sum += ((r1 - d) / (r1 - r0)).clamp(0.0, 1.0);
+        }
+        sum / 64.0
+    };
+    let expected: Vec<f64> = (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).map(|(x, y)| fraction(x, y)).collect();
+    let total: f64 = seen.iter().sum();
+    let area = std::f64::consts::PI * (r1.powi(3) - r0.powi(3)) / (3.0 * (r1 - r0)) * PX_PER_UNIT * PX_PER_UNIT;
+    // 96 segments: the polygon's area is 0.07% short of the circle's; measured 0.04% short.
+    assert!((total / area - 1.0).abs() < 0.005, "coverage {total:.1}, the closed form {area:.1}");
+    let ring: Vec<usize> = (0..expected.len()).filter(|&i| expected[i] > 0.0 && expected[i] < 1.0).collect();
+    let mean_error = ring.iter().map(|&i| (seen[i] - expected[i]).abs()).sum::<f64>() / ring.len() as f64;
+    // Measured 0.0096 at 64 samples per pixel (the five shape samples are exact: the radius
+    // grows linearly); the bound leaves the noise room.
+    assert!(mean_error < 0.02, "mean |error| over the growing ring {mean_error:.4}");
+    // With the shutter closed it keeps the frame's shape: no deformation, no motion blur.
+    let layer = ortho_stage(&pulsing_sphere(r0, r1, 8, 16)).replace("shutter:close = 1", "shutter:close = 0");
+    let closed = load_text("motion_pulse_closed", &layer);
+    assert!(closed.meshes.iter().all(|(_, m)| m.mesh.deformation.is_empty()));
+}

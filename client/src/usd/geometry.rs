@@ -59,16 +59,74 @@ impl Reader<'_> {
         let uvs = self.uvs(prim, p)?;
         let primvars = self.primvars(prim, p)?;
         let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth: tags.scheme != "none" };
+        // Positions only (no normals, texture coordinates or primvars) for the deformation's
+        // samples, when the points move within an open shutter.
+        let shape_only = self.deforms(prim, p)?.then(|| MeshSource {
+            points: src.points.clone(),
+            counts: src.counts.clone(),
+            indices: src.indices.clone(),
+            normals: None,
+            uvs: None,
+            primvars: Vec::new(),
+            ..src
+        });
         let mut warnings = Vec::new();
         let (src, cage_face) = self.subdivide(prim, p, src, &tags, &mut warnings)?;
-        let (mesh, face_of) =
+        let (mut mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
+        if let Some(template) = shape_only {
+            mesh.deformation = self.deformation(prim, p, template, &tags, mesh.positions.len())?;
+        }
         let face_of = match cage_face {
             Some(cage) => face_of.iter().map(|&f| cage[f as usize]).collect(),
             None => face_of,
         };
         self.out.warnings.extend(warnings);
         Ok((mesh, face_of, face_count))
+    }
+
+    /// True when the mesh's `points` are time-sampled and the shutter is open: deformation
+    /// blur. A skinned mesh is posed at the frame (its deformation blur: not yet).
+    fn deforms(&self, prim: &Prim, p: &str) -> Result<bool> {
+        if self.shutter.is_none() || self.skins.contains_key(p) {
+            return Ok(false);
+        }
+        Ok(prim.attribute("points").num_time_samples()? > 1)
+    }
+
+    /// The mesh's positions at each motion sample over the shutter, refined and triangulated
+    /// as the frame's were (`template`: the frame's points and topology), one set after another; empty when
+    /// they do not change, or (with a warning) when a sample's points cannot take the frame's
+    /// topology.
+    fn deformation(&mut self, prim: &Prim, p: &str, template: MeshSource, tags: &SubdivTags, vertices: usize) -> Result<Vec<Vec3>> {
+        let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
+        let n = self.motion_samples.max(2);
+        let mut out = Vec::with_capacity(n * vertices);
+        for s in 0..n {
+            let t = TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64);
+            let points = get(prim, "points", t)?.as_ref().and_then(values::vec3_array).filter(|q| q.iter().all(|v| v.is_finite()));
+            let Some(points) = points.filter(|q| q.len() == template.points.len()) else {
+                return self.no_deformation(p, "changes its number of points or is not finite");
+            };
+            let sample = MeshSource { points, ..template.clone() };
+            // The sample's refinement is the frame's, already recorded.
+            let (recorded, mut ignored) = (self.out.subdivided.len(), Vec::new());
+            let (sample, _) = self.subdivide(prim, p, sample, tags, &mut ignored)?;
+            self.out.subdivided.truncate(recorded);
+            let positions = triangulate_with_faces(&sample, |_| {}).map(|(m, _)| m.positions).unwrap_or_default();
+            if positions.len() != vertices {
+                return self.no_deformation(p, "changes its number of points");
+            }
+            out.extend(positions);
+        }
+        let still = out.chunks_exact(vertices).all(|set| set == &out[..vertices]);
+        Ok(if still { Vec::new() } else { out })
+    }
+
+    /// Said once for a mesh whose points cannot blur: it keeps the frame's shape.
+    fn no_deformation(&mut self, p: &str, why: &str) -> Result<Vec<Vec3>> {
+        self.out.warnings.push(format!("{p}: attribute 'points' {why} within the shutter; the mesh renders without deformation blur"));
+        Ok(Vec::new())
     }
 
     /// The mesh's points and normals posed by its skeleton, when it has one. Influences that

@@ -6,6 +6,7 @@ use glam::Vec3;
 use render_core::geometry::{Attribute, Mesh, Normals, Primvar, Uvs};
 
 /// Authored mesh data, straight from the stage.
+#[derive(Clone)]
 pub struct MeshSource {
     /// `points`.
     pub points: Vec<Vec3>,
@@ -32,7 +33,7 @@ pub fn triangulate(src: &MeshSource, warn: impl FnMut(String)) -> Result<Mesh, S
 }
 
 /// The triangles of `mesh` whose face (from [`triangulate_with_faces`]) `keep` accepts, as a
-/// mesh of its own: same points, the kept triangles, their normals.
+/// mesh of its own: same points (and deformation), the kept triangles, their normals.
 pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) -> Mesh {
     let kept: Vec<usize> = (0..mesh.indices.len()).filter(|&t| keep(face_of[t])).collect();
     fn keep_corners<T: Copy>(a: &Attribute<T>, kept: &[usize]) -> Attribute<T> {
@@ -49,6 +50,7 @@ pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) ->
         normals: keep_corners(&mesh.normals, &kept),
         uvs: keep_corners(&mesh.uvs, &kept),
         primvars: mesh.primvars.iter().map(|p| Primvar { name: p.name.clone(), values: keep_corners(&p.values, &kept) }).collect(),
+        deformation: mesh.deformation.clone(),
     }
 }
 
@@ -112,7 +114,7 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
         other => other,
     };
     let face_of = uniform_of.iter().map(|&f| f as u32).collect();
-    Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs, primvars }, face_of))
+    Ok((Mesh { positions: src.points.clone(), indices: tris, normals, uvs, primvars, deformation: Vec::new() }, face_of))
 }
 
 /// How many values each primvar interpolation takes on a mesh.

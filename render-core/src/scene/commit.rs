@@ -22,7 +22,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
     let mut warnings = Vec::new();
     let materials = Materials::resolve(desc, cache, &mut warnings);
-    let geometry = Geometry::build(desc, cache, &mut warnings)?;
+    let emissive = |m: &MeshDesc| materials.list[materials.of("", &m.material) as usize].is_emissive();
+    let geometry = Geometry::build(desc, cache, &emissive, &mut warnings)?;
     let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials, &mut warnings)?;
     let mut plan = plan_of(desc, &materials);
     let tangents = match plan.has(Feature::NormalMaps) {
@@ -90,7 +91,12 @@ pub(super) struct Geometry<'d> {
 
 impl<'d> Geometry<'d> {
     /// Validates the meshes and builds the BLASes whose geometry changed since the last commit.
-    fn build(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Result<Self, SceneError> {
+    fn build(
+        desc: &'d SceneDesc,
+        cache: &mut BlasCache,
+        emissive: &dyn Fn(&MeshDesc) -> bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<Self, SceneError> {
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
         let mut builds = 0;
         let mut fresh = HashMap::new();
@@ -104,16 +110,25 @@ impl<'d> Geometry<'d> {
             if !(m.visible || prototypes.contains(path.as_str())) {
                 continue;
             }
+            // Light sampling places emitters once: an emissive mesh keeps the frame's shape.
+            let shape = match m.mesh.deformation_samples() > 0 && emissive(m) {
+                true => {
+                    warnings
+                        .push(format!("{path}: an emissive mesh does not blur with its deformation yet; it renders in the frame's shape"));
+                    Arc::new(m.mesh.without_deformation())
+                }
+                false => m.mesh.clone(),
+            };
             let blas = match cache.entries.get(path) {
                 Some((geom, blas)) if Arc::ptr_eq(geom, &m.mesh) => blas.clone(),
                 _ => {
                     builds += 1;
-                    Arc::new(Blas::build(&m.mesh, BuildQuality::Medium))
+                    Arc::new(Blas::build(&shape, BuildQuality::Medium))
                 }
             };
             fresh.insert(path.clone(), (m.mesh.clone(), blas.clone()));
             out.slot.insert(path.as_str(), out.meshes.len());
-            out.meshes.push(m.mesh.clone());
+            out.meshes.push(shape);
             out.blases.push(blas);
         }
         cache.entries = fresh;

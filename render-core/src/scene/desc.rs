@@ -104,6 +104,7 @@ pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
     if let Some((i, p)) = mesh.positions.iter().enumerate().find(|(_, p)| p.abs().max_element() > MAX_COORDINATE) {
         return Err(invalid("points", format!("point {i} is {p}, beyond ±{MAX_COORDINATE:e}: single-precision geometry overflows there")));
     }
+    check_deformation(mesh).map_err(|e| invalid("deformation", e))?;
     let n = mesh.positions.len() as u64;
     for (t, tri) in mesh.indices.iter().enumerate() {
         for (k, &v) in tri.iter().enumerate() {
@@ -128,4 +129,20 @@ pub fn validate_mesh(path: &str, mesh: &Mesh) -> Result<(), SceneError> {
         check(&p.values, mesh).map_err(|e| invalid(&format!("primvars:{}", p.name), e))?;
     }
     Ok(())
+}
+
+/// Deformation samples are whole sets of the mesh's positions, 2 to
+/// [`crate::motion::MAX_MOTION_SAMPLES`] of them, finite and in range.
+fn check_deformation(mesh: &Mesh) -> Result<(), String> {
+    if mesh.deformation.is_empty() {
+        return Ok(());
+    }
+    let (len, n) = (mesh.deformation.len(), mesh.positions.len());
+    if n == 0 || len % n != 0 || !(2..=crate::motion::MAX_MOTION_SAMPLES).contains(&(len / n)) {
+        return Err(format!("{len} positions are not 2 to {} sets of the mesh's {n} points", crate::motion::MAX_MOTION_SAMPLES));
+    }
+    match mesh.deformation.iter().enumerate().find(|(_, p)| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE) {
+        Some((i, p)) => Err(format!("position {} of sample {} is {p}, not finite or beyond ±{MAX_COORDINATE:e}", i % n, i / n)),
+        None => Ok(()),
+    }
 }

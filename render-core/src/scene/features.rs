@@ -57,7 +57,7 @@ pub(super) fn plan_of(desc: &SceneDesc, materials: &Materials) -> RenderPlan {
     plan.call_for(Feature::Instancing, desc.instancers.keys().cloned());
     let thin_lens = desc.cameras.iter().filter(|(_, c)| !c.orthographic && c.f_stop > 0.0 && c.focus_distance > 0.0);
     plan.call_for(Feature::DepthOfField, thin_lens.map(|(p, _)| p.clone()));
-    let moving_meshes = desc.meshes.iter().filter(|(_, m)| m.visible && !m.motion.is_empty());
+    let moving_meshes = desc.meshes.iter().filter(|(_, m)| m.visible && (!m.motion.is_empty() || !m.mesh.deformation.is_empty()));
     let moving_cameras = desc.cameras.iter().filter(|(_, c)| !c.motion.is_empty());
     let moving_instancers = desc.instancers.iter().filter(|(_, i)| !i.motion.is_empty());
     let moving = moving_meshes.map(|(p, _)| p).chain(moving_instancers.map(|(p, _)| p)).chain(moving_cameras.map(|(p, _)| p));

@@ -211,7 +211,7 @@ impl CommittedScene {
         let xf = placement.as_ref();
         let mesh = &self.meshes[inst.mesh];
         let tri = hit.triangle as usize;
-        let [a, b, c] = mesh.triangle(tri);
+        let [a, b, c] = mesh.triangle_at(tri, hit.time);
         let w = Vec2::new(hit.bary.x, hit.bary.y);
         let p_obj = a * (1.0 - w.x - w.y) + b * w.x + c * w.y;
         let p = xf.to_world.transform_point3(p_obj);
