@@ -266,8 +266,10 @@ fn whole_number_time_samples_interpolate_between_keys() {
 }
 
 /// A UV sphere mesh of radius 1 (`rings` × `segments` quads) whose points are scaled from
-/// `r0` at frame 0 to `r1` at frame 1, as USD interpolates time-sampled points: linearly.
-fn pulsing_sphere(r0: f64, r1: f64, rings: usize, segments: usize) -> String {
+/// `r0` at frame 0 to `r1` at frame 1, as USD interpolates time-sampled points: linearly; or,
+/// `by_velocity`, points of radius `r0` with radial velocities that reach `r1` one frame (1/24
+/// s) later.
+fn pulsing_sphere(r0: f64, r1: f64, rings: usize, segments: usize, by_velocity: bool) -> String {
     let mut unit = Vec::new();
     for i in 0..=rings {
         let theta = std::f64::consts::PI * i as f64 / rings as f64;
@@ -285,32 +287,45 @@ fn pulsing_sphere(r0: f64, r1: f64, rings: usize, segments: usize) -> String {
             format!("{}, {}, {}, {}", a + j, b + j, b + j1, a + j1)
         })
         .collect();
+    let motion = match by_velocity {
+        false => format!("point3f[] points.timeSamples = {{ 0: [{}], 1: [{}] }}", points(r0), points(r1)),
+        true => format!("point3f[] points = [{}]\n    vector3f[] velocities = [{}]", points(r0), points(24.0 * (r1 - r0))),
+    };
     format!(
         r#"def Mesh "Pulse"
 {{
     uniform token subdivisionScheme = "none"
     int[] faceVertexCounts = [{}]
     int[] faceVertexIndices = [{}]
-    point3f[] points.timeSamples = {{ 0: [{}], 1: [{}] }}
+    {motion}
 }}"#,
         vec!["4"; rings * segments].join(", "),
         quads.join(", "),
-        points(r0),
-        points(r1)
     )
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_pulsing_sphere_blurs_over_the_radii_it_takes() {
-    // The radius grows linearly from 0.5 to 1 over the shutter. A pixel at distance d from
+    // The radius grows linearly from 0.5 to 1 over the shutter, from time-sampled points and
+    // from velocities (USD's velocity-based motion). A pixel at distance d from
     // the centre is covered while r(t) ≥ d: always inside 0.5, a fraction (1 − d)/0.5 of the
     // shutter between; the coverage sums to ∫ π r(t)² dt = π(1³ − 0.5³)/(3·0.5) = 1.833 units².
     let (r0, r1) = (0.5, 1.0);
-    let t = load_text("motion_pulse", &ortho_stage(&pulsing_sphere(r0, r1, 32, 96)));
-    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
-    let (_, pulse) = t.meshes.iter().find(|(p, _)| p == "/Pulse").expect("the sphere");
-    assert_eq!(pulse.mesh.deformation_samples(), tessera::usd::DEFAULT_MOTION_SAMPLES);
-    let seen = coverage(&t, 64).await;
+    for by_velocity in [false, true] {
+        let t = load_text("motion_pulse", &ortho_stage(&pulsing_sphere(r0, r1, 32, 96, by_velocity)));
+        assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+        let (_, pulse) = t.meshes.iter().find(|(p, _)| p == "/Pulse").expect("the sphere");
+        assert_eq!(pulse.mesh.deformation_samples(), tessera::usd::DEFAULT_MOTION_SAMPLES);
+        assert_pulse(&coverage(&t, 64).await, r0, r1);
+    }
+    // With the shutter closed it keeps the frame's shape: no deformation, no motion blur.
+    let layer = ortho_stage(&pulsing_sphere(r0, r1, 8, 16, false)).replace("shutter:close = 1", "shutter:close = 0");
+    let closed = load_text("motion_pulse_closed", &layer);
+    assert!(closed.meshes.iter().all(|(_, m)| m.mesh.deformation.is_empty()));
+}
+
+/// The coverage of a disc whose radius grows linearly from `r0` to `r1` over the shutter.
+fn assert_pulse(seen: &[f64], r0: f64, r1: f64) {
     let fraction = |px: u32, py: u32| -> f64 {
         let mut sum = 0.0;
         for (i, j) in (0..8).flat_map(|i| (0..8).map(move |j| (i, j))) {
@@ -331,8 +346,4 @@ async fn a_pulsing_sphere_blurs_over_the_radii_it_takes() {
     // Measured 0.0096 at 64 samples per pixel (the five shape samples are exact: the radius
     // grows linearly); the bound leaves the noise room.
     assert!(mean_error < 0.02, "mean |error| over the growing ring {mean_error:.4}");
-    // With the shutter closed it keeps the frame's shape: no deformation, no motion blur.
-    let layer = ortho_stage(&pulsing_sphere(r0, r1, 8, 16)).replace("shutter:close = 1", "shutter:close = 0");
-    let closed = load_text("motion_pulse_closed", &layer);
-    assert!(closed.meshes.iter().all(|(_, m)| m.mesh.deformation.is_empty()));
 }

@@ -54,6 +54,8 @@ impl Reader<'_> {
         let left_handed = get(prim, "orientation", time)?.as_ref().and_then(values::token).is_some_and(|t| t == "leftHanded");
         let tags = self.subdivision_tags(prim, p)?;
         let normals = self.normals(prim, p)?;
+        // A skinned mesh's deformation samples pose the authored points again.
+        let rest = self.skin_samples.contains_key(p).then(|| points.clone());
         let (points, normals) = self.skinned(p, points, normals, &indices);
         let face_count = counts.len();
         let uvs = self.uvs(prim, p)?;
@@ -75,7 +77,8 @@ impl Reader<'_> {
         let (mut mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         if let Some(template) = shape_only {
-            mesh.deformation = self.deformation(prim, p, template, &tags, mesh.positions.len())?;
+            let posed = rest.map(|rest| (rest, template.indices.clone()));
+            mesh.deformation = self.deformation(prim, p, template, &tags, posed, mesh.positions.len())?;
         }
         let face_of = match cage_face {
             Some(cage) => face_of.iter().map(|&f| cage[f as usize]).collect(),
@@ -85,28 +88,62 @@ impl Reader<'_> {
         Ok((mesh, face_of, face_count))
     }
 
-    /// True when the mesh's `points` are time-sampled and the shutter is open: deformation
-    /// blur. A skinned mesh is posed at the frame (its deformation blur: not yet).
+    /// True when the shutter is open and the mesh's `points` are time-sampled, or its skeleton
+    /// animated: deformation blur.
     fn deforms(&self, prim: &Prim, p: &str) -> Result<bool> {
-        if self.shutter.is_none() || self.skins.contains_key(p) {
+        if self.shutter.is_none() {
             return Ok(false);
         }
-        Ok(prim.attribute("points").num_time_samples()? > 1)
+        if self.skins.contains_key(p) {
+            return Ok(self.skin_samples.contains_key(p));
+        }
+        Ok(prim.attribute("points").num_time_samples()? > 1 || get(prim, "velocities", self.time)?.is_some())
+    }
+
+    /// The mesh's points at motion sample `s` (time `t`): its skeleton's pose then applied to
+    /// the authored points (`posed`: them and the face-vertex indices); else, with
+    /// `velocities` authored (one per point), USD's velocity-based motion: the frame's points
+    /// moved by velocity × elapsed seconds, plus half the `accelerations` × its square; else
+    /// `points` read at `t`.
+    fn points_at(&self, prim: &Prim, p: &str, s: usize, t: TimeCode, posed: Option<&(Vec<Vec3>, Vec<i64>)>) -> Result<Option<Vec<Vec3>>> {
+        if let Some((rest, indices)) = posed {
+            let (Some(samples), Some(frame)) = (self.skin_samples.get(p), self.skins.get(p)) else { return Ok(None) };
+            return Ok(samples[s].points_in(frame, rest, indices));
+        }
+        let read = |name: &str, t: TimeCode| -> Result<Option<Vec<Vec3>>> { Ok(get(prim, name, t)?.as_ref().and_then(values::vec3_array)) };
+        let Some(velocities) = read("velocities", self.time)? else { return read("points", t) };
+        let Some(base) = read("points", self.time)?.filter(|b| b.len() == velocities.len()) else { return Ok(None) };
+        let accelerations = read("accelerations", self.time)?.filter(|a| a.len() == base.len());
+        let dt = self.seconds_since_frame(t) as f32;
+        let moved = base.iter().zip(&velocities).enumerate().map(|(i, (p, v))| {
+            let a = accelerations.as_ref().map_or(Vec3::ZERO, |a| a[i]);
+            *p + *v * dt + a * (0.5 * dt * dt)
+        });
+        Ok(Some(moved.collect()))
     }
 
     /// The mesh's positions at each motion sample over the shutter, refined and triangulated
-    /// as the frame's were (`template`: the frame's points and topology), one set after another; empty when
+    /// as the frame's were (`template`: the frame's points and topology; `posed`: a skinned
+    /// mesh's authored points and face-vertex indices), one set after another; empty when
     /// they do not change, or (with a warning) when a sample's points cannot take the frame's
     /// topology.
-    fn deformation(&mut self, prim: &Prim, p: &str, template: MeshSource, tags: &SubdivTags, vertices: usize) -> Result<Vec<Vec3>> {
+    fn deformation(
+        &mut self,
+        prim: &Prim,
+        p: &str,
+        template: MeshSource,
+        tags: &SubdivTags,
+        posed: Option<(Vec<Vec3>, Vec<i64>)>,
+        vertices: usize,
+    ) -> Result<Vec<Vec3>> {
         let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
         let n = self.motion_samples.max(2);
         let mut out = Vec::with_capacity(n * vertices);
         for s in 0..n {
             let t = TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64);
-            let points = get(prim, "points", t)?.as_ref().and_then(values::vec3_array).filter(|q| q.iter().all(|v| v.is_finite()));
+            let points = self.points_at(prim, p, s, t, posed.as_ref())?.filter(|q| q.iter().all(|v| v.is_finite()));
             let Some(points) = points.filter(|q| q.len() == template.points.len()) else {
-                return self.no_deformation(p, "changes its number of points or is not finite");
+                return self.no_deformation(p, "changes its number of points, is not finite, or does not match its 'velocities'");
             };
             let sample = MeshSource { points, ..template.clone() };
             // The sample's refinement is the frame's, already recorded.

@@ -227,7 +227,7 @@ impl Reader<'_> {
 
     /// Seconds from the frame to `time` (`timeCodesPerSecond`, 24 unless authored): the clock
     /// of USD's velocity-based motion.
-    fn seconds_since_frame(&self, time: TimeCode) -> f64 {
+    pub(super) fn seconds_since_frame(&self, time: TimeCode) -> f64 {
         let per_second = self
             .stage
             .stage_metadata("timeCodesPerSecond")

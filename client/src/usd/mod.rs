@@ -384,6 +384,7 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
         unmappable: std::collections::HashSet::new(),
         mtlx_documents: std::collections::HashSet::new(),
         skins: HashMap::new(),
+        skin_samples: HashMap::new(),
         shutter: None,
         samples_fixed: std::collections::HashSet::new(),
         curve_samples: options.curve_samples.clamp(1, curves::MAX_CURVE_SAMPLES),
@@ -472,6 +473,9 @@ struct Reader<'s> {
     mtlx_documents: std::collections::HashSet<String>,
     /// Skinned meshes' poses, by mesh path, found when their SkelRoot is visited.
     skins: HashMap<String, skinning::Skin>,
+    /// Skinned meshes' poses at the motion samples over an open shutter, when their skeleton
+    /// is animated (deformation blur).
+    skin_samples: HashMap<String, Vec<skinning::Skin>>,
     /// The shutter's absolute times when it is open: prims that move over it carry motion.
     shutter: Option<(f64, f64)>,
     /// Transform samples over an open shutter.

@@ -100,6 +100,15 @@ impl Skin {
         self.joints.as_ref().map(|_| self.pose.world)
     }
 
+    /// `rest` posed by this skin, in the object space of `frame` (the skin at the frame, whose
+    /// world the mesh renders from): the points of a deformation sample.
+    pub(super) fn points_in(&self, frame: &Skin, rest: &[Vec3], face_vertex_indices: &[i64]) -> Option<Vec<Vec3>> {
+        let (points, _) = self.deform(rest, None, face_vertex_indices).ok()?;
+        let (Some(here), Some(there)) = (self.world(), frame.world()) else { return Some(points) };
+        let to_frame = there.inverse() * here;
+        Some(points.into_iter().map(|p| to_frame.transform_point3(p.as_dvec3()).as_vec3()).collect())
+    }
+
     /// `points` posed: blend shapes, then the joints. Normals (with their interpolation;
     /// face-varying ones through `face_vertex_indices`) follow the same joints.
     pub(super) fn deform(
@@ -199,6 +208,7 @@ impl Reader<'_> {
     /// meshes in their rest pose, with a warning naming the attribute.
     pub(super) fn skel_root(&mut self, p: &str) -> Result<()> {
         let mut poses: HashMap<String, std::result::Result<Pose, String>> = HashMap::new();
+        let mut shutter_poses: HashMap<String, Option<Vec<Pose>>> = HashMap::new();
         let members: Vec<sdf::Path> = self.all_paths.iter().filter(|q| under(q.as_str(), p) && q.as_str() != p).cloned().collect();
         for path in members {
             let mesh = path.as_str().to_string();
@@ -209,7 +219,7 @@ impl Reader<'_> {
             let Some(skeleton) = binding.inherited_skeleton()? else { continue };
             let key = skeleton.as_str().to_string();
             if !poses.contains_key(&key) {
-                let pose = self.pose(&skeleton).map_err(|e| format!("{e:#}"));
+                let pose = self.pose(&skeleton, self.time).map_err(|e| format!("{e:#}"));
                 if let Err(e) = &pose {
                     self.out.warnings.push(format!("{e}; the meshes it binds render in their rest pose"));
                 }
@@ -224,6 +234,11 @@ impl Reader<'_> {
                         animation: pose.animation.clone(),
                         blend_shapes: skin.shapes.len(),
                     });
+                    if pose.animation.is_some()
+                        && let Some(samples) = self.shutter_skins(&binding, &skeleton, &mut shutter_poses)
+                    {
+                        self.skin_samples.insert(mesh.clone(), samples);
+                    }
                     self.skins.insert(mesh, skin);
                 }
                 Ok(None) => self.out.warnings.push(format!("{mesh}: bound to {key} but has no joint influences or blend shapes")),
@@ -233,9 +248,34 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// The skeleton at `path` posed at the frame: its animation's joints where it has them,
-    /// its rest transforms elsewhere.
-    fn pose(&mut self, path: &sdf::Path) -> Result<Pose> {
+    /// `binding`'s skins at the motion samples over an open shutter (deformation blur), its
+    /// skeleton's poses computed once for all the meshes it binds (in `cache`); None when the
+    /// shutter is closed or a sample cannot be posed (said once: the mesh keeps the frame's
+    /// pose).
+    fn shutter_skins(
+        &mut self,
+        binding: &SkelBindingAPI,
+        skeleton: &sdf::Path,
+        cache: &mut HashMap<String, Option<Vec<Pose>>>,
+    ) -> Option<Vec<Skin>> {
+        let (open, close) = self.shutter?;
+        let key = skeleton.as_str().to_string();
+        if !cache.contains_key(&key) {
+            let n = self.motion_samples.max(2);
+            let times = (0..n).map(|s| TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64));
+            let poses = times.map(|t| self.pose(skeleton, t)).collect::<Result<Vec<_>>>();
+            if let Err(e) = &poses {
+                self.out.warnings.push(format!("{e:#}; within the shutter, so its meshes render without deformation blur"));
+            }
+            cache.insert(key.clone(), poses.ok());
+        }
+        let poses = cache[&key].clone()?;
+        poses.into_iter().map(|pose| self.skin(binding, pose).ok().flatten()).collect()
+    }
+
+    /// The skeleton at `path` posed at `time`: its animation's joints where it has them, its
+    /// rest transforms elsewhere.
+    fn pose(&mut self, path: &sdf::Path, time: TimeCode) -> Result<Pose> {
         let s = path.as_str();
         let skeleton = openusd::schemas::skel::Skeleton::get(self.stage, path.clone())?
             .with_context(|| format!("{s}: the bound skel:skeleton is not a Skeleton prim"))?;
@@ -253,15 +293,15 @@ impl Reader<'_> {
         if let Some(anim) = &animation {
             let query = SkelAnimQuery::new(self.stage, anim.clone())?;
             if let Some(query) = query {
-                self.check_animation(anim, query.joint_order().len(), query.blend_shape_order().len())?;
-                let posed = query.compute_joint_local_transforms(self.stage, self.time)?;
+                self.check_animation(anim, query.joint_order().len(), query.blend_shape_order().len(), time)?;
+                let posed = query.compute_joint_local_transforms(self.stage, time)?;
                 let mapper = AnimMapper::new(query.joint_order(), &joints);
                 for (t, slot) in local.iter_mut().enumerate() {
                     if let Some(i) = mapper.source_index(t) {
                         *slot = Some(posed[i]);
                     }
                 }
-                let w = query.compute_blend_shape_weights(self.stage, self.time)?;
+                let w = query.compute_blend_shape_weights(self.stage, time)?;
                 weights = query.blend_shape_order().iter().cloned().zip(w).collect();
             }
         }
@@ -280,7 +320,7 @@ impl Reader<'_> {
             .collect::<Result<_>>()?;
         let skinning = resolver.compute_skinning_transforms_from_world(&resolver.joint_local_to_skel_space(&local));
         anyhow::ensure!(skinning.iter().all(|m| m.0.iter().all(|x| x.is_finite())), "{s}: the posed joints are not finite");
-        let world = self.world_transform(path)?;
+        let world = if time == self.time { self.world_transform(path)? } else { self.world_at(path, time)? };
         Ok(Pose { joints, skinning, world, animation: animation.map(|a| a.as_str().to_string()), weights })
     }
 
@@ -300,11 +340,11 @@ impl Reader<'_> {
 
     /// The animation's arrays have one entry per joint (or blend shape); the toolkit would read
     /// a short one as the identity.
-    fn check_animation(&self, anim: &sdf::Path, joints: usize, shapes: usize) -> Result<()> {
+    fn check_animation(&self, anim: &sdf::Path, joints: usize, shapes: usize, time: TimeCode) -> Result<()> {
         let prim = self.stage.prim(anim.clone());
         let a = anim.as_str();
         for (name, want) in [("translations", joints), ("rotations", joints), ("scales", joints), ("blendShapeWeights", shapes)] {
-            let Some(v) = get(&prim, name, self.time)? else { continue };
+            let Some(v) = get(&prim, name, time)? else { continue };
             let len = match name {
                 "rotations" => values::quat_array(&v).map(|a| a.len()),
                 "blendShapeWeights" => values::float_array(&v).map(|a| a.len()),
