@@ -197,10 +197,11 @@ impl Mesh {
     /// the mesh keeps its shape).
     #[inline]
     pub fn triangle_at(&self, tri: usize, time: f32) -> [Vec3; 3] {
-        let k = self.deformation_samples();
-        if k < 2 {
+        // The still mesh's test first: no division on the path every hit takes.
+        if self.deformation.is_empty() {
             return self.triangle(tri);
         }
+        let k = self.deformation_samples();
         let (seg, f) = crate::motion::segment(time, k);
         let n = self.positions.len();
         let at = |v: u32| self.deformation[seg * n + v as usize].lerp(self.deformation[(seg + 1) * n + v as usize], f);

@@ -51,6 +51,11 @@ const fn color(name: &'static str, default: f32, doc: &'static str) -> Input {
     Input { name, kind: Kind::Color, default: [default, default, default], range: (0.0, 1.0), doc }
 }
 
+/// A colour with no upper bound, 0 by default (radiance, absorption).
+const fn unbounded_color(name: &'static str, doc: &'static str) -> Input {
+    Input { name, kind: Kind::Color, default: [0.0; 3], range: (0.0, f32::MAX), doc }
+}
+
 const fn flag(name: &'static str, doc: &'static str) -> Input {
     Input { name, kind: Kind::Bool, default: [0.0; 3], range: (0.0, 1.0), doc }
 }
@@ -88,7 +93,7 @@ pub const SHARED: &[Input] = &[
     float("iridescenceRoughness", 0.1, (0.0, 1.0), "the film's roughness"),
     float("roughness2", 0.5, (0.0, 1.0), "double specular: the second roughness"),
     float("doubleSpecularMix", 0.0, (0.0, 1.0), "double specular: the second roughness's share"),
-    Input { name: "emission", kind: Kind::Color, default: [0.0; 3], range: (0.0, f32::MAX), doc: "emitted radiance, in UsdLux units" },
+    unbounded_color("emission", "emitted radiance, in UsdLux units"),
     float("specularControl", 1.0, (0.0, 1.0), "scales every specular lobe; 0 kills specular in pits and gaps"),
 ];
 
@@ -196,13 +201,7 @@ pub const SHADERS: &[Shader] = &[
             float("melanin", 0.8, (0.0, 1.0), "melanin amount: 0 white, 1 black (concentration −ln(1 − melanin))"),
             float("melaninRedness", 1.0, (0.0, 1.0), "share of pheomelanin (red) in the melanin"),
             color("tint", 1.0, "a colour the fibre takes on top of the melanin's (absorption by Chiang's fit; white adds none)"),
-            Input {
-                name: "absorptionCoefficient",
-                kind: Kind::Color,
-                default: [0.0; 3],
-                range: (0.0, 1e4),
-                doc: "absorption per unit of fibre radius, added to the rest",
-            },
+            unbounded_color("absorptionCoefficient", "absorption per unit of fibre radius, added to the rest"),
             float("roughness", 0.3, (0.0, 1.0), "longitudinal roughness βm: the highlights' width along the fibre"),
             float("radialRoughness", 0.3, (0.0, 1.0), "azimuthal roughness βn: how far light spreads around the fibre"),
             float("ior", 1.55, (1.0, 3.0), "refractive index of the fibre"),
@@ -346,30 +345,33 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         }
         _ => unreachable!("every declared shader is mapped"),
     }
-    let mut emission = Vec3::ZERO;
-    if shader.shared {
-        u.clearcoat = Weighted {
-            weight: v.f("clearcoat"),
-            params: ClearcoatParams::Dielectric {
-                ior: v.f("clearcoatRefractiveIndex"),
-                roughness: v.f("clearcoatRoughness"),
-                color: v.c("clearcoatAttenuationColor"),
-                thickness: v.f("clearcoatThickness"),
-            },
-        };
-        u.thin_film = Weighted {
-            weight: v.f("iridescence"),
-            params: ThinFilmParams {
-                ior: v.f("iridescenceRefractiveIndex"),
-                thickness: v.f("iridescenceThickness"),
-                roughness: v.f("iridescenceRoughness"),
-            },
-        };
-        u.sheen = Weighted { weight: v.f("sheen"), params: SheenParams { color: v.c("sheenColor"), roughness: v.f("sheenRoughness") } };
-        u.specular_control = v.f("specularControl");
-        emission = v.c("emission");
-    }
+    let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0 })
+}
+
+/// The coats, film, sheen, specular control and emission every shared-input shader takes,
+/// set on `u`; returns the emission.
+fn shared_layers(v: &Values, u: &mut Uber) -> Vec3 {
+    u.clearcoat = Weighted {
+        weight: v.f("clearcoat"),
+        params: ClearcoatParams::Dielectric {
+            ior: v.f("clearcoatRefractiveIndex"),
+            roughness: v.f("clearcoatRoughness"),
+            color: v.c("clearcoatAttenuationColor"),
+            thickness: v.f("clearcoatThickness"),
+        },
+    };
+    u.thin_film = Weighted {
+        weight: v.f("iridescence"),
+        params: ThinFilmParams {
+            ior: v.f("iridescenceRefractiveIndex"),
+            thickness: v.f("iridescenceThickness"),
+            roughness: v.f("iridescenceRoughness"),
+        },
+    };
+    u.sheen = Weighted { weight: v.f("sheen"), params: SheenParams { color: v.c("sheenColor"), roughness: v.f("sheenRoughness") } };
+    u.specular_control = v.f("specularControl");
+    v.c("emission")
 }
 
 /// The reference table of every declared shader, as docs/materials.md holds it.

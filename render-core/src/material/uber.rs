@@ -590,20 +590,7 @@ impl Uber {
                 bsdf.push_weighted(Lobe::Dielectric(interface.compensated(compensate)), w);
             }
         }
-        let fabric_w = finite(self.fabric.weight);
-        if fabric_w > 0.0 || every {
-            // The normalised cone reflects at most 1 and the base is a Lambertian of albedo ≤ 1,
-            // so their convex combination conserves energy.
-            let f = &self.fabric.params;
-            let s = finite(f.specular);
-            bsdf.push_weighted(Lobe::Fabric(Fabric::new(f.color, f.roughness, f.angle)), fabric_w * s * spec_scale);
-            bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
-        }
-        let hair_w = finite(self.hair.weight);
-        if hair_w > 0.0 || every {
-            let h = &self.hair.params;
-            bsdf.push_weighted(Lobe::Hair(Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)), hair_w);
-        }
+        self.push_fibres(&mut bsdf, every, spec_scale);
         let coat_w = finite(self.clearcoat.weight) * spec_scale;
         if coat_w > 0.0 || every {
             let coat = match self.clearcoat.params {
@@ -631,6 +618,25 @@ impl Uber {
             bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
         }
         bsdf
+    }
+
+    /// The fibre families' lobes: fabric (its cone over a Lambertian base) and hair.
+    fn push_fibres(&self, bsdf: &mut Bsdf, every: bool, spec_scale: f32) {
+        let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+        let fabric_w = finite(self.fabric.weight);
+        if fabric_w > 0.0 || every {
+            // The normalised cone reflects at most 1 and the base is a Lambertian of albedo ≤ 1,
+            // so their convex combination conserves energy.
+            let f = &self.fabric.params;
+            let s = finite(f.specular);
+            bsdf.push_weighted(Lobe::Fabric(Fabric::new(f.color, f.roughness, f.angle)), fabric_w * s * spec_scale);
+            bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
+        }
+        let hair_w = finite(self.hair.weight);
+        if hair_w > 0.0 || every {
+            let h = &self.hair.params;
+            bsdf.push_weighted(Lobe::Hair(Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)), hair_w);
+        }
     }
 }
 
