@@ -68,8 +68,13 @@ pub fn to_json(t: &Translation) -> Value {
         if !m.motion.is_empty() {
             mesh["motion"] = Value::Array(m.motion.iter().map(usd_matrix).collect());
         }
-        if let Some(s) = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh))) {
+        let skin = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh)));
+        if let Some(s) = skin {
             mesh["skinning"] = skinning_json(s, m, subdivision_of(path).is_none());
+        }
+        // Deforming polygon meshes: their points are the authored ones, comparable as they are.
+        if m.mesh.deformation_samples() > 0 && skin.is_none() && subdivision_of(path).is_none() {
+            mesh["deformation"] = deformation_json(m);
         }
         meshes.insert(path.clone(), mesh);
     }
@@ -144,6 +149,17 @@ fn skinning_json(s: &crate::usd::Skinned, m: &render_core::scene::MeshDesc, with
         out["worldPoints"] = Value::Array(points);
     }
     out
+}
+
+/// A deforming mesh's points in world space at each motion sample: its placement at that
+/// sample (the frame's when it does not move) applied to the sample's shape.
+fn deformation_json(m: &render_core::scene::MeshDesc) -> Value {
+    let n = m.mesh.positions.len();
+    let sets = m.mesh.deformation.chunks_exact(n).enumerate().map(|(s, points)| {
+        let world = m.motion.get(s).unwrap_or(&m.transform);
+        Value::Array(points.iter().map(|&p| json!(world.transform_point3(p).to_array())).collect())
+    });
+    Value::Array(sets.collect())
 }
 
 fn subdivision_json(s: &crate::usd::Subdivided) -> Value {
