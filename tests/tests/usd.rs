@@ -64,6 +64,8 @@ fn an_independent_reader_agrees_on_every_fixture() {
     cases.push((fixture("usd-wg/UsdSkel/CesiumMan.usdz"), Some(7.3)));
     // Transforms over an open shutter, mid-animation: whole-degree rotation keys included.
     cases.push((fixture("usd/motion_blur.usda"), Some(6.0)));
+    // Shapes over an open shutter between points samples.
+    cases.push((fixture("usd/deforming.usda"), Some(1.8)));
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
     for (scene, frame) in cases {

@@ -102,8 +102,9 @@ impl Reader<'_> {
 
     /// The mesh's points at motion sample `s` (time `t`): its skeleton's pose then applied to
     /// the authored points (`posed`: them and the face-vertex indices); else, with
-    /// `velocities` authored (one per point), USD's velocity-based motion: the frame's points
-    /// moved by velocity × elapsed seconds, plus half the `accelerations` × its square; else
+    /// `velocities` authored (one per point), USD's velocity-based motion: the points sample at
+    /// the frame ([`Reader::velocity_base`]) moved by velocity × elapsed seconds, plus half the
+    /// `accelerations` × its square; else
     /// `points` read at `t`.
     fn points_at(&self, prim: &Prim, p: &str, s: usize, t: TimeCode, posed: Option<&(Vec<Vec3>, Vec<i64>)>) -> Result<Option<Vec<Vec3>>> {
         if let Some((rest, indices)) = posed {
@@ -111,10 +112,11 @@ impl Reader<'_> {
             return Ok(samples[s].points_in(frame, rest, indices));
         }
         let read = |name: &str, t: TimeCode| -> Result<Option<Vec<Vec3>>> { Ok(get(prim, name, t)?.as_ref().and_then(values::vec3_array)) };
-        let Some(velocities) = read("velocities", self.time)? else { return read("points", t) };
-        let Some(base) = read("points", self.time)?.filter(|b| b.len() == velocities.len()) else { return Ok(None) };
-        let accelerations = read("accelerations", self.time)?.filter(|a| a.len() == base.len());
-        let dt = self.seconds_since_frame(t) as f32;
+        let from = self.velocity_base(prim, "points")?;
+        let Some(velocities) = read("velocities", from)? else { return read("points", t) };
+        let Some(base) = read("points", from)?.filter(|b| b.len() == velocities.len()) else { return Ok(None) };
+        let accelerations = read("accelerations", from)?.filter(|a| a.len() == base.len());
+        let dt = self.seconds_between(from, t) as f32;
         let moved = base.iter().zip(&velocities).enumerate().map(|(i, (p, v))| {
             let a = accelerations.as_ref().map_or(Vec3::ZERO, |a| a[i]);
             *p + *v * dt + a * (0.5 * dt * dt)

@@ -171,7 +171,7 @@ impl Reader<'_> {
     }
 
     /// `positions` at `time`. With `velocities` authored (one per position), USD's
-    /// velocity-based motion: the frame's positions moved by velocity × elapsed seconds
+    /// velocity-based motion: the positions sample at the frame moved by velocity × elapsed seconds
     /// (`timeCodesPerSecond`, 24 unless authored), rather than positions interpolated
     /// between samples.
     fn instance_positions(&self, prim: &Prim, p: &str, time: TimeCode) -> Result<Vec<Vec3>> {
@@ -183,10 +183,11 @@ impl Reader<'_> {
         if time == self.time {
             return read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing"));
         }
-        let base = read("positions", self.time)?.with_context(|| format!("{p}: attribute 'positions' is missing"))?;
-        match read("velocities", self.time)?.filter(|v| v.len() == base.len()) {
+        let from = self.velocity_base(prim, "positions")?;
+        let base = read("positions", from)?.with_context(|| format!("{p}: attribute 'positions' is missing"))?;
+        match read("velocities", from)?.filter(|v| v.len() == base.len()) {
             Some(velocities) => {
-                let dt = self.seconds_since_frame(time) as f32;
+                let dt = self.seconds_between(from, time) as f32;
                 Ok(base.iter().zip(&velocities).map(|(p, v)| *p + *v * dt).collect())
             }
             None => read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing")),
@@ -209,10 +210,11 @@ impl Reader<'_> {
         if time == self.time {
             return Ok(read(time)?.map(rotations));
         }
-        let Some(base) = read(self.time)? else { return Ok(None) };
-        let turns = get(prim, "angularVelocities", self.time)?.as_ref().and_then(values::vec3_array).filter(|w| w.len() == base.len());
+        let from = self.velocity_base(prim, "orientations")?;
+        let Some(base) = read(from)? else { return Ok(None) };
+        let turns = get(prim, "angularVelocities", from)?.as_ref().and_then(values::vec3_array).filter(|w| w.len() == base.len());
         let Some(turns) = turns else { return Ok(read(time)?.map(rotations)) };
-        let dt = self.seconds_since_frame(time);
+        let dt = self.seconds_between(from, time);
         let turned = base.into_iter().zip(turns).map(|(q, w)| {
             let w = w.as_dvec3();
             let turn = if w.length() > 0.0 {
@@ -225,9 +227,19 @@ impl Reader<'_> {
         Ok(Some(turned.collect()))
     }
 
-    /// Seconds from the frame to `time` (`timeCodesPerSecond`, 24 unless authored): the clock
-    /// of USD's velocity-based motion.
-    pub(super) fn seconds_since_frame(&self, time: TimeCode) -> f64 {
+    /// Where USD's velocity-based motion extrapolates `attr` from at the frame: its time sample
+    /// at or before the frame (the first, before any; the frame itself without samples), as
+    /// usd-core's ComputePointsAtTime and ComputeInstanceTransformsAtTime take it.
+    pub(super) fn velocity_base(&self, prim: &Prim, attr: &str) -> Result<TimeCode> {
+        Ok(match prim.attribute(attr).bracketing_time_samples(self.time)? {
+            Some((lo, _)) => TimeCode::new(lo),
+            None => self.time,
+        })
+    }
+
+    /// Seconds from `from` to `to` (`timeCodesPerSecond`, 24 unless authored): the clock of
+    /// USD's velocity-based motion.
+    pub(super) fn seconds_between(&self, from: TimeCode, to: TimeCode) -> f64 {
         let per_second = self
             .stage
             .stage_metadata("timeCodesPerSecond")
@@ -237,7 +249,7 @@ impl Reader<'_> {
             .and_then(values::scalar)
             .filter(|t| *t > 0.0)
             .unwrap_or(24.0);
-        (time.value() - self.time.value()) / per_second
+        (to.value() - from.value()) / per_second
     }
 
     /// The meshes of one PointInstancer prototype (the subtree at `proto`), each as a hidden
