@@ -55,28 +55,9 @@ pub fn to_json(t: &Translation) -> Value {
         meshes.insert(n.path.clone(), mesh);
     }
     for (path, m) in t.meshes.iter().filter(|(p, _)| !prototypes.contains(p.as_str())) {
-        let mut mesh = json!({
-            "world": usd_matrix(&m.transform),
-            "triangles": m.mesh.indices.len(),
-            "material": m.material,
-            "visible": m.visible,
-        });
         // GeomSubsets render as meshes of their own, named by the subset under the mesh.
-        if let Some(s) = subdivision_of(path) {
-            mesh["subdivision"] = s;
-        }
-        if !m.motion.is_empty() {
-            mesh["motion"] = Value::Array(m.motion.iter().map(usd_matrix).collect());
-        }
         let skin = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh)));
-        if let Some(s) = skin {
-            mesh["skinning"] = skinning_json(s, m, subdivision_of(path).is_none());
-        }
-        // Deforming polygon meshes: their points are the authored ones, comparable as they are.
-        if m.mesh.deformation_samples() > 0 && skin.is_none() && subdivision_of(path).is_none() {
-            mesh["deformation"] = deformation_json(m);
-        }
-        meshes.insert(path.clone(), mesh);
+        meshes.insert(path.clone(), mesh_json(m, subdivision_of(path), skin.copied()));
     }
     let mut instancers = Map::new();
     for (path, i) in t.instancers.iter().enumerate().filter(|(k, _)| !native.contains(k)).map(|(_, x)| x) {
@@ -149,6 +130,32 @@ fn skinning_json(s: &crate::usd::Skinned, m: &render_core::scene::MeshDesc, with
         out["worldPoints"] = Value::Array(points);
     }
     out
+}
+
+/// One mesh: placement, triangles, material, visibility, and its subdivision, motion,
+/// skinning and deformation where it has them.
+fn mesh_json(m: &render_core::scene::MeshDesc, subdivision: Option<Value>, skin: Option<&crate::usd::Skinned>) -> Value {
+    let mut mesh = json!({
+        "world": usd_matrix(&m.transform),
+        "triangles": m.mesh.indices.len(),
+        "material": m.material,
+        "visible": m.visible,
+    });
+    let refined = subdivision.is_some();
+    if let Some(s) = subdivision {
+        mesh["subdivision"] = s;
+    }
+    if !m.motion.is_empty() {
+        mesh["motion"] = Value::Array(m.motion.iter().map(usd_matrix).collect());
+    }
+    if let Some(s) = skin {
+        mesh["skinning"] = skinning_json(s, m, !refined);
+    }
+    // Deforming polygon meshes: their points are the authored ones, comparable as they are.
+    if m.mesh.deformation_samples() > 0 && skin.is_none() && !refined {
+        mesh["deformation"] = deformation_json(m);
+    }
+    mesh
 }
 
 /// A deforming mesh's points in world space at each motion sample: its placement at that
