@@ -150,21 +150,38 @@ impl Hair {
         2.0 * p * gamma_t - 2.0 * gamma_o + p * PI
     }
 
-    /// The sum over paths of Mp·weight(p)·Np at `wi`: with Ap it is the scattering function,
-    /// with the paths' selection probabilities the sampling density.
-    fn sum_over_paths(&self, v: &View, wi: Vec3, weight: impl Fn(usize) -> Vec3) -> Vec3 {
+    /// Mp·Np of each path at `wi` (the rest's Np uniform, 1/2π): weighted by Ap they sum to
+    /// the scattering function, by the paths' selection probabilities to the sampling density.
+    fn path_densities(&self, v: &View, wi: Vec3) -> [f32; 4] {
         let wi = wi.normalize_or_zero();
         let sin_i = wi.x.clamp(-1.0, 1.0);
         let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
         let phi = wi.z.atan2(wi.y) - v.phi_o;
         let s = self.logistic_scale();
-        let mut sum = Vec3::ZERO;
-        for p in 0..3 {
+        let mut d = [0.0; 4];
+        for (p, d) in d.iter_mut().enumerate().take(3) {
             let (sin_op, cos_op) = self.tilted(p, v.sin_o, v.cos_o);
             let np = trimmed_logistic(wrap_angle(phi - Self::exit_angle(p, v.gamma_o, v.gamma_t)), s);
-            sum += weight(p) * (longitudinal(cos_i, cos_op, sin_i, sin_op, self.variance(p)) * np);
+            *d = longitudinal(cos_i, cos_op, sin_i, sin_op, self.variance(p)) * np;
         }
-        sum + weight(3) * (longitudinal(cos_i, v.cos_o, sin_i, v.sin_o, self.variance(3)) / TAU)
+        d[3] = longitudinal(cos_i, v.cos_o, sin_i, v.sin_o, self.variance(3)) / TAU;
+        d
+    }
+
+    /// f without the cosine from the paths' densities at `wi`.
+    fn f_from(v: &View, wi: Vec3, d: &[f32; 4]) -> Vec3 {
+        let cos = wi.normalize_or_zero().z.abs();
+        if cos < 1e-7 {
+            return Vec3::ZERO;
+        }
+        let f = (0..4).fold(Vec3::ZERO, |sum, p| sum + v.ap[p] * d[p]) / cos;
+        if crate::math::is_finite(f) { f.max(Vec3::ZERO) } else { Vec3::ZERO }
+    }
+
+    /// The sampling density from the paths' densities.
+    fn pdf_from(v: &View, d: &[f32; 4]) -> f32 {
+        let pdfs = Self::path_pdf(v);
+        (0..4).fold(0.0, |sum, p| sum + pdfs[p] * d[p])
     }
 
     /// Probabilities of sampling each path: Ap's channel means, normalised.
@@ -177,12 +194,7 @@ impl Hair {
     /// f without the cosine: the scattering function over |cos θ| to the tube's normal.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let Some(v) = self.view(wo) else { return Vec3::ZERO };
-        let cos = wi.normalize_or_zero().z.abs();
-        if cos < 1e-7 {
-            return Vec3::ZERO;
-        }
-        let f = self.sum_over_paths(&v, wi, |p| v.ap[p]) / cos;
-        if crate::math::is_finite(f) { f.max(Vec3::ZERO) } else { Vec3::ZERO }
+        Self::f_from(&v, wi, &self.path_densities(&v, wi))
     }
 
     /// Picks a path by Ap, then θi from Mp (d'Eon et al.'s inversion) and φi from the
@@ -207,8 +219,9 @@ impl Hair {
             if p < 3 { Self::exit_angle(p, v.gamma_o, v.gamma_t) + sample_trimmed_logistic(uc, self.logistic_scale()) } else { TAU * uc };
         let phi_i = v.phi_o + dphi;
         let wi = Vec3::new(sin_i, cos_i * phi_i.cos(), cos_i * phi_i.sin());
-        let pdf = self.sum_over_paths(&v, wi, |p| Vec3::splat(pdfs[p])).x;
-        let f = self.eval(wo, wi);
+        // One view and one pass over the paths for both the density and f.
+        let d = self.path_densities(&v, wi);
+        let (pdf, f) = (Self::pdf_from(&v, &d), Self::f_from(&v, wi, &d));
         (pdf > 0.0 && pdf.is_finite() && wi.z != 0.0).then(|| LobeSample {
             wi,
             weight: f * wi.z.abs() / pdf,
@@ -221,8 +234,7 @@ impl Hair {
     /// Density of [`Hair::sample`] in solid angle.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let Some(v) = self.view(wo) else { return 0.0 };
-        let pdfs = Self::path_pdf(&v);
-        let p = self.sum_over_paths(&v, wi, |p| Vec3::splat(pdfs[p])).x;
+        let p = Self::pdf_from(&v, &self.path_densities(&v, wi));
         if p.is_finite() { p.max(0.0) } else { 0.0 }
     }
 
