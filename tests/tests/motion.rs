@@ -347,3 +347,18 @@ fn assert_pulse(seen: &[f64], r0: f64, r1: f64) {
     // grows linearly); the bound leaves the noise room.
     assert!(mean_error < 0.02, "mean |error| over the growing ring {mean_error:.4}");
 }
+
+/// A mesh with no points, time-sampled over an open shutter, loads as an empty mesh: there is
+/// no shape to sample (comparing its samples once divided by its zero points).
+#[test]
+fn an_empty_mesh_time_sampled_over_the_shutter_loads() {
+    let body = r#"def Mesh "Nothing"
+{
+    uniform token subdivisionScheme = "none"
+    int[] faceVertexCounts = []
+    int[] faceVertexIndices = []
+    point3f[] points.timeSamples = { 0: [], 1: [] }
+}"#;
+    let t = load_text("motion_empty", &ortho_stage(body));
+    assert!(t.meshes.iter().all(|(_, m)| m.mesh.deformation.is_empty()));
+}

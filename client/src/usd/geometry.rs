@@ -5,6 +5,17 @@ use anyhow::{Context, Result};
 use super::subdivision::{self, SubdivTags};
 use super::*;
 
+/// Where a deforming mesh's points come from over the shutter (read once per mesh).
+enum PointMotion {
+    /// A skinned mesh: its authored points and face-vertex indices, posed per sample.
+    Posed { rest: Vec<Vec3>, indices: Vec<i64> },
+    /// USD's velocity-based motion from the `points` sample at `from` (None when the points do
+    /// not match the velocities).
+    Velocity { from: TimeCode, base: Option<Vec<Vec3>>, velocities: Vec<Vec3>, accelerations: Option<Vec<Vec3>> },
+    /// Time-sampled `points`, read at each sample's time.
+    Sampled,
+}
+
 impl Reader<'_> {
     pub(super) fn mesh(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
         if let Some(shared) = prim.prim_in_prototype()?
@@ -100,28 +111,42 @@ impl Reader<'_> {
         Ok(prim.attribute("points").num_time_samples()? > 1 || get(prim, "velocities", self.time)?.is_some())
     }
 
-    /// The mesh's points at motion sample `s` (time `t`): its skeleton's pose then applied to
-    /// the authored points (`posed`: them and the face-vertex indices); else, with
-    /// `velocities` authored (one per point), USD's velocity-based motion: the points sample at
-    /// the frame ([`Reader::velocity_base`]) moved by velocity × elapsed seconds, plus half the
-    /// `accelerations` × its square; else
-    /// `points` read at `t`.
-    fn points_at(&self, prim: &Prim, p: &str, s: usize, t: TimeCode, posed: Option<&(Vec<Vec3>, Vec<i64>)>) -> Result<Option<Vec<Vec3>>> {
+    /// How the mesh's points move, read once for all the motion samples: its skeleton's poses
+    /// applied to the authored points (`posed`: them and the face-vertex indices); else, with
+    /// `velocities` authored, USD's velocity-based motion from the points sample at the frame
+    /// ([`Reader::velocity_base`]); else `points` read at each time.
+    fn point_motion(&self, prim: &Prim, posed: Option<(Vec<Vec3>, Vec<i64>)>) -> Result<PointMotion> {
         if let Some((rest, indices)) = posed {
-            let (Some(samples), Some(frame)) = (self.skin_samples.get(p), self.skins.get(p)) else { return Ok(None) };
-            return Ok(samples[s].points_in(frame, rest, indices));
+            return Ok(PointMotion::Posed { rest, indices });
         }
         let read = |name: &str, t: TimeCode| -> Result<Option<Vec<Vec3>>> { Ok(get(prim, name, t)?.as_ref().and_then(values::vec3_array)) };
         let from = self.velocity_base(prim, "points")?;
-        let Some(velocities) = read("velocities", from)? else { return read("points", t) };
-        let Some(base) = read("points", from)?.filter(|b| b.len() == velocities.len()) else { return Ok(None) };
-        let accelerations = read("accelerations", from)?.filter(|a| a.len() == base.len());
-        let dt = self.seconds_between(from, t) as f32;
-        let moved = base.iter().zip(&velocities).enumerate().map(|(i, (p, v))| {
-            let a = accelerations.as_ref().map_or(Vec3::ZERO, |a| a[i]);
-            *p + *v * dt + a * (0.5 * dt * dt)
-        });
-        Ok(Some(moved.collect()))
+        let Some(velocities) = read("velocities", from)? else { return Ok(PointMotion::Sampled) };
+        let base = read("points", from)?.filter(|b| b.len() == velocities.len());
+        let accelerations = read("accelerations", from)?.filter(|a| base.as_ref().is_some_and(|b| a.len() == b.len()));
+        Ok(PointMotion::Velocity { from, base, velocities, accelerations })
+    }
+
+    /// The mesh's points at motion sample `s` (time `t`) as `motion` moves them: posed by the
+    /// sample's skin; moved by velocity × elapsed seconds plus half the `accelerations` × its
+    /// square; or read at `t`. None where they cannot be.
+    fn points_at(&self, prim: &Prim, p: &str, s: usize, t: TimeCode, motion: &PointMotion) -> Result<Option<Vec<Vec3>>> {
+        match motion {
+            PointMotion::Posed { rest, indices } => {
+                let (Some(samples), Some(frame)) = (self.skin_samples.get(p), self.skins.get(p)) else { return Ok(None) };
+                Ok(samples[s].points_in(frame, rest, indices))
+            }
+            PointMotion::Sampled => Ok(get(prim, "points", t)?.as_ref().and_then(values::vec3_array)),
+            PointMotion::Velocity { base: None, .. } => Ok(None),
+            PointMotion::Velocity { from, base: Some(base), velocities, accelerations } => {
+                let dt = self.seconds_between(*from, t) as f32;
+                let moved = base.iter().zip(velocities).enumerate().map(|(i, (p, v))| {
+                    let a = accelerations.as_ref().map_or(Vec3::ZERO, |a| a[i]);
+                    *p + *v * dt + a * (0.5 * dt * dt)
+                });
+                Ok(Some(moved.collect()))
+            }
+        }
     }
 
     /// The mesh's positions at each motion sample over the shutter, refined and triangulated
@@ -138,12 +163,14 @@ impl Reader<'_> {
         posed: Option<(Vec<Vec3>, Vec<i64>)>,
         vertices: usize,
     ) -> Result<Vec<Vec3>> {
-        let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
-        let n = self.motion_samples.max(2);
-        let mut out = Vec::with_capacity(n * vertices);
-        for s in 0..n {
-            let t = TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64);
-            let points = self.points_at(prim, p, s, t, posed.as_ref())?.filter(|q| q.iter().all(|v| v.is_finite()));
+        let times = self.shutter_times();
+        if vertices == 0 {
+            return Ok(Vec::new()); // nothing to move (and no whole sets to compare below)
+        }
+        let motion = self.point_motion(prim, posed)?;
+        let mut out = Vec::with_capacity(times.len() * vertices);
+        for (s, t) in times.into_iter().enumerate() {
+            let points = self.points_at(prim, p, s, t, &motion)?.filter(|q| q.iter().all(|v| v.is_finite()));
             let Some(points) = points.filter(|q| q.len() == template.points.len()) else {
                 return self.no_deformation(p, "changes its number of points, is not finite, or does not match its 'velocities'");
             };

@@ -85,7 +85,10 @@ impl Reader<'_> {
     /// moves. Instances that come and go within the shutter (a changing count) keep still,
     /// with a warning.
     fn instance_motion(&mut self, prim: &Prim, p: &str, per_proto: &[Vec<DMat4>]) -> Result<Vec<Vec<Vec<DMat4>>>> {
-        let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
+        let times = self.shutter_times();
+        if times.is_empty() {
+            return Ok(Vec::new());
+        }
         if let Some(w) = get(prim, "angularVelocities", self.time)? {
             let (turns, count) =
                 (values::vec3_array(&w).map_or(0, |w| w.len()), get_ints(prim, p, "protoIndices", self.time)?.map_or(0, |i| i.len()));
@@ -95,10 +98,8 @@ impl Reader<'_> {
                 ));
             }
         }
-        let n = self.motion_samples.max(2);
-        let mut motion: Vec<Vec<Vec<DMat4>>> = per_proto.iter().map(|v| vec![Vec::with_capacity(n); v.len()]).collect();
-        for s in 0..n {
-            let t = TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64);
+        let mut motion: Vec<Vec<Vec<DMat4>>> = per_proto.iter().map(|v| vec![Vec::with_capacity(times.len()); v.len()]).collect();
+        for t in times {
             let world = self.world_at(prim.path(), t)?;
             let at_t = self.instance_transforms(prim, p, per_proto.len(), t, world)?;
             if at_t.iter().zip(per_proto).any(|(a, b)| a.len() != b.len()) {

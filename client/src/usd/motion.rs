@@ -43,16 +43,27 @@ fn render_camera(stage: &Stage, paths: &[sdf::Path]) -> Result<Option<sdf::Path>
 }
 
 impl Reader<'_> {
+    /// The motion samples' times: `--motion-samples` evenly spaced from shutter open to close
+    /// (none when the shutter is closed). Transforms, instances, skeletons and points are all
+    /// sampled at these.
+    pub(super) fn shutter_times(&self) -> Vec<TimeCode> {
+        let Some((open, close)) = self.shutter else { return Vec::new() };
+        let n = self.motion_samples.max(2);
+        (0..n).map(|i| TimeCode::new(open + (close - open) * i as f64 / (n - 1) as f64)).collect()
+    }
+
     /// The prim's world transform at evenly spaced times over the shutter; empty when the
     /// shutter is closed or the prim does not move over it.
     pub(super) fn motion(&mut self, prim: &Prim, p: &str) -> Result<Vec<Affine3A>> {
-        let Some((open, close)) = self.shutter else { return Ok(Vec::new()) };
-        let n = self.motion_samples.max(2);
-        let samples = (0..n)
-            .map(|i| {
-                let t = open + (close - open) * i as f64 / (n - 1) as f64;
-                let m = self.world_at(prim.path(), TimeCode::new(t))?;
-                to_affine(&m).with_context(|| format!("{p}: xformOps compose to a non-finite transform at time {t}"))
+        let times = self.shutter_times();
+        if times.is_empty() {
+            return Ok(Vec::new());
+        }
+        let samples = times
+            .into_iter()
+            .map(|t| {
+                let m = self.world_at(prim.path(), t)?;
+                to_affine(&m).with_context(|| format!("{p}: xformOps compose to a non-finite transform at time {}", t.value()))
             })
             .collect::<Result<Vec<_>>>()?;
         if samples.iter().all(|m| *m == samples[0]) {

@@ -258,12 +258,10 @@ impl Reader<'_> {
         skeleton: &sdf::Path,
         cache: &mut HashMap<String, Option<Vec<Pose>>>,
     ) -> Option<Vec<Skin>> {
-        let (open, close) = self.shutter?;
+        self.shutter?;
         let key = skeleton.as_str().to_string();
         if !cache.contains_key(&key) {
-            let n = self.motion_samples.max(2);
-            let times = (0..n).map(|s| TimeCode::new(open + (close - open) * s as f64 / (n - 1) as f64));
-            let poses = times.map(|t| self.pose(skeleton, t)).collect::<Result<Vec<_>>>();
+            let poses = self.shutter_times().into_iter().map(|t| self.pose(skeleton, t)).collect::<Result<Vec<_>>>();
             if let Err(e) = &poses {
                 self.out.warnings.push(format!("{e:#}; within the shutter, so its meshes render without deformation blur"));
             }
