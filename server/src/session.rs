@@ -165,6 +165,9 @@ struct Finished {
 pub const BYTES_PER_TRIANGLE: u64 = 256;
 /// Bytes per instance: two affine maps, its bounds and its BVH share.
 pub const BYTES_PER_INSTANCE: u64 = 160;
+/// Bytes a deforming triangle holds per deformation sample: its ray-tracing triangle at that
+/// sample (vertex and two edges, 16 bytes each), besides the sample's positions.
+pub const BYTES_PER_TRIANGLE_SAMPLE: u64 = 48;
 
 /// The memory a description is estimated to hold once committed.
 pub fn scene_bytes(desc: &SceneDesc) -> u64 {
@@ -173,7 +176,9 @@ pub fn scene_bytes(desc: &SceneDesc) -> u64 {
         .values()
         .map(|m| {
             let mesh = &m.mesh;
-            mesh.indices.len() as u64 * BYTES_PER_TRIANGLE + mesh.positions.len() as u64 * 12 + attribute_bytes(mesh)
+            let tris = mesh.indices.len() as u64;
+            let deformation = mesh.deformation.len() as u64 * 12 + tris * mesh.deformation_samples() as u64 * BYTES_PER_TRIANGLE_SAMPLE;
+            tris * BYTES_PER_TRIANGLE + mesh.positions.len() as u64 * 12 + attribute_bytes(mesh) + deformation
         })
         .sum();
     let instances: u64 =
@@ -430,7 +435,9 @@ impl Transaction {
     /// before any of its data arrives.
     fn check_declared_mesh(&self, path: &str, m: &pb::MeshPrim) -> Result<(), Status> {
         let floats = m.points_len + m.triangle_indices_len + m.normals_len + m.uvs_len + m.primvars.iter().map(|p| p.len).sum::<u64>();
-        let bytes = floats.saturating_mul(4).saturating_add((m.triangle_indices_len / 3).saturating_mul(BYTES_PER_TRIANGLE));
+        // A deforming mesh's BLAS keeps each triangle at every sample besides the frame.
+        let per_triangle = BYTES_PER_TRIANGLE.saturating_add((m.point_samples as u64).saturating_mul(BYTES_PER_TRIANGLE_SAMPLE));
+        let bytes = floats.saturating_mul(4).saturating_add((m.triangle_indices_len / 3).saturating_mul(per_triangle));
         Budget::check_fits(&self.budgets, bytes, &format!("{path}: {} triangles as declared", m.triangle_indices_len / 3))
     }
 

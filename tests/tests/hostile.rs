@@ -423,8 +423,8 @@ fn budgeted(bytes: u64) -> ServerConfig {
 }
 
 /// Under a 2 GiB budget: the 16384² all-AOV render (92 GiB of film), the 16-bit PNG bomb (4
-/// GiB to decode) and a 200M-triangle declaration are each refused with RESOURCE_EXHAUSTED
-/// naming what and how much, before anything is allocated.
+/// GiB to decode), a 200M-triangle declaration and a deformation whose BLAS would not fit are
+/// each refused with RESOURCE_EXHAUSTED naming what and how much, before anything is allocated.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn requests_beyond_the_memory_budget_are_resource_exhausted() {
     let server = EmbeddedServer::start_with(budgeted(2 << 30)).await.unwrap();
@@ -449,6 +449,20 @@ async fn requests_beyond_the_memory_budget_are_resource_exhausted() {
     let declare = |tris| hostile_inputs::declared_mesh("/Evil/Huge", tris);
     assert_status(raw.sync(&s, declare(200_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "200000000 triangles", "limit"]);
     assert_status(raw.sync(&s, declare(40_000_000)).await, Code::ResourceExhausted, &["/Evil/Huge", "40000000 triangles", "memory budget"]);
+    // 4 M triangles fit as declared (the sync then fails for want of their arrays); deforming
+    // over 64 samples, their BLAS would hold each triangle 64 times more (13 GB): over it.
+    let deforming = |samples: u32| {
+        let m = pb::MeshPrim {
+            points_len: 9 * (1 + samples as u64),
+            triangle_indices_len: 12_000_000,
+            point_samples: samples,
+            visible: true,
+            ..Default::default()
+        };
+        vec![tessera::sync::delta("/Evil/Blob", pb::PrimKind::Mesh, pb::prim_delta::Payload::Mesh(m))]
+    };
+    assert_status(raw.sync(&s, deforming(0)).await, Code::InvalidArgument, &["/Evil/Blob", "received 0 of"]);
+    assert_status(raw.sync(&s, deforming(64)).await, Code::ResourceExhausted, &["/Evil/Blob", "4000000 triangles", "memory budget"]);
 
     // Nothing stayed reserved: the session still holds just its Cornell box.
     let st = raw.stats(&s).await.unwrap();
