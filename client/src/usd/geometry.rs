@@ -140,11 +140,7 @@ impl Reader<'_> {
             PointMotion::Velocity { base: None, .. } => Ok(None),
             PointMotion::Velocity { from, base: Some(base), velocities, accelerations } => {
                 let dt = self.seconds_between(*from, t) as f32;
-                let moved = base.iter().zip(velocities).enumerate().map(|(i, (p, v))| {
-                    let a = accelerations.as_ref().map_or(Vec3::ZERO, |a| a[i]);
-                    *p + *v * dt + a * (0.5 * dt * dt)
-                });
-                Ok(Some(moved.collect()))
+                Ok(Some(super::motion::extrapolate(base, velocities, accelerations.as_deref(), dt)))
             }
         }
     }

@@ -187,10 +187,7 @@ impl Reader<'_> {
         let from = self.velocity_base(prim, "positions")?;
         let base = read("positions", from)?.with_context(|| format!("{p}: attribute 'positions' is missing"))?;
         match read("velocities", from)?.filter(|v| v.len() == base.len()) {
-            Some(velocities) => {
-                let dt = self.seconds_between(from, time) as f32;
-                Ok(base.iter().zip(&velocities).map(|(p, v)| *p + *v * dt).collect())
-            }
+            Some(velocities) => Ok(super::motion::extrapolate(&base, &velocities, None, self.seconds_between(from, time) as f32)),
             None => read("positions", time)?.with_context(|| format!("{p}: attribute 'positions' is missing")),
         }
     }

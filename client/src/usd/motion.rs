@@ -42,6 +42,16 @@ fn render_camera(stage: &Stage, paths: &[sdf::Path]) -> Result<Option<sdf::Path>
     Ok(paths.iter().find(|p| type_of(p).as_deref() == Some("Camera")).cloned())
 }
 
+/// USD's velocity-based motion: `base` points `dt` seconds on, moved by their `velocities`
+/// plus half their `accelerations` (when given) times dt².
+pub(super) fn extrapolate(base: &[Vec3], velocities: &[Vec3], accelerations: Option<&[Vec3]>, dt: f32) -> Vec<Vec3> {
+    let moved = base.iter().zip(velocities).enumerate().map(|(i, (p, v))| {
+        let a = accelerations.map_or(Vec3::ZERO, |a| a[i]);
+        *p + *v * dt + a * (0.5 * dt * dt)
+    });
+    moved.collect()
+}
+
 impl Reader<'_> {
     /// The motion samples' times: `--motion-samples` evenly spaced from shutter open to close
     /// (none when the shutter is closed). Transforms, instances, skeletons and points are all

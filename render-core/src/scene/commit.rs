@@ -22,7 +22,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
     let mut warnings = Vec::new();
     let materials = Materials::resolve(desc, cache, &mut warnings);
-    let emissive = |m: &MeshDesc| materials.list[materials.of("", &m.material) as usize].is_emissive();
+    let emissive = |path: &str, m: &MeshDesc| materials.list[materials.of(path, &m.material) as usize].is_emissive();
     let geometry = Geometry::build(desc, cache, &emissive, &mut warnings)?;
     let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials, &mut warnings)?;
     let mut plan = plan_of(desc, &materials);
@@ -94,7 +94,7 @@ impl<'d> Geometry<'d> {
     fn build(
         desc: &'d SceneDesc,
         cache: &mut BlasCache,
-        emissive: &dyn Fn(&MeshDesc) -> bool,
+        emissive: &dyn Fn(&str, &MeshDesc) -> bool,
         warnings: &mut Vec<String>,
     ) -> Result<Self, SceneError> {
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
@@ -111,7 +111,7 @@ impl<'d> Geometry<'d> {
                 continue;
             }
             // Light sampling places emitters once: an emissive mesh keeps the frame's shape.
-            let shape = match m.mesh.deformation_samples() > 0 && emissive(m) {
+            let shape = match m.mesh.deformation_samples() > 0 && emissive(path, m) {
                 true => {
                     warnings
                         .push(format!("{path}: an emissive mesh does not blur with its deformation yet; it renders in the frame's shape"));
