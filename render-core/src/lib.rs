@@ -37,5 +37,6 @@ pub mod scene;
 pub mod subsurface;
 pub mod tangents;
 pub mod texture;
+pub mod volume;
 
 pub use glam;

@@ -27,3 +27,4 @@ mod skinning;
 mod subdivision;
 mod textures;
 mod usd;
+mod volumes;

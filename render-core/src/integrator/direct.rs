@@ -89,6 +89,10 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let shadow = shadow_ray(v.leave(ls.wi).origin, v.s.p, ls).with_time(v.s.time);
         counters.rays += 1;
         let Some(glass) = self.shadow_pass(&shadow, v.a_roughness) else { return };
+        let tr = self.volume_transmittance(&shadow);
+        if tr == 0.0 {
+            return;
+        }
         let w = match glass {
             Some(_) => 1.0,
             None if ls.delta || self.settings.strategy == LightStrategy::LightOnly => 1.0,
@@ -97,7 +101,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         // Light out of a medium through its boundary: transparent shadows from inside took
         // their share of it.
         let w = if wi_local.z * v.wo_local.z < 0.0 { w * d.leaving_share } else { w };
-        let scale = path.beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (w / ls.pdf);
+        let scale = path.beta * wi_local.z.abs() * ls.li * glass.unwrap_or(Vec3::ONE) * (tr * w / ls.pdf);
         let c = clamped(f * scale, path.depth >= 1, self.settings.clamp_indirect);
         if self.splits_by_lobe(path.depth) {
             // Direct light at the first surface, split by the lobes that reflect it.

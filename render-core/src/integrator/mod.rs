@@ -17,6 +17,7 @@ mod path;
 mod scatter;
 mod settings;
 mod shading;
+mod volume;
 
 pub use settings::{IntegratorSettings, LightStrategy};
 
@@ -34,6 +35,7 @@ use direct::DirectLighting;
 use medium::WalkStep;
 use path::PathState;
 use shading::{Landing, Vertex};
+use volume::VolumeStep;
 
 /// Counters of one path.
 #[derive(Clone, Copy, Debug, Default)]
@@ -74,8 +76,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
 }
 
 /// Features whose machinery only the general path loop holds.
-const FULL_LOOP_FEATURES: [Feature; 5] =
-    [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair];
+const FULL_LOOP_FEATURES: [Feature; 6] =
+    [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair, Feature::Volumes];
 
 /// True when the scene's features or the render's settings need the general path loop.
 pub fn needs_full_loop(features: Features, settings: &IntegratorSettings) -> bool {
@@ -128,8 +130,22 @@ impl<const FULL: bool> Tracer<'_, FULL> {
                     WalkStep::Boundary => {}
                 }
             }
-            let share = std::mem::replace(&mut path.exit_share, 1.0);
             let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
+            if FULL && !scene.volumes.is_empty() {
+                let from_camera = path.depth == 0;
+                match tracer.volume_step(&mut path, t_hit, rng, counters) {
+                    VolumeStep::Passed => {}
+                    step => {
+                        // Coverage: the share of camera rays a volume stops is its opacity.
+                        out.alpha = if from_camera { 1.0 } else { out.alpha };
+                        if step == VolumeStep::Scattered {
+                            continue;
+                        }
+                        break;
+                    }
+                }
+            }
+            let share = std::mem::replace(&mut path.exit_share, 1.0);
             tracer.add_crossed_lights(&mut path, t_hit, share);
             let Some(hit) = hit else {
                 tracer.add_escaped(&mut path, share);

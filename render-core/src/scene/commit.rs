@@ -30,7 +30,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         true => tangents_of(&instances, &geometry.meshes, &materials, cache),
         false => vec![None; geometry.meshes.len()],
     };
-    let (lo, hi) = bounds_of(&instances, &geometry.blases, &prim_paths)?;
+    let volumes = volumes_of(desc)?;
+    let (lo, hi) =
+        volumes.iter().fold(bounds_of(&instances, &geometry.blases, &prim_paths)?, |(lo, hi), v| (lo.min(v.bounds.0), hi.max(v.bounds.1)));
     let tlas_instances: Vec<TlasInstance> =
         instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform, motion: i.motion.clone() }).collect();
     let tlas = Tlas::build(&geometry.blases, &tlas_instances);
@@ -76,9 +78,21 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         prim_paths,
         cameras: desc.cameras.clone(),
         bounds: (lo, hi),
+        volumes,
         plan,
         warnings,
     })
+}
+
+/// The volumes, validated, with their majorant grids.
+fn volumes_of(desc: &SceneDesc) -> Result<Vec<crate::volume::Volume>, SceneError> {
+    desc.volumes
+        .iter()
+        .map(|(path, v)| {
+            crate::volume::validate_volume(path, v)?;
+            Ok(crate::volume::Volume::new(path, v))
+        })
+        .collect()
 }
 
 /// One BLAS per distinct mesh prim that has triangles and renders (visible, or a prototype).

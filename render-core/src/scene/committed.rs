@@ -73,6 +73,8 @@ pub struct CommittedScene {
     pub cameras: BTreeMap<String, CameraDesc>,
     /// World bounds of the geometry (min, max); empty scenes have min > max.
     pub bounds: (Vec3, Vec3),
+    /// Volumes, in path order.
+    pub volumes: Vec<crate::volume::Volume>,
     /// What the renderer simulates for this scene.
     pub plan: RenderPlan,
     /// What commit could not honour, by prim.

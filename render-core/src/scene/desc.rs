@@ -61,6 +61,8 @@ pub struct SceneDesc {
     pub cameras: BTreeMap<String, CameraDesc>,
     /// Decoded texture files by content hash, as materials name them.
     pub textures: BTreeMap<String, Arc<crate::texture::Image>>,
+    /// Volumes.
+    pub volumes: BTreeMap<String, crate::volume::VolumeDesc>,
 }
 
 /// A scene that cannot be committed, naming the prim and field at fault.

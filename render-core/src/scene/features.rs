@@ -62,5 +62,6 @@ pub(super) fn plan_of(desc: &SceneDesc, materials: &Materials) -> RenderPlan {
     let moving_instancers = desc.instancers.iter().filter(|(_, i)| !i.motion.is_empty());
     let moving = moving_meshes.map(|(p, _)| p).chain(moving_instancers.map(|(p, _)| p)).chain(moving_cameras.map(|(p, _)| p));
     plan.call_for(Feature::MotionBlur, moving.cloned());
+    plan.call_for(Feature::Volumes, desc.volumes.keys().cloned());
     plan
 }

@@ -1,0 +1,119 @@
+//! Paths through volumes ([`crate::volume`]): the free flight along each ray with the
+//! emission gathered on the way and, at a real collision, next-event estimation through the
+//! phase function and the next direction drawn from it.
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::PathKind;
+use crate::geometry::Ray;
+use crate::light::ShadingContext;
+use crate::sampling::{PathSampler, mix64, power_heuristic};
+use crate::volume::Volume;
+use crate::volume::tracking::{self, Stream};
+
+use super::direct::shadow_ray;
+use super::medium::MEDIUM_ROUGHNESS;
+use super::path::{PathState, PrevVertex, clamped};
+use super::{LightStrategy, PathCounters, Tracer};
+
+/// What the path did along its ray's segment through the volumes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum VolumeStep {
+    /// It crossed them to the surface (or out of the scene).
+    Passed,
+    /// It scattered; the path's ray leaves the scattering point.
+    Scattered,
+    /// It collided and ended there (depth, roulette or no throughput left).
+    Ended,
+}
+
+/// A real collision in a volume.
+struct Collision<'s> {
+    volume: &'s Volume,
+    p: Vec3,
+    /// Towards where the path came from.
+    wo: Vec3,
+    time: f32,
+}
+
+impl<const FULL: bool> Tracer<'_, FULL> {
+    /// Tracks the path's ray through the volumes up to `t_hit`, adding their emission.
+    pub(super) fn volume_step(&self, path: &mut PathState, t_hit: f32, rng: &mut PathSampler, counters: &mut PathCounters) -> VolumeStep {
+        let [u_seed_a, u_seed_b, u_sel, u_rr] = rng.next_4d();
+        let seed = (u_seed_a.to_bits() as u64) << 32 | u_seed_b.to_bits() as u64;
+        let ray = path.ray;
+        let flight = tracking::fly(&self.scene.volumes, &ray, t_hit, &mut Stream::new(seed));
+        if flight.emitted != Vec3::ZERO {
+            let c = clamped(path.beta * flight.emitted, path.depth >= 2, self.settings.clamp_indirect);
+            let (k, direct) = (path.light.found_at(path.depth), path.light.seg_direct);
+            path.light.add(k, c, direct);
+        }
+        let Some((t, k)) = flight.collision else { return VolumeStep::Passed };
+        let volume = &self.scene.volumes[k];
+        path.beta *= volume.albedo();
+        if path.depth >= self.settings.max_depth || path.is_dark() {
+            return VolumeStep::Ended;
+        }
+        if path.depth == 0 {
+            path.light.first = PathKind::Diffuse as usize;
+        }
+        let at = Collision { volume, p: ray.origin + ray.dir * t, wo: -ray.dir, time: ray.time };
+        let [ul_x, ul_y, up_x, up_y] = rng.next_4d();
+        self.add_phase_direct(path, &at, [ul_x, ul_y, u_sel], counters);
+        let (wi, pdf) = volume.phase.sample(at.wo, Vec2::new(up_x, up_y));
+        (path.light.seg_direct, path.light.in_walk) = (path.depth == 0, false);
+        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+        path.prev =
+            Some(PrevVertex { ctx, bsdf_pdf: pdf, delta: false, kind: PathKind::Diffuse, roughness: MEDIUM_ROUGHNESS, in_medium: false });
+        path.cone = path.cone.after_bounce(path.cone.width_at(t), MEDIUM_ROUGHNESS);
+        path.ray = Ray::new(at.p, wi).with_time(at.time);
+        path.depth += 1;
+        match path.survives_roulette(self.settings.rr_start, u_rr) {
+            true => VolumeStep::Scattered,
+            false => VolumeStep::Ended,
+        }
+    }
+
+    /// Next-event estimation at a collision: a light sampled, its shadow ray's visibility and
+    /// transmittance, the phase function, MIS against phase sampling.
+    fn add_phase_direct(&self, path: &mut PathState, at: &Collision, u: [f32; 3], counters: &mut PathCounters) {
+        if self.scene.lights.is_empty() || self.settings.strategy == LightStrategy::BsdfOnly {
+            return;
+        }
+        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+        let scene = self.scene;
+        scene.lights.sample_each(&ctx, u[2], Vec2::new(u[0], u[1]), self.settings.light_split_budget, |mut ls, light| {
+            if let Some((instance, triangle)) = light.textured_emitter {
+                ls.li = scene.emission_at(instance, triangle, at.p + ls.wi * ls.dist);
+            }
+            if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
+                return;
+            }
+            let phase = at.volume.phase.eval(at.wo, ls.wi);
+            let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
+            counters.rays += 1;
+            if scene.occluded(&shadow, shadow.tmax) {
+                return;
+            }
+            let tr = self.volume_transmittance(&shadow);
+            let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly {
+                true => 1.0,
+                false => power_heuristic(ls.pdf, phase),
+            };
+            let c = path.beta * ls.li * (phase * tr * w * light.multiplier(PathKind::Diffuse) / ls.pdf);
+            let first = path.light.first;
+            path.light.add(first, clamped(c, path.depth >= 1, self.settings.clamp_indirect), path.depth == 0);
+        });
+    }
+
+    /// The volumes' transmittance along a shadow ray (1 without volumes), by ratio tracking
+    /// with numbers hashed from the ray, so it needs no sampler dimension.
+    pub(super) fn volume_transmittance(&self, shadow: &Ray) -> f32 {
+        if !FULL || self.scene.volumes.is_empty() {
+            return 1.0;
+        }
+        let bits = |v: Vec3| (v.x.to_bits() as u64) << 32 ^ (v.y.to_bits() as u64) << 11 ^ v.z.to_bits() as u64;
+        let seed = mix64(bits(shadow.origin) ^ mix64(bits(shadow.dir)));
+        tracking::transmittance(&self.scene.volumes, shadow, shadow.tmax, &mut Stream::new(seed))
+    }
+}
