@@ -188,6 +188,7 @@ fn kind_name(kind: i32) -> &'static str {
         Ok(pb::PrimKind::Light) => "light",
         Ok(pb::PrimKind::Camera) => "camera",
         Ok(pb::PrimKind::Texture) => "texture",
+        Ok(pb::PrimKind::Volume) => "volume",
         Ok(pb::PrimKind::Remove) => "remove",
         _ => "unknown",
     }

@@ -116,6 +116,31 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
         items.push(delta(path, pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim)));
         items.extend(chunks(path, pb::ArrayField::InstanceTransforms, &transforms, |c, v| c.doubles = v));
     }
+    for (path, v) in &t.volumes {
+        items.extend(volume_sync(path, v));
+    }
+    items
+}
+
+/// A volume's delta and its voxels.
+fn volume_sync(path: &str, v: &render_core::volume::VolumeDesc) -> Vec<pb::sync_request::Item> {
+    let (o, d) = (v.density.origin, v.density.dims);
+    let temperature = v.temperature.as_ref().map_or(&[][..], |t| &t.values[..]);
+    let prim = pb::VolumePrim {
+        index_to_world: Some(convert::matrix(&v.index_to_world)),
+        origin_x: o.x,
+        origin_y: o.y,
+        origin_z: o.z,
+        dims_x: d.x,
+        dims_y: d.y,
+        dims_z: d.z,
+        density_len: v.density.values.len() as u64,
+        temperature_len: temperature.len() as u64,
+        shading: Some(convert::volume_shading_to_wire(&v.shading)),
+    };
+    let mut items = vec![delta(path, pb::PrimKind::Volume, pb::prim_delta::Payload::Volume(prim))];
+    items.extend(chunks(path, pb::ArrayField::VolumeDensity, &v.density.values, |c, v| c.floats = v));
+    items.extend(chunks(path, pb::ArrayField::VolumeTemperature, temperature, |c, v| c.floats = v));
     items
 }
 
@@ -146,6 +171,7 @@ pub fn changes(before: &Translation, after: &Translation) -> Vec<pb::sync_reques
         lights: changed(&before.lights, &after.lights),
         cameras: changed(&before.cameras, &after.cameras),
         instancers: changed(&before.instancers, &after.instancers),
+        volumes: changed(&before.volumes, &after.volumes),
         textures: after.textures.iter().filter(|(h, _)| !before.textures.contains_key(*h)).map(|(h, t)| (h.clone(), t.clone())).collect(),
         ..Default::default()
     };
@@ -165,7 +191,8 @@ fn prim_paths(t: &Translation) -> std::collections::BTreeSet<&str> {
     let lights = t.lights.iter().map(|(p, _)| p);
     let cameras = t.cameras.iter().map(|(p, _)| p);
     let instancers = t.instancers.iter().map(|(p, _)| p);
-    meshes.chain(materials).chain(lights).chain(cameras).chain(instancers).map(String::as_str).collect()
+    let volumes = t.volumes.iter().map(|(p, _)| p);
+    meshes.chain(materials).chain(lights).chain(cameras).chain(instancers).chain(volumes).map(String::as_str).collect()
 }
 
 /// A mesh delta that moves, rebinds or hides a mesh the session holds, without its arrays.

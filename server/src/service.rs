@@ -135,7 +135,7 @@ impl Drop for RunningRender {
 pub fn capabilities(config: &ServerConfig) -> pb::Capabilities {
     pb::Capabilities {
         version: env!("CARGO_PKG_VERSION").into(),
-        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "texture", "remove"].map(String::from).to_vec(),
+        prim_kinds: ["mesh", "instancer", "material", "light", "camera", "texture", "volume", "remove"].map(String::from).to_vec(),
         node_types: [
             "UsdPreviewSurface",
             "UsdUVTexture",

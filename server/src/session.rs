@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use render_core::geometry::{Mesh, Primvar};
 use render_core::scene::{BlasCache, CommittedScene, InstancerDesc, MeshDesc, SceneDesc, commit};
+use render_core::volume::{VolumeDesc, VoxelGrid};
 use tessera_proto::v1 as pb;
 use tonic::Status;
 
@@ -122,6 +123,14 @@ struct StagedMesh {
     primvars: Vec<(Vec<f32>, u64)>,
 }
 
+/// A volume's voxels arriving in chunks.
+struct StagedVolume {
+    prim: pb::VolumePrim,
+    density: Vec<f32>,
+    temperature: Vec<f32>,
+    filled: [u64; 2],
+}
+
 /// A texture file arriving in chunks.
 struct StagedTexture {
     source: String,
@@ -138,6 +147,8 @@ pub struct Transaction {
     /// Instancers staged: prototype, transforms (then motion) as they arrive, declared length,
     /// motion samples per instance.
     instancers: HashMap<String, (String, Vec<f64>, u64, u64)>,
+    /// Volumes staged: their delta, then density and temperature voxels as they arrive.
+    volumes: HashMap<String, StagedVolume>,
     /// Prims applied.
     pub applied: u32,
     limits: Limits,
@@ -185,7 +196,9 @@ pub fn scene_bytes(desc: &SceneDesc) -> u64 {
         desc.instancers.values().map(|i| i.transforms.len() as u64 * BYTES_PER_INSTANCE + i.motion.len() as u64 * 48).sum();
     // Mip levels add a third; the environment's importance map and tangents stay below that.
     let textures: u64 = desc.textures.values().map(|t| t.bytes() as u64 * 2).sum();
-    meshes + instances + textures
+    // Majorants add 5 bytes per 512 voxels.
+    let volumes: u64 = desc.volumes.values().map(|v| v.bytes() + v.bytes() / 256).sum();
+    meshes + instances + textures + volumes
 }
 
 fn attribute_bytes(mesh: &Mesh) -> u64 {
@@ -316,6 +329,7 @@ impl Session {
             store,
             meshes: HashMap::new(),
             instancers: HashMap::new(),
+            volumes: HashMap::new(),
             applied: 0,
             limits,
             memory,
@@ -457,10 +471,13 @@ impl Transaction {
                 self.desc.cameras.remove(&path);
                 self.desc.materials.remove(&path);
                 self.desc.instancers.remove(&path);
+                self.desc.volumes.remove(&path);
                 self.meshes.remove(&path);
+                self.volumes.remove(&path);
             }
             (pb::PrimKind::Mesh, Some(Payload::Mesh(m))) => self.apply_mesh(path, d.dirty, m)?,
             (pb::PrimKind::Instancer, Some(Payload::Instancer(i))) => self.apply_instancer(path, i)?,
+            (pb::PrimKind::Volume, Some(Payload::Volume(v))) => self.apply_volume(path, v)?,
             (pb::PrimKind::Material, Some(Payload::Material(m))) => {
                 let network = convert::material_from_wire(&m);
                 network.validate(&path).map_err(|e| Status::invalid_argument(e.to_string()))?;
@@ -586,6 +603,28 @@ impl Transaction {
         Ok(())
     }
 
+    /// A volume delta: its declared voxels (checked against their dims, the voxel limit and the
+    /// budget) are staged for the chunks that follow.
+    fn apply_volume(&mut self, path: String, v: pb::VolumePrim) -> Result<(), Status> {
+        let voxels = VoxelGrid::voxel_count(glam::UVec3::new(v.dims_x, v.dims_y, v.dims_z));
+        if voxels != v.density_len {
+            return Err(invalid(&path, "density", format!("{} values declared for {voxels} voxels", v.density_len)));
+        }
+        if voxels > render_core::volume::grid::MAX_VOXELS {
+            return Err(Status::resource_exhausted(format!(
+                "{path}: {voxels} voxels exceed the limit of {} per grid",
+                render_core::volume::grid::MAX_VOXELS
+            )));
+        }
+        if v.temperature_len != 0 && v.temperature_len != voxels {
+            return Err(invalid(&path, "temperature", format!("{} values; 0 or one per voxel ({voxels})", v.temperature_len)));
+        }
+        let bytes = (v.density_len + v.temperature_len) * 4;
+        Budget::check_fits(&self.budgets, bytes.saturating_mul(2), &format!("{path}: {voxels} voxels as declared"))?;
+        self.volumes.insert(path, StagedVolume { prim: v, density: Vec::new(), temperature: Vec::new(), filled: [0; 2] });
+        Ok(())
+    }
+
     /// A texture file's header: its content hash (the delta's path) and length.
     fn apply_texture(&mut self, hash: &str, t: &pb::TexturePrim) -> Result<(), Status> {
         if !is_content_hash(hash) {
@@ -614,6 +653,15 @@ impl Transaction {
                 self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
             let mut filled = 0;
             return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
+        }
+        if matches!(field, pb::ArrayField::VolumeDensity | pb::ArrayField::VolumeTemperature) {
+            let v = self.volumes.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no volume delta precedes this chunk"))?;
+            return match field {
+                pb::ArrayField::VolumeDensity => {
+                    fill(&c.path, "density", &mut v.density, v.prim.density_len, c.offset, &c.floats, &mut v.filled[0])
+                }
+                _ => fill(&c.path, "temperature", &mut v.temperature, v.prim.temperature_len, c.offset, &c.floats, &mut v.filled[1]),
+            };
         }
         let staged = self
             .meshes
@@ -771,6 +819,11 @@ impl Transaction {
             let motion = affines("motion", &data[16 * instances..])?;
             self.desc.instancers.insert(path, InstancerDesc { prototype, transforms, motion });
         }
+        for (path, v) in self.volumes {
+            let volume = volume_from_staged(&path, v)?;
+            render_core::volume::validate_volume(&path, &volume).map_err(|e| Status::invalid_argument(e.to_string()))?;
+            self.desc.volumes.insert(path, volume);
+        }
         let total: u64 = self.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
         if total > self.limits.max_total_triangles {
             return Err(Status::resource_exhausted(format!(
@@ -780,6 +833,29 @@ impl Transaction {
         }
         Ok(Finished { desc: self.desc, staged: self.memory, decoded: self.decoded })
     }
+}
+
+/// A staged volume's grids, once all their voxels arrived.
+fn volume_from_staged(path: &str, v: StagedVolume) -> Result<VolumeDesc, Status> {
+    let p = &v.prim;
+    for (name, got, want) in [("density", v.filled[0], p.density_len), ("temperature", v.filled[1], p.temperature_len)] {
+        if got != want {
+            return Err(invalid(path, name, format!("received {got} of {want} declared values")));
+        }
+    }
+    let grid = |values: Vec<f32>| {
+        Arc::new(VoxelGrid {
+            origin: glam::IVec3::new(p.origin_x, p.origin_y, p.origin_z),
+            dims: glam::UVec3::new(p.dims_x, p.dims_y, p.dims_z),
+            values,
+        })
+    };
+    Ok(VolumeDesc {
+        temperature: (p.temperature_len > 0).then(|| grid(v.temperature)),
+        density: grid(v.density),
+        index_to_world: convert::affine(path, "index_to_world", &p.index_to_world)?,
+        shading: convert::volume_shading_from_wire(&p.shading),
+    })
 }
 
 pub use crate::limits::MAX_PRIM_PATH_BYTES;

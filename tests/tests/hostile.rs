@@ -415,6 +415,63 @@ async fn instancer_motion_that_fits_no_instances_is_refused() {
     bystander_renders(&server).await;
 }
 
+/// A volume delta of `dims` voxels declaring `density_len` and `temperature_len` values,
+/// with `voxels` sent as its density (chunked) and `shading`.
+fn volume(dims: [u32; 3], lens: (u64, u64), voxels: &[f32], shading: Option<pb::VolumeShading>) -> Vec<Item> {
+    let prim = pb::VolumePrim {
+        dims_x: dims[0],
+        dims_y: dims[1],
+        dims_z: dims[2],
+        density_len: lens.0,
+        temperature_len: lens.1,
+        shading,
+        ..Default::default()
+    };
+    let mut items = vec![tessera::sync::delta("/Evil/Smoke", pb::PrimKind::Volume, pb::prim_delta::Payload::Volume(prim))];
+    for (k, c) in voxels.chunks(tessera::sync::CHUNK_ELEMENTS).enumerate() {
+        let offset = (k * tessera::sync::CHUNK_ELEMENTS) as u64;
+        let field = pb::ArrayField::VolumeDensity as i32;
+        items.push(Item::Chunk(pb::ArrayChunk { path: "/Evil/Smoke".into(), field, offset, floats: c.to_vec(), ..Default::default() }));
+    }
+    items
+}
+
+/// Every count a volume's client controls, at its worst: dims whose product overflows, dims
+/// that disagree with the values, a grid over the voxel limit, a temperature grid of another
+/// size, missing, non-finite or negative voxels, an albedo above 1 and chunks with no volume:
+/// each refused naming the field, and the server serves a valid volume and a bystander after.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn volumes_that_fit_no_grid_are_refused() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let ones = vec![1.0f32; 8];
+    let bright = pb::VolumeShading { density: 1.0, color: Some(pb::Float3 { x: 2.0, y: 0.5, z: 0.5 }), ..Default::default() };
+    let mut nan = ones.clone();
+    nan[5] = f32::NAN;
+    let mut negative = ones.clone();
+    negative[2] = -1.0;
+    for (items, code, needles) in [
+        (volume([u32::MAX; 3], (8, 0), &ones, None), Code::InvalidArgument, vec!["/Evil/Smoke", "density", "declared"]),
+        (volume([u32::MAX; 3], (u64::MAX, 0), &[], None), Code::ResourceExhausted, vec!["/Evil/Smoke", "voxels exceed"]),
+        (volume([2, 2, 2], (7, 0), &ones[..7], None), Code::InvalidArgument, vec!["density", "7 values declared for 8 voxels"]),
+        (volume([1024, 1024, 1024], (1 << 30, 0), &[], None), Code::ResourceExhausted, vec!["/Evil/Smoke", "voxels exceed"]),
+        (volume([2, 2, 2], (8, 3), &ones, None), Code::InvalidArgument, vec!["temperature", "0 or one per voxel"]),
+        (volume([2, 2, 2], (8, 0), &ones[..4], None), Code::InvalidArgument, vec!["density", "received 4 of 8"]),
+        (volume([2, 2, 2], (8, 0), &nan, None), Code::InvalidArgument, vec!["density", "voxel 5"]),
+        (volume([2, 2, 2], (8, 0), &negative, None), Code::InvalidArgument, vec!["density", "voxel 2"]),
+        (volume([2, 2, 2], (8, 0), &ones, Some(bright)), Code::InvalidArgument, vec!["shading.color", "energy"]),
+        (volume([2, 2, 2], (8, 0), &ones, None)[1..].to_vec(), Code::InvalidArgument, vec!["no volume delta"]),
+    ] {
+        assert_status(raw.sync(&s, items).await, code, &needles);
+    }
+    let mut items = volume([2, 2, 2], (8, 0), &ones, None);
+    items.extend(camera_and_light());
+    raw.sync(&s, items).await.expect("a 2³ volume syncs");
+    assert_eq!(raw.render(&s, tiny(8, 2)).await.expect("renders").spp, 2);
+    bystander_renders(&server).await;
+}
+
 // ------------------------------------------------------------------ memory
 
 /// A server with a 2 GiB budget, as the memory test and an operator's small box would run it.
@@ -435,6 +492,10 @@ async fn requests_beyond_the_memory_budget_are_resource_exhausted() {
     let all: Vec<String> = render_core::film::Aov::ALL.iter().skip(1).map(|a| a.name().to_string()).collect();
     let huge = pb::RenderSettings { width: 16384, height: 16384, aovs: all, ..Default::default() };
     assert_status(raw.render(&s, huge).await, Code::ResourceExhausted, &["16384x16384 film", "memory budget", "GiB"]);
+
+    // 2^28 voxels (the per-grid limit) of density and temperature: 2 GiB as declared.
+    let voxels = volume([1024, 1024, 256], (1 << 28, 1 << 28), &[], None);
+    assert_status(raw.sync(&s, voxels).await, Code::ResourceExhausted, &["/Evil/Smoke", "268435456 voxels", "budget"]);
 
     let png = hostile_inputs::png_claiming(16384, 16384);
     let hash = tessera_server::textures::content_hash(&png);

@@ -72,7 +72,7 @@ fn an_independent_reader_agrees_on_every_fixture() {
         let ours = tessera::commands::inspect::inspect(&scene, tessera::usd::LoadOptions { frame, ..Default::default() })
             .unwrap_or_else(|e| panic!("{}: {e:#}", scene.display()));
         let theirs = usd_core_reads(&scene, frame);
-        for section in ["meshes", "instancers", "lights", "cameras"] {
+        for section in ["meshes", "instancers", "lights", "cameras", "volumes"] {
             let mut found = Vec::new();
             differences(&theirs[section], &ours[section], section, &ours, &mut found);
             problems.extend(found.into_iter().map(|d| format!("{} (frame {frame:?}): {d}", scene.display())));

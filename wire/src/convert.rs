@@ -378,3 +378,31 @@ fn decode_values(t: &pb::Tile, expected: usize) -> Result<Vec<f32>, Status> {
     }
     Ok(out)
 }
+
+/// Volume shading to the wire.
+pub fn volume_shading_to_wire(s: &render_core::volume::VolumeShading) -> pb::VolumeShading {
+    pb::VolumeShading {
+        density: s.density,
+        color: Some(float3(s.color)),
+        anisotropy: s.anisotropy,
+        emission: Some(float3(s.emission)),
+        blackbody_intensity: s.blackbody_intensity,
+        blackbody_tint: Some(float3(s.blackbody_tint)),
+        temperature: s.temperature,
+    }
+}
+
+/// Volume shading from the wire: Blender's defaults when absent (validated at commit).
+pub fn volume_shading_from_wire(s: &Option<pb::VolumeShading>) -> render_core::volume::VolumeShading {
+    let d = render_core::volume::VolumeShading::default();
+    let Some(s) = s else { return d };
+    render_core::volume::VolumeShading {
+        density: s.density,
+        color: vec3(&s.color, d.color),
+        anisotropy: s.anisotropy,
+        emission: vec3(&s.emission, d.emission),
+        blackbody_intensity: s.blackbody_intensity,
+        blackbody_tint: vec3(&s.blackbody_tint, d.blackbody_tint),
+        temperature: s.temperature,
+    }
+}

@@ -117,8 +117,23 @@ pub fn to_json(t: &Translation) -> Value {
         "cameras": cameras,
         "materials": materials,
         "textures": t.texture_paths.iter().map(|(k, v)| (k.clone(), json!(v))).collect::<Map<String, Value>>(),
+        "volumes": volumes_json(t),
         "skipped": t.skipped,
     })
+}
+
+/// Each volume's prim transform and the VDB grid each field reads.
+fn volumes_json(t: &Translation) -> Value {
+    let entry = |v: &crate::usd::VolumeSource| {
+        let fields: Map<String, Value> = v
+            .fields
+            .iter()
+            .zip(&v.active_voxels)
+            .map(|((field, file, name), voxels)| (field.clone(), json!({ "file": file, "fieldName": name, "activeVoxels": voxels })))
+            .collect();
+        (v.path.clone(), json!({ "world": usd_matrix(&v.world), "fields": fields }))
+    };
+    Value::Object(t.volume_sources.iter().map(entry).collect())
 }
 
 /// A skinned mesh's skeleton and animation, and (unless refined, when the points are no longer

@@ -26,6 +26,7 @@ mod skinning;
 mod stage;
 pub mod subdivision;
 mod values;
+mod volumes;
 
 use render_settings::valid_targets;
 pub use render_settings::{RenderProductDesc, RenderSettingsDesc};
@@ -92,6 +93,10 @@ pub struct Translation {
     pub skinned: Vec<Skinned>,
     /// BasisCurves prims rendered as tubes, in reading order.
     pub curves: Vec<String>,
+    /// UsdVol volumes by prim path.
+    pub volumes: Vec<(String, render_core::volume::VolumeDesc)>,
+    /// Where each volume's grids came from, for `inspect`.
+    pub volume_sources: Vec<VolumeSource>,
     /// Samples per cubic span their tubes were swept with.
     pub curve_samples: usize,
 }
@@ -105,6 +110,18 @@ fn plan_entry(effect: &str, reason: &str, prims: impl ExactSizeIterator<Item = S
         named.push(format!("and {} more", count - SHOWN));
     }
     format!("  + {effect:<18} {reason}\n  {:<20} {}\n", "", named.join(", "))
+}
+
+/// A volume's prim transform and fields as read.
+#[derive(Clone, Debug)]
+pub struct VolumeSource {
+    pub path: String,
+    /// The prim's local-to-world transform.
+    pub world: Affine3A,
+    /// (field, resolved VDB file, grid name) of each field rendered.
+    pub fields: Vec<(String, String, String)>,
+    /// Active voxels per field (tiles counted voxel by voxel).
+    pub active_voxels: Vec<u64>,
 }
 
 /// A mesh refined as a subdivision surface.
@@ -312,6 +329,7 @@ impl Translation {
         d.materials.extend(self.materials.iter().cloned());
         d.lights.extend(self.lights.iter().cloned());
         d.cameras.extend(self.cameras.iter().cloned());
+        d.volumes.extend(self.volumes.iter().cloned());
         for (hash, t) in &self.textures {
             match render_core::texture::Image::decode(&t.bytes, &t.source) {
                 Ok(image) => {

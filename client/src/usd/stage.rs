@@ -91,6 +91,9 @@ impl Reader<'_> {
             "PointInstancer" => self.point_instancer(&prim, &p, visible),
             "Points" => self.points(&prim, &p, visible),
             "BasisCurves" => self.basis_curves(&prim, &p, visible),
+            "Volume" => self.volume(&prim, &p, visible),
+            // Read through the Volume whose fields name them.
+            "OpenVDBAsset" | "Field3DAsset" => Ok(()),
             "RenderSettings" => self.render_settings(&prim, &p),
             // Read through the RenderSettings that names them.
             "RenderProduct" | "RenderVar" => Ok(()),

@@ -21,7 +21,7 @@ pub struct VoxelGrid {
 impl VoxelGrid {
     /// Voxels the grid declares (its dims multiplied, without overflow).
     pub fn voxel_count(dims: UVec3) -> u64 {
-        dims.x as u64 * dims.y as u64 * dims.z as u64
+        (dims.x as u64).saturating_mul(dims.y as u64).saturating_mul(dims.z as u64)
     }
 
     /// The value at lattice point `ijk` (0 outside the block).

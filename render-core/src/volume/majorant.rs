@@ -7,7 +7,8 @@ use glam::{IVec3, UVec3, Vec3};
 
 use super::grid::VoxelGrid;
 
-/// Voxels along each side of a majorant cell.
+/// Voxels along each side of a majorant cell: `cargo bench -p tessera --bench volumes`
+/// measured 8 fastest on the smoke fixture (docs/benchmarks.md).
 pub const CELL: i32 = 8;
 
 /// Per cell: the largest extinction, and whether anything there emits.
@@ -15,6 +16,8 @@ pub const CELL: i32 = 8;
 pub struct MajorantGrid {
     /// Index-space corner of cell (0, 0, 0).
     lo: Vec3,
+    /// Voxels along each side of a cell.
+    cell: i32,
     res: UVec3,
     extinction: Vec<f32>,
     emits: Vec<bool>,
@@ -24,22 +27,27 @@ impl MajorantGrid {
     /// Cells over `support` (index space); `extinction_of` and `emits_in` see each cell's
     /// lattice points as an inclusive index box: every point the trilinear field inside the
     /// cell interpolates from.
-    pub fn build(support: (Vec3, Vec3), extinction_of: impl Fn(IVec3, IVec3) -> f32, emits_in: impl Fn(IVec3, IVec3) -> bool) -> Self {
+    pub fn build(
+        support: (Vec3, Vec3),
+        cell: i32,
+        extinction_of: impl Fn(IVec3, IVec3) -> f32,
+        emits_in: impl Fn(IVec3, IVec3) -> bool,
+    ) -> Self {
         let (lo, hi) = support;
-        let res = ((hi - lo) / CELL as f32).ceil().max(Vec3::ONE).as_uvec3();
+        let res = ((hi - lo) / cell as f32).ceil().max(Vec3::ONE).as_uvec3();
         let mut extinction = Vec::with_capacity((res.x * res.y * res.z) as usize);
         let mut emits = Vec::with_capacity(extinction.capacity());
         for z in 0..res.z {
             for y in 0..res.y {
                 for x in 0..res.x {
-                    let c0 = lo.as_ivec3() + IVec3::new(x as i32, y as i32, z as i32) * CELL;
-                    let (a, b) = (c0, c0 + IVec3::splat(CELL));
+                    let c0 = lo.as_ivec3() + IVec3::new(x as i32, y as i32, z as i32) * cell;
+                    let (a, b) = (c0, c0 + IVec3::splat(cell));
                     extinction.push(extinction_of(a, b));
                     emits.push(emits_in(a, b));
                 }
             }
         }
-        MajorantGrid { lo: lo.floor(), res, extinction, emits }
+        MajorantGrid { lo: lo.floor(), cell, res, extinction, emits }
     }
 
     /// Cells in all.
@@ -56,7 +64,7 @@ impl MajorantGrid {
 
     /// The cells along `o + t d` (index space) for t in `[t0, t1]`.
     pub fn walk(&self, o: Vec3, d: Vec3, t0: f32, t1: f32) -> Option<Dda> {
-        let size = CELL as f32;
+        let size = self.cell as f32;
         let (lo, hi) = (self.lo, self.lo + self.res.as_vec3() * size);
         let inv = Vec3::ONE / d;
         let (a, b) = ((lo - o) * inv, (hi - o) * inv);
@@ -136,7 +144,7 @@ mod tests {
 
     #[test]
     fn the_walk_visits_each_crossed_cell_once_in_order_and_covers_the_segment() {
-        let g = MajorantGrid::build((Vec3::ZERO, Vec3::splat(32.0)), |_, _| 1.0, |_, _| false);
+        let g = MajorantGrid::build((Vec3::ZERO, Vec3::splat(32.0)), CELL, |_, _| 1.0, |_, _| false);
         assert_eq!(g.cells(), 64);
         let (o, d) = (Vec3::new(-5.0, 3.0, 1.0), Vec3::new(1.0, 0.37, 0.11).normalize());
         let cells: Vec<_> = g.walk(o, d, 0.0, 1e9).unwrap().collect();

@@ -140,6 +140,12 @@ pub struct Volume {
 impl Volume {
     /// Builds the majorant grid and bounds of a validated volume.
     pub fn new(prim: &str, desc: &VolumeDesc) -> Self {
+        Self::with_majorant_cells(prim, desc, majorant::CELL)
+    }
+
+    /// [`Self::new`] with majorant cells of `cell`³ voxels (what the volumes bench varies).
+    pub fn with_majorant_cells(prim: &str, desc: &VolumeDesc, cell: i32) -> Self {
+        let cell = cell.max(1);
         let s = desc.shading;
         let support = match &desc.temperature {
             Some(t) => (desc.density.support().0.min(t.support().0), desc.density.support().1.max(t.support().1)),
@@ -149,6 +155,7 @@ impl Volume {
         let emits = s.emission.max_element() > 0.0 || blackbody;
         let majorant = MajorantGrid::build(
             support,
+            cell,
             |a, b| majorant::grid_max(&desc.density, s.density, a, b),
             |a, b| {
                 (s.emission.max_element() > 0.0 && desc.density.max_in(a, b) > 0.0)
@@ -165,7 +172,7 @@ impl Volume {
             majorant,
             bounds,
             phase: HenyeyGreenstein::new(s.anisotropy),
-            emission_floor: EMISSION_STEPS_PER_CELL / (majorant::CELL as f32 * voxel),
+            emission_floor: EMISSION_STEPS_PER_CELL / (cell as f32 * voxel),
             emits,
         }
     }
@@ -204,6 +211,11 @@ impl Volume {
     /// Bytes it holds: its grids and majorants.
     pub fn bytes(&self) -> u64 {
         self.desc.bytes() + 5 * self.majorant.cells() as u64
+    }
+
+    /// Cells of its majorant grid.
+    pub fn majorant_cells(&self) -> usize {
+        self.majorant.cells()
     }
 }
 
