@@ -142,6 +142,48 @@ async fn a_fibre_in_a_furnace_shows_its_albedo_across_its_width() {
     assert!((lost - (1.0 - mean_albedo)).abs() < 0.015, "the fibre takes {lost:.4}; its albedo over h says {:.4}", 1.0 - mean_albedo);
 }
 
+/// Curves with `normals` are flat ribbons of their width (UsdGeomBasisCurves: "widths are ribbon
+/// width" once normals orient the curve): facing the camera a ribbon covers exactly its length
+/// times its width, edge-on nothing, and a ribbon twisting a quarter turn along its length
+/// covers the closed form of its projected width.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ribbons_oriented_by_normals_cover_their_projected_width() {
+    let ribbon = |normals: &str| {
+        format!(
+            "uniform token type = \"linear\"\n    point3f[] points = [(-1.5, 0, 0), (0, 0, 0), (1.5, 0, 0)]\n    int[] curveVertexCounts = [3]\n    float[] widths = [0.5] (interpolation = \"constant\")\n    normal3f[] normals = {normals}"
+        )
+    };
+    // Facing the camera (normal +Z, towards it): a 96 × 16 pixel strip, 1536 px; the ribbon
+    // is exact, so the bound is the edge pixels' sampling noise (16 spp over 224 edge pixels).
+    let facing = load_text("ribbon_facing", &stage(&ribbon("[(0, 0, 1)] (interpolation = \"constant\")")));
+    assert!(facing.warnings.is_empty(), "{:?}", facing.warnings);
+    let seen = coverage(&facing).await;
+    assert!((seen / 1536.0 - 1.0).abs() < 0.005, "facing: coverage {seen:.1} of 1536");
+    // Edge-on (normal +Y): a ribbon of no thickness covers nothing.
+    let edge_on = load_text("ribbon_edge_on", &stage(&ribbon("[(0, 1, 0)] (interpolation = \"constant\")")));
+    assert_eq!(coverage(&edge_on).await, 0.0, "edge-on");
+    // Per-vertex normals turning a quarter turn from facing (+Z) to edge-on (+Y) at the middle
+    // and back: a linear curve is swept at its vertices only, so each half is a quad whose far
+    // end projects to a point, a triangle of 1.5 × 0.5 / 2 units² (384 px): 768 px in all.
+    let twisting = load_text("ribbon_twist", &stage(&ribbon("[(0, 0, 1), (0, 1, 0), (0, 0, 1)] (interpolation = \"vertex\")")));
+    let seen = coverage(&twisting).await;
+    assert!((seen / 768.0 - 1.0).abs() < 0.01, "twisting: coverage {seen:.1} of 768");
+}
+
+#[test]
+fn ribbons_on_hair_or_with_unusable_normals_are_reported() {
+    let body = "uniform token type = \"linear\"\n    point3f[] points = [(0, 0, 0), (1, 0, 0)]\n    int[] curveVertexCounts = [2]";
+    for (what, normals, expected) in [
+        ("a count", "normal3f[] normals = [(0, 0, 1)] (interpolation = \"vertex\")", "1 vertex values for 2"),
+        ("a zero normal", "normal3f[] normals = [(0, 0, 1), (0, 0, 0)]", "normal 1 is"),
+        ("an interpolation", "normal3f[] normals = [(0, 0, 1)] (interpolation = \"faceVarying\")", "interpolation 'faceVarying'"),
+    ] {
+        let t = load_text("ribbon_bad", &stage(&format!("{body}\n    {normals}")));
+        assert!(t.warnings.iter().any(|w| w.contains("/Hair") && w.contains(expected)), "{what}: {:?}", t.warnings);
+        assert!(t.meshes.is_empty(), "{what}: the prim is skipped");
+    }
+}
+
 #[test]
 fn curves_that_make_no_curve_are_reported_by_attribute() {
     let line = "uniform token type = \"linear\"\n    point3f[] points = [(0, 0, 0), (1, 0, 0)]";
@@ -178,10 +220,11 @@ fn curve_samples_set_how_finely_cubic_spans_are_swept() {
         t.meshes.iter().map(|(_, m)| m.mesh.indices.len()).sum()
     };
     // Linear: 4 + 6 spans, a ring pair (24 triangles) each. Cubic: 2 + 2 + 3 + 5 + 4 spans;
-    // the nonperiodic ones (2 + 3 + 4 spans) add one ring, but no extra gap.
+    // the nonperiodic ones (2 + 3 + 4 spans) add one ring, but no extra gap. The grass: three
+    // B-spline ribbons of 2 spans, 2 triangles per sample gap.
     let linear = (4 + 6) * 24;
     let cubic_spans = 2 + 2 + 3 + 5 + 4;
     for n in [1, 8, 16] {
-        assert_eq!(triangles(n), linear + cubic_spans * n * 24, "{n} samples");
+        assert_eq!(triangles(n), linear + cubic_spans * n * 24 + 3 * 2 * n * 2, "{n} samples");
     }
 }

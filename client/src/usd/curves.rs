@@ -1,6 +1,9 @@
-//! `UsdGeomBasisCurves` as round tubes: each curve evaluated with its basis (linear, or cubic
-//! `bezier`, `bspline`, `catmullRom`; `nonperiodic`, `periodic` or `pinned`), sampled along
-//! every span (`--curve-samples` times, a quality knob: docs/accuracy-vs-time.md), and swept by a polygon of its `widths` carried along by parallel transport.
+//! `UsdGeomBasisCurves` as round tubes, or as flat ribbons where `normals` orient them (the
+//! schema's rule: "widths are ribbon width" for oriented curves): each curve evaluated with its
+//! basis (linear, or cubic `bezier`, `bspline`, `catmullRom`; `nonperiodic`, `periodic` or
+//! `pinned`), sampled along every span (`--curve-samples` times, a quality knob:
+//! docs/accuracy-vs-time.md), and swept by a polygon of its `widths` carried along by parallel
+//! transport, or by a segment of its width across the curve and its normal.
 //! One triangle mesh per prim, so curves render through the ordinary path with the bound
 //! material. The polygon's circumradius is widened so its width averaged over directions is
 //! the curve's width (a regular n-gon's mean width is its perimeter over π).
@@ -47,6 +50,8 @@ pub struct Curves {
     pub points: Vec<Vec3>,
     /// Widths and their interpolation (`constant`, `uniform`, `varying`, `vertex`).
     pub widths: (Vec<f32>, String),
+    /// Normals and their interpolation, when they orient the curves as ribbons.
+    pub normals: Option<(Vec<Vec3>, String)>,
     /// Samples per cubic span.
     pub samples: usize,
 }
@@ -121,11 +126,15 @@ impl Curves {
         }
         let mut mesh = Mesh::default();
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
-        let (mut first, mut first_width) = (0, 0);
+        let (mut first, mut first_varying) = (0, 0);
         for (c, &count) in self.counts.iter().enumerate() {
             let cv = &self.points[first..first + count];
-            let (centres, widths) = self.centreline(c, cv, first, &mut first_width)?;
-            sweep(&centres, &widths, self.wrap == Wrap::Periodic, &mut mesh, &mut normals, &mut uvs);
+            let line = self.centreline(c, cv, first, &mut first_varying)?;
+            let closed = self.wrap == Wrap::Periodic;
+            match line.normals.is_empty() {
+                true => sweep(&line.centres, &line.widths, closed, &mut mesh, &mut normals, &mut uvs),
+                false => sweep_ribbon(&line, closed, &mut mesh, &mut normals, &mut uvs),
+            }
             first += count;
         }
         mesh.normals = Attribute::Vertex(normals);
@@ -140,43 +149,121 @@ impl Curves {
         spans * samples + usize::from(self.wrap != Wrap::Periodic && spans > 0)
     }
 
-    /// Curve `c`'s sampled centre line and widths along it. `first` indexes its first control
-    /// point; `first_width` its first `varying` width, advanced past its own.
-    fn centreline(&self, c: usize, cv: &[Vec3], first: usize, first_width: &mut usize) -> Result<(Vec<Vec3>, Vec<f32>), String> {
+    /// Curve `c`'s sampled centre line, with its widths (and normals) along it. `first`
+    /// indexes its first control point; `first_varying` its first `varying` value, advanced past
+    /// its own.
+    fn centreline(&self, c: usize, cv: &[Vec3], first: usize, first_varying: &mut usize) -> Result<Centreline, String> {
         let (ctrl, n_spans) = spans(self.basis, self.wrap, cv)
             .ok_or_else(|| format!("curve {c} has {} vertices, which make no {:?} {:?} curve", cv.len(), self.wrap, self.basis))?;
         let samples = if self.basis == Basis::Linear { 1 } else { self.samples };
-        let (w, interp) = (&self.widths.0, self.widths.1.as_str());
-        // Per-vertex widths follow the curve's own basis; varying ones are linear per span.
-        let vertex_widths: Vec<f32> = match interp {
-            "vertex" => spans(self.basis, self.wrap, &w[first..first + cv.len()]).map(|(v, _)| v).unwrap_or_default(),
-            _ => Vec::new(),
-        };
-        let varying = |k: usize, u: f32| {
-            let at = |i: usize| w[*first_width + if self.wrap == Wrap::Periodic { i % n_spans } else { i }];
-            at(k) * (1.0 - u) + at(k + 1) * u
-        };
-        let mut centres = Vec::new();
-        let mut widths = Vec::new();
+        let at = Along { curves: self, c, first, count: cv.len(), first_varying: *first_varying, n_spans };
+        let width = at.attribute(&self.widths.0, &self.widths.1);
+        let normal = self.normals.as_ref().map(|(v, interp)| at.attribute(v, interp));
+        let mut line = Centreline::default();
         for k in 0..n_spans {
             let s = span_start(self.basis, k);
             let last = k + 1 == n_spans && self.wrap != Wrap::Periodic;
             for j in 0..samples + usize::from(last) {
                 let u = j as f32 / samples as f32;
                 let b = cubic_weights(self.basis, u);
-                centres.push((0..4).filter(|&i| b[i] != 0.0).map(|i| ctrl[s + i] * b[i]).sum());
-                widths.push(match interp {
-                    "constant" => w[0],
-                    "uniform" => w[c],
-                    "varying" => varying(k, u),
-                    _ => (0..4).filter(|&i| b[i] != 0.0).map(|i| vertex_widths[s + i] * b[i]).sum(),
-                });
+                line.centres.push((0..4).filter(|&i| b[i] != 0.0).map(|i| ctrl[s + i] * b[i]).sum());
+                line.widths.push(width(k, u, b));
+                if let Some(normal) = &normal {
+                    line.normals.push(normal(k, u, b));
+                }
             }
         }
-        if interp == "varying" {
-            *first_width += if self.wrap == Wrap::Periodic { n_spans } else { n_spans + 1 };
+        *first_varying += if self.wrap == Wrap::Periodic { n_spans } else { n_spans + 1 };
+        Ok(line)
+    }
+}
+
+/// A curve's samples along its centre line.
+#[derive(Default)]
+struct Centreline {
+    centres: Vec<Vec3>,
+    widths: Vec<f32>,
+    /// Empty for a tube.
+    normals: Vec<Vec3>,
+}
+
+/// Where one curve's values sit in a prim's attribute arrays.
+struct Along<'c> {
+    curves: &'c Curves,
+    c: usize,
+    first: usize,
+    count: usize,
+    first_varying: usize,
+    n_spans: usize,
+}
+
+impl Along<'_> {
+    /// An attribute of `interp` interpolation along the curve, at span k, parameter u and
+    /// basis weights b: per-vertex values follow the curve's own basis, varying ones are
+    /// linear per span, as UsdGeomBasisCurves interpolates primvars.
+    fn attribute<'v, T>(&self, values: &'v [T], interp: &'v str) -> impl Fn(usize, f32, [f32; 4]) -> T + 'v
+    where
+        T: Copy + std::ops::Add<Output = T> + std::ops::Sub<Output = T> + std::ops::Mul<f32, Output = T>,
+    {
+        let (basis, periodic) = (self.curves.basis, self.curves.wrap == Wrap::Periodic);
+        let spanned: Vec<T> = match interp {
+            "vertex" => spans(basis, self.curves.wrap, &values[self.first..self.first + self.count]).map(|(v, _)| v).unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        let (c, first_varying, n_spans) = (self.c, self.first_varying, self.n_spans);
+        move |k, u, b| match interp {
+            "constant" => values[0],
+            "uniform" => values[c],
+            "varying" => {
+                let at = |i: usize| values[first_varying + if periodic { i % n_spans } else { i }];
+                at(k) * (1.0 - u) + at(k + 1) * u
+            }
+            _ => {
+                let s = span_start(basis, k);
+                (0..4).filter(|&i| b[i] != 0.0).map(|i| spanned[s + i] * b[i]).reduce(|a, b| a + b).expect("a cubic weight is nonzero")
+            }
         }
-        Ok((centres, widths))
+    }
+}
+
+/// The tangent of a sampled centre line at sample `i`, by central differences.
+fn tangent_at(centres: &[Vec3], closed: bool, i: usize) -> Vec3 {
+    let n = centres.len();
+    let (a, b) = match (i, closed) {
+        (0, false) => (centres[0], centres[1]),
+        (i, false) if i == n - 1 => (centres[n - 2], centres[n - 1]),
+        (i, _) => (centres[(i + n - 1) % n], centres[(i + 1) % n]),
+    };
+    (b - a).normalize_or(Vec3::X)
+}
+
+/// Sweeps a segment of each sample's width across the curve, perpendicular to its tangent and
+/// its normal, appending the ribbon's quads to `mesh`, the normals (made perpendicular to the
+/// tangent) to `normals` and texture coordinates to `uvs`: s across the ribbon, t along it as
+/// on tubes.
+fn sweep_ribbon(line: &Centreline, closed: bool, mesh: &mut Mesh, normals: &mut Vec<Vec3>, uvs: &mut Vec<Vec2>) {
+    let n = line.centres.len();
+    if n < 2 {
+        return;
+    }
+    let base = mesh.positions.len() as u32;
+    let rings = n + usize::from(closed);
+    for i in 0..rings {
+        let j = i % n;
+        let t = tangent_at(&line.centres, closed, j);
+        let normal = (line.normals[j] - t * line.normals[j].dot(t)).normalize_or(t.any_orthonormal_vector());
+        let half = t.cross(normal) * (0.5 * line.widths[j]);
+        let t_coord = i as f32 / (rings - 1) as f32;
+        for (s, p) in [(0.0, line.centres[j] - half), (1.0, line.centres[j] + half)] {
+            mesh.positions.push(p);
+            normals.push(normal);
+            uvs.push(Vec2::new(s, t_coord));
+        }
+    }
+    for i in 0..rings as u32 - 1 {
+        let (a, b) = (base + 2 * i, base + 2 * (i + 1));
+        mesh.indices.push([a, b, b + 1]);
+        mesh.indices.push([a, b + 1, a + 1]);
     }
 }
 
@@ -190,14 +277,7 @@ fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normal
     if n < 2 {
         return;
     }
-    let tangent = |i: usize| {
-        let (a, b) = match (i, closed) {
-            (0, false) => (centres[0], centres[1]),
-            (i, false) if i == n - 1 => (centres[n - 2], centres[n - 1]),
-            (i, _) => (centres[(i + n - 1) % n], centres[(i + 1) % n]),
-        };
-        (b - a).normalize_or(Vec3::X)
-    };
+    let tangent = |i: usize| tangent_at(centres, closed, i);
     // The mean width of a regular n-gon of circumradius ρ is 2nρ·sin(π/n)/π.
     let widen = std::f32::consts::PI / (SIDES as f32 * (std::f32::consts::PI / SIDES as f32).sin());
     let base = mesh.positions.len() as u32;
@@ -261,11 +341,21 @@ fn widths_needed(curves: &Curves, interp: &str) -> Option<usize> {
 
 impl Reader<'_> {
     pub(super) fn basis_curves(&mut self, prim: &Prim, p: &str, visible: bool) -> Result<()> {
-        let curves = self.read_curves(prim, p)?;
+        let mut curves = self.read_curves(prim, p)?;
+        let material = self.usable_material(prim)?;
+        // The hair BSDF integrates over a round fibre's cross-section.
+        let hair = |(path, n): &(String, render_core::material::MaterialNetwork)| {
+            Some(path) == material.as_ref() && n.nodes.iter().any(|node| node.path == n.surface_node && node.node_type_id == "tessera:Hair")
+        };
+        if curves.normals.is_some() && self.out.materials.iter().any(hair) {
+            curves.normals = None;
+            self.out
+                .warnings
+                .push(format!("{p}: tessera:Hair shades round fibres; these curves' 'normals' are ignored and they render as tubes"));
+        }
         let mesh = curves.tessellate().map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         self.out.curves.push(p.to_string());
         self.out.curve_samples = self.curve_samples;
-        let material = self.usable_material(prim)?;
         self.add_mesh_with(prim, p, mesh, visible, material)
     }
 
@@ -308,19 +398,27 @@ impl Reader<'_> {
             "{p}: attribute 'curveVertexCounts' adds up to {total} vertices for {} points",
             points.len()
         );
-        if get(prim, "normals", time)?.is_some() {
-            self.out
-                .warnings
-                .push(format!("{p}: curves oriented by 'normals' (ribbons) render as round tubes; ribbons are not supported yet"));
-        }
-        let mut curves = Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()), samples: self.curve_samples };
-        if let Some(widths) = get_floats(prim, p, "widths", time)? {
-            let interp = prim
-                .attribute("widths")
+        let mut curves =
+            Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()), normals: None, samples: self.curve_samples };
+        let interpolation = |name: &str| {
+            prim.attribute(name)
                 .get_metadata::<openusd::tf::Token>("interpolation")
                 .ok()
                 .flatten()
-                .map_or_else(|| "vertex".to_string(), |t| t.as_str().to_string());
+                .map_or_else(|| "vertex".to_string(), |t| t.as_str().to_string())
+        };
+        if let Some(normals) = get(prim, "normals", time)? {
+            let normals = values::vec3_array(&normals).with_context(|| format!("{p}: attribute 'normals' is not a normal3f[]"))?;
+            let interp = interpolation("normals");
+            let want = widths_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'normals' has interpolation '{interp}'"))?;
+            anyhow::ensure!(normals.len() == want, "{p}: attribute 'normals' has {} {interp} values for {want}", normals.len());
+            if let Some((i, n)) = normals.iter().enumerate().find(|(_, n)| !n.is_finite() || n.length_squared() == 0.0) {
+                anyhow::bail!("{p}: attribute 'normals': normal {i} is {n}, which orients nothing");
+            }
+            curves.normals = Some((normals, interp));
+        }
+        if let Some(widths) = get_floats(prim, p, "widths", time)? {
+            let interp = interpolation("widths");
             let want = widths_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'widths' has interpolation '{interp}'"))?;
             if let Some((i, w)) = widths.iter().enumerate().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
                 anyhow::bail!("{p}: attribute 'widths': width {i} is {w}; widths are finite and not negative");
@@ -337,7 +435,15 @@ mod tests {
     use super::*;
 
     fn curve(basis: Basis, wrap: Wrap, points: Vec<Vec3>, widths: (Vec<f32>, &str)) -> Curves {
-        Curves { basis, wrap, counts: vec![points.len()], points, widths: (widths.0, widths.1.into()), samples: DEFAULT_CURVE_SAMPLES }
+        Curves {
+            basis,
+            wrap,
+            counts: vec![points.len()],
+            points,
+            widths: (widths.0, widths.1.into()),
+            normals: None,
+            samples: DEFAULT_CURVE_SAMPLES,
+        }
     }
 
     #[test]

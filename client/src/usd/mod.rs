@@ -288,7 +288,7 @@ impl Translation {
         }
         if !self.curves.is_empty() {
             let reason = format!(
-                "BasisCurves as round tubes: {}-sided, {} samples per cubic span (--curve-samples), through the bound material",
+                "BasisCurves as round tubes ({}-sided; ribbons where normals orient them), {} samples per cubic span (--curve-samples), through the bound material",
                 curves::SIDES,
                 self.curve_samples
             );

@@ -326,6 +326,30 @@ mod tests {
         }
     }
 
+    /// A client's 1e30 density, with an empty voxel in its block: float steps stop advancing
+    /// there, and tracking gives up after its cap instead of looping (the volume counts as
+    /// opaque).
+    #[test]
+    fn absurd_densities_end_tracking_by_its_cap() {
+        let v = [slab(4, 1e30, VolumeShading::default())];
+        let ray = Ray::new(Vec3::new(0.5, 0.5, -1.0), Vec3::Z);
+        let mut s = Stream::new(3);
+        assert!(fly(&v, &ray, f32::INFINITY, &mut s).collision.is_some());
+        assert_eq!(transmittance(&v, &ray, f32::INFINITY, &mut s), 0.0);
+        let mut holed = constant_grid(4, 1e30);
+        holed.values[0] = 0.0;
+        let desc = VolumeDesc {
+            density: Arc::new(holed),
+            temperature: None,
+            index_to_world: unit_box_transform(4),
+            shading: VolumeShading::default(),
+        };
+        let v = [Volume::new("/V", &desc)];
+        let corner = Ray::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.01, 0.01, 1.0).normalize());
+        let flight = fly(&v, &corner, f32::INFINITY, &mut s);
+        assert!(flight.collision.is_some() && flight.emitted.is_finite());
+    }
+
     #[test]
     fn blackbody_emission_follows_stefan_boltzmann() {
         // Luminance σ_SB·10⁻⁶/π·T⁴ at intensity 1; none at intensity 0 but Cycles' floor.

@@ -41,8 +41,8 @@ struct Tracker<'v> {
     o: Vec3,
     d: Vec3,
     cells: Dda,
-    /// The current cell, its majorant and where the ray leaves it.
-    cell: Option<(usize, f32, f32)>,
+    /// The current cell and where the ray leaves it.
+    cell: Option<(usize, f32)>,
     t: f32,
     /// Raise emitting cells' majorants so their emission is sampled.
     emission: bool,
@@ -59,17 +59,15 @@ impl<'v> Tracker<'v> {
     /// The next tentative collision: its t, its majorant and the index-space point.
     fn next(&mut self, s: &mut Stream) -> Option<(f32, f32, Vec3)> {
         loop {
-            let (index, enter, exit) = match self.cell {
+            let (index, exit) = match self.cell {
                 Some(c) => c,
                 None => {
                     let (index, enter, exit) = self.cells.next()?;
                     self.t = enter;
-                    let c = (index, enter, exit);
-                    self.cell = Some(c);
-                    c
+                    self.cell = Some((index, exit));
+                    (index, exit)
                 }
             };
-            let _ = enter;
             let floor = if self.emission { self.volume.emission_floor } else { 0.0 };
             let sigma = self.volume.majorant.majorant(index, floor);
             if sigma > 0.0 {
@@ -103,6 +101,21 @@ fn trackers<'v>(volumes: &'v [Volume], ray: &Ray, t_max: f32, emission: bool) ->
         .collect()
 }
 
+/// Most tentative collisions one ray segment takes: past them the volumes count as opaque
+/// there. Extinction so high that a float's steps no longer advance along the ray (a client's
+/// 1e30 density) would otherwise loop without end.
+pub const MAX_TENTATIVE_COLLISIONS: u32 = 1 << 20;
+
+/// What [`merged`] stopped at.
+enum Stop {
+    /// The visitor stopped at this collision.
+    Visitor,
+    /// Every tracker ran out of collisions.
+    Exhausted,
+    /// [`MAX_TENTATIVE_COLLISIONS`] were taken; the next was at (t, volume).
+    TooMany(f32, usize),
+}
+
 /// The tentative collisions of every volume along the ray, merged nearest first: `visit`
 /// gets each (t, majorant, index-space point, volume) and says whether to go on.
 fn merged(
@@ -112,28 +125,30 @@ fn merged(
     emission: bool,
     s: &mut Stream,
     mut visit: impl FnMut(f32, f32, Vec3, usize, &mut Stream) -> bool,
-) {
+) -> Stop {
     let mut trackers = trackers(volumes, ray, t_max, emission);
     let mut pending: Vec<Option<(f32, f32, Vec3)>> = trackers.iter_mut().map(|(_, t)| t.next(s)).collect();
-    loop {
+    for _ in 0..MAX_TENTATIVE_COLLISIONS {
         let Some(i) =
             (0..pending.len()).filter(|&i| pending[i].is_some()).min_by(|&a, &b| pending[a].unwrap().0.total_cmp(&pending[b].unwrap().0))
         else {
-            return;
+            return Stop::Exhausted;
         };
         let (t, sigma, p) = pending[i].unwrap();
         if !visit(t, sigma, p, trackers[i].0, s) {
-            return;
+            return Stop::Visitor;
         }
         pending[i] = trackers[i].1.next(s);
     }
+    let (t, k) = (0..pending.len()).find_map(|i| pending[i].map(|(t, ..)| (t, trackers[i].0))).unwrap_or((0.0, 0));
+    Stop::TooMany(t, k)
 }
 
 /// Delta tracking of a path's ray up to `t_max`: where it first really collides, and the
 /// emission it gathers before (each tentative collision adds ε/σ̄).
 pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight {
     let mut flight = Flight { emitted: Vec3::ZERO, collision: None };
-    merged(volumes, ray, t_max, true, s, |t, sigma, p, k, s| {
+    let stop = merged(volumes, ray, t_max, true, s, |t, sigma, p, k, s| {
         let v = &volumes[k];
         flight.emitted += v.emission_at(p) / sigma;
         if s.next() * sigma < v.extinction_at(p) {
@@ -142,6 +157,9 @@ pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight 
         }
         true
     });
+    if let Stop::TooMany(t, k) = stop {
+        flight.collision = Some((t, k));
+    }
     flight
 }
 
@@ -149,7 +167,7 @@ pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight 
 /// with Russian roulette once it falls below 0.1.
 pub fn transmittance(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> f32 {
     let mut tr = 1.0f32;
-    merged(volumes, ray, t_max, false, s, |_, sigma, p, k, s| {
+    let stop = merged(volumes, ray, t_max, false, s, |_, sigma, p, k, s| {
         tr *= 1.0 - (volumes[k].extinction_at(p) / sigma).min(1.0);
         if tr < 0.1 {
             if s.next() < 0.5 {
@@ -160,5 +178,5 @@ pub fn transmittance(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) 
         }
         tr > 0.0
     });
-    tr
+    if let Stop::TooMany(..) = stop { 0.0 } else { tr }
 }
