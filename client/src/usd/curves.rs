@@ -460,14 +460,41 @@ mod tests {
     fn bezier_and_catmull_rom_pass_through_their_end_points_and_knots() {
         let p = vec![Vec3::ZERO, Vec3::new(1.0, 2.0, 0.0), Vec3::new(3.0, 2.0, 0.0), Vec3::new(4.0, 0.0, 0.0)];
         let c = curve(Basis::Bezier, Wrap::Nonperiodic, p.clone(), (vec![0.1], "constant"));
-        let (centres, _) = c.centreline(0, &p, 0, &mut 0).unwrap();
+        let centres = c.centreline(0, &p, 0, &mut 0).unwrap().centres;
         assert_eq!((centres[0], *centres.last().unwrap()), (p[0], p[3]));
         // Pinned Catmull-Rom interpolates every control point, ends included.
         let c = curve(Basis::CatmullRom, Wrap::Pinned, p.clone(), (vec![0.1], "constant"));
-        let (centres, _) = c.centreline(0, &p, 0, &mut 0).unwrap();
+        let centres = c.centreline(0, &p, 0, &mut 0).unwrap().centres;
         for (k, q) in p.iter().enumerate() {
             assert!((centres[k * DEFAULT_CURVE_SAMPLES] - *q).length() < 1e-5, "knot {k}");
         }
+    }
+
+    /// A straight ribbon along +X with normals +Z: its corners sit half its width to either
+    /// side along ±Y, its normals are +Z, and its area is its length times its width.
+    #[test]
+    fn a_ribbon_lies_across_its_normal_at_its_width() {
+        let p = vec![Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)];
+        let mut c = curve(Basis::Bspline, Wrap::Pinned, p, (vec![0.4], "constant"));
+        c.normals = Some((vec![Vec3::Z], "constant".into()));
+        let mesh = c.tessellate().unwrap();
+        assert!(mesh.positions.iter().all(|q| q.z == 0.0 && (q.y.abs() - 0.2).abs() < 1e-6), "{:?}", mesh.positions);
+        let Attribute::Vertex(normals) = &mesh.normals else { panic!("vertex normals") };
+        assert!(normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+        let area: f32 = mesh
+            .indices
+            .iter()
+            .map(|t| {
+                0.5 * (mesh.positions[t[1] as usize] - mesh.positions[t[0] as usize])
+                    .cross(mesh.positions[t[2] as usize] - mesh.positions[t[0] as usize])
+                    .length()
+            })
+            .sum();
+        // A pinned B-spline runs from its first to its last point: 3 units.
+        assert!((area - 3.0 * 0.4).abs() < 1e-4, "area {area}");
+        // A normal along the curve itself orients nothing: the ribbon still gets a side.
+        c.normals = Some((vec![Vec3::X], "constant".into()));
+        assert!(c.tessellate().unwrap().positions.iter().all(|q| q.is_finite()));
     }
 
     #[test]
