@@ -84,6 +84,70 @@ async fn a_sphere_moving_in_a_line_renders_the_streak_of_its_silhouette() {
     assert!((total / disc - 1.0).abs() < 0.01, "total coverage {total:.1}, a disc {disc:.1}");
 }
 
+/// Two references to one quad asset (0.5 × 0.5 units, facing the camera, with a material so
+/// native instancing takes it): /Moving slides from x = −1 to 1 over the shutter, /Still stays
+/// at y = 1.5; both `instanceable` or neither.
+fn instanced_quads(instanceable: bool) -> String {
+    let quad = r#"class "Asset"
+{
+    def Mesh "Quad" (prepend apiSchemas = ["MaterialBindingAPI"])
+    {
+        point3f[] points = [(-0.25, -0.25, 0), (0.25, -0.25, 0), (0.25, 0.25, 0), (-0.25, 0.25, 0)]
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        uniform token subdivisionScheme = "none"
+        rel material:binding = </Looks/Grey>
+    }
+}
+def Scope "Looks"
+{
+    def Material "Grey"
+    {
+        token outputs:surface.connect = </Looks/Grey/Surface.outputs:surface>
+        def Shader "Surface"
+        {
+            uniform token info:id = "UsdPreviewSurface"
+            token outputs:surface
+        }
+    }
+}"#;
+    format!(
+        r#"{quad}
+def Xform "Moving" (instanceable = {instanceable} references = </Asset>)
+{{
+    double3 xformOp:translate.timeSamples = {{ 0: (-1, 0, 0), 1: (1, 0, 0) }}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def Xform "Still" (instanceable = {instanceable} references = </Asset>)
+{{
+    double3 xformOp:translate = (0, 1.5, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}"#
+    )
+}
+
+/// Instanceable prims move as the same prims flattened do: the native instancer carries each
+/// instance's placements over the shutter (the still one's repeated), and the blur is the flat
+/// meshes' pixel for pixel.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn instanceable_prims_blur_as_their_flattened_meshes_do() {
+    let native = load_text("motion_native", &ortho_stage(&instanced_quads(true)));
+    let flat = load_text("motion_flat", &ortho_stage(&instanced_quads(false)));
+    assert!(native.warnings.is_empty(), "{:?}", native.warnings);
+    let k = tessera::usd::DEFAULT_MOTION_SAMPLES;
+    let (_, instancer) = native.instancers.iter().find(|(_, i)| i.transforms.len() == 2).expect("one native instancer, two instances");
+    assert_eq!(instancer.motion_samples(), k);
+    let moving = flat.meshes.iter().find(|(p, _)| p == "/Moving/Quad").expect("the flat moving quad");
+    assert_eq!(&instancer.motion[..k], &moving.1.motion[..], "the moving instance's samples are the flat mesh's");
+    assert!(instancer.motion[k..].iter().all(|m| *m == instancer.transforms[1]), "the still instance repeats its placement");
+    let (a, b) = (coverage(&native, 64).await, coverage(&flat, 64).await);
+    // Two quads of 16 × 16 px: the moving one smeared over 80 px, its area conserved.
+    let total: f64 = a.iter().sum();
+    assert!((total / 512.0 - 1.0).abs() < 0.01, "native coverage {total:.1} of 512");
+    // Same samples, same placements per ray, the same local points: the same pixels.
+    assert!(a == b, "native and flat coverage differ");
+}
+
 /// A PointInstancer placing one ball (radius `r`) at x = `x0` at frame 0; its motion comes
 /// from `motion` (time samples of `positions`, or `velocities`).
 fn instanced_ball(r: f64, motion: &str) -> String {

@@ -49,6 +49,9 @@ pub fn to_json(t: &Translation) -> Value {
     };
     for n in &t.native_instances {
         let mut mesh = json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible });
+        if !n.motion.is_empty() {
+            mesh["motion"] = Value::Array(n.motion.iter().map(usd_matrix).collect());
+        }
         if let Some(s) = subdivided.get(t.instancers[n.instancer].1.prototype.as_str()) {
             mesh["subdivision"] = subdivision_json(s);
         }

@@ -55,10 +55,19 @@ impl Reader<'_> {
         let world = self.affine(prim, p)?;
         let prototype = &self.out.instancers[index].1.prototype;
         let triangles = self.out.meshes.iter().find(|(path, _)| path == prototype).map_or(0, |(_, m)| m.mesh.indices.len());
+        let motion = if visible { self.motion(prim, p)? } else { Vec::new() };
         if visible {
-            self.out.instancers[index].1.transforms.push(world);
+            add_instance(&mut self.out.instancers[index].1, world, motion.clone());
         }
-        self.out.native_instances.push(NativeInstance { path: p.to_string(), instancer: index, world, material, triangles, visible });
+        self.out.native_instances.push(NativeInstance {
+            path: p.to_string(),
+            instancer: index,
+            world,
+            material,
+            triangles,
+            visible,
+            motion,
+        });
         Ok(true)
     }
 
@@ -323,5 +332,22 @@ impl Reader<'_> {
             }
         }
         Ok(())
+    }
+}
+
+/// One more instance of a native instancer, at `world`, moving through `motion` (its world
+/// transforms at the shutter's samples; empty when still). Once any instance moves, every
+/// instance carries samples, the still ones their one placement repeated, as an instancer's
+/// motion holds the same count per instance.
+fn add_instance(instancer: &mut InstancerDesc, world: Affine3A, motion: Vec<Affine3A>) {
+    let k = if motion.is_empty() { instancer.motion_samples() } else { motion.len() };
+    if k > 0 && instancer.motion.is_empty() {
+        instancer.motion = instancer.transforms.iter().flat_map(|&m| std::iter::repeat_n(m, k)).collect();
+    }
+    instancer.transforms.push(world);
+    match (k, motion.is_empty()) {
+        (0, _) => {}
+        (_, true) => instancer.motion.extend(std::iter::repeat_n(world, k)),
+        (_, false) => instancer.motion.extend(motion),
     }
 }

@@ -181,6 +181,8 @@ pub struct NativeInstance {
     pub triangles: usize,
     /// Visible (invisible instances are listed but not drawn).
     pub visible: bool,
+    /// World transforms over the shutter when it moves (empty when still).
+    pub motion: Vec<Affine3A>,
 }
 
 /// A texture file read by the client, sent to the server once per content.
