@@ -61,6 +61,9 @@ fn an_independent_reader_agrees_on_every_fixture() {
     cases.push((fixture("usd/animated.usda"), Some(5.5)));
     // Skinning between time samples: slerped joint rotations, interpolated blend shape weights.
     cases.push((fixture("usd/skinned_arm.usda"), Some(5.5)));
+    // Dual-quaternion skinning, the elbow's non-uniform scale blended beside it.
+    cases.push((fixture("usd/skinned_arm_dq.usda"), Some(5.5)));
+    cases.push((fixture("usd/skinned_arm_dq.usda"), Some(10.0)));
     cases.push((fixture("usd-wg/UsdSkel/CesiumMan.usdz"), Some(7.3)));
     // Transforms over an open shutter, mid-animation: whole-degree rotation keys included.
     cases.push((fixture("usd/motion_blur.usda"), Some(6.0)));

@@ -11,6 +11,7 @@ use lint::{well_formed_name, well_formed_path};
 mod binding;
 mod camera;
 pub mod curves;
+mod dqs;
 mod geometry;
 mod instancing;
 mod lights;

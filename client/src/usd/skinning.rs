@@ -1,6 +1,7 @@
 //! UsdSkel: meshes bound to a Skeleton under a SkelRoot, posed at the frame being rendered.
 //!
-//! Blend shapes first, then linear blend skinning, as UsdSkel defines them: a skinned point is
+//! Blend shapes first, then linear blend skinning (or dual-quaternion skinning where
+//! `skel:skinningMethod` asks for it, [`super::dqs`]), as UsdSkel defines them: a skinned point is
 //! `Σ w_i · (inverse(bindTransform_i) · jointSkelSpace_i) · geomBindTransform · p`, in the
 //! skeleton's space, so the mesh renders with the Skeleton prim's world transform and its own
 //! is ignored. The openusd crate's UsdSkel toolkit supplies the joint topology, the animation's
@@ -15,6 +16,7 @@ use openusd::gf;
 use openusd::schemas::skel::{AnimMapper, BlendShape, SkelAnimQuery, SkelBindingAPI, SkeletonResolver, SkinningMethod, SkinningResolver};
 use openusd::sdf;
 
+use super::dqs::{Blend, DualJoint};
 use super::*;
 
 /// Authored normals and their interpolation, as `MeshSource` holds them.
@@ -135,6 +137,9 @@ impl Skin {
             return Ok((points.into_iter().map(from_gf).collect(), normals.cloned()));
         };
         let skinning = &self.pose.skinning;
+        if joints.resolver.skinning_method() == SkinningMethod::DualQuaternion {
+            return self.deform_dual_quaternion(points, normals, face_vertex_indices);
+        }
         if joints.resolver.is_rigidly_deformed() {
             let m = joints.resolver.compute_rigid_transform(skinning);
             let n = normal_matrix(&m);
@@ -146,6 +151,65 @@ impl Skin {
         let normals = normals.map(|(v, interp)| (self.skin_normals(v, interp, face_vertex_indices, &influences), interp.clone()));
         let points = joints.resolver.compute_skinned_points(&points, skinning);
         Ok((points.into_iter().map(from_gf).collect(), normals))
+    }
+
+    /// [`Self::deform`]'s joints by dual-quaternion skinning ([`super::dqs`]), after blend
+    /// shapes: points through the geometry's bind transform, then the blend of their joints;
+    /// constant (rigid) influences make one blended transform for every point.
+    fn deform_dual_quaternion(
+        &self,
+        points: Vec<gf::Vec3f>,
+        normals: Option<&(Vec<Vec3>, String)>,
+        face_vertex_indices: &[i64],
+    ) -> Result<(Vec<Vec3>, AuthoredNormals), String> {
+        let Joints { resolver, indices, weights } = self.joints.as_ref().expect("joint skinning");
+        let per = resolver.num_influences_per_component();
+        let rigid = resolver.is_rigidly_deformed();
+        if !rigid && indices.len() != points.len() * per {
+            return Err(format!(
+                "primvars:skel:jointIndices has {} entries for {} points of {per} influences each",
+                indices.len(),
+                points.len()
+            ));
+        }
+        let duals: Vec<DualJoint> =
+            resolver.remap_skinning_xforms(&self.pose.skinning).iter().map(|m| DualJoint::new(values::matrix(m))).collect();
+        let blend = Blend::new(&duals);
+        let influences = |v: usize| -> Vec<(usize, f64)> {
+            let v = if rigid { 0 } else { v };
+            (v * per..(v + 1) * per).map(|s| (indices[s] as usize, weights[s] as f64)).collect()
+        };
+        let geom = values::matrix(&resolver.geom_bind_transform());
+        let geom_normals = normal_matrix(&resolver.geom_bind_transform());
+        let rigid_transform = rigid.then(|| blend.transform(&influences(0)));
+        let skinned = points
+            .iter()
+            .enumerate()
+            .map(|(v, p)| {
+                let p = geom.transform_point3(from_gf(*p).as_dvec3());
+                match rigid_transform {
+                    Some(m) => m.transform_point3(p).as_vec3(),
+                    None => blend.point(p, &influences(v)).as_vec3(),
+                }
+            })
+            .collect();
+        let normals = normals.map(|(v, interp)| {
+            let point_of = |i: usize| match interp.as_str() {
+                "vertex" | "varying" => Some(i),
+                "faceVarying" => face_vertex_indices.get(i).map(|&p| p as usize),
+                _ => None,
+            };
+            let skinned = v
+                .iter()
+                .enumerate()
+                .map(|(i, n)| match point_of(i).filter(|&p| p < points.len()) {
+                    Some(p) => blend.normal(geom_normals * n.as_dvec3(), &influences(p)).as_vec3(),
+                    None => Vec3::ZERO,
+                })
+                .collect();
+            (skinned, interp.clone())
+        });
+        Ok((skinned, normals))
     }
 
     /// Each point's (normal matrix, weight) pairs, checked against the point count.
@@ -369,7 +433,6 @@ impl Reader<'_> {
 
     /// The binding's joint influences, checked so the toolkit's sums cannot index out of range.
     fn checked(&mut self, binding: &SkelBindingAPI, r: SkinningResolver) -> Result<Joints> {
-        let m = binding.path().as_str();
         let (indices, weights) = (binding.joint_indices()?, binding.joint_weights()?);
         let element_size = |a: openusd::usd::Attribute| -> Result<f64> {
             Ok(a.get_metadata::<Value>("elementSize")?.as_ref().and_then(values::scalar).unwrap_or(1.0))
@@ -398,9 +461,6 @@ impl Reader<'_> {
         }
         if r.geom_bind_transform().0.iter().any(|x| !x.is_finite()) {
             anyhow::bail!("primvars:skel:geomBindTransform is not finite");
-        }
-        if r.skinning_method() == SkinningMethod::DualQuaternion {
-            self.out.warnings.push(format!("{m}: skinningMethod dualQuaternion is not supported yet; skinned with classicLinear"));
         }
         Ok(Joints { resolver: r, indices, weights })
     }
