@@ -184,6 +184,111 @@ fn ribbons_on_hair_or_with_unusable_normals_are_reported() {
     }
 }
 
+/// A fibre bound to `material` (the body of a Material prim at /Fibre).
+fn fibre_stage(material: &str) -> String {
+    format!(
+        r#"#usda 1.0
+{}
+def BasisCurves "Hair" (prepend apiSchemas = ["MaterialBindingAPI"])
+{{
+    uniform token type = "linear"
+    point3f[] points = [(-1.5, 0, 0), (1.5, 0, 0)]
+    int[] curveVertexCounts = [2]
+    float[] widths = [1] (interpolation = "constant")
+    rel material:binding = </Fibre>
+}}
+def Material "Fibre"
+{{
+{material}
+}}
+"#,
+        ortho_camera_and_dome_usda(40.0, "")
+    )
+}
+
+/// MaterialX's hair (a `surface` over `chiang_hair_bsdf`, its roughness from
+/// `chiang_hair_roughness` and its absorption from `deon_hair_absorption_from_melanin`) maps
+/// onto `tessera:Hair` input by input, and renders bit for bit as the same fibre authored with
+/// `tessera:Hair` directly.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn materialx_chiang_hair_renders_as_the_same_tessera_hair() {
+    let mtlx = r#"    token outputs:mtlx:surface.connect = </Fibre/Surface.outputs:out>
+    def Shader "Surface"
+    {
+        uniform token info:id = "ND_surface"
+        token inputs:bsdf.connect = </Fibre/Chiang.outputs:out>
+        token outputs:out
+    }
+    def Shader "Chiang"
+    {
+        uniform token info:id = "ND_chiang_hair_bsdf"
+        float inputs:ior = 1.6
+        float inputs:cuticle_angle = 0.52
+        color3f inputs:tint_R = (0.9, 0.8, 0.7)
+        color3f inputs:tint_TRT = (0.5, 0.6, 1)
+        float2 inputs:roughness_R.connect = </Fibre/Rough.outputs:roughness_R>
+        float2 inputs:roughness_TT.connect = </Fibre/Rough.outputs:roughness_TT>
+        float2 inputs:roughness_TRT.connect = </Fibre/Rough.outputs:roughness_TRT>
+        vector3f inputs:absorption_coefficient.connect = </Fibre/Melanin.outputs:absorption>
+        token outputs:out
+    }
+    def Shader "Rough"
+    {
+        uniform token info:id = "ND_chiang_hair_roughness"
+        float inputs:longitudinal = 0.25
+        float inputs:azimuthal = 0.4
+        float inputs:scale_TT = 0.6
+        float2 outputs:roughness_R
+        float2 outputs:roughness_TT
+        float2 outputs:roughness_TRT
+    }
+    def Shader "Melanin"
+    {
+        uniform token info:id = "ND_deon_hair_absorption_from_melanin"
+        float inputs:melanin_concentration = 0.4
+        float inputs:melanin_redness = 0.3
+        vector3f outputs:absorption
+    }"#;
+    let t = load_text("hair_mtlx", &fibre_stage(mtlx));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    // The same, by hand: σa = c·((1 − r)·(0.419, 0.697, 1.37) + r·(0.187, 0.4, 1.05)), c = −ln(1 − 0.4).
+    let c = -(0.6f32).ln();
+    let sigma = [0.419f32, 0.697, 1.37].iter().zip([0.187f32, 0.4, 1.05]).map(|(e, p)| c * (0.7 * e + 0.3 * p)).collect::<Vec<_>>();
+    let native = format!(
+        r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {{
+        uniform token info:id = "tessera:Hair"
+        float inputs:melanin = 0
+        color3f inputs:absorptionCoefficient = ({}, {}, {})
+        float inputs:roughness = 0.25
+        float inputs:radialRoughness = 0.4
+        float inputs:roughnessScaleTT = 0.6
+        float inputs:ior = 1.6
+        float inputs:offset = 3.6
+        color3f inputs:tintR = (0.9, 0.8, 0.7)
+        color3f inputs:tintTRT = (0.5, 0.6, 1)
+        token outputs:surface
+    }}"#,
+        sigma[0], sigma[1], sigma[2]
+    );
+    let by_hand = load_text("hair_native", &fibre_stage(&native));
+    let render = |t: tessera::usd::Translation| async move {
+        let (server, mut conn) = session_with(&t).await;
+        let report = conn.render(&small(64, 64, 8), |_| {}).await.expect("renders");
+        server.stop().await.expect("stops");
+        (0..64)
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec())
+            .collect::<Vec<f32>>()
+    };
+    let (a, b) = (render(t).await, render(by_hand).await);
+    let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    // The absorption and offset pass through f32 arithmetic on two routes: 1e-5 of a pixel.
+    assert!(worst < 1e-5, "MaterialX hair against tessera:Hair: worst pixel difference {worst}");
+    assert!(a.iter().any(|v| *v < 0.9), "the fibre shows");
+}
+
 #[test]
 fn curves_that_make_no_curve_are_reported_by_attribute() {
     let line = "uniform token type = \"linear\"\n    point3f[] points = [(0, 0, 0), (1, 0, 0)]";

@@ -3,7 +3,8 @@
 //! knows. The surface node — Autodesk Standard Surface, OpenPBR Surface or MaterialX's
 //! UsdPreviewSurface — becomes a `UsdPreviewSurface` when that expresses it (diffuse,
 //! metal, dielectric specular, coat, emission, opacity, normal map), else a
-//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight).
+//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight);
+//! a plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
@@ -20,6 +21,8 @@ use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, P
 const STANDARD_SURFACE: &str = "ND_standard_surface_surfaceshader";
 const OPEN_PBR: &str = "ND_open_pbr_surface_surfaceshader";
 const PREVIEW: &str = "ND_UsdPreviewSurface_surfaceshader";
+/// The plain `surface` node over a BSDF: hair (`chiang_hair_bsdf`).
+const SURFACE: &str = "ND_surface";
 
 /// Longest upstream chain followed from one input (deeper is a cycle or a generated graph).
 const MAX_DEPTH: usize = 64;
@@ -39,9 +42,14 @@ pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Resul
         STANDARD_SURFACE => standard_surface(&graph, &surface.path),
         OPEN_PBR => open_pbr(&graph, &surface.path),
         PREVIEW => preview(&graph, &surface.path),
+        SURFACE => {
+            let values = super::materialx_hair::hair_inputs(net, &surface.path, warnings)?;
+            let color = |name: &str| name == "absorptionCoefficient" || name.starts_with("tint");
+            Inputs { id: "tessera:Hair", values: values.into_iter().map(|(name, v)| (name, Lin::constant(v), color(name))).collect() }
+        }
         other => {
             return Err(format!(
-                "{}: MaterialX surface '{other}' is not supported (standard_surface, open_pbr_surface and UsdPreviewSurface are)",
+                "{}: MaterialX surface '{other}' is not supported (standard_surface, open_pbr_surface, UsdPreviewSurface and surface over chiang_hair_bsdf are)",
                 surface.path
             ));
         }
@@ -460,7 +468,7 @@ fn texcoord_reader(
     MaterialNode { path, node_type_id: "UsdPrimvarReader_float2".into(), parameters }
 }
 
-fn vec4_of(v: &ParamValue) -> Option<Vec4> {
+pub(super) fn vec4_of(v: &ParamValue) -> Option<Vec4> {
     Some(match v {
         ParamValue::Float(x) => Vec4::splat(*x),
         ParamValue::Int(i) => Vec4::splat(*i as f32),

@@ -16,6 +16,7 @@ mod geometry;
 mod instancing;
 mod lights;
 mod materialx;
+mod materialx_hair;
 mod mesh;
 mod motion;
 mod mtlx_document;

@@ -33,6 +33,9 @@ use super::{LobeFlags, LobeSample};
 /// resolved in f32 by the log-space form of [`longitudinal`].
 pub const MIN_ROUGHNESS: f32 = 0.02;
 
+/// Smallest Mp variance: TT's at [`MIN_ROUGHNESS`] with the default scale (¼ of R's 2.2e-4).
+const MIN_VARIANCE: f32 = 5.4e-5;
+
 /// One hair fibre.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hair {
@@ -46,6 +49,14 @@ pub struct Hair {
     pub beta_n: f32,
     /// Sine of the cuticle scales' tilt α (they shift R towards the tip, TT and TRT back).
     pub sin_alpha: f32,
+    /// TT's and TRT's longitudinal roughness relative to R's (0.5 and 2 by default, Marschner
+    /// et al.'s observation; MaterialX's `chiang_hair_roughness` exposes them).
+    pub scale_tt: f32,
+    /// See [`Self::scale_tt`].
+    pub scale_trt: f32,
+    /// Tints of R, TT and TRT (the longer paths take TRT's), as MaterialX's `chiang_hair_bsdf`
+    /// has them: white by default. Each at most 1, so no path gains energy.
+    pub tint: [Vec3; 3],
 }
 
 /// What one view `wo` fixes: its angles, the offset h, and the attenuation of each path.
@@ -74,20 +85,33 @@ impl Hair {
             beta_m: clamp(beta_m, MIN_ROUGHNESS, 1.0, 0.3),
             beta_n: clamp(beta_n, MIN_ROUGHNESS, 1.0, 0.3),
             sin_alpha: clamp(alpha_degrees, -45.0, 45.0, 2.0).to_radians().sin(),
+            scale_tt: 0.5,
+            scale_trt: 2.0,
+            tint: [Vec3::ONE; 3],
         }
     }
 
+    /// The fibre with TT's and TRT's longitudinal roughness scaled from R's by `scale_tt` and
+    /// `scale_trt` (each clamped to [0.1, 4]) and each path tinted (clamped to [0, 1]).
+    pub fn with_lobes(self, scale_tt: f32, scale_trt: f32, tint: [Vec3; 3]) -> Self {
+        let scale = |x: f32, default: f32| if x.is_finite() { x.clamp(0.1, 4.0) } else { default };
+        let tint = tint.map(|t| if t.is_finite() { t.clamp(Vec3::ZERO, Vec3::ONE) } else { Vec3::ONE });
+        Hair { scale_tt: scale(scale_tt, 0.5), scale_trt: scale(scale_trt, 2.0), tint, ..self }
+    }
+
     /// Mp's variance for path p (Chiang et al. 2016's fit to βm; TT narrower, TRT wider, as
-    /// Marschner et al. observed).
+    /// Marschner et al. observed: by default the scales halve and double the roughness),
+    /// never below that of the smoothest TT the defaults allow.
     #[inline]
     fn variance(&self, p: usize) -> f32 {
         let b = self.beta_m;
         let v0 = (0.726 * b + 0.812 * b * b + 3.7 * b.powi(20)).powi(2);
-        match p {
-            0 => v0,
-            1 => 0.25 * v0,
-            _ => 4.0 * v0,
-        }
+        let scale = match p {
+            0 => 1.0,
+            1 => self.scale_tt,
+            _ => self.scale_trt,
+        };
+        (v0 * scale * scale).max(MIN_VARIANCE)
     }
 
     /// The logistic's scale s from βn (Chiang et al. 2016's fit).
@@ -140,7 +164,9 @@ impl Hair {
         let ap2 = ap1 * t * f;
         // Every longer path, summed as a geometric series.
         let ap3 = ap2 * f * t / (Vec3::ONE - t * f).max(Vec3::splat(1e-6));
-        Some(View { sin_o, cos_o, phi_o: wo.z.atan2(wo.y), gamma_o, gamma_t: sin_gamma_t.asin(), ap: [ap0, ap1, ap2, ap3] })
+        let [r, tt, trt] = self.tint;
+        let ap = [ap0 * r, ap1 * tt, ap2 * trt, ap3 * trt];
+        Some(View { sin_o, cos_o, phi_o: wo.z.atan2(wo.y), gamma_o, gamma_t: sin_gamma_t.asin(), ap })
     }
 
     /// Φ(p): where a smooth cylinder sends path p, relative to φo.
@@ -346,6 +372,8 @@ mod tests {
             Hair::new(sigma_a_from_melanin(0.8, 0.2), 1.55, 0.25, 0.4, 3.0),
             Hair::new(sigma_a_from_color(Vec3::new(0.9, 0.6, 0.3), 0.6), 1.55, 0.6, 0.6, -2.0),
             white(1.0, 1.0, 0.0),
+            // MaterialX's per-path roughness scales and tints.
+            white(0.3, 0.4, 1.0).with_lobes(1.0, 3.0, [Vec3::new(0.9, 0.8, 0.7), Vec3::ONE, Vec3::new(0.5, 0.5, 1.0)]),
         ]
         .map(Lobe::Hair)
         .into()
@@ -382,6 +410,36 @@ mod tests {
                     assert!((hair.albedo(wo).x - 1.0).abs() < 1e-5);
                 }
             }
+        }
+    }
+
+    /// Per-path tints take exactly their share: a white fibre whose paths are tinted scatters
+    /// Σ tint_p·A_p of the light (each Mp·Np integrates to one), by the same quadrature as the
+    /// furnace above; other roughness scales keep a white fibre at 1.
+    #[test]
+    fn tinted_paths_scatter_their_share() {
+        let n = 800;
+        let wo = Vec3::new(0.3, -0.4, 0.87).normalize();
+        let tint = [Vec3::splat(0.5), Vec3::splat(0.8), Vec3::splat(0.2)];
+        for (scale_tt, scale_trt, tint) in [(0.5, 2.0, tint), (1.0, 4.0, [Vec3::ONE; 3]), (0.25, 0.5, [Vec3::ONE; 3])] {
+            let plain = white(0.3, 0.3, 2.0);
+            let hair = plain.with_lobes(scale_tt, scale_trt, tint);
+            let ap = plain.view(wo).unwrap().ap;
+            let expected = (ap[0] * tint[0] + ap[1] * tint[1] + (ap[2] + ap[3]) * tint[2]).x as f64;
+            let mut acc = 0.0f64;
+            for a in 0..n {
+                let sin_t = -1.0 + 2.0 * (a as f32 + 0.5) / n as f32;
+                let cos_t = (1.0 - sin_t * sin_t).sqrt();
+                for b in 0..n {
+                    let phi = TAU * (b as f32 + 0.5) / n as f32;
+                    let wi = Vec3::new(sin_t, cos_t * phi.cos(), cos_t * phi.sin());
+                    acc += (hair.eval(wo, wi).x * wi.z.abs()) as f64;
+                }
+            }
+            let energy = acc * (2.0 / n as f64) * (TAU as f64 / n as f64);
+            // 800² cells resolve βm = 0.3 at TT's narrowest scale here (0.25): 2e-3.
+            assert!((energy - expected).abs() < 2e-3, "scales {scale_tt}, {scale_trt}: energy {energy}, expected {expected}");
+            assert!((hair.albedo(wo).x as f64 - expected).abs() < 1e-5);
         }
     }
 

@@ -206,6 +206,11 @@ pub const SHADERS: &[Shader] = &[
             float("radialRoughness", 0.3, (0.0, 1.0), "azimuthal roughness βn: how far light spreads around the fibre"),
             float("ior", 1.55, (1.0, 3.0), "refractive index of the fibre"),
             float("offset", 2.0, (-45.0, 45.0), "tilt of the cuticle scales in degrees: shifts the highlights along the fibre"),
+            color("tintR", 1.0, "tint of the light reflected off the cuticle (R), as MaterialX's chiang_hair_bsdf has it"),
+            color("tintTT", 1.0, "tint of the light through the fibre (TT)"),
+            color("tintTRT", 1.0, "tint of the light reflected inside the fibre (TRT and longer paths)"),
+            float("roughnessScaleTT", 0.5, (0.1, 4.0), "TT's longitudinal roughness relative to `roughness`"),
+            float("roughnessScaleTRT", 2.0, (0.1, 4.0), "TRT's longitudinal roughness relative to `roughness`"),
         ],
         shared: false,
         materials: &[],
@@ -340,7 +345,16 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
             let sigma_a = crate::bsdf::hair::sigma_a_from_melanin(v.f("melanin"), v.f("melaninRedness"))
                 + crate::bsdf::hair::sigma_a_from_color(v.c("tint"), bn)
                 + v.c("absorptionCoefficient");
-            let params = HairParams { sigma_a, ior: v.f("ior"), roughness: v.f("roughness"), radial_roughness: bn, tilt: v.f("offset") };
+            let params = HairParams {
+                sigma_a,
+                ior: v.f("ior"),
+                roughness: v.f("roughness"),
+                radial_roughness: bn,
+                tilt: v.f("offset"),
+                scale_tt: v.f("roughnessScaleTT"),
+                scale_trt: v.f("roughnessScaleTRT"),
+                tint: [v.c("tintR"), v.c("tintTT"), v.c("tintTRT")],
+            };
             u.hair = Weighted { weight: 1.0, params };
         }
         _ => unreachable!("every declared shader is mapped"),

@@ -240,11 +240,26 @@ pub struct HairParams {
     pub radial_roughness: f32,
     /// Cuticle tilt, degrees.
     pub tilt: f32,
+    /// TT's and TRT's longitudinal roughness relative to R's.
+    pub scale_tt: f32,
+    /// See [`Self::scale_tt`].
+    pub scale_trt: f32,
+    /// Tints of R, TT and TRT.
+    pub tint: [Vec3; 3],
 }
 
 impl Default for HairParams {
     fn default() -> Self {
-        HairParams { sigma_a: Vec3::ZERO, ior: 1.55, roughness: 0.3, radial_roughness: 0.3, tilt: 2.0 }
+        HairParams {
+            sigma_a: Vec3::ZERO,
+            ior: 1.55,
+            roughness: 0.3,
+            radial_roughness: 0.3,
+            tilt: 2.0,
+            scale_tt: 0.5,
+            scale_trt: 2.0,
+            tint: [Vec3::ONE; 3],
+        }
     }
 }
 
@@ -256,6 +271,9 @@ impl Mix for HairParams {
             roughness: self.roughness.mix(wa, &o.roughness, wb),
             radial_roughness: self.radial_roughness.mix(wa, &o.radial_roughness, wb),
             tilt: self.tilt.mix(wa, &o.tilt, wb),
+            scale_tt: self.scale_tt.mix(wa, &o.scale_tt, wb),
+            scale_trt: self.scale_trt.mix(wa, &o.scale_trt, wb),
+            tint: [0, 1, 2].map(|k| self.tint[k].mix(wa, &o.tint[k], wb)),
         }
     }
 }
@@ -635,7 +653,8 @@ impl Uber {
         let hair_w = finite(self.hair.weight);
         if hair_w > 0.0 || every {
             let h = &self.hair.params;
-            bsdf.push_weighted(Lobe::Hair(Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)), hair_w);
+            let fibre = Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt).with_lobes(h.scale_tt, h.scale_trt, h.tint);
+            bsdf.push_weighted(Lobe::Hair(fibre), hair_w);
         }
     }
 }
