@@ -53,6 +53,7 @@ fn sparse(smoke: &VolumeDesc) -> VolumeDesc {
     VolumeDesc {
         density: Arc::new(VoxelGrid { origin: IVec3::ZERO, dims: UVec3::splat(n as u32), values }),
         temperature: None,
+        color: None,
         index_to_world,
         shading: smoke.shading,
     }

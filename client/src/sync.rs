@@ -126,6 +126,10 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
 fn volume_sync(path: &str, v: &render_core::volume::VolumeDesc) -> Vec<pb::sync_request::Item> {
     let (o, d) = (v.density.origin, v.density.dims);
     let temperature = v.temperature.as_ref().map_or(&[][..], |t| &t.values[..]);
+    let color: Vec<f32> = v
+        .color
+        .as_ref()
+        .map_or_else(Vec::new, |[r, g, b]| r.values.iter().zip(&g.values).zip(&b.values).flat_map(|((r, g), b)| [*r, *g, *b]).collect());
     let prim = pb::VolumePrim {
         index_to_world: Some(convert::matrix(&v.index_to_world)),
         origin_x: o.x,
@@ -137,10 +141,12 @@ fn volume_sync(path: &str, v: &render_core::volume::VolumeDesc) -> Vec<pb::sync_
         density_len: v.density.values.len() as u64,
         temperature_len: temperature.len() as u64,
         shading: Some(convert::volume_shading_to_wire(&v.shading)),
+        color_len: color.len() as u64,
     };
     let mut items = vec![delta(path, pb::PrimKind::Volume, pb::prim_delta::Payload::Volume(prim))];
     items.extend(chunks(path, pb::ArrayField::VolumeDensity, &v.density.values, |c, v| c.floats = v));
     items.extend(chunks(path, pb::ArrayField::VolumeTemperature, temperature, |c, v| c.floats = v));
+    items.extend(chunks(path, pb::ArrayField::VolumeColor, &color, |c, v| c.floats = v));
     items
 }
 

@@ -128,7 +128,8 @@ struct StagedVolume {
     prim: pb::VolumePrim,
     density: Vec<f32>,
     temperature: Vec<f32>,
-    filled: [u64; 2],
+    color: Vec<f32>,
+    filled: [u64; 3],
 }
 
 /// A texture file arriving in chunks.
@@ -619,9 +620,13 @@ impl Transaction {
         if v.temperature_len != 0 && v.temperature_len != voxels {
             return Err(invalid(&path, "temperature", format!("{} values; 0 or one per voxel ({voxels})", v.temperature_len)));
         }
-        let bytes = (v.density_len + v.temperature_len) * 4;
+        if v.color_len != 0 && v.color_len != 3 * voxels {
+            return Err(invalid(&path, "color", format!("{} values; 0 or three per voxel ({voxels})", v.color_len)));
+        }
+        let bytes = (v.density_len + v.temperature_len + v.color_len) * 4;
         Budget::check_fits(&self.budgets, bytes.saturating_mul(2), &format!("{path}: {voxels} voxels as declared"))?;
-        self.volumes.insert(path, StagedVolume { prim: v, density: Vec::new(), temperature: Vec::new(), filled: [0; 2] });
+        self.volumes
+            .insert(path, StagedVolume { prim: v, density: Vec::new(), temperature: Vec::new(), color: Vec::new(), filled: [0; 3] });
         Ok(())
     }
 
@@ -654,14 +659,14 @@ impl Transaction {
             let mut filled = 0;
             return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
         }
-        if matches!(field, pb::ArrayField::VolumeDensity | pb::ArrayField::VolumeTemperature) {
+        if matches!(field, pb::ArrayField::VolumeDensity | pb::ArrayField::VolumeTemperature | pb::ArrayField::VolumeColor) {
             let v = self.volumes.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no volume delta precedes this chunk"))?;
-            return match field {
-                pb::ArrayField::VolumeDensity => {
-                    fill(&c.path, "density", &mut v.density, v.prim.density_len, c.offset, &c.floats, &mut v.filled[0])
-                }
-                _ => fill(&c.path, "temperature", &mut v.temperature, v.prim.temperature_len, c.offset, &c.floats, &mut v.filled[1]),
+            let (name, values, declared, filled) = match field {
+                pb::ArrayField::VolumeDensity => ("density", &mut v.density, v.prim.density_len, &mut v.filled[0]),
+                pb::ArrayField::VolumeTemperature => ("temperature", &mut v.temperature, v.prim.temperature_len, &mut v.filled[1]),
+                _ => ("color", &mut v.color, v.prim.color_len, &mut v.filled[2]),
             };
+            return fill(&c.path, name, values, declared, c.offset, &c.floats, filled);
         }
         let staged = self
             .meshes
@@ -838,7 +843,9 @@ impl Transaction {
 /// A staged volume's grids, once all their voxels arrived.
 fn volume_from_staged(path: &str, v: StagedVolume) -> Result<VolumeDesc, Status> {
     let p = &v.prim;
-    for (name, got, want) in [("density", v.filled[0], p.density_len), ("temperature", v.filled[1], p.temperature_len)] {
+    for (name, got, want) in
+        [("density", v.filled[0], p.density_len), ("temperature", v.filled[1], p.temperature_len), ("color", v.filled[2], p.color_len)]
+    {
         if got != want {
             return Err(invalid(path, name, format!("received {got} of {want} declared values")));
         }
@@ -850,7 +857,9 @@ fn volume_from_staged(path: &str, v: StagedVolume) -> Result<VolumeDesc, Status>
             values,
         })
     };
+    let channel = |k: usize| grid(v.color.iter().skip(k).step_by(3).copied().collect());
     Ok(VolumeDesc {
+        color: (p.color_len > 0).then(|| [channel(0), channel(1), channel(2)]),
         temperature: (p.temperature_len > 0).then(|| grid(v.temperature)),
         density: grid(v.density),
         index_to_world: convert::affine(path, "index_to_world", &p.index_to_world)?,

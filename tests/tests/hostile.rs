@@ -457,6 +457,17 @@ async fn volumes_that_fit_no_grid_are_refused() {
         (volume([2, 2, 2], (7, 0), &ones[..7], None), Code::InvalidArgument, vec!["density", "7 values declared for 8 voxels"]),
         (volume([1024, 1024, 1024], (1 << 30, 0), &[], None), Code::ResourceExhausted, vec!["/Evil/Smoke", "voxels exceed"]),
         (volume([2, 2, 2], (8, 3), &ones, None), Code::InvalidArgument, vec!["temperature", "0 or one per voxel"]),
+        (
+            {
+                let mut items = volume([2, 2, 2], (8, 0), &ones, None);
+                if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Volume(v)), .. }) = &mut items[0] {
+                    v.color_len = 8;
+                }
+                items
+            },
+            Code::InvalidArgument,
+            vec!["color", "three per voxel"],
+        ),
         (volume([2, 2, 2], (8, 0), &ones[..4], None), Code::InvalidArgument, vec!["density", "received 4 of 8"]),
         (volume([2, 2, 2], (8, 0), &nan, None), Code::InvalidArgument, vec!["density", "voxel 5"]),
         (volume([2, 2, 2], (8, 0), &negative, None), Code::InvalidArgument, vec!["density", "voxel 2"]),

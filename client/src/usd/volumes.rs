@@ -9,7 +9,9 @@ use render_core::volume::{VolumeDesc, VolumeShading, VoxelGrid};
 use super::render_settings::valid_targets;
 use super::*;
 
-/// The fields a volume renders; any other `field:` relationship is reported.
+/// The fields a volume renders; any other `field:` relationship is reported. A colour field
+/// (`color`, Houdini's `Cd`) is a vec3s grid, which vdb-rs 0.6 cannot read: the renderer and the
+/// wire take one (`VolumeDesc::color`), the reader reports it.
 const FIELDS: [&str; 2] = ["density", "temperature"];
 
 /// One grid of a VDB file as read: its active voxels (position, value, edge in voxels) and
@@ -54,31 +56,44 @@ impl SparseGrid {
     }
 }
 
-/// Reads grid `name` of the VDB file at `path`. The crate panics on what it does not support
-/// (some transforms, older files): caught and reported as an error.
+/// Reads the float grid `name` of the VDB file at `path`. The crate panics on what it does not
+/// support (some transforms, older files): caught and reported as an error.
 fn read_vdb(path: &std::path::Path, name: &str) -> Result<SparseGrid> {
     let file = std::fs::File::open(path).with_context(|| format!("cannot open '{}'", path.display()))?;
     let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<SparseGrid> {
         let mut reader = vdb_rs::VdbReader::new(std::io::BufReader::new(file)).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let grids = reader.available_grids();
-        if !grids.iter().any(|g| g == name) {
-            anyhow::bail!("it has no grid '{name}' (it has {})", grids.join(", "));
+        let Some(descriptor) = reader.grid_descriptors.get(name) else {
+            anyhow::bail!("it has no grid '{name}' (it has {})", reader.available_grids().join(", "));
+        };
+        // vdb-rs 0.6 reads every tree's background and tile values as 4 bytes: a vec3s grid's
+        // topology comes out empty (docs/dependencies.md).
+        if descriptor.grid_type != "Tree_float_5_4_3" {
+            anyhow::bail!("grid '{name}' is a {}, which the VDB reader (vdb-rs 0.6) cannot read: float grids only", descriptor.grid_type);
         }
         let grid = reader.read_grid::<f32>(name).map_err(|e| anyhow::anyhow!("grid '{name}': {e}"))?;
         let voxels =
             grid.iter().map(|(p, v, level)| (IVec3::from_array(p.to_array().map(|x| x as i32)), v, level.scale() as i32)).collect();
-        let (scale, translation) = match &grid.transform {
-            vdb_rs::Map::UniformScaleMap { voxel_size, .. } => (voxel_size.to_array(), [0.0; 3]),
-            vdb_rs::Map::ScaleTranslateMap { voxel_size, translation, .. } => (voxel_size.to_array(), translation.to_array()),
-        };
-        let index_to_object = Affine3A::from_scale_rotation_translation(
-            Vec3::from_array(scale.map(|x| x as f32)),
-            glam::Quat::IDENTITY,
-            Vec3::from_array(translation.map(|x| x as f32)),
-        );
-        Ok(SparseGrid { voxels, index_to_object, file: path.display().to_string(), name: name.to_string() })
+        Ok(SparseGrid {
+            voxels,
+            index_to_object: index_to_object(&grid.transform),
+            file: path.display().to_string(),
+            name: name.to_string(),
+        })
     }));
     read.unwrap_or_else(|_| Err(anyhow::anyhow!("the VDB reader cannot read it (an unsupported transform or file version)")))
+}
+
+/// A VDB transform as an affine map from index space to the grid's object space.
+fn index_to_object(map: &vdb_rs::Map) -> Affine3A {
+    let (scale, translation) = match map {
+        vdb_rs::Map::UniformScaleMap { voxel_size, .. } => (voxel_size.to_array(), [0.0; 3]),
+        vdb_rs::Map::ScaleTranslateMap { voxel_size, translation, .. } => (voxel_size.to_array(), translation.to_array()),
+    };
+    Affine3A::from_scale_rotation_translation(
+        Vec3::from_array(scale.map(|x| x as f32)),
+        glam::Quat::IDENTITY,
+        Vec3::from_array(translation.map(|x| x as f32)),
+    )
 }
 
 impl Reader<'_> {
@@ -88,6 +103,12 @@ impl Reader<'_> {
         for rel in prim.relationships()? {
             let rel = rel.path().property_suffix().trim_start_matches('.').to_string();
             let Some(field) = rel.strip_prefix("field:").map(str::to_string) else { continue };
+            if matches!(field.as_str(), "color" | "Cd") {
+                self.out.warnings.push(format!(
+                    "{p}: field '{field}' is a vector grid, which the VDB reader (vdb-rs 0.6) cannot read; the volume renders without its colour"
+                ));
+                continue;
+            }
             if !FIELDS.contains(&field.as_str()) {
                 self.out.warnings.push(format!("{p}: field '{field}' is not rendered (only density and temperature)"));
                 continue;
@@ -126,6 +147,7 @@ impl Reader<'_> {
         let desc = VolumeDesc {
             density: Arc::new(if voxels == 0 { empty_grid() } else { density.dense(bounds) }),
             temperature: temperature.filter(|_| voxels > 0).map(|t| Arc::new(t.dense(bounds))),
+            color: None,
             index_to_world: source.world * density.index_to_object,
             shading: self.volume_shading(prim, p)?,
         };

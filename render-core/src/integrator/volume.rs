@@ -50,14 +50,15 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         }
         let Some((t, k)) = flight.collision else { return VolumeStep::Passed };
         let volume = &self.scene.volumes[k];
-        path.beta *= volume.albedo();
+        let p = ray.origin + ray.dir * t;
+        path.beta *= volume.albedo_at(p);
         if path.depth >= self.settings.max_depth || path.is_dark() {
             return VolumeStep::Ended;
         }
         if path.depth == 0 {
             path.light.first = PathKind::Diffuse as usize;
         }
-        let at = Collision { volume, p: ray.origin + ray.dir * t, wo: -ray.dir, time: ray.time };
+        let at = Collision { volume, p, wo: -ray.dir, time: ray.time };
         let [ul_x, ul_y, up_x, up_y] = rng.next_4d();
         self.add_phase_direct(path, &at, [ul_x, ul_y, u_sel], counters);
         let (wi, pdf) = volume.phase.sample(at.wo, Vec2::new(up_x, up_y));

@@ -46,6 +46,14 @@ impl VoxelGrid {
         lerp(plane(0), plane(1), f.z)
     }
 
+    /// The field at `p` moved into the block first: values at its edge extend outwards (for
+    /// fields that qualify another, as a colour does a density, and are undefined outside).
+    #[inline]
+    pub fn sample_extended(&self, p: Vec3) -> f32 {
+        let hi = (self.origin + self.dims.as_ivec3() - IVec3::ONE).as_vec3();
+        self.sample(p.clamp(self.origin.as_vec3(), hi.max(self.origin.as_vec3())))
+    }
+
     /// The index-space box where the field may be nonzero: one voxel past the block each way.
     pub fn support(&self) -> (Vec3, Vec3) {
         ((self.origin - IVec3::ONE).as_vec3(), (self.origin + self.dims.as_ivec3()).as_vec3())

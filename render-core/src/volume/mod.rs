@@ -65,6 +65,10 @@ pub struct VolumeDesc {
     pub density: Arc<VoxelGrid>,
     /// The temperature field, in the density grid's index space.
     pub temperature: Option<Arc<VoxelGrid>>,
+    /// The colour field (red, green and blue grids in the density grid's block): it
+    /// multiplies the albedo, clamped to [0, 1] (Blender's Principled Volume "Color Attribute");
+    /// its edge values extend past the block, where the density still ramps down.
+    pub color: Option<[Arc<VoxelGrid>; 3]>,
     /// The grids' index space to world.
     pub index_to_world: Affine3A,
     /// How it scatters and emits.
@@ -74,7 +78,8 @@ pub struct VolumeDesc {
 impl VolumeDesc {
     /// Bytes its grids hold.
     pub fn bytes(&self) -> u64 {
-        4 * (self.density.values.len() + self.temperature.as_ref().map_or(0, |t| t.values.len())) as u64
+        let color = self.color.as_ref().map_or(0, |c| 3 * c[0].values.len());
+        4 * (self.density.values.len() + self.temperature.as_ref().map_or(0, |t| t.values.len()) + color) as u64
     }
 }
 
@@ -82,8 +87,10 @@ impl VolumeDesc {
 /// size or are not finite, negative densities, an albedo above 1, a singular transform.
 pub fn validate_volume(path: &str, v: &VolumeDesc) -> Result<(), SceneError> {
     let invalid = |field: &str, problem: String| SceneError::Invalid { prim: path.to_string(), field: field.to_string(), problem };
-    for (field, grid) in [("density", Some(&v.density)), ("temperature", v.temperature.as_ref())] {
-        let Some(g) = grid else { continue };
+    let color = v.color.iter().flatten();
+    let grids =
+        [("density", &v.density)].into_iter().chain(v.temperature.iter().map(|t| ("temperature", t))).chain(color.map(|c| ("color", c)));
+    for (field, g) in grids {
         let want = VoxelGrid::voxel_count(g.dims);
         if want != g.values.len() as u64 || want > grid::MAX_VOXELS {
             return Err(invalid(field, format!("{} values for {} voxels (at most {})", g.values.len(), want, grid::MAX_VOXELS)));
@@ -93,6 +100,9 @@ pub fn validate_volume(path: &str, v: &VolumeDesc) -> Result<(), SceneError> {
         }
         if let Some((i, x)) = g.values.iter().enumerate().find(|(_, x)| !x.is_finite() || (field == "density" && **x < 0.0)) {
             return Err(invalid(field, format!("voxel {i} is {x}; values must be finite (and densities not negative)")));
+        }
+        if field == "color" && (g.origin != v.density.origin || g.dims != v.density.dims) {
+            return Err(invalid(field, "the colour grids must cover the density grid's block".into()));
         }
     }
     let det = v.index_to_world.matrix3.determinant();
@@ -177,9 +187,13 @@ impl Volume {
         }
     }
 
-    /// The single-scattering albedo.
-    pub fn albedo(&self) -> Vec3 {
-        self.desc.shading.color
+    /// The single-scattering albedo at world point `p`: the shader's colour, times the colour
+    /// field's (clamped to [0, 1]) where there is one.
+    pub fn albedo_at(&self, p: Vec3) -> Vec3 {
+        let base = self.desc.shading.color;
+        let Some([r, g, b]) = &self.desc.color else { return base };
+        let q = self.world_to_index.transform_point3(p);
+        base * Vec3::new(r.sample_extended(q), g.sample_extended(q), b.sample_extended(q)).clamp(Vec3::ZERO, Vec3::ONE)
     }
 
     /// Extinction per scene unit at index-space point `p`.
@@ -273,6 +287,7 @@ mod tests {
         let desc = VolumeDesc {
             density: Arc::new(constant_grid(n, 1.0)),
             temperature: None,
+            color: None,
             index_to_world: unit_box_transform(n),
             shading: VolumeShading { density: sigma, ..shading },
         };
@@ -368,6 +383,7 @@ mod tests {
         let ok = VolumeDesc {
             density: Arc::new(constant_grid(2, 1.0)),
             temperature: None,
+            color: None,
             index_to_world: Affine3A::IDENTITY,
             shading: VolumeShading::default(),
         };
