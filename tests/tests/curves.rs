@@ -75,32 +75,15 @@ async fn a_bezier_arc_covers_the_sweep_of_its_width_along_it() {
 /// A fibre 1 unit thick (32 pixels) across the view, bound to `tessera:Hair` of `melanin`,
 /// in the white furnace of the stage's dome.
 fn hair_stage(melanin: f32) -> String {
-    format!(
-        r#"#usda 1.0
-{}
-def BasisCurves "Hair" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    uniform token type = "linear"
-    point3f[] points = [(-1.5, 0, 0), (1.5, 0, 0)]
-    int[] curveVertexCounts = [2]
-    float[] widths = [1] (interpolation = "constant")
-    rel material:binding = </Fibre>
-}}
-def Material "Fibre"
-{{
-    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    fibre_stage(&format!(
+        r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
     def Shader "S"
     {{
         uniform token info:id = "tessera:Hair"
         float inputs:melanin = {melanin}
         token outputs:surface
-    }}
-}}
-"#,
-        ortho_camera_and_dome_usda(40.0, "")
-    )
+    }}"#
+    ))
 }
 
 /// What a fibre takes from the furnace, per covered pixel: Σ(1 − beauty) / Σ alpha.

@@ -382,6 +382,21 @@ mod tests {
     // No reciprocity test: Chiang's model is not reciprocal (see the module's doc).
     testing::lobe_battery!(lobes: lobes(), chi_square: lobes(), seed: 1300, index_below: |_| 1.0, reciprocal: false);
 
+    /// ∫ f·|cos| dω over the sphere (red channel) by the midpoint rule on n² cells in (sin θ, φ).
+    fn scattered(hair: &Hair, wo: Vec3, n: usize) -> f64 {
+        let mut acc = 0.0f64;
+        for a in 0..n {
+            let sin_t = -1.0 + 2.0 * (a as f32 + 0.5) / n as f32;
+            let cos_t = (1.0 - sin_t * sin_t).sqrt();
+            for b in 0..n {
+                let phi = TAU * (b as f32 + 0.5) / n as f32;
+                let wi = Vec3::new(sin_t, cos_t * phi.cos(), cos_t * phi.sin());
+                acc += (hair.eval(wo, wi).x * wi.z.abs()) as f64;
+            }
+        }
+        acc * (2.0 / n as f64) * (TAU as f64 / n as f64)
+    }
+
     /// The furnace: a fibre that absorbs nothing scatters all the light it receives,
     /// for every roughness and view. The integral ∫ f·|cos| dω over the sphere is taken by a
     /// midpoint rule in (sin θ, φ), independent of the lobe's own sampling; 1200² cells
@@ -395,17 +410,7 @@ mod tests {
                 let hair = white(bm, bn, alpha);
                 for wo in [Vec3::new(0.3, -0.4, 0.87), Vec3::new(-0.7, 0.1, 0.7), Vec3::new(0.1, 0.95, 0.3), Vec3::new(0.0, 0.0, 1.0)] {
                     let wo = wo.normalize();
-                    let mut acc = 0.0f64;
-                    for a in 0..n {
-                        let sin_t = -1.0 + 2.0 * (a as f32 + 0.5) / n as f32;
-                        let cos_t = (1.0 - sin_t * sin_t).sqrt();
-                        for b in 0..n {
-                            let phi = TAU * (b as f32 + 0.5) / n as f32;
-                            let wi = Vec3::new(sin_t, cos_t * phi.cos(), cos_t * phi.sin());
-                            acc += (hair.eval(wo, wi).x * wi.z.abs()) as f64;
-                        }
-                    }
-                    let energy = acc * (2.0 / n as f64) * (TAU as f64 / n as f64);
+                    let energy = scattered(&hair, wo, n);
                     assert!((energy - 1.0).abs() < 1e-3, "βm {bm} βn {bn} α {alpha} wo {wo:?}: energy {energy}");
                     assert!((hair.albedo(wo).x - 1.0).abs() < 1e-5);
                 }
@@ -426,17 +431,7 @@ mod tests {
             let hair = plain.with_lobes(scale_tt, scale_trt, tint);
             let ap = plain.view(wo).unwrap().ap;
             let expected = (ap[0] * tint[0] + ap[1] * tint[1] + (ap[2] + ap[3]) * tint[2]).x as f64;
-            let mut acc = 0.0f64;
-            for a in 0..n {
-                let sin_t = -1.0 + 2.0 * (a as f32 + 0.5) / n as f32;
-                let cos_t = (1.0 - sin_t * sin_t).sqrt();
-                for b in 0..n {
-                    let phi = TAU * (b as f32 + 0.5) / n as f32;
-                    let wi = Vec3::new(sin_t, cos_t * phi.cos(), cos_t * phi.sin());
-                    acc += (hair.eval(wo, wi).x * wi.z.abs()) as f64;
-                }
-            }
-            let energy = acc * (2.0 / n as f64) * (TAU as f64 / n as f64);
+            let energy = scattered(&hair, wo, n);
             // 800² cells resolve βm = 0.3 at TT's narrowest scale here (0.25): 2e-3.
             assert!((energy - expected).abs() < 2e-3, "scales {scale_tt}, {scale_trt}: energy {energy}, expected {expected}");
             assert!((hair.albedo(wo).x as f64 - expected).abs() < 1e-5);

@@ -356,6 +356,7 @@ mod tests {
         let desc = VolumeDesc {
             density: Arc::new(holed),
             temperature: None,
+            color: None,
             index_to_world: unit_box_transform(4),
             shading: VolumeShading::default(),
         };
