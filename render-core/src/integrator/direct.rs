@@ -43,21 +43,27 @@ pub(super) struct DirectLighting<'v> {
 }
 
 impl<const FULL: bool> Tracer<'_, FULL> {
-    /// Adds the direct light at vertex `d.v` to the path.
-    pub(super) fn add_direct_light(&self, path: &mut PathState, d: &DirectLighting, counters: &mut PathCounters) {
+    /// The light samples `u` (light position, light choice) draws from `ctx`, a textured
+    /// emitter's radiance read where each landed; samples that carry no light are dropped.
+    /// None when the scene has no lights or only BSDF sampling may find them.
+    pub(super) fn each_light_sample(&self, ctx: &ShadingContext, u: [f32; 3], mut visit: impl FnMut(LightSample, &Light)) {
         if self.scene.lights.is_empty() || self.settings.strategy == LightStrategy::BsdfOnly {
             return;
         }
-        let [ul_x, ul_y, u_sel] = d.u;
-        let budget = self.settings.light_split_budget;
-        self.scene.lights.sample_each(&d.ctx, u_sel, Vec2::new(ul_x, ul_y), budget, |mut ls, light| {
+        let [ul_x, ul_y, u_sel] = u;
+        self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), self.settings.light_split_budget, |mut ls, light| {
             if let Some((instance, triangle)) = light.textured_emitter {
-                ls.li = self.scene.emission_at(instance, triangle, d.ctx.p + ls.wi * ls.dist);
+                ls.li = self.scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist);
             }
             if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
-                self.add_light_sample(path, d, &ls, light, counters);
+                visit(ls, light);
             }
         });
+    }
+
+    /// Adds the direct light at vertex `d.v` to the path.
+    pub(super) fn add_direct_light(&self, path: &mut PathState, d: &DirectLighting, counters: &mut PathCounters) {
+        self.each_light_sample(&d.ctx, d.u, |ls, light| self.add_light_sample(path, d, &ls, light, counters));
     }
 
     /// Whether the first surface's light is split by lobe into the light-path AOVs.

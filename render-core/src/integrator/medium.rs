@@ -116,13 +116,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let scene = self.scene;
         let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
         let mut total = Vec3::ZERO;
-        scene.lights.sample_each(&ctx, u[2], Vec2::new(u[0], u[1]), self.settings.light_split_budget, |mut ls, light| {
-            if let Some((instance, triangle)) = light.textured_emitter {
-                ls.li = scene.emission_at(instance, triangle, at.p + ls.wi * ls.dist);
-            }
-            if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
-                return;
-            }
+        self.each_light_sample(&ctx, u, |ls, light| {
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
             let Some(pass) = scene.shadow_transmittance_from(&shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)

@@ -137,7 +137,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
                     VolumeStep::Passed => {}
                     step => {
                         // Coverage: the share of camera rays a volume stops is its opacity.
-                        out.alpha = if from_camera { 1.0 } else { out.alpha };
+                        if from_camera {
+                            out.alpha = 1.0;
+                        }
                         if step == VolumeStep::Scattered {
                             continue;
                         }

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::PathKind;
 use crate::geometry::Ray;
 use crate::light::ShadingContext;
-use crate::sampling::{PathSampler, mix64, power_heuristic};
+use crate::sampling::{PathSampler, power_heuristic};
 use crate::volume::Volume;
 use crate::volume::tracking::{self, Stream};
 
@@ -78,18 +78,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Next-event estimation at a collision: a light sampled, its shadow ray's visibility and
     /// transmittance, the phase function, MIS against phase sampling.
     fn add_phase_direct(&self, path: &mut PathState, at: &Collision, u: [f32; 3], counters: &mut PathCounters) {
-        if self.scene.lights.is_empty() || self.settings.strategy == LightStrategy::BsdfOnly {
-            return;
-        }
         let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
         let scene = self.scene;
-        scene.lights.sample_each(&ctx, u[2], Vec2::new(u[0], u[1]), self.settings.light_split_budget, |mut ls, light| {
-            if let Some((instance, triangle)) = light.textured_emitter {
-                ls.li = scene.emission_at(instance, triangle, at.p + ls.wi * ls.dist);
-            }
-            if ls.li == Vec3::ZERO || ls.pdf <= 0.0 {
-                return;
-            }
+        self.each_light_sample(&ctx, u, |ls, light| {
             let phase = at.volume.phase.eval(at.wo, ls.wi);
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
@@ -113,8 +104,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         if !FULL || self.scene.volumes.is_empty() {
             return 1.0;
         }
-        let bits = |v: Vec3| (v.x.to_bits() as u64) << 32 ^ (v.y.to_bits() as u64) << 11 ^ v.z.to_bits() as u64;
-        let seed = mix64(bits(shadow.origin) ^ mix64(bits(shadow.dir)));
+        let seed = crate::scene::ray_hash(shadow.origin, shadow.dir, 0x7a1e_5eed);
         tracking::transmittance(&self.scene.volumes, shadow, shadow.tmax, &mut Stream::new(seed))
     }
 }

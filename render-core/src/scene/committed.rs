@@ -132,9 +132,14 @@ pub struct SurfaceHit {
 /// `dir`: a hash of the two, so the decision needs no sampler dimension and shadow rays make it
 /// as camera rays do. Positions differ from sample to sample, so the coins are independent.
 pub fn see_through_coin(p: Vec3, dir: Vec3) -> f32 {
+    (ray_hash(p, dir, 0x5ee7_4409) >> 40) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// A hash of a ray's origin and direction (and a `salt` per use), for decisions and random
+/// streams a ray makes without a sampler dimension.
+pub fn ray_hash(p: Vec3, dir: Vec3, salt: u64) -> u64 {
     let bits = |v: Vec3| ((v.x.to_bits() as u64) << 32 | v.y.to_bits() as u64) ^ (v.z.to_bits() as u64).rotate_left(17);
-    let h = crate::sampling::mix64(bits(p) ^ crate::sampling::mix64(bits(dir) ^ 0x5ee7_4409));
-    (h >> 40) as f32 * (1.0 / 16_777_216.0)
+    crate::sampling::mix64(bits(p) ^ crate::sampling::mix64(bits(dir) ^ salt))
 }
 
 /// Cut-out surfaces a ray passes through before the rest counts as opaque.

@@ -19,7 +19,7 @@ mod shadows;
 
 pub use cache::BlasCache;
 pub use commit::commit;
-pub use committed::{CommittedScene, InstanceData, MAX_CUTOUT_CROSSINGS, SurfaceHit, see_through_coin};
+pub use committed::{CommittedScene, InstanceData, MAX_CUTOUT_CROSSINGS, SurfaceHit, ray_hash, see_through_coin};
 pub use desc::{InstancerDesc, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
 pub use shadows::ShadowPass;
 

@@ -144,7 +144,8 @@ pub struct Volume {
     pub phase: HenyeyGreenstein,
     /// Majorant of emitting cells that do not attenuate (per scene unit).
     emission_floor: f32,
-    emits: bool,
+    /// It emits black-body light from its temperature grid.
+    blackbody: bool,
 }
 
 impl Volume {
@@ -162,7 +163,6 @@ impl Volume {
             None => desc.density.support(),
         };
         let blackbody = s.blackbody_intensity > 0.0 && s.temperature > 0.0 && desc.temperature.is_some();
-        let emits = s.emission.max_element() > 0.0 || blackbody;
         let majorant = MajorantGrid::build(
             support,
             cell,
@@ -183,7 +183,7 @@ impl Volume {
             bounds,
             phase: HenyeyGreenstein::new(s.anisotropy),
             emission_floor: EMISSION_STEPS_PER_CELL / (cell as f32 * voxel),
-            emits,
+            blackbody,
         }
     }
 
@@ -202,17 +202,16 @@ impl Volume {
         self.desc.shading.density * self.desc.density.sample(p)
     }
 
-    /// Emission per scene unit at index-space point `p`.
-    pub fn emission_at(&self, p: Vec3) -> Vec3 {
-        if !self.emits {
-            return Vec3::ZERO;
-        }
+    /// Extinction and emission per scene unit at index-space point `p`, the density grid read
+    /// once for both.
+    pub fn extinction_and_emission_at(&self, p: Vec3) -> (f32, Vec3) {
         let s = &self.desc.shading;
-        let mut e = s.emission * self.desc.density.sample(p);
-        if let Some(t) = self.desc.temperature.as_ref().filter(|_| s.blackbody_intensity > 0.0) {
+        let density = self.desc.density.sample(p);
+        let mut e = s.emission * density;
+        if let Some(t) = self.desc.temperature.as_ref().filter(|_| self.blackbody) {
             e += blackbody_emission(s.temperature * t.sample(p).max(0.0), s.blackbody_intensity) * s.blackbody_tint;
         }
-        e
+        (s.density * density, e)
     }
 
     /// The ray's segment `[0, t_max]` may cross the volume's bounds.

@@ -92,15 +92,6 @@ pub struct Flight {
     pub collision: Option<(f32, usize)>,
 }
 
-fn trackers<'v>(volumes: &'v [Volume], ray: &Ray, t_max: f32, emission: bool) -> Vec<(usize, Tracker<'v>)> {
-    volumes
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.overlaps(ray, t_max))
-        .filter_map(|(k, v)| Tracker::new(v, ray, t_max, emission).map(|t| (k, t)))
-        .collect()
-}
-
 /// Most tentative collisions one ray segment takes: past them the volumes count as opaque
 /// there. Extinction so high that a float's steps no longer advance along the ray (a client's
 /// 1e30 density) would otherwise loop without end.
@@ -126,22 +117,28 @@ fn merged(
     s: &mut Stream,
     mut visit: impl FnMut(f32, f32, Vec3, usize, &mut Stream) -> bool,
 ) -> Stop {
-    let mut trackers = trackers(volumes, ray, t_max, emission);
-    let mut pending: Vec<Option<(f32, f32, Vec3)>> = trackers.iter_mut().map(|(_, t)| t.next(s)).collect();
+    // Each overlapping volume's tracker and its next tentative collision.
+    let mut trackers: Vec<(usize, Tracker, (f32, f32, Vec3))> = Vec::new();
+    for (k, v) in volumes.iter().enumerate().filter(|(_, v)| v.overlaps(ray, t_max)) {
+        let Some(mut tracker) = Tracker::new(v, ray, t_max, emission) else { continue };
+        if let Some(first) = tracker.next(s) {
+            trackers.push((k, tracker, first));
+        }
+    }
     for _ in 0..MAX_TENTATIVE_COLLISIONS {
-        let Some(i) =
-            (0..pending.len()).filter(|&i| pending[i].is_some()).min_by(|&a, &b| pending[a].unwrap().0.total_cmp(&pending[b].unwrap().0))
-        else {
-            return Stop::Exhausted;
-        };
-        let (t, sigma, p) = pending[i].unwrap();
-        if !visit(t, sigma, p, trackers[i].0, s) {
+        let Some(i) = (0..trackers.len()).min_by(|&a, &b| trackers[a].2.0.total_cmp(&trackers[b].2.0)) else { return Stop::Exhausted };
+        let (k, (t, sigma, p)) = (trackers[i].0, trackers[i].2);
+        if !visit(t, sigma, p, k, s) {
             return Stop::Visitor;
         }
-        pending[i] = trackers[i].1.next(s);
+        match trackers[i].1.next(s) {
+            Some(next) => trackers[i].2 = next,
+            None => {
+                trackers.swap_remove(i);
+            }
+        }
     }
-    let (t, k) = (0..pending.len()).find_map(|i| pending[i].map(|(t, ..)| (t, trackers[i].0))).unwrap_or((0.0, 0));
-    Stop::TooMany(t, k)
+    trackers.first().map_or(Stop::TooMany(0.0, 0), |&(k, _, (t, ..))| Stop::TooMany(t, k))
 }
 
 /// Delta tracking of a path's ray up to `t_max`: where it first really collides, and the
@@ -149,9 +146,9 @@ fn merged(
 pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight {
     let mut flight = Flight { emitted: Vec3::ZERO, collision: None };
     let stop = merged(volumes, ray, t_max, true, s, |t, sigma, p, k, s| {
-        let v = &volumes[k];
-        flight.emitted += v.emission_at(p) / sigma;
-        if s.next() * sigma < v.extinction_at(p) {
+        let (extinction, emission) = volumes[k].extinction_and_emission_at(p);
+        flight.emitted += emission / sigma;
+        if s.next() * sigma < extinction {
             flight.collision = Some((t, k));
             return false;
         }
