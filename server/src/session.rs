@@ -148,7 +148,7 @@ pub struct Transaction {
     /// Instancers staged: prototype, transforms (then motion) as they arrive, declared length,
     /// motion samples per instance.
     instancers: HashMap<String, (String, Vec<f64>, u64, u64)>,
-    /// Volumes staged: their delta, then density and temperature voxels as they arrive.
+    /// Volumes staged: their delta, then density, temperature and colour voxels as they arrive.
     volumes: HashMap<String, StagedVolume>,
     /// Prims applied.
     pub applied: u32,
@@ -197,7 +197,7 @@ pub fn scene_bytes(desc: &SceneDesc) -> u64 {
         desc.instancers.values().map(|i| i.transforms.len() as u64 * BYTES_PER_INSTANCE + i.motion.len() as u64 * 48).sum();
     // Mip levels add a third; the environment's importance map and tangents stay below that.
     let textures: u64 = desc.textures.values().map(|t| t.bytes() as u64 * 2).sum();
-    // Majorants add 5 bytes per 512 voxels.
+    // Majorant cells (5 bytes per 8³ voxels of at least 4 bytes each) stay below 1/256 of the grids.
     let volumes: u64 = desc.volumes.values().map(|v| v.bytes() + v.bytes() / 256).sum();
     meshes + instances + textures + volumes
 }

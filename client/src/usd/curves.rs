@@ -127,10 +127,10 @@ impl Curves {
         let mut mesh = Mesh::default();
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
         let (mut first, mut first_varying) = (0, 0);
+        let closed = self.wrap == Wrap::Periodic;
         for (c, &count) in self.counts.iter().enumerate() {
             let cv = &self.points[first..first + count];
             let line = self.centreline(c, cv, first, &mut first_varying)?;
-            let closed = self.wrap == Wrap::Periodic;
             match line.normals.is_empty() {
                 true => sweep(&line.centres, &line.widths, closed, &mut mesh, &mut normals, &mut uvs),
                 false => sweep_ribbon(&line, closed, &mut mesh, &mut normals, &mut uvs),

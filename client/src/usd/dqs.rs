@@ -65,8 +65,9 @@ impl<'j> Blend<'j> {
         Blend { joints, any_scale: joints.iter().any(DualJoint::scales) }
     }
 
-    /// The blended rotation and translation of `influences`, and the blended remainder.
-    fn blended(&self, influences: &[(usize, f64)]) -> (DQuat, DVec3, DMat3) {
+    /// What `influences` blend to: the rotation and translation of their dual quaternions, and
+    /// their remainders blended linearly (none when no joint scales).
+    pub(super) fn skinning(&self, influences: &[(usize, f64)]) -> Skinning {
         // The heaviest joint (the first of equals) sets the hemisphere.
         let pivot = influences.iter().fold(None, |best: Option<(usize, f64)>, &(j, w)| match best {
             Some((_, bw)) if bw >= w => best,
@@ -84,34 +85,38 @@ impl<'j> Blend<'j> {
         }
         let len = real.length();
         if !(len > 0.0) {
-            return (DQuat::IDENTITY, DVec3::ZERO, DMat3::IDENTITY);
+            return Skinning { rotation: DQuat::IDENTITY, translation: DVec3::ZERO, scale: None };
         }
         let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
         let dual = dual - real * real.dot(dual);
         let t = dual * real.conjugate() * 2.0;
-        (real, DVec3::new(t.x, t.y, t.z), scale)
+        Skinning { rotation: real, translation: DVec3::new(t.x, t.y, t.z), scale: self.any_scale.then_some(scale) }
     }
+}
 
-    /// The whole blended transform of `influences` (the rigid case: one set for every point).
-    pub(super) fn transform(&self, influences: &[(usize, f64)]) -> DMat4 {
-        let (rotation, translation, scale) = self.blended(influences);
-        let linear = DMat3::from_quat(rotation) * if self.any_scale { scale } else { DMat3::IDENTITY };
-        DMat4::from_cols(linear.x_axis.extend(0.0), linear.y_axis.extend(0.0), linear.z_axis.extend(0.0), translation.extend(1.0))
-    }
+/// One point's blended skinning.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Skinning {
+    rotation: DQuat,
+    translation: DVec3,
+    /// The blended scale and shear, applied first; `None` when no joint scales.
+    scale: Option<DMat3>,
+}
 
-    /// `p` (already through the geometry's bind transform) skinned by `influences`.
-    pub(super) fn point(&self, p: DVec3, influences: &[(usize, f64)]) -> DVec3 {
-        let (rotation, translation, scale) = self.blended(influences);
-        let p = if self.any_scale { scale * p } else { p };
-        rotation * p + translation
+impl Skinning {
+    /// `p` (already through the geometry's bind transform) skinned.
+    pub(super) fn point(&self, p: DVec3) -> DVec3 {
+        self.rotation * self.scale.map_or(p, |s| s * p) + self.translation
     }
 
     /// A normal (already through the bind transform's inverse transpose) turned by the
-    /// blended rotation after the blended remainder's inverse transpose.
-    pub(super) fn normal(&self, n: DVec3, influences: &[(usize, f64)]) -> DVec3 {
-        let (rotation, _, scale) = self.blended(influences);
-        let n = if self.any_scale && scale.determinant().abs() > 1e-300 { scale.inverse().transpose() * n } else { n };
-        (rotation * n).normalize_or_zero()
+    /// rotation after the scale's inverse transpose.
+    pub(super) fn normal(&self, n: DVec3) -> DVec3 {
+        let n = match self.scale {
+            Some(s) if s.determinant().abs() > 1e-300 => s.inverse().transpose() * n,
+            _ => n,
+        };
+        (self.rotation * n).normalize_or_zero()
     }
 }
 
@@ -125,7 +130,7 @@ mod tests {
         let joints = [DualJoint::new(m)];
         let blend = Blend::new(&joints);
         let p = DVec3::new(0.3, -0.7, 1.9);
-        assert!((blend.point(p, &[(0, 1.0)]) - m.transform_point3(p)).length() < 1e-12);
+        assert!((blend.skinning(&[(0, 1.0)]).point(p) - m.transform_point3(p)).length() < 1e-12);
     }
 
     /// Two joints turned ±60° about z with equal weights: linear blending collapses the point
@@ -134,20 +139,20 @@ mod tests {
     fn an_even_blend_of_two_turns_keeps_the_radius() {
         let turn = |a: f64| DualJoint::new(DMat4::from_rotation_z(a));
         let joints = [turn(1.0472), turn(-1.0472)];
-        let p = Blend::new(&joints).point(DVec3::X, &[(0, 0.5), (1, 0.5)]);
+        let p = Blend::new(&joints).skinning(&[(0, 0.5), (1, 0.5)]).point(DVec3::X);
         assert!((p - DVec3::X).length() < 1e-9, "{p}");
         // Opposite hemispheres (a quaternion and its negation are one rotation) blend alike.
         let mut flipped = joints;
         flipped[1].real = -flipped[1].real;
         flipped[1].dual = -flipped[1].dual;
-        assert!((Blend::new(&flipped).point(DVec3::X, &[(0, 0.5), (1, 0.5)]) - DVec3::X).length() < 1e-9);
+        assert!((Blend::new(&flipped).skinning(&[(0, 0.5), (1, 0.5)]).point(DVec3::X) - DVec3::X).length() < 1e-9);
     }
 
     #[test]
     fn a_singular_joint_degrades_without_nan() {
         let joints = [DualJoint::new(DMat4::from_scale(DVec3::ZERO))];
-        let p = Blend::new(&joints).point(DVec3::ONE, &[(0, 1.0)]);
+        let p = Blend::new(&joints).skinning(&[(0, 1.0)]).point(DVec3::ONE);
         assert!(p.is_finite());
-        assert!(Blend::new(&joints).point(DVec3::ONE, &[]).is_finite());
+        assert!(Blend::new(&joints).skinning(&[]).point(DVec3::ONE).is_finite());
     }
 }

@@ -16,7 +16,7 @@ use openusd::gf;
 use openusd::schemas::skel::{AnimMapper, BlendShape, SkelAnimQuery, SkelBindingAPI, SkeletonResolver, SkinningMethod, SkinningResolver};
 use openusd::sdf;
 
-use super::dqs::{Blend, DualJoint};
+use super::dqs::{Blend, DualJoint, Skinning};
 use super::*;
 
 /// Authored normals and their interpolation, as `MeshSource` holds them.
@@ -165,45 +165,27 @@ impl Skin {
         let Joints { resolver, indices, weights } = self.joints.as_ref().expect("joint skinning");
         let per = resolver.num_influences_per_component();
         let rigid = resolver.is_rigidly_deformed();
-        if !rigid && indices.len() != points.len() * per {
-            return Err(format!(
-                "primvars:skel:jointIndices has {} entries for {} points of {per} influences each",
-                indices.len(),
-                points.len()
-            ));
+        if !rigid {
+            self.check_influence_count(points.len())?;
         }
         let duals: Vec<DualJoint> =
             resolver.remap_skinning_xforms(&self.pose.skinning).iter().map(|m| DualJoint::new(values::matrix(m))).collect();
         let blend = Blend::new(&duals);
-        let influences = |v: usize| -> Vec<(usize, f64)> {
-            let v = if rigid { 0 } else { v };
-            (v * per..(v + 1) * per).map(|s| (indices[s] as usize, weights[s] as f64)).collect()
-        };
+        let influences =
+            |v: usize| -> Vec<(usize, f64)> { (v * per..(v + 1) * per).map(|s| (indices[s] as usize, weights[s] as f64)).collect() };
+        // Each point's blend once, for its position and its normals; one for a rigid binding.
+        let skins: Vec<Skinning> = (0..if rigid { 1 } else { points.len() }).map(|v| blend.skinning(&influences(v))).collect();
+        let skin_of = |v: usize| &skins[if rigid { 0 } else { v }];
         let geom = values::matrix(&resolver.geom_bind_transform());
         let geom_normals = normal_matrix(&resolver.geom_bind_transform());
-        let rigid_transform = rigid.then(|| blend.transform(&influences(0)));
-        let skinned = points
-            .iter()
-            .enumerate()
-            .map(|(v, p)| {
-                let p = geom.transform_point3(from_gf(*p).as_dvec3());
-                match rigid_transform {
-                    Some(m) => m.transform_point3(p).as_vec3(),
-                    None => blend.point(p, &influences(v)).as_vec3(),
-                }
-            })
-            .collect();
+        let skinned =
+            points.iter().enumerate().map(|(v, p)| skin_of(v).point(geom.transform_point3(from_gf(*p).as_dvec3())).as_vec3()).collect();
         let normals = normals.map(|(v, interp)| {
-            let point_of = |i: usize| match interp.as_str() {
-                "vertex" | "varying" => Some(i),
-                "faceVarying" => face_vertex_indices.get(i).map(|&p| p as usize),
-                _ => None,
-            };
             let skinned = v
                 .iter()
                 .enumerate()
-                .map(|(i, n)| match point_of(i).filter(|&p| p < points.len()) {
-                    Some(p) => blend.normal(geom_normals * n.as_dvec3(), &influences(p)).as_vec3(),
+                .map(|(i, n)| match normal_point(interp, face_vertex_indices, i).filter(|&p| p < points.len()) {
+                    Some(p) => skin_of(p).normal(geom_normals * n.as_dvec3()).as_vec3(),
                     None => Vec3::ZERO,
                 })
                 .collect();
@@ -212,9 +194,9 @@ impl Skin {
         Ok((skinned, normals))
     }
 
-    /// Each point's (normal matrix, weight) pairs, checked against the point count.
-    fn influences(&self, point_count: usize) -> Result<Vec<Vec<(DMat3, f64)>>, String> {
-        let Joints { resolver, indices, weights } = self.joints.as_ref().expect("joint skinning");
+    /// Per-point influences fit `point_count` points.
+    fn check_influence_count(&self, point_count: usize) -> Result<(), String> {
+        let Joints { resolver, indices, .. } = self.joints.as_ref().expect("joint skinning");
         let per = resolver.num_influences_per_component();
         if indices.len() != point_count * per {
             return Err(format!(
@@ -222,6 +204,14 @@ impl Skin {
                 indices.len()
             ));
         }
+        Ok(())
+    }
+
+    /// Each point's (normal matrix, weight) pairs, checked against the point count.
+    fn influences(&self, point_count: usize) -> Result<Vec<Vec<(DMat3, f64)>>, String> {
+        self.check_influence_count(point_count)?;
+        let Joints { resolver, indices, weights } = self.joints.as_ref().expect("joint skinning");
+        let per = resolver.num_influences_per_component();
         let geom = normal_matrix(&resolver.geom_bind_transform());
         let by_joint: Vec<DMat3> = resolver.remap_skinning_xforms(&self.pose.skinning).iter().map(normal_matrix).collect();
         Ok((0..point_count)
@@ -233,22 +223,25 @@ impl Skin {
     /// takes its corner's point). Uniform and constant normals have no point: they are left
     /// for the renderer to recompute from the posed surface.
     fn skin_normals(&self, normals: &[Vec3], interp: &str, corners: &[i64], influences: &[Vec<(DMat3, f64)>]) -> Vec<Vec3> {
-        let point_of = |i: usize| -> Option<usize> {
-            match interp {
-                "vertex" | "varying" => Some(i),
-                "faceVarying" => corners.get(i).map(|&p| p as usize),
-                _ => None,
-            }
-        };
         normals
             .iter()
             .enumerate()
             .map(|(i, n)| {
-                let Some(inf) = point_of(i).and_then(|p| influences.get(p)) else { return Vec3::ZERO };
+                let Some(inf) = normal_point(interp, corners, i).and_then(|p| influences.get(p)) else { return Vec3::ZERO };
                 let n = n.as_dvec3();
                 inf.iter().map(|(m, w)| *m * n * *w).sum::<glam::DVec3>().normalize_or_zero().as_vec3()
             })
             .collect()
+    }
+}
+
+/// The point normal `i` of `interp` interpolation follows (a face-varying normal takes its
+/// corner's point); `None` for uniform and constant normals, which have no point.
+fn normal_point(interp: &str, corners: &[i64], i: usize) -> Option<usize> {
+    match interp {
+        "vertex" | "varying" => Some(i),
+        "faceVarying" => corners.get(i).map(|&p| p as usize),
+        _ => None,
     }
 }
 

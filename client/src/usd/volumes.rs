@@ -3,7 +3,7 @@
 //! the bound material's `tessera:Volume` shader (Blender's Principled Volume inputs).
 
 use anyhow::{Context, Result};
-use glam::{IVec3, UVec3};
+use glam::IVec3;
 use render_core::volume::{VolumeDesc, VolumeShading, VoxelGrid};
 
 use super::render_settings::valid_targets;
@@ -25,11 +25,12 @@ struct SparseGrid {
 }
 
 impl SparseGrid {
-    /// The inclusive box of its active voxels (None when it has none).
+    /// Its active voxels, a tile counting each voxel it covers.
     fn active_voxels(&self) -> u64 {
         self.voxels.iter().map(|&(_, _, size)| (size as u64).pow(3)).sum()
     }
 
+    /// The inclusive box of its active voxels (None when it has none).
     fn bounds(&self) -> Option<(IVec3, IVec3)> {
         self.voxels.iter().map(|&(p, _, size)| (p, p + IVec3::splat(size - 1))).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
     }
@@ -133,10 +134,12 @@ impl Reader<'_> {
             }
             same
         });
-        let box_of = |g: &SparseGrid| g.bounds();
-        let bounds =
-            [box_of(&density), temperature.as_ref().and_then(box_of)].into_iter().flatten().reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
-        let bounds = bounds.unwrap_or((IVec3::ZERO, IVec3::splat(-1)));
+        // With no active voxel at all, an empty box: the grids come out with no voxels.
+        let bounds = [density.bounds(), temperature.as_ref().and_then(SparseGrid::bounds)]
+            .into_iter()
+            .flatten()
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+            .unwrap_or((IVec3::ZERO, IVec3::splat(-1)));
         let voxels = VoxelGrid::voxel_count((bounds.1 - bounds.0 + IVec3::ONE).max(IVec3::ZERO).as_uvec3());
         if voxels > render_core::volume::grid::MAX_VOXELS {
             anyhow::bail!(
@@ -145,8 +148,8 @@ impl Reader<'_> {
             );
         }
         let desc = VolumeDesc {
-            density: Arc::new(if voxels == 0 { empty_grid() } else { density.dense(bounds) }),
-            temperature: temperature.filter(|_| voxels > 0).map(|t| Arc::new(t.dense(bounds))),
+            density: Arc::new(density.dense(bounds)),
+            temperature: temperature.map(|t| Arc::new(t.dense(bounds))),
             color: None,
             index_to_world: source.world * density.index_to_object,
             shading: self.volume_shading(prim, p)?,
@@ -213,9 +216,4 @@ impl Reader<'_> {
             temperature: float("temperature", d.temperature)?,
         })
     }
-}
-
-/// A grid with no voxels.
-fn empty_grid() -> VoxelGrid {
-    VoxelGrid { origin: IVec3::ZERO, dims: UVec3::ZERO, values: Vec::new() }
 }
