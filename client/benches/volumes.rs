@@ -56,6 +56,7 @@ fn sparse(smoke: &VolumeDesc) -> VolumeDesc {
         color: None,
         index_to_world,
         shading: smoke.shading,
+        motion: Vec::new(),
     }
 }
 

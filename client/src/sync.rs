@@ -142,6 +142,7 @@ fn volume_sync(path: &str, v: &render_core::volume::VolumeDesc) -> Vec<pb::sync_
         temperature_len: temperature.len() as u64,
         shading: Some(convert::volume_shading_to_wire(&v.shading)),
         color_len: color.len() as u64,
+        motion: convert::motion_to_wire(&v.motion),
     };
     let mut items = vec![delta(path, pb::PrimKind::Volume, pb::prim_delta::Payload::Volume(prim))];
     items.extend(chunks(path, pb::ArrayField::VolumeDensity, &v.density.values, |c, v| c.floats = v));

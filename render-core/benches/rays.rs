@@ -49,13 +49,15 @@ fn main() {
             let t = Instant::now();
             hits_c = pool.install(|| {
                 rays.par_chunks(4096)
-                    .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY).is_some()).count())
+                    .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count())
                     .sum::<usize>()
             });
             best_c = best_c.min(t.elapsed().as_secs_f64());
             let t = Instant::now();
             hits_o = pool.install(|| {
-                rays.par_chunks(4096).map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax)).count()).sum::<usize>()
+                rays.par_chunks(4096)
+                    .map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count())
+                    .sum::<usize>()
             });
             best_o = best_o.min(t.elapsed().as_secs_f64());
         }
@@ -125,7 +127,7 @@ fn flat_at_the_cap(rays: &[TestRay]) {
                 glam::Quat::from_rotation_y(i as f32),
                 Vec3::new(if i % 2 == 0 { -0.6 } else { 0.6 }, if i < 2 { -0.6 } else { 0.6 }, 0.0),
             );
-            TlasInstance { blas: 0, transform: Transform::new(xf).unwrap() }
+            TlasInstance { blas: 0, transform: Transform::new(xf).unwrap(), motion: None }
         })
         .collect();
     let measure = |flat_limit: usize| {

@@ -208,11 +208,6 @@ impl Mesh {
         self.indices[tri].map(at)
     }
 
-    /// The same mesh keeping the frame's shape.
-    pub fn without_deformation(&self) -> Mesh {
-        Mesh { deformation: Vec::new(), ..self.clone() }
-    }
-
     /// Interpolated, unnormalised shading normal at barycentrics (`b1`, `b2`), or `None`
     /// for flat meshes.
     #[inline]

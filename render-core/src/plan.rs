@@ -61,7 +61,7 @@ features! {
     Subsurface = "subsurface": "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)",
     DepthOfField = "depth-of-field": "thin-lens cameras (fStop, focusDistance): rays from points on the lens",
     Volumes = "volumes": "UsdVol volumes: delta tracking through a majorant grid, ratio-tracked shadows, Henyey-Greenstein scattering, emission and black-body fire",
-    MotionBlur = "motion-blur": "motion over the shutter: each camera sample at its own time, moving instances placed and deforming meshes shaped per ray",
+    MotionBlur = "motion-blur": "motion over the shutter: each camera sample at its own time, moving instances, lights and volumes placed and deforming meshes shaped per ray",
 }
 
 /// A set of [`Feature`]s.

@@ -864,6 +864,7 @@ fn volume_from_staged(path: &str, v: StagedVolume) -> Result<VolumeDesc, Status>
         density: grid(v.density),
         index_to_world: convert::affine(path, "index_to_world", &p.index_to_world)?,
         shading: convert::volume_shading_from_wire(&p.shading),
+        motion: convert::motion_from_wire(path, "motion", &p.motion)?,
     })
 }
 

@@ -7,6 +7,8 @@ use tessera::remote::{Connection, RenderOptions, RenderReport};
 use tessera::usd::Translation;
 use tessera_server::EmbeddedServer;
 
+pub mod lit_plane;
+
 /// Path of a file under `fixtures/`.
 pub fn fixture(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fixtures").join(rel)
@@ -292,7 +294,10 @@ pub fn ortho_camera_and_dome_usda(aperture: f32, extra: &str) -> String {
     double3 xformOp:translate = (0, 0, 10)
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }}
-def DomeLight "Sky" {{ float inputs:intensity = 1 }}
+def DomeLight "Sky"
+{{
+    float inputs:intensity = 1
+}}
 "#
     )
 }

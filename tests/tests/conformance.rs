@@ -222,6 +222,7 @@ fn textured_roughness_matches_constant_roughness() {
         diffuse: 1.0,
         specular: 1.0,
         texture: None,
+        motion: Vec::new(),
     };
     t.lights.push(("/Sun".into(), sun));
     let r = render(t, (240, 160), 32);

@@ -71,6 +71,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
             shaping: None,
             diffuse: 1.0,
             specular: 1.0,
+            motion: Vec::new(),
         },
     ));
     let (server, mut conn) = session_with(&t).await;

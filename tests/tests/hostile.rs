@@ -322,7 +322,7 @@ async fn huge_and_deep_material_networks_are_refused_by_their_limits() {
 
 /// Motion samples are a count the client controls: 100 000 of them (13 MB) pass no message
 /// limit, and 20 000 (2.7 MB, within it), a single one, a singular one and a NaN one are
-/// refused naming the field, for meshes and cameras.
+/// refused naming the field, for meshes, cameras, lights and volumes.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
     let server = EmbeddedServer::start().await.unwrap();
@@ -347,10 +347,30 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
         let r = raw.sync(&s, with_motion(motion.clone())).await;
         assert!(r.is_err(), "{what}");
         assert_status(r, Code::InvalidArgument, &["/Evil/Mover", "motion", needle]);
-        let camera =
-            pb::CameraPrim { focal_length: 50.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, motion, ..Default::default() };
+        let camera = pb::CameraPrim {
+            focal_length: 50.0,
+            horizontal_aperture: 20.0,
+            vertical_aperture: 20.0,
+            motion: motion.clone(),
+            ..Default::default()
+        };
         let r = raw.sync(&s, vec![tessera::sync::delta("/Evil/Cam", pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(camera))]).await;
         assert_status(r, Code::InvalidArgument, &["/Evil/Cam", "motion", needle]);
+        let light = pb::LightPrim {
+            light_type: pb::LightType::Sphere as i32,
+            radius: 1.0,
+            intensity: 1.0,
+            motion: motion.clone(),
+            ..Default::default()
+        };
+        let r = raw.sync(&s, vec![tessera::sync::delta("/Evil/Bulb", pb::PrimKind::Light, pb::prim_delta::Payload::Light(light))]).await;
+        assert_status(r, Code::InvalidArgument, &["/Evil/Bulb", "motion", needle]);
+        let mut smoke = volume([1, 1, 1], (1, 0), &[1.0], None);
+        if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Volume(v)), .. }) = &mut smoke[0] {
+            v.index_to_world = Some(identity());
+            v.motion = motion.clone();
+        }
+        assert_status(raw.sync(&s, smoke).await, Code::InvalidArgument, &["/Evil/Smoke", "motion", needle]);
     }
     assert_status(raw.sync(&s, with_motion(vec![identity(); 100_000])).await, Code::OutOfRange, &["message length too large"]);
     // A valid motion syncs and renders.

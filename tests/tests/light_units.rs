@@ -4,55 +4,13 @@
 //! The fixtures (`fixtures/make_fixtures.py`) light a diffuse plane of albedo 0.5, so the
 //! plane's radiance is 0.5·E/π.
 
-use std::f64::consts::PI;
-
-use glam::{DVec3, Vec3};
-use render_core::camera::Camera;
+use glam::DVec3;
+use tessera_tests::lit_plane::{assert_plane_radiance, polygon_irradiance};
 use tessera_tests::*;
 
-const ALBEDO: f64 = 0.5;
-
-/// Irradiance at `p` (normal +Y) from a Lambertian polygon of radiance `l`: Lambert's
-/// formula E = L/2 Σ Θᵢ (n · ĝᵢ), with Θᵢ the angle each edge subtends.
-fn polygon_irradiance(p: DVec3, corners: &[DVec3], l: f64) -> f64 {
-    let n = DVec3::Y;
-    let mut sum = 0.0;
-    for i in 0..corners.len() {
-        let a = (corners[i] - p).normalize();
-        let b = (corners[(i + 1) % corners.len()] - p).normalize();
-        let theta = a.dot(b).clamp(-1.0, 1.0).acos();
-        sum += theta * n.dot(a.cross(b).normalize());
-    }
-    0.5 * l * sum.abs()
-}
-
-/// Renders a lit-plane fixture and compares every pixel's mean over a block against the
-/// closed form evaluated at the point the pixel sees.
+/// A fixture's plane against the closed form `irradiance` (see [`assert_plane_radiance`]).
 async fn check_plane(fixture_name: &str, spp: u32, tolerance: f64, irradiance: impl Fn(DVec3) -> f64) {
-    let (w, h) = (32, 32);
-    let translation = load(fixture_name);
-    let report = render_fixture(fixture_name, &small(w, h, spp)).await;
-    let img = &report.image;
-    assert_all_finite(img);
-    let cam = Camera::new(&translation.cameras[0].1, w, h);
-    let (mut got, mut want) = (0.0, 0.0);
-    for y in 0..h {
-        for x in 0..w {
-            let (ray, _) = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-            let t = -ray.origin.y / ray.dir.y;
-            let p: Vec3 = ray.at(t);
-            want += ALBEDO * irradiance(p.as_dvec3()) / PI;
-            got += img.pixel("beauty", x, y)[0] as f64;
-        }
-    }
-    let rel = got / want - 1.0;
-    assert!(
-        rel.abs() < tolerance,
-        "{fixture_name}: mean radiance {} vs closed form {} ({:+.3}%)",
-        got / (w * h) as f64,
-        want / (w * h) as f64,
-        100.0 * rel
-    );
+    assert_plane_radiance(fixture_name, &load(fixture_name), spp, tolerance, irradiance).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -90,6 +90,7 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         diffuse: l.diffuse.unwrap_or(1.0),
         specular: l.specular.unwrap_or(1.0),
         texture: l.texture.as_ref().map(|t| render_core::texture::TextureRef { hash: t.content_hash.clone(), source: t.source.clone() }),
+        motion: motion_from_wire(prim, "motion", &l.motion)?,
         shaping: match &l.shaping {
             None => None,
             Some(s) => {
@@ -122,6 +123,7 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         visible: l.visible_to_camera,
         diffuse: (l.diffuse != 1.0).then_some(l.diffuse),
         specular: (l.specular != 1.0).then_some(l.specular),
+        motion: motion_to_wire(&l.motion),
         shaping: l.shaping.map(|s| pb::Shaping {
             cone_angle: s.cone_angle,
             cone_softness: s.cone_softness,

@@ -71,16 +71,17 @@ pub fn to_json(t: &Translation) -> Value {
     }
     let mut lights = Map::new();
     for (path, l) in &t.lights {
-        lights.insert(
-            path.clone(),
-            json!({
-                "world": usd_matrix(&l.transform),
-                "intensity": l.intensity,
-                "exposure": l.exposure,
-                "color": [l.color.x, l.color.y, l.color.z],
-                "normalize": l.normalize,
-            }),
-        );
+        let mut light = json!({
+            "world": usd_matrix(&l.transform),
+            "intensity": l.intensity,
+            "exposure": l.exposure,
+            "color": [l.color.x, l.color.y, l.color.z],
+            "normalize": l.normalize,
+        });
+        if !l.motion.is_empty() {
+            light["motion"] = Value::Array(l.motion.iter().map(usd_matrix).collect());
+        }
+        lights.insert(path.clone(), light);
     }
     let mut cameras = Map::new();
     for (path, c) in &t.cameras {
@@ -125,7 +126,7 @@ pub fn to_json(t: &Translation) -> Value {
     })
 }
 
-/// Each volume's prim transform and the VDB grid each field reads.
+/// Each volume's prim transform (and its motion) and the VDB grid each field reads.
 fn volumes_json(t: &Translation) -> Value {
     let entry = |v: &crate::usd::VolumeSource| {
         let fields: Map<String, Value> = v
@@ -134,7 +135,11 @@ fn volumes_json(t: &Translation) -> Value {
             .zip(&v.active_voxels)
             .map(|((field, file, name), voxels)| (field.clone(), json!({ "file": file, "fieldName": name, "activeVoxels": voxels })))
             .collect();
-        (v.path.clone(), json!({ "world": usd_matrix(&v.world), "fields": fields }))
+        let mut volume = json!({ "world": usd_matrix(&v.world), "fields": fields });
+        if !v.motion.is_empty() {
+            volume["motion"] = Value::Array(v.motion.iter().map(usd_matrix).collect());
+        }
+        (v.path.clone(), volume)
     };
     Value::Object(t.volume_sources.iter().map(entry).collect())
 }

@@ -48,6 +48,7 @@ impl Reader<'_> {
             .then(|| float("colorTemperature", 6500.0))
             .transpose()?;
         let mut transform = self.affine(prim, p)?;
+        let mut motion = self.motion(prim, p)?;
         if type_name == "DomeLight_1" {
             // `poleAxis` (UsdLux DomeLight_1): the dome's top pole starts along the stage's up
             // axis ("scene", the fallback), +Y or +Z; a Z pole is the +Y pole turned 90° about
@@ -63,7 +64,9 @@ impl Reader<'_> {
                 }
             };
             if z_pole {
-                transform *= glam::Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2);
+                let turn = glam::Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2);
+                transform *= turn;
+                motion.iter_mut().for_each(|m| *m *= turn);
             }
         }
         let desc = LightDesc {
@@ -82,6 +85,7 @@ impl Reader<'_> {
             diffuse: float("diffuse", 1.0)?,
             specular: float("specular", 1.0)?,
             texture,
+            motion,
         };
         if !visible {
             return Ok(());

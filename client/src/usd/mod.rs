@@ -120,6 +120,8 @@ pub struct VolumeSource {
     pub path: String,
     /// The prim's local-to-world transform.
     pub world: Affine3A,
+    /// Its local-to-world transforms over the shutter when it moves (empty when still).
+    pub motion: Vec<Affine3A>,
     /// (field, resolved VDB file, grid name) of each field rendered.
     pub fields: Vec<(String, String, String)>,
     /// Active voxels per field (tiles counted voxel by voxel).

@@ -117,7 +117,8 @@ impl Reader<'_> {
             let Some(target) = valid_targets(prim, p, &rel)?.into_iter().next() else { continue };
             grids.insert(field.clone(), self.field(p, &field, &target)?);
         }
-        let mut source = VolumeSource { path: p.to_string(), world: self.affine(prim, p)?, fields: Vec::new(), active_voxels: Vec::new() };
+        let (world, motion) = (self.affine(prim, p)?, self.motion(prim, p)?);
+        let mut source = VolumeSource { path: p.to_string(), world, motion, fields: Vec::new(), active_voxels: Vec::new() };
         for (field, g) in &grids {
             source.fields.push((field.clone(), g.file.clone(), g.name.clone()));
             source.active_voxels.push(g.active_voxels());
@@ -153,6 +154,7 @@ impl Reader<'_> {
             color: None,
             index_to_world: source.world * density.index_to_object,
             shading: self.volume_shading(prim, p)?,
+            motion: source.motion.iter().map(|world| *world * density.index_to_object).collect(),
         };
         if visible {
             self.out.volumes.push((p.to_string(), desc));

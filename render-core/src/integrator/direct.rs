@@ -53,7 +53,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let [ul_x, ul_y, u_sel] = u;
         self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), self.settings.light_split_budget, |mut ls, light| {
             if let Some((instance, triangle)) = light.textured_emitter {
-                ls.li = self.scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist);
+                ls.li = self.scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist, ctx.time);
             }
             if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
                 visit(ls, light);

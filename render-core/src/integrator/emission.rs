@@ -42,7 +42,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     pub(super) fn add_crossed_lights(&self, path: &mut PathState, t_hit: f32, share: f32) {
         let ray = path.ray;
         self.scene.crossable_lights.visit_crossed(ray.origin, ray.dir, t_hit, |i| {
-            let light = &self.scene.lights.lights[i as usize];
+            let Some(light) = self.scene.lights.lights[i as usize].at(ray.time) else { return };
             if path.prev.is_none() && !light.visible_to_camera {
                 return;
             }
@@ -57,7 +57,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     pub(super) fn add_escaped(&self, path: &mut PathState, share: f32) {
         let dir = path.ray.dir;
         for &i in &self.scene.infinite_lights {
-            let light = &self.scene.lights.lights[i as usize];
+            let Some(light) = self.scene.lights.lights[i as usize].at(path.ray.time) else { continue };
             if path.prev.is_none() && !light.visible_to_camera {
                 continue;
             }
@@ -72,7 +72,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// The emission of the surface the path landed on, when it emits.
     pub(super) fn add_surface_emission(&self, path: &mut PathState, v: &Vertex, hit: &Hit, share: f32) {
         let Some(li) = v.s.light else { return };
-        let light = &self.scene.lights.lights[li as usize];
+        let Some(light) = self.scene.lights.lights[li as usize].at(hit.time) else { return };
         let pdf = path.prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, path.ray.dir, hit.t));
         // A textured emitter's radiance is the material's here; the shape holds its mean.
         // After a bounce it is read at the finest level, as light sampling reads it: MIS
@@ -80,7 +80,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         // lookup made BSDF-sampled light 20% off light-sampled light on a lit floor).
         let le = match (&v.local, light.textured_emitter) {
             (Some((m, _)), Some(_)) if path.depth == 0 => m.emission,
-            (_, Some((instance, triangle))) => self.scene.emission_at(instance, triangle, v.s.p),
+            (_, Some((instance, triangle))) => self.scene.emission_at(instance, triangle, v.s.p, hit.time),
             _ => light.shape.radiance(),
         };
         self.add_emission(path, le, Vec3::ONE, li, pdf, share);

@@ -80,7 +80,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         }
         let wi = medium.sample_phase(ray.dir, Vec2::new(u_x, u_y));
         path.prev = Some(PrevVertex {
-            ctx: ShadingContext { p, n: Vec3::ZERO, both_sides: true },
+            ctx: ShadingContext { p, n: Vec3::ZERO, both_sides: true, time: ray.time },
             bsdf_pdf: medium.phase_pdf(ray.dir, wi),
             delta: false,
             kind,
@@ -114,7 +114,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// medium (no crossing) is left to phase sampling.
     fn light_through_boundary(&self, at: &MediumPoint, u: [f32; 3], counters: &mut PathCounters) -> Vec3 {
         let scene = self.scene;
-        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
         let mut total = Vec3::ZERO;
         self.each_light_sample(&ctx, u, |ls, light| {
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);

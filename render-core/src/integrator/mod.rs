@@ -179,7 +179,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     fn bounce(&self, path: &mut PathState, v: &Vertex, bsdf: &mut Bsdf, rng: &mut PathSampler, counters: &mut PathCounters) -> bool {
         bsdf.prepare(v.wo_local);
         // Light sampling context: the geometric normal on the viewer's side.
-        let ctx = ShadingContext { p: v.s.p, n: if v.ng.dot(v.wo) < 0.0 { -v.ng } else { v.ng }, both_sides: bsdf.transmits() };
+        let ctx =
+            ShadingContext { p: v.s.p, n: if v.ng.dot(v.wo) < 0.0 { -v.ng } else { v.ng }, both_sides: bsdf.transmits(), time: v.s.time };
         // Each bounce draws two 4D sets, whatever happens along the path: (light position,
         // light choice, roulette) and (BSDF direction, lobe choice), the 2D pairs on a set's
         // best-stratified first two dimensions.

@@ -51,7 +51,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let Some((t, k)) = flight.collision else { return VolumeStep::Passed };
         let volume = &self.scene.volumes[k];
         let p = ray.origin + ray.dir * t;
-        path.beta *= volume.albedo_at(p);
+        path.beta *= volume.albedo_at(p, ray.time);
         if path.depth >= self.settings.max_depth || path.is_dark() {
             return VolumeStep::Ended;
         }
@@ -63,7 +63,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         self.add_phase_direct(path, &at, [ul_x, ul_y, u_sel], counters);
         let (wi, pdf) = volume.phase.sample(at.wo, Vec2::new(up_x, up_y));
         (path.light.seg_direct, path.light.in_walk) = (path.depth == 0, false);
-        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
         path.prev =
             Some(PrevVertex { ctx, bsdf_pdf: pdf, delta: false, kind: PathKind::Diffuse, roughness: MEDIUM_ROUGHNESS, in_medium: false });
         path.cone = path.cone.after_bounce(path.cone.width_at(t), MEDIUM_ROUGHNESS);
@@ -78,7 +78,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Next-event estimation at a collision: a light sampled, its shadow ray's visibility and
     /// transmittance, the phase function, MIS against phase sampling.
     fn add_phase_direct(&self, path: &mut PathState, at: &Collision, u: [f32; 3], counters: &mut PathCounters) {
-        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true };
+        let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
         let scene = self.scene;
         self.each_light_sample(&ctx, u, |ls, light| {
             let phase = at.volume.phase.eval(at.wo, ls.wi);

@@ -10,6 +10,7 @@
 
 pub mod blackbody;
 pub mod environment;
+pub mod motion;
 mod shapes;
 pub mod spherical_rect;
 pub mod tree;
@@ -46,6 +47,9 @@ pub struct LightDesc {
     pub specular: f32,
     /// `DomeLight` `inputs:texture:file` (latitude-longitude), by content.
     pub texture: Option<crate::texture::TextureRef>,
+    /// Object to world at evenly spaced times over the shutter ([`crate::motion`]) when the
+    /// light moves; empty when it does not.
+    pub motion: Vec<Affine3A>,
 }
 
 /// UsdLux `ShapingAPI` controls. The schema leaves the exact falloff to renderers ("TODO:
@@ -173,12 +177,14 @@ pub struct Light {
     /// radiance at a point is looked up there (the shape holds the texture's mean, which only
     /// weighs the light's selection).
     pub textured_emitter: Option<(u32, u32)>,
+    /// How the light moves over the shutter, if it does ([`Light::at`] poses it).
+    pub motion: Option<std::sync::Arc<motion::LightMotion>>,
 }
 
 impl Light {
-    /// An unshaped light that lights every lobe alike.
+    /// An unshaped, still light that lights every lobe alike.
     pub fn plain(shape: shapes::Shape, visible_to_camera: bool) -> Self {
-        Light { shape, visible_to_camera, shaping: None, multipliers: (1.0, 1.0), textured_emitter: None }
+        Light { shape, visible_to_camera, shaping: None, multipliers: (1.0, 1.0), textured_emitter: None, motion: None }
     }
 
     /// True when the light treats diffuse and specular lobes differently.
@@ -216,6 +222,8 @@ pub struct ShadingContext {
     /// The surface also receives light from behind (it transmits), so environment sampling
     /// covers both hemispheres.
     pub both_sides: bool,
+    /// Normalised shutter time of the path: where moving lights are.
+    pub time: f32,
 }
 
 impl LightDesc {
@@ -234,6 +242,7 @@ impl LightDesc {
             diffuse: 1.0,
             specular: 1.0,
             texture: None,
+            motion: Vec::new(),
         }
     }
 
@@ -261,17 +270,34 @@ impl LightDesc {
             }
             _ => shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?,
         };
-        let axis = (-Vec3::from(self.transform.matrix3.z_axis)).normalize_or_zero();
-        let shaping = self.shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| s.around(axis));
         let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };
+        // A dome's map is not turned over the shutter (the scene says so when it moves); a
+        // constant dome looks the same whichever way it turns.
+        let moves = !self.motion.is_empty() && self.kind != LightKind::Dome;
+        let motion = moves.then(|| {
+            std::sync::Arc::new(motion::LightMotion::Placed {
+                kind: self.kind,
+                l,
+                normalize: self.normalize,
+                shaping: self.shaping,
+                samples: self.motion.iter().copied().collect(),
+            })
+        });
         Some(Light {
+            shaping: shaping_profile(self.shaping, &self.transform),
             shape,
             visible_to_camera: self.visible_to_camera,
-            shaping,
             multipliers: (m(self.diffuse), m(self.specular)),
             textured_emitter: None,
+            motion,
         })
     }
+}
+
+/// The shaping of a light placed by `xf`, around its local −Z; `None` without shaping.
+fn shaping_profile(shaping: Option<Shaping>, xf: &Affine3A) -> Option<ShapingProfile> {
+    let axis = (-Vec3::from(xf.matrix3.z_axis)).normalize_or_zero();
+    shaping.filter(|s| *s != Shaping::default() && axis != Vec3::ZERO).map(|s| s.around(axis))
 }
 
 /// The set of lights and how next-event estimation picks one: lights at infinity by power
@@ -304,7 +330,7 @@ impl LightSet {
         }
         let infinite_power: Vec<f32> = infinite.iter().map(|&i| power[i as usize]).collect();
         let finite: Vec<(u32, tree::LightBounds)> =
-            (0..lights.len()).filter_map(|i| tree::LightBounds::of(&lights[i].shape, power[i]).map(|b| (i as u32, b))).collect();
+            (0..lights.len()).filter_map(|i| lights[i].bounds(power[i]).map(|b| (i as u32, b))).collect();
         let (p_inf, p_fin): (f32, f32) = (infinite_power.iter().sum(), finite.iter().map(|(i, _)| power[*i as usize]).sum());
         let tree = tree::LightTree::build(finite, lights.len());
         let p_infinite = match (infinite.is_empty(), tree.is_empty()) {
@@ -335,11 +361,11 @@ impl LightSet {
         mut visit: impl FnMut(LightSample, &Light),
     ) {
         let mut emit = |i: usize, p: f32| {
-            let light = &self.lights[i];
+            let Some(light) = self.lights[i].at(ctx.time) else { return };
             if let Some(mut s) = light.shape.sample(ctx, u) {
                 s.pdf *= p;
                 s.li *= light.shaped(-s.wi);
-                visit(s, light);
+                visit(s, &light);
             }
         };
         if u_select < self.p_infinite {

@@ -566,7 +566,7 @@ mod tests {
     use crate::sampling::Pcg32;
 
     fn ctx(p: Vec3, n: Vec3) -> ShadingContext {
-        ShadingContext { p, n, both_sides: false }
+        ShadingContext { p, n, both_sides: false, time: 0.0 }
     }
 
     /// Irradiance at `c` by NEE alone, estimated with the light's own sampling.
@@ -606,7 +606,7 @@ mod tests {
     #[test]
     fn a_dome_seen_from_inside_a_medium_is_sampled_over_the_sphere() {
         let dome = Shape::Dome { l: Vec3::splat(2.0) };
-        let c = ShadingContext { p: Vec3::ZERO, n: Vec3::ZERO, both_sides: true };
+        let c = ShadingContext { p: Vec3::ZERO, n: Vec3::ZERO, both_sides: true, time: 0.0 };
         let mut rng = Pcg32::new(5, 5);
         let (mut fluence, mut below, n) = (0.0f64, 0u32, 20_000);
         for _ in 0..n {

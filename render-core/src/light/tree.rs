@@ -97,6 +97,26 @@ impl LightBounds {
         })
     }
 
+    /// A two-sided light of power `phi` within the box (`lo`, `hi`) whose normal may point
+    /// anywhere.
+    pub fn facing_anywhere(lo: Vec3, hi: Vec3, phi: f32) -> Self {
+        LightBounds::new(lo, hi, phi, Vec3::Z, -1.0, 0.0, true)
+    }
+
+    /// These bounds grown to hold `o` as well, keeping this power: one light's bounds over
+    /// the places it takes.
+    pub fn enclosing(&self, o: &LightBounds) -> LightBounds {
+        let (w, cos_o) = cone_union((self.w, self.cos_o), (o.w, o.cos_o));
+        let two_sided = self.two_sided || o.two_sided;
+        LightBounds::new(self.lo.min(o.lo), self.hi.max(o.hi), self.phi, w, cos_o, self.cos_e.min(o.cos_e), two_sided)
+    }
+
+    /// True when `o`'s box lies inside this one's.
+    #[cfg(test)]
+    pub(crate) fn holds(&self, o: &LightBounds) -> bool {
+        self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
+    }
+
     fn centroid(&self) -> Vec3 {
         self.center
     }
@@ -109,16 +129,7 @@ impl LightBounds {
         if o.phi <= 0.0 {
             return *self;
         }
-        let (w, cos_o) = cone_union((self.w, self.cos_o), (o.w, o.cos_o));
-        LightBounds::new(
-            self.lo.min(o.lo),
-            self.hi.max(o.hi),
-            self.phi + o.phi,
-            w,
-            cos_o,
-            self.cos_e.min(o.cos_e),
-            self.two_sided || o.two_sided,
-        )
+        LightBounds { phi: self.phi + o.phi, ..self.enclosing(o) }
     }
 
     /// An upper bound of what these lights deliver to a point `p` with normal `n` (zero

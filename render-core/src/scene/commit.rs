@@ -13,6 +13,7 @@ use super::{BlasCache, CommittedScene, InstanceData, MAX_COORDINATE, MeshDesc, S
 use crate::bvh::{Blas, BuildQuality, Tlas, TlasInstance};
 use crate::caustics::ShadowGlass;
 use crate::geometry::{Attribute, Mesh, Transform};
+use crate::light::motion::{LightMotion, Placement};
 use crate::light::{Light, LightSet, Shape};
 use crate::material::Material;
 use crate::plan::{Feature, RenderPlan};
@@ -22,9 +23,8 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
     let mut warnings = Vec::new();
     let materials = Materials::resolve(desc, cache, &mut warnings);
-    let emissive = |path: &str, m: &MeshDesc| materials.list[materials.of(path, &m.material) as usize].is_emissive();
-    let geometry = Geometry::build(desc, cache, &emissive, &mut warnings)?;
-    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials, &mut warnings)?;
+    let geometry = Geometry::build(desc, cache, &mut warnings)?;
+    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
     let mut plan = plan_of(desc, &materials);
     let tangents = match plan.has(Feature::NormalMaps) {
         true => tangents_of(&instances, &geometry.meshes, &materials, cache),
@@ -105,12 +105,7 @@ pub(super) struct Geometry<'d> {
 
 impl<'d> Geometry<'d> {
     /// Validates the meshes and builds the BLASes whose geometry changed since the last commit.
-    fn build(
-        desc: &'d SceneDesc,
-        cache: &mut BlasCache,
-        emissive: &dyn Fn(&str, &MeshDesc) -> bool,
-        warnings: &mut Vec<String>,
-    ) -> Result<Self, SceneError> {
+    fn build(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Result<Self, SceneError> {
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
         let mut builds = 0;
         let mut fresh = HashMap::new();
@@ -124,25 +119,16 @@ impl<'d> Geometry<'d> {
             if !(m.visible || prototypes.contains(path.as_str())) {
                 continue;
             }
-            // Light sampling places emitters once: an emissive mesh keeps the frame's shape.
-            let shape = match m.mesh.deformation_samples() > 0 && emissive(path, m) {
-                true => {
-                    warnings
-                        .push(format!("{path}: an emissive mesh does not blur with its deformation yet; it renders in the frame's shape"));
-                    Arc::new(m.mesh.without_deformation())
-                }
-                false => m.mesh.clone(),
-            };
             let blas = match cache.entries.get(path) {
                 Some((geom, blas)) if Arc::ptr_eq(geom, &m.mesh) => blas.clone(),
                 _ => {
                     builds += 1;
-                    Arc::new(Blas::build(&shape, BuildQuality::Medium))
+                    Arc::new(Blas::build(&m.mesh, BuildQuality::Medium))
                 }
             };
             fresh.insert(path.clone(), (m.mesh.clone(), blas.clone()));
             out.slot.insert(path.as_str(), out.meshes.len());
-            out.meshes.push(shape);
+            out.meshes.push(m.mesh.clone());
             out.blases.push(blas);
         }
         cache.entries = fresh;
@@ -153,12 +139,7 @@ impl<'d> Geometry<'d> {
 
 /// The instances in the TLAS: visible meshes, then instancer instances; and the prim path
 /// each comes from.
-fn place_instances(
-    desc: &SceneDesc,
-    geometry: &Geometry,
-    materials: &Materials,
-    warnings: &mut Vec<String>,
-) -> Result<(Vec<InstanceData>, Vec<String>), SceneError> {
+fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials) -> Result<(Vec<InstanceData>, Vec<String>), SceneError> {
     let mut instances = Vec::new();
     let mut prim_paths: Vec<String> = Vec::new();
     let mut push = |path: &str, mesh: usize, xf: &Affine3A, material: u32, motion: Option<Arc<[Affine3A]>>| -> Result<(), SceneError> {
@@ -177,7 +158,7 @@ fn place_instances(
         if let Some(&slot) = geometry.slot.get(path.as_str()) {
             let material = materials.of(path, &m.material);
             if !materials.removes_its_surfaces(material) {
-                push(path, slot, &m.transform, material, motion_of(path, m, materials.list[material as usize].is_emissive(), warnings)?)?;
+                push(path, slot, &m.transform, material, motion_of(path, m)?)?;
             }
         }
     }
@@ -216,22 +197,14 @@ fn place_instances(
     Ok((instances, prim_paths))
 }
 
-/// A mesh's motion over the shutter, checked. Light sampling places emitters once, so an
-/// emissive mesh keeps its frame-time placement (said, once).
-fn motion_of(path: &str, m: &MeshDesc, emissive: bool, warnings: &mut Vec<String>) -> Result<Option<Arc<[Affine3A]>>, SceneError> {
+/// A mesh's motion over the shutter, checked.
+fn motion_of(path: &str, m: &MeshDesc) -> Result<Option<Arc<[Affine3A]>>, SceneError> {
     crate::motion::check_samples(&m.motion).map_err(|problem| SceneError::Invalid {
         prim: path.into(),
         field: "motion".into(),
         problem,
     })?;
-    if m.motion.is_empty() {
-        return Ok(None);
-    }
-    if emissive {
-        warnings.push(format!("{path}: an emissive mesh does not blur with its motion yet; it renders at the frame's placement"));
-        return Ok(None);
-    }
-    Ok(Some(m.motion.iter().copied().collect()))
+    Ok((!m.motion.is_empty()).then(|| m.motion.iter().copied().collect()))
 }
 
 /// MikkTSpace tangents for the meshes drawn with a normal map, each computed once per
@@ -330,7 +303,12 @@ impl Lights {
         let mut all: Vec<Light> = Vec::new();
         let mut usd_lights = Vec::new();
         for (path, l) in &desc.lights {
-            match l.commit_with(materials.environments.get(path.as_str()).cloned()) {
+            let map = materials.environments.get(path.as_str()).cloned();
+            if map.is_some() && !l.motion.is_empty() {
+                warnings
+                    .push(format!("{path}: a DomeLight's texture does not turn over the shutter yet; it stays at the frame's placement"));
+            }
+            match l.commit_with(map) {
                 Some(light) => {
                     all.push(light);
                     usd_lights.push(path.clone());
@@ -342,10 +320,7 @@ impl Lights {
         }
         let (emissive_prims, emissive_triangles) = add_emitters(&mut all, materials, meshes, instances, prim_paths);
         let n = usd_lights.len();
-        let crossable = crate::light::tree::LightTree::build(
-            (0..n).filter_map(|i| crate::light::tree::LightBounds::of(&all[i].shape, 1.0).map(|b| (i as u32, b))).collect(),
-            n,
-        );
+        let crossable = crate::light::tree::LightTree::build((0..n).filter_map(|i| all[i].bounds(1.0).map(|b| (i as u32, b))).collect(), n);
         let infinite = (0..n as u32).filter(|&i| all[i as usize].shape.is_infinite()).collect();
         Lights { all, usd_lights, emissive_prims, emissive_triangles, crossable, infinite }
     }
@@ -381,12 +356,21 @@ fn add_emitters(
         let varies = materials.textured[inst.material as usize].as_ref().is_some_and(|t| t.emission_varies());
         inst.emitter_base = Some(lights.len() as u32);
         let mesh = &meshes[inst.mesh];
+        let placement = match &inst.motion {
+            Some(samples) => Placement::Moving(samples.clone()),
+            None => Placement::Still(inst.transform.to_world),
+        };
+        let moves = inst.motion.is_some() || mesh.deformation_samples() > 0;
         for t in 0..mesh.triangle_count() {
             let p = mesh.triangle(t).map(|v| inst.transform.to_world.transform_point3(v));
             // Degenerate triangles keep their slot (indices must line up) but emit nothing.
             let shape = Shape::triangle(p, m.emission).unwrap_or(Shape::Triangle { p, n: Vec3::Z, area: 0.0, l: Vec3::ZERO });
             let mut light = Light::plain(shape, true);
             light.textured_emitter = varies.then_some((index as u32, t as u32));
+            light.motion = moves.then(|| {
+                let (mesh, triangle, placement) = (mesh.clone(), t as u32, placement.clone());
+                Arc::new(LightMotion::Triangle { mesh, triangle, placement, l: m.emission })
+            });
             lights.push(light);
         }
         triangles += mesh.triangle_count();

@@ -60,7 +60,10 @@ pub(super) fn plan_of(desc: &SceneDesc, materials: &Materials) -> RenderPlan {
     let moving_meshes = desc.meshes.iter().filter(|(_, m)| m.visible && (!m.motion.is_empty() || !m.mesh.deformation.is_empty()));
     let moving_cameras = desc.cameras.iter().filter(|(_, c)| !c.motion.is_empty());
     let moving_instancers = desc.instancers.iter().filter(|(_, i)| !i.motion.is_empty());
+    let moving_lights = desc.lights.iter().filter(|(_, l)| !l.motion.is_empty());
+    let moving_volumes = desc.volumes.iter().filter(|(_, v)| !v.motion.is_empty());
     let moving = moving_meshes.map(|(p, _)| p).chain(moving_instancers.map(|(p, _)| p)).chain(moving_cameras.map(|(p, _)| p));
+    let moving = moving.chain(moving_lights.map(|(p, _)| p)).chain(moving_volumes.map(|(p, _)| p));
     plan.call_for(Feature::MotionBlur, moving.cloned());
     plan.call_for(Feature::Volumes, desc.volumes.keys().cloned());
     plan

@@ -94,13 +94,14 @@ impl CommittedScene {
         self.textured.get(index as usize).and_then(|t| t.as_deref())
     }
 
-    /// Emitted radiance at world point `p` on triangle `triangle` of instance `instance`, for
-    /// materials whose emission is textured (finest texture level: a light sample has no
-    /// footprint).
-    pub fn emission_at(&self, instance: u32, triangle: u32, p: Vec3) -> Vec3 {
+    /// Emitted radiance at world point `p` on triangle `triangle` of instance `instance` at
+    /// shutter time `time`, for materials whose emission is textured (finest texture level: a
+    /// light sample has no footprint).
+    pub fn emission_at(&self, instance: u32, triangle: u32, p: Vec3, time: f32) -> Vec3 {
         let inst = &self.instances[instance as usize];
         let Some(t) = self.textured(inst.material) else { return self.materials[inst.material as usize].emission };
-        let [a, b, c] = self.meshes[inst.mesh].triangle(triangle as usize).map(|v| inst.transform.to_world.transform_point3(v));
+        let to_world = self.placement(instance, time).to_world;
+        let [a, b, c] = self.meshes[inst.mesh].triangle_at(triangle as usize, time).map(|v| to_world.transform_point3(v));
         // Barycentrics of p by areas (p lies on the triangle up to rounding).
         let n = (b - a).cross(c - a);
         let nn = n.length_squared();

@@ -73,6 +73,9 @@ pub struct VolumeDesc {
     pub index_to_world: Affine3A,
     /// How it scatters and emits.
     pub shading: VolumeShading,
+    /// Index space to world at evenly spaced times over the shutter ([`crate::motion`]) when
+    /// the volume moves; empty when it does not.
+    pub motion: Vec<Affine3A>,
 }
 
 impl VolumeDesc {
@@ -109,6 +112,7 @@ pub fn validate_volume(path: &str, v: &VolumeDesc) -> Result<(), SceneError> {
     if !v.index_to_world.is_finite() || !det.is_finite() || det.abs() < 1e-30 {
         return Err(invalid("transform", "the grid's index-to-world transform is singular or not finite".into()));
     }
+    crate::motion::check_samples(&v.motion).map_err(|problem| invalid("motion", problem))?;
     let s = &v.shading;
     let finite = [s.density, s.anisotropy, s.blackbody_intensity, s.temperature].iter().all(|x| x.is_finite())
         && [s.color, s.emission, s.blackbody_tint].iter().all(|c| c.is_finite());
@@ -174,7 +178,9 @@ impl Volume {
         );
         let m = desc.index_to_world;
         let voxel = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis].map(|a| a.length()).into_iter().fold(f32::INFINITY, f32::min);
-        let bounds = world_bounds(&m, support);
+        // A moving volume: the union of its boxes at the samples holds it at every time.
+        let bounds =
+            desc.motion.iter().map(|m| world_bounds(m, support)).fold(world_bounds(&m, support), |a, b| (a.0.min(b.0), a.1.max(b.1)));
         Volume {
             prim: prim.to_string(),
             desc: desc.clone(),
@@ -187,12 +193,21 @@ impl Volume {
         }
     }
 
-    /// The single-scattering albedo at world point `p`: the shader's colour, times the colour
-    /// field's (clamped to [0, 1]) where there is one.
-    pub fn albedo_at(&self, p: Vec3) -> Vec3 {
+    /// World to index space at normalised shutter time `time`.
+    #[inline]
+    pub(super) fn world_to_index_at(&self, time: f32) -> Affine3A {
+        match self.desc.motion.is_empty() {
+            true => self.world_to_index,
+            false => crate::motion::to_object_at(&self.desc.motion, time),
+        }
+    }
+
+    /// The single-scattering albedo at world point `p` at shutter time `time`: the shader's
+    /// colour, times the colour field's (clamped to [0, 1]) where there is one.
+    pub fn albedo_at(&self, p: Vec3, time: f32) -> Vec3 {
         let base = self.desc.shading.color;
         let Some([r, g, b]) = &self.desc.color else { return base };
-        let q = self.world_to_index.transform_point3(p);
+        let q = self.world_to_index_at(time).transform_point3(p);
         base * Vec3::new(r.sample_extended(q), g.sample_extended(q), b.sample_extended(q)).clamp(Vec3::ZERO, Vec3::ONE)
     }
 
@@ -289,6 +304,7 @@ mod tests {
             color: None,
             index_to_world: unit_box_transform(n),
             shading: VolumeShading { density: sigma, ..shading },
+            motion: Vec::new(),
         };
         validate_volume("/V", &desc).unwrap();
         Volume::new("/V", &desc)
@@ -358,6 +374,7 @@ mod tests {
             color: None,
             index_to_world: unit_box_transform(4),
             shading: VolumeShading::default(),
+            motion: Vec::new(),
         };
         let v = [Volume::new("/V", &desc)];
         let corner = Ray::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.01, 0.01, 1.0).normalize());
@@ -386,6 +403,7 @@ mod tests {
             color: None,
             index_to_world: Affine3A::IDENTITY,
             shading: VolumeShading::default(),
+            motion: Vec::new(),
         };
         let err = |d: VolumeDesc| validate_volume("/V", &d).unwrap_err().to_string();
         let mut nan = constant_grid(2, 1.0);

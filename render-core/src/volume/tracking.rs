@@ -50,8 +50,8 @@ struct Tracker<'v> {
 
 impl<'v> Tracker<'v> {
     fn new(volume: &'v Volume, ray: &Ray, t_max: f32, emission: bool) -> Option<Self> {
-        let o = volume.world_to_index.transform_point3(ray.origin);
-        let d = volume.world_to_index.transform_vector3(ray.dir);
+        let world_to_index = volume.world_to_index_at(ray.time);
+        let (o, d) = (world_to_index.transform_point3(ray.origin), world_to_index.transform_vector3(ray.dir));
         let cells = volume.majorant.walk(o, d, 0.0, t_max)?;
         Some(Tracker { volume, o, d, cells, cell: None, t: 0.0, emission })
     }
