@@ -30,7 +30,7 @@ pub(super) fn shadow_ray(origin: Vec3, p: Vec3, ls: &LightSample) -> Ray {
 
 /// What next-event estimation at one vertex needs besides the path.
 pub(super) struct DirectLighting<'v> {
-    pub v: &'v Vertex,
+    pub v: &'v Vertex<'v>,
     pub bsdf: &'v Bsdf,
     pub ctx: ShadingContext,
     /// Light position (2D) and light choice.

@@ -117,8 +117,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let (scene, settings, tracer) = (self.scene, self.settings, self);
         let mut out = PixelSample { depth: background_depth, ..Default::default() };
         let mut path = PathState::new(camera_ray, settings);
-        // The BSDF at the current vertex; one buffer for the whole path (see `Bsdf::clone_from`).
-        let mut bsdf = Bsdf::default();
+        // The BSDF and textured material at the current vertex; one buffer each for the whole
+        // path (see `Bsdf::clone_from`).
+        let (mut bsdf, mut local) = (Bsdf::default(), None);
         loop {
             counters.rays += 1;
             let hit = scene.intersect(&path.ray);
@@ -153,7 +154,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
                 tracer.add_escaped(&mut path, share);
                 break;
             };
-            let v = match tracer.land(&mut path, &hit, &mut bsdf) {
+            let v = match tracer.land(&mut path, &hit, &mut bsdf, &mut local) {
                 Landing::Surface(v) => v,
                 Landing::PassedThrough => {
                     path.exit_share = share;

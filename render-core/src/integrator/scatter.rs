@@ -44,7 +44,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             // Refracting into smooth glass after a rougher vertex: transparent shadows from
             // that vertex carry w'(B_t) of this light, so the path keeps 1 − w'(B_t), for
             // everything inside (total internal reflection included).
-            let glass = v.local.as_ref().map_or_else(|| self.scene.shadow_glass(v.s.material), |(m, _)| caustics::ShadowGlass::of(m));
+            let glass = v.local.map_or_else(|| self.scene.shadow_glass(v.s.material), |(m, _)| caustics::ShadowGlass::of(m));
             if let (Some(p), PathKind::Transmission, Some(glass)) = (&path.prev, kind, glass) {
                 path.beta *= 1.0 - caustics::transparent_weight(p.roughness, glass.roughness);
             }
@@ -71,7 +71,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Crossing a subsurface material's boundary along `wi`: inwards enters its medium
     /// (against the outward geometric normal), outwards leaves it.
     fn cross_boundary(&self, path: &mut PathState, v: &Vertex, wi: Vec3, leaving_share: f32) {
-        let Some(m) = v.local.as_ref().map_or_else(|| self.scene.medium(v.s.material), |(m, _)| m.medium()) else { return };
+        let Some(m) = v.local.map_or_else(|| self.scene.medium(v.s.material), |(m, _)| m.medium()) else { return };
         if path.walk.medium.is_some() && wi.dot(v.ng) > 0.0 {
             path.exit_share = leaving_share;
         }

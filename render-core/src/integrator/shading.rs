@@ -15,13 +15,17 @@ use super::Tracer;
 use super::path::PathState;
 
 /// A surface a path scatters at, set up for shading.
-pub(super) struct Vertex {
+/// A textured material resolved at a shading point, and its normal-map normal.
+pub(super) type LocalMaterial = Option<(Material, Option<Vec3>)>;
+
+pub(super) struct Vertex<'l> {
     /// The surface, its shading normal normal-mapped.
     pub s: SurfaceHit,
     /// Towards the previous vertex.
     pub wo: Vec3,
-    /// The material resolved here and its normal-map normal, for textured materials.
-    pub local: Option<(Material, Option<Vec3>)>,
+    /// The material resolved here and its normal-map normal, for textured materials: in the
+    /// path's own buffer, as the BSDF is (a material is 464 bytes; every vertex moved it).
+    pub local: Option<&'l (Material, Option<Vec3>)>,
     /// Shading and geometric normals, oriented for the BSDF (see [`Tracer::orient`]).
     pub ns: Vec3,
     pub ng: Vec3,
@@ -35,7 +39,7 @@ pub(super) struct Vertex {
     pub fibre: bool,
 }
 
-impl Vertex {
+impl Vertex<'_> {
     /// Where an interpolated normal and the facet disagree about which side a direction is
     /// on, following it would reflect into the surface or refract out of the wrong side
     /// (light leaks through tessellated glass); such directions carry no light instead.
@@ -57,9 +61,9 @@ impl Vertex {
 
 /// What the ray met. The vertex is returned inline: boxing it cost an allocation per bounce.
 #[allow(clippy::large_enum_variant)]
-pub(super) enum Landing {
+pub(super) enum Landing<'l> {
     /// A surface to scatter at.
-    Surface(Vertex),
+    Surface(Vertex<'l>),
     /// A surface cut out or absent here: the ray goes on (the path's ray is already updated).
     PassedThrough,
     /// More cut-outs than a ray crosses: the rest counts as opaque.
@@ -67,18 +71,20 @@ pub(super) enum Landing {
 }
 
 impl<const FULL: bool> Tracer<'_, FULL> {
-    /// Sets up shading at `hit`, writing the BSDF into `bsdf` (one buffer for the whole path).
-    pub(super) fn land(&self, path: &mut PathState, hit: &Hit, bsdf: &mut Bsdf) -> Landing {
+    /// Sets up shading at `hit`, writing the BSDF into `bsdf` and a textured material resolved
+    /// here into `local` (buffers for the whole path).
+    pub(super) fn land<'l>(&self, path: &mut PathState, hit: &Hit, bsdf: &mut Bsdf, local: &'l mut LocalMaterial) -> Landing<'l> {
         let scene = self.scene;
         let mut s = scene.surface(hit);
         let ray = path.ray;
         let cone_here = path.cone.width_at(hit.t);
         // A textured material is resolved here, at this point and footprint.
-        let local = scene.textured(s.material).map(|t| {
+        *local = scene.textured(s.material).map(|t| {
             let cos = s.ng.dot(ray.dir).abs() / ray.dir.length();
             t.at(&scene.shading_point(&s, cone_here, cos))
         });
-        if FULL && self.passes_through(&s, ray.dir, &local) {
+        let local: &'l LocalMaterial = local;
+        if FULL && self.passes_through(&s, ray.dir, local) {
             // It goes on as if the surface were not there.
             path.cutouts_crossed += 1;
             if path.cutouts_crossed > crate::scene::MAX_CUTOUT_CROSSINGS {
@@ -89,12 +95,12 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             path.ray.tmax = f32::INFINITY;
             return Landing::PassedThrough;
         }
-        if let Some((_, Some(n))) = &local {
+        if let Some((_, Some(n))) = local {
             s.ns = crate::tangents::normal_mapped(s.ns, s.tangent, s.dpds, s.dpdt, *n);
         }
         let wo = -ray.dir;
-        let glitter = self.choose_bsdf(path, &s, &local, bsdf);
-        let a_roughness = self.own_roughness(&s, &local);
+        let glitter = self.choose_bsdf(path, &s, local, bsdf);
+        let a_roughness = self.own_roughness(&s, local);
         let (ns, ng) = orient(&s, wo, bsdf.transmits());
         let fibre = FULL && bsdf.is_fibre();
         let frame = if fibre {
@@ -109,12 +115,12 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
         }
         let wo_local = frame.to_local(wo);
-        Landing::Surface(Vertex { s, wo, local, ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
+        Landing::Surface(Vertex { s, wo, local: local.as_ref(), ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
     }
 
     /// True when the ray passes `s` untouched: cut out here, not present for this ray where
     /// the surface is partially present, or the inside of a hair tube.
-    fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &Option<(Material, Option<Vec3>)>) -> bool {
+    fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &LocalMaterial) -> bool {
         let pass_through = local.as_ref().map_or(self.scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
         let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, dir) < pass_through;
         absent || local.as_ref().is_some_and(|(m, _)| m.cut_out) || self.scene.inside_fibre(s, dir)
@@ -123,7 +129,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Writes the BSDF at `s` into `bsdf`: the material's (at caustic avoidance's roughness
     /// floor), with every lobe when forced, or a glitter material's base lobes, whose flakes
     /// are added once the frame is known (returned).
-    fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>, bsdf: &mut Bsdf) -> Option<Uber> {
+    fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &LocalMaterial, bsdf: &mut Bsdf) -> Option<Uber> {
         let (ec, force) = (self.settings.energy_compensation, self.force());
         let level = if self.avoid() { path.floor.level() } else { 0 };
         // Glitter flakes depend on the point and footprint: such materials build their lobes
@@ -144,7 +150,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// The surface's own roughness (before clamping), which weighs transparent shadows
     /// against paths through glass on both sides of the comparison; 0 without caustic
     /// avoidance, which alone reads it.
-    fn own_roughness(&self, s: &SurfaceHit, local: &Option<(Material, Option<Vec3>)>) -> f32 {
+    fn own_roughness(&self, s: &SurfaceHit, local: &LocalMaterial) -> f32 {
         let ec = self.settings.energy_compensation;
         match local {
             Some((m, _)) if self.avoid() => m.surface.bsdf(ec).roughness(),
