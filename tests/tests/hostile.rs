@@ -354,8 +354,6 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
             motion: motion.clone(),
             ..Default::default()
         };
-        let r = raw.sync(&s, vec![tessera::sync::delta("/Evil/Cam", pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(camera))]).await;
-        assert_status(r, Code::InvalidArgument, &["/Evil/Cam", "motion", needle]);
         let light = pb::LightPrim {
             light_type: pb::LightType::Sphere as i32,
             radius: 1.0,
@@ -363,8 +361,13 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
             motion: motion.clone(),
             ..Default::default()
         };
-        let r = raw.sync(&s, vec![tessera::sync::delta("/Evil/Bulb", pb::PrimKind::Light, pb::prim_delta::Payload::Light(light))]).await;
-        assert_status(r, Code::InvalidArgument, &["/Evil/Bulb", "motion", needle]);
+        use pb::prim_delta::Payload;
+        for (path, kind, payload) in
+            [("/Evil/Cam", pb::PrimKind::Camera, Payload::Camera(camera)), ("/Evil/Bulb", pb::PrimKind::Light, Payload::Light(light))]
+        {
+            let r = raw.sync(&s, vec![tessera::sync::delta(path, kind, payload)]).await;
+            assert_status(r, Code::InvalidArgument, &[path, "motion", needle]);
+        }
         let mut smoke = volume([1, 1, 1], (1, 0), &[1.0], None);
         if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Volume(v)), .. }) = &mut smoke[0] {
             v.index_to_world = Some(identity());
