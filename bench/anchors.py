@@ -5,6 +5,8 @@
     python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core);
         ARGS: USD W H SPP MAX_DEPTH REF_SPP OUT_DIR VARIANT [SAMPLER] (SAMPLER: independent,
         the default, or multijitter / ldsampler / stratified / orthogonal)
+    python3 bench/anchors.py production USD W H SPP MAX_DEPTH OUT_DIR VARIANT
+        Mitsuba 3 on the scene bench/production_scene.py writes (read with usd-core)
 
 Each prints one JSON object on its last line. Needs: pip install embreex mitsuba usd-core numpy,
 and Debian's libllvm19 for Mitsuba's llvm variants.
@@ -16,7 +18,7 @@ import os
 import sys
 import time
 
-if __name__ == "__main__" and (len(sys.argv) < 3 or sys.argv[1] not in ("rays", "cornell")):
+if __name__ == "__main__" and (len(sys.argv) < 3 or sys.argv[1] not in ("rays", "cornell", "production")):
     # Without a workload, say how the benches call it (before needing numpy).
     print(__doc__.strip())
     sys.exit(0 if len(sys.argv) < 2 or sys.argv[1] in ("-h", "--help") else 2)
@@ -100,21 +102,44 @@ def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir, sampler
                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}},
             }
         elif prim.IsA(UsdGeom.Camera):
-            cam = UsdGeom.Camera(prim).GetCamera()
-            m = cache.GetLocalToWorldTransform(prim)
-            eye = m.Transform(Gf.Vec3d(0, 0, 0))
-            target = m.Transform(Gf.Vec3d(0, 0, -1))
-            up = m.TransformDir(Gf.Vec3d(0, 1, 0))
-            fov = 2 * math.degrees(math.atan(0.5 * cam.horizontalAperture / cam.focalLength))
-            scene["sensor"] = {
-                "type": "perspective",
-                "fov": fov,
-                "fov_axis": "x",
-                "to_world": mi.ScalarTransform4f().look_at(origin=list(eye), target=list(target), up=list(up)),
-                "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}},
-                "sampler": {"type": sampler, "sample_count": spp},
-            }
+            scene["sensor"] = sensor(prim, cache, width, height, spp, sampler)
     return scene
+
+
+def sensor(prim, cache, width, height, spp, sampler):
+    """A USD camera as Mitsuba's perspective sensor, box-filtered like Tessera's film."""
+    import mitsuba as mi
+    from pxr import Gf, UsdGeom
+
+    cam = UsdGeom.Camera(prim).GetCamera()
+    m = cache.GetLocalToWorldTransform(prim)
+    eye = m.Transform(Gf.Vec3d(0, 0, 0))
+    target = m.Transform(Gf.Vec3d(0, 0, -1))
+    up = m.TransformDir(Gf.Vec3d(0, 1, 0))
+    fov = 2 * math.degrees(math.atan(0.5 * cam.horizontalAperture / cam.focalLength))
+    return {
+        "type": "perspective",
+        "fov": fov,
+        "fov_axis": "x",
+        "to_world": mi.ScalarTransform4f().look_at(origin=list(eye), target=list(target), up=list(up)),
+        "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}},
+        "sampler": {"type": sampler, "sample_count": spp},
+    }
+
+
+def best_of_three(scene, spp):
+    """Seconds of the fastest of three renders at `spp`, after an untimed one of the same spp
+    and seed: the LLVM variants compile a kernel per distinct spp and seed (both are literals in
+    it), and compiling is not rendering."""
+    import mitsuba as mi
+
+    np.array(mi.render(scene, spp=spp, seed=0))  # JIT warm-up, not timed
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        np.array(mi.render(scene, spp=spp, seed=0))  # forces evaluation
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant, sampler="independent"):
@@ -122,13 +147,7 @@ def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant, 
 
     mi.set_variant(variant)
     scene = mi.load_dict(cornell_scene_dict(usd_path, width, height, max_depth, spp, out_dir, sampler))
-    mi.render(scene, spp=1)  # JIT warm-up, not timed
-    best = float("inf")
-    for seed in range(3):
-        t0 = time.perf_counter()
-        img = mi.render(scene, spp=spp, seed=seed)
-        arr = np.array(img)  # forces evaluation
-        best = min(best, time.perf_counter() - t0)
+    best = best_of_three(scene, spp)
     np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].astype(np.float32).tofile(os.path.join(out_dir, f"mitsuba_{sampler}.bin"))
     result = {"variant": variant, "sampler": sampler, "seconds": best, "paths_per_s": width * height * spp / best}
     if ref_spp > 0:
@@ -139,9 +158,110 @@ def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant, 
     return result
 
 
+def write_ply(path, points, triangles):
+    """A binary PLY of float32 points and int32 triangles (every Mitsuba variant reads it)."""
+    with open(path, "wb") as f:
+        f.write(f"ply\nformat binary_little_endian 1.0\nelement vertex {len(points)}\nproperty float x\nproperty float y\nproperty float z\n".encode())
+        f.write(f"element face {len(triangles)}\nproperty list uchar int vertex_indices\nend_header\n".encode())
+        f.write(np.ascontiguousarray(points, dtype="<f4").tobytes())
+        faces = np.zeros(len(triangles), dtype=[("n", "u1"), ("v", "<i4", 3)])
+        faces["n"], faces["v"] = 3, triangles
+        f.write(faces.tobytes())
+
+
+def mesh_arrays(prim, to_world=None):
+    """A Mesh prim's points (placed by `to_world` if given) and its faces fanned into triangles."""
+    from pxr import UsdGeom
+
+    mesh = UsdGeom.Mesh(prim)
+    points = np.array(mesh.GetPointsAttr().Get(), dtype=np.float64)
+    if to_world is not None:
+        m = np.array(to_world)
+        points = points @ m[:3, :3] + m[3, :3]
+    counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
+    idx = np.array(mesh.GetFaceVertexIndicesAttr().Get())
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    fans = []
+    for k in range(1, counts.max() - 1):
+        first = starts[counts >= k + 2]
+        fans.append(np.stack([idx[first], idx[first + k], idx[first + k + 1]], axis=-1))
+    return points.astype(np.float32), np.concatenate(fans)
+
+
+def under_instancer(prim):
+    """True for a prototype: a prim below a PointInstancer."""
+    from pxr import UsdGeom
+
+    parent = prim.GetParent()
+    while parent:
+        if parent.IsA(UsdGeom.PointInstancer):
+            return True
+        parent = parent.GetParent()
+    return False
+
+
+def preview_bsdf(prim):
+    """Mitsuba's nearest BSDF to the UsdPreviewSurface bound to `prim`: diffuse, or for a metal
+    a GGX conductor of the same alpha (roughness²) whose reflectance is the base colour."""
+    from pxr import UsdShade
+
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    shader = material.ComputeSurfaceSource()[0]
+    rgb = {"type": "rgb", "value": list(shader.GetInput("diffuseColor").Get())}
+    if shader.GetInput("metallic").Get() > 0.5:
+        r = shader.GetInput("roughness").Get()
+        return {"type": "roughconductor", "distribution": "ggx", "alpha": r * r, "material": "none", "specular_reflectance": rgb}
+    return {"type": "diffuse", "reflectance": rgb}
+
+
+def production_scene_dict(usd_path, width, height, max_depth, spp, ply_dir):
+    """bench/production_scene.py's scene as a Mitsuba scene: the terrain, the rocks as instances
+    of one shape group, the textured dome, the camera."""
+    import mitsuba as mi
+    from pxr import Gf, Usd, UsdGeom, UsdLux
+
+    stage = Usd.Stage.Open(usd_path)
+    cache = UsdGeom.XformCache()
+    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
+    transform = lambda m: mi.ScalarTransform4f(np.array(m).T.tolist())
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.PointInstancer):
+            inst = UsdGeom.PointInstancer(prim)
+            proto = stage.GetPrimAtPath(inst.GetPrototypesRel().GetTargets()[0])
+            ply = os.path.join(ply_dir, proto.GetName() + ".ply")
+            write_ply(ply, *mesh_arrays(proto))
+            scene["protos"] = {"type": "shapegroup", "proto": {"type": "ply", "filename": ply, "face_normals": True, "bsdf": preview_bsdf(proto)}}
+            world = cache.GetLocalToWorldTransform(prim)
+            for k, m in enumerate(inst.ComputeInstanceTransformsAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())):
+                scene[f"instance_{k}"] = {"type": "instance", "shapegroup": {"type": "ref", "id": "protos"}, "to_world": transform(Gf.Matrix4d(m) * world)}
+        elif prim.IsA(UsdGeom.Mesh) and not under_instancer(prim):
+            ply = os.path.join(ply_dir, prim.GetName() + ".ply")
+            write_ply(ply, *mesh_arrays(prim, cache.GetLocalToWorldTransform(prim)))
+            scene[prim.GetName()] = {"type": "ply", "filename": ply, "face_normals": True, "bsdf": preview_bsdf(prim)}
+        elif prim.IsA(UsdLux.DomeLight):
+            light = UsdLux.DomeLight(prim)
+            scene["sky"] = {"type": "envmap", "filename": light.GetTextureFileAttr().Get().resolvedPath, "scale": light.GetIntensityAttr().Get()}
+        elif prim.IsA(UsdGeom.Camera):
+            scene["sensor"] = sensor(prim, cache, width, height, spp, "independent")
+    return scene
+
+
+def production(usd_path, width, height, spp, max_depth, out_dir, variant):
+    import mitsuba as mi
+
+    mi.set_variant(variant)
+    scene = mi.load_dict(production_scene_dict(usd_path, width, height, max_depth, spp, out_dir))
+    best = best_of_three(scene, spp)
+    mean = np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].reshape(-1, 3).mean(axis=0)
+    return {"variant": variant, "mean": [float(c) for c in mean], "seconds": best, "paths_per_s": width * height * spp / best}
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "rays":
         print(json.dumps(rays(sys.argv[2])))
+    elif sys.argv[1] == "production":
+        usd, w, h, spp, depth, out, variant = sys.argv[2:9]
+        print(json.dumps(production(usd, int(w), int(h), int(spp), int(depth), out, variant)))
     elif sys.argv[1] == "cornell":
         usd, w, h, spp, depth, ref_spp, out, variant = sys.argv[2:10]
         sampler = sys.argv[10] if len(sys.argv) > 10 else "independent"

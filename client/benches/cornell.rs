@@ -16,6 +16,9 @@ use render_core::render::{RenderSettings, render_to_framebuffer};
 use render_core::sampling::SamplerKind;
 use render_core::scene::{BlasCache, CommittedScene, commit};
 
+#[path = "anchors/mod.rs"]
+mod anchors;
+
 const W: u32 = 256;
 const H: u32 = 256;
 const SPP: u32 = 64;
@@ -68,7 +71,6 @@ fn read_f32(path: &Path) -> Option<Vec<f32>> {
 
 /// One Mitsuba run: (seconds, paths/s), its 64-spp image written to `out`.
 fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32, sampler: &str) -> Option<(f64, f64)> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/anchors.py");
     let args = [
         usd.to_str()?,
         &W.to_string(),
@@ -80,17 +82,8 @@ fn mitsuba(usd: &Path, out: &Path, variant: &str, ref_spp: u32, sampler: &str) -
         variant,
         sampler,
     ];
-    let o = std::process::Command::new("python3").arg(script).arg("cornell").args(args).output().ok()?;
-    if !o.status.success() {
-        eprintln!(
-            "Mitsuba ({variant}) anchor failed (pip install mitsuba usd-core; apt install libllvm19): {}",
-            String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")
-        );
-        return None;
-    }
-    let line = String::from_utf8_lossy(&o.stdout).lines().last()?.to_string();
-    let num = |k: &str| -> Option<f64> { line.split(&format!("\"{k}\": ")).nth(1)?.split([',', '}']).next()?.parse().ok() };
-    Some((num("seconds")?, num("paths_per_s")?))
+    let t = anchors::run("cornell", &args.map(str::to_string))?;
+    Some((t.seconds, t.paths_per_s))
 }
 
 /// Best of three renders on `threads` threads: (seconds, the last image).
