@@ -2,7 +2,7 @@
 //! same run (issue 22): `bench/production_scene.py` writes it (a 999 698-triangle terrain, 300
 //! instanced glossy rocks, a textured dome), Tessera renders it on 1 and 2 threads, Mitsuba's
 //! `llvm_ad_rgb` and `scalar_rgb` variants on 2, all with independent samplers at equal
-//! resolution, spp and depth.
+//! resolution, spp and depth. Also what the renderer holds per triangle.
 //! Run: `cargo bench -p tessera --bench production`.
 
 use std::path::Path;
@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use render_core::camera::Camera;
+use render_core::geometry::Attribute;
 use render_core::integrator::IntegratorSettings;
 use render_core::render::{RenderSettings, render_to_framebuffer};
 use render_core::sampling::SamplerKind;
@@ -48,6 +49,25 @@ fn best_of_three(scene: &CommittedScene, threads: usize) -> (f64, Vec3) {
     (best, mean)
 }
 
+/// This process's resident memory, from /proc/self/statm (0 where there is none).
+fn resident_bytes() -> u64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
+    statm.split_whitespace().nth(1).and_then(|p| p.parse::<u64>().ok()).unwrap_or(0) * 4096
+}
+
+/// Bytes of a mesh's arrays as the renderer holds them.
+fn mesh_bytes(m: &render_core::geometry::Mesh) -> u64 {
+    fn attribute<T>(a: &Attribute<T>) -> usize {
+        match a {
+            Attribute::None => 0,
+            Attribute::Vertex(v) | Attribute::FaceVarying(v) => std::mem::size_of_val(&v[..]),
+        }
+    }
+    let primvars: usize = m.primvars.iter().map(|p| attribute(&p.values)).sum();
+    (std::mem::size_of_val(&m.positions[..]) + std::mem::size_of_val(&m.indices[..]) + attribute(&m.normals) + attribute(&m.uvs) + primvars)
+        as u64
+}
+
 fn main() {
     let out = std::env::temp_dir().join("tessera-bench-production");
     std::fs::create_dir_all(&out).unwrap();
@@ -60,15 +80,28 @@ fn main() {
     let t = Instant::now();
     let translation = tessera::usd::load(&usd).unwrap();
     let loaded = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let scene = commit(&translation.to_scene_desc(), &mut BlasCache::default()).unwrap();
+    let desc = translation.to_scene_desc();
+    let (t, before) = (Instant::now(), resident_bytes());
+    let scene = commit(&desc, &mut BlasCache::default()).unwrap();
     let committed = t.elapsed().as_secs_f64();
+    // The commit shares the description's meshes and adds the BVHs, lights and instances: its
+    // growth in resident memory (an upper bound: the allocator may keep the build's scratch)
+    // plus the meshes' arrays is what the renderer holds per triangle.
+    let grown = resident_bytes().saturating_sub(before);
+    let triangles: u64 = desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
+    let arrays: u64 = desc.meshes.values().map(|m| mesh_bytes(&m.mesh)).sum();
     let paths = (W * H * SPP) as f64;
     println!(
         "production: {W}x{H}, {SPP} spp, max depth {} bounces (Mitsuba max_depth {MITSUBA_MAX_DEPTH}), independent samplers",
         MITSUBA_MAX_DEPTH - 1
     );
     println!("tessera: USD read {loaded:.2} s, commit (BVHs, lights) {committed:.2} s");
+    println!(
+        "tessera memory: {triangles} distinct triangles; mesh arrays {:.1} MB, commit +{:.1} MB resident: {:.0} bytes per triangle",
+        arrays as f64 / 1e6,
+        grown as f64 / 1e6,
+        (arrays + grown) as f64 / triangles as f64
+    );
     best_of_three(&scene, 2); // warm caches
     let ours: Vec<(usize, (f64, Vec3))> = [1, 2].into_iter().map(|threads| (threads, best_of_three(&scene, threads))).collect();
     let args = [W.to_string(), H.to_string(), SPP.to_string(), MITSUBA_MAX_DEPTH.to_string(), out.display().to_string()];
