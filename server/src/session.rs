@@ -180,6 +180,12 @@ pub const BYTES_PER_INSTANCE: u64 = 160;
 /// Bytes a deforming triangle holds per deformation sample: its ray-tracing triangle at that
 /// sample (vertex and two edges, 16 bytes each), besides the sample's positions.
 pub const BYTES_PER_TRIANGLE_SAMPLE: u64 = 48;
+/// Bytes a light holds: its description, its committed form and its share of the light tree
+/// and of the tree of lights rays cross, its path, rounded up. A client controls how many.
+pub const BYTES_PER_LIGHT: u64 = 1024;
+/// Bytes one motion sample of a light or camera holds (an affine map), in the description and
+/// once more committed.
+pub const BYTES_PER_MOTION_SAMPLE: u64 = 96;
 
 /// The memory a description is estimated to hold once committed.
 pub fn scene_bytes(desc: &SceneDesc) -> u64 {
@@ -198,8 +204,10 @@ pub fn scene_bytes(desc: &SceneDesc) -> u64 {
     // Mip levels add a third; the environment's importance map and tangents stay below that.
     let textures: u64 = desc.textures.values().map(|t| t.bytes() as u64 * 2).sum();
     // Majorant cells (5 bytes per 8³ voxels of at least 4 bytes each) stay below 1/256 of the grids.
-    let volumes: u64 = desc.volumes.values().map(|v| v.bytes() + v.bytes() / 256).sum();
-    meshes + instances + textures + volumes
+    let volumes: u64 = desc.volumes.values().map(|v| v.bytes() + v.bytes() / 256 + v.motion.len() as u64 * BYTES_PER_MOTION_SAMPLE).sum();
+    let lights: u64 = desc.lights.values().map(|l| BYTES_PER_LIGHT + l.motion.len() as u64 * BYTES_PER_MOTION_SAMPLE).sum();
+    let cameras: u64 = desc.cameras.values().map(|c| c.motion.len() as u64 * BYTES_PER_MOTION_SAMPLE).sum();
+    meshes + instances + textures + volumes + lights + cameras
 }
 
 fn attribute_bytes(mesh: &Mesh) -> u64 {

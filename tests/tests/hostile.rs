@@ -508,6 +508,34 @@ async fn volumes_that_fit_no_grid_are_refused() {
 
 // ------------------------------------------------------------------ memory
 
+/// Lights are a count the client controls, and each may carry 64 motion samples: thousands of
+/// moving lights are held against the memory budget as geometry is, refused with
+/// RESOURCE_EXHAUSTED naming it; a hundred fit, and another session still renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn thousands_of_moving_lights_are_held_against_the_memory_budget() {
+    let server = EmbeddedServer::start_with(budgeted(16 << 20)).await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let identity = || pb::Matrix4 { m: vec![1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0] };
+    let lights = |n: usize| -> Vec<Item> {
+        let bulb = |i| {
+            let light = pb::LightPrim {
+                light_type: pb::LightType::Sphere as i32,
+                radius: 0.1,
+                intensity: 1.0,
+                motion: vec![identity(); 64],
+                ..Default::default()
+            };
+            tessera::sync::delta(&format!("/Evil/Bulb{i}"), pb::PrimKind::Light, pb::prim_delta::Payload::Light(light))
+        };
+        (0..n).map(bulb).collect()
+    };
+    // 3 000 × (1 KiB + 64 samples × 96 B) = 21.5 MB as estimated, over the 16 MiB budget.
+    assert_status(raw.sync(&s, lights(3000)).await, Code::ResourceExhausted, &["memory budget"]);
+    raw.sync(&s, lights(100)).await.expect("a hundred moving lights fit");
+    bystander_renders(&server).await;
+}
+
 /// A server with a 2 GiB budget, as the memory test and an operator's small box would run it.
 fn budgeted(bytes: u64) -> ServerConfig {
     ServerConfig { memory_budget: bytes, session_memory_budget: bytes, ..ServerConfig::default() }
