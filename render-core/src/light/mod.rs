@@ -266,23 +266,31 @@ impl LightDesc {
         let shape = match (self.kind, environment) {
             (LightKind::Dome, Some(texture)) => {
                 let rotation = glam::Mat3::from(self.transform.matrix3);
-                shapes::Shape::Environment { l, map: std::sync::Arc::new(environment::EnvironmentMap::new(texture, rotation)) }
+                let map = std::sync::Arc::new(environment::EnvironmentMap::new(texture, rotation));
+                shapes::Shape::Environment { l, map, turn: glam::Mat3::IDENTITY }
             }
             _ => shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?,
         };
         let m = |x: f32| if x.is_finite() { x.max(0.0) } else { 1.0 };
-        // A dome's map is not turned over the shutter (the scene says so when it moves); a
-        // constant dome looks the same whichever way it turns.
-        let moves = !self.motion.is_empty() && self.kind != LightKind::Dome;
-        let motion = moves.then(|| {
-            std::sync::Arc::new(motion::LightMotion::Placed {
+        // A constant dome looks the same whichever way it turns; a textured one turns its map.
+        let motion = match &shape {
+            _ if self.motion.is_empty() => None,
+            shapes::Shape::Dome { .. } => None,
+            shapes::Shape::Environment { map, .. } => Some(motion::LightMotion::Turned {
+                map: map.clone(),
+                l,
+                frame: motion::rotation_of(&self.transform),
+                samples: self.motion.iter().copied().collect(),
+            }),
+            _ => Some(motion::LightMotion::Placed {
                 kind: self.kind,
                 l,
                 normalize: self.normalize,
                 shaping: self.shaping,
                 samples: self.motion.iter().copied().collect(),
-            })
-        });
+            }),
+        }
+        .map(std::sync::Arc::new);
         Some(Light {
             shaping: shaping_profile(self.shaping, &self.transform),
             shape,

@@ -10,8 +10,9 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Mat3, Vec3};
 
+use super::environment::EnvironmentMap;
 use super::tree::LightBounds;
 use super::{Light, LightKind, Shape, Shaping, ShapingProfile};
 use crate::geometry::Mesh;
@@ -30,6 +31,17 @@ pub enum LightMotion {
         /// `ShapingAPI`, turned with the light.
         shaping: Option<Shaping>,
         /// Placements over the shutter (2 to [`crate::motion::MAX_MOTION_SAMPLES`]).
+        samples: Arc<[Affine3A]>,
+    },
+    /// A DomeLight's map turning with its transform.
+    Turned {
+        /// The map, built at the frame's placement.
+        map: Arc<EnvironmentMap>,
+        /// Radiance scale.
+        l: Vec3,
+        /// The frame's rotation ([`rotation_of`]).
+        frame: Mat3,
+        /// Placements over the shutter.
         samples: Arc<[Affine3A]>,
     },
     /// A triangle of an emissive mesh that deforms, moves, or both.
@@ -63,6 +75,10 @@ impl LightMotion {
                 let xf = crate::motion::transform_at(samples, time);
                 Some((Shape::new(*kind, &xf, *l, *normalize)?, super::shaping_profile(*shaping, &xf)))
             }
+            LightMotion::Turned { map, l, frame, samples } => {
+                let turn = rotation_of(&crate::motion::transform_at(samples, time)) * frame.transpose();
+                Some((Shape::Environment { l: *l, map: map.clone(), turn }, None))
+            }
             LightMotion::Triangle { mesh, triangle, placement, l } => {
                 let to_world = match placement {
                     Placement::Still(m) => *m,
@@ -84,6 +100,7 @@ impl LightMotion {
                 let first = keys.next()?;
                 Some(keys.fold(first, |a, b| a.enclosing(&b)))
             }
+            LightMotion::Turned { .. } => None,
             LightMotion::Triangle { mesh, triangle, placement, .. } => {
                 // The corners' object-space box over the deformation, carried by the
                 // placements: the same bound the TLAS uses. A deforming or turning triangle's
@@ -108,6 +125,14 @@ impl LightMotion {
             }
         }
     }
+}
+
+/// The rotation of a placement: its axes normalised, as a dome's map is placed
+/// ([`EnvironmentMap::new`]); between samples, the interpolated axes so normalised follow the
+/// turn's arc.
+pub fn rotation_of(m: &Affine3A) -> Mat3 {
+    let axes = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis].map(|a| Vec3::from(a).normalize_or_zero());
+    if axes.contains(&Vec3::ZERO) { Mat3::IDENTITY } else { Mat3::from_cols(axes[0], axes[1], axes[2]) }
 }
 
 impl Light {

@@ -120,6 +120,9 @@ pub enum Shape {
         l: Vec3,
         /// The map and its distribution.
         map: std::sync::Arc<super::environment::EnvironmentMap>,
+        /// How far a turning dome has turned from the frame's placement at this time (world
+        /// to world; the identity, exactly, for a still one).
+        turn: glam::Mat3,
     },
     /// One emissive triangle of a mesh (emits from both faces).
     Triangle {
@@ -229,7 +232,7 @@ impl Shape {
                 e * disk
             }
             Shape::Dome { l } => *l * (4.0 * PI * disk),
-            Shape::Environment { l, map } => *l * map.mean() * (4.0 * PI * disk),
+            Shape::Environment { l, map, .. } => *l * map.mean() * (4.0 * PI * disk),
         }
     }
 
@@ -301,11 +304,12 @@ impl Shape {
                 let pdf = self.pdf(ctx, wi, f32::INFINITY);
                 (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf, delta: false })
             }
-            Shape::Environment { l, map } => {
-                let (wi, pdf) = map.sample(u)?;
+            Shape::Environment { l, map, turn } => {
+                let (framed, pdf) = map.sample(u)?;
                 // Directions behind an opaque surface carry nothing; keep them (pdf > 0) so
-                // that the estimator stays the one pdf() describes.
-                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: *l * map.lookup(wi), pdf, delta: false })
+                // that the estimator stays the one pdf() describes. A turn keeps solid angles.
+                let wi = *turn * framed;
+                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: *l * map.lookup(framed), pdf, delta: false })
             }
         }
     }
@@ -363,7 +367,7 @@ impl Shape {
             Shape::Dome { .. } if ctx.n == Vec3::ZERO => 0.25 / PI,
             Shape::Dome { .. } if ctx.both_sides => 0.5 * wi.dot(ctx.n).abs() / PI,
             Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
-            Shape::Environment { map, .. } => map.pdf(wi),
+            Shape::Environment { map, turn, .. } => map.pdf(turn.transpose() * wi),
         }
     }
 
@@ -433,7 +437,7 @@ impl Shape {
     pub fn escaped(&self, d: Vec3) -> Vec3 {
         match self {
             Shape::Dome { l } => *l,
-            Shape::Environment { l, map } => *l * map.lookup(d),
+            Shape::Environment { l, map, turn } => *l * map.lookup(turn.transpose() * d),
             Shape::Distant { dir, cos_half, one_minus_cos_half, l, .. } if *one_minus_cos_half > 0.0 => {
                 let c = d.dot(*dir);
                 // Compare 1 − cos for precision at the sun's 0.53° angle.

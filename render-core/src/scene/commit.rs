@@ -303,12 +303,7 @@ impl Lights {
         let mut all: Vec<Light> = Vec::new();
         let mut usd_lights = Vec::new();
         for (path, l) in &desc.lights {
-            let map = materials.environments.get(path.as_str()).cloned();
-            if map.is_some() && !l.motion.is_empty() {
-                warnings
-                    .push(format!("{path}: a DomeLight's texture does not turn over the shutter yet; it stays at the frame's placement"));
-            }
-            match l.commit_with(map) {
+            match l.commit_with(materials.environments.get(path.as_str()).cloned()) {
                 Some(light) => {
                     all.push(light);
                     usd_lights.push(path.clone());
