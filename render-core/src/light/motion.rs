@@ -1,5 +1,5 @@
-//! Lights that move over the shutter: a UsdLux light carried by its transform's motion, and
-//! each triangle of an emissive mesh that moves or deforms.
+//! Lights that move over the shutter: a UsdLux light carried by its transform's motion (a
+//! textured dome turns its map), and each triangle of an emissive mesh that moves or deforms.
 //!
 //! The committed [`Light`] keeps its frame-time shape, which only weighs its selection by
 //! power. Sampling and ray hits pose the light at the ray's time, with the same interpolation
