@@ -14,10 +14,10 @@ use crate::scene::SurfaceHit;
 use super::Tracer;
 use super::path::PathState;
 
-/// A surface a path scatters at, set up for shading.
 /// A textured material resolved at a shading point, and its normal-map normal.
 pub(super) type LocalMaterial = Option<(Material, Option<Vec3>)>;
 
+/// A surface a path scatters at, set up for shading.
 pub(super) struct Vertex<'l> {
     /// The surface, its shading normal normal-mapped.
     pub s: SurfaceHit,

@@ -35,12 +35,19 @@ pub struct EnvironmentMap {
     mean: Vec3,
 }
 
+/// A dome's rotation from its transform's 3×3 part: the axes normalised (the scale removed);
+/// the identity when an axis collapses. Between motion samples, the interpolated axes so
+/// normalised follow the turn's arc.
+pub fn dome_rotation(m: Mat3) -> Mat3 {
+    let axes = [m.x_axis, m.y_axis, m.z_axis].map(|a| a.normalize_or_zero());
+    if axes.contains(&Vec3::ZERO) { Mat3::IDENTITY } else { Mat3::from_cols(axes[0], axes[1], axes[2]) }
+}
+
 impl EnvironmentMap {
     /// Builds the distribution of `texture` rotated by `rotation` (dome to world; its scale
     /// is removed).
     pub fn new(texture: Arc<Texture>, rotation: Mat3) -> Self {
-        let axes = [rotation.x_axis, rotation.y_axis, rotation.z_axis].map(|a| a.normalize_or_zero());
-        let to_world = if axes.iter().any(|a| *a == Vec3::ZERO) { Mat3::IDENTITY } else { Mat3::from_cols(axes[0], axes[1], axes[2]) };
+        let to_world = dome_rotation(rotation);
         let (tw, th) = texture.size();
         let level = (0..texture.level_count()).find(|&l| (tw >> l).max(1) <= MAX_GRID_WIDTH).unwrap_or(texture.level_count() - 1);
         let (width, height) = ((tw >> level).max(1), (th >> level).max(1));
@@ -93,6 +100,11 @@ impl EnvironmentMap {
     pub fn lookup(&self, d: Vec3) -> Vec3 {
         let st = Self::st_of(self.to_local * d);
         self.texture.lookup(st, 0.0, [Wrap::Repeat, Wrap::Clamp]).truncate().max(Vec3::ZERO)
+    }
+
+    /// The rotation the map was placed by (map to world), as [`dome_rotation`] makes it.
+    pub fn to_world(&self) -> Mat3 {
+        self.to_world
     }
 
     /// Mean value over the sphere (solid-angle weighted).

@@ -276,12 +276,9 @@ impl LightDesc {
         let motion = match &shape {
             _ if self.motion.is_empty() => None,
             shapes::Shape::Dome { .. } => None,
-            shapes::Shape::Environment { map, .. } => Some(motion::LightMotion::Turned {
-                map: map.clone(),
-                l,
-                frame: motion::rotation_of(&self.transform),
-                samples: self.motion.iter().copied().collect(),
-            }),
+            shapes::Shape::Environment { map, .. } => {
+                Some(motion::LightMotion::Turned { map: map.clone(), l, samples: self.motion.iter().copied().collect() })
+            }
             _ => Some(motion::LightMotion::Placed {
                 kind: self.kind,
                 l,

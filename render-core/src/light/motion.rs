@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use glam::{Affine3A, Mat3, Vec3};
 
-use super::environment::EnvironmentMap;
+use super::environment::{EnvironmentMap, dome_rotation};
 use super::tree::LightBounds;
 use super::{Light, LightKind, Shape, Shaping, ShapingProfile};
 use crate::geometry::Mesh;
@@ -39,8 +39,6 @@ pub enum LightMotion {
         map: Arc<EnvironmentMap>,
         /// Radiance scale.
         l: Vec3,
-        /// The frame's rotation ([`rotation_of`]).
-        frame: Mat3,
         /// Placements over the shutter.
         samples: Arc<[Affine3A]>,
     },
@@ -75,8 +73,9 @@ impl LightMotion {
                 let xf = crate::motion::transform_at(samples, time);
                 Some((Shape::new(*kind, &xf, *l, *normalize)?, super::shaping_profile(*shaping, &xf)))
             }
-            LightMotion::Turned { map, l, frame, samples } => {
-                let turn = rotation_of(&crate::motion::transform_at(samples, time)) * frame.transpose();
+            LightMotion::Turned { map, l, samples } => {
+                let placed = dome_rotation(Mat3::from(crate::motion::transform_at(samples, time).matrix3));
+                let turn = placed * map.to_world().transpose();
                 Some((Shape::Environment { l: *l, map: map.clone(), turn }, None))
             }
             LightMotion::Triangle { mesh, triangle, placement, l } => {
@@ -112,12 +111,8 @@ impl LightMotion {
                         (lo, hi) = (lo.min(v), hi.max(v));
                     }
                 }
-                let still;
                 let samples = match placement {
-                    Placement::Still(m) => {
-                        still = [*m];
-                        &still[..]
-                    }
+                    Placement::Still(m) => std::slice::from_ref(m),
                     Placement::Moving(samples) => &samples[..],
                 };
                 let (lo, hi) = crate::motion::bounds_over(samples, lo, hi);
@@ -125,14 +120,6 @@ impl LightMotion {
             }
         }
     }
-}
-
-/// The rotation of a placement: its axes normalised, as a dome's map is placed
-/// ([`EnvironmentMap::new`]); between samples, the interpolated axes so normalised follow the
-/// turn's arc.
-pub fn rotation_of(m: &Affine3A) -> Mat3 {
-    let axes = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis].map(|a| Vec3::from(a).normalize_or_zero());
-    if axes.contains(&Vec3::ZERO) { Mat3::IDENTITY } else { Mat3::from_cols(axes[0], axes[1], axes[2]) }
 }
 
 impl Light {
