@@ -68,25 +68,11 @@ def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir, sampler
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth}}
     for prim in stage.Traverse():
         if prim.IsA(UsdGeom.Mesh):
-            mesh = UsdGeom.Mesh(prim)
-            m = cache.GetLocalToWorldTransform(prim)
-            pts = [m.Transform(Gf.Vec3d(p)) for p in mesh.GetPointsAttr().Get()]
-            counts, idx = mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get()
-            tris, base = [], 0
-            for c in counts:
-                for k in range(1, c - 1):
-                    tris.append((idx[base], idx[base + k], idx[base + k + 1]))
-                base += c
             mat, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
             shader = mat.ComputeSurfaceSource()[0]
             rgb = shader.GetInput("diffuseColor").Get()
-            # PLY files work in every variant (scalar ones cannot take buffers from numpy).
             ply = os.path.join(ply_dir, prim.GetName() + ".ply")
-            with open(ply, "w") as f:
-                f.write(f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty float x\nproperty float y\nproperty float z\n")
-                f.write(f"element face {len(tris)}\nproperty list uchar int vertex_indices\nend_header\n")
-                f.writelines(f"{p[0]} {p[1]} {p[2]}\n" for p in pts)
-                f.writelines(f"3 {a} {b} {c}\n" for a, b, c in tris)
+            write_ply(ply, *mesh_arrays(prim, cache.GetLocalToWorldTransform(prim)))
             scene[prim.GetName()] = {"type": "ply", "filename": ply, "face_normals": True, "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(rgb)}}}
         elif prim.IsA(UsdLux.RectLight):
             light = UsdLux.RectLight(prim)
