@@ -5,19 +5,26 @@
 //! instance's object space and traverses that mesh's BLAS. The direction is not
 //! renormalised, so hit distances stay in world units. Scenes of few triangles in all skip
 //! the second level: one BVH over their triangles placed in the world ([`FLAT_TRIANGLES`]).
+//!
+//! obvhs builds the trees and its `traverse!` macro walks them; the node and triangle tests
+//! in that walk are our own eight-wide ones ([`wide`]), which find exactly what obvhs's
+//! four-wide node test and a one-at-a-time triangle test find.
 
-use glam::{Vec2, Vec3, Vec3A};
+mod wide;
+
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     Boundable, BvhBuildParams,
     aabb::Aabb,
     bvh2::{Bvh2, node::Bvh2Node, reinsertion::ReinsertionOptimizer},
     cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
     ploc::PlocBuilder,
-    ray::{Ray as BvhRay, RayHit},
+    ray::Ray as BvhRay,
     triangle::Triangle,
 };
 
 use crate::geometry::{Mesh, Ray, Transform};
+use wide::TriangleLanes;
 
 /// An obvhs ray. Negative zeros in the direction are made positive: obvhs derives the
 /// traversal octant from sign bits and the slab test from `1/x`, and a `-0.0` component
@@ -68,10 +75,45 @@ impl RtTriangle {
     }
 }
 
+/// Walks `bvh` front to back with the eight-wide node test, handing the leaf primitives of
+/// each node the ray enters to `leaves` as (first primitive index, bit mask of the primitives
+/// from it, bits below 24); `leaves` may shorten `ray.tmax` and returns true to stop the walk.
+#[inline(always)]
+fn walk(bvh: &CwBvh, ray: &mut BvhRay, mut leaves: impl FnMut(&mut BvhRay, u32, u32) -> bool) {
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    'walk: {
+        obvhs::traverse!(bvh, node, state, wide::node_hits(node, ray, state.oct_inv4), {
+            // The macro hands primitives one at a time (highest bit first); take the node's
+            // whole group at once instead.
+            let base = state.primitive_group.x;
+            let group = state.primitive_group.y | (1 << (state.primitive_id - base));
+            state.primitive_group.y = 0;
+            if leaves(ray, base, group) {
+                break 'walk;
+            }
+        });
+    }
+}
+
+/// The set bits of `mask`, highest first: the order obvhs's walk tests a node's primitives
+/// in, which decides between hits at equal distance.
+#[inline(always)]
+fn bits_high_first(mut mask: u32) -> impl Iterator<Item = u32> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let j = 31 - mask.leading_zeros();
+            mask &= !(1 << j);
+            j
+        })
+    })
+}
+
 /// The bottom-level BVH of one mesh.
 pub struct Blas {
     bvh: CwBvh,
-    tris: Vec<RtTriangle>,
+    /// Triangles in BVH order, laid out for the eight-wide test.
+    tris: TriangleLanes,
     /// Original triangle index of each triangle in BVH order.
     tri_ids: Vec<u32>,
     bounds: Aabb,
@@ -168,7 +210,7 @@ impl Blas {
     /// Builds over `aabbs`, one per triangle of `tris`.
     fn of_bounds(tris: &[Triangle], aabbs: &[Aabb], quality: BuildQuality) -> Self {
         let bvh = build_bounded(aabbs, quality.params());
-        let rt = bvh
+        let rt: Vec<RtTriangle> = bvh
             .primitive_indices
             .iter()
             .map(|&i| {
@@ -178,47 +220,58 @@ impl Blas {
             .collect();
         let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        Blas { bvh, tris: rt, tri_ids, bounds, deforming: None }
+        Blas { bvh, tris: TriangleLanes::new(&rt), tri_ids, bounds, deforming: None }
     }
 
     /// Closest hit in object space at shutter `time`: (t, original triangle index,
     /// barycentrics).
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> Option<(f32, u32, Vec2)> {
+        let mut ray = bvh_ray(o, d, tmax);
+        let mut best = None;
         match &self.deforming {
-            None => self.intersect_with(o, d, tmax, |id| self.tris[id]),
-            Some(m) => self.intersect_with(o, d, tmax, |id| m.at(id, time)),
+            None => walk(&self.bvh, &mut ray, |ray, base, group| {
+                if let Some(hit) = self.tris.closest(base, group, ray) {
+                    ray.tmax = hit.0;
+                    best = Some(hit);
+                }
+                false
+            }),
+            Some(m) => walk(&self.bvh, &mut ray, |ray, base, group| {
+                for id in bits_high_first(group).map(|j| base + j) {
+                    if let Some((t, u, v)) = m.at(id as usize, time).intersect(ray.origin, ray.direction, ray.tmin, ray.tmax) {
+                        ray.tmax = t;
+                        best = Some((t, id, Vec2::new(u, v)));
+                    }
+                }
+                false
+            }),
         }
-    }
-
-    #[inline(always)]
-    fn intersect_with(&self, o: Vec3A, d: Vec3A, tmax: f32, tri: impl Fn(usize) -> RtTriangle) -> Option<(f32, u32, Vec2)> {
-        let ray = bvh_ray(o, d, tmax);
-        let mut hit = RayHit::none();
-        let mut bary = Vec2::ZERO;
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| match tri(id).intersect(r.origin, r.direction, r.tmin, r.tmax) {
-            Some((t, u, v)) => {
-                bary = Vec2::new(u, v);
-                t
-            }
-            None => f32::INFINITY,
-        });
-        found.then(|| (hit.t, self.tri_ids[hit.primitive_id as usize], bary))
+        best.map(|(t, id, bary)| (t, self.tri_ids[id as usize], bary))
     }
 
     /// True when anything lies on the segment (0, tmax) at shutter `time`.
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
+        let mut ray = bvh_ray(o, d, tmax);
+        let mut blocked = false;
         match &self.deforming {
-            None => self.occluded_with(o, d, tmax, |id| self.tris[id]),
-            Some(m) => self.occluded_with(o, d, tmax, |id| m.at(id, time)),
+            None => walk(&self.bvh, &mut ray, |ray, base, group| {
+                blocked = self.tris.any(base, group, ray);
+                blocked
+            }),
+            Some(m) => walk(&self.bvh, &mut ray, |ray, base, group| {
+                blocked = bits_high_first(group)
+                    .any(|j| m.at((base + j) as usize, time).intersect(ray.origin, ray.direction, ray.tmin, ray.tmax).is_some());
+                blocked
+            }),
         }
+        blocked
     }
 
-    #[inline(always)]
-    fn occluded_with(&self, o: Vec3A, d: Vec3A, tmax: f32, tri: impl Fn(usize) -> RtTriangle) -> bool {
-        let ray = bvh_ray(o, d, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, id| tri(id).intersect(r.origin, r.direction, r.tmin, r.tmax).map_or(f32::INFINITY, |h| h.0))
+    /// Triangles in the mesh.
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
     }
 
     /// Object-space bounds.
@@ -408,7 +461,7 @@ impl Tlas {
         if instances.is_empty() {
             return Tlas { accel: None, ray_scale: 1.0 };
         }
-        let total: usize = instances.iter().map(|i| blases[i.blas].tris.len()).sum();
+        let total: usize = instances.iter().map(|i| blases[i.blas].triangle_count()).sum();
         // Moving instances are placed and deforming meshes shaped per ray: only the two-level
         // walk can.
         if total <= flat_limit && instances.iter().all(|i| i.motion.is_none() && !blases[i.blas].deforms()) {
@@ -456,7 +509,7 @@ impl Tlas {
         for (i, inst) in instances.iter().enumerate() {
             let blas = &blases[inst.blas];
             let m = &inst.transform.to_world;
-            for (t, &id) in blas.tris.iter().zip(&blas.tri_ids) {
+            for (t, &id) in (0..blas.triangle_count()).map(|i| blas.tris.triangle(i)).zip(&blas.tri_ids) {
                 let v0 = m.transform_point3a(t.v0);
                 let (v1, v2) = (v0 + m.transform_vector3a(t.e1), v0 + m.transform_vector3a(t.e2));
                 tris.push(Triangle { v0, v1, v2 });
@@ -476,8 +529,7 @@ impl Tlas {
     /// Closest hit along `ray` before `ray.tmax`.
     pub fn intersect(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray) -> Option<Hit> {
         let k = self.ray_scale;
-        let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, ray.tmax / k);
-        let mut rh = RayHit::none();
+        let mut wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, ray.tmax / k);
         let mut best: Option<Hit> = None;
         let (bvh, ordered) = match self.accel.as_ref()? {
             Accel::Instances { bvh, ordered } => (bvh, ordered),
@@ -488,16 +540,15 @@ impl Tlas {
                 });
             }
         };
-        bvh.ray_traverse(wray, &mut rh, |r, id| {
-            let (inst, blas, _, _) = &ordered[id];
-            let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
-            match blases[*blas].intersect(o, d, r.tmax, ray.time) {
-                Some((t, tri, bary)) => {
-                    best = Some(Hit { t: t * k, time: ray.time, instance: *inst, triangle: tri, bary });
-                    t
+        walk(bvh, &mut wray, |r, base, group| {
+            for placed in bits_high_first(group).map(|j| &ordered[(base + j) as usize]) {
+                let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
+                if let Some((t, tri, bary)) = blases[placed.1].intersect(o, d, r.tmax, ray.time) {
+                    r.tmax = t;
+                    best = Some(Hit { t: t * k, time: ray.time, instance: placed.0, triangle: tri, bary });
                 }
-                None => f32::INFINITY,
             }
+            false
         });
         best
     }
@@ -505,19 +556,21 @@ impl Tlas {
     /// True when anything blocks the segment from `ray.origin` to `ray.at(tmax)`.
     pub fn occluded(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray, tmax: f32) -> bool {
         let k = self.ray_scale;
-        let wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, tmax / k);
+        let mut wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, tmax / k);
         let (bvh, ordered) = match &self.accel {
             None => return false,
             Some(Accel::Instances { bvh, ordered }) => (bvh, ordered),
             Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax, ray.time),
         };
-        !bvh.ray_traverse_miss(wray, |r, id| {
-            let blas = ordered[id].1;
-            let (o, d) = into_object(&ordered[id], ray.time, r.origin, r.direction);
-            // Any distance below tmax reports the hit; not `0.5 * tmax`, which is infinite for
-            // shadow rays towards dome and distant lights and let them pass through everything.
-            if blases[blas].occluded(o, d, r.tmax, ray.time) { 0.0 } else { f32::INFINITY }
-        })
+        let mut blocked = false;
+        walk(bvh, &mut wray, |r, base, group| {
+            blocked = bits_high_first(group).map(|j| &ordered[(base + j) as usize]).any(|placed| {
+                let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
+                blases[placed.1].occluded(o, d, r.tmax, ray.time)
+            });
+            blocked
+        });
+        blocked
     }
 }
 

@@ -1,0 +1,416 @@
+//! Eight-wide ray tests for the BVH walk: all eight children of a CWBVH node against a ray in
+//! one pass, and the triangles of a node's leaves eight at a time from component arrays.
+//!
+//! obvhs's own node test converts its quantised child planes to floats one lane at a time
+//! (`cwbvh/simd.rs`: 48 scalar conversions a node) and tests four children per pass; its
+//! primitive callback sees one triangle at a time. With AVX2 (the release target,
+//! `.cargo/config.toml`) a node is six byte-to-float widenings and one pass, and a leaf group
+//! one Möller-Trumbore pass over up to eight triangles. Both compute exactly what the scalar
+//! code computes, operation for operation and rounding for rounding (the scalar tests are the
+//! reference in this module's tests), so hits, and therefore images, stay bit-identical.
+
+use glam::{Vec2, Vec3A};
+use obvhs::{cwbvh::node::CwBvhNode, ray::Ray as BvhRay};
+
+use super::RtTriangle;
+
+/// Entry distance below which obvhs's node test culls a child box (`cwbvh/node.rs`,
+/// `EPSILON`, crate-private): the wide test uses the same so both find the same nodes.
+const NODE_TMIN: f32 = 1e-4;
+
+/// Triangles stored component by component in BVH order (all `v0.x`, then all `v0.y`, ...,
+/// then all `e2.z`), so the triangles of one CWBVH node, which sit next to each other, load
+/// eight at a time. Each component row is padded by [`LANES`] zeros so a load starting at
+/// any triangle stays inside; a zero triangle never hits (its determinant is 0).
+pub(super) struct TriangleLanes {
+    data: Vec<f32>,
+    /// Entries per component row: the triangle count plus the padding.
+    stride: usize,
+    count: usize,
+}
+
+/// Triangles tested per pass.
+const LANES: usize = 8;
+
+/// A triangle hit: distance, BVH-order index, barycentrics.
+pub(super) type LaneHit = (f32, u32, Vec2);
+
+impl TriangleLanes {
+    pub(super) fn new(tris: &[RtTriangle]) -> Self {
+        let stride = tris.len() + LANES;
+        let mut data = vec![0.0; 9 * stride];
+        for (i, t) in tris.iter().enumerate() {
+            for (c, v) in [t.v0, t.e1, t.e2].iter().flat_map(|v| v.to_array()).enumerate() {
+                data[c * stride + i] = v;
+            }
+        }
+        TriangleLanes { data, stride, count: tris.len() }
+    }
+
+    pub(super) fn len(&self) -> usize {
+        self.count
+    }
+
+    /// Triangle `i` (BVH order).
+    #[inline(always)]
+    pub(super) fn triangle(&self, i: usize) -> RtTriangle {
+        let c = |k: usize| self.data[k * self.stride + i];
+        RtTriangle { v0: Vec3A::new(c(0), c(1), c(2)), e1: Vec3A::new(c(3), c(4), c(5)), e2: Vec3A::new(c(6), c(7), c(8)) }
+    }
+
+    /// Closest hit before `ray.tmax` among triangles `base + j` for the set bits `j` of
+    /// `mask` (a CWBVH primitive group, bits below 32). Equal distances resolve as obvhs's
+    /// one-at-a-time walk resolves them (highest index first, strict `<`): the triangle with
+    /// the highest index among the nearest.
+    #[inline(always)]
+    pub(super) fn closest(&self, base: u32, mut mask: u32, ray: &BvhRay) -> Option<LaneHit> {
+        let mut best: Option<LaneHit> = None;
+        let mut tmax = ray.tmax;
+        while mask != 0 {
+            let start = (31 - mask.leading_zeros()).saturating_sub(LANES as u32 - 1);
+            let block = (mask >> start) & 0xff;
+            mask &= !(0xff << start);
+            if let Some((t, j, bary)) = self.closest_in_block(base + start, block, ray, tmax) {
+                tmax = t;
+                best = Some((t, base + start + j, bary));
+            }
+        }
+        best
+    }
+
+    /// True when any of the triangles `base + j` (set bits `j` of `mask`) lies on the ray
+    /// within (`tmin`, `tmax`).
+    #[inline(always)]
+    pub(super) fn any(&self, base: u32, mut mask: u32, ray: &BvhRay) -> bool {
+        while mask != 0 {
+            let start = mask.trailing_zeros();
+            let block = (mask >> start) & 0xff;
+            mask &= !(0xff_u32.checked_shl(start).unwrap_or(0));
+            if self.closest_in_block(base + start, block, ray, ray.tmax).is_some() {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Closest of the triangles `first + j` for the set bits `j` of `block` (below 8): lane
+    /// `j` and barycentrics.
+    #[inline(always)]
+    fn closest_in_block(&self, first: u32, block: u32, ray: &BvhRay, tmax: f32) -> Option<(f32, u32, Vec2)> {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+        {
+            // SAFETY: the target has AVX2 and FMA (checked at compile time); the loads read
+            // `first .. first + 8` of each row, inside the row's padding (`first` + the block's
+            // highest bit is a triangle index).
+            unsafe { avx2::closest_in_block(self, first as usize, block, ray, tmax) }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
+        {
+            self.closest_in_block_scalar(first as usize, block, ray, tmax)
+        }
+    }
+
+    /// [`Self::closest_in_block`] one triangle at a time, highest lane first.
+    #[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"), allow(dead_code))]
+    fn closest_in_block_scalar(&self, first: usize, mut block: u32, ray: &BvhRay, mut tmax: f32) -> Option<(f32, u32, Vec2)> {
+        let mut best = None;
+        while block != 0 {
+            let j = 31 - block.leading_zeros();
+            block &= !(1 << j);
+            if let Some((t, u, v)) = self.triangle(first + j as usize).intersect(ray.origin, ray.direction, ray.tmin, tmax) {
+                tmax = t;
+                best = Some((t, j, Vec2::new(u, v)));
+            }
+        }
+        best
+    }
+}
+
+/// Children of `node` the ray enters before `ray.tmax`, as the CWBVH hit mask obvhs's
+/// traversal expects (`CwBvhNode::intersect_ray`'s result).
+#[inline(always)]
+pub(super) fn node_hits(node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    {
+        // SAFETY: the target has AVX2 (checked at compile time).
+        let mask = unsafe { avx2::children_entered(node, ray) };
+        hit_mask(node, oct_inv4, mask)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    {
+        node.intersect_ray(ray, oct_inv4)
+    }
+}
+
+/// The CWBVH hit mask of the children whose bits are set in `entered` (bit `j`: child slot
+/// `j`): inner children as traversal-order bits in the top byte, leaves as their primitives'
+/// bits in the low 24, as obvhs's node test builds it.
+#[cfg_attr(not(all(target_arch = "x86_64", target_feature = "avx2")), allow(dead_code))]
+#[inline(always)]
+fn hit_mask(node: &CwBvhNode, oct_inv4: u32, mut entered: u32) -> u32 {
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut hits = 0;
+    while entered != 0 {
+        let j = entered.trailing_zeros();
+        entered &= entered - 1;
+        let byte = |x: u64| ((x >> (j * 8)) as u32) & 0xff;
+        hits |= byte(child_bits8) << byte(bit_index8);
+    }
+    hits
+}
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use glam::{Vec2, Vec3A};
+    use obvhs::{cwbvh::node::CwBvhNode, ray::Ray as BvhRay};
+
+    use super::{NODE_TMIN, TriangleLanes};
+
+    /// Eight quantised planes widened to floats.
+    #[inline(always)]
+    unsafe fn planes(q: &[u8; 8]) -> __m256 {
+        unsafe { _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(q.as_ptr().cast()))) }
+    }
+
+    /// Entry and exit distances of the ray through the eight child slabs of one axis: near
+    /// and far plane chosen by the direction's sign, `plane * scale + offset` unfused, as
+    /// obvhs computes them.
+    #[inline(always)]
+    unsafe fn slab(lo: &[u8; 8], hi: &[u8; 8], negative: bool, scale: f32, offset: f32) -> (__m256, __m256) {
+        unsafe {
+            let (near, far) = if negative { (planes(hi), planes(lo)) } else { (planes(lo), planes(hi)) };
+            let (scale, offset) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
+            (_mm256_add_ps(_mm256_mul_ps(near, scale), offset), _mm256_add_ps(_mm256_mul_ps(far, scale), offset))
+        }
+    }
+
+    /// Bit `j` set when the ray enters child slot `j` of `node` (empty slots are all-zero
+    /// boxes the caller's mask drops). The max/min order is obvhs's, so NaN lanes (an axis
+    /// the ray runs parallel to) resolve the same way.
+    #[inline(always)]
+    pub(super) unsafe fn children_entered(node: &CwBvhNode, ray: &BvhRay) -> u32 {
+        let scale = node.compute_extent() * ray.inv_direction;
+        let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+        unsafe {
+            let (near_x, far_x) = slab(&node.child_min_x, &node.child_max_x, ray.direction.x < 0.0, scale.x, offset.x);
+            let (near_y, far_y) = slab(&node.child_min_y, &node.child_max_y, ray.direction.y < 0.0, scale.y, offset.y);
+            let (near_z, far_z) = slab(&node.child_min_z, &node.child_max_z, ray.direction.z < 0.0, scale.z, offset.z);
+            let enter = _mm256_max_ps(near_x, _mm256_max_ps(near_y, near_z));
+            let exit = _mm256_min_ps(far_x, _mm256_min_ps(far_y, far_z));
+            let enter = _mm256_max_ps(enter, _mm256_set1_ps(NODE_TMIN));
+            let exit = _mm256_min_ps(exit, _mm256_set1_ps(ray.tmax));
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(enter, exit)) as u32
+        }
+    }
+
+    /// Three component rows of the lanes, eight triangles from `first`.
+    #[inline(always)]
+    unsafe fn load3(lanes: &TriangleLanes, row: usize, first: usize) -> [__m256; 3] {
+        let at = |c: usize| unsafe { _mm256_loadu_ps(lanes.data.as_ptr().add((row + c) * lanes.stride + first)) };
+        [at(0), at(1), at(2)]
+    }
+
+    /// `a × b` lane by lane, rounded as glam's `Vec3A::cross` with FMA rounds it:
+    /// `x = a.y·b.z − b.y·a.z` with the first product rounded and the second fused.
+    #[inline(always)]
+    unsafe fn cross(a: [__m256; 3], b: [__m256; 3]) -> [__m256; 3] {
+        unsafe {
+            [
+                _mm256_fnmadd_ps(b[1], a[2], _mm256_mul_ps(a[1], b[2])),
+                _mm256_fnmadd_ps(b[2], a[0], _mm256_mul_ps(a[2], b[0])),
+                _mm256_fnmadd_ps(b[0], a[1], _mm256_mul_ps(a[0], b[1])),
+            ]
+        }
+    }
+
+    /// `a · b` lane by lane, summed as glam's `Vec3A::dot`: `(x·x' + y·y') + z·z'`, unfused.
+    #[inline(always)]
+    unsafe fn dot(a: [__m256; 3], b: [__m256; 3]) -> __m256 {
+        unsafe {
+            let xy = _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1]));
+            _mm256_add_ps(xy, _mm256_mul_ps(a[2], b[2]))
+        }
+    }
+
+    fn splat3(v: Vec3A) -> [__m256; 3] {
+        unsafe { [_mm256_set1_ps(v.x), _mm256_set1_ps(v.y), _mm256_set1_ps(v.z)] }
+    }
+
+    /// Möller-Trumbore over eight triangles at once, the same operations as
+    /// [`super::RtTriangle::intersect`] lane by lane; returns the nearest hit among the
+    /// lanes set in `block` (ties: the highest lane) as (t, lane, barycentrics).
+    #[inline(always)]
+    pub(super) unsafe fn closest_in_block(
+        lanes: &TriangleLanes,
+        first: usize,
+        block: u32,
+        ray: &BvhRay,
+        tmax: f32,
+    ) -> Option<(f32, u32, Vec2)> {
+        unsafe {
+            let [v0, e1, e2] = [load3(lanes, 0, first), load3(lanes, 3, first), load3(lanes, 6, first)];
+            let (o, d) = (splat3(ray.origin), splat3(ray.direction));
+            let p = cross(d, e2);
+            let det = dot(e1, p);
+            let abs_det = _mm256_andnot_ps(_mm256_set1_ps(-0.0), det);
+            let mut ok = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_NEQ_OQ>(det, _mm256_setzero_ps()),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(abs_det, _mm256_set1_ps(f32::INFINITY)),
+            );
+            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+            let s = [_mm256_sub_ps(o[0], v0[0]), _mm256_sub_ps(o[1], v0[1]), _mm256_sub_ps(o[2], v0[2])];
+            let u = _mm256_mul_ps(dot(s, p), inv);
+            let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+            ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(u, zero), _mm256_cmp_ps::<_CMP_LE_OQ>(u, one)));
+            let q = cross(s, e1);
+            let v = _mm256_mul_ps(dot(d, q), inv);
+            // Rejected when v < 0 or u + v > 1, both false for NaN, as in the scalar test.
+            let outside = _mm256_or_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(v, zero), _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_add_ps(u, v), one));
+            ok = _mm256_andnot_ps(outside, ok);
+            let t = _mm256_mul_ps(dot(e2, q), inv);
+            ok = _mm256_and_ps(ok, _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_set1_ps(ray.tmin)));
+            ok = _mm256_and_ps(ok, _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)));
+            let hits = _mm256_movemask_ps(ok) as u32 & block;
+            if hits == 0 {
+                return None;
+            }
+            nearest(hits, t, u, v)
+        }
+    }
+
+    /// The hit lane with the smallest `t`, the highest such lane on ties.
+    #[inline(always)]
+    unsafe fn nearest(hits: u32, t: __m256, u: __m256, v: __m256) -> Option<(f32, u32, Vec2)> {
+        let mut ts = [0.0f32; 8];
+        unsafe { _mm256_storeu_ps(ts.as_mut_ptr(), t) };
+        let (mut best, mut lane) = (f32::INFINITY, 0);
+        let mut left = hits;
+        while left != 0 {
+            let j = 31 - left.leading_zeros();
+            left &= !(1 << j);
+            if ts[j as usize] < best {
+                (best, lane) = (ts[j as usize], j);
+            }
+        }
+        let (mut us, mut vs) = ([0.0f32; 8], [0.0f32; 8]);
+        unsafe {
+            _mm256_storeu_ps(us.as_mut_ptr(), u);
+            _mm256_storeu_ps(vs.as_mut_ptr(), v);
+        }
+        Some((best, lane, Vec2::new(us[lane as usize], vs[lane as usize])))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{Pcg32, uniform_sphere};
+    use obvhs::{aabb::Aabb, ray::Ray as BvhRay};
+
+    fn point(rng: &mut Pcg32, size: f32) -> Vec3A {
+        Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * size - Vec3A::splat(size / 2.0)
+    }
+
+    /// Random rays through a unit-sized scene, a fifth of them along an axis (their slab
+    /// tests meet 0·∞ = NaN, which the node tests must resolve alike).
+    fn rays(rng: &mut Pcg32, n: usize) -> Vec<BvhRay> {
+        (0..n)
+            .map(|i| {
+                let mut d = Vec3A::from(uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32())));
+                if i % 5 == 0 {
+                    d = Vec3A::AXES[i / 5 % 3] * if i % 2 == 0 { 1.0 } else { -1.0 };
+                }
+                super::super::bvh_ray(point(rng, 3.0), d, if i % 3 == 0 { f32::INFINITY } else { 2.0 * rng.next_f32() })
+            })
+            .collect()
+    }
+
+    /// Small random triangles, some degenerate (a repeated corner, a sliver).
+    fn soup(rng: &mut Pcg32, n: usize) -> Vec<RtTriangle> {
+        (0..n)
+            .map(|i| {
+                let v0 = point(rng, 2.0);
+                let e1 = point(rng, 0.3);
+                let e2 = match i % 17 {
+                    0 => Vec3A::ZERO,
+                    1 => e1 * 2.0,
+                    _ => point(rng, 0.3),
+                };
+                RtTriangle { v0, e1, e2 }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn node_test_finds_the_children_obvhs_finds() {
+        let mut rng = Pcg32::new(3, 1);
+        let tris = soup(&mut rng, 3000);
+        let aabbs: Vec<Aabb> = tris
+            .iter()
+            .map(|t| {
+                let mut a = Aabb::empty();
+                [t.v0, t.v0 + t.e1, t.v0 + t.e2].into_iter().for_each(|v| {
+                    a.extend(v);
+                });
+                a
+            })
+            .collect();
+        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium.params());
+        let mut compared = 0;
+        for ray in rays(&mut rng, 400) {
+            let oct = bvh.new_traversal(ray.direction).oct_inv4;
+            for node in &bvh.nodes {
+                assert_eq!(node_hits(node, &ray, oct), node.intersect_ray(&ray, oct), "{ray:?}\n{node:?}");
+                compared += 1;
+            }
+        }
+        assert!(compared > 100_000, "{compared} node tests");
+    }
+
+    /// The wide closest-hit and any-hit tests against the scalar Möller-Trumbore applied one
+    /// triangle at a time, highest index first with the distance shortened at each hit (the
+    /// walk they replace): the same hit, bit for bit, over random groups of triangles.
+    #[test]
+    fn triangle_lanes_hit_what_the_scalar_test_hits() {
+        let mut rng = Pcg32::new(9, 2);
+        let tris = soup(&mut rng, 40);
+        let lanes = TriangleLanes::new(&tris);
+        let mut hits = 0;
+        for (i, mut ray) in rays(&mut rng, 20_000).into_iter().enumerate() {
+            let base = (rng.next_f32() * 16.0) as u32;
+            let group = (rng.next_f32() * (1 << 24) as f32) as u32 | 1;
+            // Most rays aimed at a point near one of the group's triangles, some of them just
+            // outside it; the rest random.
+            if i % 4 != 0 {
+                let t = &tris[(base + 31 - group.leading_zeros()) as usize];
+                let target = t.v0 + t.e1 * (1.2 * rng.next_f32() - 0.1) + t.e2 * (0.6 * rng.next_f32() - 0.05);
+                ray = super::super::bvh_ray(ray.origin, (target - ray.origin).normalize(), ray.tmax.max(4.0));
+            }
+            let mut tmax = ray.tmax;
+            let mut expected = None;
+            for j in (0..24).rev().filter(|j| group & (1 << j) != 0) {
+                if let Some((t, u, v)) = tris[(base + j) as usize].intersect(ray.origin, ray.direction, ray.tmin, tmax) {
+                    tmax = t;
+                    expected = Some((t.to_bits(), base + j, u.to_bits(), v.to_bits()));
+                }
+            }
+            let found = lanes.closest(base, group, &ray).map(|(t, id, b)| (t.to_bits(), id, b.x.to_bits(), b.y.to_bits()));
+            assert_eq!(found, expected, "{ray:?} base {base} group {group:#x}");
+            assert_eq!(lanes.any(base, group, &ray), expected.is_some());
+            hits += expected.is_some() as usize;
+        }
+        // Enough hits that a wrong lane or rounding would show (about half the rays hit).
+        assert!(hits > 5_000, "{hits} hits");
+    }
+
+    #[test]
+    fn equal_distances_resolve_to_the_highest_index() {
+        let quad = RtTriangle { v0: Vec3A::new(-1.0, -1.0, 0.0), e1: Vec3A::new(2.0, 0.0, 0.0), e2: Vec3A::new(0.0, 2.0, 0.0) };
+        let lanes = TriangleLanes::new(&[quad; 20]);
+        let ray = super::super::bvh_ray(Vec3A::new(-0.5, -0.5, 1.0), Vec3A::NEG_Z, f32::INFINITY);
+        assert_eq!(lanes.closest(0, 0b1001_0000_0000_0110_0001, &ray).map(|h| h.1), Some(19));
+        assert_eq!(lanes.closest(2, 0b11, &ray).map(|h| h.1), Some(3));
+    }
+}
