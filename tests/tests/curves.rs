@@ -169,6 +169,11 @@ fn ribbons_on_hair_or_with_unusable_normals_are_reported() {
 
 /// A fibre bound to `material` (the body of a Material prim at /Fibre).
 fn fibre_stage(material: &str) -> String {
+    fibre_stage_with(material, "")
+}
+
+/// [`fibre_stage`] with more of the curve's attributes (`extra`, lines of its body).
+fn fibre_stage_with(material: &str, extra: &str) -> String {
     format!(
         r#"#usda 1.0
 {}
@@ -179,6 +184,7 @@ def BasisCurves "Hair" (prepend apiSchemas = ["MaterialBindingAPI"])
     int[] curveVertexCounts = [2]
     float[] widths = [1] (interpolation = "constant")
     rel material:binding = </Fibre>
+    {extra}
 }}
 def Material "Fibre"
 {{
@@ -315,4 +321,81 @@ fn curve_samples_set_how_finely_cubic_spans_are_swept() {
     for n in [1, 8, 16] {
         assert_eq!(triangles(n), linear + cubic_spans * n * 24 + 3 * 2 * n * 2, "{n} samples");
     }
+}
+
+/// A fibre whose `tint` comes from a texture through the curve's authored `primvars:st`
+/// (uniform: one root coordinate per curve, as scalp textures are read) renders as the same
+/// fibre with that texel's colour authored directly, on each half of a two-colour texture.
+/// The tube keeps its own (s, t) for the hair frame, so the match is to rounding; reading the
+/// tube's coordinates instead, as before curves sent their primvars, mixes both halves.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
+    let dir = std::env::temp_dir().join(format!("tessera-curve-st-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // 64 × 4 texels, left half one colour, right half another (raw: texel = code / 255), so
+    // every mip level down to 2 × 1 keeps the halves apart.
+    let codes = [[230u8, 128, 77], [51, 204, 102]];
+    let img = image::RgbImage::from_fn(64, 4, |x, _| image::Rgb(codes[(x >= 32) as usize]));
+    img.save(dir.join("halves.png")).expect("writes the PNG");
+    let textured = r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {
+        uniform token info:id = "tessera:Hair"
+        color3f inputs:tint.connect = </Fibre/Texture.outputs:rgb>
+        token outputs:surface
+    }
+    def Shader "Root"
+    {
+        uniform token info:id = "UsdPrimvarReader_float2"
+        token inputs:varname = "st"
+        float2 outputs:result
+    }
+    def Shader "Texture"
+    {
+        uniform token info:id = "UsdUVTexture"
+        asset inputs:file = @halves.png@
+        token inputs:sourceColorSpace = "raw"
+        float2 inputs:st.connect = </Fibre/Root.outputs:result>
+        color3f outputs:rgb
+    }"#;
+    let root_st = |s: f32| format!(r#"texCoord2f[] primvars:st = [({s}, 0.5)] (interpolation = "uniform")"#);
+    let direct = |code: [u8; 3]| {
+        let [r, g, b] = code.map(|c| c as f32 / 255.0);
+        format!(
+            r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {{
+        uniform token info:id = "tessera:Hair"
+        color3f inputs:tint = ({r}, {g}, {b})
+        token outputs:surface
+    }}"#
+        )
+    };
+    let render = |name: String, material: String, extra: String| {
+        let file = dir.join(format!("{name}.usda"));
+        async move {
+            std::fs::write(&file, fibre_stage_with(&material, &extra)).unwrap();
+            let t = tessera::usd::load(&file).expect("reads");
+            assert!(t.warnings.is_empty(), "{name}: {:?}", t.warnings);
+            let (server, mut conn) = session_with(&t).await;
+            let report = conn.render(&small(64, 64, 8), |_| {}).await.expect("renders");
+            server.stop().await.expect("stops");
+            (0..64)
+                .flat_map(|y| (0..64).map(move |x| (x, y)))
+                .flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec())
+                .collect::<Vec<f32>>()
+        }
+    };
+    let mut looks = Vec::new();
+    for (half, s) in [(0, 0.25), (1, 0.75)] {
+        let by_st = render(format!("st{half}"), textured.to_string(), root_st(s)).await;
+        let by_hand = render(format!("direct{half}"), direct(codes[half]), String::new()).await;
+        let worst = by_st.iter().zip(&by_hand).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+        // Mip levels average equal texels: a last-bit difference at most, far below 1e-5.
+        assert!(worst < 1e-5, "half {half}: texture through st against the texel's colour: worst pixel difference {worst}");
+        looks.push(by_hand);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    let apart = looks[0].iter().zip(&looks[1]).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(apart > 0.05, "the two halves' fibres look alike ({apart}): the test would not see a wrong lookup");
 }

@@ -5,12 +5,13 @@
 //! docs/accuracy-vs-time.md), and swept by a polygon of its `widths` carried along by parallel
 //! transport, or by a segment of its width across the curve and its normal.
 //! One triangle mesh per prim, so curves render through the ordinary path with the bound
-//! material. The polygon's circumradius is widened so its width averaged over directions is
+//! material; the primvars that material reads are carried onto the tube's vertices, float2
+//! ones by name beside the tube's own (s, t), which the hair frame follows. The polygon's circumradius is widened so its width averaged over directions is
 //! the curve's width (a regular n-gon's mean width is its perimeter over π).
 
 use anyhow::{Context, Result};
 use glam::{Vec2, Vec3};
-use render_core::geometry::{Attribute, Mesh};
+use render_core::geometry::{Attribute, Mesh, Primvar};
 
 use super::*;
 
@@ -52,6 +53,10 @@ pub struct Curves {
     pub widths: (Vec<f32>, String),
     /// Normals and their interpolation, when they orient the curves as ribbons.
     pub normals: Option<(Vec<Vec3>, String)>,
+    /// The primvars the bound material reads (float and int in x, float2 in xy, float3 in
+    /// xyz): name without `primvars:`, values (de-indexed), interpolation (`faceVarying`
+    /// read as `varying`, as UsdGeomBasisCurves defines it).
+    pub primvars: Vec<(String, Vec<Vec3>, String)>,
     /// Samples per cubic span.
     pub samples: usize,
 }
@@ -126,19 +131,28 @@ impl Curves {
         }
         let mut mesh = Mesh::default();
         let (mut normals, mut uvs) = (Vec::new(), Vec::new());
+        let mut primvars = vec![Vec::new(); self.primvars.len()];
         let (mut first, mut first_varying) = (0, 0);
         let closed = self.wrap == Wrap::Periodic;
         for (c, &count) in self.counts.iter().enumerate() {
             let cv = &self.points[first..first + count];
             let line = self.centreline(c, cv, first, &mut first_varying)?;
+            let before = mesh.positions.len();
             match line.normals.is_empty() {
                 true => sweep(&line.centres, &line.widths, closed, &mut mesh, &mut normals, &mut uvs),
                 false => sweep_ribbon(&line, closed, &mut mesh, &mut normals, &mut uvs),
             }
+            line.spread_primvars(mesh.positions.len() - before, closed, &mut primvars);
             first += count;
         }
         mesh.normals = Attribute::Vertex(normals);
         mesh.uvs = Attribute::Vertex(uvs);
+        mesh.primvars = self
+            .primvars
+            .iter()
+            .zip(primvars)
+            .map(|((name, _, _), values)| Primvar { name: name.clone(), values: Attribute::Vertex(values) })
+            .collect();
         Ok(mesh)
     }
 
@@ -159,7 +173,8 @@ impl Curves {
         let at = Along { curves: self, c, first, count: cv.len(), first_varying: *first_varying, n_spans };
         let width = at.attribute(&self.widths.0, &self.widths.1);
         let normal = self.normals.as_ref().map(|(v, interp)| at.attribute(v, interp));
-        let mut line = Centreline::default();
+        let primvars: Vec<_> = self.primvars.iter().map(|(_, v, interp)| at.attribute(v, interp)).collect();
+        let mut line = Centreline { primvars: vec![Vec::new(); primvars.len()], ..Default::default() };
         for k in 0..n_spans {
             let s = span_start(self.basis, k);
             let last = k + 1 == n_spans && self.wrap != Wrap::Periodic;
@@ -170,6 +185,9 @@ impl Curves {
                 line.widths.push(width(k, u, b));
                 if let Some(normal) = &normal {
                     line.normals.push(normal(k, u, b));
+                }
+                for (values, primvar) in line.primvars.iter_mut().zip(&primvars) {
+                    values.push(primvar(k, u, b));
                 }
             }
         }
@@ -185,6 +203,23 @@ struct Centreline {
     widths: Vec<f32>,
     /// Empty for a tube.
     normals: Vec<Vec3>,
+    /// Each primvar's value at each sample.
+    primvars: Vec<Vec<Vec3>>,
+}
+
+impl Centreline {
+    /// Appends each primvar's values for the `added` vertices a sweep made of this line: rings
+    /// of equal size, one per sample (and, on a closed curve, the first sample's again).
+    fn spread_primvars(&self, added: usize, closed: bool, out: &mut [Vec<Vec3>]) {
+        let n = self.centres.len();
+        if added == 0 {
+            return;
+        }
+        let rings = n + usize::from(closed);
+        for (values, out) in self.primvars.iter().zip(out) {
+            out.extend((0..rings).flat_map(|i| std::iter::repeat_n(values[i % n], added / rings)));
+        }
+    }
 }
 
 /// Where one curve's values sit in a prim's attribute arrays.
@@ -322,7 +357,8 @@ fn sweep(centres: &[Vec3], widths: &[f32], closed: bool, mesh: &mut Mesh, normal
     }
 }
 
-fn widths_needed(curves: &Curves, interp: &str) -> Option<usize> {
+/// How many values an attribute of `interp` interpolation holds on these curves.
+fn values_needed(curves: &Curves, interp: &str) -> Option<usize> {
     Some(match interp {
         "constant" => 1,
         "uniform" => curves.counts.len(),
@@ -398,8 +434,16 @@ impl Reader<'_> {
             "{p}: attribute 'curveVertexCounts' adds up to {total} vertices for {} points",
             points.len()
         );
-        let mut curves =
-            Curves { basis, wrap, counts, points, widths: (vec![1.0], "constant".into()), normals: None, samples: self.curve_samples };
+        let mut curves = Curves {
+            basis,
+            wrap,
+            counts,
+            points,
+            widths: (vec![1.0], "constant".into()),
+            normals: None,
+            primvars: Vec::new(),
+            samples: self.curve_samples,
+        };
         let interpolation = |name: &str| {
             prim.attribute(name)
                 .get_metadata::<openusd::tf::Token>("interpolation")
@@ -410,7 +454,7 @@ impl Reader<'_> {
         if let Some(normals) = get(prim, "normals", time)? {
             let normals = values::vec3_array(&normals).with_context(|| format!("{p}: attribute 'normals' is not a normal3f[]"))?;
             let interp = interpolation("normals");
-            let want = widths_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'normals' has interpolation '{interp}'"))?;
+            let want = values_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'normals' has interpolation '{interp}'"))?;
             anyhow::ensure!(normals.len() == want, "{p}: attribute 'normals' has {} {interp} values for {want}", normals.len());
             if let Some((i, n)) = normals.iter().enumerate().find(|(_, n)| !n.is_finite() || n.length_squared() == 0.0) {
                 anyhow::bail!("{p}: attribute 'normals': normal {i} is {n}, which orients nothing");
@@ -419,14 +463,39 @@ impl Reader<'_> {
         }
         if let Some(widths) = get_floats(prim, p, "widths", time)? {
             let interp = interpolation("widths");
-            let want = widths_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'widths' has interpolation '{interp}'"))?;
+            let want = values_needed(&curves, &interp).with_context(|| format!("{p}: attribute 'widths' has interpolation '{interp}'"))?;
             if let Some((i, w)) = widths.iter().enumerate().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
                 anyhow::bail!("{p}: attribute 'widths': width {i} is {w}; widths are finite and not negative");
             }
             anyhow::ensure!(widths.len() == want, "{p}: attribute 'widths' has {} {interp} values for {want}", widths.len());
             curves.widths = (widths, interp);
         }
+        curves.primvars = self.curve_primvars(prim, p, &curves)?;
         Ok(curves)
+    }
+
+    /// The primvars the curves' material reads (its float2 texture coordinates among them),
+    /// checked against their interpolation: one whose count does not fit is a warning naming
+    /// it, and its readers use their fallbacks.
+    fn curve_primvars(&mut self, prim: &Prim, p: &str, curves: &Curves) -> Result<Vec<(String, Vec<Vec3>, String)>> {
+        let mut read = self.primvars(prim, p)?;
+        let reads_float2 = !self.reader_varnames(prim, &["UsdPrimvarReader_float2"])?.is_empty();
+        if reads_float2 && let Some((attr, st, interp)) = self.uvs(prim, p)? {
+            read.push((attr.trim_start_matches("primvars:").to_string(), st.iter().map(|v| v.extend(0.0)).collect(), interp));
+        }
+        let mut kept = Vec::new();
+        for (name, values, interp) in read {
+            let interp = if interp == "faceVarying" { "varying".to_string() } else { interp };
+            match values_needed(curves, &interp) {
+                Some(want) if want == values.len() => kept.push((name, values, interp)),
+                want => self.out.warnings.push(format!(
+                    "{p}: primvars:{name} has {} {interp} values{}; its readers use their fallbacks",
+                    values.len(),
+                    want.map_or(String::new(), |w| format!(" for {w}"))
+                )),
+            }
+        }
+        Ok(kept)
     }
 }
 
@@ -442,6 +511,7 @@ mod tests {
             points,
             widths: (widths.0, widths.1.into()),
             normals: None,
+            primvars: Vec::new(),
             samples: DEFAULT_CURVE_SAMPLES,
         }
     }
@@ -542,6 +612,41 @@ mod tests {
             let along = (m.positions[tri[1] as usize] - m.positions[tri[0] as usize]).normalize();
             assert!(dpdt.normalize().dot(along) > 0.9, "∂p/∂t {dpdt:?} against the curve {along:?}");
         }
+    }
+
+    /// Primvars reach every vertex of their curve's tube: a uniform one is its curve's value
+    /// on each of its vertices, a vertex one on a linear curve runs linearly from root to tip
+    /// (each ring carries its sample's value), and a periodic tube's closing ring repeats
+    /// the first ring's.
+    #[test]
+    fn primvars_follow_their_interpolation_onto_the_tubes() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, 2.0, 0.0), Vec3::new(1.0, 2.0, 0.0), Vec3::new(2.0, 2.0, 0.0)];
+        let mut c = curve(Basis::Linear, Wrap::Nonperiodic, p, (vec![0.1], "constant"));
+        c.counts = vec![2, 3];
+        let roots = vec![Vec3::new(0.25, 0.5, 0.0), Vec3::new(0.75, 0.5, 0.0)];
+        let along = vec![Vec3::ZERO, Vec3::ONE, Vec3::ZERO, Vec3::splat(0.5), Vec3::ONE];
+        c.primvars = vec![("st".into(), roots.clone(), "uniform".into()), ("heat".into(), along, "vertex".into())];
+        let m = c.tessellate().unwrap();
+        let ring = SIDES + 1;
+        assert_eq!(m.positions.len(), 5 * ring);
+        let [st, heat] = [0, 1].map(|k| match &m.primvars[k].values {
+            Attribute::Vertex(v) => v.clone(),
+            _ => panic!("vertex primvar"),
+        });
+        assert_eq!((m.primvars[0].name.as_str(), m.primvars[1].name.as_str()), ("st", "heat"));
+        assert_eq!(st.len(), m.positions.len());
+        assert!(st[..2 * ring].iter().all(|v| *v == roots[0]) && st[2 * ring..].iter().all(|v| *v == roots[1]));
+        let ring_heat: Vec<f32> = (0..5).map(|r| heat[r * ring].x).collect();
+        assert_eq!(ring_heat, [0.0, 1.0, 0.0, 0.5, 1.0]);
+        assert!(heat.chunks(ring).all(|r| r.iter().all(|v| *v == r[0])));
+
+        let loop_points: Vec<Vec3> = (0..4).map(|k| Vec3::new((k as f32).cos(), (k as f32).sin(), 0.0)).collect();
+        let mut c = curve(Basis::Linear, Wrap::Periodic, loop_points, (vec![0.1], "constant"));
+        c.primvars = vec![("heat".into(), (0..4).map(|k| Vec3::splat(k as f32)).collect(), "vertex".into())];
+        let m = c.tessellate().unwrap();
+        let Attribute::Vertex(heat) = &m.primvars[0].values else { panic!("vertex primvar") };
+        assert_eq!(heat.len(), m.positions.len());
+        assert_eq!(heat[..ring], heat[4 * ring..]);
     }
 
     #[test]

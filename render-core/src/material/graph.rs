@@ -50,8 +50,11 @@ pub struct PrimvarSource<'a> {
 #[derive(Clone, Debug)]
 enum Expr {
     Const(Vec4),
-    /// The mesh's texture coordinates, or the reader's fallback where the mesh has none.
+    /// A float2 primvar reader: the mesh's primvar of that name where it carries one (curves
+    /// send their authored texture coordinates so, keeping their tubes' own as `st` for the
+    /// hair frame), else the mesh's texture coordinates, else the reader's fallback.
     St {
+        name: Option<String>,
         fallback: Vec2,
     },
     /// A float, float3 or int primvar of the mesh (the client sends those readers name), or
@@ -80,7 +83,10 @@ impl Expr {
     fn eval(&self, sp: &ShadingPoint) -> (Vec4, f32) {
         match self {
             Expr::Const(v) => (*v, 1.0),
-            Expr::St { fallback } => (sp.st.unwrap_or(*fallback).extend(0.0).extend(0.0), 1.0),
+            Expr::St { name, fallback } => {
+                let named = name.as_ref().zip(sp.primvars).and_then(|(name, p)| p.mesh.primvar(name, p.triangle, p.bary));
+                (named.map(|v| v.truncate()).or(sp.st).unwrap_or(*fallback).extend(0.0).extend(0.0), 1.0)
+            }
             Expr::Primvar { name, fallback } => {
                 let v = sp.primvars.and_then(|p| p.mesh.primvar(name, p.triangle, p.bary));
                 (v.map_or(*fallback, |v| v.extend(0.0)), 1.0)
@@ -327,8 +333,13 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
     };
     match node.node_type_id.as_str() {
         "UsdPrimvarReader_float2" => {
-            // The client sends the float2 primvar the readers name as the mesh's st.
-            Expr::St { fallback: float2("fallback", Vec2::ZERO) }
+            // The client sends the float2 primvar the readers name as the mesh's st, or (on
+            // curves) as a primvar of that name.
+            let name = match p("varname") {
+                Some(ParamValue::String(v)) if !v.is_empty() => Some(v.clone()),
+                _ => None,
+            };
+            Expr::St { name, fallback: float2("fallback", Vec2::ZERO) }
         }
         id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => primvar_reader(node, id, report),
         "UsdTransform2d" => {
