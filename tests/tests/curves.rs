@@ -300,6 +300,31 @@ fn curves_that_make_no_curve_are_reported_by_attribute() {
         assert!(t.warnings.iter().any(|w| w.contains("/Hair") && w.contains(expected)), "{what}: {:?}", t.warnings);
         assert!(t.meshes.is_empty() && t.curves.is_empty(), "{what}: the prim is skipped");
     }
+    // A primvar the material reads with a count its interpolation does not make is reported by
+    // name and left to the reader's fallback; the curve still renders.
+    let reader = r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {
+        uniform token info:id = "UsdPreviewSurface"
+        color3f inputs:diffuseColor.connect = </Fibre/Heat.outputs:result>
+        token outputs:surface
+    }
+    def Shader "Heat"
+    {
+        uniform token info:id = "UsdPrimvarReader_float3"
+        token inputs:varname = "heat"
+        float3 outputs:result
+    }"#;
+    for (interp, values, expected) in [
+        ("uniform", "[(1, 0, 0), (0, 1, 0)]", "2 uniform values for 1"),
+        ("vertex", "[(1, 0, 0)]", "1 vertex values for 2"),
+        ("spiral", "[(1, 0, 0)]", "1 spiral values;"),
+    ] {
+        let extra = format!(r#"float3[] primvars:heat = {values} (interpolation = "{interp}")"#);
+        let t = load_text("curve_bad_primvar", &fibre_stage_with(reader, &extra));
+        assert!(t.warnings.iter().any(|w| w.contains("/Hair: primvars:heat has") && w.contains(expected)), "{interp}: {:?}", t.warnings);
+        assert_eq!(t.curves, vec!["/Hair".to_string()]);
+    }
 }
 
 #[test]
