@@ -195,6 +195,34 @@ def Material "Fibre"
     )
 }
 
+/// The body of material `/Fibre` whose surface shader `id` takes `input` (type and name) from
+/// `source` (a node output under `/Fibre`), followed by the shader text `nodes`.
+fn surface_fed(id: &str, input: &str, source: &str, nodes: &str) -> String {
+    format!(
+        r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {{
+        uniform token info:id = "{id}"
+        {input}.connect = </Fibre/{source}>
+        token outputs:surface
+    }}
+{nodes}"#
+    )
+}
+
+/// A `UsdPrimvarReader_{ty}` shader named `name` reading the primvar `varname`.
+fn primvar_reader(name: &str, ty: &str, varname: &str) -> String {
+    format!(
+        r#"    def Shader "{name}"
+    {{
+        uniform token info:id = "UsdPrimvarReader_{ty}"
+        token inputs:varname = "{varname}"
+        {ty} outputs:result
+    }}
+"#
+    )
+}
+
 /// MaterialX's hair (a `surface` over `chiang_hair_bsdf`, its roughness from
 /// `chiang_hair_roughness` and its absorption from `deon_hair_absorption_from_melanin`) maps
 /// onto `tessera:Hair` input by input, and renders bit for bit as the same fibre authored with
@@ -302,26 +330,15 @@ fn curves_that_make_no_curve_are_reported_by_attribute() {
     }
     // A primvar the material reads with a count its interpolation does not make is reported by
     // name and left to the reader's fallback; the curve still renders.
-    let reader = r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
-    def Shader "S"
-    {
-        uniform token info:id = "UsdPreviewSurface"
-        color3f inputs:diffuseColor.connect = </Fibre/Heat.outputs:result>
-        token outputs:surface
-    }
-    def Shader "Heat"
-    {
-        uniform token info:id = "UsdPrimvarReader_float3"
-        token inputs:varname = "heat"
-        float3 outputs:result
-    }"#;
+    let reader =
+        surface_fed("UsdPreviewSurface", "color3f inputs:diffuseColor", "Heat.outputs:result", &primvar_reader("Heat", "float3", "heat"));
     for (interp, values, expected) in [
         ("uniform", "[(1, 0, 0), (0, 1, 0)]", "2 uniform values for 1"),
         ("vertex", "[(1, 0, 0)]", "1 vertex values for 2"),
         ("spiral", "[(1, 0, 0)]", "1 spiral values;"),
     ] {
         let extra = format!(r#"float3[] primvars:heat = {values} (interpolation = "{interp}")"#);
-        let t = load_text("curve_bad_primvar", &fibre_stage_with(reader, &extra));
+        let t = load_text("curve_bad_primvar", &fibre_stage_with(&reader, &extra));
         assert!(t.warnings.iter().any(|w| w.contains("/Hair: primvars:heat has") && w.contains(expected)), "{interp}: {:?}", t.warnings);
         assert_eq!(t.curves, vec!["/Hair".to_string()]);
     }
@@ -362,20 +379,7 @@ async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
     let codes = [[230u8, 128, 77], [51, 204, 102]];
     let img = image::RgbImage::from_fn(64, 4, |x, _| image::Rgb(codes[(x >= 32) as usize]));
     img.save(dir.join("halves.png")).expect("writes the PNG");
-    let textured = r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
-    def Shader "S"
-    {
-        uniform token info:id = "tessera:Hair"
-        color3f inputs:tint.connect = </Fibre/Texture.outputs:rgb>
-        token outputs:surface
-    }
-    def Shader "Root"
-    {
-        uniform token info:id = "UsdPrimvarReader_float2"
-        token inputs:varname = "st"
-        float2 outputs:result
-    }
-    def Shader "Texture"
+    let texture = r#"    def Shader "Texture"
     {
         uniform token info:id = "UsdUVTexture"
         asset inputs:file = @halves.png@
@@ -383,6 +387,8 @@ async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
         float2 inputs:st.connect = </Fibre/Root.outputs:result>
         color3f outputs:rgb
     }"#;
+    let textured =
+        surface_fed("tessera:Hair", "color3f inputs:tint", "Texture.outputs:rgb", &(primvar_reader("Root", "float2", "st") + texture));
     let root_st = |s: f32| format!(r#"texCoord2f[] primvars:st = [({s}, 0.5)] (interpolation = "uniform")"#);
     let direct = |code: [u8; 3]| {
         let [r, g, b] = code.map(|c| c as f32 / 255.0);
@@ -413,7 +419,7 @@ async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
     };
     let mut looks = Vec::new();
     for (half, s) in [(0, 0.25), (1, 0.75)] {
-        let by_st = render(format!("st{half}"), textured.to_string(), root_st(s)).await;
+        let by_st = render(format!("st{half}"), textured.clone(), root_st(s)).await;
         let by_hand = render(format!("direct{half}"), direct(codes[half]), String::new()).await;
         let worst = by_st.iter().zip(&by_hand).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
         // Mip levels average equal texels: a last-bit difference at most, far below 1e-5.
