@@ -223,6 +223,14 @@ fn primvar_reader(name: &str, ty: &str, varname: &str) -> String {
     )
 }
 
+/// The beauty RGB of a 64² render of a fibre stage at 8 spp, pixel after pixel.
+async fn fibre_rgb(t: &tessera::usd::Translation) -> Vec<f32> {
+    let (server, mut conn) = session_with(t).await;
+    let report = conn.render(&small(64, 64, 8), |_| {}).await.expect("renders");
+    server.stop().await.expect("stops");
+    (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec()).collect()
+}
+
 /// MaterialX's hair (a `surface` over `chiang_hair_bsdf`, its roughness from
 /// `chiang_hair_roughness` and its absorption from `deon_hair_absorption_from_melanin`) maps
 /// onto `tessera:Hair` input by input, and renders bit for bit as the same fibre authored with
@@ -290,16 +298,7 @@ async fn materialx_chiang_hair_renders_as_the_same_tessera_hair() {
         sigma[0], sigma[1], sigma[2]
     );
     let by_hand = load_text("hair_native", &fibre_stage(&native));
-    let render = |t: tessera::usd::Translation| async move {
-        let (server, mut conn) = session_with(&t).await;
-        let report = conn.render(&small(64, 64, 8), |_| {}).await.expect("renders");
-        server.stop().await.expect("stops");
-        (0..64)
-            .flat_map(|y| (0..64).map(move |x| (x, y)))
-            .flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec())
-            .collect::<Vec<f32>>()
-    };
-    let (a, b) = (render(t).await, render(by_hand).await);
+    let (a, b) = (fibre_rgb(&t).await, fibre_rgb(&by_hand).await);
     let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     // The absorption and offset pass through f32 arithmetic on two routes: 1e-5 of a pixel.
     assert!(worst < 1e-5, "MaterialX hair against tessera:Hair: worst pixel difference {worst}");
@@ -408,13 +407,7 @@ async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
             std::fs::write(&file, fibre_stage_with(&material, &extra)).unwrap();
             let t = tessera::usd::load(&file).expect("reads");
             assert!(t.warnings.is_empty(), "{name}: {:?}", t.warnings);
-            let (server, mut conn) = session_with(&t).await;
-            let report = conn.render(&small(64, 64, 8), |_| {}).await.expect("renders");
-            server.stop().await.expect("stops");
-            (0..64)
-                .flat_map(|y| (0..64).map(move |x| (x, y)))
-                .flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec())
-                .collect::<Vec<f32>>()
+            fibre_rgb(&t).await
         }
     };
     let mut looks = Vec::new();
