@@ -423,3 +423,67 @@ async fn a_fibre_reads_its_texture_at_its_authored_root_st() {
     let apart = looks[0].iter().zip(&looks[1]).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(apart > 0.05, "the two halves' fibres look alike ({apart}): the test would not see a wrong lookup");
 }
+
+/// MaterialX's `chiang_hair_bsdf` gives each path its own (v, s) roughness pair; constant pairs
+/// map onto `tessera:Hair`'s βm and βn (R's, through Chiang's fits) and TT's and TRT's
+/// longitudinal and azimuthal scales, and render as that fibre authored by hand. The same
+/// fibre with one azimuthal roughness for every path (what was rendered before, with a warning)
+/// looks visibly different, so the scales are seen.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn materialx_per_path_azimuthal_roughness_renders_as_tessera_hair() {
+    let (beta_m, beta_n) = (0.3f32, 0.4f32);
+    let v = (0.726 * beta_m + 0.812 * beta_m * beta_m + 3.7 * beta_m.powi(20)).powi(2);
+    let s = 0.265 * beta_n + 1.194 * beta_n * beta_n + 5.372 * beta_n.powi(22);
+    let mtlx = format!(
+        r#"    token outputs:mtlx:surface.connect = </Fibre/Surface.outputs:out>
+    def Shader "Surface"
+    {{
+        uniform token info:id = "ND_surface"
+        token inputs:bsdf.connect = </Fibre/Chiang.outputs:out>
+        token outputs:out
+    }}
+    def Shader "Chiang"
+    {{
+        uniform token info:id = "ND_chiang_hair_bsdf"
+        float2 inputs:roughness_R = ({v}, {s})
+        float2 inputs:roughness_TT = ({}, {})
+        float2 inputs:roughness_TRT = ({}, {})
+        vector3f inputs:absorption_coefficient = (0.2, 0.4, 0.8)
+        token outputs:out
+    }}"#,
+        v * 0.25,
+        s * 0.25,
+        v * 4.0,
+        s * 3.0
+    );
+    let t = load_text("hair_mtlx_pairs", &fibre_stage(&mtlx));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let native = |radial_tt: f32, radial_trt: f32| {
+        format!(
+            r#"    token outputs:surface.connect = </Fibre/S.outputs:surface>
+    def Shader "S"
+    {{
+        uniform token info:id = "tessera:Hair"
+        float inputs:melanin = 0
+        color3f inputs:absorptionCoefficient = (0.2, 0.4, 0.8)
+        float inputs:roughness = {beta_m}
+        float inputs:radialRoughness = {beta_n}
+        float inputs:roughnessScaleTT = 0.5
+        float inputs:roughnessScaleTRT = 2
+        float inputs:radialRoughnessScaleTT = {radial_tt}
+        float inputs:radialRoughnessScaleTRT = {radial_trt}
+        float inputs:offset = 0
+        token outputs:surface
+    }}"#
+        )
+    };
+    let mtlx_rgb = fibre_rgb(&t).await;
+    let by_hand = fibre_rgb(&load_text("hair_pairs_native", &fibre_stage(&native(0.25, 3.0)))).await;
+    let one_radial = fibre_rgb(&load_text("hair_one_radial", &fibre_stage(&native(1.0, 1.0)))).await;
+    let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    // βm and βn come back through a 40-step bisection of Chiang's fits: a last-bit difference
+    // in the roughness moves a pixel by far less than 1e-4.
+    let (same, apart) = (worst(&mtlx_rgb, &by_hand), worst(&by_hand, &one_radial));
+    assert!(same < 1e-4, "MaterialX pairs against tessera:Hair with the scales: worst pixel difference {same}");
+    assert!(apart > 20.0 * same.max(1e-4), "one azimuthal roughness looks like three ({apart}): the test would not see the scales");
+}

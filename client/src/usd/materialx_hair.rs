@@ -2,7 +2,8 @@
 //! `chiang_hair_absorption_from_color` and `deon_hair_absorption_from_melanin` helpers, as the
 //! MaterialX 1.39 specification's "PBR Shading Nodes" define them) onto `tessera:Hair`, which
 //! holds the same model: MaterialX's per-path roughness is given as Mp's variance v and the
-//! logistic's scale s, so Chiang et al.'s fits are inverted to the βm and βn the shader takes.
+//! logistic's scale s, so Chiang et al.'s fits are inverted to the βm and βn the shader takes,
+//! and TT's and TRT's pairs become its per-path scales.
 
 use glam::{Vec3, Vec4};
 use render_core::material::{MaterialNetwork, MaterialNode};
@@ -22,7 +23,7 @@ pub(super) fn hair_inputs(net: &MaterialNetwork, surface: &str, warnings: &mut V
             warnings.push(w);
         }
     };
-    let (roughness, radial, scale_tt, scale_trt) = roughness(net, h, &mut warn);
+    let Roughness { beta_m, beta_n, scale_tt, scale_trt, radial_tt, radial_trt } = roughness(net, h, &mut warn);
     let cuticle = constant(net, h, "cuticle_angle", Vec4::splat(0.5), &mut warn).x;
     let absorption = absorption(net, h, &mut warn);
     let ior = constant(net, h, "ior", Vec4::splat(1.55), &mut warn);
@@ -30,10 +31,12 @@ pub(super) fn hair_inputs(net: &MaterialNetwork, surface: &str, warnings: &mut V
     Ok(vec![
         ("melanin", Vec4::ZERO),
         ("absorptionCoefficient", absorption.extend(1.0)),
-        ("roughness", Vec4::splat(roughness)),
-        ("radialRoughness", Vec4::splat(radial)),
+        ("roughness", Vec4::splat(beta_m)),
+        ("radialRoughness", Vec4::splat(beta_n)),
         ("roughnessScaleTT", Vec4::splat(scale_tt)),
         ("roughnessScaleTRT", Vec4::splat(scale_trt)),
+        ("radialRoughnessScaleTT", Vec4::splat(radial_tt)),
+        ("radialRoughnessScaleTRT", Vec4::splat(radial_trt)),
         ("ior", ior),
         // cuticle_angle maps [0, 1] onto [−90°, 90°] (0.5: no tilt).
         ("offset", Vec4::splat(cuticle * 180.0 - 90.0)),
@@ -60,24 +63,47 @@ fn constant(net: &MaterialNetwork, node: &str, input: &str, default: Vec4, warn:
     net.nodes.iter().find(|n| n.path == node).and_then(|n| n.parameters.get(input)).and_then(super::materialx::vec4_of).unwrap_or(default)
 }
 
-/// (βm, βn, TT's and TRT's scale of βm): from a `chiang_hair_roughness` node, or from the
-/// constant (v, s) pairs inverted through Chiang's fits. Per-path azimuthal roughness is one
-/// in `tessera:Hair` (as in Chiang's paper): R's, reported when TT's or TRT's differ.
-fn roughness(net: &MaterialNetwork, h: &str, warn: &mut impl FnMut(String)) -> (f32, f32, f32, f32) {
+/// `tessera:Hair`'s roughness inputs: βm and βn (R's), and TT's and TRT's longitudinal and
+/// azimuthal scales relative to R's.
+struct Roughness {
+    beta_m: f32,
+    beta_n: f32,
+    scale_tt: f32,
+    scale_trt: f32,
+    radial_tt: f32,
+    radial_trt: f32,
+}
+
+/// The fibre's roughness: from a `chiang_hair_roughness` node (one azimuthal roughness for
+/// every path, as that node has), or from the constant (v, s) pairs of each path, R's
+/// inverted through Chiang's fits, TT's and TRT's taken as ratios of R's (Mp's variance goes
+/// as the square of the roughness, the logistic's scale linearly).
+fn roughness(net: &MaterialNetwork, h: &str, warn: &mut impl FnMut(String)) -> Roughness {
     if let Some(r) = upstream(net, h, "roughness_R").filter(|n| n.node_type_id.starts_with("ND_chiang_hair_roughness")) {
         let p = &r.path;
         let get = |name: &str, default: f32, warn: &mut dyn FnMut(String)| constant(net, p, name, Vec4::splat(default), &mut |w| warn(w)).x;
-        return (get("longitudinal", 0.1, warn), get("azimuthal", 0.2, warn), get("scale_TT", 0.5, warn), get("scale_TRT", 2.0, warn));
+        return Roughness {
+            beta_m: get("longitudinal", 0.1, warn),
+            beta_n: get("azimuthal", 0.2, warn),
+            scale_tt: get("scale_TT", 0.5, warn),
+            scale_trt: get("scale_TRT", 2.0, warn),
+            radial_tt: 1.0,
+            radial_trt: 1.0,
+        };
     }
     // chiang_hair_bsdf's own defaults.
     let pair = |name: &str, default: f32, warn: &mut dyn FnMut(String)| constant(net, h, name, Vec4::splat(default), &mut |w| warn(w));
     let (r, tt, trt) = (pair("roughness_R", 0.1, warn), pair("roughness_TT", 0.05, warn), pair("roughness_TRT", 0.2, warn));
-    if (tt.y - r.y).abs() > 1e-4 || (trt.y - r.y).abs() > 1e-4 {
-        warn(format!("{h}: per-path azimuthal roughness ({}, {}, {}) is one in tessera:Hair; roughness_R's is used", r.y, tt.y, trt.y));
+    let variance_ratio = |v: f32| if r.x > 0.0 { (v / r.x).max(0.0).sqrt() } else { 1.0 };
+    let scale_ratio = |s: f32| if r.y > 0.0 { (s / r.y).max(0.0) } else { 1.0 };
+    Roughness {
+        beta_m: invert(|b| (0.726 * b + 0.812 * b * b + 3.7 * b.powi(20)).powi(2), r.x),
+        beta_n: invert(|b| 0.265 * b + 1.194 * b * b + 5.372 * b.powi(22), r.y),
+        scale_tt: variance_ratio(tt.x),
+        scale_trt: variance_ratio(trt.x),
+        radial_tt: scale_ratio(tt.y),
+        radial_trt: scale_ratio(trt.y),
     }
-    let beta_m = invert(|b| (0.726 * b + 0.812 * b * b + 3.7 * b.powi(20)).powi(2), r.x);
-    let ratio = |v: f32| if r.x > 0.0 { (v / r.x).max(0.0).sqrt() } else { 1.0 };
-    (beta_m, invert(|b| 0.265 * b + 1.194 * b * b + 5.372 * b.powi(22), r.y), ratio(tt.x), ratio(trt.x))
 }
 
 /// The β in [0, 1] where the increasing fit `f` reaches `target` (bisection; the ends beyond).

@@ -54,6 +54,12 @@ pub struct Hair {
     pub scale_tt: f32,
     /// See [`Self::scale_tt`].
     pub scale_trt: f32,
+    /// TT's and TRT's azimuthal roughness (the logistic's scale) relative to R's: 1 by
+    /// default, as in Chiang et al.'s one βn; MaterialX's `chiang_hair_bsdf` gives each path its
+    /// own (its defaults differ per path).
+    pub radial_scale_tt: f32,
+    /// See [`Self::radial_scale_tt`].
+    pub radial_scale_trt: f32,
     /// Tints of R, TT and TRT (the longer paths take TRT's), as MaterialX's `chiang_hair_bsdf`
     /// has them: white by default. Each at most 1, so no path gains energy.
     pub tint: [Vec3; 3],
@@ -87,8 +93,17 @@ impl Hair {
             sin_alpha: clamp(alpha_degrees, -45.0, 45.0, 2.0).to_radians().sin(),
             scale_tt: 0.5,
             scale_trt: 2.0,
+            radial_scale_tt: 1.0,
+            radial_scale_trt: 1.0,
             tint: [Vec3::ONE; 3],
         }
+    }
+
+    /// The fibre with TT's and TRT's azimuthal roughness scaled from R's (each clamped to
+    /// [0.1, 10]; the scale the logistic ends up with never below that of [`MIN_ROUGHNESS`]).
+    pub fn with_radial_scales(self, tt: f32, trt: f32) -> Self {
+        let scale = |x: f32| if x.is_finite() { x.clamp(0.1, 10.0) } else { 1.0 };
+        Hair { radial_scale_tt: scale(tt), radial_scale_trt: scale(trt), ..self }
     }
 
     /// The fibre with TT's and TRT's longitudinal roughness scaled from R's by `scale_tt` and
@@ -114,11 +129,17 @@ impl Hair {
         (v0 * scale * scale).max(MIN_VARIANCE)
     }
 
-    /// The logistic's scale s from βn (Chiang et al. 2016's fit).
+    /// The logistic's scale s of path p (R, TT or TRT) from βn (Chiang et al. 2016's fit)
+    /// and the path's scale.
     #[inline]
-    fn logistic_scale(&self) -> f32 {
-        let b = self.beta_n;
-        0.626_657_07 * (0.265 * b + 1.194 * b * b + 5.372 * b.powi(22))
+    fn logistic_scale(&self, p: usize) -> f32 {
+        let fit = |b: f32| 0.626_657_07 * (0.265 * b + 1.194 * b * b + 5.372 * b.powi(22));
+        let scale = match p {
+            0 => 1.0,
+            1 => self.radial_scale_tt,
+            _ => self.radial_scale_trt,
+        };
+        (fit(self.beta_n) * scale).max(fit(MIN_ROUGHNESS))
     }
 
     /// θo of path p tilted by the scales: R by −2α, TT by α, TRT by 4α (Marschner et al.'s
@@ -183,11 +204,10 @@ impl Hair {
         let sin_i = wi.x.clamp(-1.0, 1.0);
         let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
         let phi = wi.z.atan2(wi.y) - v.phi_o;
-        let s = self.logistic_scale();
         let mut d = [0.0; 4];
         for (p, d) in d.iter_mut().enumerate().take(3) {
             let (sin_op, cos_op) = self.tilted(p, v.sin_o, v.cos_o);
-            let np = trimmed_logistic(wrap_angle(phi - Self::exit_angle(p, v.gamma_o, v.gamma_t)), s);
+            let np = trimmed_logistic(wrap_angle(phi - Self::exit_angle(p, v.gamma_o, v.gamma_t)), self.logistic_scale(p));
             *d = longitudinal(cos_i, cos_op, sin_i, sin_op, self.variance(p)) * np;
         }
         d[3] = longitudinal(cos_i, v.cos_o, sin_i, v.sin_o, self.variance(3)) / TAU;
@@ -242,7 +262,7 @@ impl Hair {
         let sin_i = (-cos_theta * sin_op + sin_theta * (TAU * u.y).cos() * cos_op).clamp(-1.0, 1.0);
         let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
         let dphi =
-            if p < 3 { Self::exit_angle(p, v.gamma_o, v.gamma_t) + sample_trimmed_logistic(uc, self.logistic_scale()) } else { TAU * uc };
+            if p < 3 { Self::exit_angle(p, v.gamma_o, v.gamma_t) + sample_trimmed_logistic(uc, self.logistic_scale(p)) } else { TAU * uc };
         let phi_i = v.phi_o + dphi;
         let wi = Vec3::new(sin_i, cos_i * phi_i.cos(), cos_i * phi_i.sin());
         // One view and one pass over the paths for both the density and f.
@@ -374,6 +394,9 @@ mod tests {
             white(1.0, 1.0, 0.0),
             // MaterialX's per-path roughness scales and tints.
             white(0.3, 0.4, 1.0).with_lobes(1.0, 3.0, [Vec3::new(0.9, 0.8, 0.7), Vec3::ONE, Vec3::new(0.5, 0.5, 1.0)]),
+            // Per-path azimuthal roughness at the ends of its scales (a white fibre with
+            // chiang_hair_bsdf's default ratios is in the weight test below).
+            Hair::new(sigma_a_from_melanin(0.3, 0.5), 1.55, 0.3, 0.3, 2.0).with_radial_scales(0.1, 10.0),
         ]
         .map(Lobe::Hair)
         .into()
@@ -443,8 +466,10 @@ mod tests {
     #[test]
     fn white_fibre_samples_carry_weight_one() {
         let mut rng = Pcg32::new(3, 4);
-        for (bm, bn, alpha) in [(0.05, 0.05, 0.0), (0.2, 0.4, 2.0), (0.5, 0.9, -3.0), (1.0, 1.0, 10.0)] {
-            let hair = white(bm, bn, alpha);
+        let per_path = white(0.3, 0.3, 2.0).with_radial_scales(0.5, 2.0);
+        for (bm, bn, alpha) in [(0.05, 0.05, 0.0), (0.2, 0.4, 2.0), (0.5, 0.9, -3.0), (1.0, 1.0, 10.0), (0.3, 0.3, 2.0)] {
+            // The last row with per-path azimuthal roughness: each path's Np still inverts exactly.
+            let hair = if (bm, bn, alpha) == (0.3, 0.3, 2.0) { per_path } else { white(bm, bn, alpha) };
             for _ in 0..20_000 {
                 let wo = crate::sampling::uniform_sphere(rng.next_2d());
                 let Some(s) = hair.sample(wo, rng.next_f32(), rng.next_2d()) else { continue };

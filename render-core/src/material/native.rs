@@ -211,6 +211,13 @@ pub const SHADERS: &[Shader] = &[
             color("tintTRT", 1.0, "tint of the light reflected inside the fibre (TRT and longer paths)"),
             float("roughnessScaleTT", 0.5, (0.1, 4.0), "TT's longitudinal roughness relative to `roughness`"),
             float("roughnessScaleTRT", 2.0, (0.1, 4.0), "TRT's longitudinal roughness relative to `roughness`"),
+            float(
+                "radialRoughnessScaleTT",
+                1.0,
+                (0.1, 10.0),
+                "TT's azimuthal roughness (the logistic's scale) relative to `radialRoughness`'s",
+            ),
+            float("radialRoughnessScaleTRT", 1.0, (0.1, 10.0), "TRT's azimuthal roughness relative to `radialRoughness`'s"),
         ],
         shared: false,
         materials: &[],
@@ -353,6 +360,8 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 tilt: v.f("offset"),
                 scale_tt: v.f("roughnessScaleTT"),
                 scale_trt: v.f("roughnessScaleTRT"),
+                radial_scale_tt: v.f("radialRoughnessScaleTT"),
+                radial_scale_trt: v.f("radialRoughnessScaleTRT"),
                 tint: [v.c("tintR"), v.c("tintTT"), v.c("tintTRT")],
             };
             u.hair = Weighted { weight: 1.0, params };

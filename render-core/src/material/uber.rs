@@ -244,6 +244,10 @@ pub struct HairParams {
     pub scale_tt: f32,
     /// See [`Self::scale_tt`].
     pub scale_trt: f32,
+    /// TT's and TRT's azimuthal roughness relative to R's.
+    pub radial_scale_tt: f32,
+    /// See [`Self::radial_scale_tt`].
+    pub radial_scale_trt: f32,
     /// Tints of R, TT and TRT.
     pub tint: [Vec3; 3],
 }
@@ -258,6 +262,8 @@ impl Default for HairParams {
             tilt: 2.0,
             scale_tt: 0.5,
             scale_trt: 2.0,
+            radial_scale_tt: 1.0,
+            radial_scale_trt: 1.0,
             tint: [Vec3::ONE; 3],
         }
     }
@@ -273,6 +279,8 @@ impl Mix for HairParams {
             tilt: self.tilt.mix(wa, &o.tilt, wb),
             scale_tt: self.scale_tt.mix(wa, &o.scale_tt, wb),
             scale_trt: self.scale_trt.mix(wa, &o.scale_trt, wb),
+            radial_scale_tt: self.radial_scale_tt.mix(wa, &o.radial_scale_tt, wb),
+            radial_scale_trt: self.radial_scale_trt.mix(wa, &o.radial_scale_trt, wb),
             tint: [0, 1, 2].map(|k| self.tint[k].mix(wa, &o.tint[k], wb)),
         }
     }
@@ -653,7 +661,9 @@ impl Uber {
         let hair_w = finite(self.hair.weight);
         if hair_w > 0.0 || every {
             let h = &self.hair.params;
-            let fibre = Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt).with_lobes(h.scale_tt, h.scale_trt, h.tint);
+            let fibre = Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)
+                .with_lobes(h.scale_tt, h.scale_trt, h.tint)
+                .with_radial_scales(h.radial_scale_tt, h.radial_scale_trt);
             bsdf.push_weighted(Lobe::Hair(fibre), hair_w);
         }
     }
