@@ -231,32 +231,42 @@ async fn fibre_rgb(t: &tessera::usd::Translation) -> Vec<f32> {
     (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).flat_map(|(x, y)| report.image.pixel("beauty", x, y)[..3].to_vec()).collect()
 }
 
+/// Material `/Fibre`'s body for MaterialX hair: a `surface` over a `chiang_hair_bsdf` with
+/// the input lines `inputs`.
+fn chiang_hair(inputs: &str) -> String {
+    format!(
+        r#"    token outputs:mtlx:surface.connect = </Fibre/Surface.outputs:out>
+    def Shader "Surface"
+    {{
+        uniform token info:id = "ND_surface"
+        token inputs:bsdf.connect = </Fibre/Chiang.outputs:out>
+        token outputs:out
+    }}
+    def Shader "Chiang"
+    {{
+        uniform token info:id = "ND_chiang_hair_bsdf"
+{inputs}
+        token outputs:out
+    }}"#
+    )
+}
+
 /// MaterialX's hair (a `surface` over `chiang_hair_bsdf`, its roughness from
 /// `chiang_hair_roughness` and its absorption from `deon_hair_absorption_from_melanin`) maps
 /// onto `tessera:Hair` input by input, and renders bit for bit as the same fibre authored with
 /// `tessera:Hair` directly.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn materialx_chiang_hair_renders_as_the_same_tessera_hair() {
-    let mtlx = r#"    token outputs:mtlx:surface.connect = </Fibre/Surface.outputs:out>
-    def Shader "Surface"
-    {
-        uniform token info:id = "ND_surface"
-        token inputs:bsdf.connect = </Fibre/Chiang.outputs:out>
-        token outputs:out
-    }
-    def Shader "Chiang"
-    {
-        uniform token info:id = "ND_chiang_hair_bsdf"
-        float inputs:ior = 1.6
+    let mtlx = chiang_hair(
+        r#"        float inputs:ior = 1.6
         float inputs:cuticle_angle = 0.52
         color3f inputs:tint_R = (0.9, 0.8, 0.7)
         color3f inputs:tint_TRT = (0.5, 0.6, 1)
         float2 inputs:roughness_R.connect = </Fibre/Rough.outputs:roughness_R>
         float2 inputs:roughness_TT.connect = </Fibre/Rough.outputs:roughness_TT>
         float2 inputs:roughness_TRT.connect = </Fibre/Rough.outputs:roughness_TRT>
-        vector3f inputs:absorption_coefficient.connect = </Fibre/Melanin.outputs:absorption>
-        token outputs:out
-    }
+        vector3f inputs:absorption_coefficient.connect = </Fibre/Melanin.outputs:absorption>"#,
+    ) + r#"
     def Shader "Rough"
     {
         uniform token info:id = "ND_chiang_hair_roughness"
@@ -274,7 +284,7 @@ async fn materialx_chiang_hair_renders_as_the_same_tessera_hair() {
         float inputs:melanin_redness = 0.3
         vector3f outputs:absorption
     }"#;
-    let t = load_text("hair_mtlx", &fibre_stage(mtlx));
+    let t = load_text("hair_mtlx", &fibre_stage(&mtlx));
     assert!(t.warnings.is_empty(), "{:?}", t.warnings);
     // The same, by hand: σa = c·((1 − r)·(0.419, 0.697, 1.37) + r·(0.187, 0.4, 1.05)), c = −ln(1 − 0.4).
     let c = -(0.6f32).ln();
@@ -434,28 +444,16 @@ async fn materialx_per_path_azimuthal_roughness_renders_as_tessera_hair() {
     let (beta_m, beta_n) = (0.3f32, 0.4f32);
     let v = (0.726 * beta_m + 0.812 * beta_m * beta_m + 3.7 * beta_m.powi(20)).powi(2);
     let s = 0.265 * beta_n + 1.194 * beta_n * beta_n + 5.372 * beta_n.powi(22);
-    let mtlx = format!(
-        r#"    token outputs:mtlx:surface.connect = </Fibre/Surface.outputs:out>
-    def Shader "Surface"
-    {{
-        uniform token info:id = "ND_surface"
-        token inputs:bsdf.connect = </Fibre/Chiang.outputs:out>
-        token outputs:out
-    }}
-    def Shader "Chiang"
-    {{
-        uniform token info:id = "ND_chiang_hair_bsdf"
-        float2 inputs:roughness_R = ({v}, {s})
+    let mtlx = chiang_hair(&format!(
+        r#"        float2 inputs:roughness_R = ({v}, {s})
         float2 inputs:roughness_TT = ({}, {})
         float2 inputs:roughness_TRT = ({}, {})
-        vector3f inputs:absorption_coefficient = (0.2, 0.4, 0.8)
-        token outputs:out
-    }}"#,
+        vector3f inputs:absorption_coefficient = (0.2, 0.4, 0.8)"#,
         v * 0.25,
         s * 0.25,
         v * 4.0,
         s * 3.0
-    );
+    ));
     let t = load_text("hair_mtlx_pairs", &fibre_stage(&mtlx));
     assert!(t.warnings.is_empty(), "{:?}", t.warnings);
     let native = |radial_tt: f32, radial_trt: f32| {
