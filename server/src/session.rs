@@ -170,8 +170,8 @@ struct Finished {
     decoded: Vec<(String, Arc<render_core::texture::Image>)>,
 }
 
-/// Bytes a committed triangle is estimated to hold: 12 of indices, 48 of ray-tracing
-/// triangle, 4 of id and the CWBVH nodes (measured 123 in all on a 1M-triangle mesh,
+/// Bytes a committed triangle is estimated to hold: 12 of indices, 36 of ray-tracing
+/// triangle, 4 of id and the CWBVH nodes (measured 88 in all on a 1M-triangle mesh,
 /// `docs/benchmarks.md`), plus the transient of its build (PLOC's binary tree and boxes),
 /// rounded up.
 pub const BYTES_PER_TRIANGLE: u64 = 256;

@@ -6,7 +6,8 @@
 //! transport, or by a segment of its width across the curve and its normal.
 //! One triangle mesh per prim, so curves render through the ordinary path with the bound
 //! material; the primvars that material reads are carried onto the tube's vertices, float2
-//! ones by name beside the tube's own (s, t), which the hair frame follows. The polygon's circumradius is widened so its width averaged over directions is
+//! ones by name beside the tube's own (s, t), which the hair frame follows. The polygon's
+//! circumradius is widened so its width averaged over directions is
 //! the curve's width (a regular n-gon's mean width is its perimeter over π).
 
 use anyhow::{Context, Result};

@@ -116,11 +116,9 @@ impl TriangleLanes {
 
     /// [`Self::closest_in_chunk`] one triangle at a time, highest lane first.
     #[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"), allow(dead_code))]
-    fn closest_in_chunk_scalar(&self, first: usize, mut block: u32, ray: &BvhRay, mut tmax: f32) -> Option<(f32, u32, Vec2)> {
+    fn closest_in_chunk_scalar(&self, first: usize, block: u32, ray: &BvhRay, mut tmax: f32) -> Option<(f32, u32, Vec2)> {
         let mut best = None;
-        while block != 0 {
-            let j = 31 - block.leading_zeros();
-            block &= !(1 << j);
+        for j in super::bits_high_first(block) {
             if let Some((t, u, v)) = self.triangle(first + j as usize).intersect(ray.origin, ray.direction, ray.tmin, tmax) {
                 tmax = t;
                 best = Some((t, j, Vec2::new(u, v)));
@@ -288,10 +286,7 @@ mod avx2 {
         let mut ts = [0.0f32; 8];
         unsafe { _mm256_storeu_ps(ts.as_mut_ptr(), t) };
         let (mut best, mut lane) = (f32::INFINITY, 0);
-        let mut left = hits;
-        while left != 0 {
-            let j = 31 - left.leading_zeros();
-            left &= !(1 << j);
+        for j in super::super::bits_high_first(hits) {
             if ts[j as usize] < best {
                 (best, lane) = (ts[j as usize], j);
             }

@@ -286,6 +286,14 @@ fn constant_frontier(network: &MaterialNetwork, keys: &[(String, String)]) -> Ve
 /// Deepest chain of texture nodes followed (a cycle is cut there).
 const MAX_CHAIN: usize = 16;
 
+/// The primvar a reader node's `varname` names, when it names one.
+fn varname(node: &MaterialNode) -> Option<String> {
+    match node.parameters.get("varname") {
+        Some(ParamValue::String(name)) if !name.is_empty() => Some(name.clone()),
+        _ => None,
+    }
+}
+
 /// A float, float3 or int primvar reader: the mesh's primvar its `varname` names, or its
 /// fallback where it names none.
 fn primvar_reader(node: &MaterialNode, id: &str, report: &mut ResolveReport) -> Expr {
@@ -295,9 +303,9 @@ fn primvar_reader(node: &MaterialNode, id: &str, report: &mut ResolveReport) -> 
         Some(ParamValue::Float3(v)) => v.extend(0.0),
         _ => Vec4::ZERO,
     };
-    match node.parameters.get("varname") {
-        Some(ParamValue::String(name)) if !name.is_empty() => Expr::Primvar { name: name.clone(), fallback },
-        _ => {
+    match varname(node) {
+        Some(name) => Expr::Primvar { name, fallback },
+        None => {
             report.warnings.push(format!("{}: {id} has no varname; its fallback is used", node.path));
             Expr::Const(fallback)
         }
@@ -335,11 +343,7 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
         "UsdPrimvarReader_float2" => {
             // The client sends the float2 primvar the readers name as the mesh's st, or (on
             // curves) as a primvar of that name.
-            let name = match p("varname") {
-                Some(ParamValue::String(v)) if !v.is_empty() => Some(v.clone()),
-                _ => None,
-            };
-            Expr::St { name, fallback: float2("fallback", Vec2::ZERO) }
+            Expr::St { name: varname(node), fallback: float2("fallback", Vec2::ZERO) }
         }
         id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => primvar_reader(node, id, report),
         "UsdTransform2d" => {
