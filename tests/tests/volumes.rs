@@ -134,6 +134,83 @@ async fn the_vdb_box_fixture_transmits_as_beer_lambert_says_through_the_service(
     assert!(n == 256 && (mean - expected).abs() < 5.0 * (expected * (1.0 - expected) / 65_536.0).sqrt(), "{mean} vs {expected}");
 }
 
+/// A colour field read from a VDB file through USD, the wire and the server:
+/// `usd/volume_tinted.usda` is the box white-scattering (albedo 1) with tinted.vdb's `Cd`,
+/// (1, i/16, 0) at voxel (i, j, k). Red scatters with albedo 1 everywhere: the white furnace's
+/// 1. Blue has albedo 0: only what crosses without a collision, e^(−2). Green ramps along x,
+/// so the image grows greener from left to right (a grid read with its axes swapped would ramp
+/// along the view and leave the columns alike).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_vdb_colour_field_tints_the_albedo_through_the_service() {
+    // Depth 1000, as in the furnace test: red is a furnace only when no path is cut short.
+    let options = tessera::remote::RenderOptions { max_depth: 1000, ..tessera_tests::small(16, 16, 256) };
+    let report = tessera_tests::render_fixture("usd/volume_tinted.usda", &options).await;
+    let all = |_, _| true;
+    let (red, _) = tessera_tests::mean_where(&report.image, "beauty", 0, all);
+    let (blue, _) = tessera_tests::mean_where(&report.image, "beauty", 2, all);
+    // The furnace test's 0.01 for red; Bernoulli escapes for blue, 5σ = 0.0067.
+    assert!((red - 1.0).abs() < 0.01, "red {red}");
+    let expected = (-2.0f64).exp();
+    assert!((blue - expected).abs() < 5.0 * (expected * (1.0 - expected) / 65_536.0).sqrt(), "blue {blue} vs {expected}");
+    // Columns 0-3 see the box's x in [0.2, 0.35], columns 12-15 x in [0.65, 0.8]: green albedo
+    // about 0.27 against 0.72 there, and measured 0.25 against 0.55 (2026-12-03; paths wander
+    // across the ramp). Each quarter's mean has σ < 0.004 (16 384 samples of at most 1).
+    let (left, _) = tessera_tests::mean_where(&report.image, "beauty", 1, |x, _| x < 4);
+    let (right, _) = tessera_tests::mean_where(&report.image, "beauty", 1, |x, _| x >= 12);
+    assert!(left > blue + 0.05 && right > left + 0.2 && right < red - 0.05, "green {left} left, {right} right");
+}
+
+/// Colour fields and half-float grids read as OpenVDB wrote them, voxel for voxel: tinted.vdb's
+/// `Cd` (full precision) and `Cd_half` (half floats, each value exact in half precision), and
+/// `density_half`, whose first leaf stores no values (OpenVDB writes no bytes for it). A colour
+/// field naming a float grid, and a second colour field, are reported; the volume renders.
+#[test]
+fn colour_fields_and_half_float_grids_read_as_openvdb_wrote_them() {
+    let dir = std::env::temp_dir().join(format!("tessera-tinted-vdb-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(tessera_tests::fixture("usd/volumes/tinted.vdb"), dir.join("tinted.vdb")).unwrap();
+    let asset = |name: &str| format!("def OpenVDBAsset \"{name}\" {{ asset filePath = @./tinted.vdb@\n token fieldName = \"{name}\" }}");
+    let usda = format!(
+        "#usda 1.0\n\
+         def Volume \"Ramp\" {{ rel field:density = </Ramp/density>\n rel field:Cd = </Ramp/Cd>\n {}\n {} }}\n\
+         def Volume \"Axes\" {{ rel field:density = </Axes/density_half>\n rel field:color = </Axes/Cd_half>\n {}\n {} }}\n\
+         def Volume \"Wrong\" {{ rel field:density = </Wrong/density>\n rel field:color = </Wrong/density>\n {} }}\n\
+         def Volume \"Twice\" {{ rel field:density = </Twice/density>\n rel field:Cd = </Twice/Cd>\n rel field:color = </Twice/Cd_half>\n {}\n {}\n {} }}\n",
+        asset("density"),
+        asset("Cd"),
+        asset("density_half"),
+        asset("Cd_half"),
+        asset("density"),
+        asset("density"),
+        asset("Cd"),
+        asset("Cd_half"),
+    );
+    std::fs::write(dir.join("tinted.usda"), usda).unwrap();
+    let t = tessera::usd::load(&dir.join("tinted.usda")).expect("the stage loads");
+    std::fs::remove_dir_all(&dir).ok();
+    let volume = |path: &str| &t.volumes.iter().find(|(p, _)| p == path).unwrap_or_else(|| panic!("{path} renders")).1;
+    // Every voxel of the 16³ block, x fastest, as make_vdb.py wrote it.
+    let voxels = || (0..16 * 16 * 16).map(|n| (n, [n % 16, n / 16 % 16, n / 256].map(|c| c as f32)));
+    let channels = |v: &VolumeDesc| {
+        v.color.as_ref().expect("a colour field").clone().map(|g| {
+            assert_eq!((g.origin, g.dims), (IVec3::ZERO, UVec3::splat(16)));
+            g.values.clone()
+        })
+    };
+    let [r, g, b] = channels(volume("/Ramp"));
+    assert!(voxels().all(|(n, [i, _, _])| [r[n], g[n], b[n]] == [1.0, i / 16.0, 0.0]), "Cd reads as (1, i/16, 0)");
+    let [r, g, b] = channels(volume("/Axes"));
+    assert!(voxels().all(|(n, ijk)| [r[n], g[n], b[n]] == ijk.map(|c| c / 16.0)), "Cd_half reads as (i, j, k)/16");
+    let density = &volume("/Axes").density.values;
+    let first_leaf = |ijk: [f32; 3]| ijk.iter().all(|&c| c < 8.0);
+    assert!(voxels().all(|(n, ijk)| density[n] == if first_leaf(ijk) { 0.0 } else { 1.0 }), "density_half");
+    let warned = |needles: &[&str]| t.warnings.iter().any(|w| needles.iter().all(|n| w.contains(n)));
+    assert!(warned(&["/Wrong", "field 'color' is not used", "Tree_float_5_4_3", "Tree_vec3s_5_4_3"]), "{:#?}", t.warnings);
+    assert!(volume("/Wrong").color.is_none());
+    assert!(warned(&["/Twice", "is not used", "already gives the colour"]), "{:#?}", t.warnings);
+    assert!(volume("/Twice").color.is_some());
+}
+
 /// A scene without volumes renders the same whatever the volume machinery: the plan has no
 /// volumes and the specialised path loop runs (no volume test per ray).
 #[test]
@@ -173,7 +250,7 @@ def Sphere "Ball" {}
     let warned = |needles: &[&str]| t.warnings.iter().any(|w| needles.iter().all(|n| w.contains(n)));
     assert!(warned(&["/Garbage", "garbage.vdb", "skipped"]), "{:#?}", t.warnings);
     assert!(warned(&["/NoSuchGrid", "no grid 'smoke'", "density"]), "{:#?}", t.warnings);
-    assert!(warned(&["/NoDensity", "field 'color' is a vector grid"]), "{:#?}", t.warnings);
+    assert!(warned(&["/NoDensity", "field 'color' is not used", "Tree_float_5_4_3"]), "{:#?}", t.warnings);
     assert!(warned(&["/NoDensity", "no field:density"]), "{:#?}", t.warnings);
     let volumes: Vec<&str> = t.volumes.iter().map(|(p, _)| p.as_str()).collect();
     assert_eq!(volumes, ["/Good"]);
