@@ -127,6 +127,47 @@ fn mutated_sync_streams_never_panic_the_server() {
     assert!(failures.is_empty(), "inputs that panicked the server's validation: {failures:?}");
 }
 
+/// A corrupt binary USD file is an error naming the file, never an abort or a panic: windows of
+/// 8 bytes across `cornell_box.usdc` (its header, values and table of contents) overwritten in
+/// turn with sizes too large, negative, or all ones. openusd 0.6 as released aborted the process
+/// on the first huge size (an allocation of 4 TB, 2026-12-03), which in the Python package took
+/// the DCC hosting it down; third_party/openusd checks each size first, and the loader turns the
+/// crate's remaining panics (indices out of range) into errors.
+#[test]
+fn corrupt_binary_usd_files_are_errors_never_aborts() {
+    let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
+    let dir = std::env::temp_dir().join(format!("tessera-corrupt-usdc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("corrupt.usdc");
+    let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let (mut errors, mut escaped) = (Vec::new(), Vec::new());
+    // Every 5th offset of the 3,197-byte file, four patterns: 2,556 loads, seconds in a debug
+    // build. A release run over every offset, and over the 3,000 bytes of sections that end
+    // hard/many_lights.usdc, survived too (2026-12-03).
+    for offset in (0..clean.len() - 8).step_by(5) {
+        for pattern in &patterns {
+            let mut bytes = clean.clone();
+            bytes[offset..offset + 8].copy_from_slice(pattern);
+            std::fs::write(&file, &bytes).unwrap();
+            match catch_unwind(AssertUnwindSafe(|| tessera::usd::load(&file))) {
+                Ok(Err(e)) => errors.push(format!("{e:#}")),
+                Ok(Ok(_)) => {}
+                Err(_) => escaped.push(offset),
+            }
+        }
+    }
+    std::panic::set_hook(hook);
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(escaped.is_empty(), "panics escaped the loader at offsets {escaped:?}");
+    assert!(
+        !errors.is_empty() && errors.iter().all(|e| e.contains("corrupt.usdc")),
+        "errors name the file: {:?}",
+        &errors[..3.min(errors.len())]
+    );
+}
+
 /// Replays one saved input with its panic and backtrace visible:
 /// `TESSERA_FUZZ_INPUT=target/fuzz-failures/usd-3.bin cargo test -p tessera-tests --test e2e replay -- --ignored --nocapture`
 /// (a name starting with `sync` replays it as a sync stream, anything else as USD text).

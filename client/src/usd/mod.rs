@@ -377,8 +377,18 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     load_with(path, LoadOptions { frame, ..LoadOptions::default() })
 }
 
-/// Reads and translates the stage at `path` as `options` say.
+/// Reads and translates the stage at `path` as `options` say. A panic while reading (the USD
+/// crate panics on some corrupt binary files rather than erring) is this file's error: the
+/// CLI, a farm worker and a DCC hosting the Python package keep running.
 pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Translation> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| translate(path, options))).unwrap_or_else(|panic| {
+        let why = panic.downcast_ref::<String>().map(String::as_str).or_else(|| panic.downcast_ref::<&str>().copied());
+        Err(anyhow::anyhow!("{}: cannot read USD: the reader failed ({})", path.display(), why.unwrap_or("no message")))
+    })
+}
+
+/// [`load_with`]'s work.
+fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation> {
     let frame = options.frame;
     let _span = tracing::info_span!("usd_load", path = %path.display()).entered();
     let path_str = path.to_str().context("scene path is not valid UTF-8")?;
