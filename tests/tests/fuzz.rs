@@ -128,41 +128,45 @@ fn mutated_sync_streams_never_panic_the_server() {
 }
 
 /// A corrupt binary USD file is an error naming the file, never an abort or a panic: windows of
-/// 8 bytes across `cornell_box.usdc` (its header, values and table of contents) overwritten in
-/// turn with sizes too large, negative, or all ones. openusd 0.6 as released aborted the process
-/// on the first huge size (an allocation of 4 TB, 2026-12-03), which in the Python package took
-/// the DCC hosting it down; third_party/openusd checks each size first, and the loader turns the
-/// crate's remaining panics (indices out of range) into errors.
+/// 8 bytes across `cornell_box.usdc` (its header, values and table of contents) and the same
+/// scene packaged as `.usdz` overwritten in turn with sizes too large, negative, or all ones.
+/// openusd 0.6 as released aborted the process on the first huge size (an allocation of 4 TB,
+/// 2026-12-03), which in the Python package took the DCC hosting it down; third_party/openusd
+/// checks each size first, and the loader turns the crate's remaining panics (indices out of
+/// range) into errors.
 #[test]
 fn corrupt_binary_usd_files_are_errors_never_aborts() {
-    let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
     let dir = std::env::temp_dir().join(format!("tessera-corrupt-usdc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("corrupt.usdc");
     let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
     let (mut errors, mut escaped) = (Vec::new(), Vec::new());
-    // Every 5th offset of the 3,197-byte file, four patterns: 2,556 loads, seconds in a debug
-    // build. A release run over every offset, and over the 3,000 bytes of sections that end
-    // hard/many_lights.usdc, survived too (2026-12-03).
-    for offset in (0..clean.len() - 8).step_by(5) {
-        for pattern in &patterns {
-            let mut bytes = clean.clone();
-            bytes[offset..offset + 8].copy_from_slice(pattern);
-            std::fs::write(&file, &bytes).unwrap();
-            match catch_unwind(AssertUnwindSafe(|| tessera::usd::load(&file))) {
-                Ok(Err(e)) => errors.push(format!("{e:#}")),
-                Ok(Ok(_)) => {}
-                Err(_) => escaped.push(offset),
+    // Every 5th offset of the 3,197-byte .usdc and every 11th of the 3,363-byte .usdz, four
+    // patterns: 3,780 loads, seconds in a debug build. A release run over every offset of both,
+    // and over the 3,000 bytes of sections that end hard/many_lights.usdc, survived too
+    // (2026-12-03).
+    for (name, step) in [("cornell_box.usdc", 5), ("cornell_box.usdz", 11)] {
+        let clean = std::fs::read(fixture(name)).unwrap();
+        let file = dir.join(format!("corrupt-{name}"));
+        for offset in (0..clean.len() - 8).step_by(step) {
+            for pattern in &patterns {
+                let mut bytes = clean.clone();
+                bytes[offset..offset + 8].copy_from_slice(pattern);
+                std::fs::write(&file, &bytes).unwrap();
+                match catch_unwind(AssertUnwindSafe(|| tessera::usd::load(&file))) {
+                    Ok(Err(e)) => errors.push(format!("{e:#}")),
+                    Ok(Ok(_)) => {}
+                    Err(_) => escaped.push((name, offset)),
+                }
             }
         }
     }
     std::panic::set_hook(hook);
     std::fs::remove_dir_all(&dir).ok();
-    assert!(escaped.is_empty(), "panics escaped the loader at offsets {escaped:?}");
+    assert!(escaped.is_empty(), "panics escaped the loader at {escaped:?}");
     assert!(
-        !errors.is_empty() && errors.iter().all(|e| e.contains("corrupt.usdc")),
+        !errors.is_empty() && errors.iter().all(|e| e.contains("corrupt-cornell_box")),
         "errors name the file: {:?}",
         &errors[..3.min(errors.len())]
     );
