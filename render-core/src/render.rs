@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::film::{Aov, Rect, TileFilm, tiles_centre_out};
-use crate::integrator::{IntegratorSettings, PathCounters, trace_path};
+use crate::integrator::{CameraPath, IntegratorSettings, PathCounters, trace_path, trace_wave};
 use crate::sampling::{PathSampler, SamplerKind};
 use crate::scene::CommittedScene;
 
@@ -45,6 +45,9 @@ pub struct RenderSettings {
 /// glass and media) about 1 ms, so a stop is seen within milliseconds whatever the tile
 /// costs, for an atomic load or two per 64 paths.
 pub const STOP_POLL_SAMPLES: u32 = 64;
+
+/// Camera samples traced together as one wave ([`trace_wave`]): a poll comes before each.
+const WAVE: usize = STOP_POLL_SAMPLES as usize;
 
 /// Samples every pixel takes before adaptive sampling may retire it: fewer make the
 /// variance estimate itself too noisy to trust.
@@ -429,8 +432,18 @@ fn render_tile(
 ) -> Option<StopReason> {
     let r = tile.rect;
     pass.reset(r, tile.has_extra());
-    let mut until_poll = STOP_POLL_SAMPLES;
     let integrator = integrator_for(camera, settings);
+    let mut wave = Vec::with_capacity(WAVE);
+    let mut wave_pixels = Vec::with_capacity(WAVE);
+    let trace = |wave: &mut Vec<CameraPath>, pixels: &mut Vec<usize>, pass: &mut TileFilm, counters: &mut PathCounters| {
+        let depth_of = |t, cos| camera.depth(t, cos);
+        let traced = trace_wave(scene, wave, depth_of, camera.background_depth(), &integrator, counters);
+        // Added in the order the samples were drawn: a pixel's sum is the same to the bit.
+        for (i, sample) in pixels.drain(..).zip(&traced) {
+            pass.add(i, sample);
+        }
+        wave.clear();
+    };
     for py in 0..r.height {
         for px in 0..r.width {
             let (x, y) = (r.x + px, r.y + py);
@@ -439,17 +452,22 @@ fn render_tile(
                 continue;
             }
             for k in samples.clone() {
-                until_poll -= 1;
-                if until_poll == 0 {
-                    until_poll = STOP_POLL_SAMPLES;
+                wave.push(camera_path(scene, camera, settings, x, y, k));
+                wave_pixels.push(i);
+                if wave.len() == WAVE {
                     if let Some(reason) = sink.should_stop() {
                         return Some(reason);
                     }
+                    trace(&mut wave, &mut wave_pixels, pass, counters);
                 }
-                let sample = trace_camera_sample(scene, camera, settings, &integrator, x, y, k, counters);
-                pass.add(i, &sample);
             }
         }
+    }
+    if !wave.is_empty() {
+        if let Some(reason) = sink.should_stop() {
+            return Some(reason);
+        }
+        trace(&mut wave, &mut wave_pixels, pass, counters);
     }
     pass.samples = samples.end;
     tile.absorb(pass);
@@ -530,8 +548,7 @@ fn integrator_for(camera: &Camera, settings: &RenderSettings) -> IntegratorSetti
     IntegratorSettings { pixel_footprint: footprint, ..settings.integrator }
 }
 
-/// Sample `k` of pixel (`x`, `y`): its random numbers depend on nothing else.
-#[inline(always)]
+/// Sample `k` of pixel (`x`, `y`), traced on its own.
 #[allow(clippy::too_many_arguments)]
 fn trace_camera_sample(
     scene: &CommittedScene,
@@ -543,11 +560,18 @@ fn trace_camera_sample(
     k: u32,
     counters: &mut PathCounters,
 ) -> crate::film::PixelSample {
+    let CameraPath { ray, cos, mut rng } = camera_path(scene, camera, settings, x, y, k);
+    trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, integrator, counters)
+}
+
+/// Sample `k` of pixel (`x`, `y`) as a path to trace: its random numbers depend on nothing else.
+#[inline(always)]
+pub fn camera_path(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, x: u32, y: u32, k: u32) -> CameraPath {
     let mut rng = PathSampler::for_sample(settings.sampler, settings.seed, x, y, k);
     // The camera's 4D set: pixel jitter and the lens point; and, only in scenes that move
     // (so still ones draw the same numbers as ever), a set whose first dimension is the time.
     let [jx, jy, lx, ly] = rng.next_4d();
     let time = if scene.plan.has(crate::plan::Feature::MotionBlur) { rng.next_4d()[0] } else { 0.0 };
     let (ray, cos) = camera.ray_at(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly), time);
-    trace_path(scene, ray, |t| camera.depth(t, cos), camera.background_depth(), &mut rng, integrator, counters)
+    CameraPath { ray, cos, rng }
 }

@@ -24,6 +24,35 @@ async fn renders_are_bit_identical_across_runs_and_thread_counts() {
     assert_ne!(bits(&one), bits(&reseeded));
 }
 
+/// Renders trace camera samples in waves (`trace_wave`: every live path's ray intersected,
+/// then every path's step); each sample must come out as it does traced alone (`trace_path`),
+/// to the bit, through the specialised loop (Cornell box) and the general one (a volume,
+/// subsurface scattering, hair), paths of every length in one wave.
+#[test]
+fn a_wave_traces_each_path_as_it_is_traced_alone() {
+    use render_core::integrator::{IntegratorSettings, PathCounters, trace_path, trace_wave};
+    use render_core::render::{RenderSettings, camera_path};
+    for fixture in ["cornell_box.usda", "usd/volume.usda", "materials/subsurface_lit.usda", "usd/hair.usda"] {
+        let scene = render_core::scene::commit(&load(fixture).to_scene_desc(), &mut Default::default()).expect("commits");
+        let desc = scene.cameras.values().next().expect("a camera");
+        let camera = render_core::camera::Camera::new(desc, 24, 16);
+        let settings = RenderSettings { width: 24, height: 16, ..Default::default() };
+        let integrator = IntegratorSettings { max_depth: 12, ..Default::default() };
+        let samples: Vec<(u32, u32, u32)> = (0..24 * 16 * 3).map(|n| (n % 24, n / 24 % 16, n / 384)).collect();
+        let mut wave: Vec<_> = samples.iter().map(|&(x, y, k)| camera_path(&scene, &camera, &settings, x, y, k)).collect();
+        let mut counters = PathCounters::default();
+        let waved = trace_wave(&scene, &mut wave, |t, cos| camera.depth(t, cos), camera.background_depth(), &integrator, &mut counters);
+        for (&(x, y, k), in_wave) in samples.iter().zip(&waved) {
+            let mut p = camera_path(&scene, &camera, &settings, x, y, k);
+            let depth_of = |t| camera.depth(t, p.cos);
+            let alone =
+                trace_path(&scene, p.ray, depth_of, camera.background_depth(), &mut p.rng, &integrator, &mut PathCounters::default());
+            // Debug prints each float's shortest exact form: equal text, equal bits.
+            assert_eq!(format!("{in_wave:?}"), format!("{alone:?}"), "{fixture}: sample {k} of pixel ({x}, {y})");
+        }
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn usda_usdc_and_usdz_render_identically() {
     let opts = small(32, 32, 4);

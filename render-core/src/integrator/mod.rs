@@ -22,6 +22,7 @@ mod volume;
 pub use settings::{IntegratorSettings, LightStrategy};
 
 use crate::bsdf::Bsdf;
+use crate::bvh::Hit;
 use crate::caustics::{self, CausticMode};
 use crate::film::PixelSample;
 use crate::geometry::Ray;
@@ -75,6 +76,14 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     }
 }
 
+/// The BSDF and textured material at a path's current vertex: filled anew at every vertex
+/// (see `Bsdf::clone_from`), the buffers kept from vertex to vertex to spare their copies.
+#[derive(Default)]
+struct VertexBuffers {
+    bsdf: Bsdf,
+    local: shading::LocalMaterial,
+}
+
 /// Features whose machinery only the general path loop holds.
 const FULL_LOOP_FEATURES: [Feature; 6] =
     [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair, Feature::Volumes];
@@ -104,8 +113,61 @@ pub fn trace_path(
     }
 }
 
+/// A camera sample of a wave.
+pub struct CameraPath {
+    /// Its camera ray.
+    pub ray: Ray,
+    /// The cosine its depth AOV is measured with ([`crate::camera::Camera::depth`]).
+    pub cos: f32,
+    /// Its random numbers, the camera's set drawn.
+    pub rng: PathSampler,
+}
+
+/// Radiance and first-hit AOVs of each of `paths`, traced together: every live path's ray is
+/// intersected, then every path takes its step, until none is left. Each path does exactly
+/// what [`trace_path`] does with it, so the samples are the same to the bit.
+pub fn trace_wave(
+    scene: &CommittedScene,
+    paths: &mut [CameraPath],
+    depth_of: impl Fn(f32, f32) -> f32,
+    background_depth: f32,
+    settings: &IntegratorSettings,
+    counters: &mut PathCounters,
+) -> Vec<PixelSample> {
+    match needs_full_loop(scene.plan.features, settings) {
+        true => Tracer::<true> { scene, settings }.trace_wave(paths, depth_of, background_depth, counters),
+        false => Tracer::<false> { scene, settings }.trace_wave(paths, depth_of, background_depth, counters),
+    }
+}
+
 impl<const FULL: bool> Tracer<'_, FULL> {
-    /// The path loop.
+    /// [`trace_wave`]'s loop.
+    fn trace_wave(
+        &self,
+        paths: &mut [CameraPath],
+        depth_of: impl Fn(f32, f32) -> f32,
+        background_depth: f32,
+        counters: &mut PathCounters,
+    ) -> Vec<PixelSample> {
+        let new = |p: &CameraPath| (PathState::new(p.ray, self.settings), PixelSample { depth: background_depth, ..Default::default() });
+        let mut states: Vec<(PathState, PixelSample)> = paths.iter().map(new).collect();
+        let mut hits: Vec<Option<Hit>> = vec![None; paths.len()];
+        let mut live: Vec<usize> = (0..paths.len()).collect();
+        let mut at = VertexBuffers::default();
+        while !live.is_empty() {
+            for &i in &live {
+                counters.rays += 1;
+                hits[i] = self.scene.intersect(&states[i].0.ray);
+            }
+            live.retain(|&i| {
+                let ((path, out), cos) = (&mut states[i], paths[i].cos);
+                self.step(path, out, hits[i], |t| depth_of(t, cos), &mut at, &mut paths[i].rng, counters)
+            });
+        }
+        states.into_iter().map(|(path, out)| finish(out, path.light, counters)).collect()
+    }
+
+    /// The path loop: each ray traced, then the path's [`Tracer::step`] at what it found.
     fn trace(
         &self,
         camera_ray: Ray,
@@ -114,66 +176,80 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         rng: &mut PathSampler,
         counters: &mut PathCounters,
     ) -> PixelSample {
-        let (scene, settings, tracer) = (self.scene, self.settings, self);
         let mut out = PixelSample { depth: background_depth, ..Default::default() };
-        let mut path = PathState::new(camera_ray, settings);
+        let mut path = PathState::new(camera_ray, self.settings);
         // The BSDF and textured material at the current vertex; one buffer each for the whole
         // path (see `Bsdf::clone_from`).
-        let (mut bsdf, mut local) = (Bsdf::default(), None);
+        let mut at = VertexBuffers::default();
         loop {
             counters.rays += 1;
-            let hit = scene.intersect(&path.ray);
-            if let Some(m) = path.walk.medium.filter(|_| FULL) {
-                // Inside a subsurface medium: scatter before the boundary, or reach it.
-                match tracer.walk_step(&mut path, m, hit.map_or(f32::INFINITY, |h| h.t), rng, counters) {
-                    WalkStep::Scattered => continue,
-                    WalkStep::Ended => break,
-                    WalkStep::Boundary => {}
-                }
-            }
-            let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
-            if FULL && !scene.volumes.is_empty() {
-                let from_camera = path.depth == 0;
-                match tracer.volume_step(&mut path, t_hit, rng, counters) {
-                    VolumeStep::Passed => {}
-                    step => {
-                        // Coverage: the share of camera rays a volume stops is its opacity.
-                        if from_camera {
-                            out.alpha = 1.0;
-                        }
-                        if step == VolumeStep::Scattered {
-                            continue;
-                        }
-                        break;
-                    }
-                }
-            }
-            let share = std::mem::replace(&mut path.exit_share, 1.0);
-            tracer.add_crossed_lights(&mut path, t_hit, share);
-            let Some(hit) = hit else {
-                tracer.add_escaped(&mut path, share);
-                break;
-            };
-            let v = match tracer.land(&mut path, &hit, &mut bsdf, &mut local) {
-                Landing::Surface(v) => v,
-                Landing::PassedThrough => {
-                    path.exit_share = share;
-                    continue;
-                }
-                Landing::Stopped => break,
-            };
-            tracer.add_surface_emission(&mut path, &v, &hit, share);
-            if path.depth == 0 {
-                record_first_hit(&mut out, scene, &v, &bsdf, depth_of(hit.t));
-            }
-            if path.depth >= settings.max_depth || bsdf.is_empty() {
-                break;
-            }
-            if !tracer.bounce(&mut path, &v, &mut bsdf, rng, counters) {
+            let hit = self.scene.intersect(&path.ray);
+            if !self.step(&mut path, &mut out, hit, &depth_of, &mut at, rng, counters) {
                 break;
             }
         }
         finish(out, path.light, counters)
+    }
+
+    /// What the path does where its ray found `hit` (or nothing): media and volumes crossed,
+    /// light found, the surface landed on, and the next ray; false when the path ends.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn step(
+        &self,
+        path: &mut PathState,
+        out: &mut PixelSample,
+        hit: Option<Hit>,
+        depth_of: impl Fn(f32) -> f32,
+        at: &mut VertexBuffers,
+        rng: &mut PathSampler,
+        counters: &mut PathCounters,
+    ) -> bool {
+        let (scene, settings, tracer) = (self.scene, self.settings, self);
+        if let Some(m) = path.walk.medium.filter(|_| FULL) {
+            // Inside a subsurface medium: scatter before the boundary, or reach it.
+            match tracer.walk_step(path, m, hit.map_or(f32::INFINITY, |h| h.t), rng, counters) {
+                WalkStep::Scattered => return true,
+                WalkStep::Ended => return false,
+                WalkStep::Boundary => {}
+            }
+        }
+        let t_hit = hit.map_or(path.ray.tmax, |h| h.t);
+        if FULL && !scene.volumes.is_empty() {
+            let from_camera = path.depth == 0;
+            match tracer.volume_step(path, t_hit, rng, counters) {
+                VolumeStep::Passed => {}
+                step => {
+                    // Coverage: the share of camera rays a volume stops is its opacity.
+                    if from_camera {
+                        out.alpha = 1.0;
+                    }
+                    return step == VolumeStep::Scattered;
+                }
+            }
+        }
+        let share = std::mem::replace(&mut path.exit_share, 1.0);
+        tracer.add_crossed_lights(path, t_hit, share);
+        let Some(hit) = hit else {
+            tracer.add_escaped(path, share);
+            return false;
+        };
+        let v = match tracer.land(path, &hit, &mut at.bsdf, &mut at.local) {
+            Landing::Surface(v) => v,
+            Landing::PassedThrough => {
+                path.exit_share = share;
+                return true;
+            }
+            Landing::Stopped => return false,
+        };
+        tracer.add_surface_emission(path, &v, &hit, share);
+        if path.depth == 0 {
+            record_first_hit(out, scene, &v, &at.bsdf, depth_of(hit.t));
+        }
+        if path.depth >= settings.max_depth || at.bsdf.is_empty() {
+            return false;
+        }
+        tracer.bounce(path, &v, &mut at.bsdf, rng, counters)
     }
 
     /// Direct light at `v`, then the next direction; false when the path ends there.
