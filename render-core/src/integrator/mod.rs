@@ -5,7 +5,9 @@
 //! only. Mitsuba's `max_depth` counts path vertices including the emitter, so its
 //! `max_depth = 8` equals our 7.
 
-//! The path loop ([`trace_path`]) calls parts with one job each, over a [`path::PathState`]:
+//! Renders trace camera samples in waves ([`trace_wave`]: every live path's ray intersected,
+//! then every path's step), [`trace_path`] one path at a time; both run the same step
+//! (`Tracer::step`), which calls parts with one job each, over a [`path::PathState`]:
 //! shading-point setup ([`shading`]), emission found by the path ([`emission`]), next-event
 //! estimation ([`direct`]), subsurface random walks ([`medium`]) and the next direction
 //! ([`scatter`]); the light-path AOVs are recorded as light is added ([`path::LightPaths`]).
@@ -178,8 +180,6 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     ) -> PixelSample {
         let mut out = PixelSample { depth: background_depth, ..Default::default() };
         let mut path = PathState::new(camera_ray, self.settings);
-        // The BSDF and textured material at the current vertex; one buffer each for the whole
-        // path (see `Bsdf::clone_from`).
         let mut at = VertexBuffers::default();
         loop {
             counters.rays += 1;
