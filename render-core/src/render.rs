@@ -435,7 +435,11 @@ fn render_tile(
     let integrator = integrator_for(camera, settings);
     let mut wave = Vec::with_capacity(WAVE);
     let mut wave_pixels = Vec::with_capacity(WAVE);
-    let trace = |wave: &mut Vec<CameraPath>, pixels: &mut Vec<usize>, pass: &mut TileFilm, counters: &mut PathCounters| {
+    // Polls for a stop, then traces the wave into the pass.
+    let flush = |wave: &mut Vec<CameraPath>, pixels: &mut Vec<usize>, pass: &mut TileFilm, counters: &mut PathCounters| {
+        if let Some(reason) = sink.should_stop() {
+            return Some(reason);
+        }
         let depth_of = |t, cos| camera.depth(t, cos);
         let traced = trace_wave(scene, wave, depth_of, camera.background_depth(), &integrator, counters);
         // Added in the order the samples were drawn: a pixel's sum is the same to the bit.
@@ -443,6 +447,7 @@ fn render_tile(
             pass.add(i, sample);
         }
         wave.clear();
+        None
     };
     for py in 0..r.height {
         for px in 0..r.width {
@@ -454,20 +459,18 @@ fn render_tile(
             for k in samples.clone() {
                 wave.push(camera_path(scene, camera, settings, x, y, k));
                 wave_pixels.push(i);
-                if wave.len() == WAVE {
-                    if let Some(reason) = sink.should_stop() {
-                        return Some(reason);
-                    }
-                    trace(&mut wave, &mut wave_pixels, pass, counters);
+                if wave.len() == WAVE
+                    && let Some(reason) = flush(&mut wave, &mut wave_pixels, pass, counters)
+                {
+                    return Some(reason);
                 }
             }
         }
     }
-    if !wave.is_empty() {
-        if let Some(reason) = sink.should_stop() {
-            return Some(reason);
-        }
-        trace(&mut wave, &mut wave_pixels, pass, counters);
+    if !wave.is_empty()
+        && let Some(reason) = flush(&mut wave, &mut wave_pixels, pass, counters)
+    {
+        return Some(reason);
     }
     pass.samples = samples.end;
     tile.absorb(pass);

@@ -51,6 +51,12 @@ struct SparseGrid<T> {
 }
 
 impl<T: GridValue> SparseGrid<T> {
+    /// Lists it in `source` as the grid of `field`, for `tessera inspect`.
+    fn record_in(&self, source: &mut VolumeSource, field: &str) {
+        source.fields.push((field.to_string(), self.file.clone(), self.name.clone()));
+        source.active_voxels.push(self.active_voxels());
+    }
+
     /// Its active voxels, a tile counting each voxel it covers.
     fn active_voxels(&self) -> u64 {
         self.voxels.iter().map(|&(_, _, size)| (size as u64).pow(3)).sum()
@@ -148,12 +154,10 @@ impl Reader<'_> {
         let (world, motion) = (self.affine(prim, p)?, self.motion(prim, p)?);
         let mut source = VolumeSource { path: p.to_string(), world, motion, fields: Vec::new(), active_voxels: Vec::new() };
         for (field, g) in &grids {
-            source.fields.push((field.clone(), g.file.clone(), g.name.clone()));
-            source.active_voxels.push(g.active_voxels());
+            g.record_in(&mut source, field);
         }
         if let Some((field, g)) = &colour {
-            source.fields.push((field.clone(), g.file.clone(), g.name.clone()));
-            source.active_voxels.push(g.active_voxels());
+            g.record_in(&mut source, field);
         }
         let Some(density) = grids.remove("density") else {
             self.out.warnings.push(format!("{p}: no field:density relationship; the volume is not rendered"));
