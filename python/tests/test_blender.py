@@ -1,7 +1,7 @@
 """The Blender add-on, headless, against Cycles: PyPI's `bpy` in a virtual environment this
-test creates (target/bpy-venv, with the tessera package installed), the add-on enabled, three
-scenes built in bpy and rendered by both engines (same resolution and samples, denoising off,
-view transform Standard, linear EXR), compared region by region."""
+test creates (target/bpy-venv, with the tessera package this checkout installed linked into it),
+the add-on enabled, three scenes built in bpy and rendered by both engines (same resolution and
+samples, denoising off, view transform Standard, linear EXR), compared region by region."""
 
 import json
 import subprocess
@@ -48,9 +48,29 @@ def venv_python() -> Path:
     if not python.exists():
         subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
         subprocess.run([str(python), "-m", "pip", "install", "-q", spec], check=True)
-    # The add-on imports the package built from this checkout.
-    subprocess.run([str(python), "-m", "pip", "install", "-q", str(ROOT / "python")], check=True)
+    link_package(python)
     return python
+
+
+def link_package(python: Path) -> None:
+    """The add-on imports the package the README's command built from this checkout and
+    installed for this interpreter: linked into the environment, not built a second time
+    (the venv runs the same Python, so the same extension module loads)."""
+    import tessera
+
+    built = Path(tessera.__file__).parent
+    assert any(built.glob("_native*")), f"{built} holds no built extension"
+    purelib = subprocess.run(
+        [str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], check=True, capture_output=True, text=True
+    ).stdout.strip()
+    link = Path(purelib) / "tessera"
+    if link.is_symlink() or link.exists():
+        if link.is_symlink() and link.resolve() == built.resolve():
+            return
+        subprocess.run([str(python), "-m", "pip", "uninstall", "-q", "-y", "tessera"], check=False)
+        if link.is_symlink():
+            link.unlink()
+    link.symlink_to(built, target_is_directory=True)
 
 
 @pytest.fixture(scope="module")
