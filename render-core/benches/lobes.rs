@@ -1,6 +1,7 @@
 //! Nanoseconds per `eval` and per `sample` for each lobe and for the principled BSDF, with
 //! energy compensation on and off, on a fixed set of directions (the tables are built before
-//! timing). Run: `cargo bench -p render-core --bench lobes`.
+//! timing), and per path vertex (eval, pdf and a sample at one view, with the view's table
+//! lookups repeated or prepared once). Run: `cargo bench -p render-core --bench lobes`.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -33,10 +34,33 @@ fn time(f: impl Fn() -> f32) -> f64 {
     best * 1e9 / N as f64
 }
 
+/// What a path vertex asks of its BSDF at one view: next-event estimation's eval and pdf,
+/// then a sample (whose weight evaluates again).
+fn vertex_work(f: impl Fn(Vec3, Vec3) -> f32, sample: impl Fn(Vec3, f32, Vec2) -> f32, (wo, wi, uc, u): &(Vec3, Vec3, f32, Vec2)) -> f32 {
+    f(*wo, *wi) + sample(*wo, *uc, *u)
+}
+
 fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
     let eval = time(|| data.iter().map(|(wo, wi, _, _)| lobe.eval(*wo, *wi).x + lobe.pdf(*wo, *wi)).sum());
     let sample = time(|| data.iter().filter_map(|(wo, _, uc, u)| lobe.sample(*wo, *uc, *u)).map(|s| s.weight.x).sum());
-    println!("{name:<44} {eval:>10.1} {sample:>10.1}");
+    // One vertex with the view's table lookups repeated (as before `Lobe::prepare`), and with
+    // them made once by `prepare`: the same values, the second cheaper.
+    let vertex = |prepared: bool| {
+        time(|| {
+            data.iter()
+                .map(|d| {
+                    let mut l = *lobe;
+                    if prepared {
+                        l.prepare(d.0);
+                    }
+                    let f = |wo, wi| l.eval(wo, wi).x + l.pdf(wo, wi);
+                    vertex_work(f, |wo, uc, u| l.sample(wo, uc, u).map_or(0.0, |s| s.weight.x), d)
+                })
+                .sum()
+        })
+    };
+    let (repeated, prepared) = (vertex(false), vertex(true));
+    println!("{name:<44} {eval:>10.1} {sample:>10.1} {repeated:>10.1} {prepared:>10.1}");
 }
 
 fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
@@ -51,7 +75,17 @@ fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
             .map(|s| s.weight.x)
             .sum()
     });
-    println!("{name:<44} {eval:>10.1} {sample:>10.1}");
+    let vertex = time(|| {
+        data.iter()
+            .map(|d| {
+                let mut b = bsdf.clone();
+                b.prepare(d.0);
+                let f = |wo, wi| b.eval(wo, wi).x + b.pdf(wo, wi);
+                vertex_work(f, |wo, uc, u| b.sample(wo, uc, u).map_or(0.0, |s| s.weight.x), d)
+            })
+            .sum()
+    });
+    println!("{name:<44} {eval:>10.1} {sample:>10.1} {:>10} {vertex:>10.1}", "");
 }
 
 fn main() {
@@ -77,7 +111,8 @@ fn main() {
     build("Disney diffuse energy scales 16x16", &|| {
         render_core::bsdf::disney::diffuse_energy_scales(0.5, 0.0);
     });
-    println!("{:<44} {:>10} {:>10}", "lobe (1 thread)", "eval+pdf ns", "sample ns");
+    // vertex: eval + pdf + sample at one view, its lookups repeated or prepared once.
+    println!("{:<44} {:>10} {:>10} {:>10} {:>10}", "lobe (1 thread)", "eval+pdf ns", "sample ns", "vertex ns", "prepared");
     lobe_row("lambert", &Lobe::Lambert(Lambert { r: Vec3::splat(0.5) }), &data);
     for comp in [false, true] {
         let gold = SpecularFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };
@@ -99,7 +134,7 @@ fn main() {
         let coupling = comp.then_some((1.5, 0.5));
         lobe_row(
             &format!("disney diffuse r=0.5, coupling {comp}"),
-            &Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::splat(0.5), roughness: 0.5, flatness: 0.0, coupling, lambert: false }),
+            &Lobe::DisneyDiffuse(DisneyDiffuse::new(Vec3::splat(0.5), 0.5, 0.0, coupling, false)),
             &data,
         );
     }

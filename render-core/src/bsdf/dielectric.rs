@@ -18,6 +18,7 @@ use glam::{DVec3, Vec2, Vec3};
 use super::energy;
 use super::fresnel;
 use super::microfacet::{Ggx, reflect};
+use super::view_cache::ViewCache;
 use super::{LobeFlags, LobeSample};
 use crate::sampling::cosine_hemisphere;
 use std::f32::consts::PI;
@@ -40,6 +41,8 @@ pub struct Dielectric {
     pub roughness: f32,
     /// The multiple-scattering compensation lobes' constants, when compensating.
     pub compensation: Option<GlassCompensation>,
+    /// E(μo) on wo's side at the shading point's view ([`Dielectric::prepare`]).
+    e_wo: ViewCache<f32>,
 }
 
 /// What the compensation lobes need besides E(μ), integrated once when the lobe is built:
@@ -91,7 +94,23 @@ impl Dielectric {
             transmittance: transmittance.clamp(Vec3::ZERO, Vec3::ONE),
             roughness: ggx.ax.sqrt().min(1.0),
             compensation: None,
+            e_wo: ViewCache::default(),
         }
+    }
+
+    /// Looks E(μo) up once for the evaluations and samples at this shading point.
+    #[inline]
+    pub fn prepare(&mut self, wo: Vec3) {
+        if self.compensation.is_some() && wo.z != 0.0 {
+            self.e_wo.store(wo, self.e_outside(wo));
+        }
+    }
+
+    /// E(μo) from the glass table, on wo's side.
+    #[inline]
+    fn e_outside(&self, wo: Vec3) -> f32 {
+        let eta_o = if wo.z > 0.0 { self.eta } else { 1.0 / self.eta };
+        energy::glass().e(eta_o, self.roughness, wo.z.abs())
     }
 
     /// The same lobe with energy compensation switched on or off. Anisotropic glass stays
@@ -159,7 +178,7 @@ impl Dielectric {
             return None;
         }
         let (side, eta_o) = if wo.z > 0.0 { (0, self.eta) } else { (1, 1.0 / self.eta) };
-        let e_o = energy::glass().e(eta_o, self.roughness, wo.z.abs());
+        let e_o = self.e_wo.get(wo, || self.e_outside(wo));
         (e_o < 1.0).then_some((e_o, c.ratio[side], eta_o))
     }
 

@@ -8,6 +8,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
 use super::microfacet::{Ggx, gtr1_d, reflect};
+use super::view_cache::ViewCache;
 use super::{LobeFlags, LobeSample};
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 
@@ -64,11 +65,44 @@ pub struct DisneyDiffuse {
     /// A plain Lambertian base (UsdPreviewSurface's diffuse): no Fresnel shadow, no
     /// retro-reflection, still coupled.
     pub lambert: bool,
+    /// The table lookups at the shading point's view ([`DisneyDiffuse::prepare`]).
+    at_view: ViewCache<DiffuseTerms>,
+}
+
+/// What Disney diffuse reads from tables at one view: its energy scales (s, k), and the
+/// coupled specular's (E_avg, E(μo)) when coupled.
+#[derive(Clone, Copy, Debug, Default)]
+struct DiffuseTerms {
+    scales: (f32, f32),
+    coupling: (f32, f32),
 }
 
 impl DisneyDiffuse {
     /// Reflection, not delta.
     pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
+
+    /// A lobe of base `color`.
+    pub fn new(color: Vec3, roughness: f32, flatness: f32, coupling: Option<(f32, f32)>, lambert: bool) -> Self {
+        DisneyDiffuse { color, roughness, flatness, coupling, lambert, at_view: ViewCache::default() }
+    }
+
+    /// Looks the tables up once for the evaluations at this shading point.
+    #[inline]
+    pub fn prepare(&mut self, wo: Vec3) {
+        if !self.lambert || self.coupling.is_some() {
+            self.at_view.store(wo, self.find_terms(wo));
+        }
+    }
+
+    /// [`DiffuseTerms`] at `wo` from the tables.
+    fn find_terms(&self, wo: Vec3) -> DiffuseTerms {
+        let scales = if self.lambert { (1.0, 1.0) } else { diffuse_energy_scales(self.roughness, self.flatness) };
+        let coupling = self.coupling.map_or((0.0, 0.0), |(eta, r)| {
+            let t = super::energy::dielectric_specular();
+            (t.e_avg(eta, r), t.e(eta, r, wo.z.abs()))
+        });
+        DiffuseTerms { scales, coupling }
+    }
 
     /// f without the cosine.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
@@ -76,12 +110,14 @@ impl DisneyDiffuse {
             return Vec3::ZERO;
         }
         let (base, retro) = if self.lambert { (FRAC_1_PI, 0.0) } else { Self::parts(self.roughness, self.flatness, wo, wi) };
-        let (s, k) = if self.lambert { (1.0, 1.0) } else { diffuse_energy_scales(self.roughness, self.flatness) };
+        let terms =
+            if self.lambert && self.coupling.is_none() { DiffuseTerms::default() } else { self.at_view.get(wo, || self.find_terms(wo)) };
+        let (s, k) = if self.lambert { (1.0, 1.0) } else { terms.scales };
         let couple = match self.coupling {
             Some((eta, r)) => {
+                let (avg, e_o) = terms.coupling;
                 let t = super::energy::dielectric_specular();
-                let avg = t.e_avg(eta, r);
-                if avg < 1.0 { (1.0 - t.e(eta, r, wo.z.abs())) * (1.0 - t.e(eta, r, wi.z.abs())) / (1.0 - avg) } else { 0.0 }
+                if avg < 1.0 { (1.0 - e_o) * (1.0 - t.e(eta, r, wi.z.abs())) / (1.0 - avg) } else { 0.0 }
             }
             None => 1.0,
         };
@@ -120,7 +156,7 @@ impl DisneyDiffuse {
     /// The base colour, less what a coupled specular takes.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
         match self.coupling {
-            Some((eta, r)) => self.color * (1.0 - super::energy::dielectric_specular().e(eta, r, wo.z.abs())),
+            Some(_) => self.color * (1.0 - self.at_view.get(wo, || self.find_terms(wo)).coupling.1),
             None => self.color,
         }
     }
@@ -353,7 +389,7 @@ mod tests {
         let mut v = Vec::new();
         for r in [0.0, 0.5, 1.0] {
             for flatness in [0.0, 0.5, 1.0] {
-                v.push(Lobe::DisneyDiffuse(DisneyDiffuse { color: Vec3::ONE, roughness: r, flatness, coupling: None, lambert: false }));
+                v.push(Lobe::DisneyDiffuse(DisneyDiffuse::new(Vec3::ONE, r, flatness, None, false)));
             }
         }
         v.push(Lobe::DiffuseTransmission(DiffuseTransmission { color: Vec3::ONE, coupling: None }));

@@ -13,6 +13,7 @@ use std::f32::consts::FRAC_1_PI;
 use super::energy;
 use super::fresnel;
 use super::microfacet::{Ggx, reflect};
+use super::view_cache::ViewCache;
 use super::{LobeFlags, LobeSample};
 use crate::math::luminance;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -115,6 +116,16 @@ pub struct GgxReflection {
     pub fresnel: SpecularFresnel,
     /// Add the multiple-scattering compensation lobe.
     pub compensate: bool,
+    /// The compensation's terms at the shading point's view ([`GgxReflection::prepare`]).
+    at_view: ViewCache<Option<MsTerms>>,
+}
+
+/// What the compensation lobe needs at one view: E_avg and F_ms of the lobe, and E(μo).
+#[derive(Clone, Copy, Debug)]
+struct MsTerms {
+    e_avg: f32,
+    fms: Vec3,
+    e_wo: f32,
 }
 
 impl GgxReflection {
@@ -123,7 +134,15 @@ impl GgxReflection {
         let roughness = if roughness.is_finite() { roughness.clamp(0.0, 1.0) } else { 1.0 };
         let ggx = Ggx::from_roughness(roughness, anisotropic);
         let anisotropy = (ggx.ax != ggx.ay).then(|| energy::AnisoCoords::of(ggx));
-        GgxReflection { ggx, roughness: ggx.ax.sqrt().min(1.0), anisotropy, fresnel, compensate }
+        GgxReflection { ggx, roughness: ggx.ax.sqrt().min(1.0), anisotropy, fresnel, compensate, at_view: ViewCache::default() }
+    }
+
+    /// Looks the compensation's terms up once for the evaluations and samples at this view.
+    #[inline]
+    pub fn prepare(&mut self, wo: Vec3) {
+        if self.compensate && wo.z > 0.0 {
+            self.at_view.store(wo, self.find_ms_terms(wo));
+        }
     }
 
     /// Single-scattering albedo E(w) with F = 1, from the table that fits the lobe.
@@ -144,9 +163,18 @@ impl GgxReflection {
         LobeFlags { reflection: true, transmission: false, delta: self.smooth() }
     }
 
-    /// (E(μo), E_avg, F_ms) when compensating; None otherwise.
-    #[inline]
-    fn ms_terms(&self) -> Option<(f32, Vec3)> {
+    /// The compensation's terms at `wo` when compensating, from [`GgxReflection::prepare`]
+    /// when `wo` is the view it was made for; None otherwise.
+    #[inline(always)]
+    fn ms_terms(&self, wo: Vec3) -> Option<MsTerms> {
+        if !self.compensate {
+            return None;
+        }
+        self.at_view.get(wo, || self.find_ms_terms(wo))
+    }
+
+    /// [`GgxReflection::ms_terms`] from the tables.
+    fn find_ms_terms(&self, wo: Vec3) -> Option<MsTerms> {
         if !self.compensate || self.smooth() {
             return None;
         }
@@ -157,13 +185,13 @@ impl GgxReflection {
         if e_avg >= 1.0 {
             return None;
         }
-        Some((e_avg, energy::multiple_scattering_fresnel(self.fresnel.average(), e_avg)))
+        Some(MsTerms { e_avg, fms: energy::multiple_scattering_fresnel(self.fresnel.average(), e_avg), e_wo: self.e(wo) })
     }
 
     #[inline]
     fn f_ms(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        match self.ms_terms() {
-            Some((e_avg, fms)) => fms * ((1.0 - self.e(wo)) * (1.0 - self.e(wi)) * FRAC_1_PI / (1.0 - e_avg)),
+        match self.ms_terms(wo) {
+            Some(MsTerms { e_avg, fms, e_wo }) => fms * ((1.0 - e_wo) * (1.0 - self.e(wi)) * FRAC_1_PI / (1.0 - e_avg)),
             None => Vec3::ZERO,
         }
     }
@@ -171,9 +199,8 @@ impl GgxReflection {
     /// Probability of sampling the compensation lobe at `wo`.
     #[inline]
     fn p_ms(&self, wo: Vec3) -> f32 {
-        match self.ms_terms() {
-            Some((_, fms)) => {
-                let e = self.e(wo);
+        match self.ms_terms(wo) {
+            Some(MsTerms { fms, e_wo: e, .. }) => {
                 let w_ms = (1.0 - e) * luminance(fms);
                 let w_spec = e * luminance(self.fresnel.average()).max(1e-4);
                 if w_ms + w_spec > 0.0 { w_ms / (w_ms + w_spec) } else { 0.0 }
@@ -244,10 +271,9 @@ impl GgxReflection {
         if self.smooth() {
             return f;
         }
-        let e = self.e(wo);
-        match self.ms_terms() {
-            Some((_, fms)) => f * e + fms * (1.0 - e),
-            None => f * e,
+        match self.ms_terms(wo) {
+            Some(MsTerms { fms, e_wo: e, .. }) => f * e + fms * (1.0 - e),
+            None => f * self.e(wo),
         }
     }
 }

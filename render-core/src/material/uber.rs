@@ -580,13 +580,7 @@ impl Uber {
             let dt = finite(p.diffuse_transmission);
             let scale = if compensate { p.diffuse_scale } else { 1.0 };
             bsdf.push_weighted(
-                Lobe::DisneyDiffuse(DisneyDiffuse {
-                    color: p.diffuse,
-                    roughness: p.diffuse_roughness,
-                    flatness: p.flatness,
-                    coupling,
-                    lambert: p.lambert,
-                }),
+                Lobe::DisneyDiffuse(DisneyDiffuse::new(p.diffuse, p.diffuse_roughness, p.flatness, coupling, p.lambert)),
                 plastic_w * (1.0 - dt) * scale,
             );
             bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
