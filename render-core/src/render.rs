@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use crate::camera::Camera;
 use crate::film::{Aov, Rect, TileFilm, tiles_centre_out};
-use crate::integrator::{CameraPath, IntegratorSettings, PathCounters, trace_path, trace_wave};
+use crate::integrator::{CameraPath, IntegratorSettings, PathCounters, WaveBuffers, trace_path, trace_wave};
 use crate::sampling::{PathSampler, SamplerKind};
 use crate::scene::CommittedScene;
 
@@ -435,15 +435,16 @@ fn render_tile(
     let integrator = integrator_for(camera, settings);
     let mut wave = Vec::with_capacity(WAVE);
     let mut wave_pixels = Vec::with_capacity(WAVE);
+    let mut buffers = WaveBuffers::default();
     // Polls for a stop, then traces the wave into the pass.
-    let flush = |wave: &mut Vec<CameraPath>, pixels: &mut Vec<usize>, pass: &mut TileFilm, counters: &mut PathCounters| {
+    let mut flush = |wave: &mut Vec<CameraPath>, pixels: &mut Vec<usize>, pass: &mut TileFilm, counters: &mut PathCounters| {
         if let Some(reason) = sink.should_stop() {
             return Some(reason);
         }
         let depth_of = |t, cos| camera.depth(t, cos);
-        let traced = trace_wave(scene, wave, depth_of, camera.background_depth(), &integrator, counters);
+        let traced = trace_wave(scene, wave, depth_of, camera.background_depth(), &integrator, counters, &mut buffers);
         // Added in the order the samples were drawn: a pixel's sum is the same to the bit.
-        for (i, sample) in pixels.drain(..).zip(&traced) {
+        for (i, sample) in pixels.drain(..).zip(traced) {
             pass.add(i, sample);
         }
         wave.clear();

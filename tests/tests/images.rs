@@ -27,10 +27,10 @@ async fn renders_are_bit_identical_across_runs_and_thread_counts() {
 /// Renders trace camera samples in waves (`trace_wave`: every live path's ray intersected,
 /// then every path's step); each sample must come out as it does traced alone (`trace_path`),
 /// to the bit, through the specialised loop (Cornell box) and the general one (a volume,
-/// subsurface scattering, hair), paths of every length in one wave.
+/// subsurface scattering, hair), paths of every length in one wave, waves sharing buffers.
 #[test]
 fn a_wave_traces_each_path_as_it_is_traced_alone() {
-    use render_core::integrator::{IntegratorSettings, PathCounters, trace_path, trace_wave};
+    use render_core::integrator::{IntegratorSettings, PathCounters, WaveBuffers, trace_path, trace_wave};
     use render_core::render::{RenderSettings, camera_path};
     for fixture in ["cornell_box.usda", "usd/volume.usda", "materials/subsurface_lit.usda", "usd/hair.usda"] {
         let scene = render_core::scene::commit(&load(fixture).to_scene_desc(), &mut Default::default()).expect("commits");
@@ -39,9 +39,21 @@ fn a_wave_traces_each_path_as_it_is_traced_alone() {
         let settings = RenderSettings { width: 24, height: 16, ..Default::default() };
         let integrator = IntegratorSettings { max_depth: 12, ..Default::default() };
         let samples: Vec<(u32, u32, u32)> = (0..24 * 16 * 3).map(|n| (n % 24, n / 24 % 16, n / 384)).collect();
-        let mut wave: Vec<_> = samples.iter().map(|&(x, y, k)| camera_path(&scene, &camera, &settings, x, y, k)).collect();
-        let mut counters = PathCounters::default();
-        let waved = trace_wave(&scene, &mut wave, |t, cos| camera.depth(t, cos), camera.background_depth(), &integrator, &mut counters);
+        // Two waves through the same buffers: nothing of the first may leak into the second.
+        let (mut counters, mut buffers, mut waved) = (PathCounters::default(), WaveBuffers::default(), Vec::new());
+        for half in samples.chunks(samples.len() / 2) {
+            let mut wave: Vec<_> = half.iter().map(|&(x, y, k)| camera_path(&scene, &camera, &settings, x, y, k)).collect();
+            let depth_of = |t, cos| camera.depth(t, cos);
+            waved.extend_from_slice(trace_wave(
+                &scene,
+                &mut wave,
+                depth_of,
+                camera.background_depth(),
+                &integrator,
+                &mut counters,
+                &mut buffers,
+            ));
+        }
         for (&(x, y, k), in_wave) in samples.iter().zip(&waved) {
             let mut p = camera_path(&scene, &camera, &settings, x, y, k);
             let depth_of = |t| camera.depth(t, p.cos);
