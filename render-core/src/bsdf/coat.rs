@@ -86,8 +86,9 @@ impl Coat {
     /// The scale of the lobes beneath for light entering at `wi` and leaving at `wo`:
     /// min(1 − E(μo), 1 − E(μi)) times the coat's absorption both ways. Symmetric in its
     /// arguments, so layering keeps the BSDF reciprocal.
-    pub(super) fn over(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let t = self.through(wo.z).min(self.through(wi.z));
+    /// `through_wo` is [`Coat::through`] at `wo`, which `Bsdf::prepare` looks up once per view.
+    pub(super) fn over(&self, through_wo: f32, wo: Vec3, wi: Vec3) -> Vec3 {
+        let t = through_wo.min(self.through(wi.z));
         match self {
             Coat::Dielectric(d) if d.absorption != Vec3::ZERO => {
                 let tint = d.transmittance(wo.z.abs()) * d.transmittance(wi.z.abs());
