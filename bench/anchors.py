@@ -86,6 +86,10 @@ def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir, sampler
                 "type": "rectangle",
                 "to_world": mi.ScalarTransform4f(np.array(world).T.tolist()),
                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}},
+                # A UsdLux light emits but neither reflects nor blocks (Tessera, Arnold, Karma):
+                # without `null` Mitsuba's rectangle is an opaque diffuse panel hiding the
+                # ceiling, 0.7-1.2% darker (docs/benchmarks.md, 2026-12-03).
+                "bsdf": {"type": "null"},
             }
         elif prim.IsA(UsdGeom.Camera):
             scene["sensor"] = sensor(prim, cache, width, height, spp, sampler)
