@@ -77,6 +77,11 @@ struct DiffuseTerms {
     coupling: (f32, f32),
 }
 
+impl DiffuseTerms {
+    /// An uncoupled Lambertian base's: unscaled, nothing to couple to.
+    const LAMBERT: DiffuseTerms = DiffuseTerms { scales: (1.0, 1.0), coupling: (0.0, 0.0) };
+}
+
 impl DisneyDiffuse {
     /// Reflection, not delta.
     pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
@@ -89,9 +94,15 @@ impl DisneyDiffuse {
     /// Looks the tables up once for the evaluations at this shading point.
     #[inline]
     pub fn prepare(&mut self, wo: Vec3) {
-        if !self.lambert || self.coupling.is_some() {
+        if self.reads_tables() {
             self.at_view.store(wo, self.find_terms(wo));
         }
+    }
+
+    /// False for an uncoupled Lambertian base, whose terms are constants.
+    #[inline]
+    fn reads_tables(&self) -> bool {
+        !self.lambert || self.coupling.is_some()
     }
 
     /// [`DiffuseTerms`] at `wo` from the tables.
@@ -110,9 +121,8 @@ impl DisneyDiffuse {
             return Vec3::ZERO;
         }
         let (base, retro) = if self.lambert { (FRAC_1_PI, 0.0) } else { Self::parts(self.roughness, self.flatness, wo, wi) };
-        let terms =
-            if self.lambert && self.coupling.is_none() { DiffuseTerms::default() } else { self.at_view.get(wo, || self.find_terms(wo)) };
-        let (s, k) = if self.lambert { (1.0, 1.0) } else { terms.scales };
+        let terms = if self.reads_tables() { self.at_view.get(wo, || self.find_terms(wo)) } else { DiffuseTerms::LAMBERT };
+        let (s, k) = terms.scales;
         let couple = match self.coupling {
             Some((eta, r)) => {
                 let (avg, e_o) = terms.coupling;
