@@ -83,7 +83,7 @@ fn walk(bvh: &CwBvh, ray: &mut BvhRay, mut leaves: impl FnMut(&mut BvhRay, u32, 
     let mut state = bvh.new_traversal(ray.direction);
     let mut node;
     'walk: {
-        obvhs::traverse!(bvh, node, state, wide::node_hits(node, ray, state.oct_inv4), {
+        obvhs::traverse!(bvh, node, state, wide::node_hits(&bvh.nodes, node, ray, state.oct_inv4), {
             // The macro hands primitives one at a time (highest bit first); take the node's
             // whole group at once instead.
             let base = state.primitive_group.x;
