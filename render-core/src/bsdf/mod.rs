@@ -188,6 +188,14 @@ impl Lobe {
         }
     }
 
+    /// True when `sample`'s weight is `eval · |cos θi| / pdf`, computed in that order, with
+    /// `pdf` what [`Lobe::pdf`] gives: a BSDF of this lobe alone at weight 1 may then take the
+    /// sample as it is, to the bit, rather than evaluate it a second time (`Bsdf::sample`).
+    #[inline]
+    fn sample_is_own_estimate(&self) -> bool {
+        matches!(self, Lobe::DisneyDiffuse(_) | Lobe::Sheen(_))
+    }
+
     /// The lobe's flags.
     #[inline]
     pub fn flags(&self) -> LobeFlags {
@@ -509,6 +517,10 @@ impl Bsdf {
 
     /// [`Bsdf::sample`] and the index of the lobe chosen.
     fn sample_lobe(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, usize)> {
+        if let Some(l) = self.lone_lobe().filter(|l| self.weights[0] == 1.0 && self.select[0] == 1.0 && l.sample_is_own_estimate()) {
+            // The mixture is the lobe itself: its sample already holds f·cos/pdf.
+            return l.sample(wo, u_lobe.clamp(0.0, 1.0 - f32::EPSILON), u).map(|s| (s, 0));
+        }
         let mut acc = 0.0;
         let mut chosen = None;
         for (i, _) in self.lobes() {
@@ -642,6 +654,41 @@ mod finite_everywhere {
                 format!("{:?}", (b.eval(wo, wi), b.pdf(wo, wi), b.albedo(wo), b.eval_by_kind(wo, wi), s))
             };
             prop_assert_eq!(bits(&here), bits(&elsewhere));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(1000))]
+        /// A lone lobe whose sample is its own estimate (`Lobe::sample_is_own_estimate`) is
+        /// sampled without the mixture's second evaluation, and gives the bits the mixture
+        /// gives: `eval · |cos θi| / pdf` of the whole BSDF at the sampled direction.
+        #[test]
+        fn a_lone_lobe_sample_is_the_mixture_estimate(
+            c in (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0),
+            r in prop_oneof![Just(0.0f32), Just(1.0f32), 0.0f32..1.0],
+            coupling in prop_oneof![Just(None), (1.0f32..3.0, 0.0f32..1.0).prop_map(Some)],
+            lambert in any::<bool>(),
+            sheen in any::<bool>(),
+            wo in dir(),
+            u in (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0),
+        ) {
+            let color = Vec3::new(c.0, c.1, c.2);
+            let lobe = match sheen {
+                true => Lobe::Sheen(Sheen { color }),
+                false => Lobe::DisneyDiffuse(DisneyDiffuse::new(color, r, r, coupling, lambert)),
+            };
+            prop_assert!(lobe.sample_is_own_estimate());
+            let wo = wo.normalize_or_zero();
+            let mut bsdf = Bsdf::default();
+            bsdf.push(lobe);
+            bsdf.prepare(wo);
+            let s = bsdf.sample(wo, u.0, Vec2::new(u.1, u.2));
+            // What `sample_lobe`'s general path computes from the lobe's direction.
+            let general = s.and_then(|s| {
+                let pdf = bsdf.pdf(wo, s.wi);
+                (pdf > 0.0).then(|| (s.wi, bsdf.eval(wo, s.wi) * s.wi.z.abs() / pdf, pdf))
+            });
+            prop_assert_eq!(format!("{:?}", s.map(|s| (s.wi, s.weight, s.pdf))), format!("{general:?}"));
         }
     }
 
