@@ -296,8 +296,12 @@ impl Clone for Bsdf {
         self.weights = source.weights;
         self.select = source.select;
         self.count = source.count;
-        self.coats = source.coats;
-        self.coats_at_view = source.coats_at_view;
+        // Most materials have no coat, and the coat slots (and their views) are a third of
+        // what is left to copy: skipped when neither side has one.
+        if self.coats[0].is_some() || source.coats[0].is_some() {
+            self.coats = source.coats;
+            self.coats_at_view = source.coats_at_view;
+        }
         self.keep_zero = source.keep_zero;
     }
 }
