@@ -280,8 +280,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         // Each bounce draws two 4D sets, whatever happens along the path: (light position,
         // light choice, roulette) and (BSDF direction, lobe choice), the 2D pairs on a set's
         // best-stratified first two dimensions.
-        let [ul_x, ul_y, u_sel, u_rr] = rng.next_4d();
-        let [ub_x, ub_y, u_lobe, _] = rng.next_4d();
+        let [[ul_x, ul_y, u_sel, u_rr], [ub_x, ub_y, u_lobe, _]] = rng.next_2x4d();
         let inside_here = path.walk.medium.is_some();
         let leaving_share = self.leaving_share(path, v);
         // Next-event estimation here finds direct light at the first surface, or at the exit
