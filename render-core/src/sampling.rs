@@ -163,15 +163,28 @@ fn set_seed(key: u64, set: u32) -> u32 {
 /// most of a set's ~20 ns, two sets per bounce.
 #[inline]
 fn sobol_4d(index: u32, seed: u32) -> [f32; 4] {
-    use sobol_burley::parts::{hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev};
-    // The constants are the crate's own (`sample_4d` in sobol_burley 0.5); the test below
-    // holds the two together.
-    let shuffled_rev = owen_scramble_rev(index.reverse_bits(), hash(seed ^ 0x79c6_8e4a));
+    use sobol_burley::parts::{Int4, hash_int4, owen_scramble_int4_rev};
+    let scramble = Int4::from([seed.wrapping_mul(SCRAMBLE_MUL); 4]) ^ DIMENSION_SALTS.into();
+    owen_scramble_int4_rev(shuffled_point(index.reverse_bits(), seed), hash_int4(scramble)).reverse_bits().to_f32_norm()
+}
+
+// The constants are the crate's own (`sample_4d` in sobol_burley 0.5); the test
+// `byte_table_sobol_is_the_crates_bit_for_bit` holds the two together.
+/// Salt of the index shuffle's seed.
+const SHUFFLE_SALT: u32 = 0x79c6_8e4a;
+/// Multiplier of the seed for the per-dimension scrambles.
+const SCRAMBLE_MUL: u32 = 0x9c8f_2d3b;
+/// Salts of the four dimensions' scrambles.
+const DIMENSION_SALTS: [u32; 4] = [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8];
+
+/// The (bit-reversed) Sobol point of the reversed index `index_rev` after the index shuffle
+/// seeded by `seed`, before its per-dimension scramble: two byte-table lookups.
+#[inline(always)]
+fn shuffled_point(index_rev: u32, seed: u32) -> sobol_burley::parts::Int4 {
+    use sobol_burley::parts::{hash, owen_scramble_rev};
+    let shuffled_rev = owen_scramble_rev(index_rev, hash(seed ^ SHUFFLE_SALT));
     let tables = &*SOBOL_BYTE_TABLES;
-    let sobol = tables[0][(shuffled_rev >> 24) as usize] ^ tables[1][((shuffled_rev >> 16) & 0xff) as usize];
-    let scramble =
-        sobol_burley::parts::Int4::from([seed.wrapping_mul(0x9c8f_2d3b); 4]) ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into();
-    owen_scramble_int4_rev(sobol, hash_int4(scramble)).reverse_bits().to_f32_norm()
+    tables[0][(shuffled_rev >> 24) as usize] ^ tables[1][((shuffled_rev >> 16) & 0xff) as usize]
 }
 
 /// [`sobol_4d`] at two seeds: the index shuffles and table lookups one seed at a time, the
@@ -180,12 +193,8 @@ fn sobol_4d(index: u32, seed: u32) -> [f32; 4] {
 fn sobol_2x4d(index: u32, seeds: [u32; 2]) -> [[f32; 4]; 2] {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
-        use sobol_burley::parts::{hash, owen_scramble_rev};
-        let (rev, tables) = (index.reverse_bits(), &*SOBOL_BYTE_TABLES);
-        let points = seeds.map(|seed| {
-            let shuffled_rev = owen_scramble_rev(rev, hash(seed ^ 0x79c6_8e4a));
-            <[u32; 4]>::from(tables[0][(shuffled_rev >> 24) as usize] ^ tables[1][((shuffled_rev >> 16) & 0xff) as usize])
-        });
+        let rev = index.reverse_bits();
+        let points = seeds.map(|seed| <[u32; 4]>::from(shuffled_point(rev, seed)));
         // SAFETY: the target has AVX2 (checked at compile time).
         unsafe { owen_pair::scramble(points, seeds) }
     }
@@ -264,9 +273,8 @@ mod owen_pair {
         unsafe {
             let [a, b] = points;
             let n = _mm256_loadu_si256([a, b].as_ptr().cast());
-            let [s0, s1] = seeds.map(|s| s.wrapping_mul(0x9c8f_2d3b));
-            let lanes = [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8u32];
-            let k = _mm256_loadu_si256([lanes, lanes].as_ptr().cast());
+            let [s0, s1] = seeds.map(|s| s.wrapping_mul(super::SCRAMBLE_MUL));
+            let k = _mm256_loadu_si256([super::DIMENSION_SALTS; 2].as_ptr().cast());
             let seed = _mm256_setr_epi32(s0 as i32, s0 as i32, s0 as i32, s0 as i32, s1 as i32, s1 as i32, s1 as i32, s1 as i32);
             let n = reverse_bits(owen_scramble_rev(n, hash(_mm256_xor_si256(seed, k))));
             // `sobol_burley`'s `to_f32_norm`: the top 23 bits as a mantissa in [1, 2), minus 1.
