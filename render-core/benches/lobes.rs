@@ -1,13 +1,16 @@
 //! Nanoseconds per `eval` and per `sample` for each lobe and for the principled BSDF, with
 //! energy compensation on and off, on a fixed set of directions (the tables are built before
 //! timing), and per path vertex (eval, pdf and a sample at one view, with the view's table
-//! lookups repeated or prepared once). Run: `cargo bench -p render-core --bench lobes`.
+//! lookups repeated or prepared once); then what next-event estimation's light sampling costs
+//! a vertex, per light shape and for sets of many lights through the light tree. Run:
+//! `cargo bench -p render-core --bench lobes`.
 
 use std::hint::black_box;
 use std::time::Instant;
 
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, Quat, Vec2, Vec3};
 use render_core::bsdf::{Bsdf, Clearcoat, Dielectric, DisneyDiffuse, GgxReflection, Lambert, Lobe, Sheen, SpecularFresnel};
+use render_core::light::{LightDesc, LightKind, LightSet, ShadingContext};
 use render_core::material::Principled;
 use render_core::sampling::{Pcg32, cosine_hemisphere, uniform_sphere};
 
@@ -88,6 +91,70 @@ fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
     println!("{name:<44} {eval:>10.1} {sample:>10.1} {:>10} {vertex:>10.1}", "");
 }
 
+/// Shading points in a 10-unit box below the lights (on their lit side), facing random ways,
+/// with the numbers a light sample draws.
+fn shading_points() -> Vec<(ShadingContext, f32, Vec2)> {
+    let mut rng = Pcg32::new(5, 6);
+    (0..N)
+        .map(|_| {
+            let p = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 10.0 - Vec3::Y * 5.0;
+            let ctx = ShadingContext { p, n: uniform_sphere(rng.next_2d()), both_sides: false, time: 0.5 };
+            (ctx, rng.next_f32(), rng.next_2d())
+        })
+        .collect()
+}
+
+/// A light of `kind` at the origin (plus `offset`), turned to face down a little askew.
+fn light_at(kind: LightKind, offset: Vec3) -> render_core::light::Light {
+    let xf = Affine3A::from_rotation_translation(Quat::from_rotation_x(-1.4), offset);
+    LightDesc::new(kind, xf, 10.0).commit().expect("a light that emits")
+}
+
+/// Nanoseconds per `LightSet::sample_each` (every sample the walk yields, split budget
+/// `budget`), and the samples yielded per call.
+fn light_row(name: &str, set: &LightSet, budget: usize, points: &[(ShadingContext, f32, Vec2)]) {
+    let ns = time(|| {
+        let mut sum = 0.0;
+        for (ctx, u_sel, u) in points {
+            set.sample_each(ctx, *u_sel, *u, budget, |s, _| sum += s.pdf.min(1e6));
+        }
+        sum
+    });
+    let mut samples = 0usize;
+    points.iter().for_each(|(ctx, u_sel, u)| set.sample_each(ctx, *u_sel, *u, budget, |_, _| samples += 1));
+    println!("{name:<44} {ns:>10.1} {:>10.2}", samples as f64 / points.len() as f64);
+}
+
+fn light_table() {
+    let points = shading_points();
+    println!("{:<44} {:>10} {:>10}", "light sampling (1 thread)", "ns/vertex", "samples");
+    let shapes = [
+        ("sphere r=0.5", LightKind::Sphere { radius: 0.5 }),
+        ("rect 1x1 (solid angle where large)", LightKind::Rect { width: 1.0, height: 1.0 }),
+        ("disk r=0.5", LightKind::Disk { radius: 0.5 }),
+        ("cylinder r=0.2 l=2", LightKind::Cylinder { radius: 0.2, length: 2.0 }),
+        ("distant 0.53 deg", LightKind::Distant { angle_degrees: 0.53 }),
+        ("dome, constant", LightKind::Dome),
+    ];
+    for (name, kind) in shapes {
+        light_row(name, &LightSet::new(vec![light_at(kind, Vec3::ZERO)], 10.0), 1, &points);
+    }
+    // Many small rect lights on a grid over the box's top, chosen through the light tree.
+    for n in [100usize, 10_000] {
+        let side = (n as f32).sqrt() as usize;
+        let lights = (0..n)
+            .map(|i| {
+                let at = Vec3::new((i % side) as f32, 0.0, (i / side) as f32) / side as f32 * 9.0 - Vec3::new(4.5, 0.0, 4.5);
+                light_at(LightKind::Rect { width: 0.05, height: 0.05 }, at)
+            })
+            .collect();
+        let set = LightSet::new(lights, 10.0);
+        for budget in [1, 8] {
+            light_row(&format!("{n} rects, tree, split budget {budget}"), &set, budget, &points);
+        }
+    }
+}
+
 fn main() {
     let data = inputs();
     // Build every table before timing, and report what each costs on first use.
@@ -154,4 +221,5 @@ fn main() {
         bsdf_row(&format!("principled plastic, compensation {comp}"), &plastic.bsdf(comp), &data);
         bsdf_row(&format!("principled 6 lobes, compensation {comp}"), &everything.bsdf(comp), &data);
     }
+    light_table();
 }
