@@ -16,9 +16,12 @@
 //! lights per shading point. Which nodes split depends only on the point, so the probability
 //! of a light is still a product along its path, with 1 at split nodes.
 
+mod pair;
+
 use glam::{Quat, Vec3};
 
 use super::shapes::Shape;
+use pair::PairBounds;
 
 /// Spatial, power and directional bounds of a set of emitters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -228,8 +231,16 @@ const SPLIT_DISTANCE: f32 = 2.0;
 
 #[derive(Clone, Copy, Debug)]
 enum Node {
-    Leaf { light: u32, bounds: LightBounds },
-    Interior { right: u32, bounds: LightBounds },
+    Leaf {
+        light: u32,
+        bounds: LightBounds,
+    },
+    /// `pair`: its children's bounds side by side, in [`LightTree::pairs`].
+    Interior {
+        right: u32,
+        bounds: LightBounds,
+        pair: u32,
+    },
 }
 
 impl Node {
@@ -244,6 +255,8 @@ impl Node {
 #[derive(Debug, Default)]
 pub struct LightTree {
     nodes: Vec<Node>,
+    /// Each interior node's children's bounds, laid out to be weighed in one pass.
+    pairs: Vec<PairBounds>,
     /// Per light index: (path bits from the root, 1 = right; depth), or None when not in
     /// the tree.
     trails: Vec<Option<(u64, u32)>>,
@@ -252,7 +265,7 @@ pub struct LightTree {
 impl LightTree {
     /// Builds the tree over `(light index, bounds)` pairs; `n_lights` sizes the trail table.
     pub fn build(mut items: Vec<(u32, LightBounds)>, n_lights: usize) -> Self {
-        let mut tree = LightTree { nodes: Vec::with_capacity(2 * items.len()), trails: vec![None; n_lights] };
+        let mut tree = LightTree { nodes: Vec::with_capacity(2 * items.len()), pairs: Vec::new(), trails: vec![None; n_lights] };
         items.retain(|(_, b)| b.phi > 0.0 && b.phi.is_finite() && b.lo.is_finite() && b.hi.is_finite());
         if !items.is_empty() {
             tree.build_node(&mut items, 0, 0);
@@ -284,7 +297,8 @@ impl LightTree {
         let right_index = self.nodes.len() as u32;
         let rb = self.build_node(right, bits | (1 << depth), depth + 1);
         let bounds = lb.union(&rb);
-        self.nodes[at] = Node::Interior { right: right_index, bounds };
+        self.nodes[at] = Node::Interior { right: right_index, bounds, pair: self.pairs.len() as u32 };
+        self.pairs.push(PairBounds::new(&lb, &rb));
         bounds
     }
 
@@ -326,7 +340,7 @@ impl LightTree {
                         visit(*light)
                     }
                 }
-                Node::Interior { right, bounds } => {
+                Node::Interior { right, bounds, .. } => {
                     if crosses(bounds) && top + 2 <= stack.len() {
                         stack[top] = *right;
                         stack[top + 1] = at as u32 + 1;
@@ -341,9 +355,9 @@ impl LightTree {
     /// left child at `at + 1`) and their sum, when it can be split by: (left, right, total).
     /// A child's probability is its importance over the total.
     #[inline(always)]
-    fn child_importances(&self, at: usize, right: usize, p: Vec3, n: Vec3) -> Option<(f32, f32, f32)> {
-        let il = self.nodes[at + 1].bounds().importance(p, n);
-        let ir = self.nodes[right].bounds().importance(p, n);
+    fn child_importances(&self, at: usize, p: Vec3, n: Vec3) -> Option<(f32, f32, f32)> {
+        let Node::Interior { pair, .. } = self.nodes[at] else { return None };
+        let (il, ir) = self.pairs[pair as usize].importances(p, n);
         let total = il + ir;
         (total > 0.0 && total.is_finite()).then_some((il, ir, total))
     }
@@ -359,7 +373,7 @@ impl LightTree {
             // The loosest cluster: largest radius² / distance², among those within reach.
             let mut best: Option<(usize, u32, f32)> = None;
             for (k, &at) in frontier[..n_front].iter().enumerate() {
-                if let Node::Interior { right, bounds } = &self.nodes[at as usize] {
+                if let Node::Interior { right, bounds, .. } = &self.nodes[at as usize] {
                     let (d2, r2) = ((p - bounds.center).length_squared(), bounds.radius * bounds.radius);
                     let looseness = r2 / d2.max(f32::MIN_POSITIVE);
                     if d2 < SPLIT_DISTANCE * SPLIT_DISTANCE * r2 && best.is_none_or(|(.., l)| looseness > l) {
@@ -430,7 +444,7 @@ impl LightTree {
             match self.nodes[at] {
                 Node::Leaf { light, .. } => return (pmf > 0.0).then_some((light, pmf)),
                 Node::Interior { right, .. } => {
-                    let (il, ir, total) = self.child_importances(at, right as usize, p, n)?;
+                    let (il, ir, total) = self.child_importances(at, p, n)?;
                     // Decide without dividing, which keeps the divisions off the chain from one
                     // level to the next (u·total can round up to il + ir: never pick an empty
                     // right child then).
@@ -473,7 +487,7 @@ impl LightTree {
                 }
                 walking = true;
             }
-            let Some((il, ir, total)) = self.child_importances(at, right as usize, p, n) else { return 0.0 };
+            let Some((il, ir, total)) = self.child_importances(at, p, n) else { return 0.0 };
             if right_taken {
                 pmf *= ir / total;
                 at = right as usize;
