@@ -157,6 +157,16 @@ impl Lobe {
         }
     }
 
+    /// `(eval, pdf)` in one call, the same bits as the two; lobes whose two share work
+    /// compute it once.
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        match self {
+            Lobe::GgxReflection(l) => l.eval_pdf(wo, wi),
+            _ => (self.eval(wo, wi), self.pdf(wo, wi)),
+        }
+    }
+
     /// Looks up once what the lobe's evaluations at this view share (E(μo) of the energy
     /// tables, see `view_cache`); evaluating without it gives the same values, slower.
     #[inline]
@@ -481,6 +491,21 @@ impl Bsdf {
             return self.select[0] * l.pdf(wo, wi);
         }
         self.lobes().map(|(i, l)| self.select[i] * l.pdf(wo, wi)).sum()
+    }
+
+    /// `(eval, pdf)` in one pass over the lobes, the same bits as the two calls (each lobe's
+    /// pair from [`Lobe::eval_pdf`]; the sums in the same order, the density's from −0 as
+    /// `Iterator::sum` starts it).
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if let Some(l) = self.lone_lobe() {
+            let (f, pdf) = l.eval_pdf(wo, wi);
+            return (self.weights[0] * f, self.select[0] * pdf);
+        }
+        let coats = self.coat_scales(wo, wi);
+        self.lobes().fold((Vec3::ZERO, -0.0), |(f, pdf), (i, l)| {
+            let (lf, lp) = l.eval_pdf(wo, wi);
+            (f + self.weights[i] * self.under_coat(i, &coats) * lf, pdf + self.select[i] * lp)
+        })
     }
 
     /// Weighted sum of the lobes' albedo estimates.

@@ -238,6 +238,26 @@ impl GgxReflection {
         if pdf.is_finite() { pdf } else { 0.0 }
     }
 
+    /// [`GgxReflection::eval`] and [`GgxReflection::pdf`] at once: the half vector, D(h) and
+    /// Λ(wo), which both need, computed once (next-event estimation asks for both at every
+    /// light sample). The same operations as the two calls, so the same bits.
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z <= 0.0 || wi.z <= 0.0 || self.smooth() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let h = (wo + wi).normalize();
+        let g = self.ggx.regularized();
+        let (d, lambda_o) = (g.d(h), g.lambda(wo));
+        let g2 = 1.0 / (1.0 + lambda_o + g.lambda(wi));
+        let spec = self.fresnel.eval(wo.dot(h)) * (d * g2 / (4.0 * wo.z * wi.z));
+        let f = spec + self.f_ms(wo, wi);
+        let p = self.p_ms(wo);
+        let g1 = 1.0 / (1.0 + lambda_o);
+        let pdf = (1.0 - p) * (g1 * d / (4.0 * wo.z)) + p * cosine_hemisphere_pdf(wi.z);
+        (if f.is_finite() { f } else { Vec3::ZERO }, if pdf.is_finite() { pdf } else { 0.0 })
+    }
+
     /// Samples the specular lobe by visible normals or, with probability from `uc`, the
     /// compensation lobe by cosine.
     #[inline]

@@ -18,6 +18,10 @@ pub trait Scatter: std::fmt::Debug {
     fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample>;
     /// Density of `sample_dir`.
     fn density(&self, wo: Vec3, wi: Vec3) -> f32;
+    /// `f` and `density` in one call (`eval_pdf`; a test double need not have one).
+    fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        (self.f(wo, wi), self.density(wo, wi))
+    }
 }
 
 impl Scatter for Lobe {
@@ -29,6 +33,9 @@ impl Scatter for Lobe {
     }
     fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
         self.pdf(wo, wi)
+    }
+    fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.eval_pdf(wo, wi)
     }
 }
 
@@ -46,6 +53,11 @@ impl Scatter for Bsdf {
         let mut b = self.clone();
         b.prepare(wo);
         b.pdf(wo, wi)
+    }
+    fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let mut b = self.clone();
+        b.prepare(wo);
+        b.eval_pdf(wo, wi)
     }
 }
 
@@ -154,10 +166,27 @@ pub fn assert_weights_consistent_from(lobe: &impl Scatter, sides: Sides) {
     }
 }
 
-/// The battery every lobe runs, as the same four tests in each lobe's test module:
+/// `eval_pdf` against `eval` and `pdf` called apart, bit for bit, at directions from the
+/// given sides to every direction of the sphere (uniform, so grazing and opposite sides
+/// included) and to the lobe's own samples.
+pub fn assert_eval_pdf_is_both(lobe: &impl Scatter, sides: Sides) {
+    let mut rng = Pcg32::new(91, 5);
+    let bits = |(f, p): (Vec3, f32)| (f.to_array().map(f32::to_bits), p.to_bits());
+    for wo in sides.directions() {
+        for k in 0..2000 {
+            let sampled = (k % 2 == 0).then(|| lobe.sample_dir(wo, rng.next_f32(), rng.next_2d())).flatten();
+            let wi = sampled.map_or_else(|| crate::sampling::uniform_sphere(rng.next_2d()), |s| s.wi);
+            let apart = (lobe.f(wo, wi), lobe.density(wo, wi));
+            assert_eq!(bits(lobe.f_and_density(wo, wi)), bits(apart), "{lobe:?} wo {wo} wi {wi}: {apart:?}");
+        }
+    }
+}
+
+/// The battery every lobe runs, as the same five tests in each lobe's test module:
 /// `battery_white_furnace` (albedo ≤ 1 at every probe direction), `battery_reciprocity`,
 /// `battery_chi_square` (`sample` against `pdf`, lobe k with seed `seed + k`) and
-/// `battery_sample_weights` (weight = f·cos/pdf, pdf as `pdf` says). `lobes` are the lobes
+/// `battery_sample_weights` (weight = f·cos/pdf, pdf as `pdf` says), and
+/// `battery_eval_pdf_is_eval_and_pdf` (the one-call pair, bit for bit). `lobes` are the lobes
 /// (a `Vec<Lobe>`); `chi_square` those whose pdf the harness's quadrature resolves.
 /// Transmitting lobes add `index_below: |lobe| η`: every test then looks from both sides,
 /// and reciprocity is the generalised one between media of index 1 and η. A model that is not
@@ -201,6 +230,13 @@ macro_rules! lobe_battery {
         fn battery_sample_weights() {
             for lobe in $lobes {
                 $crate::bsdf::testing::assert_weights_consistent_from(&lobe, $sides);
+            }
+        }
+
+        #[test]
+        fn battery_eval_pdf_is_eval_and_pdf() {
+            for lobe in $lobes {
+                $crate::bsdf::testing::assert_eval_pdf_is_both(&lobe, $sides);
             }
         }
     };

@@ -84,10 +84,16 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             }
             parts
         });
-        let f = match &parts {
-            _ if !v.sides_agree(ls.wi, wi_local.z) => Vec3::ZERO,
-            Some(p) => p[0] + p[1] + p[2],
-            None => bsdf.eval(v.wo_local, wi_local),
+        // MIS weighs the sample by the BSDF's density there unless only the light can find it.
+        let needs_pdf = !ls.delta && self.settings.strategy != LightStrategy::LightOnly;
+        let (f, bsdf_pdf) = match &parts {
+            _ if !v.sides_agree(ls.wi, wi_local.z) => (Vec3::ZERO, None),
+            Some(p) => (p[0] + p[1] + p[2], None),
+            None if needs_pdf => {
+                let (f, pdf) = bsdf.eval_pdf(v.wo_local, wi_local);
+                (f, Some(pdf))
+            }
+            None => (bsdf.eval(v.wo_local, wi_local), None),
         };
         if f == Vec3::ZERO {
             return;
@@ -102,7 +108,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let w = match glass {
             Some(_) => 1.0,
             None if ls.delta || self.settings.strategy == LightStrategy::LightOnly => 1.0,
-            None => power_heuristic(ls.pdf, bsdf.pdf(v.wo_local, wi_local)),
+            None => power_heuristic(ls.pdf, bsdf_pdf.unwrap_or_else(|| bsdf.pdf(v.wo_local, wi_local))),
         };
         // Light out of a medium through its boundary: transparent shadows from inside took
         // their share of it.

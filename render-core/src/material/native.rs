@@ -492,6 +492,8 @@ mod tests {
                     assert!(a.max_element() <= 1.0 + 1e-3 + 0.02, "{id} {params:?} at {wo:?}: {a:?}");
                 }
             }
+            let sides = if bsdf.transmits() { testing::Sides::Both } else { testing::Sides::Above };
+            testing::assert_eval_pdf_is_both(&bsdf, sides);
             // Refraction scales radiance by 1/η'², so only its energy form is reciprocal; Chiang's
             // hair model is not reciprocal at all (crate::bsdf::hair).
             if !m.surface.has_refraction() && m.surface.hair.weight == 0.0 {
