@@ -1,7 +1,8 @@
 //! Nanoseconds per `eval` and per `sample` for each lobe and for the principled BSDF, with
 //! energy compensation on and off, on a fixed set of directions (the tables are built before
-//! timing), and per path vertex (eval, pdf and a sample at one view, with the view's table
-//! lookups repeated or prepared once); then what next-event estimation's light sampling costs
+//! timing), eval and pdf as one call (`eval_pdf`, what next-event estimation asks), and per
+//! path vertex (eval, pdf and a sample at one view, with the view's table lookups repeated or
+//! prepared once); then what next-event estimation's light sampling costs
 //! a vertex, per light shape and for sets of many lights through the light tree. Run:
 //! `cargo bench -p render-core --bench lobes`.
 
@@ -45,6 +46,14 @@ fn vertex_work(f: impl Fn(Vec3, Vec3) -> f32, sample: impl Fn(Vec3, f32, Vec2) -
 
 fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
     let eval = time(|| data.iter().map(|(wo, wi, _, _)| lobe.eval(*wo, *wi).x + lobe.pdf(*wo, *wi)).sum());
+    let together = time(|| {
+        data.iter()
+            .map(|(wo, wi, _, _)| {
+                let (f, pdf) = lobe.eval_pdf(*wo, *wi);
+                f.x + pdf
+            })
+            .sum()
+    });
     let sample = time(|| data.iter().filter_map(|(wo, _, uc, u)| lobe.sample(*wo, *uc, *u)).map(|s| s.weight.x).sum());
     // One vertex with the view's table lookups repeated (as before `Lobe::prepare`), and with
     // them made once by `prepare`: the same values, the second cheaper.
@@ -63,11 +72,19 @@ fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
         })
     };
     let (repeated, prepared) = (vertex(false), vertex(true));
-    println!("{name:<44} {eval:>10.1} {sample:>10.1} {repeated:>10.1} {prepared:>10.1}");
+    println!("{name:<44} {eval:>10.1} {together:>10.1} {sample:>10.1} {repeated:>10.1} {prepared:>10.1}");
 }
 
 fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
     let eval = time(|| data.iter().map(|(wo, wi, _, _)| bsdf.eval(*wo, *wi).x + bsdf.pdf(*wo, *wi)).sum());
+    let together = time(|| {
+        data.iter()
+            .map(|(wo, wi, _, _)| {
+                let (f, pdf) = bsdf.eval_pdf(*wo, *wi);
+                f.x + pdf
+            })
+            .sum()
+    });
     let sample = time(|| {
         data.iter()
             .filter_map(|(wo, _, uc, u)| {
@@ -88,7 +105,7 @@ fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
             })
             .sum()
     });
-    println!("{name:<44} {eval:>10.1} {sample:>10.1} {:>10} {vertex:>10.1}", "");
+    println!("{name:<44} {eval:>10.1} {together:>10.1} {sample:>10.1} {:>10} {vertex:>10.1}", "");
 }
 
 /// Shading points in a 10-unit box below the lights (on their lit side), facing random ways,
@@ -179,7 +196,10 @@ fn main() {
         render_core::bsdf::disney::diffuse_energy_scales(0.5, 0.0);
     });
     // vertex: eval + pdf + sample at one view, its lookups repeated or prepared once.
-    println!("{:<44} {:>10} {:>10} {:>10} {:>10}", "lobe (1 thread)", "eval+pdf ns", "sample ns", "vertex ns", "prepared");
+    println!(
+        "{:<44} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "lobe (1 thread)", "eval+pdf ns", "eval_pdf", "sample ns", "vertex ns", "prepared"
+    );
     lobe_row("lambert", &Lobe::Lambert(Lambert { r: Vec3::splat(0.5) }), &data);
     for comp in [false, true] {
         let gold = SpecularFresnel::Gulbrandsen { r: Vec3::new(0.944, 0.776, 0.373), g: Vec3::new(0.998, 0.981, 0.751) };

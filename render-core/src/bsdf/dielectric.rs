@@ -310,6 +310,54 @@ impl Dielectric {
         if pdf.is_finite() { pdf } else { 0.0 }
     }
 
+    /// [`Dielectric::eval`] and [`Dielectric::pdf`] at once: the generalised half vector (in
+    /// f64), D(h) and the half vector's dot products, which both need, computed once. The same
+    /// operations as the two calls, so the same bits.
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if self.smooth() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let (single_f, single_pdf) = self.single_eval_pdf(wo, wi);
+        let value = single_f + self.tint(wo, wi) * self.f_ms(wo, wi);
+        let f = if value.is_finite() { value } else { Vec3::ZERO };
+        if wi.z == 0.0 {
+            return (f, 0.0);
+        }
+        let pdf = match self.ms_terms(wo) {
+            Some((e_o, ratio, _)) => {
+                let side = if wo.z * wi.z > 0.0 { ratio } else { 1.0 - ratio };
+                (1.0 - (1.0 - e_o)) * single_pdf + (1.0 - e_o) * side * wi.z.abs() / PI
+            }
+            None => single_pdf,
+        };
+        (f, pdf)
+    }
+
+    /// `eval_single` and `pdf_single` sharing their half vector and D(h).
+    fn single_eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let Some((hd, reflect, etap)) = self.half(wo, wi) else {
+            return (Vec3::ZERO, 0.0);
+        };
+        let h = hd.as_vec3();
+        let g = self.ggx.regularized();
+        let d = g.d(h);
+        let outside = if wo.z > 0.0 { wo } else { wi };
+        let f = self.fresnel(hd.dot(outside.as_dvec3())) as f32;
+        let r = self.fresnel(wo.dot(h) as f64) as f32;
+        let wo_up = if wo.z < 0.0 { -wo } else { wo };
+        let d_vis = g.g1(wo_up) * d * wo.dot(h).abs() / wo.z.abs();
+        let (value, pdf) = if reflect {
+            (Vec3::splat(d * g.g2(wo, wi) * f / (4.0 * (wo.z * wi.z).abs())), d_vis / (4.0 * wo.dot(h).abs()) * r)
+        } else {
+            let (ih, oh) = (hd.dot(wi.as_dvec3()), hd.dot(wo.as_dvec3()));
+            let denom = (ih + oh / etap).powi(2) * wi.z as f64 * wo.z as f64;
+            let jac = ((ih * oh / denom).abs() / (etap * etap)) as f32;
+            let dwh_dwi = (ih.abs() / (ih + oh / etap).powi(2)) as f32;
+            (self.transmittance * (d * (1.0 - f) * g.g2(wo, wi) * jac), d_vis * dwh_dwi * (1.0 - r))
+        };
+        (if value.is_finite() { value } else { Vec3::ZERO }, if pdf.is_finite() { pdf } else { 0.0 })
+    }
+
     /// Samples reflection or refraction in proportion to Fresnel at the sampled microfacet.
     pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
         if wo.z == 0.0 {

@@ -374,6 +374,20 @@ impl Clearcoat {
         (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
     }
 
+    /// [`Clearcoat::eval`] and [`Clearcoat::pdf`] at once, the half vector and D(h) computed
+    /// once; the same bits as the two calls.
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z * wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
+        let h = (wo + wi).normalize();
+        let d = gtr1_d(h, self.alpha);
+        let f = 0.04 + 0.96 * schlick_weight(h.dot(wi));
+        let g = Self::G_ALPHA.g1(wo) * Self::G_ALPHA.g1(wi);
+        (Vec3::splat(self.weight * d * f * g / (4.0 * wo.z * wi.z)), d * h.z / (4.0 * wo.dot(h).abs().max(1e-8)))
+    }
+
     /// D(h)·cos θh / (4|wo·h|).
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z * wi.z <= 0.0 {

@@ -163,6 +163,8 @@ impl Lobe {
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         match self {
             Lobe::GgxReflection(l) => l.eval_pdf(wo, wi),
+            Lobe::Dielectric(l) => l.eval_pdf(wo, wi),
+            Lobe::Clearcoat(l) => l.eval_pdf(wo, wi),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
     }
