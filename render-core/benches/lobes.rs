@@ -44,16 +44,27 @@ fn vertex_work(f: impl Fn(Vec3, Vec3) -> f32, sample: impl Fn(Vec3, f32, Vec2) -
     f(*wo, *wi) + sample(*wo, *uc, *u)
 }
 
+/// Nanoseconds per (f, pdf) pair asked for with two calls (`apart`) and with one (`together`).
+fn pair_times(
+    data: &[(Vec3, Vec3, f32, Vec2)],
+    apart: impl Fn(Vec3, Vec3) -> (Vec3, f32),
+    together: impl Fn(Vec3, Vec3) -> (Vec3, f32),
+) -> (f64, f64) {
+    let ns = |f: &dyn Fn(Vec3, Vec3) -> (Vec3, f32)| {
+        time(|| {
+            data.iter()
+                .map(|(wo, wi, _, _)| {
+                    let (v, pdf) = f(*wo, *wi);
+                    v.x + pdf
+                })
+                .sum()
+        })
+    };
+    (ns(&apart), ns(&together))
+}
+
 fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
-    let eval = time(|| data.iter().map(|(wo, wi, _, _)| lobe.eval(*wo, *wi).x + lobe.pdf(*wo, *wi)).sum());
-    let together = time(|| {
-        data.iter()
-            .map(|(wo, wi, _, _)| {
-                let (f, pdf) = lobe.eval_pdf(*wo, *wi);
-                f.x + pdf
-            })
-            .sum()
-    });
+    let (eval, together) = pair_times(data, |wo, wi| (lobe.eval(wo, wi), lobe.pdf(wo, wi)), |wo, wi| lobe.eval_pdf(wo, wi));
     let sample = time(|| data.iter().filter_map(|(wo, _, uc, u)| lobe.sample(*wo, *uc, *u)).map(|s| s.weight.x).sum());
     // One vertex with the view's table lookups repeated (as before `Lobe::prepare`), and with
     // them made once by `prepare`: the same values, the second cheaper.
@@ -76,15 +87,7 @@ fn lobe_row(name: &str, lobe: &Lobe, data: &[(Vec3, Vec3, f32, Vec2)]) {
 }
 
 fn bsdf_row(name: &str, bsdf: &Bsdf, data: &[(Vec3, Vec3, f32, Vec2)]) {
-    let eval = time(|| data.iter().map(|(wo, wi, _, _)| bsdf.eval(*wo, *wi).x + bsdf.pdf(*wo, *wi)).sum());
-    let together = time(|| {
-        data.iter()
-            .map(|(wo, wi, _, _)| {
-                let (f, pdf) = bsdf.eval_pdf(*wo, *wi);
-                f.x + pdf
-            })
-            .sum()
-    });
+    let (eval, together) = pair_times(data, |wo, wi| (bsdf.eval(wo, wi), bsdf.pdf(wo, wi)), |wo, wi| bsdf.eval_pdf(wo, wi));
     let sample = time(|| {
         data.iter()
             .filter_map(|(wo, _, uc, u)| {
