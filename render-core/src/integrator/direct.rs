@@ -107,7 +107,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         }
         let w = match glass {
             Some(_) => 1.0,
-            None if ls.delta || self.settings.strategy == LightStrategy::LightOnly => 1.0,
+            None if !needs_pdf => 1.0,
             None => power_heuristic(ls.pdf, bsdf_pdf.unwrap_or_else(|| bsdf.pdf(v.wo_local, wi_local))),
         };
         // Light out of a medium through its boundary: transparent shadows from inside took
