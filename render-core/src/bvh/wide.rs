@@ -54,6 +54,11 @@ impl TriangleLanes {
         i / LANES * CHUNK + c * LANES + i % LANES
     }
 
+    /// Bytes the chunks take.
+    pub(super) fn bytes(&self) -> usize {
+        size_of_val(self.data.as_slice())
+    }
+
     pub(super) fn len(&self) -> usize {
         self.count
     }
@@ -96,6 +101,26 @@ impl TriangleLanes {
     #[inline(always)]
     pub(super) fn any(&self, base: u32, mask: u32, ray: &BvhRay) -> bool {
         Self::chunks(base, mask).any(|(chunk, lanes)| self.closest_in_chunk(chunk, lanes, ray, ray.tmax).is_some())
+    }
+
+    /// Asks the cache for the chunks holding triangles `base + j` (set bits `j` of `mask`),
+    /// every cache line of each: a walk with other rays in flight tests them a few turns later.
+    #[inline(always)]
+    pub(super) fn prefetch(&self, base: u32, mask: u32) {
+        #[cfg(target_arch = "x86_64")]
+        for (chunk, _) in Self::chunks(base, mask) {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let Some(floats) = self.data.get(chunk * CHUNK..(chunk + 1) * CHUNK) else { continue };
+            let p = floats.as_ptr().cast::<i8>();
+            let skew = p as usize % 64;
+            for offset in (0..skew + size_of_val(floats)).step_by(64) {
+                // SAFETY: prefetching has no architectural effect (the address, the start of a
+                // cache line `floats` touches, is never dereferenced).
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_sub(skew).wrapping_add(offset)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (base, mask);
     }
 
     /// Closest of the triangles of `chunk` whose lanes are set in `lanes`: lane and
