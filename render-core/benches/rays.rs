@@ -1,6 +1,7 @@
 //! Ray throughput on a 1-million-triangle mesh: BVH build time, closest-hit and occlusion
 //! Mrays/s per thread for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one thread)
-//! measured in the same run on the same data; then, at the flat BVH's triangle cap, what a
+//! measured in the same run on the same data, ray by ray and in batches (several walks in
+//! flight per thread, `Blas::intersect_many`); then, at the flat BVH's triangle cap, what a
 //! commit's rebuild costs and what tracing gains against two levels. Run:
 //! `cargo bench -p render-core --bench rays`.
 

@@ -294,6 +294,7 @@ impl Blas {
     /// ([`walk_interleaved`]), which hides much of the memory latency of a mesh bigger than
     /// the cache.
     pub fn intersect_many(&self, rays: &[(Vec3A, Vec3A, f32)], time: f32, hits: &mut [Option<(f32, u32, Vec2)>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let mut walked: Vec<BvhRay> = rays.iter().map(|&(o, d, tmax)| bvh_ray(o, d, tmax)).collect();
         self.closest_of(&mut walked, time, hits);
         for hit in hits.iter_mut().flatten() {
@@ -304,6 +305,7 @@ impl Blas {
     /// [`Blas::occluded`] for each of `rays` (object-space origin, direction, tmax) at shutter
     /// `time`, into `blocked`, with several walks in flight.
     pub fn occluded_many(&self, rays: &[(Vec3A, Vec3A, f32)], time: f32, blocked: &mut [bool]) {
+        assert_eq!(rays.len(), blocked.len(), "one answer per ray");
         if self.stays_in_cache() {
             for (b, &(o, d, tmax)) in blocked.iter_mut().zip(rays) {
                 *b = self.occluded(o, d, tmax, time);
@@ -636,6 +638,7 @@ impl Tlas {
     /// 20% slower on the production scene, whose waves of rays share most of the nodes they
     /// visit (`docs/benchmarks.md`, 2026-12-04).
     pub fn intersect_many(&self, blases: &[std::sync::Arc<Blas>], rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let Some(Accel::Flat { world, ids }) = &self.accel else {
             for (hit, ray) in hits.iter_mut().zip(rays) {
                 *hit = self.intersect(blases, ray);
