@@ -46,23 +46,15 @@ fn main() {
     let mut batched = Vec::new();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let (mut best_c, mut best_o, mut hits_c, mut hits_o) = (f64::INFINITY, f64::INFINITY, 0, 0);
-        for _ in 0..3 {
-            let t = Instant::now();
-            hits_c = pool.install(|| {
+        let ((best_c, hits_c), (best_o, hits_o)) = best_of_three(
+            &pool,
+            || {
                 rays.par_chunks(4096)
                     .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count())
-                    .sum::<usize>()
-            });
-            best_c = best_c.min(t.elapsed().as_secs_f64());
-            let t = Instant::now();
-            hits_o = pool.install(|| {
-                rays.par_chunks(4096)
-                    .map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count())
-                    .sum::<usize>()
-            });
-            best_o = best_o.min(t.elapsed().as_secs_f64());
-        }
+                    .sum()
+            },
+            || rays.par_chunks(4096).map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count()).sum(),
+        );
         results.push((threads, n_rays as f64 / best_c / 1e6, n_rays as f64 / best_o / 1e6, hits_c, hits_o));
         batched.push((threads, trace_batched(&pool, &blas, &rays)));
     }
@@ -132,35 +124,42 @@ fn same(a: usize, b: usize) -> &'static str {
 fn trace_batched(pool: &rayon::ThreadPool, blas: &Blas, rays: &[TestRay]) -> (f64, f64, usize, usize) {
     let closest: Vec<(Vec3A, Vec3A, f32)> = rays.iter().map(|r| (r.o.into(), r.d.into(), f32::INFINITY)).collect();
     let segments: Vec<(Vec3A, Vec3A, f32)> = rays.iter().map(|r| (r.o.into(), r.d.into(), r.tmax)).collect();
-    let (mut best_c, mut best_o, mut hits_c, mut hits_o) = (f64::INFINITY, f64::INFINITY, 0, 0);
-    for _ in 0..3 {
-        let t = Instant::now();
-        hits_c = pool.install(|| {
-            closest
-                .par_chunks(4096)
-                .map(|c| {
-                    let mut hits = vec![None; c.len()];
-                    blas.intersect_many(c, 0.0, &mut hits);
-                    hits.iter().filter(|h| h.is_some()).count()
-                })
-                .sum::<usize>()
-        });
-        best_c = best_c.min(t.elapsed().as_secs_f64());
-        let t = Instant::now();
-        hits_o = pool.install(|| {
-            segments
-                .par_chunks(4096)
-                .map(|c| {
-                    let mut blocked = vec![false; c.len()];
-                    blas.occluded_many(c, 0.0, &mut blocked);
-                    blocked.iter().filter(|&&b| b).count()
-                })
-                .sum::<usize>()
-        });
-        best_o = best_o.min(t.elapsed().as_secs_f64());
-    }
+    let count_hits = |c: &[(Vec3A, Vec3A, f32)]| {
+        let mut hits = vec![None; c.len()];
+        blas.intersect_many(c, 0.0, &mut hits);
+        hits.iter().flatten().count()
+    };
+    let count_blocked = |c: &[(Vec3A, Vec3A, f32)]| {
+        let mut blocked = vec![false; c.len()];
+        blas.occluded_many(c, 0.0, &mut blocked);
+        blocked.iter().filter(|&&b| b).count()
+    };
+    let ((best_c, hits_c), (best_o, hits_o)) =
+        best_of_three(pool, || closest.par_chunks(4096).map(count_hits).sum(), || segments.par_chunks(4096).map(count_blocked).sum());
     let n = rays.len() as f64;
     (n / best_c / 1e6, n / best_o / 1e6, hits_c, hits_o)
+}
+
+/// Runs `closest` then `occluded` on `pool`, three rounds: for each, the best time in seconds
+/// and the count it returned.
+fn best_of_three(
+    pool: &rayon::ThreadPool,
+    closest: impl Fn() -> usize + Send + Sync,
+    occluded: impl Fn() -> usize + Send + Sync,
+) -> ((f64, usize), (f64, usize)) {
+    let timed = |f: &(dyn Fn() -> usize + Send + Sync)| {
+        let t = Instant::now();
+        let n = pool.install(f);
+        (t.elapsed().as_secs_f64(), n)
+    };
+    let (mut c, mut o) = ((f64::INFINITY, 0), (f64::INFINITY, 0));
+    for _ in 0..3 {
+        let tc = timed(&closest);
+        c = (c.0.min(tc.0), tc.1);
+        let to = timed(&occluded);
+        o = (o.0.min(to.0), to.1);
+    }
+    (c, o)
 }
 
 /// The flat BVH at its cap: a scene of [`FLAT_TRIANGLES`] triangles in four instances, built
@@ -189,40 +188,20 @@ fn flat_at_the_cap(rays: &[TestRay]) {
             build = build.min(t.elapsed().as_secs_f64());
         }
         let tlas = tlas.unwrap();
-        let (mut hits, mut batched_hits, mut batched) = (0, 0, f64::INFINITY);
-        let world: Vec<Ray> = rays.iter().map(|r| Ray::new(r.o, r.d)).collect();
+        let mut hits = 0;
         for _ in 0..3 {
             let t = Instant::now();
             hits = rays.iter().filter(|r| tlas.intersect(&blas, &Ray::new(r.o, r.d)).is_some()).count();
             trace = trace.min(t.elapsed().as_secs_f64());
-            // In batches of 64, as the integrator's waves trace them.
-            let t = Instant::now();
-            let mut found = vec![None; 64];
-            batched_hits = world
-                .chunks(64)
-                .map(|c| {
-                    tlas.intersect_many(&blas, c, &mut found[..c.len()]);
-                    found[..c.len()].iter().filter(|h| h.is_some()).count()
-                })
-                .sum::<usize>();
-            batched = batched.min(t.elapsed().as_secs_f64());
         }
-        assert_eq!(hits, batched_hits, "a batch finds what its rays find one by one");
-        (build, rays.len() as f64 / trace / 1e6, hits, rays.len() as f64 / batched / 1e6)
+        (build, rays.len() as f64 / trace / 1e6, hits)
     };
-    let (flat_build, flat_mrays, flat_hits, flat_batched) = measure(usize::MAX);
-    let (two_build, two_mrays, two_hits, two_batched) = measure(0);
+    let (flat_build, flat_mrays, flat_hits) = measure(usize::MAX);
+    let (two_build, two_mrays, two_hits) = measure(0);
     println!("\nflat BVH at its cap: 4 instances, {} triangles, {} rays, 1 thread", 4 * mesh.indices.len(), rays.len());
     println!("{:<34} {:>12} {:>14} {:>10}", "measure", "flat", "two levels", "ratio");
     println!("{:<34} {:>12.2} {:>14.3} {:>10}", "rebuild per commit (ms)", flat_build * 1e3, two_build * 1e3, "-");
     println!("{:<34} {:>12.3} {:>14.3} {:>9.2}x", "closest-hit Mrays/s", flat_mrays, two_mrays, flat_mrays / two_mrays);
-    println!(
-        "{:<34} {:>12.3} {:>14.3} {:>9.2}x",
-        "closest-hit Mrays/s, batches of 64",
-        flat_batched,
-        two_batched,
-        flat_batched / two_batched
-    );
     println!("  agreement: closest hits {flat_hits} flat vs {two_hits} two levels");
 }
 

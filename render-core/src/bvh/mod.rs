@@ -6,9 +6,9 @@
 //! renormalised, so hit distances stay in world units. Scenes of few triangles in all skip
 //! the second level: one BVH over their triangles placed in the world ([`FLAT_TRIANGLES`]).
 //!
-//! obvhs builds the trees; the walk is its `traverse!` loop restated a node at a time
-//! ([`walk`]), so a batch of rays can keep several walks in flight, and the node and triangle
-//! tests in it are our own eight-wide ones ([`wide`]), which find exactly what obvhs's
+//! obvhs builds the trees and its `traverse!` macro walks them (restated a node at a time
+//! for batches that keep several walks in flight, [`walk`]); the node and triangle tests in
+//! that walk are our own eight-wide ones ([`wide`]), which find exactly what obvhs's
 //! four-wide node test and a one-at-a-time triangle test find.
 
 mod walk;
@@ -118,6 +118,45 @@ impl Deforming {
         let base = id * self.keys + k;
         self.tris[base].lerp(&self.tris[base + 1], f)
     }
+
+    /// Closest hit before `ray.tmax` among triangles `base + j` (set bits `j` of `group`),
+    /// shaped for `time`, one at a time (highest index first, as the eight-wide test resolves
+    /// ties).
+    #[inline(always)]
+    fn closest(&self, base: u32, group: u32, ray: &BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
+        let mut best = None;
+        let mut tmax = ray.tmax;
+        for id in bits_high_first(group).map(|j| base + j) {
+            if let Some((t, u, v)) = self.at(id as usize, time).intersect(ray.origin, ray.direction, ray.tmin, tmax) {
+                tmax = t;
+                best = Some((t, id, Vec2::new(u, v)));
+            }
+        }
+        best
+    }
+
+    /// True when any of triangles `base + j` (set bits `j` of `group`), shaped for `time`,
+    /// lies on `ray`.
+    #[inline(always)]
+    fn any(&self, base: u32, group: u32, ray: &BvhRay, time: f32) -> bool {
+        bits_high_first(group)
+            .any(|j| self.at((base + j) as usize, time).intersect(ray.origin, ray.direction, ray.tmin, ray.tmax).is_some())
+    }
+}
+
+/// The closest hit `test` finds in the leaves `bvh`'s walk lets `ray` into, shortening the ray
+/// at each hit.
+#[inline(always)]
+fn closest_walk(bvh: &CwBvh, ray: &mut BvhRay, test: impl Fn(u32, u32, &BvhRay) -> Option<(f32, u32, Vec2)>) -> Option<(f32, u32, Vec2)> {
+    let mut best = None;
+    walk(bvh, ray, |ray, base, group| {
+        if let Some(hit) = test(base, group, ray) {
+            ray.tmax = hit.0;
+            best = Some(hit);
+        }
+        false
+    });
+    best
 }
 
 /// BVH size (nodes and triangles) up to which a batch of rays walks one ray at a time rather
@@ -226,18 +265,15 @@ impl Blas {
         self.bvh.nodes.len() * size_of::<obvhs::cwbvh::node::CwBvhNode>() + self.tris.bytes() <= IN_CACHE_BYTES
     }
 
-    /// Closest hit along `ray` at shutter `time`, its triangle as a BVH-order index.
+    /// Closest hit along `ray` at shutter `time`, its triangle as a BVH-order index. The
+    /// mesh's kind is matched once, outside the walk: matching per leaf group (as the
+    /// interleaved walks do) cost a lone ray about 10% more instructions.
     #[inline(always)]
     fn closest_bvh_order(&self, ray: &mut BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
-        let mut best = None;
-        walk(&self.bvh, ray, |ray, base, group| {
-            if let Some(hit) = self.closest_in_leaves(base, group, ray, time) {
-                ray.tmax = hit.0;
-                best = Some(hit);
-            }
-            false
-        });
-        best
+        match &self.deforming {
+            None => closest_walk(&self.bvh, ray, |base, group, ray| self.tris.closest(base, group, ray)),
+            Some(m) => closest_walk(&self.bvh, ray, |base, group, ray| m.closest(base, group, ray, time)),
+        }
     }
 
     /// Closest hit before `ray.tmax` among triangles `base + j` (set bits `j` of `group`, BVH
@@ -245,16 +281,10 @@ impl Blas {
     /// mesh deforms.
     #[inline(always)]
     fn closest_in_leaves(&self, base: u32, group: u32, ray: &BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
-        let Some(m) = &self.deforming else { return self.tris.closest(base, group, ray) };
-        let mut best = None;
-        let mut tmax = ray.tmax;
-        for id in bits_high_first(group).map(|j| base + j) {
-            if let Some((t, u, v)) = m.at(id as usize, time).intersect(ray.origin, ray.direction, ray.tmin, tmax) {
-                tmax = t;
-                best = Some((t, id, Vec2::new(u, v)));
-            }
+        match &self.deforming {
+            None => self.tris.closest(base, group, ray),
+            Some(m) => m.closest(base, group, ray, time),
         }
-        best
     }
 
     /// True when any of triangles `base + j` (set bits `j` of `group`) lies on `ray` at
@@ -263,8 +293,7 @@ impl Blas {
     fn any_in_leaves(&self, base: u32, group: u32, ray: &BvhRay, time: f32) -> bool {
         match &self.deforming {
             None => self.tris.any(base, group, ray),
-            Some(m) => bits_high_first(group)
-                .any(|j| m.at((base + j) as usize, time).intersect(ray.origin, ray.direction, ray.tmin, ray.tmax).is_some()),
+            Some(m) => m.any(base, group, ray, time),
         }
     }
 
@@ -281,21 +310,33 @@ impl Blas {
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
         let mut ray = bvh_ray(o, d, tmax);
         let mut blocked = false;
-        walk(&self.bvh, &mut ray, |ray, base, group| {
-            blocked = self.any_in_leaves(base, group, ray, time);
-            blocked
-        });
+        match &self.deforming {
+            None => walk(&self.bvh, &mut ray, |ray, base, group| {
+                blocked = self.tris.any(base, group, ray);
+                blocked
+            }),
+            Some(m) => walk(&self.bvh, &mut ray, |ray, base, group| {
+                blocked = m.any(base, group, ray, time);
+                blocked
+            }),
+        }
         blocked
     }
 
     /// [`Blas::intersect`] for each of `rays` (object-space origin, direction, tmax) at
     /// shutter `time`, into `hits`: the same hits, found with several walks in flight
-    /// ([`walk_interleaved`]), which hides much of the memory latency of a mesh bigger than
-    /// the cache.
+    /// ([`walk_interleaved`]) when the BVH is too big to stay in cache, which hides much of
+    /// the memory latency of its walks.
     pub fn intersect_many(&self, rays: &[(Vec3A, Vec3A, f32)], time: f32, hits: &mut [Option<(f32, u32, Vec2)>]) {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
+        if self.stays_in_cache() {
+            for (hit, &(o, d, tmax)) in hits.iter_mut().zip(rays) {
+                *hit = self.intersect(o, d, tmax, time);
+            }
+            return;
+        }
         let mut walked: Vec<BvhRay> = rays.iter().map(|&(o, d, tmax)| bvh_ray(o, d, tmax)).collect();
-        self.closest_of(&mut walked, time, hits);
+        self.closest_interleaved(&mut walked, time, hits);
         for hit in hits.iter_mut().flatten() {
             hit.1 = self.tri_ids[hit.1 as usize];
         }
@@ -315,18 +356,8 @@ impl Blas {
         self.occluded_interleaved(&mut walked, time, blocked);
     }
 
-    /// Closest hits (BVH-order triangle index) of `rays`, already in obvhs's form, into `hits`.
-    fn closest_of(&self, rays: &mut [BvhRay], time: f32, hits: &mut [Option<(f32, u32, Vec2)>]) {
-        if self.stays_in_cache() {
-            for (hit, ray) in hits.iter_mut().zip(rays) {
-                *hit = self.closest_bvh_order(ray, time);
-            }
-            return;
-        }
-        self.closest_interleaved(rays, time, hits);
-    }
-
-    /// [`Self::closest_of`] with several walks in flight, whatever the BVH's size.
+    /// Closest hits (BVH-order triangle index) of `rays` (obvhs's form) with several walks in
+    /// flight, whatever the BVH's size.
     fn closest_interleaved(&self, rays: &mut [BvhRay], time: f32, hits: &mut [Option<(f32, u32, Vec2)>]) {
         hits.fill(None);
         walk_interleaved(
@@ -639,31 +670,6 @@ impl Tlas {
             false
         });
         best
-    }
-
-    /// [`Tlas::intersect`] for each of `rays`, into `hits`: the same hits to the bit. A flat
-    /// BVH hands the batch to its [`Blas`], which walks several rays at once when it is far
-    /// bigger than the cache. Two levels walk ray by ray: interleaving both levels measured
-    /// 20% slower on the production scene, whose waves of rays share most of the nodes they
-    /// visit (`docs/benchmarks.md`, 2026-12-04).
-    pub fn intersect_many(&self, blases: &[std::sync::Arc<Blas>], rays: &[Ray], hits: &mut [Option<Hit>]) {
-        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        let Some(Accel::Flat { world, ids }) = &self.accel else {
-            for (hit, ray) in hits.iter_mut().zip(rays) {
-                *hit = self.intersect(blases, ray);
-            }
-            return;
-        };
-        let k = self.ray_scale;
-        let mut walked: Vec<BvhRay> = rays.iter().map(|r| bvh_ray(r.origin.into(), Vec3A::from(r.dir) * k, r.tmax / k)).collect();
-        let mut found = vec![None; rays.len()];
-        world.closest_of(&mut walked, 0.0, &mut found);
-        for ((hit, f), ray) in hits.iter_mut().zip(found).zip(rays) {
-            *hit = f.map(|(t, id, bary)| {
-                let (instance, triangle) = ids[world.tri_ids[id as usize] as usize];
-                Hit { t: t * k, time: ray.time, instance, triangle, bary }
-            });
-        }
     }
 
     /// True when anything blocks the segment from `ray.origin` to `ray.at(tmax)`.

@@ -132,9 +132,6 @@ pub struct WaveBuffers {
     states: Vec<(PathState, PixelSample)>,
     hits: Vec<Option<Hit>>,
     live: Vec<usize>,
-    /// The live paths' rays and what they found, in the order of `live`.
-    rays: Vec<Ray>,
-    found: Vec<Option<Hit>>,
     at: VertexBuffers,
     samples: Vec<PixelSample>,
 }
@@ -169,7 +166,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         counters: &mut PathCounters,
         buffers: &mut WaveBuffers,
     ) {
-        let WaveBuffers { states, hits, live, rays, found, at, samples } = buffers;
+        let WaveBuffers { states, hits, live, at, samples } = buffers;
         let new = |p: &CameraPath| (PathState::new(p.ray, self.settings), PixelSample { depth: background_depth, ..Default::default() });
         states.clear();
         states.extend(paths.iter().map(new));
@@ -178,13 +175,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         live.clear();
         live.extend(0..paths.len());
         while !live.is_empty() {
-            rays.clear();
-            rays.extend(live.iter().map(|&i| states[i].0.ray));
-            found.resize(rays.len(), None);
-            self.scene.intersect_many(rays, found);
-            counters.rays += rays.len() as u64;
-            for (&i, &hit) in live.iter().zip(found.iter()) {
-                hits[i] = hit;
+            for &i in live.iter() {
+                counters.rays += 1;
+                hits[i] = self.scene.intersect(&states[i].0.ray);
             }
             live.retain(|&i| {
                 let ((path, out), cos) = (&mut states[i], paths[i].cos);

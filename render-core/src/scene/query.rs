@@ -88,13 +88,6 @@ impl CommittedScene {
         self.tlas.intersect(&self.blases, ray)
     }
 
-    /// Closest surface hit along each of `rays`, into `hits`: what [`Self::intersect`] finds
-    /// for each, several rays' walks in flight where the acceleration structure allows.
-    #[inline]
-    pub fn intersect_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.tlas.intersect_many(&self.blases, rays, hits)
-    }
-
     /// Material `index`'s inputs that vary over the surface, if any.
     #[inline]
     pub fn textured(&self, index: u32) -> Option<&crate::material::TexturedMaterial> {
