@@ -16,12 +16,12 @@
 //! lights per shading point. Which nodes split depends only on the point, so the probability
 //! of a light is still a product along its path, with 1 at split nodes.
 
-mod pair;
+mod family;
 
 use glam::{Quat, Vec3};
 
 use super::shapes::Shape;
-use pair::PairBounds;
+use family::FamilyBounds;
 
 /// Spatial, power and directional bounds of a set of emitters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -223,6 +223,15 @@ fn cone_union(a: (Vec3, f32), b: (Vec3, f32)) -> (Vec3, f32) {
     (Quat::from_axis_angle(axis.normalize(), to - ta) * a.0, to.cos())
 }
 
+/// Two children's importances and their sum, when the walk can choose between them by these
+/// (the sum positive and finite): (left, right, total). A child's probability is its
+/// importance over the total.
+#[inline(always)]
+fn weighable(il: f32, ir: f32) -> Option<(f32, f32, f32)> {
+    let total = il + ir;
+    (total > 0.0 && total.is_finite()).then_some((il, ir, total))
+}
+
 /// Most lights one shading point samples through splitting.
 pub const SPLIT_BUDGET: usize = 8;
 
@@ -235,12 +244,25 @@ enum Node {
         light: u32,
         bounds: LightBounds,
     },
-    /// `pair`: its children's bounds side by side, in [`LightTree::pairs`].
+    /// `lanes`: where its children's importances are weighed.
     Interior {
         right: u32,
         bounds: LightBounds,
-        pair: u32,
+        lanes: Lanes,
     },
+}
+
+/// Where an interior node is weighed: a node at an even depth has a family of its own (its
+/// children in lanes 0-1, its grandchildren in 2-5, itself in 6); a node at an odd depth is a
+/// child in its parent's family, itself in lane 0 or 1, its children in lanes 2-3 or 4-5. So
+/// a third of the nodes hold a family, and a walk takes one pass per two levels from any node.
+#[derive(Clone, Copy, Debug)]
+struct Lanes {
+    family: u32,
+    /// The first of its two children's lanes.
+    children: u8,
+    /// Its own lane.
+    own: u8,
 }
 
 impl Node {
@@ -255,8 +277,9 @@ impl Node {
 #[derive(Debug, Default)]
 pub struct LightTree {
     nodes: Vec<Node>,
-    /// Each interior node's children's bounds, laid out to be weighed in one pass.
-    pairs: Vec<PairBounds>,
+    /// The bounds of the children and grandchildren of each interior node at an even depth,
+    /// laid out to be weighed in one pass.
+    families: Vec<FamilyBounds>,
     /// Per light index: (path bits from the root, 1 = right; depth), or None when not in
     /// the tree.
     trails: Vec<Option<(u64, u32)>>,
@@ -265,7 +288,7 @@ pub struct LightTree {
 impl LightTree {
     /// Builds the tree over `(light index, bounds)` pairs; `n_lights` sizes the trail table.
     pub fn build(mut items: Vec<(u32, LightBounds)>, n_lights: usize) -> Self {
-        let mut tree = LightTree { nodes: Vec::with_capacity(2 * items.len()), pairs: Vec::new(), trails: vec![None; n_lights] };
+        let mut tree = LightTree { nodes: Vec::with_capacity(2 * items.len()), families: Vec::new(), trails: vec![None; n_lights] };
         items.retain(|(_, b)| b.phi > 0.0 && b.phi.is_finite() && b.lo.is_finite() && b.hi.is_finite());
         if !items.is_empty() {
             tree.build_node(&mut items, 0, 0);
@@ -297,9 +320,42 @@ impl LightTree {
         let right_index = self.nodes.len() as u32;
         let rb = self.build_node(right, bits | (1 << depth), depth + 1);
         let bounds = lb.union(&rb);
-        self.nodes[at] = Node::Interior { right: right_index, bounds, pair: self.pairs.len() as u32 };
-        self.pairs.push(PairBounds::new(&lb, &rb));
+        // Odd depths are weighed in their parent's family, which is made once they exist.
+        let lanes = Lanes { family: u32::MAX, children: 0, own: family::NODE as u8 };
+        self.nodes[at] = Node::Interior { right: right_index, bounds, lanes };
+        if depth.is_multiple_of(2) {
+            self.add_family(at);
+        }
         bounds
+    }
+
+    /// Makes the family of interior node `at` (at an even depth), and tells its interior
+    /// children where they are weighed.
+    fn add_family(&mut self, at: usize) {
+        let Node::Interior { right, bounds, .. } = self.nodes[at] else { return };
+        let family = self.families.len() as u32;
+        let children = [at + 1, right as usize];
+        let [(ll, lr), (rl, rr)] = children.map(|child| self.children_bounds(child));
+        let [l, r] = children.map(|child| Some(self.nodes[child].bounds()));
+        self.families.push(FamilyBounds::new([l, r, ll, lr, rl, rr, Some(&bounds)]));
+        self.set_lanes(at, Lanes { family, children: 0, own: family::NODE as u8 });
+        for (k, child) in children.into_iter().enumerate() {
+            self.set_lanes(child, Lanes { family, children: 2 + 2 * k as u8, own: k as u8 });
+        }
+    }
+
+    fn set_lanes(&mut self, at: usize, to: Lanes) {
+        if let Node::Interior { lanes, .. } = &mut self.nodes[at] {
+            *lanes = to;
+        }
+    }
+
+    /// The bounds of node `at`'s two children, when it has children.
+    fn children_bounds(&self, at: usize) -> (Option<&LightBounds>, Option<&LightBounds>) {
+        match &self.nodes[at] {
+            Node::Interior { right, .. } => (Some(self.nodes[at + 1].bounds()), Some(self.nodes[*right as usize].bounds())),
+            Node::Leaf { .. } => (None, None),
+        }
     }
 
     /// True when the tree holds no light.
@@ -349,17 +405,6 @@ impl LightTree {
                 }
             }
         }
-    }
-
-    /// Importances of the two children of interior node `at` (which sits at index `at`, its
-    /// left child at `at + 1`) and their sum, when it can be split by: (left, right, total).
-    /// A child's probability is its importance over the total.
-    #[inline(always)]
-    fn child_importances(&self, at: usize, p: Vec3, n: Vec3) -> Option<(f32, f32, f32)> {
-        let Node::Interior { pair, .. } = self.nodes[at] else { return None };
-        let (il, ir) = self.pairs[pair as usize].importances(p, n);
-        let total = il + ir;
-        (total > 0.0 && total.is_finite()).then_some((il, ir, total))
     }
 
     /// The nodes that split at `p` and the cut below them: the nodes each stochastic walk
@@ -433,33 +478,54 @@ impl LightTree {
         }
     }
 
-    /// The stochastic walk from node `at` down to a leaf.
+    /// The stochastic walk from node `at` down to a leaf, two levels per pass of importances
+    /// (one for the first when it starts at an odd depth): a family holds the grandchildren's
+    /// importances too, which are the values their parent's own pass would compute, so the
+    /// choices and probabilities are those of a walk one level at a time.
     fn walk(&self, mut at: usize, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32)> {
         let mut pmf = 1.0f32;
-        // A cluster with no importance here (every light faces away) delivers nothing.
-        if self.nodes[at].bounds().importance(p, n) <= 0.0 {
+        let mut first = true;
+        while let Node::Interior { lanes: Lanes { family, children, own }, .. } = self.nodes[at] {
+            let lanes = self.families[family as usize].importances(p, n);
+            // A cluster with no importance here (every light faces away) delivers nothing.
+            if std::mem::take(&mut first) && lanes[own as usize] <= 0.0 {
+                return None;
+            }
+            let c = children as usize;
+            let right_taken = self.choose(&mut at, weighable(lanes[c], lanes[c + 1])?, &mut u, &mut pmf);
+            if c != 0 || !matches!(self.nodes[at], Node::Interior { .. }) {
+                continue;
+            }
+            let k = if right_taken { 4 } else { 2 };
+            self.choose(&mut at, weighable(lanes[k], lanes[k + 1])?, &mut u, &mut pmf);
+        }
+        let Node::Leaf { light, bounds } = &self.nodes[at] else { return None };
+        // A walk that starts at a leaf has not weighed it yet.
+        if first && bounds.importance(p, n) <= 0.0 {
             return None;
         }
-        loop {
-            match self.nodes[at] {
-                Node::Leaf { light, .. } => return (pmf > 0.0).then_some((light, pmf)),
-                Node::Interior { right, .. } => {
-                    let (il, ir, total) = self.child_importances(at, p, n)?;
-                    // Decide without dividing, which keeps the divisions off the chain from one
-                    // level to the next (u·total can round up to il + ir: never pick an empty
-                    // right child then).
-                    let ut = u * total;
-                    if ut < il || ir <= 0.0 {
-                        u = (ut / il).min(1.0 - f32::EPSILON);
-                        pmf *= il / total;
-                        at += 1;
-                    } else {
-                        u = ((ut - il) / ir).clamp(0.0, 1.0 - f32::EPSILON);
-                        pmf *= ir / total;
-                        at = right as usize;
-                    }
-                }
-            }
+        (pmf > 0.0).then_some((*light, pmf))
+    }
+
+    /// One step of the walk from interior node `at` to one of its children, chosen by their
+    /// importances `(left, right, total)`: moves `at`, rescales `u`, multiplies `pmf` by the
+    /// choice's probability; true when it took the right child.
+    #[inline(always)]
+    fn choose(&self, at: &mut usize, (il, ir, total): (f32, f32, f32), u: &mut f32, pmf: &mut f32) -> bool {
+        let Node::Interior { right, .. } = self.nodes[*at] else { unreachable!("the walk steps from interior nodes") };
+        // Decide without dividing, which keeps the divisions off the chain from one level to
+        // the next (u·total can round up to il + ir: never pick an empty right child then).
+        let ut = *u * total;
+        if ut < il || ir <= 0.0 {
+            *u = (ut / il).min(1.0 - f32::EPSILON);
+            *pmf *= il / total;
+            *at += 1;
+            false
+        } else {
+            *u = ((ut - il) / ir).clamp(0.0, 1.0 - f32::EPSILON);
+            *pmf *= ir / total;
+            *at = right as usize;
+            true
         }
     }
 
@@ -473,21 +539,32 @@ impl LightTree {
         let (splits, n_splits, _, _) = self.cut(p, budget);
         let (mut at, mut pmf) = (0usize, 1.0f32);
         let mut walking = false;
+        // The next level's importances, from the pass of the level before (see `walk`).
+        let mut pending: Option<(f32, f32)> = None;
         for level in 0..*depth {
-            let Node::Interior { right, .. } = self.nodes[at] else { return 0.0 };
+            let Node::Interior { right, lanes: Lanes { family, children, own }, .. } = self.nodes[at] else { return 0.0 };
             let right_taken = bits >> level & 1 == 1;
             if !walking && splits[..n_splits].contains(&(at as u32)) {
                 at = if right_taken { right as usize } else { at + 1 };
                 continue;
             }
-            if !walking {
-                // The walk starts here: a cluster with no importance is never walked.
-                if self.nodes[at].bounds().importance(p, n) <= 0.0 {
-                    return 0.0;
+            let (il, ir) = match pending.take() {
+                Some(pair) => pair,
+                None => {
+                    let lanes = self.families[family as usize].importances(p, n);
+                    // The walk starts here: a cluster with no importance is never walked.
+                    if !walking && lanes[own as usize] <= 0.0 {
+                        return 0.0;
+                    }
+                    walking = true;
+                    let c = children as usize;
+                    if c == 0 {
+                        pending = Some(if right_taken { (lanes[4], lanes[5]) } else { (lanes[2], lanes[3]) });
+                    }
+                    (lanes[c], lanes[c + 1])
                 }
-                walking = true;
-            }
-            let Some((il, ir, total)) = self.child_importances(at, p, n) else { return 0.0 };
+            };
+            let Some((il, ir, total)) = weighable(il, ir) else { return 0.0 };
             if right_taken {
                 pmf *= ir / total;
                 at = right as usize;
@@ -522,6 +599,75 @@ mod tests {
     fn tree_of(lights: &[(Shape, f32)]) -> LightTree {
         let items = lights.iter().enumerate().map(|(i, (s, phi))| (i as u32, LightBounds::of(s, *phi).unwrap())).collect();
         LightTree::build(items, lights.len())
+    }
+
+    /// The probability of a light as the definition reads, one level at a time with each
+    /// node's own bounds (`LightBounds::importance`), without the families' lanes.
+    fn pmf_level_by_level(t: &LightTree, p: Vec3, n: Vec3, light: usize, budget: usize) -> f32 {
+        let Some((bits, depth)) = t.trails[light] else { return 0.0 };
+        let (splits, n_splits, _, _) = t.cut(p, budget);
+        let (mut at, mut pmf, mut walking) = (0usize, 1.0f32, false);
+        for level in 0..depth {
+            let Node::Interior { right, .. } = t.nodes[at] else { return 0.0 };
+            let right_taken = bits >> level & 1 == 1;
+            if !walking && splits[..n_splits].contains(&(at as u32)) {
+                at = if right_taken { right as usize } else { at + 1 };
+                continue;
+            }
+            if !walking && t.nodes[at].bounds().importance(p, n) <= 0.0 {
+                return 0.0;
+            }
+            walking = true;
+            let [il, ir] = [at + 1, right as usize].map(|c| t.nodes[c].bounds().importance(p, n));
+            let Some((il, ir, total)) = weighable(il, ir) else { return 0.0 };
+            (pmf, at) = if right_taken { (pmf * (ir / total), right as usize) } else { (pmf * (il / total), at + 1) };
+        }
+        match t.nodes[at] {
+            Node::Leaf { light: l, bounds } if l as usize == light && (walking || bounds.importance(p, n) > 0.0) => pmf,
+            _ => 0.0,
+        }
+    }
+
+    /// The walk weighs two levels per pass, starting at odd or even depths (splitting starts
+    /// walks anywhere); its probabilities must be those of the one-level definition, to the
+    /// bit, for lights facing every way, one-sided lights facing away (zero importances on
+    /// the way), and points among the lights (where clusters split).
+    #[test]
+    fn two_levels_per_pass_weigh_as_one_level_at_a_time() {
+        let mut rng = Pcg32::new(21, 8);
+        let lights: Vec<_> = (0..150)
+            .map(|i| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0;
+                let phi = 0.2 + rng.next_f32();
+                if i % 3 == 0 {
+                    return sphere(c, phi);
+                }
+                let nrm = crate::sampling::uniform_sphere(rng.next_2d());
+                let f = crate::math::Frame::from_normal(nrm);
+                (Shape::Rect { center: c, u: f.t * 0.2, v: f.b * 0.3, n: nrm, area: 0.24, l: Vec3::ONE }, phi)
+            })
+            .collect();
+        let t = tree_of(&lights);
+        // Memory: a family (eight lanes) is twice the pair of lanes each interior node held
+        // before. Every family but the root's hangs below an odd-depth node, which has none and
+        // at most two children, so at most two thirds of the interior nodes (plus the root)
+        // hold one: at most 4/3 of the pairs' bytes (150 lights here: 85 families for 149
+        // interior nodes, 1.14x).
+        let interior = t.nodes.iter().filter(|n| matches!(n, Node::Interior { .. })).count();
+        assert!(3 * t.families.len() <= 2 * interior + 1, "{} families for {interior} interior nodes", t.families.len());
+        let mut compared = 0;
+        for k in 0..300 {
+            let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - Vec3::ONE;
+            let n = if k % 4 == 0 { Vec3::ZERO } else { crate::sampling::uniform_sphere(rng.next_2d()) };
+            for budget in [1, 2, 5, 8] {
+                for light in 0..lights.len() {
+                    let (walked, defined) = (t.pmf(p, n, light, budget), pmf_level_by_level(&t, p, n, light, budget));
+                    assert_eq!(walked.to_bits(), defined.to_bits(), "light {light} at {p} {n}, budget {budget}");
+                    compared += (defined > 0.0) as usize;
+                }
+            }
+        }
+        assert!(compared > 50_000, "{compared} nonzero probabilities compared");
     }
 
     /// The probabilities of all lights sum to one, and sampling picks each light as often as
