@@ -8,7 +8,8 @@
 //! lanes 2-3 (the left child's) and 4-5 (the right child's), and the node itself in lane 6 (a
 //! walk starting there checks that it matters at all), so one chain of instructions weighs two
 //! levels of the walk: it takes a chain's latency per two levels where a pair of lanes took
-//! one per level. Every lane takes exactly the scalar operations in the scalar
+//! one per level. Only nodes at even depths hold a family; the others are weighed in their
+//! parent's (`Lanes` in the tree). Every lane takes exactly the scalar operations in the scalar
 //! order (the branches become selects; IEEE operations round alike in either form), so the
 //! values are the scalar ones to the bit and the tree picks and weighs lights as it always
 //! has (`family_importances_are_the_scalar_ones` compares them).
