@@ -486,18 +486,18 @@ impl LightTree {
         let mut pmf = 1.0f32;
         let mut first = true;
         while let Node::Interior { lanes: Lanes { family, children, own }, .. } = self.nodes[at] {
-            let lanes = self.families[family as usize].importances(p, n);
+            let importances = self.families[family as usize].importances(p, n);
             // A cluster with no importance here (every light faces away) delivers nothing.
-            if std::mem::take(&mut first) && lanes[own as usize] <= 0.0 {
+            if std::mem::take(&mut first) && importances[own as usize] <= 0.0 {
                 return None;
             }
             let c = children as usize;
-            let right_taken = self.choose(&mut at, weighable(lanes[c], lanes[c + 1])?, &mut u, &mut pmf);
+            let right_taken = self.choose(&mut at, weighable(importances[c], importances[c + 1])?, &mut u, &mut pmf);
             if c != 0 || !matches!(self.nodes[at], Node::Interior { .. }) {
                 continue;
             }
             let k = if right_taken { 4 } else { 2 };
-            self.choose(&mut at, weighable(lanes[k], lanes[k + 1])?, &mut u, &mut pmf);
+            self.choose(&mut at, weighable(importances[k], importances[k + 1])?, &mut u, &mut pmf);
         }
         let Node::Leaf { light, bounds } = &self.nodes[at] else { return None };
         // A walk that starts at a leaf has not weighed it yet.
@@ -551,17 +551,17 @@ impl LightTree {
             let (il, ir) = match pending.take() {
                 Some(pair) => pair,
                 None => {
-                    let lanes = self.families[family as usize].importances(p, n);
+                    let importances = self.families[family as usize].importances(p, n);
                     // The walk starts here: a cluster with no importance is never walked.
-                    if !walking && lanes[own as usize] <= 0.0 {
+                    if !walking && importances[own as usize] <= 0.0 {
                         return 0.0;
                     }
                     walking = true;
                     let c = children as usize;
                     if c == 0 {
-                        pending = Some(if right_taken { (lanes[4], lanes[5]) } else { (lanes[2], lanes[3]) });
+                        pending = Some(if right_taken { (importances[4], importances[5]) } else { (importances[2], importances[3]) });
                     }
-                    (lanes[c], lanes[c + 1])
+                    (importances[c], importances[c + 1])
                 }
             };
             let Some((il, ir, total)) = weighable(il, ir) else { return 0.0 };
