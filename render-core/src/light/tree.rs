@@ -232,6 +232,28 @@ fn weighable(il: f32, ir: f32) -> Option<(f32, f32, f32)> {
     (total > 0.0 && total.is_finite()).then_some((il, ir, total))
 }
 
+/// One step of the walk from the interior node at `at` (right child at `right`, left at
+/// `at + 1`) to one of its children, chosen by their importances `(left, right, total)`: moves
+/// `at`, rescales `u`, multiplies `pmf` by the choice's probability; true when it took the
+/// right child.
+#[inline(always)]
+fn choose(at: &mut usize, right: u32, (il, ir, total): (f32, f32, f32), u: &mut f32, pmf: &mut f32) -> bool {
+    // Decide without dividing, which keeps the divisions off the chain from one level to the
+    // next (u·total can round up to il + ir: never pick an empty right child then).
+    let ut = *u * total;
+    if ut < il || ir <= 0.0 {
+        *u = (ut / il).min(1.0 - f32::EPSILON);
+        *pmf *= il / total;
+        *at += 1;
+        false
+    } else {
+        *u = ((ut - il) / ir).clamp(0.0, 1.0 - f32::EPSILON);
+        *pmf *= ir / total;
+        *at = right as usize;
+        true
+    }
+}
+
 /// Most lights one shading point samples through splitting.
 pub const SPLIT_BUDGET: usize = 8;
 
@@ -485,19 +507,20 @@ impl LightTree {
     fn walk(&self, mut at: usize, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32)> {
         let mut pmf = 1.0f32;
         let mut first = true;
-        while let Node::Interior { lanes: Lanes { family, children, own }, .. } = self.nodes[at] {
+        while let Node::Interior { right, lanes: Lanes { family, children, own }, .. } = self.nodes[at] {
             let importances = self.families[family as usize].importances(p, n);
             // A cluster with no importance here (every light faces away) delivers nothing.
             if std::mem::take(&mut first) && importances[own as usize] <= 0.0 {
                 return None;
             }
             let c = children as usize;
-            let right_taken = self.choose(&mut at, weighable(importances[c], importances[c + 1])?, &mut u, &mut pmf);
-            if c != 0 || !matches!(self.nodes[at], Node::Interior { .. }) {
+            let right_taken = choose(&mut at, right, weighable(importances[c], importances[c + 1])?, &mut u, &mut pmf);
+            if c != 0 {
                 continue;
             }
+            let Node::Interior { right, .. } = self.nodes[at] else { continue };
             let k = if right_taken { 4 } else { 2 };
-            self.choose(&mut at, weighable(importances[k], importances[k + 1])?, &mut u, &mut pmf);
+            choose(&mut at, right, weighable(importances[k], importances[k + 1])?, &mut u, &mut pmf);
         }
         let Node::Leaf { light, bounds } = &self.nodes[at] else { return None };
         // A walk that starts at a leaf has not weighed it yet.
@@ -505,28 +528,6 @@ impl LightTree {
             return None;
         }
         (pmf > 0.0).then_some((*light, pmf))
-    }
-
-    /// One step of the walk from interior node `at` to one of its children, chosen by their
-    /// importances `(left, right, total)`: moves `at`, rescales `u`, multiplies `pmf` by the
-    /// choice's probability; true when it took the right child.
-    #[inline(always)]
-    fn choose(&self, at: &mut usize, (il, ir, total): (f32, f32, f32), u: &mut f32, pmf: &mut f32) -> bool {
-        let Node::Interior { right, .. } = self.nodes[*at] else { unreachable!("the walk steps from interior nodes") };
-        // Decide without dividing, which keeps the divisions off the chain from one level to
-        // the next (u·total can round up to il + ir: never pick an empty right child then).
-        let ut = *u * total;
-        if ut < il || ir <= 0.0 {
-            *u = (ut / il).min(1.0 - f32::EPSILON);
-            *pmf *= il / total;
-            *at += 1;
-            false
-        } else {
-            *u = ((ut - il) / ir).clamp(0.0, 1.0 - f32::EPSILON);
-            *pmf *= ir / total;
-            *at = right as usize;
-            true
-        }
     }
 
     /// The probability that [`LightTree::sample_split`] with `budget` (with 1,
