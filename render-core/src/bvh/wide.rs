@@ -75,8 +75,16 @@ impl TriangleLanes {
     #[inline(always)]
     fn chunks(base: u32, mask: u32) -> impl Iterator<Item = (usize, u32)> {
         let first = base as usize / LANES;
-        let lanes = u64::from(mask) << (base as usize % LANES);
-        (0..5).rev().map(move |k| (first + k, ((lanes >> (8 * k)) & 0xff) as u32)).filter(|&(_, m)| m != 0)
+        let mut lanes = u64::from(mask) << (base as usize % LANES);
+        // One step per chunk with a set lane (a group spans up to five chunks, most one or two).
+        std::iter::from_fn(move || {
+            (lanes != 0).then(|| {
+                let k = (63 - lanes.leading_zeros() as usize) / LANES;
+                let byte = (lanes >> (LANES * k)) & 0xff;
+                lanes &= !(0xff << (LANES * k));
+                (first + k, byte as u32)
+            })
+        })
     }
 
     /// Closest hit before `ray.tmax` among triangles `base + j` for the set bits `j` of
@@ -162,9 +170,9 @@ pub(super) fn node_hits(nodes: &[CwBvhNode], node: &CwBvhNode, ray: &BvhRay, oct
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
         // SAFETY: the target has AVX2 (checked at compile time).
-        let mask = unsafe { avx2::children_entered(node, ray) };
-        prefetch_inner(nodes, node, mask);
-        hit_mask(node, oct_inv4, mask)
+        let (entered, hits) = unsafe { avx2::children_entered(node, ray, oct_inv4) };
+        prefetch_inner(nodes, node, entered);
+        hits
     }
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
     {
@@ -199,23 +207,6 @@ fn prefetch_inner(nodes: &[CwBvhNode], node: &CwBvhNode, entered: u32) {
     }
 }
 
-/// The CWBVH hit mask of the children whose bits are set in `entered` (bit `j`: child slot
-/// `j`): inner children as traversal-order bits in the top byte, leaves as their primitives'
-/// bits in the low 24, as obvhs's node test builds it.
-#[cfg_attr(not(all(target_arch = "x86_64", target_feature = "avx2")), allow(dead_code))]
-#[inline(always)]
-fn hit_mask(node: &CwBvhNode, oct_inv4: u32, mut entered: u32) -> u32 {
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let mut hits = 0;
-    while entered != 0 {
-        let j = entered.trailing_zeros();
-        entered &= entered - 1;
-        let byte = |x: u64| ((x >> (j * 8)) as u32) & 0xff;
-        hits |= byte(child_bits8) << byte(bit_index8);
-    }
-    hits
-}
-
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 mod avx2 {
     use std::arch::x86_64::*;
@@ -243,11 +234,12 @@ mod avx2 {
         }
     }
 
-    /// Bit `j` set when the ray enters child slot `j` of `node` (empty slots are all-zero
-    /// boxes the caller's mask drops). The max/min order is obvhs's, so NaN lanes (an axis
-    /// the ray runs parallel to) resolve the same way.
+    /// The child slots of `node` the ray enters (bit `j`: slot `j`), and the CWBVH hit mask
+    /// of those children as obvhs's node test builds it (empty slots, all-zero boxes, add
+    /// nothing to it). The max/min order is obvhs's, so NaN lanes (an axis the ray runs
+    /// parallel to) resolve the same way.
     #[inline(always)]
-    pub(super) unsafe fn children_entered(node: &CwBvhNode, ray: &BvhRay) -> u32 {
+    pub(super) unsafe fn children_entered(node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> (u32, u32) {
         let scale = node.compute_extent() * ray.inv_direction;
         let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
         unsafe {
@@ -258,7 +250,32 @@ mod avx2 {
             let exit = _mm256_min_ps(far_x, _mm256_min_ps(far_y, far_z));
             let enter = _mm256_max_ps(enter, _mm256_set1_ps(NODE_TMIN));
             let exit = _mm256_min_ps(exit, _mm256_set1_ps(ray.tmax));
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(enter, exit)) as u32
+            let entered = _mm256_cmp_ps::<_CMP_LE_OS>(enter, exit);
+            (_mm256_movemask_ps(entered) as u32, hit_mask(node, oct_inv4, _mm256_castps_si256(entered)))
+        }
+    }
+
+    /// The CWBVH hit mask of the children whose lanes are set in `entered`: obvhs's
+    /// `get_child_and_index_bits` and its per-child loop, all eight slots in one pass. An inner
+    /// child sets its traversal-order bit in the top byte (its meta index, biased by 24, XOR
+    /// the inverse ray octant); a leaf sets its primitives' bits in the low 24 (its unary
+    /// primitive count shifted by its first primitive's offset).
+    #[inline(always)]
+    unsafe fn hit_mask(node: &CwBvhNode, oct_inv4: u32, entered: __m256i) -> u32 {
+        unsafe {
+            let meta = _mm256_cvtepu8_epi32(_mm_loadl_epi64(node.child_meta.as_ptr().cast()));
+            // An inner child's meta index is 24..32, so bits 3 and 4 are both set; a leaf's
+            // offset (below 24) never sets both.
+            let inner_bit = _mm256_and_si256(_mm256_and_si256(meta, _mm256_slli_epi32::<1>(meta)), _mm256_set1_epi32(0x10));
+            let inner = _mm256_cmpeq_epi32(inner_bit, _mm256_set1_epi32(0x10));
+            let octant = _mm256_and_si256(inner, _mm256_set1_epi32((oct_inv4 & 0xff) as i32));
+            let shift = _mm256_and_si256(_mm256_xor_si256(meta, octant), _mm256_set1_epi32(0x1f));
+            let child_bits = _mm256_and_si256(_mm256_srli_epi32::<5>(meta), _mm256_set1_epi32(0b111));
+            let bits = _mm256_and_si256(_mm256_sllv_epi32(child_bits, shift), entered);
+            let half = _mm_or_si128(_mm256_castsi256_si128(bits), _mm256_extracti128_si256::<1>(bits));
+            let quarter = _mm_or_si128(half, _mm_shuffle_epi32::<0b01_00_11_10>(half));
+            let all = _mm_or_si128(quarter, _mm_shuffle_epi32::<0b10_11_00_01>(quarter));
+            _mm_cvtsi128_si32(all) as u32
         }
     }
 
@@ -295,6 +312,7 @@ mod avx2 {
         }
     }
 
+    #[inline(always)]
     fn splat3(v: Vec3A) -> [__m256; 3] {
         unsafe { [_mm256_set1_ps(v.x), _mm256_set1_ps(v.y), _mm256_set1_ps(v.z)] }
     }
