@@ -51,6 +51,33 @@ pub fn usd_core_reads(scene: &Path, frame: Option<f64>) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON")
 }
 
+/// What usd-core reads from each of `scenes` at its frame: [`usd_core_reads`] for many scenes
+/// in one Python process (starting Python with usd-core takes about 0.3 s a scene).
+pub fn usd_core_reads_all(scenes: &[(PathBuf, Option<f64>)]) -> Vec<serde_json::Value> {
+    use std::io::Write;
+    let list: Vec<(String, Option<f64>)> = scenes.iter().map(|(p, f)| (p.display().to_string(), *f)).collect();
+    let mut child = std::process::Command::new("python3")
+        .arg(fixture("inspect_usd.py"))
+        .arg("--batch")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("python3 runs (the tests use Pixar's usd-core as an independent reader)");
+    let mut stdin = child.stdin.take().expect("piped stdin");
+    stdin.write_all(&serde_json::to_vec(&list).expect("scene list as JSON")).expect("scene list written");
+    drop(stdin);
+    let out = child.wait_with_output().expect("inspect_usd.py finishes");
+    assert!(
+        out.status.success(),
+        "inspect_usd.py --batch failed (is usd-core installed? pip install -r fixtures/requirements.txt):\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON");
+    assert_eq!(all.len(), scenes.len(), "one result per scene");
+    all
+}
+
 /// Reads a fixture with the client's USD reader.
 pub fn load(rel: &str) -> Translation {
     tessera::usd::load(&fixture(rel)).unwrap_or_else(|e| panic!("{rel}: {e:#}"))

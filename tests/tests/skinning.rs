@@ -24,24 +24,23 @@ fn skinned_points_agree_with_usd_core_at_and_between_frames() {
         ("usd-wg/UsdSkel/CesiumMan.usdz", [1.0, 30.2, 48.0]),
     ];
     let mut points = 0;
-    for (scene, frames) in cases {
-        for frame in frames {
-            let ours = tessera::commands::inspect::inspect(&fixture(scene), LoadOptions { frame: Some(frame), ..Default::default() })
-                .unwrap_or_else(|e| panic!("{scene}: {e:#}"));
-            let theirs = usd_core_reads(&fixture(scene), Some(frame));
-            for (path, expected) in theirs["meshes"].as_object().unwrap().iter().filter(|(_, m)| m.get("skinning").is_some()) {
-                let actual = &ours["meshes"][path];
-                let at = format!("{scene} frame {frame} {path}");
-                assert_eq!(actual["skinning"]["skeleton"], expected["skinning"]["skeleton"], "{at}");
-                assert_eq!(actual["skinning"]["animation"], expected["skinning"]["animation"], "{at}");
-                // The skeleton's world matrix, f32 in ours.
-                assert!(worst_difference(&json_rows(&actual["world"]), &json_rows(&expected["world"])) < 1e-6, "{at}: world");
-                // Posed points: both readers sum f32 points through f64 matrices; 1e-5 is f32
-                // rounding at these assets' scale (about 1-5 units).
-                let d = worst_difference(&actual["skinning"]["worldPoints"], &expected["skinning"]["worldPoints"]);
-                assert!(d < 1e-5, "{at}: skinned points differ by up to {d}");
-                points += expected["skinning"]["worldPoints"].as_array().unwrap().len();
-            }
+    let at_frames: Vec<(&str, f64)> = cases.iter().flat_map(|(scene, frames)| frames.map(|f| (*scene, f))).collect();
+    let all_theirs = usd_core_reads_all(&at_frames.iter().map(|(scene, f)| (fixture(scene), Some(*f))).collect::<Vec<_>>());
+    for ((scene, frame), theirs) in at_frames.into_iter().zip(all_theirs) {
+        let ours = tessera::commands::inspect::inspect(&fixture(scene), LoadOptions { frame: Some(frame), ..Default::default() })
+            .unwrap_or_else(|e| panic!("{scene}: {e:#}"));
+        for (path, expected) in theirs["meshes"].as_object().unwrap().iter().filter(|(_, m)| m.get("skinning").is_some()) {
+            let actual = &ours["meshes"][path];
+            let at = format!("{scene} frame {frame} {path}");
+            assert_eq!(actual["skinning"]["skeleton"], expected["skinning"]["skeleton"], "{at}");
+            assert_eq!(actual["skinning"]["animation"], expected["skinning"]["animation"], "{at}");
+            // The skeleton's world matrix, f32 in ours.
+            assert!(worst_difference(&json_rows(&actual["world"]), &json_rows(&expected["world"])) < 1e-6, "{at}: world");
+            // Posed points: both readers sum f32 points through f64 matrices; 1e-5 is f32
+            // rounding at these assets' scale (about 1-5 units).
+            let d = worst_difference(&actual["skinning"]["worldPoints"], &expected["skinning"]["worldPoints"]);
+            assert!(d < 1e-5, "{at}: skinned points differ by up to {d}");
+            points += expected["skinning"]["worldPoints"].as_array().unwrap().len();
         }
     }
     // 3 frames each of 208 + 8 (arm, hand), 160, 370 and 3273 points.
