@@ -16,6 +16,7 @@ use super::RtTriangle;
 
 /// Entry distance below which obvhs's node test culls a child box (`cwbvh/node.rs`,
 /// `EPSILON`, crate-private): the wide test uses the same so both find the same nodes.
+#[cfg_attr(not(all(target_arch = "x86_64", target_feature = "avx2")), allow(dead_code))]
 const NODE_TMIN: f32 = 1e-4;
 
 /// Triangles in BVH order, in chunks of [`LANES`]: each chunk holds the `v0.x` of its eight
