@@ -36,23 +36,11 @@ pub fn all_fixtures() -> Vec<PathBuf> {
 
 /// What usd-core reads, from `fixtures/inspect_usd.py`.
 pub fn usd_core_reads(scene: &Path, frame: Option<f64>) -> serde_json::Value {
-    let mut cmd = std::process::Command::new("python3");
-    cmd.arg(fixture("inspect_usd.py")).arg(scene);
-    if let Some(f) = frame {
-        cmd.arg("--frame").arg(f.to_string());
-    }
-    let out = cmd.output().expect("python3 runs (the tests use Pixar's usd-core as an independent reader)");
-    assert!(
-        out.status.success(),
-        "inspect_usd.py failed on {} (is usd-core installed? pip install -r fixtures/requirements.txt):\n{}",
-        scene.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("inspect_usd.py prints JSON")
+    usd_core_reads_all(&[(scene.to_path_buf(), frame)]).remove(0)
 }
 
-/// What usd-core reads from each of `scenes` at its frame: [`usd_core_reads`] for many scenes
-/// in one Python process (starting Python with usd-core takes about 0.3 s a scene).
+/// What usd-core reads from each of `scenes` at its frame, in one Python process (starting
+/// Python with usd-core takes about 0.3 s, so tests that compare many scenes read them together).
 pub fn usd_core_reads_all(scenes: &[(PathBuf, Option<f64>)]) -> Vec<serde_json::Value> {
     use std::io::Write;
     let list: Vec<(String, Option<f64>)> = scenes.iter().map(|(p, f)| (p.display().to_string(), *f)).collect();
