@@ -103,6 +103,11 @@ pub struct Blas {
     /// triangle in BVH order (`keys` per triangle); the BVH bounds each over all of them, so
     /// a ray finds it at any time, and the triangle is interpolated to the ray's.
     deforming: Option<Deforming>,
+    /// Per node, the chunks holding its leaves' triangles ([`pack_chunks`]), so a lone ray's
+    /// walk can ask for them when it enters the node's parent, a node's fetch ahead of their
+    /// test ([`Blas::prefetch_node_leaves`]). Four bytes a node, so that the walk's reads of
+    /// it stay in the L2 cache. Empty for BVHs that stay in cache, and for deforming meshes.
+    leaf_chunks: Vec<u32>,
 }
 
 struct Deforming {
@@ -147,9 +152,14 @@ impl Deforming {
 /// The closest hit `test` finds in the leaves `bvh`'s walk lets `ray` into, shortening the ray
 /// at each hit.
 #[inline(always)]
-fn closest_walk(bvh: &CwBvh, ray: &mut BvhRay, test: impl Fn(u32, u32, &BvhRay) -> Option<(f32, u32, Vec2)>) -> Option<(f32, u32, Vec2)> {
+fn closest_walk(
+    bvh: &CwBvh,
+    ray: &mut BvhRay,
+    ahead: impl Fn(usize),
+    test: impl Fn(u32, u32, &BvhRay) -> Option<(f32, u32, Vec2)>,
+) -> Option<(f32, u32, Vec2)> {
     let mut best = None;
-    walk(bvh, ray, |ray, base, group| {
+    walk(bvh, ray, ahead, |ray, base, group| {
         if let Some(hit) = test(base, group, ray) {
             ray.tmax = hit.0;
             best = Some(hit);
@@ -157,6 +167,22 @@ fn closest_walk(bvh: &CwBvh, ray: &mut BvhRay, test: impl Fn(u32, u32, &BvhRay) 
         false
     });
     best
+}
+
+/// Chunks `first..=last` (a node's leaves span at most four) as `first << 3 | (last - first + 1)`;
+/// 0 for none, and for chunk indices too big to pack (beyond four billion triangles), which
+/// are then not prefetched.
+fn pack_chunks(chunks: Option<(u32, u32)>) -> u32 {
+    match chunks {
+        Some((first, last)) if first < 1 << 29 && last - first < 7 => first << 3 | (last - first + 1),
+        _ => 0,
+    }
+}
+
+/// The chunks (first, last) [`pack_chunks`] packed.
+#[inline(always)]
+fn unpack_chunks(packed: u32) -> Option<(u32, u32)> {
+    (packed != 0).then(|| (packed >> 3, (packed >> 3) + (packed & 7) - 1))
 }
 
 /// BVH size (nodes and triangles) up to which a batch of rays walks one ray at a time rather
@@ -221,6 +247,8 @@ impl Blas {
         let mut blas = Self::of_bounds(&tris, &aabbs, quality);
         let deforming = blas.tri_ids.iter().flat_map(|&i| (0..keys).map(move |k| (i as usize, k))).map(|(i, k)| key(i, k)).collect();
         blas.deforming = Some(Deforming { keys, tris: deforming });
+        // Its triangles are interpolated one at a time, not read from the chunks.
+        blas.leaf_chunks = Vec::new();
         blas
     }
 
@@ -248,7 +276,12 @@ impl Blas {
             .collect();
         let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        Blas { bvh, tris: TriangleLanes::new(&rt), tri_ids, bounds, deforming: None }
+        let tris = TriangleLanes::new(&rt);
+        let mut blas = Blas { bvh, tris, tri_ids, bounds, deforming: None, leaf_chunks: Vec::new() };
+        if !blas.stays_in_cache() {
+            blas.leaf_chunks = blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))).collect();
+        }
+        blas
     }
 
     /// Closest hit in object space at shutter `time`: (t, original triangle index,
@@ -271,8 +304,11 @@ impl Blas {
     #[inline(always)]
     fn closest_bvh_order(&self, ray: &mut BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
         match &self.deforming {
-            None => closest_walk(&self.bvh, ray, |base, group, ray| self.tris.closest(base, group, ray)),
-            Some(m) => closest_walk(&self.bvh, ray, |base, group, ray| m.closest(base, group, ray, time)),
+            None if self.leaf_chunks.is_empty() => {
+                closest_walk(&self.bvh, ray, |_| {}, |base, group, ray| self.tris.closest(base, group, ray))
+            }
+            None => closest_walk(&self.bvh, ray, |c| self.prefetch_node_leaves(c), |base, group, ray| self.tris.closest(base, group, ray)),
+            Some(m) => closest_walk(&self.bvh, ray, |_| {}, |base, group, ray| m.closest(base, group, ray, time)),
         }
     }
 
@@ -297,6 +333,18 @@ impl Blas {
         }
     }
 
+    /// Asks the cache for the triangles of node `node`'s leaves. Called as the walk enters
+    /// the node (when its parent's test lets the ray in), this overlaps their fetch with the
+    /// node's own, where the node's test alone would find them only after it arrived: a lone
+    /// ray on the 1M-triangle bench spent a fifth of its time waiting on a leaf's first
+    /// triangle chunk (see `docs/benchmarks.md`, 2026-12-04 14:30 UTC).
+    #[inline(always)]
+    fn prefetch_node_leaves(&self, node: usize) {
+        if let Some((first, last)) = self.leaf_chunks.get(node).and_then(|&packed| unpack_chunks(packed)) {
+            self.tris.prefetch_chunks(first, last);
+        }
+    }
+
     /// Asks the cache for triangles `base + j` (set bits `j` of `group`) ahead of their test.
     #[inline(always)]
     fn prefetch_leaves(&self, base: u32, group: u32) {
@@ -310,15 +358,22 @@ impl Blas {
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
         let mut ray = bvh_ray(o, d, tmax);
         let mut blocked = false;
+        let mut any = |ray: &mut BvhRay, base, group| {
+            blocked = self.tris.any(base, group, ray);
+            blocked
+        };
         match &self.deforming {
-            None => walk(&self.bvh, &mut ray, |ray, base, group| {
-                blocked = self.tris.any(base, group, ray);
-                blocked
-            }),
-            Some(m) => walk(&self.bvh, &mut ray, |ray, base, group| {
-                blocked = m.any(base, group, ray, time);
-                blocked
-            }),
+            None if self.leaf_chunks.is_empty() => walk(&self.bvh, &mut ray, |_| {}, &mut any),
+            None => walk(&self.bvh, &mut ray, |c| self.prefetch_node_leaves(c), &mut any),
+            Some(m) => walk(
+                &self.bvh,
+                &mut ray,
+                |_| {},
+                |ray, base, group| {
+                    blocked = m.any(base, group, ray, time);
+                    blocked
+                },
+            ),
         }
         blocked
     }
@@ -659,16 +714,21 @@ impl Tlas {
                 });
             }
         };
-        walk(bvh, &mut wray, |r, base, group| {
-            for placed in bits_high_first(group).map(|j| &ordered[(base + j) as usize]) {
-                let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
-                if let Some((t, tri, bary)) = blases[placed.1].intersect(o, d, r.tmax, ray.time) {
-                    r.tmax = t;
-                    best = Some(Hit { t: t * k, time: ray.time, instance: placed.0, triangle: tri, bary });
+        walk(
+            bvh,
+            &mut wray,
+            |_| {},
+            |r, base, group| {
+                for placed in bits_high_first(group).map(|j| &ordered[(base + j) as usize]) {
+                    let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
+                    if let Some((t, tri, bary)) = blases[placed.1].intersect(o, d, r.tmax, ray.time) {
+                        r.tmax = t;
+                        best = Some(Hit { t: t * k, time: ray.time, instance: placed.0, triangle: tri, bary });
+                    }
                 }
-            }
-            false
-        });
+                false
+            },
+        );
         best
     }
 
@@ -682,13 +742,18 @@ impl Tlas {
             Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax, ray.time),
         };
         let mut blocked = false;
-        walk(bvh, &mut wray, |r, base, group| {
-            blocked = bits_high_first(group).map(|j| &ordered[(base + j) as usize]).any(|placed| {
-                let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
-                blases[placed.1].occluded(o, d, r.tmax, ray.time)
-            });
-            blocked
-        });
+        walk(
+            bvh,
+            &mut wray,
+            |_| {},
+            |r, base, group| {
+                blocked = bits_high_first(group).map(|j| &ordered[(base + j) as usize]).any(|placed| {
+                    let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
+                    blases[placed.1].occluded(o, d, r.tmax, ray.time)
+                });
+                blocked
+            },
+        );
         blocked
     }
 }
@@ -729,6 +794,17 @@ mod tests {
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn leaf_chunks_pack_and_unpack() {
+        for chunks in [(0, 0), (0, 3), (5, 9), ((1 << 29) - 1, (1 << 29) + 2)] {
+            assert_eq!(unpack_chunks(pack_chunks(Some(chunks))), Some(chunks), "{chunks:?}");
+        }
+        // None, and what does not fit, is not prefetched.
+        assert_eq!(unpack_chunks(pack_chunks(None)), None);
+        assert_eq!(unpack_chunks(pack_chunks(Some((1 << 29, 1 << 29)))), None);
+        assert_eq!(unpack_chunks(pack_chunks(Some((0, 7)))), None);
     }
 
     #[test]

@@ -116,10 +116,25 @@ impl TriangleLanes {
     /// every cache line of each: a walk with other rays in flight tests them a few turns later.
     #[inline(always)]
     pub(super) fn prefetch(&self, base: u32, mask: u32) {
-        #[cfg(target_arch = "x86_64")]
         for (chunk, _) in Self::chunks(base, mask) {
+            self.prefetch_chunk(chunk);
+        }
+    }
+
+    /// Asks the cache for chunks `first..=last`.
+    #[inline(always)]
+    pub(super) fn prefetch_chunks(&self, first: u32, last: u32) {
+        for chunk in first..=last {
+            self.prefetch_chunk(chunk as usize);
+        }
+    }
+
+    /// Asks the cache for every cache line of chunk `chunk`.
+    #[inline(always)]
+    fn prefetch_chunk(&self, chunk: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(floats) = self.data.get(chunk * CHUNK..(chunk + 1) * CHUNK) {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let Some(floats) = self.data.get(chunk * CHUNK..(chunk + 1) * CHUNK) else { continue };
             let p = floats.as_ptr().cast::<i8>();
             let skew = p as usize % 64;
             for offset in (0..skew + size_of_val(floats)).step_by(64) {
@@ -129,7 +144,22 @@ impl TriangleLanes {
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (base, mask);
+        let _ = chunk;
+    }
+
+    /// The chunks (first, last) holding the triangles of `node`'s leaves, or None.
+    pub(super) fn chunks_of(node: &CwBvhNode) -> Option<(u32, u32)> {
+        let inner = u32::from(node.imask);
+        let (mut lo, mut hi) = (u32::MAX, 0);
+        for (j, &meta) in node.child_meta.iter().enumerate() {
+            if meta == 0 || inner & (1 << j) != 0 {
+                continue;
+            }
+            let (offset, count) = (u32::from(meta & 0x1f), (meta >> 5).count_ones());
+            lo = lo.min(node.primitive_base_idx + offset);
+            hi = hi.max(node.primitive_base_idx + offset + count - 1);
+        }
+        (lo <= hi).then(|| (lo / LANES as u32, hi / LANES as u32))
     }
 
     /// Closest of the triangles of `chunk` whose lanes are set in `lanes`: lane and
@@ -164,20 +194,21 @@ impl TriangleLanes {
 
 /// Children of `node` the ray enters before `ray.tmax`, as the CWBVH hit mask obvhs's
 /// traversal expects (`CwBvhNode::intersect_ray`'s result). The inner children entered are
-/// prefetched from `nodes`: obvhs's walk visits every one of them (it keeps no distances to
-/// skip any), and a mesh bigger than the cache waited on each node in turn.
+/// prefetched from `nodes` and handed to `ahead` by index: obvhs's walk visits every one of
+/// them (it keeps no distances to skip any), and a mesh bigger than the cache waited on each
+/// node in turn.
 #[inline(always)]
-pub(super) fn node_hits(nodes: &[CwBvhNode], node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
+pub(super) fn node_hits(nodes: &[CwBvhNode], node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32, ahead: impl Fn(usize)) -> u32 {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
         // SAFETY: the target has AVX2 (checked at compile time).
         let (entered, hits) = unsafe { avx2::children_entered(node, ray, oct_inv4) };
-        prefetch_inner(nodes, node, entered);
+        prefetch_inner(nodes, node, entered, ahead);
         hits
     }
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
     {
-        let _ = nodes;
+        let _ = (nodes, ahead);
         node.intersect_ray(ray, oct_inv4)
     }
 }
@@ -187,7 +218,7 @@ pub(super) fn node_hits(nodes: &[CwBvhNode], node: &CwBvhNode, ray: &BvhRay, oct
 /// the work before they are visited.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn prefetch_inner(nodes: &[CwBvhNode], node: &CwBvhNode, entered: u32) {
+fn prefetch_inner(nodes: &[CwBvhNode], node: &CwBvhNode, entered: u32, ahead: impl Fn(usize)) {
     use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
     let imask = u32::from(node.imask);
     let mut inner = entered & imask;
@@ -204,6 +235,7 @@ fn prefetch_inner(nodes: &[CwBvhNode], node: &CwBvhNode, entered: u32) {
                 _mm_prefetch::<_MM_HINT_T0>(p);
                 _mm_prefetch::<_MM_HINT_T0>(p.add(64));
             }
+            ahead(child);
         }
     }
 }
@@ -433,11 +465,39 @@ mod tests {
         for ray in rays(&mut rng, 400) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
             for node in &bvh.nodes {
-                assert_eq!(node_hits(&bvh.nodes, node, &ray, oct), node.intersect_ray(&ray, oct), "{ray:?}\n{node:?}");
+                assert_eq!(node_hits(&bvh.nodes, node, &ray, oct, |_| {}), node.intersect_ray(&ray, oct), "{ray:?}\n{node:?}");
                 compared += 1;
             }
         }
         assert!(compared > 100_000, "{compared} node tests");
+    }
+
+    /// Every triangle a node's test lets a ray into lies in the chunks `chunks_of` names for
+    /// the node, which a walk prefetches before the node arrives; a node with leaves names
+    /// some, one without names none.
+    #[test]
+    fn a_nodes_leaf_chunks_hold_every_triangle_its_test_enters() {
+        let mut rng = Pcg32::new(5, 3);
+        let tris = soup(&mut rng, 2000);
+        let aabbs: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(&[t.v0, t.v0 + t.e1, t.v0 + t.e2])).collect();
+        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium.params());
+        let mut entered = 0;
+        for ray in rays(&mut rng, 600) {
+            let oct = bvh.new_traversal(ray.direction).oct_inv4;
+            for node in &bvh.nodes {
+                let leaves = node_hits(&bvh.nodes, node, &ray, oct, |_| {}) & 0x00ff_ffff;
+                let chunks = TriangleLanes::chunks_of(node);
+                let has_leaves = node.child_meta.iter().enumerate().any(|(j, &m)| m != 0 && node.imask & (1 << j) == 0);
+                assert_eq!(chunks.is_some(), has_leaves, "{node:?}");
+                for j in super::super::bits_high_first(leaves) {
+                    let (first, last) = chunks.expect("a node whose test enters leaves has leaf chunks");
+                    let chunk = (node.primitive_base_idx + j) / LANES as u32;
+                    assert!((first..=last).contains(&chunk), "triangle {} outside chunks {first}..={last}", node.primitive_base_idx + j);
+                    entered += 1;
+                }
+            }
+        }
+        assert!(entered > 1000, "{entered} leaf triangles entered");
     }
 
     /// The wide closest-hit and any-hit tests against the scalar Möller-Trumbore applied one
