@@ -156,6 +156,9 @@ impl TriangleLanes {
                 continue;
             }
             let (offset, count) = (u32::from(meta & 0x1f), (meta >> 5).count_ones());
+            if count == 0 {
+                continue;
+            }
             lo = lo.min(node.primitive_base_idx + offset);
             hi = hi.max(node.primitive_base_idx + offset + count - 1);
         }
