@@ -189,6 +189,10 @@ fn orient(s: &SurfaceHit, wo: Vec3, transmits: bool) -> (Vec3, Vec3) {
         // Both normals on the viewer's side of the facet, the shading normal bent back where
         // it would leave the viewer below its horizon.
         let ng = if s.ng.dot(wo) < 0.0 { -s.ng } else { s.ng };
+        if s.ns == s.ng {
+            // A flat facet (no shading normals): nothing to bend.
+            return (ng, ng);
+        }
         let ns = if s.ns.dot(ng) < 0.0 { -s.ns } else { s.ns };
         (crate::math::valid_shading_normal(ng, wo, ns), ng)
     }
