@@ -105,8 +105,8 @@ pub struct Blas {
     deforming: Option<Deforming>,
     /// Per node, the chunks holding its leaves' triangles ([`pack_chunks`]), so a lone ray's
     /// walk can ask for them when it enters the node's parent, a node's fetch ahead of their
-    /// test ([`Blas::prefetch_node_leaves`]). Four bytes a node, so that the walk's reads of
-    /// it stay in the L2 cache. Empty for BVHs that stay in cache, and for deforming meshes.
+    /// test ([`Blas::prefetch_node_leaves`]). Four bytes a node (two words measured no faster).
+    /// Empty for BVHs that stay in cache, and for deforming meshes.
     leaf_chunks: Vec<u32>,
 }
 
@@ -169,9 +169,9 @@ fn closest_walk(
     best
 }
 
-/// Chunks `first..=last` (a node's leaves span at most four) as `first << 3 | (last - first + 1)`;
-/// 0 for none, and for chunk indices too big to pack (beyond four billion triangles), which
-/// are then not prefetched.
+/// Chunks `first..=last` (a node's 24 primitives at most span up to four) as
+/// `first << 3 | (last - first + 1)`; 0 for none, and for chunk indices too big to pack (beyond
+/// four billion triangles), which are then not prefetched.
 fn pack_chunks(chunks: Option<(u32, u32)>) -> u32 {
     match chunks {
         Some((first, last)) if first < 1 << 29 && last - first < 7 => first << 3 | (last - first + 1),
@@ -337,7 +337,7 @@ impl Blas {
     /// the node (when its parent's test lets the ray in), this overlaps their fetch with the
     /// node's own, where the node's test alone would find them only after it arrived: a lone
     /// ray on the 1M-triangle bench spent a fifth of its time waiting on a leaf's first
-    /// triangle chunk (see `docs/benchmarks.md`, 2026-12-04 14:30 UTC).
+    /// triangle chunk (see `docs/benchmarks.md`, 2026-12-04 14:00 UTC).
     #[inline(always)]
     fn prefetch_node_leaves(&self, node: usize) {
         if let Some((first, last)) = self.leaf_chunks.get(node).and_then(|&packed| unpack_chunks(packed)) {

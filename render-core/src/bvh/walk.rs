@@ -124,7 +124,7 @@ pub(super) fn walk_interleaved(
         |w, i, ray| {
             let stopped = matches!(w.take_leaves(), Some((base, group)) if leaves(i, ray, base, group));
             // Nothing ahead: with eight walks in flight, asking for each entered node's
-            // triangles too slowed batches by 14% (more fetches than the cache could take).
+            // triangles too slowed batches by 14-17% (more fetches than the cache could take).
             let going = !stopped && w.advance(bvh, ray, |_| {});
             if going && let Some((base, group)) = w.pending_leaves() {
                 prefetch(base, group);
