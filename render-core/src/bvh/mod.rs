@@ -106,7 +106,7 @@ pub struct Blas {
     /// Per node, the chunks holding its leaves' triangles ([`pack_chunks`]), so a lone ray's
     /// walk can ask for them when it enters the node's parent, a node's fetch ahead of their
     /// test ([`Blas::prefetch_node_leaves`]). Four bytes a node (two words measured no faster).
-    /// Empty for BVHs that stay in cache, and for deforming meshes.
+    /// Empty for BVHs up to [`LEAVES_AHEAD_BYTES`], and for deforming meshes.
     leaf_chunks: Vec<u32>,
 }
 
@@ -191,6 +191,14 @@ fn unpack_chunks(packed: u32) -> Option<(u32, u32)> {
 /// 420 000 triangles (up to about 19 MB, served from the last-level cache) and gained 5-30% on
 /// the 1M-triangle one (44 MB), so the switch sits between the two.
 const IN_CACHE_BYTES: usize = 32 << 20;
+
+/// BVH size (nodes and triangles) above which a lone ray's walk asks for a node's leaf
+/// triangles a level ahead ([`Blas::prefetch_node_leaves`]). Measured on the project's 2-core
+/// Intel Xeon with the `rays` bench's incoherent rays on UV spheres, one thread, five
+/// alternating rounds: the prefetch lost 2-21% on spheres of 40 000 and 80 000 triangles (2
+/// and 4 MB), was even within the noise at 200 000 (9 MB), and gained 3-15% at 420 000 (19 MB)
+/// and 15-19% at a million (44 MB); see `docs/benchmarks.md`, 2026-12-04 14:00 UTC.
+const LEAVES_AHEAD_BYTES: usize = 16 << 20;
 
 /// How much effort a BVH build spends on quality.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -278,7 +286,7 @@ impl Blas {
         let bounds = bvh.total_aabb;
         let tris = TriangleLanes::new(&rt);
         let mut blas = Blas { bvh, tris, tri_ids, bounds, deforming: None, leaf_chunks: Vec::new() };
-        if !blas.stays_in_cache() {
+        if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))).collect();
         }
         blas
@@ -295,7 +303,12 @@ impl Blas {
     /// True when the BVH's nodes and triangles are small enough to stay in cache: interleaving
     /// walks there only adds bookkeeping ([`IN_CACHE_BYTES`]).
     fn stays_in_cache(&self) -> bool {
-        self.bvh.nodes.len() * size_of::<obvhs::cwbvh::node::CwBvhNode>() + self.tris.bytes() <= IN_CACHE_BYTES
+        self.walked_bytes() <= IN_CACHE_BYTES
+    }
+
+    /// Bytes a walk reads from: nodes and triangle chunks.
+    fn walked_bytes(&self) -> usize {
+        self.bvh.nodes.len() * size_of::<obvhs::cwbvh::node::CwBvhNode>() + self.tris.bytes()
     }
 
     /// Closest hit along `ray` at shutter `time`, its triangle as a BVH-order index. The
@@ -794,6 +807,29 @@ mod tests {
             indices: vec![[0, 1, 2], [0, 2, 3]],
             ..Default::default()
         }
+    }
+
+    /// A walk that asks for leaves a level ahead (forced on a small mesh, which would not ask)
+    /// finds exactly what the walk without it finds, for closest hits and occlusion alike.
+    #[test]
+    fn walks_asking_for_leaves_ahead_find_the_same_hits() {
+        let mesh = Mesh::uv_sphere(40, 60);
+        let plain = Blas::build(&mesh, BuildQuality::Medium);
+        let mut ahead = Blas::build(&mesh, BuildQuality::Medium);
+        assert!(plain.leaf_chunks.is_empty(), "a small mesh's walk asks for nothing ahead");
+        ahead.leaf_chunks = ahead.bvh.nodes.iter().map(|n| pack_chunks(wide::TriangleLanes::chunks_of(n))).collect();
+        let mut rng = crate::sampling::Pcg32::new(11, 4);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let o = Vec3A::from(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - 1.5);
+            let d = Vec3A::from(crate::sampling::uniform_sphere(rng.next_2d()));
+            let tmax = 0.1 + 3.0 * rng.next_f32();
+            let found = plain.intersect(o, d, f32::INFINITY, 0.0);
+            assert_eq!(ahead.intersect(o, d, f32::INFINITY, 0.0), found);
+            assert_eq!(ahead.occluded(o, d, tmax, 0.0), plain.occluded(o, d, tmax, 0.0));
+            hits += usize::from(found.is_some());
+        }
+        assert!(hits > 500, "{hits} hits");
     }
 
     #[test]
