@@ -255,8 +255,6 @@ impl Blas {
         let mut blas = Self::of_bounds(&tris, &aabbs, quality);
         let deforming = blas.tri_ids.iter().flat_map(|&i| (0..keys).map(move |k| (i as usize, k))).map(|(i, k)| key(i, k)).collect();
         blas.deforming = Some(Deforming { keys, tris: deforming });
-        // Its triangles are interpolated one at a time, not read from the chunks.
-        blas.leaf_chunks = Vec::new();
         blas
     }
 
@@ -265,10 +263,16 @@ impl Blas {
         self.deforming.is_some()
     }
 
-    /// Builds the BVH of `tris` (at least one); hits report indices into `tris`.
+    /// Builds the BVH of `tris` (at least one); hits report indices into `tris`. A BVH above
+    /// [`LEAVES_AHEAD_BYTES`] gets its leaf-chunk records (a deforming mesh, built by
+    /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks).
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
-        Self::of_bounds(tris, &aabbs, quality)
+        let mut blas = Self::of_bounds(tris, &aabbs, quality);
+        if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
+            blas.leaf_chunks = blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))).collect();
+        }
+        blas
     }
 
     /// Builds over `aabbs`, one per triangle of `tris`.
@@ -284,12 +288,7 @@ impl Blas {
             .collect();
         let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        let tris = TriangleLanes::new(&rt);
-        let mut blas = Blas { bvh, tris, tri_ids, bounds, deforming: None, leaf_chunks: Vec::new() };
-        if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
-            blas.leaf_chunks = blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))).collect();
-        }
-        blas
+        Blas { bvh, tris: TriangleLanes::new(&rt), tri_ids, bounds, deforming: None, leaf_chunks: Vec::new() }
     }
 
     /// Closest hit in object space at shutter `time`: (t, original triangle index,
