@@ -83,6 +83,14 @@ fn main() {
     };
 
     println!("rays: {} triangles, {n_rays} incoherent rays (origins in [-1.5, 1.5]^3, uniform directions)", mesh.indices.len());
+    if let Some(kb) = huge_page_kib() {
+        // The BVH asks for huge pages (bvh/pages.rs), as Embree does for its own.
+        println!(
+            "huge pages: {:.1} MB of this process's memory (BVH walked bytes {:.1} MB)",
+            kb as f64 / 1024.0,
+            blas.walked_bytes() as f64 / 1e6
+        );
+    }
     let e = |k: &str| embree.as_ref().and_then(|m| m.get(k).copied());
     println!("{:<34} {:>12} {:>14} {:>10}", "measure", "tessera", "embree (1 thr)", "ratio");
     let row = |name: &str, ours: f64, theirs: Option<f64>, higher_is_better: bool| {
@@ -113,6 +121,13 @@ fn main() {
         println!("  batched hits ({threads} thr): closest {hc} ({}), occluded {ho} ({})", same(hc, hc1), same(ho, ho1));
     }
     flat_at_the_cap(&rays[..n_rays / 4]);
+}
+
+/// The process's anonymous memory in huge pages (Linux), in KiB.
+fn huge_page_kib() -> Option<u64> {
+    let rollup = std::fs::read_to_string("/proc/self/smaps_rollup").ok()?;
+    let line = rollup.lines().find(|l| l.starts_with("AnonHugePages:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 fn same(a: usize, b: usize) -> &'static str {

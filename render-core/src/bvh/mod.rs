@@ -11,6 +11,7 @@
 //! that walk are our own eight-wide ones ([`wide`]), which find exactly what obvhs's
 //! four-wide node test and a one-at-a-time triangle test find.
 
+mod pages;
 mod walk;
 mod wide;
 
@@ -265,13 +266,19 @@ impl Blas {
 
     /// Builds the BVH of `tris` (at least one); hits report indices into `tris`. A BVH above
     /// [`LEAVES_AHEAD_BYTES`] gets its leaf-chunk records (a deforming mesh, built by
-    /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks).
+    /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks), and its
+    /// arrays are moved to huge pages where the system allows ([`pages`]).
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))).collect();
         }
+        // Arrays of less than a huge page are left as they are (nothing inside to ask for).
+        pages::ask_for_huge_pages(&blas.bvh.nodes);
+        blas.tris.ask_for_huge_pages();
+        pages::ask_for_huge_pages(&blas.tri_ids);
+        pages::ask_for_huge_pages(&blas.leaf_chunks);
         blas
     }
 
@@ -306,7 +313,7 @@ impl Blas {
     }
 
     /// Bytes a walk reads from: nodes and triangle chunks.
-    fn walked_bytes(&self) -> usize {
+    pub fn walked_bytes(&self) -> usize {
         self.bvh.nodes.len() * size_of::<obvhs::cwbvh::node::CwBvhNode>() + self.tris.bytes()
     }
 

@@ -55,6 +55,11 @@ impl TriangleLanes {
         i / LANES * CHUNK + c * LANES + i % LANES
     }
 
+    /// Asks for the chunks to be kept in huge pages ([`super::pages`]).
+    pub(super) fn ask_for_huge_pages(&self) {
+        super::pages::ask_for_huge_pages(&self.data);
+    }
+
     /// Bytes the chunks take.
     pub(super) fn bytes(&self) -> usize {
         size_of_val(self.data.as_slice())
