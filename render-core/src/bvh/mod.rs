@@ -475,8 +475,12 @@ impl Blas {
 
 /// Deepest binary BVH [`build_bounded`] keeps from PLOC. obvhs's CWBVH traversal stack holds
 /// 32 node groups (`cwbvh/mod.rs`, `TRAVERSAL_STACK_SIZE`; a deeper tree silently drops
-/// nodes) and its BVH2-to-CWBVH conversion recurses once per level; PLOC trees of real meshes
-/// stay well under this (a 1M-triangle sphere: 40).
+/// nodes) and its BVH2-to-CWBVH conversion recurses once per level. PLOC trees of real meshes
+/// mostly stay well under this (the `production` bench's 1M-triangle terrain: 30), but a UV
+/// sphere's pole fans of thin triangles take it deeper: the `rays` bench's 1M-triangle
+/// sphere is 65 deep and so is built by median splits, which measured as fast as its PLOC
+/// tree there (closest hit 3.98-3.99 against 3.70-3.89 Mrays/s, occlusion 5.19-5.21 against
+/// 5.25-5.46; its CWBVH would be 18 levels deep).
 const MAX_BVH2_DEPTH: usize = 64;
 
 /// A CWBVH over `aabbs` (at least one) whose depth is bounded whatever the input. PLOC merges
