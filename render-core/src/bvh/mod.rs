@@ -97,8 +97,6 @@ pub struct Blas {
     bvh: CwBvh,
     /// Triangles in BVH order, laid out for the eight-wide test.
     tris: TriangleLanes,
-    /// Original triangle index of each triangle in BVH order.
-    tri_ids: Vec<u32>,
     bounds: Aabb,
     /// A deforming mesh's triangles at each of its `keys` deformation samples, triangle after
     /// triangle in BVH order (`keys` per triangle); the BVH bounds each over all of them, so
@@ -254,7 +252,8 @@ impl Blas {
             })
             .collect();
         let mut blas = Self::of_bounds(&tris, &aabbs, quality);
-        let deforming = blas.tri_ids.iter().flat_map(|&i| (0..keys).map(move |k| (i as usize, k))).map(|(i, k)| key(i, k)).collect();
+        let lanes = &blas.tris;
+        let deforming = (0..lanes.len()).flat_map(|i| (0..keys).map(move |k| key(lanes.id(i) as usize, k))).collect();
         blas.deforming = Some(Deforming { keys, tris: deforming });
         blas
     }
@@ -277,7 +276,6 @@ impl Blas {
         // Arrays of less than a huge page are left as they are (nothing inside to ask for).
         pages::ask_for_huge_pages(&blas.bvh.nodes);
         blas.tris.ask_for_huge_pages();
-        pages::ask_for_huge_pages(&blas.tri_ids);
         pages::ask_for_huge_pages(&blas.leaf_chunks);
         blas
     }
@@ -293,9 +291,9 @@ impl Blas {
                 RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
             })
             .collect();
-        let tri_ids = bvh.primitive_indices.clone();
         let bounds = bvh.total_aabb;
-        Blas { bvh, tris: TriangleLanes::new(&rt), tri_ids, bounds, deforming: None, leaf_chunks: Vec::new() }
+        let tris = TriangleLanes::new(&rt, &bvh.primitive_indices);
+        Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new() }
     }
 
     /// Closest hit in object space at shutter `time`: (t, original triangle index,
@@ -303,7 +301,7 @@ impl Blas {
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> Option<(f32, u32, Vec2)> {
         let mut ray = bvh_ray(o, d, tmax);
-        self.closest_bvh_order(&mut ray, time).map(|(t, id, bary)| (t, self.tri_ids[id as usize], bary))
+        self.closest_bvh_order(&mut ray, time).map(|(t, id, bary)| (t, self.tris.id(id as usize), bary))
     }
 
     /// True when the BVH's nodes and triangles are small enough to stay in cache: interleaving
@@ -412,7 +410,7 @@ impl Blas {
         let mut walked: Vec<BvhRay> = rays.iter().map(|&(o, d, tmax)| bvh_ray(o, d, tmax)).collect();
         self.closest_interleaved(&mut walked, time, hits);
         for hit in hits.iter_mut().flatten() {
-            hit.1 = self.tri_ids[hit.1 as usize];
+            hit.1 = self.tris.id(hit.1 as usize);
         }
     }
 
@@ -706,7 +704,7 @@ impl Tlas {
         for (i, inst) in instances.iter().enumerate() {
             let blas = &blases[inst.blas];
             let m = &inst.transform.to_world;
-            for (t, &id) in (0..blas.triangle_count()).map(|i| blas.tris.triangle(i)).zip(&blas.tri_ids) {
+            for (t, id) in (0..blas.triangle_count()).map(|i| (blas.tris.triangle(i), blas.tris.id(i))) {
                 let v0 = m.transform_point3a(t.v0);
                 let (v1, v2) = (v0 + m.transform_vector3a(t.e1), v0 + m.transform_vector3a(t.e2));
                 tris.push(Triangle { v0, v1, v2 });

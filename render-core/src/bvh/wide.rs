@@ -20,49 +20,76 @@ use super::RtTriangle;
 const NODE_TMIN: f32 = 1e-4;
 
 /// Triangles in BVH order, in chunks of [`LANES`]: each chunk holds the `v0.x` of its eight
-/// triangles, then their `v0.y`, ..., then their `e2.z` (288 bytes, 4.5 cache lines), so one
-/// chunk loads as nine vectors. A CWBVH node's triangles sit next to each other and span one
-/// to four chunks; a layout of nine whole-mesh rows would touch nine or more cache lines for
-/// every node, which showed on meshes bigger than the cache. The last chunk is padded with
-/// zero triangles, which never hit (their determinant is 0).
+/// triangles, then their `v0.y`, ..., then their `e2.z`, then their original (mesh) indices,
+/// so one chunk loads as nine vectors. Chunks are 320 bytes, five cache lines from a line
+/// boundary, and the indices share the last line with the `e2.z` row the test has just
+/// read: mapping a hit back to its mesh triangle through an array of its own took a cache
+/// miss at the end of most closest-hit rays (11% of a lone ray's samples on the 1M-triangle
+/// bench). A CWBVH node's triangles sit next to each other and span one to four chunks; a
+/// layout of nine whole-mesh rows would touch nine or more cache lines for every node, which
+/// showed on meshes bigger than the cache. The last chunk is padded with zero triangles,
+/// which never hit (their determinant is 0).
 pub(super) struct TriangleLanes {
-    data: Vec<f32>,
+    chunks: Vec<Chunk>,
     count: usize,
 }
 
 /// Triangles tested per pass, and per chunk.
 const LANES: usize = 8;
-/// Floats per chunk: nine components of eight triangles.
+/// Floats per chunk that the test reads: nine components of eight triangles.
 const CHUNK: usize = 9 * LANES;
+/// Row of a chunk holding the triangles' original indices (as `f32` bits).
+const ID_ROW: usize = 9;
+
+/// One chunk: [`CHUNK`] floats of triangle components, then a row of original indices.
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Chunk([f32; CHUNK + LANES]);
 
 /// A triangle hit: distance, BVH-order index, barycentrics.
 pub(super) type LaneHit = (f32, u32, Vec2);
 
 impl TriangleLanes {
-    pub(super) fn new(tris: &[RtTriangle]) -> Self {
-        let mut data = vec![0.0; tris.len().div_ceil(LANES) * CHUNK];
-        for (i, t) in tris.iter().enumerate() {
+    /// The triangles `tris` (BVH order), the mesh's index of each in `ids`.
+    pub(super) fn new(tris: &[RtTriangle], ids: &[u32]) -> Self {
+        assert_eq!(tris.len(), ids.len(), "one original index per triangle");
+        let mut chunks = vec![Chunk([0.0; CHUNK + LANES]); tris.len().div_ceil(LANES)];
+        for (i, (t, &id)) in tris.iter().zip(ids).enumerate() {
+            let chunk = &mut chunks[i / LANES].0;
             for (c, v) in [t.v0, t.e1, t.e2].iter().flat_map(|v| v.to_array()).enumerate() {
-                data[Self::at(i, c)] = v;
+                chunk[Self::at(i, c)] = v;
             }
+            chunk[Self::at(i, ID_ROW)] = f32::from_bits(id);
         }
-        TriangleLanes { data, count: tris.len() }
+        TriangleLanes { chunks, count: tris.len() }
     }
 
-    /// Where component `c` of triangle `i` is stored.
+    /// Where component `c` of triangle `i` is stored in its chunk.
     #[inline(always)]
     fn at(i: usize, c: usize) -> usize {
-        i / LANES * CHUNK + c * LANES + i % LANES
+        c * LANES + i % LANES
+    }
+
+    /// Component `c` of triangle `i`.
+    #[inline(always)]
+    fn component(&self, i: usize, c: usize) -> f32 {
+        self.chunks[i / LANES].0[Self::at(i, c)]
+    }
+
+    /// The mesh's index of triangle `i` (BVH order).
+    #[inline(always)]
+    pub(super) fn id(&self, i: usize) -> u32 {
+        self.component(i, ID_ROW).to_bits()
     }
 
     /// Asks for the chunks to be kept in huge pages ([`super::pages`]).
     pub(super) fn ask_for_huge_pages(&self) {
-        super::pages::ask_for_huge_pages(&self.data);
+        super::pages::ask_for_huge_pages(&self.chunks);
     }
 
     /// Bytes the chunks take.
     pub(super) fn bytes(&self) -> usize {
-        size_of_val(self.data.as_slice())
+        size_of_val(self.chunks.as_slice())
     }
 
     pub(super) fn len(&self) -> usize {
@@ -72,7 +99,7 @@ impl TriangleLanes {
     /// Triangle `i` (BVH order).
     #[inline(always)]
     pub(super) fn triangle(&self, i: usize) -> RtTriangle {
-        let c = |k: usize| self.data[Self::at(i, k)];
+        let c = |k: usize| self.component(i, k);
         RtTriangle { v0: Vec3A::new(c(0), c(1), c(2)), e1: Vec3A::new(c(3), c(4), c(5)), e2: Vec3A::new(c(6), c(7), c(8)) }
     }
 
@@ -138,14 +165,13 @@ impl TriangleLanes {
     #[inline(always)]
     fn prefetch_chunk(&self, chunk: usize) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(floats) = self.data.get(chunk * CHUNK..(chunk + 1) * CHUNK) {
+        if let Some(c) = self.chunks.get(chunk) {
             use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let p = floats.as_ptr().cast::<i8>();
-            let skew = p as usize % 64;
-            for offset in (0..skew + size_of_val(floats)).step_by(64) {
-                // SAFETY: prefetching has no architectural effect (the address, the start of a
-                // cache line `floats` touches, is never dereferenced).
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_sub(skew).wrapping_add(offset)) };
+            let p = (c as *const Chunk).cast::<i8>();
+            for offset in (0..size_of::<Chunk>()).step_by(64) {
+                // SAFETY: prefetching has no architectural effect; the address lies inside
+                // the chunk, which starts on a cache line.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(offset)) };
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -177,8 +203,8 @@ impl TriangleLanes {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
         {
             // SAFETY: the target has AVX2 and FMA (checked at compile time), and `chunk` holds
-            // a triangle of the mesh (a set lane), so its CHUNK floats are inside `data`.
-            unsafe { avx2::closest_in_chunk(&self.data[chunk * CHUNK..][..CHUNK], lanes, ray, tmax) }
+            // a triangle of the mesh (a set lane), so the chunk exists.
+            unsafe { avx2::closest_in_chunk(&self.chunks[chunk].0[..CHUNK], lanes, ray, tmax) }
         }
         #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
         {
@@ -515,7 +541,8 @@ mod tests {
     fn triangle_lanes_hit_what_the_scalar_test_hits() {
         let mut rng = Pcg32::new(9, 2);
         let tris = soup(&mut rng, 40);
-        let lanes = TriangleLanes::new(&tris);
+        let ids: Vec<u32> = (0..tris.len() as u32).map(|i| 7 * i + 3).collect();
+        let lanes = TriangleLanes::new(&tris, &ids);
         let mut hits = 0;
         for (i, mut ray) in rays(&mut rng, 20_000).into_iter().enumerate() {
             let base = (rng.next_f32() * 16.0) as u32;
@@ -544,10 +571,27 @@ mod tests {
         assert!(hits > 5_000, "{hits} hits");
     }
 
+    /// Each triangle's components and original index come back as stored, across chunk
+    /// boundaries and in the padded last chunk, and every chunk starts on a cache line.
+    #[test]
+    fn triangle_lanes_keep_each_triangle_and_its_index() {
+        let mut rng = Pcg32::new(4, 1);
+        let tris = soup(&mut rng, 21);
+        let ids: Vec<u32> = (0..21).map(|i| u32::MAX - 5 * i).collect();
+        let lanes = TriangleLanes::new(&tris, &ids);
+        for (i, (t, &id)) in tris.iter().zip(&ids).enumerate() {
+            let back = lanes.triangle(i);
+            assert_eq!([back.v0, back.e1, back.e2], [t.v0, t.e1, t.e2], "triangle {i}");
+            assert_eq!(lanes.id(i), id, "triangle {i}");
+        }
+        assert_eq!(lanes.bytes(), 3 * 320);
+        assert!(lanes.chunks.iter().all(|c| (c as *const Chunk as usize) % 64 == 0));
+    }
+
     #[test]
     fn equal_distances_resolve_to_the_highest_index() {
         let quad = RtTriangle { v0: Vec3A::new(-1.0, -1.0, 0.0), e1: Vec3A::new(2.0, 0.0, 0.0), e2: Vec3A::new(0.0, 2.0, 0.0) };
-        let lanes = TriangleLanes::new(&[quad; 20]);
+        let lanes = TriangleLanes::new(&[quad; 20], &[0; 20]);
         let ray = super::super::bvh_ray(Vec3A::new(-0.5, -0.5, 1.0), Vec3A::NEG_Z, f32::INFINITY);
         assert_eq!(lanes.closest(0, 0b1001_0000_0000_0110_0001, &ray).map(|h| h.1), Some(19));
         assert_eq!(lanes.closest(2, 0b11, &ray).map(|h| h.1), Some(3));
