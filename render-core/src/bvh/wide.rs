@@ -585,7 +585,7 @@ mod tests {
             assert_eq!(lanes.id(i), id, "triangle {i}");
         }
         assert_eq!(lanes.bytes(), 3 * 320);
-        assert!(lanes.chunks.iter().all(|c| (c as *const Chunk as usize) % 64 == 0));
+        assert!(lanes.chunks.iter().all(|c| (c as *const Chunk as usize).is_multiple_of(64)));
     }
 
     #[test]
