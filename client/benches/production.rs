@@ -49,6 +49,17 @@ fn best_of_three(scene: &CommittedScene, threads: usize) -> (f64, Vec3) {
     (best, mean)
 }
 
+/// [`resident_bytes`] after handing the allocator's free memory back to the system (glibc's
+/// `malloc_trim`; elsewhere as it is).
+fn trimmed_resident_bytes() -> u64 {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap memory to the system.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+    resident_bytes()
+}
+
 /// This process's resident memory, from /proc/self/statm (0 where there is none).
 fn resident_bytes() -> u64 {
     let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
@@ -81,13 +92,16 @@ fn main() {
     let translation = tessera::usd::load(&usd).unwrap();
     let loaded = t.elapsed().as_secs_f64();
     let desc = translation.to_scene_desc();
-    let (t, before) = (Instant::now(), resident_bytes());
+    let before = trimmed_resident_bytes();
+    let t = Instant::now();
     let scene = commit(&desc, &mut BlasCache::default()).unwrap();
     let committed = t.elapsed().as_secs_f64();
     // The commit shares the description's meshes and adds the BVHs, lights and instances: its
-    // growth in resident memory (an upper bound: the allocator may keep the build's scratch)
-    // plus the meshes' arrays is what the renderer holds per triangle.
-    let grown = resident_bytes().saturating_sub(before);
+    // growth in resident memory plus the meshes' arrays is what the renderer holds per
+    // triangle. Both readings are taken with the allocator's free memory handed back, so the
+    // figure counts what the commit keeps, not which freed scratch the allocator happened to
+    // reuse (that moved it by 4 bytes a triangle between two layouts of the same live data).
+    let grown = trimmed_resident_bytes().saturating_sub(before);
     let triangles: u64 = desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum();
     let arrays: u64 = desc.meshes.values().map(|m| mesh_bytes(&m.mesh)).sum();
     let paths = (W * H * SPP) as f64;

@@ -282,7 +282,7 @@ impl Blas {
 
     /// Builds over `aabbs`, one per triangle of `tris`.
     fn of_bounds(tris: &[Triangle], aabbs: &[Aabb], quality: BuildQuality) -> Self {
-        let bvh = build_bounded(aabbs, quality.params());
+        let mut bvh = build_bounded(aabbs, quality.params());
         let rt: Vec<RtTriangle> = bvh
             .primitive_indices
             .iter()
@@ -292,7 +292,8 @@ impl Blas {
             })
             .collect();
         let bounds = bvh.total_aabb;
-        let tris = TriangleLanes::new(&rt, &bvh.primitive_indices);
+        // The chunks keep each triangle's mesh index now; nothing reads obvhs's copy again.
+        let tris = TriangleLanes::new(&rt, &std::mem::take(&mut bvh.primitive_indices));
         Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new() }
     }
 
