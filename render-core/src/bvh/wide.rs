@@ -20,8 +20,8 @@ use super::RtTriangle;
 const NODE_TMIN: f32 = 1e-4;
 
 /// Triangles in BVH order, in chunks of [`LANES`]: each chunk holds the `v0.x` of its eight
-/// triangles, then their `v0.y`, ..., then their `e2.z`, then their original (mesh) indices,
-/// so one chunk loads as nine vectors. Chunks are 320 bytes, five cache lines from a line
+/// triangles, then their `v0.y`, ..., then their `e2.z`, then their original (mesh) indices;
+/// the test loads a chunk as nine vectors and reads an index only for the hit. Chunks are 320 bytes, five cache lines from a line
 /// boundary, and the indices share the last line with the `e2.z` row the test has just
 /// read: mapping a hit back to its mesh triangle through an array of its own took a cache
 /// miss at the end of most closest-hit rays (11% of a lone ray's samples on the 1M-triangle
