@@ -561,15 +561,16 @@ fn bvh2_depth(bvh: &Bvh2) -> usize {
 }
 
 /// A binary BVH built top down, one primitive per leaf: `split` reorders each node's
-/// primitives (given their centroids' bounds, which have more than one primitive) and says
-/// how many go to the left child, at least one and fewer than all.
-fn split_bvh2(aabbs: &[Aabb], split: impl Fn(&mut [u32], &[Aabb], &Aabb) -> usize) -> Bvh2 {
+/// primitives (given their centroids' bounds and the node's depth, the root's 0, for nodes of
+/// more than one primitive) and says how many go to the left child, at least one and fewer
+/// than all.
+fn split_bvh2(aabbs: &[Aabb], split: impl Fn(&mut [u32], &[Aabb], &Aabb, usize) -> usize) -> Bvh2 {
     let n = aabbs.len();
     let mut indices: Vec<u32> = (0..n as u32).collect();
     let mut nodes = vec![Bvh2Node::default(); 2 * n - 1];
     let mut next = 1;
-    let mut stack = vec![(0usize, 0usize, n)];
-    while let Some((node, start, end)) = stack.pop() {
+    let mut stack = vec![(0usize, 0usize, n, 0usize)];
+    while let Some((node, start, end, depth)) = stack.pop() {
         let span = &mut indices[start..end];
         let mut aabb = Aabb::empty();
         let mut centres = Aabb::empty();
@@ -581,10 +582,10 @@ fn split_bvh2(aabbs: &[Aabb], split: impl Fn(&mut [u32], &[Aabb], &Aabb) -> usiz
             nodes[node] = Bvh2Node { aabb, prim_count: 1, first_index: start as u32, ..Default::default() };
             continue;
         }
-        let mid = split(span, aabbs, &centres);
+        let mid = split(span, aabbs, &centres, depth);
         nodes[node] = Bvh2Node { aabb, prim_count: 0, first_index: next as u32, ..Default::default() };
-        stack.push((next, start, start + mid));
-        stack.push((next + 1, start + mid, end));
+        stack.push((next, start, start + mid, depth + 1));
+        stack.push((next + 1, start + mid, end, depth + 1));
         next += 2;
     }
     Bvh2 { nodes, primitive_indices: indices, ..Default::default() }
@@ -592,7 +593,7 @@ fn split_bvh2(aabbs: &[Aabb], split: impl Fn(&mut [u32], &[Aabb], &Aabb) -> usiz
 
 /// Splits at the median centroid along the widest centroid axis (ties by index): a tree at
 /// most ⌈log2 n⌉ + 1 deep whatever the input.
-fn median_split(span: &mut [u32], aabbs: &[Aabb], centres: &Aabb) -> usize {
+fn median_split(span: &mut [u32], aabbs: &[Aabb], centres: &Aabb, _depth: usize) -> usize {
     let axis = centres.diagonal().max_position();
     let centroid = |i: u32| aabbs[i as usize].center()[axis];
     let mid = span.len() / 2;
@@ -603,18 +604,24 @@ fn median_split(span: &mut [u32], aabbs: &[Aabb], centres: &Aabb) -> usize {
 /// Centroid bins per axis for [`sah_split`].
 const SAH_BINS: usize = 16;
 
+/// Depth below which [`sah_split`] splits at medians. SAH may cut only a few primitives off
+/// a clustered bulk at each level, so crafted input can make its tree deep, each level a pass
+/// over the bulk; below this depth the median bounds the rest, so a tree of up to 2³¹
+/// primitives stays within [`MAX_BVH2_DEPTH`] and the build within 32 SAH passes.
+const SAH_MAX_DEPTH: usize = 32;
+
 /// Splits at the bin plane of least surface-area cost (binned SAH, as Embree's and pbrt's
 /// builders do), or at the median when no plane separates the centroids. Spans of up to
 /// eight are split at the median: the CWBVH conversion regroups them into leaves anyway, and
 /// binning them took a third of the build (1M triangles: 0.64 s, 0.49-0.51 s without, rays
 /// as fast).
-fn sah_split(span: &mut [u32], aabbs: &[Aabb], centres: &Aabb) -> usize {
-    if span.len() <= 8 {
-        return median_split(span, aabbs, centres);
+fn sah_split(span: &mut [u32], aabbs: &[Aabb], centres: &Aabb, depth: usize) -> usize {
+    if span.len() <= 8 || depth >= SAH_MAX_DEPTH {
+        return median_split(span, aabbs, centres, depth);
     }
     match cheapest_plane(span, aabbs, centres) {
         Some((axis, plane)) => partition(span, |i| sah_bin(aabbs[i as usize].center()[axis], centres, axis) < plane),
-        None => median_split(span, aabbs, centres),
+        None => median_split(span, aabbs, centres, depth),
     }
 }
 
@@ -1011,6 +1018,20 @@ mod tests {
             hits += usize::from(found.is_some());
         }
         assert!(hits > 500, "{hits} hits");
+    }
+
+    /// Input that makes SAH deep: a bulk of coincident triangles with outliers at
+    /// geometrically spaced distances, so that the cheapest plane cuts a few outliers off at
+    /// each level (42 levels without the cap). The cap bounds the tree, and the passes over
+    /// the bulk, whatever the input.
+    #[test]
+    fn sah_trees_of_clustered_input_stay_shallow() {
+        let tri = |x: f32| Triangle { v0: Vec3A::new(x, 0.0, 0.0), v1: Vec3A::new(x, 1.0, 0.0), v2: Vec3A::new(x, 0.0, 1.0) };
+        let tris: Vec<Triangle> = (0..300).map(|i| tri(1.3f32.powi(i))).chain((0..5000).map(|_| tri(0.0))).collect();
+        let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
+        let depth = bvh2_depth(&split_bvh2(&aabbs, sah_split));
+        // At most SAH_MAX_DEPTH levels of SAH, then medians: ⌈log2 5300⌉ + 1 = 14 more.
+        assert!((SAH_MAX_DEPTH..=SAH_MAX_DEPTH + 14).contains(&depth), "depth {depth}");
     }
 
     /// Expected cost of a ray through `bvh` by the surface area heuristic: each node's box
