@@ -911,6 +911,19 @@ mod tests {
         }
     }
 
+    /// `n` rays from origins in [-1.5, 1.5]³ in uniform directions, with segment ends
+    /// (`tmax`) in [0.1, 3.1), as the `rays` bench draws them.
+    fn random_rays(seed: u64, n: usize) -> Vec<(Vec3A, Vec3A, f32)> {
+        let mut rng = crate::sampling::Pcg32::new(seed, 4);
+        (0..n)
+            .map(|_| {
+                let o = Vec3A::from(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - 1.5);
+                let d = Vec3A::from(crate::sampling::uniform_sphere(rng.next_2d()));
+                (o, d, 0.1 + 3.0 * rng.next_f32())
+            })
+            .collect()
+    }
+
     /// A walk that asks for leaves a level ahead (forced on a small mesh, which would not ask)
     /// finds exactly what the walk without it finds, for closest hits and occlusion alike.
     #[test]
@@ -920,12 +933,8 @@ mod tests {
         let mut ahead = Blas::build(&mesh, BuildQuality::Medium);
         assert!(plain.leaf_chunks.is_empty(), "a small mesh's walk asks for nothing ahead");
         ahead.leaf_chunks = ahead.bvh.nodes.iter().map(|n| pack_chunks(wide::TriangleLanes::chunks_of(n))).collect();
-        let mut rng = crate::sampling::Pcg32::new(11, 4);
         let mut hits = 0;
-        for _ in 0..3000 {
-            let o = Vec3A::from(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - 1.5);
-            let d = Vec3A::from(crate::sampling::uniform_sphere(rng.next_2d()));
-            let tmax = 0.1 + 3.0 * rng.next_f32();
+        for (o, d, tmax) in random_rays(11, 3000) {
             let found = plain.intersect(o, d, f32::INFINITY, 0.0);
             assert_eq!(ahead.intersect(o, d, f32::INFINITY, 0.0), found);
             assert_eq!(ahead.occluded(o, d, tmax, 0.0), plain.occluded(o, d, tmax, 0.0));
@@ -1006,12 +1015,8 @@ mod tests {
         tree.validate(&tris, false);
         let sah = Blas::of_tree(&tris, tree);
         let ploc = Blas::of_triangles(&tris, BuildQuality::Medium);
-        let mut rng = crate::sampling::Pcg32::new(5, 9);
         let mut hits = 0;
-        for _ in 0..3000 {
-            let o = Vec3A::from(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 3.0 - 1.5);
-            let d = Vec3A::from(crate::sampling::uniform_sphere(rng.next_2d()));
-            let tmax = 0.1 + 3.0 * rng.next_f32();
+        for (o, d, tmax) in random_rays(5, 3000) {
             let found = ploc.intersect(o, d, f32::INFINITY, 0.0).map(|h| h.0.to_bits());
             assert_eq!(sah.intersect(o, d, f32::INFINITY, 0.0).map(|h| h.0.to_bits()), found);
             assert_eq!(sah.occluded(o, d, tmax, 0.0), ploc.occluded(o, d, tmax, 0.0));
