@@ -224,12 +224,7 @@ impl BuildQuality {
 impl Blas {
     /// Builds the BVH of a mesh with at least one triangle.
     pub fn build(mesh: &Mesh, quality: BuildQuality) -> Self {
-        let tris: Vec<Triangle> = (0..mesh.triangle_count())
-            .map(|i| {
-                let [a, b, c] = mesh.triangle(i);
-                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
-            })
-            .collect();
+        let tris = obvhs_triangles(mesh);
         let keys = mesh.deformation_samples();
         if keys < 2 {
             return Self::of_triangles(&tris, quality);
@@ -474,6 +469,16 @@ impl Blas {
     pub fn bounds(&self) -> (Vec3, Vec3) {
         (self.bounds.min.into(), self.bounds.max.into())
     }
+}
+
+/// The mesh's triangles (at its first deformation sample) in obvhs's form.
+fn obvhs_triangles(mesh: &Mesh) -> Vec<Triangle> {
+    (0..mesh.triangle_count())
+        .map(|i| {
+            let [a, b, c] = mesh.triangle(i);
+            Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
+        })
+        .collect()
 }
 
 /// Deepest binary BVH [`build_bounded`] keeps. obvhs's CWBVH traversal stack holds 32 node
@@ -976,12 +981,7 @@ mod tests {
     fn coincident_triangles_build_a_shallow_bvh() {
         let n = 100_000u32;
         let m = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], indices: vec![[0, 1, 2]; n as usize], ..Default::default() };
-        let aabbs: Vec<Aabb> = (0..m.triangle_count())
-            .map(|i| {
-                let [a, b, c] = m.triangle(i);
-                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }.aabb()
-            })
-            .collect();
+        let aabbs: Vec<Aabb> = obvhs_triangles(&m).iter().map(Boundable::aabb).collect();
         let depth = bvh2_depth(&split_bvh2(&aabbs, median_split));
         assert_eq!(depth, 18, "ceil(log2 100000) + 1 levels");
         let blas = Blas::build(&m, BuildQuality::Medium);
@@ -996,13 +996,7 @@ mod tests {
     /// and occlusion (tied triangles may differ, their distances may not).
     #[test]
     fn sah_split_trees_find_what_ploc_trees_find() {
-        let mesh = Mesh::uv_sphere(40, 60);
-        let tris: Vec<Triangle> = (0..mesh.triangle_count())
-            .map(|i| {
-                let [a, b, c] = mesh.triangle(i);
-                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
-            })
-            .collect();
+        let tris = obvhs_triangles(&Mesh::uv_sphere(40, 60));
         let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
         let binary = split_bvh2(&aabbs, sah_split);
         let (sah_cost, median_cost) = (sah_cost(&binary), sah_cost(&split_bvh2(&aabbs, median_split)));
@@ -1026,16 +1020,17 @@ mod tests {
     }
 
     /// Input that makes SAH deep: a bulk of coincident triangles with outliers at
-    /// geometrically spaced distances, so that the cheapest plane cuts a few outliers off at
-    /// each level (42 levels without the cap). The cap bounds the tree, and the passes over
-    /// the bulk, whatever the input.
+    /// geometrically spaced distances along each axis, so that the cheapest plane cuts a few
+    /// outliers off at each level (98 levels without the cap, deeper than the walk can take).
+    /// The cap bounds the tree, and the passes over the bulk, whatever the input.
     #[test]
     fn sah_trees_of_clustered_input_stay_shallow() {
-        let tri = |x: f32| Triangle { v0: Vec3A::new(x, 0.0, 0.0), v1: Vec3A::new(x, 1.0, 0.0), v2: Vec3A::new(x, 0.0, 1.0) };
-        let tris: Vec<Triangle> = (0..300).map(|i| tri(1.3f32.powi(i))).chain((0..5000).map(|_| tri(0.0))).collect();
+        let tri = |p: Vec3A| Triangle { v0: p, v1: p + Vec3A::Y, v2: p + Vec3A::Z };
+        let outliers = (0..300).flat_map(|i| [Vec3A::X, Vec3A::Y, Vec3A::Z].map(|axis| tri(axis * 1.3f32.powi(i))));
+        let tris: Vec<Triangle> = outliers.chain((0..5000).map(|_| tri(Vec3A::ZERO))).collect();
         let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
         let depth = bvh2_depth(&split_bvh2(&aabbs, sah_split));
-        // At most SAH_MAX_DEPTH levels of SAH, then medians: ⌈log2 5300⌉ + 1 = 14 more.
+        // At most SAH_MAX_DEPTH levels of SAH, then medians: ⌈log2 5900⌉ + 1 = 14 more.
         assert!((SAH_MAX_DEPTH..=SAH_MAX_DEPTH + 14).contains(&depth), "depth {depth}");
     }
 
