@@ -13,8 +13,8 @@ use std::sync::OnceLock;
 
 use glam::{Vec2, Vec3};
 
-use super::energy::split_axis;
 use super::{LobeFlags, LobeSample};
+use super::{energy::split_axis, lazy_rows::LazyRows};
 use crate::sampling::Pcg32;
 
 /// Smallest roughness. The Λ fit stops describing the distribution below it: measured by
@@ -112,7 +112,8 @@ pub const SHEEN_MU: usize = 32;
 /// Directional albedo E(r, μ) of the white Charlie sheen over r = max(j/15, 0.07) and
 /// √μ = i/31 (μ ≥ 1e-4), computed by stratified quadrature of the lobe.
 pub struct SheenEnergy {
-    e: [[f32; SHEEN_MU]; SHEEN_N],
+    /// E[r][μ], a row per roughness node, built when first read.
+    e: LazyRows<[f32; SHEEN_MU]>,
 }
 
 fn sheen_r(j: usize) -> f32 {
@@ -142,29 +143,32 @@ pub fn sheen_albedo(r: f32, mu: f32) -> f32 {
 }
 
 impl SheenEnergy {
-    fn compute() -> Self {
-        let _span = tracing::debug_span!("sheen_energy_table").entered();
-        let mut e = [[0.0; SHEEN_MU]; SHEEN_N];
-        for (j, row) in e.iter_mut().enumerate() {
-            for (i, cell) in row.iter_mut().enumerate() {
-                *cell = sheen_albedo(sheen_r(j), sheen_mu(i));
-            }
-        }
-        SheenEnergy { e }
+    fn new() -> Self {
+        SheenEnergy { e: LazyRows::new(SHEEN_N, Self::row) }
+    }
+
+    fn row(j: usize) -> [f32; SHEEN_MU] {
+        let _span = tracing::debug_span!("sheen_energy_row", j).entered();
+        std::array::from_fn(|i| sheen_albedo(sheen_r(j), sheen_mu(i)))
     }
 
     /// E(r, μ), bilinear in (r, √μ).
     pub fn e(&self, r: f32, mu: f32) -> f32 {
         let rows = split_axis(r, SHEEN_N);
         let cols = split_axis(mu.clamp(0.0, 1.0).sqrt(), SHEEN_MU);
-        rows.iter().flat_map(|&(j, wj)| cols.iter().map(move |&(i, wi)| (j, i, wj * wi))).map(|(j, i, w)| w * self.e[j][i]).sum()
+        rows.iter().flat_map(|&(j, wj)| cols.iter().map(move |&(i, wi)| (j, i, wj * wi))).map(|(j, i, w)| w * self.e.row(j)[i]).sum()
     }
 }
 
-/// The sheen table, computed on first use by materials with a Charlie sheen.
+/// The sheen table, each row computed on first use by materials with a Charlie sheen.
 pub fn sheen_energy() -> &'static SheenEnergy {
     static TABLE: OnceLock<SheenEnergy> = OnceLock::new();
-    TABLE.get_or_init(SheenEnergy::compute)
+    TABLE.get_or_init(SheenEnergy::new)
+}
+
+/// Builds every row of the sheen table.
+pub(super) fn build_sheen_energy() {
+    sheen_energy().e.build_all();
 }
 
 #[cfg(test)]
@@ -226,7 +230,8 @@ mod tests {
         let t = sheen_energy();
         for j in 0..SHEEN_N {
             for i in 0..SHEEN_MU {
-                assert!((0.0..=1.0).contains(&t.e[j][i]), "E[{j}][{i}] = {}", t.e[j][i]);
+                let e = t.e.row(j)[i];
+                assert!((0.0..=1.0).contains(&e), "E[{j}][{i}] = {e}");
             }
         }
         // Between the nodes the bilinear table stays within 0.01 of a fresh quadrature.

@@ -7,6 +7,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
+use super::lazy_rows::LazyRows;
 use super::microfacet::{Ggx, gtr1_d, reflect};
 use super::view_cache::ViewCache;
 use super::{LobeFlags, LobeSample};
@@ -175,46 +176,13 @@ impl DisneyDiffuse {
 const TABLE_N: usize = 16;
 
 /// The energy scales (s, k) of the Disney diffuse for `roughness` and `flatness`, from a
-/// 16×16 table computed on first use: for each node, directional albedos of the base and
+/// 16×16 table, each node computed when a lookup first reads it: for each node, directional albedos of the base and
 /// retro-reflection parts at 32 cosines (dense near grazing) by 64×64 cosine-weighted
 /// quadrature; s = min(1, 1/max E_base), k = the largest value in [0, 1] with
 /// s·E_base + k·E_retro ≤ 1 everywhere. A lookup takes the smallest (s, k) of the four
 /// surrounding nodes: both fall as roughness and flatness grow, so that is conservative.
 pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
-    static TABLE: std::sync::OnceLock<Vec<(f32, f32)>> = std::sync::OnceLock::new();
-    let t = TABLE.get_or_init(|| {
-        let mut t = Vec::with_capacity(TABLE_N * TABLE_N);
-        for j in 0..TABLE_N {
-            for i in 0..TABLE_N {
-                let (r, fl) = (j as f32 / (TABLE_N - 1) as f32, i as f32 / (TABLE_N - 1) as f32);
-                let mut eb_max: f32 = 0.0;
-                let mut pairs = Vec::with_capacity(32);
-                for m in 0..32 {
-                    let mu = ((m as f32 / 31.0).powi(2)).max(1e-4);
-                    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-                    let (mut eb, mut er) = (0.0f64, 0.0f64);
-                    const Q: usize = 64;
-                    for a in 0..Q {
-                        for b in 0..Q {
-                            let wi = cosine_hemisphere(Vec2::new((a as f32 + 0.5) / Q as f32, (b as f32 + 0.5) / Q as f32));
-                            let (fb, fr) = DisneyDiffuse::parts(r, fl, wo, wi);
-                            eb += (fb * PI) as f64;
-                            er += (fr * PI) as f64;
-                        }
-                    }
-                    let (eb, er) = ((eb / (Q * Q) as f64) as f32, (er / (Q * Q) as f64) as f32);
-                    eb_max = eb_max.max(eb);
-                    pairs.push((eb, er));
-                }
-                // 0.5% margin for the quadrature and for cosines between the nodes.
-                let s = (0.995 / eb_max).min(1.0);
-                let k =
-                    pairs.iter().filter(|(_, er)| *er > 0.0).map(|(eb, er)| ((0.995 - s * eb) / er).clamp(0.0, 1.0)).fold(1.0f32, f32::min);
-                t.push((s, k));
-            }
-        }
-        t
-    });
+    let t = diffuse_scales_table();
     let idx = |x: f32| -> (usize, usize) {
         let f = x.clamp(0.0, 1.0) * (TABLE_N - 1) as f32;
         let lo = (f.floor() as usize).min(TABLE_N - 1);
@@ -223,8 +191,49 @@ pub fn diffuse_energy_scales(roughness: f32, flatness: f32) -> (f32, f32) {
     let ((j0, j1), (i0, i1)) = (idx(roughness), idx(flatness));
     [(j0, i0), (j0, i1), (j1, i0), (j1, i1)]
         .iter()
-        .map(|&(j, i)| t[j * TABLE_N + i])
+        .map(|&(j, i)| *t.row(j * TABLE_N + i))
         .fold((1.0f32, 1.0f32), |(s, k), (a, b)| (s.min(a), k.min(b)))
+}
+
+/// The (s, k) nodes of [`diffuse_energy_scales`], each built when first read.
+fn diffuse_scales_table() -> &'static LazyRows<(f32, f32)> {
+    static TABLE: std::sync::OnceLock<LazyRows<(f32, f32)>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| LazyRows::new(TABLE_N * TABLE_N, diffuse_scales_node))
+}
+
+/// Builds every node of [`diffuse_energy_scales`]'s table.
+pub(super) fn build_diffuse_energy_scales() {
+    diffuse_scales_table().build_all();
+}
+
+/// Node `ji = j·16 + i` (roughness j/15, flatness i/15) of [`diffuse_energy_scales`].
+fn diffuse_scales_node(ji: usize) -> (f32, f32) {
+    let _span = tracing::debug_span!("diffuse_energy_node", ji).entered();
+    let (j, i) = (ji / TABLE_N, ji % TABLE_N);
+    let (r, fl) = (j as f32 / (TABLE_N - 1) as f32, i as f32 / (TABLE_N - 1) as f32);
+    let mut eb_max: f32 = 0.0;
+    let mut pairs = Vec::with_capacity(32);
+    for m in 0..32 {
+        let mu = ((m as f32 / 31.0).powi(2)).max(1e-4);
+        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let (mut eb, mut er) = (0.0f64, 0.0f64);
+        const Q: usize = 64;
+        for a in 0..Q {
+            for b in 0..Q {
+                let wi = cosine_hemisphere(Vec2::new((a as f32 + 0.5) / Q as f32, (b as f32 + 0.5) / Q as f32));
+                let (fb, fr) = DisneyDiffuse::parts(r, fl, wo, wi);
+                eb += (fb * PI) as f64;
+                er += (fr * PI) as f64;
+            }
+        }
+        let (eb, er) = ((eb / (Q * Q) as f64) as f32, (er / (Q * Q) as f64) as f32);
+        eb_max = eb_max.max(eb);
+        pairs.push((eb, er));
+    }
+    // 0.5% margin for the quadrature and for cosines between the nodes.
+    let s = (0.995 / eb_max).min(1.0);
+    let k = pairs.iter().filter(|(_, er)| *er > 0.0).map(|(eb, er)| ((0.995 - s * eb) / er).clamp(0.0, 1.0)).fold(1.0f32, f32::min);
+    (s, k)
 }
 
 /// Lambertian transmission (Disney's `diffTrans` lobe): f = c/π into the opposite hemisphere.

@@ -15,7 +15,10 @@ use std::sync::OnceLock;
 
 use glam::{Vec2, Vec3};
 
-use super::microfacet::{Ggx, reflect};
+use super::{
+    lazy_rows::LazyRows,
+    microfacet::{Ggx, reflect},
+};
 use crate::sampling::Pcg32;
 
 /// Table resolution per dimension (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks": "a 32^2 table is sufficient").
@@ -25,12 +28,17 @@ const MU_MIN: f32 = 1e-4;
 /// Stratified samples per table cell (64×64).
 const STRATA: u32 = 64;
 
-/// E(μ, r) and E_avg(r) for GGX.
+/// E(μ, r) and E_avg(r) for GGX, a row per roughness r = j/31, built when first read.
 pub struct GgxEnergy {
-    /// E[r][μ] at r = j/31, μ = max((i/31)², 1e-4).
-    e: [[f32; N]; N],
-    /// E_avg[r].
-    e_avg: [f32; N],
+    rows: LazyRows<GgxRow>,
+}
+
+/// One roughness of [`GgxEnergy`].
+struct GgxRow {
+    /// E at μ = max((i/31)², 1e-4).
+    e: [f32; N],
+    /// E_avg of the interpolated row.
+    e_avg: f32,
 }
 
 /// Single-scattering directional albedo of isotropic GGX with α = r² and F = 1, by
@@ -72,27 +80,25 @@ fn grid_r(j: usize) -> f32 {
 }
 
 impl GgxEnergy {
-    fn compute() -> Self {
-        let _span = tracing::debug_span!("ggx_energy_tables").entered();
-        let mut e = [[0.0; N]; N];
-        let mut e_avg = [0.0; N];
-        for (j, row) in e.iter_mut().enumerate() {
-            for (i, cell) in row.iter_mut().enumerate() {
-                *cell = single_scatter_albedo(grid_mu(i), grid_r(j), STRATA);
-            }
-        }
-        let mut tables = GgxEnergy { e, e_avg };
-        for j in 0..N {
-            // E_avg of the interpolated table itself.
-            e_avg[j] = cosine_average(4096, |mu| tables.e_at_row(j, mu));
-        }
-        tables.e_avg = e_avg;
-        tables
+    fn new() -> Self {
+        GgxEnergy { rows: LazyRows::new(N, Self::row) }
+    }
+
+    fn row(j: usize) -> GgxRow {
+        let _span = tracing::debug_span!("ggx_energy_row", j).entered();
+        let e = std::array::from_fn(|i| single_scatter_albedo(grid_mu(i), grid_r(j), STRATA));
+        // E_avg of the interpolated table itself.
+        let e_avg = cosine_average(4096, |mu| Self::e_in_row(&e, mu));
+        GgxRow { e, e_avg }
+    }
+
+    fn e_in_row(e: &[f32; N], mu: f32) -> f32 {
+        let (i0, i1, t) = lerp_index(mu.max(0.0).sqrt());
+        e[i0] * (1.0 - t) + e[i1] * t
     }
 
     fn e_at_row(&self, j: usize, mu: f32) -> f32 {
-        let (i0, i1, t) = lerp_index(mu.max(0.0).sqrt());
-        self.e[j][i0] * (1.0 - t) + self.e[j][i1] * t
+        Self::e_in_row(&self.rows.row(j).e, mu)
     }
 
     /// E(μ, r), bilinear in (√μ, r).
@@ -104,7 +110,7 @@ impl GgxEnergy {
     /// E_avg(r), linear in the table.
     pub fn e_avg(&self, roughness: f32) -> f32 {
         let (j0, j1, t) = lerp_index(roughness);
-        self.e_avg[j0] * (1.0 - t) + self.e_avg[j1] * t
+        self.rows.row(j0).e_avg * (1.0 - t) + self.rows.row(j1).e_avg * t
     }
 }
 
@@ -122,29 +128,32 @@ pub(crate) fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
     [(i0, 1.0 - t), (i0 + 1, t)]
 }
 
-/// Computes every energy table now instead of at the first render whose materials need it
-/// (which then waits for them before its first tile: 0.8 s on a 2-core machine for a scene
-/// of rough materials). A server calls this at start-up, on a thread of its own: the tables
-/// are built on a one-thread pool, most used first, so the global pool and the other cores
-/// stay free for renders (a render that needs a table still being built waits for it, as
-/// it would for its own build).
+/// Computes every row of every energy table now, so that no render waits for one. A render
+/// builds the rows its materials read as it first reads them (a few milliseconds each; all
+/// of them take 8 s on one core). A server calls this at start-up, on a thread of its own:
+/// the rows are built on a one-thread pool, most used tables first, so the global pool and
+/// the other cores stay free for renders (a render that reads a row still being built waits
+/// for that row, as it would for its own build).
 pub fn warm_up() {
     let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(1).thread_name(|_| "energy-tables".into()).build() else {
         return;
     };
     pool.install(|| {
-        ggx();
-        dielectric_specular();
+        ggx().rows.build_all();
+        super::disney::build_diffuse_energy_scales();
+        dielectric_specular().rows.build_all();
         clearcoat();
-        glass();
-        ggx_anisotropic();
+        glass().rows.build_all();
+        ggx_anisotropic().rows.build_all();
+        super::charlie::build_sheen_energy();
     });
 }
 
-/// The GGX tables, computed on first use (~0.3 s on one core in release).
+/// The GGX tables, each row computed on first use (5 ms on one core in release; the
+/// whole table 0.17 s).
 pub fn ggx() -> &'static GgxEnergy {
     static TABLES: OnceLock<GgxEnergy> = OnceLock::new();
-    TABLES.get_or_init(GgxEnergy::compute)
+    TABLES.get_or_init(GgxEnergy::new)
 }
 
 /// Anisotropic table resolution: √α_max, α_min/α_max, azimuth from the rough axis, ∛μ (finer
@@ -171,10 +180,16 @@ const ANISO_RHO_MIN: f32 = 0.1;
 /// f_ms = (1 − E(wo))(1 − E(wi)) / (π(1 − E_avg)) over this table keeps the Kulla-Conty form,
 /// reciprocal, with albedo exactly 1 − E(wo) of the table.
 pub struct GgxAnisoEnergy {
-    /// [s][ρ][φ][μ].
-    e: Vec<f32>,
-    /// [s][ρ].
-    e_avg: Vec<f32>,
+    /// A row per (√α_max, α_min/α_max) node `c = s·ρ_count + ρ`, built when first read.
+    rows: LazyRows<AnisoRow>,
+}
+
+/// One (√α_max, α_min/α_max) node of [`GgxAnisoEnergy`].
+struct AnisoRow {
+    /// E[φ][μ].
+    e: [f32; ANISO_PHI * ANISO_MU],
+    /// E_avg.
+    e_avg: f32,
 }
 
 /// Where a lobe sits in the anisotropic table: two (index, weight) pairs in √α_max and in
@@ -204,44 +219,40 @@ impl AnisoCoords {
 }
 
 impl GgxAnisoEnergy {
-    fn compute() -> Self {
-        let _span = tracing::debug_span!("ggx_anisotropic_energy_tables").entered();
-        use rayon::prelude::*;
-        let cells = ANISO_S * ANISO_RHO * ANISO_PHI * ANISO_MU;
-        // Independent, deterministic cells (each seeds its own stream): built in parallel.
-        let e: Vec<f32> = (0..cells)
-            .into_par_iter()
-            .map(|idx| {
-                let (k, p, j, i) = (
-                    idx % ANISO_MU,
-                    (idx / ANISO_MU) % ANISO_PHI,
-                    (idx / (ANISO_MU * ANISO_PHI)) % ANISO_RHO,
-                    idx / (ANISO_MU * ANISO_PHI * ANISO_RHO),
-                );
-                let hi = ((i as f32 / (ANISO_S - 1) as f32).powf(1.5) * ANISO_S_MAX).powi(2);
-                let rho = ANISO_RHO_MIN + (1.0 - ANISO_RHO_MIN) * j as f32 / (ANISO_RHO - 1) as f32;
-                let phi = p as f32 / (ANISO_PHI - 1) as f32 * std::f32::consts::FRAC_PI_2;
-                let mu = (k as f32 / (ANISO_MU - 1) as f32).powi(3).max(MU_MIN);
-                let sin = (1.0 - mu * mu).sqrt();
-                let wo = Vec3::new(sin * phi.cos(), sin * phi.sin(), mu);
-                ggx_albedo(Ggx { ax: hi, ay: hi * rho }, wo, Pcg32::new(0xa1507, idx as u64), 32)
-            })
-            .collect();
-        let mut t = GgxAnisoEnergy { e, e_avg: vec![0.0; ANISO_S * ANISO_RHO] };
-        for c in 0..ANISO_S * ANISO_RHO {
-            // (1/π)∫E cos θ dω of the interpolated table: E is linear in φ between nodes, so
-            // the azimuthal mean is the trapezoid rule over the φ nodes.
-            let per_phi: Vec<f32> = (0..ANISO_PHI).map(|p| cosine_average(1024, |mu| t.node(c, p, mu))).collect();
-            let inner: f32 = per_phi[1..ANISO_PHI - 1].iter().sum();
-            t.e_avg[c] = (inner + 0.5 * (per_phi[0] + per_phi[ANISO_PHI - 1])) / (ANISO_PHI - 1) as f32;
-        }
-        t
+    fn new() -> Self {
+        GgxAnisoEnergy { rows: LazyRows::new(ANISO_S * ANISO_RHO, Self::row) }
+    }
+
+    /// Node `c`'s row: every cell seeds its stream with its index in the whole table.
+    fn row(c: usize) -> AnisoRow {
+        let _span = tracing::debug_span!("ggx_anisotropic_energy_row", c).entered();
+        let (i, j) = (c / ANISO_RHO, c % ANISO_RHO);
+        let hi = ((i as f32 / (ANISO_S - 1) as f32).powf(1.5) * ANISO_S_MAX).powi(2);
+        let rho = ANISO_RHO_MIN + (1.0 - ANISO_RHO_MIN) * j as f32 / (ANISO_RHO - 1) as f32;
+        let e: [f32; ANISO_PHI * ANISO_MU] = std::array::from_fn(|pk| {
+            let (p, k) = (pk / ANISO_MU, pk % ANISO_MU);
+            let phi = p as f32 / (ANISO_PHI - 1) as f32 * std::f32::consts::FRAC_PI_2;
+            let mu = (k as f32 / (ANISO_MU - 1) as f32).powi(3).max(MU_MIN);
+            let sin = (1.0 - mu * mu).sqrt();
+            let wo = Vec3::new(sin * phi.cos(), sin * phi.sin(), mu);
+            let idx = c * ANISO_PHI * ANISO_MU + pk;
+            ggx_albedo(Ggx { ax: hi, ay: hi * rho }, wo, Pcg32::new(0xa1507, idx as u64), 32)
+        });
+        // (1/π)∫E cos θ dω of the interpolated table: E is linear in φ between nodes, so
+        // the azimuthal mean is the trapezoid rule over the φ nodes.
+        let per_phi: Vec<f32> = (0..ANISO_PHI).map(|p| cosine_average(1024, |mu| Self::node_in(&e, p, mu))).collect();
+        let inner: f32 = per_phi[1..ANISO_PHI - 1].iter().sum();
+        let e_avg = (inner + 0.5 * (per_phi[0] + per_phi[ANISO_PHI - 1])) / (ANISO_PHI - 1) as f32;
+        AnisoRow { e, e_avg }
+    }
+
+    fn node_in(e: &[f32; ANISO_PHI * ANISO_MU], p: usize, mu: f32) -> f32 {
+        let [(k0, w0), (k1, w1)] = split_axis(mu.max(0.0).cbrt(), ANISO_MU);
+        e[p * ANISO_MU + k0] * w0 + e[p * ANISO_MU + k1] * w1
     }
 
     fn node(&self, c: usize, p: usize, mu: f32) -> f32 {
-        let [(k0, w0), (k1, w1)] = split_axis(mu.max(0.0).cbrt(), ANISO_MU);
-        let base = (c * ANISO_PHI + p) * ANISO_MU;
-        self.e[base + k0] * w0 + self.e[base + k1] * w1
+        Self::node_in(&self.rows.row(c).e, p, mu)
     }
 
     /// E(w) for a direction in the lobe's local frame (upper hemisphere).
@@ -254,14 +265,14 @@ impl GgxAnisoEnergy {
 
     /// E_avg = (1/π)∫E cos θ dω.
     pub fn e_avg(&self, at: &AnisoCoords) -> f32 {
-        at.corners().map(|(c, w)| w * self.e_avg[c]).sum()
+        at.corners().map(|(c, w)| w * self.rows.row(c).e_avg).sum()
     }
 }
 
 /// The anisotropic GGX table, computed on first use by scenes with anisotropic lobes.
 pub fn ggx_anisotropic() -> &'static GgxAnisoEnergy {
     static TABLES: OnceLock<GgxAnisoEnergy> = OnceLock::new();
-    TABLES.get_or_init(GgxAnisoEnergy::compute)
+    TABLES.get_or_init(GgxAnisoEnergy::new)
 }
 
 /// Directional albedo of the Disney clearcoat lobe at full strength (weight 1) over
@@ -359,8 +370,32 @@ mod tests {
         // Regenerating cells with half the samples lands within Monte Carlo noise.
         for (i, j) in [(5usize, 10usize), (31, 31), (1, 20), (16, 3)] {
             let fresh = single_scatter_albedo(grid_mu(i), grid_r(j), STRATA / 2);
-            assert!((fresh - ggx().e[j][i]).abs() < 5e-3, "cell ({i}, {j}): {fresh} vs {}", ggx().e[j][i]);
+            let cell = ggx().rows.row(j).e[i];
+            assert!((fresh - cell).abs() < 5e-3, "cell ({i}, {j}): {fresh} vs {cell}");
         }
+    }
+
+    #[test]
+    fn a_lookup_builds_only_the_rows_around_it() {
+        // One material's lookups read the nodes bracketing its parameters: two rows of a
+        // table over one parameter, four over two. Built whole, the tables took 8 s on one
+        // core before a render's first tile.
+        let ggx = GgxEnergy::new();
+        (ggx.e(0.5, 0.3), ggx.e_avg(0.3));
+        assert_eq!(ggx.rows.built(), 2);
+        let spec = DielectricSpecularEnergy::new();
+        (spec.e(1.5, 0.3, 0.5), spec.e_avg(1.5, 0.3));
+        assert_eq!(spec.rows.built(), 4);
+        let glass = GlassEnergy::new();
+        (glass.e(1.5, 0.3, 0.5), glass.e_avg_of_lookup(1.5, 0.3));
+        assert_eq!(glass.rows.built(), 4);
+        let aniso = GgxAnisoEnergy::new();
+        let at = AnisoCoords::of(Ggx { ax: 0.3, ay: 0.1 });
+        (aniso.e(&at, Vec3::new(0.6, 0.0, 0.8)), aniso.e_avg(&at));
+        assert_eq!(aniso.rows.built(), 4);
+        // What a row holds does not depend on which lookup built it.
+        assert_eq!(glass.e(1.5, 0.3, 0.5).to_bits(), super::glass().e(1.5, 0.3, 0.5).to_bits());
+        assert_eq!(aniso.e_avg(&at).to_bits(), ggx_anisotropic().e_avg(&at).to_bits());
     }
 
     #[test]
@@ -441,9 +476,9 @@ pub const GLASS_MU: usize = 32;
 /// [1/3, 1] (leaving), each indexed by η (or 1/η) = 1.0001 + 1.9999(i/15)³, r = (j/15)² and
 /// the critical-angle coordinate u = k/31 ([`glass_u`]).
 pub struct GlassEnergy {
-    /// [side][η][r][μ]: side 0 is η ≥ 1, side 1 is η ≤ 1. E_avg is integrated per lobe
-    /// ([`GlassEnergy::e_avg_of_lookup`]), not tabulated.
-    e: Vec<f32>,
+    /// A row of μ per [side][η][r], built when first read: side 0 is η ≥ 1, side 1 is η ≤ 1.
+    /// E_avg is integrated per lobe ([`GlassEnergy::e_avg_of_lookup`]), not tabulated.
+    rows: LazyRows<[f32; GLASS_MU]>,
 }
 
 fn glass_eta(side: usize, i: usize) -> f32 {
@@ -504,27 +539,26 @@ fn critical_cosine(eta: f32) -> f32 {
 }
 
 impl GlassEnergy {
-    fn compute() -> Self {
-        let _span = tracing::debug_span!("glass_energy_tables").entered();
-        use rayon::prelude::*;
-        let (n, nm) = (GLASS_N, GLASS_MU);
-        // Cells are independent and deterministic (each seeds its own stream): build in parallel.
-        let e: Vec<f32> = (0..2 * n * n * nm)
-            .into_par_iter()
-            .map(|idx| {
-                let (k, j, i, side) = (idx % nm, (idx / nm) % n, (idx / (nm * n)) % n, idx / (nm * n * n));
-                let eta = glass_eta(side, i);
-                let mu = glass_mu(eta, k as f32 / (nm - 1) as f32);
-                dielectric_albedo(mu, glass_roughness(j), eta, 32).min(1.0)
-            })
-            .collect();
-        GlassEnergy { e }
+    fn new() -> Self {
+        GlassEnergy { rows: LazyRows::new(2 * GLASS_N * GLASS_N, Self::row) }
+    }
+
+    /// The row of (side, η node, r node) number `row`: every cell seeds its stream with its
+    /// index in the whole table.
+    fn row(row: usize) -> [f32; GLASS_MU] {
+        let _span = tracing::debug_span!("glass_energy_row", row).entered();
+        let (j, i, side) = (row % GLASS_N, (row / GLASS_N) % GLASS_N, row / (GLASS_N * GLASS_N));
+        let eta = glass_eta(side, i);
+        std::array::from_fn(|k| {
+            let mu = glass_mu(eta, k as f32 / (GLASS_MU - 1) as f32);
+            dielectric_albedo(mu, glass_roughness(j), eta, 32).min(1.0)
+        })
     }
 
     /// E at a (side, η, r) node for the μ coordinate `u` ([`glass_u`]), linear in `u`.
     fn lookup_node(&self, side: usize, i: usize, j: usize, u: f32) -> f32 {
-        let base = ((side * GLASS_N + i) * GLASS_N + j) * GLASS_MU;
-        split_axis(u, GLASS_MU).iter().map(|&(k, w)| w * self.e[base + k]).sum()
+        let row = self.rows.row((side * GLASS_N + i) * GLASS_N + j);
+        split_axis(u, GLASS_MU).iter().map(|&(k, w)| w * row[k]).sum()
     }
 
     fn coords(eta: f32, roughness: f32) -> (usize, [(usize, f32); 2], [(usize, f32); 2]) {
@@ -554,7 +588,7 @@ impl GlassEnergy {
 /// The glass tables, computed on first use (only scenes with rough glass pay for them).
 pub fn glass() -> &'static GlassEnergy {
     static TABLES: OnceLock<GlassEnergy> = OnceLock::new();
-    TABLES.get_or_init(GlassEnergy::compute)
+    TABLES.get_or_init(GlassEnergy::new)
 }
 
 /// The share of the multiply-scattered energy reflected back to `wo`'s side, Ratio(η), solved
@@ -575,8 +609,16 @@ pub fn glass_reflect_ratio(eta: f32, ea: f32, eb: f32) -> f32 {
 /// the missing energy 1 − E_s is what a diffuse base may reflect (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Microfacet
 /// dielectrics - diffuse term", after Kelemen et al. 2001).
 pub struct DielectricSpecularEnergy {
-    e: Vec<f32>,
-    e_avg: Vec<f32>,
+    /// A row per (η, r) node `i·16 + j`, built when first read.
+    rows: LazyRows<SpecularRow>,
+}
+
+/// One (η, r) node of [`DielectricSpecularEnergy`].
+struct SpecularRow {
+    /// E_s at √μ = k/15.
+    e: [f32; GLASS_N],
+    /// 2∫E_s(μ)μ dμ of the interpolated row.
+    e_avg: f32,
 }
 
 fn spec_eta(i: usize) -> f32 {
@@ -585,42 +627,36 @@ fn spec_eta(i: usize) -> f32 {
 }
 
 impl DielectricSpecularEnergy {
-    fn compute() -> Self {
-        let _span = tracing::debug_span!("dielectric_specular_tables").entered();
-        use rayon::prelude::*;
+    fn new() -> Self {
+        DielectricSpecularEnergy { rows: LazyRows::new(GLASS_N * GLASS_N, Self::row) }
+    }
+
+    /// Node `ij = i·16 + j`: every cell seeds its stream with its index in the whole table.
+    fn row(ij: usize) -> SpecularRow {
+        let _span = tracing::debug_span!("dielectric_specular_row", ij).entered();
         let n = GLASS_N;
-        let rows: Vec<Vec<f32>> = (0..n * n)
-            .into_par_iter()
-            .map(|ij| {
-                let (i, j) = (ij / n, ij % n);
-                let mut row = vec![0.0; n];
-                let lobe = super::Lobe::GgxReflection(super::GgxReflection::new(
-                    j as f32 / (n - 1) as f32,
-                    0.0,
-                    super::SpecularFresnel::Dielectric { eta: spec_eta(i) },
-                    true,
-                ));
-                for (k, e) in row.iter_mut().enumerate() {
-                    let mu = ((k as f32 / (n - 1) as f32).powi(2)).max(MU_MIN);
-                    let mut rng = Pcg32::new(0xd1ff, (i * n * n + j * n + k) as u64);
-                    *e = lobe_energy(&lobe, mu, &mut rng, 32).min(1.0);
-                }
-                row
-            })
-            .collect();
-        let e: Vec<f32> = rows.into_iter().flatten().collect();
-        let mut t = DielectricSpecularEnergy { e, e_avg: vec![0.0; n * n] };
-        for i in 0..n {
-            for j in 0..n {
-                t.e_avg[i * n + j] = cosine_average(1024, |mu| t.node(i, j, mu));
-            }
-        }
-        t
+        let (i, j) = (ij / n, ij % n);
+        let lobe = super::Lobe::GgxReflection(super::GgxReflection::new(
+            j as f32 / (n - 1) as f32,
+            0.0,
+            super::SpecularFresnel::Dielectric { eta: spec_eta(i) },
+            true,
+        ));
+        let e: [f32; GLASS_N] = std::array::from_fn(|k| {
+            let mu = ((k as f32 / (n - 1) as f32).powi(2)).max(MU_MIN);
+            let mut rng = Pcg32::new(0xd1ff, (i * n * n + j * n + k) as u64);
+            lobe_energy(&lobe, mu, &mut rng, 32).min(1.0)
+        });
+        let e_avg = cosine_average(1024, |mu| Self::node_in(&e, mu));
+        SpecularRow { e, e_avg }
+    }
+
+    fn node_in(e: &[f32; GLASS_N], mu: f32) -> f32 {
+        split_axis(mu.max(0.0).sqrt(), GLASS_N).iter().map(|&(k, w)| w * e[k]).sum()
     }
 
     fn node(&self, i: usize, j: usize, mu: f32) -> f32 {
-        let base = (i * GLASS_N + j) * GLASS_N;
-        split_axis(mu.max(0.0).sqrt(), GLASS_N).iter().map(|&(k, w)| w * self.e[base + k]).sum()
+        Self::node_in(&self.rows.row(i * GLASS_N + j).e, mu)
     }
 
     fn corners(eta: f32, roughness: f32) -> [(usize, usize, f32); 4] {
@@ -636,12 +672,12 @@ impl DielectricSpecularEnergy {
 
     /// 2∫E_s(μ)μ dμ.
     pub fn e_avg(&self, eta: f32, roughness: f32) -> f32 {
-        Self::corners(eta, roughness).iter().map(|&(i, j, w)| w * self.e_avg[i * GLASS_N + j]).sum()
+        Self::corners(eta, roughness).iter().map(|&(i, j, w)| w * self.rows.row(i * GLASS_N + j).e_avg).sum()
     }
 }
 
 /// The dielectric specular tables, computed on first use.
 pub fn dielectric_specular() -> &'static DielectricSpecularEnergy {
     static TABLES: OnceLock<DielectricSpecularEnergy> = OnceLock::new();
-    TABLES.get_or_init(DielectricSpecularEnergy::compute)
+    TABLES.get_or_init(DielectricSpecularEnergy::new)
 }

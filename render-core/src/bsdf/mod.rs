@@ -20,6 +20,7 @@ pub mod flake;
 pub mod fresnel;
 pub mod hair;
 mod lambert;
+mod lazy_rows;
 pub mod microfacet;
 mod reflection;
 mod thin;
