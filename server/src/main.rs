@@ -195,9 +195,11 @@ async fn main() -> anyhow::Result<()> {
         memory_budget = %tessera_server::budget::human(config.memory_budget),
         "tessera-server listening"
     );
-    // A long-running server builds the energy tables now, in the background on one core
-    // (7 s), so that no client's first render of rough materials waits ~0.8 s for them
-    // before its first tile. An embedded server (the CLI) builds them when a scene needs them.
+    // A long-running server builds every row of the energy tables now, in the background on
+    // one core (8 s), so that no render waits for one: a render builds the rows its materials
+    // read when it first reads them (3-9 ms each; a scene sweeping every roughness, as the
+    // principled grid does, waited 0.7 s for them on two cores). An embedded server (the CLI)
+    // builds only the rows its scenes read.
     std::thread::Builder::new().name("energy-tables".into()).spawn(render_core::bsdf::energy::warm_up)?;
     let service = RenderService::new(config);
     tessera_server::serve_with(listener, service.clone(), tls, drain(service)).await?;
