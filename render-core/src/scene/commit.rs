@@ -104,12 +104,14 @@ pub(super) struct Geometry<'d> {
 }
 
 impl<'d> Geometry<'d> {
-    /// Validates the meshes and builds the BLASes whose geometry changed since the last commit.
+    /// Validates the meshes and builds the BLASes whose geometry changed since the last commit,
+    /// several at once: a scene of many distinct meshes built them one after another (the
+    /// principled grid's 51 subdivided spheres took 0.8 s of its 2.7 s load on one core).
     fn build(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Result<Self, SceneError> {
+        use rayon::prelude::*;
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
-        let mut builds = 0;
-        let mut fresh = HashMap::new();
         let prototypes: HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
+        let mut kept: Vec<(&String, &Arc<Mesh>, Option<Arc<Blas>>)> = Vec::new();
         for (path, m) in &desc.meshes {
             validate_mesh(path, &m.mesh)?;
             if m.mesh.indices.is_empty() {
@@ -119,16 +121,19 @@ impl<'d> Geometry<'d> {
             if !(m.visible || prototypes.contains(path.as_str())) {
                 continue;
             }
-            let blas = match cache.entries.get(path) {
-                Some((geom, blas)) if Arc::ptr_eq(geom, &m.mesh) => blas.clone(),
-                _ => {
-                    builds += 1;
-                    Arc::new(Blas::build(&m.mesh, BuildQuality::Medium))
-                }
-            };
-            fresh.insert(path.clone(), (m.mesh.clone(), blas.clone()));
+            let cached = cache.entries.get(path).filter(|(geom, _)| Arc::ptr_eq(geom, &m.mesh)).map(|(_, blas)| blas.clone());
+            kept.push((path, &m.mesh, cached));
+        }
+        let builds = kept.iter().filter(|(_, _, cached)| cached.is_none()).count();
+        let blases: Vec<Arc<Blas>> = kept
+            .par_iter()
+            .map(|(_, mesh, cached)| cached.clone().unwrap_or_else(|| Arc::new(Blas::build(mesh, BuildQuality::Medium))))
+            .collect();
+        let mut fresh = HashMap::new();
+        for ((path, mesh, _), blas) in kept.into_iter().zip(blases) {
+            fresh.insert(path.clone(), (mesh.clone(), blas.clone()));
             out.slot.insert(path.as_str(), out.meshes.len());
-            out.meshes.push(m.mesh.clone());
+            out.meshes.push(mesh.clone());
             out.blases.push(blas);
         }
         cache.entries = fresh;

@@ -70,6 +70,41 @@ mod tests {
     }
 
     #[test]
+    fn blases_built_together_stay_with_their_meshes() {
+        // Forty meshes of different sizes, their BLASes built several at once; then every
+        // other one changes, so fresh and cached BLASes mix. Mesh k is a triangle scaled by
+        // 1 + k/8 (at most 5.9) at x = 8k, apart from the others: a BLAS paired with another
+        // mesh's instance reports that instance for the ray aimed at mesh k.
+        let mesh = |k: usize| {
+            let mut m = (*tri_mesh()).clone();
+            for p in &mut m.positions {
+                *p = *p * (1.0 + k as f32 / 8.0) + Vec3::X * (8 * k) as f32;
+            }
+            Arc::new(m)
+        };
+        let mut desc = SceneDesc::default();
+        for k in 0..40 {
+            let m = MeshDesc { mesh: mesh(k), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true };
+            desc.meshes.insert(format!("/M{k:02}"), m);
+        }
+        let mut cache = BlasCache::default();
+        commit(&desc, &mut cache).unwrap();
+        assert_eq!(cache.last_builds, 40);
+        for k in (0..40).step_by(2) {
+            desc.meshes.get_mut(&format!("/M{k:02}")).unwrap().mesh = mesh(k);
+        }
+        let scene = commit(&desc, &mut cache).unwrap();
+        assert_eq!(cache.last_builds, 20);
+        for k in 0..40 {
+            // Just inside the scaled triangle's far corner: only mesh k's own BLAS reaches it.
+            let s = 1.0 + k as f32 / 8.0;
+            let at = Vec3::new(8.0 * k as f32 + 0.9 * s, 0.05 * s, 1.0);
+            let hit = scene.intersect(&Ray::new(at, -Vec3::Z)).unwrap_or_else(|| panic!("mesh {k} is missed"));
+            assert_eq!(scene.prim_paths[hit.instance as usize], format!("/M{k:02}"));
+        }
+    }
+
+    #[test]
     fn a_cut_out_material_removes_its_surfaces() {
         use crate::material::{MaterialNetwork, MaterialNode, ParamValue};
         let network = |opacity: f32| MaterialNetwork {
