@@ -269,7 +269,7 @@ impl GgxAnisoEnergy {
     }
 }
 
-/// The anisotropic GGX table, computed on first use by scenes with anisotropic lobes.
+/// The anisotropic GGX table, each row computed on first use by scenes with anisotropic lobes.
 pub fn ggx_anisotropic() -> &'static GgxAnisoEnergy {
     static TABLES: OnceLock<GgxAnisoEnergy> = OnceLock::new();
     TABLES.get_or_init(GgxAnisoEnergy::new)
@@ -585,7 +585,7 @@ impl GlassEnergy {
     }
 }
 
-/// The glass tables, computed on first use (only scenes with rough glass pay for them).
+/// The glass tables, each row computed on first use (only scenes with rough glass pay for them).
 pub fn glass() -> &'static GlassEnergy {
     static TABLES: OnceLock<GlassEnergy> = OnceLock::new();
     TABLES.get_or_init(GlassEnergy::new)
@@ -676,7 +676,7 @@ impl DielectricSpecularEnergy {
     }
 }
 
-/// The dielectric specular tables, computed on first use.
+/// The dielectric specular tables, each row computed on first use.
 pub fn dielectric_specular() -> &'static DielectricSpecularEnergy {
     static TABLES: OnceLock<DielectricSpecularEnergy> = OnceLock::new();
     TABLES.get_or_init(DielectricSpecularEnergy::new)
