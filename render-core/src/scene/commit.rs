@@ -95,6 +95,9 @@ fn volumes_of(desc: &SceneDesc) -> Result<Vec<crate::volume::Volume>, SceneError
         .collect()
 }
 
+/// A mesh's BLAS from the last commit, when its geometry is unchanged.
+type CachedBlas = Option<Arc<Blas>>;
+
 /// One BLAS per distinct mesh prim that has triangles and renders (visible, or a prototype).
 pub(super) struct Geometry<'d> {
     pub meshes: Vec<Arc<Mesh>>,
@@ -111,7 +114,8 @@ impl<'d> Geometry<'d> {
         use rayon::prelude::*;
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
         let prototypes: HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
-        let mut kept: Vec<(&String, &Arc<Mesh>, Option<Arc<Blas>>)> = Vec::new();
+        // Each mesh that renders: its path, its geometry, and its BLAS when the cache has it.
+        let mut kept: Vec<(&String, &Arc<Mesh>, CachedBlas)> = Vec::new();
         for (path, m) in &desc.meshes {
             validate_mesh(path, &m.mesh)?;
             if m.mesh.indices.is_empty() {
