@@ -71,10 +71,11 @@ mod tests {
 
     #[test]
     fn blases_built_together_stay_with_their_meshes() {
-        // Forty meshes of different sizes, their BLASes built several at once; then every
-        // other one changes, so fresh and cached BLASes mix. Mesh k is a triangle scaled by
-        // 1 + k/8 (at most 5.9) at x = 8k, apart from the others: a BLAS paired with another
-        // mesh's instance reports that instance for the ray aimed at mesh k.
+        // Forty small meshes, their BLASes built several at once, and a big one built alone;
+        // then every other small one and the big one change, so fresh and cached BLASes mix.
+        // Mesh k is a triangle scaled by 1 + k/8 (at most 5.9) at x = 8k, apart from the
+        // others: a BLAS paired with another mesh's instance reports that instance for the ray
+        // aimed at mesh k.
         let mesh = |k: usize| {
             let mut m = (*tri_mesh()).clone();
             for p in &mut m.positions {
@@ -87,14 +88,32 @@ mod tests {
             let m = MeshDesc { mesh: mesh(k), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true };
             desc.meshes.insert(format!("/M{k:02}"), m);
         }
+        // One mesh big enough to be built alone (a 256 × 256 grid of quads at x = -100).
+        let big = {
+            let n = 256u32;
+            let at = |i: u32, j: u32| Vec3::new(-100.0 + i as f32 / n as f32, j as f32 / n as f32, 0.0);
+            let positions = (0..=n).flat_map(|j| (0..=n).map(move |i| at(i, j))).collect();
+            let v = |i: u32, j: u32| j * (n + 1) + i;
+            let indices = (0..n * n).flat_map(|q| {
+                let (i, j) = (q % n, q / n);
+                [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]]
+            });
+            Arc::new(Mesh { positions, indices: indices.collect(), normals: Normals::None, ..Default::default() })
+        };
+        assert!(big.indices.len() >= commit::BUILT_ALONE);
+        let m = MeshDesc { mesh: big.clone(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true };
+        desc.meshes.insert("/Big".into(), m);
         let mut cache = BlasCache::default();
         commit(&desc, &mut cache).unwrap();
-        assert_eq!(cache.last_builds, 40);
+        assert_eq!(cache.last_builds, 41);
         for k in (0..40).step_by(2) {
             desc.meshes.get_mut(&format!("/M{k:02}")).unwrap().mesh = mesh(k);
         }
+        desc.meshes.get_mut("/Big").unwrap().mesh = Arc::new((*big).clone());
         let scene = commit(&desc, &mut cache).unwrap();
-        assert_eq!(cache.last_builds, 20);
+        assert_eq!(cache.last_builds, 21);
+        let hit = scene.intersect(&Ray::new(Vec3::new(-99.5, 0.5, 1.0), -Vec3::Z)).expect("the big mesh is hit");
+        assert_eq!(scene.prim_paths[hit.instance as usize], "/Big");
         for k in 0..40 {
             // Just inside the scaled triangle's far corner: only mesh k's own BLAS reaches it.
             let s = 1.0 + k as f32 / 8.0;
