@@ -84,6 +84,19 @@ pub fn refine_within(
     tags: &SubdivTags,
     level: u32,
     max_faces: usize,
+    warn: impl FnMut(String),
+) -> Result<Refined, String> {
+    refine_in_chunks(src, tags, level, max_faces, LOCATIONS_PER_CHUNK, warn)
+}
+
+/// [`refine_within`] evaluating at most `chunk_locations` limit-stencil locations per
+/// OpenSubdiv call.
+fn refine_in_chunks(
+    src: &MeshSource,
+    tags: &SubdivTags,
+    level: u32,
+    max_faces: usize,
+    chunk_locations: usize,
     mut warn: impl FnMut(String),
 ) -> Result<Refined, String> {
     let cage = Cage::new(src, tags)?;
@@ -103,7 +116,7 @@ pub fn refine_within(
         let (mut take, mut locations) = (0, 0);
         while let Some(p) = rest.get(take) {
             let n = out.grid(p).len();
-            if take > 0 && locations + n > LOCATIONS_PER_CHUNK {
+            if take > 0 && locations + n > chunk_locations {
                 break;
             }
             (take, locations) = (take + 1, locations + n);
@@ -819,6 +832,30 @@ mod tests {
         assert!(spread(&r) > 0.3, "creased: {}", spread(&r));
         let smooth = refine(&grid(bump), &tags("catmullClark"), 3, |w| panic!("{w}")).unwrap();
         assert!(spread(&smooth) < 1e-3, "smooth: {}", spread(&smooth));
+    }
+
+    #[test]
+    fn chunked_evaluation_refines_the_same_surface() {
+        // A big mesh's limit stencils are evaluated in chunks of locations, and points on the
+        // edges between two chunks' faces are welded: in chunks of 50 locations, a cube
+        // (valence-3 corners) and a grid with a semi-sharp crease and a sharp corner must give
+        // the surface one call gives, to the bit.
+        let mut creased = tags("catmullClark");
+        (creased.crease_indices, creased.crease_lengths, creased.crease_sharpnesses) = (vec![10, 11, 12, 13, 14], vec![5], vec![2.5]);
+        (creased.corner_indices, creased.corner_sharpnesses) = (vec![0], vec![10.0]);
+        for (src, t) in [(cube(), tags("catmullClark")), (grid(bump), creased)] {
+            let refine_with = |chunk| refine_in_chunks(&src, &t, 3, MAX_REFINED_FACES, chunk, |w| panic!("{w}")).unwrap();
+            let (chunked, whole) = (refine_with(50), refine_with(usize::MAX));
+            let bits = |r: &Refined| -> Vec<u32> {
+                let normals = r.mesh.normals.as_ref().map_or(&[][..], |n| &n.0[..]);
+                r.mesh.points.iter().chain(normals).flat_map(|v| v.to_array()).map(f32::to_bits).collect()
+            };
+            assert_eq!(
+                (&chunked.mesh.counts, &chunked.mesh.indices, &chunked.cage_face),
+                (&whole.mesh.counts, &whole.mesh.indices, &whole.cage_face)
+            );
+            assert!(bits(&chunked) == bits(&whole), "the surface differs between chunkings");
+        }
     }
 
     #[test]
