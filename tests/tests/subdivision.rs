@@ -117,3 +117,67 @@ def Mesh "Odd" {
     assert!(t.warnings.iter().any(|w| w.contains("/Odd") && w.contains("subdivisionScheme")), "{:?}", t.warnings);
     assert!(t.meshes.iter().all(|(p, _)| p != "/Odd"));
 }
+
+/// A unit cube's cage (every corner extraordinary, valence 3), named `name`, with `extra`
+/// inside its prim.
+fn cube_cage(name: &str, extra: &str) -> String {
+    format!(
+        r#"def Mesh "{name}" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+) {{
+    point3f[] points = [(0,0,0), (1,0,0), (1,1,0), (0,1,0), (0,0,1), (1,0,1), (1,1,1), (0,1,1)]
+    int[] faceVertexCounts = [4, 4, 4, 4, 4, 4]
+    int[] faceVertexIndices = [0,3,2,1, 4,5,6,7, 0,1,5,4, 1,2,6,5, 2,3,7,6, 3,0,4,7]
+    {extra}
+}}
+"#
+    )
+}
+
+#[test]
+fn meshes_refined_after_the_traversal_come_out_as_refined_inline() {
+    // Plain subdivision meshes are refined after the traversal, several at once
+    // (`client/src/usd/refine_later.rs`); a mesh with a bound GeomSubset is refined inline.
+    // The same cage both ways must give the same triangles to the bit, the warnings must stay
+    // in traversal order, and a prim skipped after its prototype mesh was deferred must leave
+    // nothing behind.
+    let subset = r#"def GeomSubset "All" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    ) {
+        uniform token elementType = "face"
+        uniform token familyName = "materialBind"
+        int[] indices = [0, 1, 2, 3, 4, 5]
+        rel material:binding = </Looks/Grey>
+    }"#;
+    let usda = [
+        "#usda 1.0\ndef Scope \"Looks\" { def Material \"Grey\" { } }\n".to_string(),
+        cube_cage("Deferred", "int primvars:tessera:refinementLevel = 3"),
+        cube_cage("BadCrease", "int[] creaseIndices = [0, 9]\n    int[] creaseLengths = [2]\n    float[] creaseSharpnesses = [2]"),
+        cube_cage("Flat", "uniform token subdivisionScheme = \"none\"\n    color3f[] primvars:displayColor = []"),
+        cube_cage("Inline", &format!("int primvars:tessera:refinementLevel = 3\n    {subset}")),
+        r#"def PointInstancer "Broken" {
+    rel prototypes = [</Broken/Proto/Cube>, </Nowhere>]
+    int[] protoIndices = [0, 1]
+    point3f[] positions = [(0, 0, 0), (2, 0, 0)]
+    def Scope "Proto" {
+"#
+        .to_string(),
+        cube_cage("Cube", ""),
+        "    }\n}\n".to_string(),
+    ]
+    .concat();
+    let t = load_text("refine_later", &usda);
+    let mesh = |path: &str| t.meshes.iter().find(|(p, _)| p == path).map(|(_, m)| m.mesh.clone()).unwrap_or_else(|| panic!("{path}"));
+    let (deferred, inline) = (mesh("/Deferred"), mesh("/Inline/All"));
+    // 6 quads × 8² grid quads × 2 triangles at level 3.
+    assert_eq!(deferred.indices.len(), 6 * 64 * 2);
+    assert_eq!((&deferred.positions, &deferred.indices, &deferred.normals), (&inline.positions, &inline.indices, &inline.normals));
+    assert_eq!(mesh("/BadCrease").indices.len(), 12, "the cage OpenSubdiv refuses renders unrefined");
+    let order: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
+    assert_eq!(order, ["/Deferred", "/BadCrease", "/Flat", "/Inline/All"], "traversal order; the broken instancer adds nothing");
+    let levels: Vec<(&str, u32)> = t.subdivided.iter().map(|s| (s.path.as_str(), s.level)).collect();
+    assert_eq!(levels, [("/Deferred", 3), ("/Inline", 3)], "the refused cage and the skipped prototype are not listed");
+    let at = |needle: &str| t.warnings.iter().position(|w| w.contains(needle)).unwrap_or_else(|| panic!("{needle}: {:?}", t.warnings));
+    assert!(at("creaseIndices[1] = 9") < at("/Flat: primvars:displayColor"), "{:?}", t.warnings);
+    assert!(at("/Flat: primvars:displayColor") < at("/Broken"), "{:?}", t.warnings);
+}

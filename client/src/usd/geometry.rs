@@ -5,6 +5,28 @@ use anyhow::{Context, Result};
 use super::subdivision::{self, SubdivTags};
 use super::*;
 
+/// A mesh prim's cage as read, before refinement and triangulation.
+pub(super) struct CageRead {
+    /// Its points (posed), faces, normals, texture coordinates and primvars.
+    pub src: MeshSource,
+    pub tags: SubdivTags,
+    /// Positions and faces only, for the deformation's samples, when the points move within
+    /// an open shutter.
+    shape_only: Option<MeshSource>,
+    /// A skinned mesh's authored points, which each deformation sample poses again.
+    rest: Option<Vec<Vec3>>,
+    /// Where the warnings of its refinement and triangulation go among the stage's.
+    pub warnings_at: usize,
+}
+
+impl CageRead {
+    /// True when the points move over the shutter (the deformation's samples need the
+    /// refinement's faces).
+    pub fn deforms(&self) -> bool {
+        self.shape_only.is_some()
+    }
+}
+
 /// Where a deforming mesh's points come from over the shutter (read once per mesh).
 enum PointMotion {
     /// A skinned mesh: its authored points and face-vertex indices, posed per sample.
@@ -23,11 +45,16 @@ impl Reader<'_> {
         {
             return Ok(());
         }
-        let (mesh, face_of, face_count) = self.read_mesh(prim, p)?;
-        let subsets = self.material_subsets(prim, p, face_count)?;
+        let cage = self.read_cage(prim, p)?;
+        let subsets = self.material_subsets(prim, p, cage.src.counts.len())?;
         if subsets.is_empty() {
+            if let Some(level) = self.refinement_to_defer(prim, p, &cage)? {
+                return self.add_mesh_refined_later(prim, p, cage, level, visible);
+            }
+            let (mesh, _, _) = self.build_mesh(prim, p, cage)?;
             return self.add_mesh(prim, p, mesh, visible);
         }
+        let (mesh, face_of, face_count) = self.build_mesh(prim, p, cage)?;
         // Faces in a bound GeomSubset render as a mesh of their own (named by the subset's
         // path) with the subset's material; the rest keep the mesh's.
         let mut claimed = vec![false; face_count];
@@ -50,6 +77,12 @@ impl Reader<'_> {
     /// Reads and triangulates a mesh prim: the mesh, the authored face of each triangle, and
     /// the number of authored faces.
     pub(super) fn read_mesh(&mut self, prim: &Prim, p: &str) -> Result<(render_core::geometry::Mesh, Vec<u32>, usize)> {
+        let cage = self.read_cage(prim, p)?;
+        self.build_mesh(prim, p, cage)
+    }
+
+    /// Reads a mesh prim's cage as authored (posed by its skeleton, if it has one).
+    pub(super) fn read_cage(&mut self, prim: &Prim, p: &str) -> Result<CageRead> {
         let time = self.time;
         let req = |name: &str| -> Result<Value> { get(prim, name, time)?.with_context(|| format!("{p}: attribute '{name}' is missing")) };
         let points = req("points")?;
@@ -68,7 +101,6 @@ impl Reader<'_> {
         // A skinned mesh's deformation samples pose the authored points again.
         let rest = self.skin_samples.contains_key(p).then(|| points.clone());
         let (points, normals) = self.skinned(p, points, normals, &indices);
-        let face_count = counts.len();
         let uvs = self.uvs(prim, p)?;
         let primvars = self.primvars(prim, p)?;
         let src = MeshSource { points, counts, indices, normals, uvs, primvars, left_handed, smooth: tags.scheme != "none" };
@@ -83,6 +115,14 @@ impl Reader<'_> {
             primvars: Vec::new(),
             ..src
         });
+        Ok(CageRead { src, tags, shape_only, rest, warnings_at: self.out.warnings.len() })
+    }
+
+    /// `cage` refined (when its scheme subdivides) and triangulated: the mesh, the authored
+    /// face of each triangle, and the number of authored faces.
+    fn build_mesh(&mut self, prim: &Prim, p: &str, cage: CageRead) -> Result<(render_core::geometry::Mesh, Vec<u32>, usize)> {
+        let CageRead { src, tags, shape_only, rest, .. } = cage;
+        let face_count = src.counts.len();
         let mut warnings = Vec::new();
         let (src, cage_face) = self.subdivide(prim, p, src, &tags, &mut warnings)?;
         let (mut mesh, face_of) =
@@ -249,7 +289,7 @@ impl Reader<'_> {
     /// The refinement level: the mesh's own (`primvars:tessera:refinementLevel`, else
     /// `primvars:refinementLevel`, else Arnold's `primvars:arnold:subdiv_iterations`), else the
     /// render's.
-    fn refinement_level(&self, prim: &Prim, p: &str) -> Result<u32> {
+    pub(super) fn refinement_level(&self, prim: &Prim, p: &str) -> Result<u32> {
         for name in ["primvars:tessera:refinementLevel", "primvars:refinementLevel", "primvars:arnold:subdiv_iterations"] {
             if let Some(v) = get(prim, name, self.time)? {
                 let level = values::scalar(&v).with_context(|| format!("{p}: attribute '{name}' is not a number"))?;

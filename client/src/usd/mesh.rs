@@ -54,8 +54,9 @@ pub fn select_faces(mesh: &Mesh, face_of: &[u32], keep: impl Fn(u32) -> bool) ->
     }
 }
 
-/// [`triangulate`], also returning the authored face of each triangle.
-pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<(Mesh, Vec<u32>), String> {
+/// The only faults [`triangulate_with_faces`] cannot render: face-vertex counts that do not
+/// add up to the face-vertex indices, or an index out of range for the points.
+pub fn check_faces(src: &MeshSource) -> Result<(), String> {
     let total: i64 = src.counts.iter().sum();
     if src.counts.iter().any(|&c| c < 0) || total != src.indices.len() as i64 {
         return Err(format!("faceVertexCounts add up to {total} but faceVertexIndices has {} entries", src.indices.len()));
@@ -64,6 +65,12 @@ pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) ->
     if let Some((i, &v)) = src.indices.iter().enumerate().find(|&(_, &v)| v < 0 || v >= n) {
         return Err(format!("faceVertexIndices[{i}] = {v} is out of range for {n} points"));
     }
+    Ok(())
+}
+
+/// [`triangulate`], also returning the authored face of each triangle.
+pub fn triangulate_with_faces(src: &MeshSource, mut warn: impl FnMut(String)) -> Result<(Mesh, Vec<u32>), String> {
+    check_faces(src)?;
     // Fan triangulation; (face, corner) of each triangle corner for face-varying data.
     let mut tris: Vec<[u32; 3]> = Vec::with_capacity(src.indices.len());
     let mut corners: Vec<[usize; 3]> = Vec::with_capacity(src.indices.len());

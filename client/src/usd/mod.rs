@@ -21,6 +21,7 @@ mod mesh;
 mod motion;
 mod mtlx_document;
 pub mod points;
+mod refine_later;
 mod render_settings;
 mod shading;
 pub mod shapes;
@@ -423,6 +424,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         samples_fixed: std::collections::HashSet::new(),
         curve_samples: options.curve_samples.clamp(1, curves::MAX_CURVE_SAMPLES),
         motion_samples: options.motion_samples.clamp(2, render_core::motion::MAX_MOTION_SAMPLES),
+        later: Vec::new(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -448,6 +450,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
     for p in paths {
         reader.visit_or_skip(&p);
     }
+    reader.refine_deferred();
     // After the traversal: arcs are composed (and found unresolved) as their prims are read.
     for e in stage.composition_errors() {
         // A .mtlx reference is an arc the crate cannot compose, and one the reader follows.
@@ -473,6 +476,7 @@ impl Reader<'_> {
         let kept = (self.out.meshes.len(), self.out.lights.len(), self.out.cameras.len());
         if let Err(e) = self.visit(p) {
             self.out.meshes.truncate(kept.0);
+            self.forget_deferred_from(kept.0);
             self.out.lights.truncate(kept.1);
             self.out.cameras.truncate(kept.2);
             let why = format!("{e:#}");
@@ -518,4 +522,6 @@ struct Reader<'s> {
     samples_fixed: std::collections::HashSet<String>,
     /// Samples per cubic span of curves' tubes.
     curve_samples: usize,
+    /// Subdivision meshes refined after the traversal (see `refine_later`).
+    later: Vec<refine_later::LaterRefinement>,
 }

@@ -1,0 +1,117 @@
+//! Subdivision surfaces refined after the traversal, several at once.
+//!
+//! OpenSubdiv's limit stencils are most of the time a subdivided scene takes to read (80% of
+//! `materials/principled_grid.usda`'s), and the stage can only be read on one thread (see the
+//! module above). So a mesh whose refined faces nothing else needs during the traversal (no
+//! GeomSubsets, no deformation samples) enters the scene with an empty mesh and is refined,
+//! with the others like it, on the thread pool once every prim has been visited. Each comes
+//! out as it would have inline: the same mesh in the same place, its warnings and its entry
+//! in the render plan where they would have been.
+
+use std::sync::Arc;
+
+use anyhow::Result;
+use openusd::usd::Prim;
+use rayon::prelude::*;
+use render_core::geometry::Mesh;
+
+use super::geometry::CageRead;
+use super::mesh::{MeshSource, check_faces, triangulate_with_faces};
+use super::subdivision::{self, SubdivTags};
+use super::{Reader, Subdivided};
+
+/// A mesh whose refinement waits for the end of the traversal.
+pub(super) struct LaterRefinement {
+    /// Its index in the translation's meshes.
+    mesh: usize,
+    path: String,
+    src: MeshSource,
+    tags: SubdivTags,
+    level: u32,
+    /// Where its warnings and its entry in `subdivided` go.
+    warnings_at: usize,
+    subdivided_at: usize,
+}
+
+/// What one refinement made.
+struct Refined {
+    mesh: Mesh,
+    warnings: Vec<String>,
+    subdivided: Option<Subdivided>,
+}
+
+impl Reader<'_> {
+    /// The level to refine `cage` at after the traversal, or None when it must be refined now
+    /// (or not at all): it does not subdivide, deforms over the shutter, or has faces that
+    /// cannot be triangulated (that error skips the prim, which only the traversal can do).
+    pub(super) fn refinement_to_defer(&self, prim: &Prim, p: &str, cage: &CageRead) -> Result<Option<u32>> {
+        if !cage.tags.is_subdivided() || cage.deforms() || check_faces(&cage.src).is_err() {
+            return Ok(None);
+        }
+        let level = self.refinement_level(prim, p)?;
+        Ok((level > 0).then_some(level))
+    }
+
+    /// Adds the mesh prim with an empty mesh, refined at `level` by [`Reader::refine_deferred`].
+    pub(super) fn add_mesh_refined_later(&mut self, prim: &Prim, p: &str, cage: CageRead, level: u32, visible: bool) -> Result<()> {
+        let mesh = self.out.meshes.len();
+        self.add_mesh(prim, p, Mesh::default(), visible)?;
+        let subdivided_at = self.out.subdivided.len();
+        // Authored normals are for polygons: UsdGeomMesh says a subdivision surface ignores them.
+        let src = MeshSource { normals: None, ..cage.src };
+        let job = LaterRefinement { mesh, path: p.to_string(), src, tags: cage.tags, level, warnings_at: cage.warnings_at, subdivided_at };
+        self.later.push(job);
+        Ok(())
+    }
+
+    /// Refines every deferred mesh, on the thread pool, and puts each result where the
+    /// traversal left its place.
+    pub(super) fn refine_deferred(&mut self) {
+        let jobs = std::mem::take(&mut self.later);
+        if jobs.is_empty() {
+            return;
+        }
+        let _span = tracing::info_span!("refine_deferred", meshes = jobs.len()).entered();
+        let places: Vec<(usize, usize, usize)> = jobs.iter().map(|j| (j.mesh, j.warnings_at, j.subdivided_at)).collect();
+        let refined: Vec<Refined> = jobs.into_par_iter().map(refine).collect();
+        // Last first, so the positions still to fill keep their meaning; two jobs with the
+        // same position end up in traversal order.
+        for ((mesh, warnings_at, subdivided_at), r) in places.into_iter().zip(refined).rev() {
+            self.out.meshes[mesh].1.mesh = Arc::new(r.mesh);
+            self.out.warnings.splice(warnings_at..warnings_at, r.warnings);
+            if let Some(s) = r.subdivided {
+                self.out.subdivided.insert(subdivided_at, s);
+            }
+        }
+    }
+
+    /// Forgets the deferred meshes from index `kept` on (their prim was skipped).
+    pub(super) fn forget_deferred_from(&mut self, kept: usize) {
+        self.later.retain(|j| j.mesh < kept);
+    }
+}
+
+/// One deferred mesh refined and triangulated as the traversal would have done it.
+fn refine(job: LaterRefinement) -> Refined {
+    let LaterRefinement { path: p, src, tags, level, .. } = job;
+    let mut warnings = Vec::new();
+    let (src, subdivided) = match subdivision::refine(&src, &tags, level, |w| warnings.push(format!("{p}: {w}"))) {
+        Ok(r) => {
+            let s = Subdivided { path: p.clone(), scheme: tags.scheme.clone(), level: r.level, cage_faces: src.counts.len() };
+            (r.mesh, Some(s))
+        }
+        Err(e) => {
+            warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));
+            (src, None)
+        }
+    };
+    let mesh = match triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))) {
+        Ok((mesh, _)) => mesh,
+        // Not reached: the cage's faces were checked, and refined faces are whole by construction.
+        Err(e) => {
+            warnings.push(format!("{p}: {e}; the mesh is left empty"));
+            Mesh::default()
+        }
+    };
+    Refined { mesh, warnings, subdivided }
+}
