@@ -13,6 +13,8 @@
 
 use std::collections::HashMap;
 
+use rayon::prelude::*;
+
 use glam::{Vec2, Vec3};
 use opensubdiv_petite::far::{
     AdaptiveRefinementOptions, BoundaryInterpolation, CreasingMethod, FaceVaryingLinearInterpolation, LimitStencilTable,
@@ -59,6 +61,18 @@ pub const MAX_REFINED_FACES: usize = 8 << 20;
 /// each, so large meshes are evaluated in chunks of at most this many.
 const LOCATIONS_PER_CHUNK: usize = 1 << 18;
 
+/// The fewest locations one call evaluates when a chunk is split among workers: each call
+/// also builds OpenSubdiv's patch table, a few milliseconds for a 100k-face cage.
+const MIN_LOCATIONS_PER_CALL: usize = 1 << 14;
+
+/// A refiner lent to the pool thread that evaluates a chunk with it. OpenSubdiv's objects
+/// have no thread affinity, and each refiner is used by one thread at a time (they are not
+/// shared: whether its const methods may run concurrently is not documented).
+struct Owned(TopologyRefiner);
+
+// SAFETY: see above; the binding's type is !Send only because it holds a raw pointer.
+unsafe impl Send for Owned {}
+
 /// A refined mesh: polygons (quads, or triangles for Loop) on the limit surface with
 /// face-varying limit normals, ready for [`super::mesh::triangulate_with_faces`].
 pub struct Refined {
@@ -90,7 +104,7 @@ pub fn refine_within(
 }
 
 /// [`refine_within`] evaluating at most `chunk_locations` limit-stencil locations per
-/// OpenSubdiv call.
+/// OpenSubdiv call, on as many pool threads as there are chunks (up to all of them).
 fn refine_in_chunks(
     src: &MeshSource,
     tags: &SubdivTags,
@@ -108,23 +122,25 @@ fn refine_in_chunks(
     if level < asked {
         warn(format!("refined at level {level}, not {asked}: level {asked} would make more than {max_faces} faces"));
     }
-    let refiner = build_refiner(src, tags, &cage)?;
+    // Two batches of chunks are in flight (one evaluated while the last is welded), a chunk
+    // per worker each: smaller chunks keep the stencils held at once near one chunk's.
+    let threads = rayon::current_num_threads();
+    let per_call = (chunk_locations / (2 * threads)).max(chunk_locations.min(MIN_LOCATIONS_PER_CALL));
+    let chunks = cage.chunks(level, per_call);
+    let workers = threads.min(chunks.len()).max(1);
+    let mut refiners: Vec<Owned> =
+        (0..workers).into_par_iter().map(|_| build_refiner(src, tags, &cage).map(Owned)).collect::<Result<_, _>>()?;
     let primvars = Primvars::gather(src, &mut warn);
     let mut out = Tessellation::new(&cage, level, src.left_handed, &primvars);
-    let mut rest = &cage.ptex[..];
-    while !rest.is_empty() {
-        let (mut take, mut locations) = (0, 0);
-        while let Some(p) = rest.get(take) {
-            let n = out.grid(p).len();
-            if take > 0 && locations + n > chunk_locations {
-                break;
-            }
-            (take, locations) = (take + 1, locations + n);
-        }
-        let (chunk, tail) = rest.split_at(take);
-        let table = limit_stencils(&refiner, chunk, &out)?;
-        out.add(chunk, &table, &primvars);
-        rest = tail;
+    let evaluate = |refiners: &mut [Owned], batch: &[&[Ptex]]| -> Result<Vec<LimitStencilTable>, String> {
+        refiners.par_iter_mut().zip(batch).map(|(r, chunk)| limit_stencils(&r.0, chunk, &cage, level)).collect()
+    };
+    let mut batches = chunks.chunks(workers);
+    let mut ready = batches.next().map(|b| (b, evaluate(&mut refiners, b)));
+    while let Some((batch, tables)) = ready {
+        let tables = tables?;
+        let weld = || batch.iter().zip(&tables).for_each(|(chunk, table)| out.add(chunk, table, &primvars));
+        ready = rayon::join(weld, || batches.next().map(|b| (b, evaluate(&mut refiners, b)))).1;
     }
     Ok(out.finish(level))
 }
@@ -191,6 +207,35 @@ impl<'a> Cage<'a> {
     }
 
     /// Faces uniform refinement to `level` would make (what the tessellation makes).
+    /// The grid `p` is tessellated with at `level`.
+    fn grid(&self, p: &Ptex, level: u32) -> Grid {
+        let r = 1u32 << level;
+        match p.sub {
+            Some(_) => Grid { r: r / 2, triangle: false },
+            None => Grid { r, triangle: matches!(self.scheme, Scheme::Loop) },
+        }
+    }
+
+    /// The ptex faces in runs of at most `locations` grid points (a face more than that alone).
+    fn chunks(&self, level: u32, locations: usize) -> Vec<&[Ptex]> {
+        let mut out = Vec::new();
+        let mut rest = &self.ptex[..];
+        while !rest.is_empty() {
+            let (mut take, mut total) = (0, 0);
+            while let Some(p) = rest.get(take) {
+                let n = self.grid(p, level).len();
+                if take > 0 && total + n > locations {
+                    break;
+                }
+                (take, total) = (take + 1, total + n);
+            }
+            let (chunk, tail) = rest.split_at(take);
+            out.push(chunk);
+            rest = tail;
+        }
+        out
+    }
+
     fn refined_faces(&self, level: u32) -> usize {
         let per_quad = 1usize << (2 * level);
         self.ptex.iter().map(|p| if p.sub.is_some() { per_quad / 4 } else { per_quad }).sum()
@@ -341,8 +386,8 @@ fn build_refiner(src: &MeshSource, tags: &SubdivTags, cage: &Cage) -> Result<Top
 }
 
 /// The limit stencils of every grid point of `chunk`, in order.
-fn limit_stencils(refiner: &TopologyRefiner, chunk: &[Ptex], out: &Tessellation) -> Result<LimitStencilTable, String> {
-    let grids: Vec<(Vec<f32>, Vec<f32>)> = chunk.iter().map(|p| out.grid(p).params()).collect();
+fn limit_stencils(refiner: &TopologyRefiner, chunk: &[Ptex], cage: &Cage, level: u32) -> Result<LimitStencilTable, String> {
+    let grids: Vec<(Vec<f32>, Vec<f32>)> = chunk.iter().map(|p| cage.grid(p, level).params()).collect();
     let arrays: Vec<LocationArray> = chunk.iter().zip(&grids).map(|(p, (s, t))| LocationArray { ptex_index: p.index, s, t }).collect();
     let options = LimitStencilTableOptions { generate_1st_derivatives: true, ..Default::default() };
     LimitStencilTable::new(refiner, &arrays, None, None, options).map_err(|e| format!("OpenSubdiv limit stencils: {e}"))
@@ -523,11 +568,7 @@ impl<'c> Tessellation<'c> {
     }
 
     fn grid(&self, p: &Ptex) -> Grid {
-        let r = 1u32 << self.level;
-        match p.sub {
-            Some(_) => Grid { r: r / 2, triangle: false },
-            None => Grid { r, triangle: matches!(self.cage.scheme, Scheme::Loop) },
-        }
+        self.cage.grid(p, self.level)
     }
 
     /// The shared-point key of grid point (i, j) of `p`, or `None` inside the face.
@@ -836,8 +877,9 @@ mod tests {
 
     #[test]
     fn chunked_evaluation_refines_the_same_surface() {
-        // A big mesh's limit stencils are evaluated in chunks of locations, and points on the
-        // edges between two chunks' faces are welded: in chunks of 50 locations, a cube
+        // A big mesh's limit stencils are evaluated in chunks of locations (several at once,
+        // each worker with a refiner of its own), and points on the edges between two chunks'
+        // faces are welded: in chunks of 50 locations, a cube
         // (valence-3 corners) and a grid with a semi-sharp crease and a sharp corner must give
         // the surface one call gives, to the bit.
         let mut creased = tags("catmullClark");
