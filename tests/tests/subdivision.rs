@@ -136,8 +136,9 @@ fn cube_cage(name: &str, extra: &str) -> String {
 
 #[test]
 fn meshes_refined_after_the_traversal_come_out_as_refined_inline() {
-    // Plain subdivision meshes are refined after the traversal, several at once
-    // (`client/src/usd/refine_later.rs`); a mesh with a bound GeomSubset is refined inline.
+    // Plain subdivision meshes are refined after the traversal, several at once (a big one
+    // alone on every thread; `client/src/usd/refine_later.rs`); a mesh with a bound
+    // GeomSubset is refined inline.
     // The same cage both ways must give the same triangles to the bit, the warnings must stay
     // in traversal order, and a prim skipped after its prototype mesh was deferred must leave
     // nothing behind.
@@ -152,6 +153,8 @@ fn meshes_refined_after_the_traversal_come_out_as_refined_inline() {
     let usda = [
         "#usda 1.0\ndef Scope \"Looks\" { def Material \"Grey\" { } }\n".to_string(),
         cube_cage("Deferred", "int primvars:tessera:refinementLevel = 3"),
+        // Big enough to spread over every thread (396 000 locations): refined on its own.
+        cube_cage("Big", "int primvars:tessera:refinementLevel = 8"),
         cube_cage("BadCrease", "int[] creaseIndices = [0, 9]\n    int[] creaseLengths = [2]\n    float[] creaseSharpnesses = [2]"),
         cube_cage("Flat", "uniform token subdivisionScheme = \"none\"\n    color3f[] primvars:displayColor = []"),
         cube_cage("Inline", &format!("int primvars:tessera:refinementLevel = 3\n    {subset}")),
@@ -174,9 +177,10 @@ fn meshes_refined_after_the_traversal_come_out_as_refined_inline() {
     assert_eq!((&deferred.positions, &deferred.indices, &deferred.normals), (&inline.positions, &inline.indices, &inline.normals));
     assert_eq!(mesh("/BadCrease").indices.len(), 12, "the cage OpenSubdiv refuses renders unrefined");
     let order: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
-    assert_eq!(order, ["/Deferred", "/BadCrease", "/Flat", "/Inline/All"], "traversal order; the broken instancer adds nothing");
+    assert_eq!(mesh("/Big").indices.len(), 6 * 256 * 256 * 2);
+    assert_eq!(order, ["/Deferred", "/Big", "/BadCrease", "/Flat", "/Inline/All"], "traversal order; the broken instancer adds nothing");
     let levels: Vec<(&str, u32)> = t.subdivided.iter().map(|s| (s.path.as_str(), s.level)).collect();
-    assert_eq!(levels, [("/Deferred", 3), ("/Inline", 3)], "the refused cage and the skipped prototype are not listed");
+    assert_eq!(levels, [("/Deferred", 3), ("/Big", 8), ("/Inline", 3)], "the refused cage and the skipped prototype are not listed");
     let at = |needle: &str| t.warnings.iter().position(|w| w.contains(needle)).unwrap_or_else(|| panic!("{needle}: {:?}", t.warnings));
     assert!(at("creaseIndices[1] = 9") < at("/Flat: primvars:displayColor"), "{:?}", t.warnings);
     assert!(at("/Flat: primvars:displayColor") < at("/Broken"), "{:?}", t.warnings);

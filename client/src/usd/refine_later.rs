@@ -4,9 +4,9 @@
 //! `materials/principled_grid.usda`'s), and the stage can only be read on one thread (see the
 //! module above). So a mesh whose refined faces nothing else needs during the traversal (no
 //! GeomSubsets, no deformation samples) enters the scene with an empty mesh and is refined,
-//! with the others like it, on the thread pool once every prim has been visited. Each comes
-//! out as it would have inline: the same mesh in the same place, its warnings and its entry
-//! in the render plan where they would have been.
+//! with the others like it, once every prim has been visited: a big mesh alone on every pool
+//! thread, small ones side by side. Each comes out as it would have inline: the same mesh in
+//! the same place, its warnings and its entry in the render plan where they would have been.
 
 use std::sync::Arc;
 
@@ -73,7 +73,14 @@ impl Reader<'_> {
         }
         let _span = tracing::info_span!("refine_deferred", meshes = jobs.len()).entered();
         let places: Vec<(usize, usize, usize)> = jobs.iter().map(|j| (j.mesh, j.warnings_at, j.subdivided_at)).collect();
-        let refined: Vec<Refined> = jobs.into_par_iter().map(refine).collect();
+        // Big meshes one after another, each on every thread (a refiner per thread), then the
+        // small ones side by side, one thread (and one refiner) each.
+        let (big, small): (Vec<_>, Vec<_>) =
+            jobs.into_iter().enumerate().partition(|(_, j)| subdivision::spreads_over_threads(&j.src, j.level));
+        let mut done: Vec<(usize, Refined)> = big.into_iter().map(|(k, j)| (k, refine(j))).collect();
+        done.par_extend(small.into_par_iter().map(|(k, j)| (k, refine(j))));
+        done.sort_unstable_by_key(|(k, _)| *k);
+        let refined = done.into_iter().map(|(_, r)| r);
         // Last first, so the positions still to fill keep their meaning; two jobs with the
         // same position end up in traversal order.
         for ((mesh, warnings_at, subdivided_at), r) in places.into_iter().zip(refined).rev() {

@@ -122,11 +122,8 @@ fn refine_in_chunks(
     if level < asked {
         warn(format!("refined at level {level}, not {asked}: level {asked} would make more than {max_faces} faces"));
     }
-    // Two batches of chunks are in flight (one evaluated while the last is welded), a chunk
-    // per worker each: smaller chunks keep the stencils held at once near one chunk's.
     let threads = rayon::current_num_threads();
-    let per_call = (chunk_locations / (2 * threads)).max(chunk_locations.min(MIN_LOCATIONS_PER_CALL));
-    let chunks = cage.chunks(level, per_call);
+    let chunks = cage.chunks(level, locations_per_call(chunk_locations, threads));
     let workers = threads.min(chunks.len()).max(1);
     let mut refiners: Vec<Owned> =
         (0..workers).into_par_iter().map(|_| build_refiner(src, tags, &cage).map(Owned)).collect::<Result<_, _>>()?;
@@ -143,6 +140,24 @@ fn refine_in_chunks(
         ready = rayon::join(weld, || batches.next().map(|b| (b, evaluate(&mut refiners, b)))).1;
     }
     Ok(out.finish(level))
+}
+
+/// Locations one OpenSubdiv call evaluates on `threads` pool threads. Two batches of chunks
+/// are in flight (one evaluated while the last is welded), a chunk per worker each: smaller
+/// chunks keep the stencils held at once near one `chunk_locations` chunk's.
+fn locations_per_call(chunk_locations: usize, threads: usize) -> usize {
+    (chunk_locations / (2 * threads)).max(chunk_locations.min(MIN_LOCATIONS_PER_CALL))
+}
+
+/// Whether refining `src` at `level` spreads over several pool threads (more than one call's
+/// locations, estimated from the face counts), each worker holding a refiner of its own.
+/// Callers refining many meshes at once run such meshes one at a time, so the refiners alive
+/// stay one per thread.
+pub fn spreads_over_threads(src: &MeshSource, level: u32) -> bool {
+    let side = |level: u32| (1usize << level.min(MAX_LEVEL)) + 1;
+    let per_face = |n: i64| if n == 4 { side(level).pow(2) } else { n.max(0) as usize * side(level.saturating_sub(1)).pow(2) };
+    let locations: usize = src.counts.iter().map(|&n| per_face(n)).sum();
+    locations > locations_per_call(LOCATIONS_PER_CHUNK, rayon::current_num_threads())
 }
 
 /// The cage's topology as the tessellation needs it.
