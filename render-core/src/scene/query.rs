@@ -2,6 +2,7 @@
 //! textured emission and cut-outs, cameras.
 
 use glam::{Affine3A, Vec2, Vec3};
+use rayon::prelude::*;
 
 use super::{CommittedScene, MAX_CUTOUT_CROSSINGS, SceneError, SurfaceHit, see_through_coin};
 use crate::bvh::Hit;
@@ -17,8 +18,10 @@ impl CommittedScene {
     pub fn prepare_bsdfs(&self, energy_compensation: bool) -> &[crate::bsdf::Bsdf] {
         self.bsdfs[energy_compensation as usize].get_or_init(|| {
             let _span = tracing::info_span!("prepare_bsdfs", energy_compensation).entered();
-            let set: Vec<crate::bsdf::Bsdf> = self.materials.iter().map(|m| m.bsdf(energy_compensation)).collect();
-            self.used_materials.iter().for_each(|&m| set[m as usize].build_tables());
+            // Materials side by side: a glossy scene's first tile waits for the energy-table
+            // rows its materials read, and a row holds the same bits whichever thread builds it.
+            let set: Vec<crate::bsdf::Bsdf> = self.materials.par_iter().map(|m| m.bsdf(energy_compensation)).collect();
+            self.used_materials.par_iter().for_each(|&m| set[m as usize].build_tables());
             set
         })
     }
