@@ -81,15 +81,14 @@ impl Reader<'_> {
         done.par_extend(small.into_par_iter().map(|(k, j)| (k, refine(j))));
         done.sort_unstable_by_key(|(k, _)| *k);
         let refined = done.into_iter().map(|(_, r)| r);
-        // Last first, so the positions still to fill keep their meaning; two jobs with the
-        // same position end up in traversal order.
-        for ((mesh, warnings_at, subdivided_at), r) in places.into_iter().zip(refined).rev() {
+        let (mut warnings, mut subdivided) = (Vec::new(), Vec::new());
+        for ((mesh, warnings_at, subdivided_at), r) in places.into_iter().zip(refined) {
             self.out.meshes[mesh].1.mesh = Arc::new(r.mesh);
-            self.out.warnings.splice(warnings_at..warnings_at, r.warnings);
-            if let Some(s) = r.subdivided {
-                self.out.subdivided.insert(subdivided_at, s);
-            }
+            warnings.extend(r.warnings.into_iter().map(|w| (warnings_at, w)));
+            subdivided.extend(r.subdivided.map(|s| (subdivided_at, s)));
         }
+        insert_all(&mut self.out.warnings, warnings);
+        insert_all(&mut self.out.subdivided, subdivided);
     }
 
     /// Forgets the deferred meshes from index `kept` on (their prim was skipped).
@@ -121,4 +120,38 @@ fn refine(job: LaterRefinement) -> Refined {
         }
     };
     Refined { mesh, warnings, subdivided }
+}
+
+/// Puts each of `inserts` into `v` before the element that was at its position (or at the
+/// end), in one pass: positions do not decrease, and items at one position keep their order.
+/// One `Vec::insert` per item would move the tail each time, quadratic in a stage of many
+/// meshes with warnings.
+fn insert_all<T>(v: &mut Vec<T>, inserts: Vec<(usize, T)>) {
+    if inserts.is_empty() {
+        return;
+    }
+    let mut old = std::mem::take(v).into_iter().enumerate().peekable();
+    v.reserve(old.len() + inserts.len());
+    for (at, item) in inserts {
+        while let Some((_, x)) = old.next_if(|(i, _)| *i < at) {
+            v.push(x);
+        }
+        v.push(item);
+    }
+    v.extend(old.map(|(_, x)| x));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::insert_all;
+
+    #[test]
+    fn inserted_items_land_before_the_element_at_their_position() {
+        let mut v = vec!["a", "b", "c"];
+        insert_all(&mut v, vec![(0, "0"), (2, "2x"), (2, "2y"), (3, "end")]);
+        assert_eq!(v, ["0", "a", "b", "2x", "2y", "c", "end"]);
+        let mut empty: Vec<&str> = Vec::new();
+        insert_all(&mut empty, vec![(0, "x"), (0, "y")]);
+        assert_eq!(empty, ["x", "y"]);
+    }
 }
