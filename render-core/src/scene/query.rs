@@ -31,10 +31,12 @@ impl CommittedScene {
     pub fn prepare_floored_bsdfs(&self, energy_compensation: bool) -> &[Vec<crate::bsdf::Bsdf>] {
         self.floored_bsdfs[energy_compensation as usize].get_or_init(|| {
             let _span = tracing::info_span!("prepare_floored_bsdfs", energy_compensation).entered();
+            // Levels and materials side by side, as in `prepare_bsdfs`.
             (0..crate::caustics::FLOOR_LEVELS)
+                .into_par_iter()
                 .map(|level| {
                     let floor = crate::caustics::RoughnessFloor::of_level(level);
-                    self.materials.iter().map(|m| m.surface.with_roughness_floor(floor).bsdf(energy_compensation)).collect()
+                    self.materials.par_iter().map(|m| m.surface.with_roughness_floor(floor).bsdf(energy_compensation)).collect()
                 })
                 .collect()
         })
