@@ -34,7 +34,7 @@ pub(super) struct LaterRefinement {
 }
 
 /// What one refinement made.
-struct Refined {
+struct RefinedMesh {
     mesh: Mesh,
     warnings: Vec<String>,
     subdivided: Option<Subdivided>,
@@ -77,7 +77,7 @@ impl Reader<'_> {
         // small ones side by side, one thread (and one refiner) each.
         let (big, small): (Vec<_>, Vec<_>) =
             jobs.into_iter().enumerate().partition(|(_, j)| subdivision::spreads_over_threads(&j.src, j.level));
-        let mut done: Vec<(usize, Refined)> = big.into_iter().map(|(k, j)| (k, refine(j))).collect();
+        let mut done: Vec<(usize, RefinedMesh)> = big.into_iter().map(|(k, j)| (k, refine(j))).collect();
         done.par_extend(small.into_par_iter().map(|(k, j)| (k, refine(j))));
         done.sort_unstable_by_key(|(k, _)| *k);
         let refined = done.into_iter().map(|(_, r)| r);
@@ -98,7 +98,7 @@ impl Reader<'_> {
 }
 
 /// One deferred mesh refined and triangulated as the traversal would have done it.
-fn refine(job: LaterRefinement) -> Refined {
+fn refine(job: LaterRefinement) -> RefinedMesh {
     let LaterRefinement { path: p, src, tags, level, .. } = job;
     let mut warnings = Vec::new();
     let (src, subdivided) = match subdivision::refine(&src, &tags, level, |w| warnings.push(format!("{p}: {w}"))) {
@@ -119,7 +119,7 @@ fn refine(job: LaterRefinement) -> Refined {
             Mesh::default()
         }
     };
-    Refined { mesh, warnings, subdivided }
+    RefinedMesh { mesh, warnings, subdivided }
 }
 
 /// Puts each of `inserts` into `v` before the element that was at its position (or at the
