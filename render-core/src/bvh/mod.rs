@@ -508,14 +508,17 @@ fn build_bounded(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
         params.sort_precision,
         params.search_depth_threshold,
     );
-    if bvh2_depth(&bvh2) <= MAX_BVH2_DEPTH {
+    let mut depth = bvh2_depth(&bvh2);
+    if depth <= MAX_BVH2_DEPTH {
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        depth = bvh2_depth(&bvh2);
     }
-    if bvh2_depth(&bvh2) > MAX_BVH2_DEPTH {
+    if depth > MAX_BVH2_DEPTH {
         tracing::debug!(primitives = aabbs.len(), "deep PLOC tree: rebuilt by binned SAH splits");
         bvh2 = split_bvh2(aabbs, sah_split);
+        depth = bvh2_depth(&bvh2);
     }
-    if bvh2_depth(&bvh2) > MAX_BVH2_DEPTH {
+    if depth > MAX_BVH2_DEPTH {
         tracing::debug!(primitives = aabbs.len(), "deep SAH tree: rebuilt by median splits");
         bvh2 = split_bvh2(aabbs, median_split);
     }
@@ -550,8 +553,21 @@ fn has_coincident_cluster(aabbs: &[Aabb]) -> bool {
     cells.chunk_by(|a, b| a == b).any(|run| run.len() > MAX_PRIMITIVES_PER_CELL)
 }
 
-/// Levels of a binary BVH, walked without recursion.
+/// Levels of a binary BVH: in one pass over the nodes in memory order when every node's
+/// children come after it (PLOC's output), else walked without recursion. A tree of millions
+/// of nodes is read front to back instead of hopping between them (the walk took 0.13 s for a
+/// 3.1M-triangle mesh).
 fn bvh2_depth(bvh: &Bvh2) -> usize {
+    if bvh.children_are_ordered_after_parents
+        && let Some(depth) = depth_in_memory_order(bvh)
+    {
+        return depth;
+    }
+    depth_by_walk(bvh)
+}
+
+/// [`bvh2_depth`] by a walk from the root, without recursion.
+fn depth_by_walk(bvh: &Bvh2) -> usize {
     let mut deepest = 0;
     let mut stack = vec![(0usize, 1usize)];
     while let Some((node, depth)) = stack.pop() {
@@ -563,6 +579,29 @@ fn bvh2_depth(bvh: &Bvh2) -> usize {
         }
     }
     deepest
+}
+
+/// [`bvh2_depth`] in memory order; None as soon as a node turns out to come before its parent.
+fn depth_in_memory_order(bvh: &Bvh2) -> Option<usize> {
+    let mut depth = vec![0u32; bvh.nodes.len()];
+    depth[0] = 1;
+    let mut deepest = 1;
+    for (i, n) in bvh.nodes.iter().enumerate() {
+        let d = depth[i];
+        if d == 0 {
+            return None;
+        }
+        deepest = deepest.max(d);
+        if n.prim_count == 0 {
+            let first = n.first_index as usize;
+            if first <= i {
+                return None;
+            }
+            depth[first] = d + 1;
+            depth[first + 1] = d + 1;
+        }
+    }
+    Some(deepest as usize)
 }
 
 /// A binary BVH built top down, one primitive per leaf: `split` reorders each node's
@@ -1017,6 +1056,32 @@ mod tests {
             hits += usize::from(found.is_some());
         }
         assert!(hits > 500, "{hits} hits");
+    }
+
+    #[test]
+    fn a_ploc_trees_depth_read_in_memory_order_is_its_walks() {
+        // PLOC writes every node before its children, so one front-to-back pass finds the
+        // depth the walk finds (the uv sphere's pole fans make it uneven: 20-odd levels).
+        let tris = obvhs_triangles(&Mesh::uv_sphere(40, 60));
+        let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
+        let params = BuildQuality::Medium.params();
+        let indices = (0..aabbs.len() as u32).collect();
+        let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+            params.ploc_search_distance,
+            &aabbs,
+            indices,
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        assert!(bvh2.children_are_ordered_after_parents);
+        let walked = depth_by_walk(&bvh2);
+        assert!(walked > 10, "{walked}");
+        assert_eq!(depth_in_memory_order(&bvh2), Some(walked));
+        // A node moved in front of its parent: the pass gives up rather than miscount.
+        let last = bvh2.nodes.len() - 1;
+        let parent = bvh2.nodes.iter().position(|n| n.prim_count == 0 && n.first_index as usize + 1 == last).unwrap();
+        bvh2.nodes.swap(0, parent);
+        assert_eq!(depth_in_memory_order(&bvh2), None);
     }
 
     /// Input that makes SAH deep: a bulk of coincident triangles with outliers at
