@@ -69,20 +69,15 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, scene_scale: f32) -> Vec3 {
 
 /// Per-corner data of a mesh (normals, texture coordinates), in the two layouts a
 /// triangulated USD primvar takes.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub enum Attribute<T> {
     /// Not authored.
+    #[default]
     None,
     /// One value per vertex.
     Vertex(Vec<T>),
     /// One value per triangle corner (3 per triangle).
     FaceVarying(Vec<T>),
-}
-
-impl<T> Default for Attribute<T> {
-    fn default() -> Self {
-        Attribute::None
-    }
 }
 
 impl<T> Attribute<T>

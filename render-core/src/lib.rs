@@ -18,6 +18,9 @@
 //!   features and reports them as a [`plan::RenderPlan`].
 
 #![deny(missing_docs)]
+// `!(pdf > 0.0)` is the renderer's idiom for "not a usable positive number": unlike
+// `pdf <= 0.0` it also rejects NaN, which is the point wherever it appears.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bsdf;
 pub mod bvh;

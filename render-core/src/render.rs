@@ -528,24 +528,6 @@ pub fn render_to_framebuffer(scene: &CommittedScene, camera: &Camera, settings: 
     (sink.0.into_inner().unwrap(), outcome)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn pass_schedule_adds_up() {
-        assert_eq!(pass_schedule(64), vec![1, 1, 2, 4, 8, 16, 32]);
-        assert_eq!(pass_schedule(300), vec![1, 1, 2, 4, 8, 16, 32, 64, 64, 64, 44]);
-        assert!([0, 1, 2, 4, 64, 128, 192, 256, 300].iter().all(|&k| is_pass_boundary(k, 300)));
-        assert!(![3, 100, 299].iter().any(|&k| is_pass_boundary(k, 300)));
-        assert_eq!(pass_schedule(5), vec![1, 1, 2, 1]);
-        assert_eq!(pass_schedule(1), vec![1]);
-        for spp in 1..300 {
-            assert_eq!(pass_schedule(spp).iter().sum::<u32>(), spp);
-        }
-    }
-}
-
 /// The render's path settings with the camera's pixel footprint (for texture filtering).
 fn integrator_for(camera: &Camera, settings: &RenderSettings) -> IntegratorSettings {
     let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
@@ -578,4 +560,22 @@ pub fn camera_path(scene: &CommittedScene, camera: &Camera, settings: &RenderSet
     let time = if scene.plan.has(crate::plan::Feature::MotionBlur) { rng.next_4d()[0] } else { 0.0 };
     let (ray, cos) = camera.ray_at(x as f32 + jx, y as f32 + jy, glam::Vec2::new(lx, ly), time);
     CameraPath { ray, cos, rng }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pass_schedule_adds_up() {
+        assert_eq!(pass_schedule(64), vec![1, 1, 2, 4, 8, 16, 32]);
+        assert_eq!(pass_schedule(300), vec![1, 1, 2, 4, 8, 16, 32, 64, 64, 64, 44]);
+        assert!([0, 1, 2, 4, 64, 128, 192, 256, 300].iter().all(|&k| is_pass_boundary(k, 300)));
+        assert!(![3, 100, 299].iter().any(|&k| is_pass_boundary(k, 300)));
+        assert_eq!(pass_schedule(5), vec![1, 1, 2, 1]);
+        assert_eq!(pass_schedule(1), vec![1]);
+        for spp in 1..300 {
+            assert_eq!(pass_schedule(spp).iter().sum::<u32>(), spp);
+        }
+    }
 }

@@ -119,9 +119,12 @@ fn lerp_index(x: f32) -> (usize, usize, f32) {
     (i0, i1, t)
 }
 
+/// A table coordinate as its two neighbouring cells and their weights.
+pub(crate) type AxisSplit = [(usize, f32); 2];
+
 /// The two of `n` uniform nodes over [0, 1] that bracket `x` (clamped; NaN reads node 0), with
 /// their linear-interpolation weights: the lookup every table here interpolates with.
-pub(crate) fn split_axis(x: f32, n: usize) -> [(usize, f32); 2] {
+pub(crate) fn split_axis(x: f32, n: usize) -> AxisSplit {
     let f = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 } * (n - 1) as f32;
     let i0 = (f.floor() as usize).min(n - 2);
     let t = f - i0 as f32;
@@ -333,79 +336,6 @@ pub fn multiple_scattering_fresnel(f_avg: Vec3, e_avg: f32) -> Vec3 {
     f_avg * f_avg * e_avg / (Vec3::ONE - f_avg * (1.0 - e_avg))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rough_ggx_loses_close_to_sixty_percent() {
-        // "Close to 60% energy missing for rough = 1"; the appendix fit gives 0.592.
-        let missing = 1.0 - ggx().e_avg(1.0);
-        assert!((missing - fit_one_minus_e_avg(1.0)).abs() < 0.01, "1 - E_avg(1) = {missing}");
-        assert!((0.55..0.62).contains(&missing));
-        assert!((ggx().e_avg(0.0) - 1.0).abs() < 1e-6, "a mirror loses nothing");
-    }
-
-    #[test]
-    fn table_agrees_with_the_appendix_fit_away_from_grazing() {
-        let t = ggx();
-        let mut worst: f32 = 0.0;
-        for j in 4..N {
-            // μ ≥ 0.1 on the √μ grid.
-            for i in 10..N {
-                let (mu, r) = (grid_mu(i), grid_r(j));
-                worst = worst.max((1.0 - t.e(mu, r) - fit_one_minus_e(mu, r)).abs());
-            }
-        }
-        // The fit is "slightly" off near grazing by its authors' account; elsewhere measured 0.011.
-        assert!(worst < 0.02, "worst |Δ(1-E)| = {worst}");
-        for j in 0..N {
-            let r = grid_r(j);
-            assert!((1.0 - t.e_avg(r) - fit_one_minus_e_avg(r)).abs() < 0.01, "E_avg at r = {r}");
-        }
-    }
-
-    #[test]
-    fn a_few_cells_recompute_at_low_sample_count() {
-        // Regenerating cells with half the samples lands within Monte Carlo noise.
-        for (i, j) in [(5usize, 10usize), (31, 31), (1, 20), (16, 3)] {
-            let fresh = single_scatter_albedo(grid_mu(i), grid_r(j), STRATA / 2);
-            let cell = ggx().rows.row(j).e[i];
-            assert!((fresh - cell).abs() < 5e-3, "cell ({i}, {j}): {fresh} vs {cell}");
-        }
-    }
-
-    #[test]
-    fn a_lookup_builds_only_the_rows_around_it() {
-        // One material's lookups read the nodes bracketing its parameters: two rows of a
-        // table over one parameter, four over two. Built whole, the tables took 8 s on one
-        // core before a render's first tile.
-        let ggx = GgxEnergy::new();
-        let _ = (ggx.e(0.5, 0.3), ggx.e_avg(0.3));
-        assert_eq!(ggx.rows.built(), 2);
-        let spec = DielectricSpecularEnergy::new();
-        let _ = (spec.e(1.5, 0.3, 0.5), spec.e_avg(1.5, 0.3));
-        assert_eq!(spec.rows.built(), 4);
-        let glass = GlassEnergy::new();
-        let _ = (glass.e(1.5, 0.3, 0.5), glass.e_avg_of_lookup(1.5, 0.3));
-        assert_eq!(glass.rows.built(), 4);
-        let aniso = GgxAnisoEnergy::new();
-        let at = AnisoCoords::of(Ggx { ax: 0.3, ay: 0.1 });
-        let _ = (aniso.e(&at, Vec3::new(0.6, 0.0, 0.8)), aniso.e_avg(&at));
-        assert_eq!(aniso.rows.built(), 4);
-        // What a row holds does not depend on which lookup built it.
-        assert_eq!(glass.e(1.5, 0.3, 0.5).to_bits(), super::glass().e(1.5, 0.3, 0.5).to_bits());
-        assert_eq!(aniso.e_avg(&at).to_bits(), ggx_anisotropic().e_avg(&at).to_bits());
-    }
-
-    #[test]
-    fn corrected_fresnel_factor_is_one_for_white_and_below_f_avg_otherwise() {
-        assert!((multiple_scattering_fresnel(Vec3::ONE, 0.4) - Vec3::ONE).abs().max_element() < 1e-6);
-        let f = multiple_scattering_fresnel(Vec3::splat(0.5), 0.4);
-        assert!(f.x < 0.5 && f.x > 0.0);
-    }
-}
-
 /// Directional energy (reflection + transmission, radiance scaling undone) of the
 /// single-scattering rough dielectric for `wo` on the side where the relative IOR is `eta`,
 /// by stratified sampling of the lobe itself.
@@ -561,7 +491,7 @@ impl GlassEnergy {
         split_axis(u, GLASS_MU).iter().map(|&(k, w)| w * row[k]).sum()
     }
 
-    fn coords(eta: f32, roughness: f32) -> (usize, [(usize, f32); 2], [(usize, f32); 2]) {
+    fn coords(eta: f32, roughness: f32) -> (usize, AxisSplit, AxisSplit) {
         let (side, x) = if eta >= 1.0 { (0, eta) } else { (1, 1.0 / eta) };
         let i = ((x.clamp(GLASS_X0, 3.0) - GLASS_X0) / (3.0 - GLASS_X0)).powf(1.0 / GLASS_P);
         (side, split_axis(i, GLASS_N), split_axis(roughness.clamp(0.0, 1.0).sqrt(), GLASS_N))
@@ -680,4 +610,77 @@ impl DielectricSpecularEnergy {
 pub fn dielectric_specular() -> &'static DielectricSpecularEnergy {
     static TABLES: OnceLock<DielectricSpecularEnergy> = OnceLock::new();
     TABLES.get_or_init(DielectricSpecularEnergy::new)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rough_ggx_loses_close_to_sixty_percent() {
+        // "Close to 60% energy missing for rough = 1"; the appendix fit gives 0.592.
+        let missing = 1.0 - ggx().e_avg(1.0);
+        assert!((missing - fit_one_minus_e_avg(1.0)).abs() < 0.01, "1 - E_avg(1) = {missing}");
+        assert!((0.55..0.62).contains(&missing));
+        assert!((ggx().e_avg(0.0) - 1.0).abs() < 1e-6, "a mirror loses nothing");
+    }
+
+    #[test]
+    fn table_agrees_with_the_appendix_fit_away_from_grazing() {
+        let t = ggx();
+        let mut worst: f32 = 0.0;
+        for j in 4..N {
+            // μ ≥ 0.1 on the √μ grid.
+            for i in 10..N {
+                let (mu, r) = (grid_mu(i), grid_r(j));
+                worst = worst.max((1.0 - t.e(mu, r) - fit_one_minus_e(mu, r)).abs());
+            }
+        }
+        // The fit is "slightly" off near grazing by its authors' account; elsewhere measured 0.011.
+        assert!(worst < 0.02, "worst |Δ(1-E)| = {worst}");
+        for j in 0..N {
+            let r = grid_r(j);
+            assert!((1.0 - t.e_avg(r) - fit_one_minus_e_avg(r)).abs() < 0.01, "E_avg at r = {r}");
+        }
+    }
+
+    #[test]
+    fn a_few_cells_recompute_at_low_sample_count() {
+        // Regenerating cells with half the samples lands within Monte Carlo noise.
+        for (i, j) in [(5usize, 10usize), (31, 31), (1, 20), (16, 3)] {
+            let fresh = single_scatter_albedo(grid_mu(i), grid_r(j), STRATA / 2);
+            let cell = ggx().rows.row(j).e[i];
+            assert!((fresh - cell).abs() < 5e-3, "cell ({i}, {j}): {fresh} vs {cell}");
+        }
+    }
+
+    #[test]
+    fn a_lookup_builds_only_the_rows_around_it() {
+        // One material's lookups read the nodes bracketing its parameters: two rows of a
+        // table over one parameter, four over two. Built whole, the tables took 8 s on one
+        // core before a render's first tile.
+        let ggx = GgxEnergy::new();
+        let _ = (ggx.e(0.5, 0.3), ggx.e_avg(0.3));
+        assert_eq!(ggx.rows.built(), 2);
+        let spec = DielectricSpecularEnergy::new();
+        let _ = (spec.e(1.5, 0.3, 0.5), spec.e_avg(1.5, 0.3));
+        assert_eq!(spec.rows.built(), 4);
+        let glass = GlassEnergy::new();
+        let _ = (glass.e(1.5, 0.3, 0.5), glass.e_avg_of_lookup(1.5, 0.3));
+        assert_eq!(glass.rows.built(), 4);
+        let aniso = GgxAnisoEnergy::new();
+        let at = AnisoCoords::of(Ggx { ax: 0.3, ay: 0.1 });
+        let _ = (aniso.e(&at, Vec3::new(0.6, 0.0, 0.8)), aniso.e_avg(&at));
+        assert_eq!(aniso.rows.built(), 4);
+        // What a row holds does not depend on which lookup built it.
+        assert_eq!(glass.e(1.5, 0.3, 0.5).to_bits(), super::glass().e(1.5, 0.3, 0.5).to_bits());
+        assert_eq!(aniso.e_avg(&at).to_bits(), ggx_anisotropic().e_avg(&at).to_bits());
+    }
+
+    #[test]
+    fn corrected_fresnel_factor_is_one_for_white_and_below_f_avg_otherwise() {
+        assert!((multiple_scattering_fresnel(Vec3::ONE, 0.4) - Vec3::ONE).abs().max_element() < 1e-6);
+        let f = multiple_scattering_fresnel(Vec3::splat(0.5), 0.4);
+        assert!(f.x < 0.5 && f.x > 0.0);
+    }
 }

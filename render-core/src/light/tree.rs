@@ -576,13 +576,7 @@ impl LightTree {
         }
         match self.nodes[at] {
             // A leaf reached by splits alone is sampled whenever it matters here.
-            Node::Leaf { light: l, bounds } if l as usize == light => {
-                if walking || bounds.importance(p, n) > 0.0 {
-                    pmf
-                } else {
-                    0.0
-                }
-            }
+            Node::Leaf { light: l, bounds } if l as usize == light && (walking || bounds.importance(p, n) > 0.0) => pmf,
             _ => 0.0,
         }
     }

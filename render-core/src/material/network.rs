@@ -233,18 +233,18 @@ impl MaterialNetwork {
         if id == "tessera:Layer" {
             return self.resolve_layer(inputs, depth, walk);
         }
-        if id == "tessera:Glitter" {
-            if let Some(c) = self.upstream(&node.path, "base") {
-                let glitter = super::native::resolve(inputs, &mut walk.report).expect("tessera:Glitter is declared");
-                if depth >= MAX_LAYER_DEPTH {
-                    walk.report
-                        .warnings
-                        .push(format!("{}: materials nest deeper than {MAX_LAYER_DEPTH} (a cycle?); 'base' is not followed", node.path));
-                    return glitter;
-                }
-                let base = self.resolve_node(&c.upstream_node.clone(), depth + 1, walk);
-                return base.under_glitter(&glitter);
+        if id == "tessera:Glitter"
+            && let Some(c) = self.upstream(&node.path, "base")
+        {
+            let glitter = super::native::resolve(inputs, &mut walk.report).expect("tessera:Glitter is declared");
+            if depth >= MAX_LAYER_DEPTH {
+                walk.report
+                    .warnings
+                    .push(format!("{}: materials nest deeper than {MAX_LAYER_DEPTH} (a cycle?); 'base' is not followed", node.path));
+                return glitter;
             }
+            let base = self.resolve_node(&c.upstream_node.clone(), depth + 1, walk);
+            return base.under_glitter(&glitter);
         }
         let report = &mut walk.report;
         let m = match id {

@@ -7,8 +7,11 @@ use super::materials::Materials;
 use crate::material::{Material, TexturedMaterial, Uber};
 use crate::plan::{Feature, RenderPlan};
 
+/// Whether a material (or its textures) calls for a feature.
+type Asks<T> = fn(&T) -> bool;
+
 /// What each material-borne feature asks of a material's lobes.
-const LOBE_FEATURES: [(Feature, fn(&Uber) -> bool); 13] = [
+const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
     (Feature::Diffuse, |u| u.plastic.weight > 0.0 || (u.fabric.weight > 0.0 && u.fabric.params.specular < 1.0)),
     (Feature::Metal, |u| u.metal.weight > 0.0),
     (Feature::Transmission, |u| u.has_refraction()),
@@ -32,7 +35,7 @@ const LOBE_FEATURES: [(Feature, fn(&Uber) -> bool); 13] = [
 ];
 
 /// What each texture feature asks of a textured material.
-const TEXTURE_FEATURES: [(Feature, fn(&TexturedMaterial) -> bool); 4] = [
+const TEXTURE_FEATURES: [(Feature, Asks<TexturedMaterial>); 4] = [
     (Feature::Textures, |_| true),
     (Feature::NormalMaps, |t| t.has_normal_map()),
     (Feature::TexturedCutouts, |t| t.may_see_through()),

@@ -28,7 +28,7 @@ impl Stream {
 
     /// The next number in [0, 1).
     #[inline]
-    pub fn next(&mut self) -> f32 {
+    pub fn uniform(&mut self) -> f32 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         (mix64(self.0) >> 40) as f32 * (1.0 / 16_777_216.0)
     }
@@ -71,7 +71,7 @@ impl<'v> Tracker<'v> {
             let floor = if self.emission { self.volume.emission_floor } else { 0.0 };
             let sigma = self.volume.majorant.majorant(index, floor);
             if sigma > 0.0 {
-                let t = self.t - (1.0 - s.next()).ln() / sigma;
+                let t = self.t - (1.0 - s.uniform()).ln() / sigma;
                 if t < exit {
                     self.t = t;
                     return Some((t, sigma, self.o + self.d * t));
@@ -148,7 +148,7 @@ pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight 
     let stop = merged(volumes, ray, t_max, true, s, |t, sigma, p, k, s| {
         let (extinction, emission) = volumes[k].extinction_and_emission_at(p);
         flight.emitted += emission / sigma;
-        if s.next() * sigma < extinction {
+        if s.uniform() * sigma < extinction {
             flight.collision = Some((t, k));
             return false;
         }
@@ -167,7 +167,7 @@ pub fn transmittance(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) 
     let stop = merged(volumes, ray, t_max, false, s, |_, sigma, p, k, s| {
         tr *= 1.0 - (volumes[k].extinction_at(p) / sigma).min(1.0);
         if tr < 0.1 {
-            if s.next() < 0.5 {
+            if s.uniform() < 0.5 {
                 tr = 0.0;
                 return false;
             }
