@@ -49,7 +49,6 @@ impl Budget {
         self.used
             .fetch_update(Ordering::AcqRel, Ordering::Acquire, |used| used.checked_add(bytes).filter(|&total| total <= self.limit))
             .map(|_| ())
-            .map_err(|used| used)
     }
 
     fn give_back(&self, bytes: u64) {

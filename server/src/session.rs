@@ -534,7 +534,7 @@ impl Transaction {
                     format!("{} deformation samples; 0, or 2 to {}", m.point_samples, render_core::motion::MAX_MOTION_SAMPLES),
                 ));
             }
-            if m.points_len % (3 * sets) != 0 {
+            if !m.points_len.is_multiple_of(3 * sets) {
                 return Err(invalid(&path, "points", format!("{} values are not {sets} whole sets of points", m.points_len)));
             }
             if m.points_len / sets > cap || m.normals_len > cap {
@@ -543,7 +543,7 @@ impl Transaction {
             if m.uvs_len > cap {
                 return Err(Status::resource_exhausted(format!("{path}: declared array lengths exceed the per-mesh limit")));
             }
-            if m.uvs_len % 2 != 0 {
+            if !m.uvs_len.is_multiple_of(2) {
                 return Err(invalid(&path, "uvs", "length must be a multiple of 2"));
             }
             if m.primvars.len() > MAX_PRIMVARS_PER_MESH {
@@ -557,7 +557,7 @@ impl Transaction {
                     return Err(invalid(&path, &format!("primvars:{}", pv.name), "length must be a multiple of 3"));
                 }
             }
-            if m.points_len % 3 != 0 || m.triangle_indices_len % 3 != 0 || m.normals_len % 3 != 0 {
+            if !m.points_len.is_multiple_of(3) || !m.triangle_indices_len.is_multiple_of(3) || !m.normals_len.is_multiple_of(3) {
                 return Err(invalid(&path, "mesh", "array lengths must be multiples of 3"));
             }
             self.check_declared_mesh(&path, &m)?;

@@ -35,11 +35,14 @@ pub struct AccuracyBench {
     pub reference_spp: u32,
 }
 
+/// (spp, seconds, relMSE) of one sampler at each sample count of the sweep.
+pub type SppCurve = Vec<(u32, f64, f64)>;
+
 /// The measured numbers behind the report, for tests.
 #[derive(Clone, Debug, Default)]
 pub struct AccuracySummary {
-    /// Per sampler: (spp, seconds, relMSE) over the spp sweep.
-    pub spp_curves: Vec<(String, Vec<(u32, f64, f64)>)>,
+    /// Per sampler: its points over the spp sweep.
+    pub spp_curves: Vec<(String, SppCurve)>,
     /// (max depth, relMSE).
     pub depth: Vec<(u32, f64)>,
     /// (fixture, compensation on, image mean) in the furnace.

@@ -553,15 +553,15 @@ pub fn resolve_options(given: &RenderOptions, translation: &crate::usd::Translat
     let mut o = given.clone();
     if let Some(rs) = &translation.render_settings {
         let product = rs.products.first();
-        if o.camera.is_empty() {
-            if let Some(c) = product.and_then(|p| p.camera.as_ref()).or(rs.camera.as_ref()) {
-                o.camera = c.clone();
-            }
+        if o.camera.is_empty()
+            && let Some(c) = product.and_then(|p| p.camera.as_ref()).or(rs.camera.as_ref())
+        {
+            o.camera = c.clone();
         }
-        if o.width == 0 {
-            if let Some((w, h)) = product.and_then(|p| p.resolution).or(rs.resolution) {
-                (o.width, o.height) = (w, h);
-            }
+        if o.width == 0
+            && let Some((w, h)) = product.and_then(|p| p.resolution).or(rs.resolution)
+        {
+            (o.width, o.height) = (w, h);
         }
         if o.pixel_aspect == 0.0 {
             o.pixel_aspect = rs.pixel_aspect.unwrap_or(0.0);

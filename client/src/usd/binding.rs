@@ -47,16 +47,14 @@ impl Reader<'_> {
             if broken {
                 return Ok(None);
             }
-            if let Some(api) = MaterialBindingAPI::get(self.stage, path.clone())? {
-                if let Some(m) = api.compute_bound_material("full")? {
-                    if !well_formed_path(m.as_str()) {
-                        self.out
-                            .warnings
-                            .push(format!("{path}: bound material '{}' is not a valid path; the binding is ignored", m.as_str()));
-                        return Ok(None);
-                    }
-                    return Ok(Some(m.as_str().to_string()));
+            if let Some(api) = MaterialBindingAPI::get(self.stage, path.clone())?
+                && let Some(m) = api.compute_bound_material("full")?
+            {
+                if !well_formed_path(m.as_str()) {
+                    self.out.warnings.push(format!("{path}: bound material '{}' is not a valid path; the binding is ignored", m.as_str()));
+                    return Ok(None);
                 }
+                return Ok(Some(m.as_str().to_string()));
             }
             cur = path.parent();
         }

@@ -80,8 +80,8 @@ impl<'j> Blend<'j> {
             let joint = &self.joints[j];
             scale += joint.scale * w;
             let w = if joint.real.dot(pivot) < 0.0 { -w } else { w };
-            real = real + joint.real * w;
-            dual = dual + joint.dual * w;
+            real += joint.real * w;
+            dual += joint.dual * w;
         }
         let len = real.length();
         if !(len > 0.0) {
@@ -138,7 +138,7 @@ mod tests {
     #[test]
     fn an_even_blend_of_two_turns_keeps_the_radius() {
         let turn = |a: f64| DualJoint::new(DMat4::from_rotation_z(a));
-        let joints = [turn(1.0472), turn(-1.0472)];
+        let joints = [turn(std::f64::consts::FRAC_PI_3), turn(-std::f64::consts::FRAC_PI_3)];
         let p = Blend::new(&joints).skinning(&[(0, 0.5), (1, 0.5)]).point(DVec3::X);
         assert!((p - DVec3::X).length() < 1e-9, "{p}");
         // Opposite hemispheres (a quaternion and its negation are one rotation) blend alike.
