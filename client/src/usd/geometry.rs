@@ -124,7 +124,11 @@ impl Reader<'_> {
         let CageRead { src, tags, shape_only, rest, .. } = cage;
         let face_count = src.counts.len();
         let mut warnings = Vec::new();
-        let (src, cage_face) = self.subdivide(prim, p, src, &tags, &mut warnings)?;
+        let (mut src, cage_face) = self.subdivide(prim, p, src, &tags, &mut warnings)?;
+        // A deforming mesh's motion samples are refined again and must keep the frame's vertices.
+        if cage_face.is_some() && shape_only.is_none() {
+            subdivision::share_normals(&mut src);
+        }
         let (mut mesh, face_of) =
             triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))).map_err(|e| anyhow::anyhow!("{p}: {e}"))?;
         if let Some(template) = shape_only {

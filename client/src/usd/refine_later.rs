@@ -104,7 +104,9 @@ fn refine(job: LaterRefinement) -> RefinedMesh {
     let (src, subdivided) = match subdivision::refine(&src, &tags, level, |w| warnings.push(format!("{p}: {w}"))) {
         Ok(r) => {
             let s = Subdivided { path: p.clone(), scheme: tags.scheme.clone(), level: r.level, cage_faces: src.counts.len() };
-            (r.mesh, Some(s))
+            let mut refined = r.mesh;
+            subdivision::share_normals(&mut refined);
+            (refined, Some(s))
         }
         Err(e) => {
             warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));

@@ -726,12 +726,11 @@ impl<'c> Tessellation<'c> {
         });
         let skip = usize::from(uvs.is_some());
         let primvars = self.names.into_iter().skip(skip).zip(values).map(|(n, v)| (n, v, "faceVarying".to_string())).collect();
-        let normals = shared_normals(&self.indices, self.normals, self.points.len());
         let mesh = MeshSource {
             points: self.points,
             counts: self.counts,
             indices: self.indices,
-            normals: Some(normals),
+            normals: Some((self.normals, "faceVarying".to_string())),
             uvs,
             primvars,
             left_handed: self.left_handed,
@@ -749,23 +748,59 @@ impl<'c> Tessellation<'c> {
 /// far more (0.3 and up in the tests below).
 const SMOOTH_SPREAD: f32 = 1e-2;
 
-/// The limit normals one per vertex (their mean) when every vertex's faces agree within
-/// [`SMOOTH_SPREAD`], else face-varying as evaluated: a smooth surface's normals then take a
-/// third of the memory and of the bytes sent to the server.
-fn shared_normals(indices: &[i64], corners: Vec<Vec3>, points: usize) -> (Vec<Vec3>, String) {
-    let mut first: Vec<Option<Vec3>> = vec![None; points];
-    let mut sum = vec![Vec3::ZERO; points];
-    for (&v, &n) in indices.iter().zip(&corners) {
-        let v = v as usize;
-        match first[v] {
-            None => first[v] = Some(n),
-            Some(f) if f.distance_squared(n) > SMOOTH_SPREAD * SMOOTH_SPREAD => return (corners, "faceVarying".to_string()),
-            Some(_) => {}
+/// One way a vertex's faces see its normal: the first corner's normal, the vertex that carries
+/// it, the sum of the corners' normals that agree with it, and the vertex's next such group.
+struct NormalGroup {
+    first: Vec3,
+    vertex: u32,
+    sum: Vec3,
+    next: u32,
+}
+
+/// Turns `mesh`'s face-varying limit normals (as [`refine`] makes them) into one normal per
+/// vertex, the mean of the corners that agree within [`SMOOTH_SPREAD`]. Where a vertex's faces
+/// disagree (a sharp crease, a corner, a pinched pole), each further normal gets a copy of the
+/// vertex at the same position, so the crease stays sharp. A smooth surface's normals then take
+/// a third of the memory and of the bytes sent to the server, a creased one's little more. Not
+/// for a mesh that deforms over the shutter: its motion samples must keep the frame's vertices.
+pub fn share_normals(mesh: &mut MeshSource) {
+    let Some((corners, _)) = mesh.normals.take_if(|(_, interp)| interp == "faceVarying") else { return };
+    const NONE: u32 = u32::MAX;
+    let mut head = vec![NONE; mesh.points.len()];
+    let mut groups: Vec<NormalGroup> = Vec::with_capacity(mesh.points.len());
+    let mut copies = Vec::new();
+    for (index, &n) in mesh.indices.iter_mut().zip(&corners) {
+        let v = *index as usize;
+        let (mut at, mut last) = (head[v], NONE);
+        while at != NONE && groups[at as usize].first.distance_squared(n) > SMOOTH_SPREAD * SMOOTH_SPREAD {
+            (last, at) = (at, groups[at as usize].next);
         }
-        sum[v] += n;
+        if at == NONE {
+            at = groups.len() as u32;
+            let vertex = match last {
+                NONE => {
+                    head[v] = at;
+                    v as u32
+                }
+                _ => {
+                    groups[last as usize].next = at;
+                    copies.push(v);
+                    (mesh.points.len() + copies.len() - 1) as u32
+                }
+            };
+            groups.push(NormalGroup { first: n, vertex, sum: Vec3::ZERO, next: NONE });
+        }
+        let g = &mut groups[at as usize];
+        g.sum += n;
+        *index = g.vertex as i64;
     }
-    let normals = sum.iter().zip(&first).map(|(s, f)| s.try_normalize().or(*f).unwrap_or(Vec3::Z)).collect();
-    (normals, "vertex".to_string())
+    let copied: Vec<Vec3> = copies.iter().map(|&v| mesh.points[v]).collect();
+    mesh.points.extend(copied);
+    let mut normals = vec![Vec3::Z; mesh.points.len()];
+    for g in &groups {
+        normals[g.vertex as usize] = g.sum.try_normalize().unwrap_or(g.first);
+    }
+    mesh.normals = Some((normals, "vertex".to_string()));
 }
 
 /// A primvar on one ptex face: its values, how they vary, and the face's corner values.
@@ -913,12 +948,25 @@ mod tests {
                 r.mesh.indices.iter().zip(&r.mesh.normals.as_ref().unwrap().0).filter(|(i, _)| **i == v).map(|(_, n)| *n).collect();
             normals.iter().flat_map(|a| normals.iter().map(move |b| a.angle_between(*b))).fold(0.0f32, f32::max)
         };
-        assert_eq!(r.mesh.normals.as_ref().unwrap().1, "faceVarying", "a crease keeps its normals per face");
         assert!(spread(&r) > 0.3, "creased: {}", spread(&r));
-        // Smooth, every vertex's faces agree (within SMOOTH_SPREAD), so the normals are shared.
         let smooth = refine(&grid(bump), &tags("catmullClark"), 3, |w| panic!("{w}")).unwrap();
-        let (normals, interp) = smooth.mesh.normals.as_ref().unwrap();
-        assert_eq!((interp.as_str(), normals.len()), ("vertex", smooth.mesh.points.len()));
+        assert!(spread(&smooth) < 1e-3, "smooth: {}", spread(&smooth));
+        // Shared per vertex, the smooth surface keeps its vertices; the creased one gets a copy
+        // of the crease's points where its two sides bend apart (22 of its 4 × 8 + 1 points;
+        // towards the cage's border both sides are flat and agree), so every corner keeps the
+        // normal its face gave it.
+        for (refined, copies) in [(&smooth, 0..=0), (&r, 1..=33)] {
+            let mut shared = refined.mesh.clone();
+            share_normals(&mut shared);
+            let (normals, interp) = shared.normals.as_ref().unwrap();
+            assert_eq!((interp.as_str(), normals.len()), ("vertex", shared.points.len()));
+            assert!(copies.contains(&(shared.points.len() - refined.mesh.points.len())), "{}", shared.points.len());
+            let corners = &refined.mesh.normals.as_ref().unwrap().0;
+            for (k, (&v, &i)) in shared.indices.iter().zip(&refined.mesh.indices).enumerate() {
+                assert_eq!(shared.points[v as usize], refined.mesh.points[i as usize], "a copy sits where its vertex does");
+                assert!(normals[v as usize].distance(corners[k]) < SMOOTH_SPREAD, "corner {k}");
+            }
+        }
     }
 
     #[test]
