@@ -4,7 +4,8 @@
 //! the renderer receives. The anchor, in the same run: OpenSubdiv's own uniform refinement to
 //! the same level (topology and point positions, `PrimvarRefiner::interpolate`, level by
 //! level), which makes the same faces but leaves them on the refined cage rather than on the
-//! limit surface, and computes no normals. Prints the table for docs/benchmarks.md; asserts
+//! limit surface, and computes no normals. Refine includes sharing the normals per vertex, as the
+//! reader does for a mesh that does not deform. Prints the table for docs/benchmarks.md; asserts
 //! nothing.
 //!
 //! `cargo bench -p tessera --bench subdivision`
@@ -13,7 +14,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use tessera::usd::MeshSource;
-use tessera::usd::subdivision::{SubdivTags, refine_within};
+use tessera::usd::subdivision::{SubdivTags, refine_within, share_normals};
 
 /// A cube-sphere cage of 6·n² quads.
 fn cube_sphere(n: usize) -> MeshSource {
@@ -72,7 +73,9 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for level in 1..=4 {
         let t = Instant::now();
-        let refined = refine_within(&cage, &tags, level, usize::MAX, |w| eprintln!("{w}")).expect("refines");
+        let mut refined = refine_within(&cage, &tags, level, usize::MAX, |w| eprintln!("{w}")).expect("refines");
+        // As the reader does for a mesh that does not deform.
+        share_normals(&mut refined.mesh);
         let refine_s = t.elapsed().as_secs_f64();
         let (uniform_s, uniform_faces) = uniform_refinement(&cage, level as usize);
         let t = Instant::now();
