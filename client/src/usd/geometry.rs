@@ -27,6 +27,30 @@ impl CageRead {
     }
 }
 
+/// `src` refined at `level`, with its render-plan entry and the cage face of each refined face;
+/// or, when OpenSubdiv cannot take the cage (bad crease data, a Loop mesh with quads), `src`
+/// unrefined, with a warning naming the attribute. Either way without its authored normals:
+/// they are for polygons, and UsdGeomMesh says a subdivision surface ignores them.
+pub(super) fn refine_cage(
+    p: &str,
+    src: MeshSource,
+    tags: &SubdivTags,
+    level: u32,
+    warnings: &mut Vec<String>,
+) -> (MeshSource, Option<(Subdivided, Vec<u32>)>) {
+    let src = MeshSource { normals: None, ..src };
+    match subdivision::refine(&src, tags, level, |w| warnings.push(format!("{p}: {w}"))) {
+        Ok(r) => {
+            let entry = Subdivided { path: p.to_string(), scheme: tags.scheme.clone(), level: r.level, cage_faces: src.counts.len() };
+            (r.mesh, Some((entry, r.cage_face)))
+        }
+        Err(e) => {
+            warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));
+            (src, None)
+        }
+    }
+}
+
 /// Where a deforming mesh's points come from over the shutter (read once per mesh).
 enum PointMotion {
     /// A skinned mesh: its authored points and face-vertex indices, posed per sample.
@@ -271,23 +295,14 @@ impl Reader<'_> {
         if !tags.is_subdivided() || level == 0 {
             return Ok((src, None));
         }
-        // Authored normals are for polygons: UsdGeomMesh says a subdivision surface ignores them.
-        let src = MeshSource { normals: None, ..src };
-        match subdivision::refine(&src, tags, level, |w| warnings.push(format!("{p}: {w}"))) {
-            Ok(r) => {
-                self.out.subdivided.push(Subdivided {
-                    path: p.to_string(),
-                    scheme: tags.scheme.clone(),
-                    level: r.level,
-                    cage_faces: src.counts.len(),
-                });
-                Ok((r.mesh, Some(r.cage_face)))
-            }
-            Err(e) => {
-                warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));
-                Ok((src, None))
-            }
-        }
+        let (mesh, refined) = refine_cage(p, src, tags, level, warnings);
+        Ok((
+            mesh,
+            refined.map(|(entry, cage_face)| {
+                self.out.subdivided.push(entry);
+                cage_face
+            }),
+        ))
     }
 
     /// The refinement level: the mesh's own (`primvars:tessera:refinementLevel`, else

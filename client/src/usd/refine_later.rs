@@ -15,7 +15,7 @@ use openusd::usd::Prim;
 use rayon::prelude::*;
 use render_core::geometry::Mesh;
 
-use super::geometry::CageRead;
+use super::geometry::{CageRead, refine_cage};
 use super::mesh::{MeshSource, check_faces, triangulate_with_faces};
 use super::subdivision::{self, SubdivTags};
 use super::{Reader, Subdivided};
@@ -57,9 +57,15 @@ impl Reader<'_> {
         let mesh = self.out.meshes.len();
         self.add_mesh(prim, p, Mesh::default(), visible)?;
         let subdivided_at = self.out.subdivided.len();
-        // Authored normals are for polygons: UsdGeomMesh says a subdivision surface ignores them.
-        let src = MeshSource { normals: None, ..cage.src };
-        let job = LaterRefinement { mesh, path: p.to_string(), src, tags: cage.tags, level, warnings_at: cage.warnings_at, subdivided_at };
+        let job = LaterRefinement {
+            mesh,
+            path: p.to_string(),
+            src: cage.src,
+            tags: cage.tags,
+            level,
+            warnings_at: cage.warnings_at,
+            subdivided_at,
+        };
         self.later.push(job);
         Ok(())
     }
@@ -101,18 +107,11 @@ impl Reader<'_> {
 fn refine(job: LaterRefinement) -> RefinedMesh {
     let LaterRefinement { path: p, src, tags, level, .. } = job;
     let mut warnings = Vec::new();
-    let (src, subdivided) = match subdivision::refine(&src, &tags, level, |w| warnings.push(format!("{p}: {w}"))) {
-        Ok(r) => {
-            let s = Subdivided { path: p.clone(), scheme: tags.scheme.clone(), level: r.level, cage_faces: src.counts.len() };
-            let mut refined = r.mesh;
-            subdivision::share_normals(&mut refined);
-            (refined, Some(s))
-        }
-        Err(e) => {
-            warnings.push(format!("{p}: {e}; the {} cage renders unrefined", tags.scheme));
-            (src, None)
-        }
-    };
+    let (mut src, refined) = refine_cage(&p, src, &tags, level, &mut warnings);
+    if refined.is_some() {
+        subdivision::share_normals(&mut src);
+    }
+    let subdivided = refined.map(|(entry, _)| entry);
     let mesh = match triangulate_with_faces(&src, |w| warnings.push(format!("{p}: {w}"))) {
         Ok((mesh, _)) => mesh,
         // Not reached: the cage's faces were checked, and refined faces are whole by construction.

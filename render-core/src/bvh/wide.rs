@@ -25,10 +25,10 @@ const NODE_TMIN: f32 = 1e-4;
 /// 320 bytes, five cache lines from a line boundary, and the indices share the last line
 /// with the `e2.z` row the test has just read: mapping a hit back to its mesh triangle
 /// through an array of its own took a cache miss at the end of most closest-hit rays (11% of
-/// a lone ray's samples on the 1M-triangle bench). A CWBVH node's triangles sit next to each other and span one to four chunks; a
-/// layout of nine whole-mesh rows would touch nine or more cache lines for every node, which
-/// showed on meshes bigger than the cache. The last chunk is padded with zero triangles,
-/// which never hit (their determinant is 0).
+/// a lone ray's samples on the 1M-triangle bench). A CWBVH node's triangles sit next to each
+/// other and span one to four chunks; a layout of nine whole-mesh rows would touch nine or
+/// more cache lines for every node, which showed on meshes bigger than the cache. The last
+/// chunk is padded with zero triangles, which never hit (their determinant is 0).
 pub(super) struct TriangleLanes {
     chunks: Vec<Chunk>,
     count: usize,
