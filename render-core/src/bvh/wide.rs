@@ -53,7 +53,9 @@ impl TriangleLanes {
     /// The triangles `tris` (BVH order), the mesh's index of each in `ids`.
     pub(super) fn new(tris: &[RtTriangle], ids: &[u32]) -> Self {
         assert_eq!(tris.len(), ids.len(), "one original index per triangle");
-        let mut chunks = vec![Chunk([0.0; CHUNK + LANES]); tris.len().div_ceil(LANES)];
+        let count = tris.len().div_ceil(LANES);
+        let mut chunks = super::pages::huge_vec(count);
+        chunks.resize(count, Chunk([0.0; CHUNK + LANES]));
         for (i, (t, &id)) in tris.iter().zip(ids).enumerate() {
             let chunk = &mut chunks[i / LANES].0;
             for (c, v) in [t.v0, t.e1, t.e2].iter().flat_map(|v| v.to_array()).enumerate() {
