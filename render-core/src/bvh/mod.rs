@@ -11,6 +11,7 @@
 //! that walk are our own eight-wide ones ([`wide`]), which find exactly what obvhs's
 //! four-wide node test and a one-at-a-time triangle test find.
 
+mod convert;
 mod pages;
 mod walk;
 mod wide;
@@ -20,7 +21,7 @@ use obvhs::{
     Boundable, BvhBuildParams,
     aabb::Aabb,
     bvh2::{Bvh2, node::Bvh2Node, reinsertion::ReinsertionOptimizer},
-    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    cwbvh::CwBvh,
     ploc::PlocBuilder,
     ray::Ray as BvhRay,
     triangle::Triangle,
@@ -505,7 +506,7 @@ const MAX_BVH2_DEPTH: usize = 64;
 fn build_bounded(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
     if has_coincident_cluster(aabbs) {
         tracing::debug!(primitives = aabbs.len(), "coincident primitives: BVH built by median splits");
-        return bvh2_to_cwbvh(&split_bvh2(aabbs, median_split), params.max_prims_per_leaf.clamp(1, 3), true, false);
+        return convert::to_cwbvh(&split_bvh2(aabbs, median_split), params.max_prims_per_leaf.clamp(1, 3));
     }
     let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
         params.ploc_search_distance,
@@ -528,7 +529,7 @@ fn build_bounded(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
         tracing::debug!(primitives = aabbs.len(), "deep SAH tree: rebuilt by median splits");
         bvh2 = split_bvh2(aabbs, median_split);
     }
-    bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false)
+    convert::to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3))
 }
 
 /// Most primitives sharing one cell of a 2²¹-per-axis grid over the centroids before the
@@ -1048,7 +1049,7 @@ mod tests {
         // Measured 30.3 against 36.7 (0.83x); a partition that keeps the wrong triangles on a
         // side gives 53.9.
         assert!(sah_cost < 0.9 * median_cost, "SAH cost {sah_cost} against the median tree's {median_cost}");
-        let tree = bvh2_to_cwbvh(&binary, 3, true, false);
+        let tree = convert::to_cwbvh(&binary, 3);
         // obvhs's own check: every triangle in one leaf, children inside their parents, and
         // depth within its walk's stack.
         tree.validate(&tris, false);
