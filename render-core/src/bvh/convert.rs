@@ -71,7 +71,9 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
     let plan = Plan { bvh2, choices: &choices };
     let mut sizes = vec![Sizes::default(); bvh2.nodes.len()];
     let total = plan.measure(0, Shared::new(&mut sizes), 0);
-    let mut nodes = vec![CwBvhNode::default(); 1 + total.nodes as usize];
+    // The walk reads the nodes at random: in huge pages ([`super::pages`]).
+    let mut nodes = super::pages::huge_vec(1 + total.nodes as usize);
+    nodes.resize(1 + total.nodes as usize, CwBvhNode::default());
     let mut primitives = vec![0u32; total.primitives as usize];
     let out = Out { nodes: Shared::new(&mut nodes), primitives: Shared::new(&mut primitives), sizes: &sizes };
     plan.lay_out(0, 0, Sizes { nodes: 1, primitives: 0 }, &out, 0);

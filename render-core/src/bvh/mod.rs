@@ -26,6 +26,7 @@ use obvhs::{
     ray::Ray as BvhRay,
     triangle::Triangle,
 };
+use rayon::prelude::*;
 
 use crate::geometry::{Mesh, Ray, Transform};
 use walk::{walk, walk_interleaved};
@@ -264,18 +265,15 @@ impl Blas {
     /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks), and its
     /// arrays are moved to huge pages where the system allows ([`pages`]).
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
-        let aabbs: Vec<Aabb> = tris.iter().map(Boundable::aabb).collect();
+        let aabbs: Vec<Aabb> = tris.par_iter().with_min_len(4096).map(Boundable::aabb).collect();
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = pages::huge_vec(blas.bvh.nodes.len());
             blas.leaf_chunks.extend(blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))));
         }
-        // obvhs's nodes are copied into memory marked before it is written (a copy of 10 MB
-        // costs a few ms; collapsing them where they are, about 3 ms a MB). Arrays of less than
-        // a huge page are left as they are (nothing inside to ask for).
-        let mut nodes = pages::huge_vec(blas.bvh.nodes.len());
-        nodes.extend_from_slice(&blas.bvh.nodes);
-        blas.bvh.nodes = nodes;
+        // The nodes, chunks and records were written into memory marked for huge pages
+        // ([`pages::huge_vec`]); asking again catches memory the allocator reused. Arrays of
+        // less than a huge page are left as they are (nothing inside to ask for).
         pages::ask_for_huge_pages(&blas.bvh.nodes);
         blas.tris.ask_for_huge_pages();
         pages::ask_for_huge_pages(&blas.leaf_chunks);
@@ -289,17 +287,13 @@ impl Blas {
 
     /// A BLAS of `tris` walked through `bvh`, a tree built over them.
     fn of_tree(tris: &[Triangle], mut bvh: CwBvh) -> Self {
-        let rt: Vec<RtTriangle> = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                let t = &tris[i as usize];
-                RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }
-            })
-            .collect();
         let bounds = bvh.total_aabb;
-        // The chunks keep each triangle's mesh index now; nothing reads obvhs's copy again.
-        let tris = TriangleLanes::new(&rt, &std::mem::take(&mut bvh.primitive_indices));
+        // The chunks keep each triangle's mesh index; nothing reads obvhs's copy again.
+        let order = std::mem::take(&mut bvh.primitive_indices);
+        let tris = TriangleLanes::from_fn(order.len(), |i| {
+            let t = &tris[order[i] as usize];
+            (RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }, order[i])
+        });
         Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new() }
     }
 
@@ -481,6 +475,8 @@ impl Blas {
 /// The mesh's triangles (at its first deformation sample) in obvhs's form.
 fn obvhs_triangles(mesh: &Mesh) -> Vec<Triangle> {
     (0..mesh.triangle_count())
+        .into_par_iter()
+        .with_min_len(4096)
         .map(|i| {
             let [a, b, c] = mesh.triangle(i);
             Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
