@@ -569,10 +569,23 @@ fn bvh2_depth(bvh: &Bvh2) -> usize {
     depth_by_walk(bvh)
 }
 
-/// [`bvh2_depth`] by a walk from the root, without recursion.
+/// [`bvh2_depth`] by a walk from the root: the subtrees of the top levels side by side on the
+/// thread pool, each below them without recursion (a degenerate tree is a chain as deep as
+/// its input).
 fn depth_by_walk(bvh: &Bvh2) -> usize {
+    deepest_below(bvh, 0, 1)
+}
+
+/// Levels of the tree down to its deepest node, counting from binary node `node` at `depth`.
+fn deepest_below(bvh: &Bvh2, node: usize, depth: usize) -> usize {
+    let n = &bvh.nodes[node];
+    if n.prim_count == 0 && depth < 12 {
+        let first = n.first_index as usize;
+        let (a, b) = rayon::join(|| deepest_below(bvh, first, depth + 1), || deepest_below(bvh, first + 1, depth + 1));
+        return a.max(b);
+    }
     let mut deepest = 0;
-    let mut stack = vec![(0usize, 1usize)];
+    let mut stack = vec![(node, depth)];
     while let Some((node, depth)) = stack.pop() {
         deepest = deepest.max(depth);
         let n = &bvh.nodes[node];
