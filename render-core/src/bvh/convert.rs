@@ -11,6 +11,7 @@
 //! same prices, the same nodes at the same indices, the same primitive order (a test compares
 //! them), so the walk and every image stay as they were.
 
+use super::shared::Shared;
 use glam::{UVec3, Vec3A};
 use obvhs::{
     PerComponent,
@@ -353,47 +354,6 @@ const DIRECTIONS: [Vec3A; 8] = {
     }
     d
 };
-
-/// A slice several threads write, each at indices no other thread touches meanwhile.
-struct Shared<'a, T> {
-    start: *mut T,
-    len: usize,
-    _borrow: std::marker::PhantomData<&'a mut [T]>,
-}
-
-impl<T> Clone for Shared<'_, T> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<T> Copy for Shared<'_, T> {}
-
-// SAFETY: the slice is borrowed for as long as any copy lives, so it outlives every task; it
-// is only written through `set`, whose callers keep their indices apart.
-unsafe impl<T: Send> Send for Shared<'_, T> {}
-unsafe impl<T: Send> Sync for Shared<'_, T> {}
-
-impl<'a, T> Shared<'a, T> {
-    fn new(items: &'a mut [T]) -> Self {
-        Shared { start: items.as_mut_ptr(), len: items.len(), _borrow: std::marker::PhantomData }
-    }
-
-    /// SAFETY: no other thread reads or writes index `i` meanwhile.
-    unsafe fn set(&self, i: usize, value: T) {
-        assert!(i < self.len);
-        unsafe { self.start.add(i).write(value) };
-    }
-
-    /// SAFETY: no other thread writes index `i` meanwhile.
-    unsafe fn get(&self, i: usize) -> T
-    where
-        T: Copy,
-    {
-        assert!(i < self.len);
-        unsafe { self.start.add(i).read() }
-    }
-}
 
 #[cfg(test)]
 mod tests {
