@@ -11,7 +11,7 @@
 //! same prices, the same nodes at the same indices, the same primitive order (a test compares
 //! them), so the walk and every image stay as they were.
 
-use super::shared::Shared;
+use super::{TASKS_FROM, shared::Shared};
 use glam::{UVec3, Vec3A};
 use obvhs::{
     PerComponent,
@@ -68,16 +68,18 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
         return CwBvh::default();
     }
     let mut choices = filled(bvh2.nodes.len() * 7, Choice::default());
-    price(bvh2, max_prims_per_leaf, 0, Shared::new(&mut choices), 0);
+    // The passes split work into tasks down to TASK_DEPTH levels; a small tree starts there.
+    let top = if bvh2.nodes.len() < TASKS_FROM { TASK_DEPTH } else { 0 };
+    price(bvh2, max_prims_per_leaf, 0, Shared::new(&mut choices), top);
     let plan = Plan { bvh2, choices: &choices };
     let mut sizes = filled(bvh2.nodes.len(), Sizes::default());
-    let total = plan.measure(0, Shared::new(&mut sizes), 0);
+    let total = plan.measure(0, Shared::new(&mut sizes), top);
     // The walk reads the nodes at random: in huge pages ([`super::pages`]).
     let mut nodes = super::pages::huge_vec(1 + total.nodes as usize);
     nodes.resize(1 + total.nodes as usize, CwBvhNode::default());
     let mut primitives = vec![0u32; total.primitives as usize];
     let out = Out { nodes: Shared::new(&mut nodes), primitives: Shared::new(&mut primitives), sizes: &sizes };
-    plan.lay_out(0, 0, Sizes { nodes: 1, primitives: 0 }, &out, 0);
+    plan.lay_out(0, 0, Sizes { nodes: 1, primitives: 0 }, &out, top);
     CwBvh {
         nodes,
         primitive_indices: primitives,
@@ -92,6 +94,9 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
 /// Huge pages for them, tried, cost more: the kernel compacts memory to find 175 of them.
 fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
     use rayon::prelude::*;
+    if len < TASKS_FROM {
+        return vec![value; len];
+    }
     let mut items = Vec::with_capacity(len);
     items.par_extend(rayon::iter::repeat_n(value, len));
     items

@@ -19,7 +19,7 @@ mod wide;
 
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{
-    Boundable, BvhBuildParams,
+    BvhBuildParams,
     aabb::Aabb,
     bvh2::{Bvh2, node::Bvh2Node, reinsertion::ReinsertionOptimizer},
     cwbvh::CwBvh,
@@ -266,7 +266,7 @@ impl Blas {
     /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks), and its
     /// arrays are moved to huge pages where the system allows ([`pages`]).
     fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
-        let aabbs: Vec<Aabb> = tris.par_iter().with_min_len(4096).map(Boundable::aabb).collect();
+        let aabbs: Vec<Aabb> = gathered(tris.len(), |i| tris[i].aabb());
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = pages::huge_vec(blas.bvh.nodes.len());
@@ -475,14 +475,24 @@ impl Blas {
 
 /// The mesh's triangles (at its first deformation sample) in obvhs's form.
 fn obvhs_triangles(mesh: &Mesh) -> Vec<Triangle> {
-    (0..mesh.triangle_count())
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|i| {
-            let [a, b, c] = mesh.triangle(i);
-            Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
-        })
-        .collect()
+    gathered(mesh.triangle_count(), |i| {
+        let [a, b, c] = mesh.triangle(i);
+        Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
+    })
+}
+
+/// Items (primitives, or binary nodes) from which a BVH build's parts run as tasks on the
+/// thread pool. Below it they stay on the calling thread: a commit calls from outside the pool,
+/// where every parallel call queues behind the tiles a render is running (the `rayon` entry of
+/// `docs/dependencies.md`), and a small mesh's parts are done before tasks would pay.
+pub(super) const TASKS_FROM: usize = 1 << 15;
+
+/// `item(i)` for each `i` below `len`, as tasks when there are at least [`TASKS_FROM`].
+fn gathered<T: Send>(len: usize, item: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    match len < TASKS_FROM {
+        true => (0..len).map(item).collect(),
+        false => (0..len).into_par_iter().with_min_len(4096).map(item).collect(),
+    }
 }
 
 /// Deepest binary BVH [`build_bounded`] keeps. obvhs's CWBVH traversal stack holds 32 node
@@ -577,10 +587,13 @@ fn depth_by_walk(bvh: &Bvh2) -> usize {
     deepest_below(bvh, 0, 1)
 }
 
+/// Levels of the tree whose subtrees [`depth_by_walk`] walks as tasks.
+const DEPTH_TASK_LEVELS: usize = 12;
+
 /// Levels of the tree down to its deepest node, counting from binary node `node` at `depth`.
 fn deepest_below(bvh: &Bvh2, node: usize, depth: usize) -> usize {
     let n = &bvh.nodes[node];
-    if n.prim_count == 0 && depth < 12 {
+    if n.prim_count == 0 && depth < DEPTH_TASK_LEVELS && bvh.nodes.len() >= TASKS_FROM {
         let first = n.first_index as usize;
         let (a, b) = rayon::join(|| deepest_below(bvh, first, depth + 1), || deepest_below(bvh, first + 1, depth + 1));
         return a.max(b);
@@ -631,7 +644,7 @@ fn split_bvh2(aabbs: &[Aabb], split: impl Fn(&mut [u32], &[Aabb], &Aabb, usize) 
 
 /// Primitives a subtree of [`split_bvh2`] must hold to be split as a task of its own; smaller
 /// ones are built by one thread. The 1M-triangle hero's SAH tree took 0.5 s on one thread.
-const TASK_SPAN: usize = 16_384;
+const TASK_SPAN: usize = TASKS_FROM;
 
 /// [`split_bvh2`], subtrees of at least `task_span` primitives built side by side. Nodes are
 /// numbered as one thread numbers them whatever the threads do, so the tree is the same to
@@ -1029,6 +1042,7 @@ fn ray_scale(bounds: &Aabb) -> f32 {
 mod tests {
     use super::*;
     use glam::Affine3A;
+    use obvhs::Boundable;
     use std::sync::Arc;
 
     /// Flat-BVH caps that build each kind of [`Tlas`]: two levels, then flat.

@@ -58,14 +58,14 @@ impl TriangleLanes {
     }
 
     /// `count` triangles in BVH order, triangle `i` and its mesh index given by `triangle(i)`;
-    /// chunks filled side by side on the thread pool, each written once (their first write
+    /// chunks filled side by side on the thread pool for big meshes, each written once (their first write
     /// is also what maps a huge page's memory: a 3.1M-triangle mesh's 124 MB of chunks took
     /// 0.5 s on one thread).
     pub(super) fn from_fn(count: usize, triangle: impl Fn(usize) -> (RtTriangle, u32) + Sync) -> Self {
         use rayon::prelude::*;
         let chunk_count = count.div_ceil(LANES);
         let mut chunks = super::pages::huge_vec(chunk_count);
-        chunks.par_extend((0..chunk_count).into_par_iter().with_min_len(1024).map(|c| {
+        let chunk = |c: usize| {
             let mut chunk = Chunk([0.0; CHUNK + LANES]);
             for i in (c * LANES..count).take(LANES) {
                 let (t, id) = triangle(i);
@@ -75,7 +75,11 @@ impl TriangleLanes {
                 chunk.0[Self::at(i, ID_ROW)] = f32::from_bits(id);
             }
             chunk
-        }));
+        };
+        match count < super::TASKS_FROM {
+            true => chunks.extend((0..chunk_count).map(chunk)),
+            false => chunks.par_extend((0..chunk_count).into_par_iter().with_min_len(1024).map(chunk)),
+        }
         TriangleLanes { chunks, count }
     }
 
