@@ -16,6 +16,7 @@ use glam::{UVec3, Vec3A};
 use obvhs::{
     PerComponent,
     bvh2::Bvh2,
+    bvh2::node::Bvh2Node,
     cwbvh::{CwBvh, node::CwBvhNode},
 };
 
@@ -67,7 +68,10 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
     if bvh2.nodes.is_empty() {
         return CwBvh::default();
     }
-    let mut choices = filled(bvh2.nodes.len() * 7, Choice::default());
+    if !children_in_pairs(bvh2) {
+        return obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(bvh2, max_prims_per_leaf, true, false);
+    }
+    let mut choices = filled(bvh2.nodes.len() / 2 * 7, Choice::default());
     // The passes split work into tasks down to TASK_DEPTH levels; a small tree starts there.
     let top = if bvh2.nodes.len() < TASKS_FROM { TASK_DEPTH } else { 0 };
     price(bvh2, max_prims_per_leaf, 0, Shared::new(&mut choices), top);
@@ -89,9 +93,28 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
     }
 }
 
+/// True when every inner node's children sit in a pair from an odd index (the root at 0, then
+/// pairs at 1 and 2, 3 and 4, ...), as obvhs's builders and ours lay them out: an inner node's
+/// choices are then kept at its children's pair, `first_index / 2`, and a leaf keeps none (its
+/// seven are all the same leaf). That halves the choices of a 3.1M-triangle tree, 350 MB
+/// before, the biggest scratch array of a commit.
+fn children_in_pairs(bvh2: &Bvh2) -> bool {
+    bvh2.nodes.iter().all(|n| n.is_leaf() || n.first_index % 2 == 1)
+}
+
+/// Where inner node `n`'s choices start.
+fn choices_of(n: &Bvh2Node) -> usize {
+    n.first_index as usize / 2 * 7
+}
+
+/// The choice of a binary leaf, whatever its slots: a leaf of its one primitive.
+fn leaf_choice(n: &Bvh2Node) -> Choice {
+    Choice { cost: n.aabb().half_area() * n.prim_count as f32 * PRIM_COST, kind: Kind::Leaf, ..Default::default() }
+}
+
 /// `len` copies of `value`, written side by side: the choices of a 3.1M-triangle mesh's tree
-/// take 350 MB, which one thread filled in 124 ms (two: 92 ms; the page faults are most of it).
-/// Huge pages for them, tried, cost more: the kernel compacts memory to find 175 of them.
+/// take 175 MB, and one thread spent most of their filling on page faults. Huge pages for
+/// them, tried, cost more: the kernel compacts memory to find that many.
 fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
     use rayon::prelude::*;
     if len < TASKS_FROM {
@@ -109,11 +132,6 @@ fn price(bvh2: &Bvh2, max_prims: u32, node: usize, choices: Shared<'_, Choice>, 
     let half_area = n.aabb().half_area();
     if n.prim_count != 0 {
         assert_eq!(n.prim_count, 1, "the CWBVH collapse expects one primitive per binary leaf");
-        let leaf = Choice { cost: half_area * n.prim_count as f32 * PRIM_COST, kind: Kind::Leaf, ..Default::default() };
-        for i in 0..7 {
-            // SAFETY: only this call writes or reads `node`'s choices now.
-            unsafe { choices.set(node * 7 + i, leaf) };
-        }
         return n.prim_count;
     }
     let (l, r) = (n.first_index as usize, n.first_index as usize + 1);
@@ -124,8 +142,11 @@ fn price(bvh2: &Bvh2, max_prims: u32, node: usize, choices: Shared<'_, Choice>, 
         }
         false => price(bvh2, max_prims, l, choices, depth + 1) + price(bvh2, max_prims, r, choices, depth + 1),
     };
-    // SAFETY: the children's subtrees are finished (joined above); nothing else touches them.
-    let child = |c: usize, i: usize| unsafe { choices.get(c * 7 + i) };
+    let child = |c: usize, i: usize| match &bvh2.nodes[c] {
+        leaf if leaf.is_leaf() => leaf_choice(leaf),
+        // SAFETY: the children's subtrees are finished (joined above); nothing else touches them.
+        inner => unsafe { choices.get(choices_of(inner) + i) },
+    };
     // One slot: a leaf of every primitive, or a wide node whose eight slots the children share.
     let cost_leaf = if primitives <= max_prims { primitives as f32 * half_area * PRIM_COST } else { f32::INFINITY };
     let (mut cost_split, mut left, mut right) = (f32::INFINITY, u8::MAX, u8::MAX);
@@ -138,8 +159,9 @@ fn price(bvh2: &Bvh2, max_prims: u32, node: usize, choices: Shared<'_, Choice>, 
     let cost_internal = cost_split + half_area;
     let (cost, kind) = if cost_leaf < cost_internal { (cost_leaf, Kind::Leaf) } else { (cost_internal, Kind::Internal) };
     let mut previous = Choice { cost, kind, left, right };
+    let mine = choices_of(n);
     // SAFETY: only this call writes `node`'s choices.
-    unsafe { choices.set(node * 7, previous) };
+    unsafe { choices.set(mine, previous) };
     // i + 1 slots: the best of i slots, or the slots shared between the two children.
     for i in 1..7 {
         let mut best = Choice { cost: previous.cost, ..previous };
@@ -155,7 +177,7 @@ fn price(bvh2: &Bvh2, max_prims: u32, node: usize, choices: Shared<'_, Choice>, 
             best = Choice { cost: best.cost, kind: Kind::Distribute, left, right };
         }
         // SAFETY: as above.
-        unsafe { choices.set(node * 7 + i, best) };
+        unsafe { choices.set(mine + i, best) };
         previous = best;
     }
     primitives
@@ -184,6 +206,7 @@ impl Plan<'_> {
         (children, count)
     }
 
+    /// [`Plan::children`] below binary `node`, given `i + 1` slots.
     fn gather(&self, node: usize, i: usize, children: &mut [u32; BRANCHING], count: &mut usize) {
         let n = &self.bvh2.nodes[node];
         if n.is_leaf() {
@@ -191,9 +214,9 @@ impl Plan<'_> {
             *count += 1;
             return;
         }
-        let choice = self.choices[node * 7 + i];
+        let choice = self.choice(node, i);
         for (child, slots) in [(n.first_index as usize, choice.left), (n.first_index as usize + 1, choice.right)] {
-            if self.choices[child * 7 + slots as usize].kind == Kind::Distribute {
+            if self.choice(child, slots as usize).kind == Kind::Distribute {
                 self.gather(child, slots as usize, children, count);
             } else {
                 children[*count] = child as u32;
@@ -202,8 +225,17 @@ impl Plan<'_> {
         }
     }
 
+    /// What binary `node` becomes given `i + 1` slots.
+    fn choice(&self, node: usize, i: usize) -> Choice {
+        match &self.bvh2.nodes[node] {
+            leaf if leaf.is_leaf() => leaf_choice(leaf),
+            inner => self.choices[choices_of(inner) + i],
+        }
+    }
+
+    /// True when binary `node`, as a child of a wide node, is a leaf of it.
     fn is_leaf(&self, node: u32) -> bool {
-        self.choices[node as usize * 7].kind == Kind::Leaf
+        self.choice(node as usize, 0).kind == Kind::Leaf
     }
 
     /// Binary leaves below `node`.
@@ -363,7 +395,9 @@ const DIRECTIONS: [Vec3A; 8] = {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use obvhs::{BvhBuildParams, aabb::Aabb, cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh, ploc::PlocBuilder};
+    use obvhs::{
+        BvhBuildParams, aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh, ploc::PlocBuilder,
+    };
 
     fn boxes(seed: u32, n: usize) -> Vec<Aabb> {
         let mut s = seed;
@@ -382,26 +416,36 @@ mod tests {
 
     /// The same nodes, byte for byte, and the same primitive order as obvhs's one-thread
     /// conversion, on trees from one box to big enough for the pricing and layout to split
-    /// into tasks, at each leaf size.
+    /// into tasks, at each leaf size: PLOC trees before and after reinsertion (as commits build
+    /// them) and our SAH and median trees, all with their children in pairs, so that the fast
+    /// path is the one compared.
     #[test]
     fn the_collapse_on_every_core_is_obvhs_to_the_bit() {
         for (seed, n) in [(1, 1), (2, 2), (3, 9), (4, 1000), (5, 60_000)] {
             let aabbs = boxes(seed, n);
             let p = BvhBuildParams::medium_build();
-            let bvh2 = PlocBuilder::with_capacity(n).build(
-                p.ploc_search_distance,
-                &aabbs,
-                (0..n as u32).collect(),
-                p.sort_precision,
-                p.search_depth_threshold,
-            );
-            for max_prims in 1..=3 {
-                let theirs = bvh2_to_cwbvh(&bvh2, max_prims, true, false);
-                let ours = to_cwbvh(&bvh2, max_prims);
-                assert_eq!(ours.primitive_indices, theirs.primitive_indices, "{n} boxes, {max_prims} per leaf");
-                assert!(ours.nodes == theirs.nodes, "{n} boxes, {max_prims} per leaf: nodes differ");
-                assert_eq!(ours.total_aabb.min, theirs.total_aabb.min);
-                assert_eq!(ours.total_aabb.max, theirs.total_aabb.max);
+            let ploc = || {
+                let indices = (0..n as u32).collect();
+                PlocBuilder::with_capacity(n).build(p.ploc_search_distance, &aabbs, indices, p.sort_precision, p.search_depth_threshold)
+            };
+            let mut reinserted = ploc();
+            ReinsertionOptimizer::default().run(&mut reinserted, p.reinsertion_batch_ratio, None);
+            let trees = [
+                ploc(),
+                reinserted,
+                super::super::split_bvh2(&aabbs, super::super::sah_split),
+                super::super::split_bvh2(&aabbs, super::super::median_split),
+            ];
+            for (t, bvh2) in trees.iter().enumerate() {
+                assert!(children_in_pairs(bvh2), "tree {t} of {n} boxes");
+                for max_prims in 1..=3 {
+                    let theirs = bvh2_to_cwbvh(bvh2, max_prims, true, false);
+                    let ours = to_cwbvh(bvh2, max_prims);
+                    assert_eq!(ours.primitive_indices, theirs.primitive_indices, "tree {t}, {n} boxes, {max_prims} per leaf");
+                    assert!(ours.nodes == theirs.nodes, "tree {t}, {n} boxes, {max_prims} per leaf: nodes differ");
+                    assert_eq!(ours.total_aabb.min, theirs.total_aabb.min);
+                    assert_eq!(ours.total_aabb.max, theirs.total_aabb.max);
+                }
             }
         }
     }
