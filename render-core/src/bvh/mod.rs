@@ -227,10 +227,9 @@ impl BuildQuality {
 impl Blas {
     /// Builds the BVH of a mesh with at least one triangle.
     pub fn build(mesh: &Mesh, quality: BuildQuality) -> Self {
-        let tris = obvhs_triangles(mesh);
         let keys = mesh.deformation_samples();
         if keys < 2 {
-            return Self::of_triangles(&tris, quality);
+            return Self::of_triangles(mesh, quality);
         }
         let n = mesh.positions.len();
         let key = |i: usize, k: usize| -> RtTriangle {
@@ -238,7 +237,7 @@ impl Blas {
             RtTriangle { v0: a, e1: b - a, e2: c - a }
         };
         // Each triangle bounded over its keys: linear interpolation keeps it inside them.
-        let aabbs: Vec<Aabb> = (0..tris.len())
+        let aabbs: Vec<Aabb> = (0..mesh.triangle_count())
             .map(|i| {
                 let mut aabb = Aabb::empty();
                 for t in (0..keys).map(|k| key(i, k)) {
@@ -249,7 +248,7 @@ impl Blas {
                 aabb
             })
             .collect();
-        let mut blas = Self::of_bounds(&tris, &aabbs, quality);
+        let mut blas = Self::of_bounds(mesh, &aabbs, quality);
         let lanes = &blas.tris;
         let deforming = (0..lanes.len()).flat_map(|i| (0..keys).map(move |k| key(lanes.id(i) as usize, k))).collect();
         blas.deforming = Some(Deforming { keys, tris: deforming });
@@ -265,8 +264,8 @@ impl Blas {
     /// [`LEAVES_AHEAD_BYTES`] gets its leaf-chunk records (a deforming mesh, built by
     /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks), and its
     /// arrays are moved to huge pages where the system allows ([`pages`]).
-    fn of_triangles(tris: &[Triangle], quality: BuildQuality) -> Self {
-        let aabbs: Vec<Aabb> = gathered(tris.len(), |i| tris[i].aabb());
+    fn of_triangles(tris: &(impl Triangles + ?Sized), quality: BuildQuality) -> Self {
+        let aabbs: Vec<Aabb> = gathered(tris.count(), |i| tris.triangle(i).aabb());
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = pages::huge_vec(blas.bvh.nodes.len());
@@ -282,17 +281,17 @@ impl Blas {
     }
 
     /// Builds over `aabbs`, one per triangle of `tris`.
-    fn of_bounds(tris: &[Triangle], aabbs: &[Aabb], quality: BuildQuality) -> Self {
+    fn of_bounds(tris: &(impl Triangles + ?Sized), aabbs: &[Aabb], quality: BuildQuality) -> Self {
         Self::of_tree(tris, build_bounded(aabbs, quality.params()))
     }
 
     /// A BLAS of `tris` walked through `bvh`, a tree built over them.
-    fn of_tree(tris: &[Triangle], mut bvh: CwBvh) -> Self {
+    fn of_tree(tris: &(impl Triangles + ?Sized), mut bvh: CwBvh) -> Self {
         let bounds = bvh.total_aabb;
         // The chunks keep each triangle's mesh index; nothing reads obvhs's copy again.
         let order = std::mem::take(&mut bvh.primitive_indices);
         let tris = TriangleLanes::from_fn(order.len(), |i| {
-            let t = &tris[order[i] as usize];
+            let t = tris.triangle(order[i] as usize);
             (RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }, order[i])
         });
         Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new() }
@@ -473,12 +472,39 @@ impl Blas {
     }
 }
 
-/// The mesh's triangles (at its first deformation sample) in obvhs's form.
-fn obvhs_triangles(mesh: &Mesh) -> Vec<Triangle> {
-    gathered(mesh.triangle_count(), |i| {
-        let [a, b, c] = mesh.triangle(i);
+/// Triangles a BLAS is built over, by index, in obvhs's form: a mesh's own, read where they
+/// are (a copy of a 3.1M-triangle mesh's took 150 MB for the whole build), or a list.
+trait Triangles: Sync {
+    fn count(&self) -> usize;
+    fn triangle(&self, i: usize) -> Triangle;
+}
+
+impl Triangles for [Triangle] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn triangle(&self, i: usize) -> Triangle {
+        self[i]
+    }
+}
+
+/// A mesh's triangles at its first deformation sample.
+impl Triangles for Mesh {
+    fn count(&self) -> usize {
+        self.triangle_count()
+    }
+
+    fn triangle(&self, i: usize) -> Triangle {
+        let [a, b, c] = Mesh::triangle(self, i);
         Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
-    })
+    }
+}
+
+/// The mesh's triangles (at its first deformation sample) in obvhs's form.
+#[cfg(test)]
+fn obvhs_triangles(mesh: &Mesh) -> Vec<Triangle> {
+    (0..mesh.triangle_count()).map(|i| Triangles::triangle(mesh, i)).collect()
 }
 
 /// Items (primitives, or binary nodes) from which a BVH build's parts run as tasks on the
@@ -949,7 +975,7 @@ impl Tlas {
                 ids.push((i as u32, id));
             }
         }
-        let world = Blas::of_triangles(&tris, BuildQuality::Medium);
+        let world = Blas::of_triangles(tris.as_slice(), BuildQuality::Medium);
         let ray_scale = ray_scale(&world.bounds);
         Tlas { accel: Some(Accel::Flat { world, ids }), ray_scale }
     }
@@ -1147,8 +1173,8 @@ mod tests {
         // obvhs's own check: every triangle in one leaf, children inside their parents, and
         // depth within its walk's stack.
         tree.validate(&tris, false);
-        let sah = Blas::of_tree(&tris, tree);
-        let ploc = Blas::of_triangles(&tris, BuildQuality::Medium);
+        let sah = Blas::of_tree(tris.as_slice(), tree);
+        let ploc = Blas::of_triangles(tris.as_slice(), BuildQuality::Medium);
         let mut hits = 0;
         for (o, d, tmax) in random_rays(5, 3000) {
             let found = ploc.intersect(o, d, f32::INFINITY, 0.0).map(|h| h.0.to_bits());
