@@ -263,7 +263,7 @@ impl Blas {
     /// Builds the BVH of `tris` (at least one); hits report indices into `tris`. A BVH above
     /// [`LEAVES_AHEAD_BYTES`] gets its leaf-chunk records (a deforming mesh, built by
     /// [`Blas::of_bounds`] alone, interpolates its triangles and reads no chunks), and its
-    /// arrays are moved to huge pages where the system allows ([`pages`]).
+    /// arrays are written into huge pages where the system allows ([`pages`]).
     fn of_triangles(tris: &(impl Triangles + ?Sized), quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = gathered(tris.count(), |i| tris.triangle(i).aabb());
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
@@ -475,7 +475,9 @@ impl Blas {
 /// Triangles a BLAS is built over, by index, in obvhs's form: a mesh's own, read where they
 /// are (a copy of a 3.1M-triangle mesh's took 150 MB for the whole build), or a list.
 trait Triangles: Sync {
+    /// How many.
     fn count(&self) -> usize;
+    /// Triangle `i`.
     fn triangle(&self, i: usize) -> Triangle;
 }
 
