@@ -11,7 +11,7 @@
 //! same prices, the same nodes at the same indices, the same primitive order (a test compares
 //! them), so the walk and every image stay as they were.
 
-use super::{TASKS_FROM, shared::Shared};
+use super::{TASKS_FROM, gathered, shared::Shared};
 use glam::{UVec3, Vec3A};
 use obvhs::{
     PerComponent,
@@ -71,12 +71,15 @@ pub(super) fn to_cwbvh(bvh2: &Bvh2, max_prims_per_leaf: u32) -> CwBvh {
     if !children_in_pairs(bvh2) {
         return obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(bvh2, max_prims_per_leaf, true, false);
     }
-    let mut choices = filled(bvh2.nodes.len() / 2 * 7, Choice::default());
+    // Written side by side for big trees: 175 MB for a 3.1M-triangle mesh's, most of whose
+    // filling is page faults. (Huge pages for them, tried, cost more: the kernel compacts
+    // memory to find that many.)
+    let mut choices = gathered(bvh2.nodes.len() / 2 * 7, |_| Choice::default());
     // The passes split work into tasks down to TASK_DEPTH levels; a small tree starts there.
     let top = if bvh2.nodes.len() < TASKS_FROM { TASK_DEPTH } else { 0 };
     price(bvh2, max_prims_per_leaf, 0, Shared::new(&mut choices), top);
     let plan = Plan { bvh2, choices: &choices };
-    let mut sizes = filled(bvh2.nodes.len(), Sizes::default());
+    let mut sizes = gathered(bvh2.nodes.len(), |_| Sizes::default());
     let total = plan.measure(0, Shared::new(&mut sizes), top);
     // The walk reads the nodes at random: in huge pages ([`super::pages`]).
     let mut nodes = super::pages::huge_vec(1 + total.nodes as usize);
@@ -110,19 +113,6 @@ fn choices_of(n: &Bvh2Node) -> usize {
 /// The choice of a binary leaf, whatever its slots: a leaf of its one primitive.
 fn leaf_choice(n: &Bvh2Node) -> Choice {
     Choice { cost: n.aabb().half_area() * n.prim_count as f32 * PRIM_COST, kind: Kind::Leaf, ..Default::default() }
-}
-
-/// `len` copies of `value`, written side by side: the choices of a 3.1M-triangle mesh's tree
-/// take 175 MB, and one thread spent most of their filling on page faults. Huge pages for
-/// them, tried, cost more: the kernel compacts memory to find that many.
-fn filled<T: Clone + Send + Sync>(len: usize, value: T) -> Vec<T> {
-    use rayon::prelude::*;
-    if len < TASKS_FROM {
-        return vec![value; len];
-    }
-    let mut items = Vec::with_capacity(len);
-    items.par_extend(rayon::iter::repeat_n(value, len));
-    items
 }
 
 /// The bottom-up pass for the subtree of binary node `node`: its seven choices, after its
