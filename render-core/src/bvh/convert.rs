@@ -118,9 +118,13 @@ fn pair_of(n: &Bvh2Node) -> usize {
     n.first_index as usize / 2
 }
 
-/// The choice of a binary leaf, whatever its slots: a leaf of its one primitive.
-fn leaf_choice(n: &Bvh2Node) -> Choice {
-    Choice { cost: n.aabb().half_area() * n.prim_count as f32 * PRIM_COST, kind: Kind::Leaf, ..Default::default() }
+/// What binary node `n` becomes given `i + 1` slots: for a leaf, whatever its slots, a leaf of
+/// its one primitive; for an inner node, its `i`th choice, which `read` gives by index.
+fn choice_of(n: &Bvh2Node, i: usize, read: impl FnOnce(usize) -> Choice) -> Choice {
+    match n.is_leaf() {
+        true => Choice { cost: n.aabb().half_area() * n.prim_count as f32 * PRIM_COST, kind: Kind::Leaf, ..Default::default() },
+        false => read(choices_of(n) + i),
+    }
 }
 
 /// The bottom-up pass for the subtree of binary node `node`: its seven choices, after its
@@ -140,11 +144,8 @@ fn price(bvh2: &Bvh2, max_prims: u32, node: usize, choices: Shared<'_, Choice>, 
         }
         false => price(bvh2, max_prims, l, choices, depth + 1) + price(bvh2, max_prims, r, choices, depth + 1),
     };
-    let child = |c: usize, i: usize| match &bvh2.nodes[c] {
-        leaf if leaf.is_leaf() => leaf_choice(leaf),
-        // SAFETY: the children's subtrees are finished (joined above); nothing else touches them.
-        inner => unsafe { choices.get(choices_of(inner) + i) },
-    };
+    // SAFETY: the children's subtrees are finished (joined above); nothing else touches them.
+    let child = |c: usize, i: usize| choice_of(&bvh2.nodes[c], i, |k| unsafe { choices.get(k) });
     // One slot: a leaf of every primitive, or a wide node whose eight slots the children share.
     let cost_leaf = if primitives <= max_prims { primitives as f32 * half_area * PRIM_COST } else { f32::INFINITY };
     let (mut cost_split, mut left, mut right) = (f32::INFINITY, u8::MAX, u8::MAX);
@@ -225,10 +226,7 @@ impl Plan<'_> {
 
     /// What binary `node` becomes given `i + 1` slots.
     fn choice(&self, node: usize, i: usize) -> Choice {
-        match &self.bvh2.nodes[node] {
-            leaf if leaf.is_leaf() => leaf_choice(leaf),
-            inner => self.choices[choices_of(inner) + i],
-        }
+        choice_of(&self.bvh2.nodes[node], i, |k| self.choices[k])
     }
 
     /// True when binary `node`, as a child of a wide node, is a leaf of it.

@@ -58,9 +58,9 @@ impl TriangleLanes {
     }
 
     /// `count` triangles in BVH order, triangle `i` and its mesh index given by `triangle(i)`;
-    /// chunks filled side by side on the thread pool for big meshes, each written once (their first write
-    /// is also what maps a huge page's memory: a 3.1M-triangle mesh's 124 MB of chunks took
-    /// 0.5 s on one thread).
+    /// chunks filled side by side on the thread pool for big meshes, each written once (their
+    /// first write is also what maps a huge page's memory: a 3.1M-triangle mesh's 124 MB of
+    /// chunks took 0.5 s on one thread).
     pub(super) fn from_fn(count: usize, triangle: impl Fn(usize) -> (RtTriangle, u32) + Sync) -> Self {
         use rayon::prelude::*;
         let chunk_count = count.div_ceil(LANES);
