@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_denoised_layers_and_header(tmp_path):
     exr = tmp_path / "denoised.exr"
-    cmd = ["cargo", "run", "-q", "-p", "tessera", "--", "render", str(ROOT / "fixtures" / "cornell_box.usda"), "--res", "64x48", "--spp", "8"]
+    cmd = ["cargo", "run", "--release", "-q", "-p", "tessera", "--", "render", str(ROOT / "fixtures" / "cornell_box.usda"), "--res", "64x48", "--spp", "8"]
     subprocess.run(cmd + ["--aov", "diffuse", "--denoise", "-o", str(exr)], cwd=ROOT, check=True, capture_output=True)
     f = OpenEXR.InputFile(str(exr))
     header = f.header()

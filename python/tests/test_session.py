@@ -119,7 +119,7 @@ def test_tiles_assemble_to_the_cli_exr_bit_for_bit(client, tmp_path):
     session.sync_usd(CORNELL)
     _, fb = render(session, width=40, height=24, spp=8, aovs=["albedo"])
     exr = tmp_path / "cli.exr"
-    cmd = ["cargo", "run", "-q", "-p", "tessera", "--", "render", str(CORNELL), "--res", "40x24", "--spp", "8", "--aov", "albedo", "-o", str(exr)]
+    cmd = ["cargo", "run", "--release", "-q", "-p", "tessera", "--", "render", str(CORNELL), "--res", "40x24", "--spp", "8", "--aov", "albedo", "-o", str(exr)]
     subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True)
     channels = exr_channels(exr)
     beauty = np.stack([channels[c] for c in "RGBA"], axis=-1)

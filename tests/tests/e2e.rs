@@ -23,6 +23,7 @@ mod motion;
 mod points;
 mod preview_surface;
 mod sampling;
+mod shared_build;
 mod skinning;
 mod subdivision;
 mod textures;
