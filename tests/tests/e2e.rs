@@ -19,6 +19,7 @@ mod interactive;
 mod light_units;
 mod materials;
 mod materialx;
+mod memory;
 mod motion;
 mod points;
 mod preview_surface;

@@ -1,7 +1,7 @@
 //! `UsdGeomPoints` as spheres whose diameters are the points' `widths`, or, when the prim
 //! authors `normals`, as discs facing them (as Hydra's Storm draws them): one tessellated unit
 //! sphere or disc per Points prim, drawn through the instancing path (a transform per point, no
-//! triangles per point): a million points render in under 1 GiB (tests/tests/points_memory.rs),
+//! triangles per point): a million points render in under 1 GiB (tests/tests/memory.rs),
 //! where a mesh of a million spheres would be billions of triangles.
 
 use anyhow::{Context, Result};
