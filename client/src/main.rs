@@ -41,6 +41,8 @@ impl SceneSampling {
 }
 
 #[derive(Subcommand)]
+// Parsed once per process: the size of its largest variant costs nothing.
+#[allow(clippy::large_enum_variant)]
 enum Command {
     /// Render a USD file (.usda, .usdc, .usdz) to a multi-layer EXR and a PNG preview.
     Render {

@@ -120,7 +120,7 @@ fn config(args: &Args) -> anyhow::Result<(ServerConfig, Option<TlsFiles>)> {
         (Some(c), Some(k)) => Some(TlsFiles { cert: read(c)?, key: read(k)? }),
         _ => None,
     };
-    if !args.listen.ip().is_loopback() && !args.insecure && !(auth.required() && tls.is_some()) {
+    if !args.listen.ip().is_loopback() && !args.insecure && (!auth.required() || tls.is_none()) {
         anyhow::bail!(
             "refusing to serve {} without tokens and TLS: anyone who can reach it could render on it and read what others send. Give --token-file, --tls-cert and --tls-key, or --insecure on a trusted network",
             args.listen

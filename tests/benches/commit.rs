@@ -12,8 +12,11 @@ use render_core::material::ParamValue;
 use render_core::scene::{BlasCache, SceneDesc, commit};
 use tessera_tests::production_scene;
 
+/// An edit: its name and what it does to the description.
+type Edit = (&'static str, fn(&mut SceneDesc));
+
 /// One edit of each kind, applied to the description.
-fn edits() -> Vec<(&'static str, fn(&mut SceneDesc))> {
+fn edits() -> Vec<Edit> {
     vec![
         ("camera move", |d| d.cameras.get_mut("/Camera").unwrap().transform *= Affine3A::from_translation(Vec3::X * 0.01)),
         ("object transform", |d| d.meshes.get_mut("/World/Hero").unwrap().transform *= Affine3A::from_translation(Vec3::X * 0.01)),

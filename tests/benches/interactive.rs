@@ -59,7 +59,7 @@ impl Edit {
     /// The prim deltas that make the `k`-th edit of this kind, or `None` where the scene has
     /// nothing to edit that way (a texture swap needs a textured material).
     fn items(self, t: &Translation, k: usize) -> Option<Vec<pb::sync_request::Item>> {
-        let wiggle = if k % 2 == 0 { 1.0 } else { -1.0 };
+        let wiggle = if k.is_multiple_of(2) { 1.0 } else { -1.0 };
         let nudge = |by: f32| Affine3A::from_translation(Vec3::new(by * wiggle, 0.0, 0.0));
         Some(match self {
             Edit::Camera => {

@@ -34,9 +34,9 @@ async fn light_path_components_sum_to_the_beauty() {
         for y in 0..img.height {
             for x in 0..img.width {
                 let beauty = img.pixel("beauty", x, y);
-                for c in 0..3 {
+                for (c, &b) in beauty.iter().take(3).enumerate() {
                     let sum: f64 = COMPONENTS.iter().map(|a| img.pixel(a, x, y)[c] as f64).sum();
-                    let b = beauty[c] as f64;
+                    let b = b as f64;
                     assert!(
                         (sum - b).abs() <= 1e-4 * b.abs().max(1.0),
                         "{fixture_name} ({x}, {y}) channel {c}: components sum to {sum}, beauty {b}"

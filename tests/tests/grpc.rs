@@ -94,10 +94,10 @@ async fn an_edit_during_a_render_restarts_it_and_the_image_shows_the_edit() {
     let render = tokio::spawn(async move {
         let mut first = Some(first_tile_tx);
         conn.render(&small(64, 64, 256), move |e| {
-            if matches!(e, pb::render_event::Event::Tile(_)) {
-                if let Some(tx) = first.take() {
-                    let _ = tx.send(());
-                }
+            if matches!(e, pb::render_event::Event::Tile(_))
+                && let Some(tx) = first.take()
+            {
+                let _ = tx.send(());
             }
         })
         .await
