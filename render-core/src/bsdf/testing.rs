@@ -22,6 +22,15 @@ pub trait Scatter: std::fmt::Debug {
     fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         (self.f(wo, wi), self.density(wo, wi))
     }
+    /// Runs `with` on this scatterer made ready for the one view `wo`: a BSDF prepares a copy
+    /// once (lobe selection, table lookups), as the renderer does per shading point, instead of
+    /// at every call (the whole principled BSDF's χ² test took 25 s that way, 14 s now).
+    fn seen_from<R>(&self, _wo: Vec3, with: impl FnOnce(&dyn Scatter) -> R) -> R
+    where
+        Self: Sized,
+    {
+        with(self)
+    }
 }
 
 impl Scatter for Lobe {
@@ -58,6 +67,30 @@ impl Scatter for Bsdf {
         let mut b = self.clone();
         b.prepare(wo);
         b.eval_pdf(wo, wi)
+    }
+    fn seen_from<R>(&self, wo: Vec3, with: impl FnOnce(&dyn Scatter) -> R) -> R {
+        let mut b = self.clone();
+        b.prepare(wo);
+        with(&Prepared(b))
+    }
+}
+
+/// A BSDF prepared for the one `wo` it is asked about (`Scatter::seen_from`).
+#[derive(Debug)]
+struct Prepared(Bsdf);
+
+impl Scatter for Prepared {
+    fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.0.eval(wo, wi)
+    }
+    fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
+        self.0.sample(wo, uc, u)
+    }
+    fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.0.pdf(wo, wi)
+    }
+    fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.0.eval_pdf(wo, wi)
     }
 }
 
@@ -323,15 +356,17 @@ fn chi2_over(lobe: &impl Scatter, seed: u64, dirs: Vec<Vec3>) {
         let mut observed = vec![0.0f64; THETA_BINS * PHI_BINS];
         // Delta samples are tested apart: the pdf is the smooth part's density only.
         let mut deltas = DeltaTally::default();
-        for _ in 0..SAMPLES {
-            match lobe.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
-                Some(s) if s.flags.delta => deltas.add(&s),
-                Some(s) => observed[bin_of(s.wi.normalize())] += 1.0,
-                None => {}
+        let expected = lobe.seen_from(wo, |seen| {
+            for _ in 0..SAMPLES {
+                match seen.sample_dir(wo, rng.next_f32(), rng.next_2d()) {
+                    Some(s) if s.flags.delta => deltas.add(&s),
+                    Some(s) => observed[bin_of(s.wi.normalize())] += 1.0,
+                    None => {}
+                }
             }
-        }
+            expected_counts(|wi| seen.density(wo, wi))
+        });
         let what = format!("{lobe:?} at wo={wo:?}");
-        let expected = expected_counts(|wi| lobe.density(wo, wi));
         // The smooth pdf integrates to at most 1 less the delta part, and to the fraction of
         // samples returned smooth (to the integration's 0.5%, reached on grazing lobes a
         // degree wide).
