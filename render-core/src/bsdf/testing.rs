@@ -54,19 +54,13 @@ impl Scatter for Bsdf {
         self.eval(wo, wi)
     }
     fn sample_dir(&self, wo: Vec3, uc: f32, u: Vec2) -> Option<LobeSample> {
-        let mut b = self.clone();
-        b.prepare(wo);
-        b.sample(wo, uc, u)
+        self.seen_from(wo, |b| b.sample_dir(wo, uc, u))
     }
     fn density(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let mut b = self.clone();
-        b.prepare(wo);
-        b.pdf(wo, wi)
+        self.seen_from(wo, |b| b.density(wo, wi))
     }
     fn f_and_density(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        let mut b = self.clone();
-        b.prepare(wo);
-        b.eval_pdf(wo, wi)
+        self.seen_from(wo, |b| b.f_and_density(wo, wi))
     }
     fn seen_from<R>(&self, wo: Vec3, with: impl FnOnce(&dyn Scatter) -> R) -> R {
         let mut b = self.clone();
