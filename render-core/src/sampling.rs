@@ -4,7 +4,7 @@
 //! sample index) alone, which is what makes renders independent of thread scheduling.
 
 use glam::{Vec2, Vec3};
-use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+use std::f32::consts::{FRAC_PI_4, PI};
 
 /// SplitMix64 finaliser: a bijective 64-bit mix (Steele et al., "Fast splittable
 /// pseudorandom number generators", OOPSLA 2014).
@@ -315,8 +315,23 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
-    r * Vec2::new(theta.cos(), theta.sin())
+    let x_major = o.x.abs() > o.y.abs();
+    let (r, ratio) = if x_major { (o.x, o.y / o.x) } else { (o.y, o.x / o.y) };
+    let (sin, cos) = sin_cos_quarter(FRAC_PI_4 * ratio);
+    // Past the diagonal the angle is π/2 − φ: its sine and cosine are φ's swapped.
+    r * if x_major { Vec2::new(cos, sin) } else { Vec2::new(sin, cos) }
+}
+
+/// Sine and cosine of `x` for |x| ≤ π/4, by the minimax polynomials of Cephes' `sinf` and
+/// `cosf` (S. Moshier, Cephes Math Library) on that range, which need no range reduction:
+/// within an ulp of the exact values (a test checks). libm's general `sincosf`, called here by
+/// every cosine-weighted sample, was 2% of a Cornell box render.
+#[inline(always)]
+pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+    let z = x * x;
+    let sin = (-1.951_529_6e-4f32).mul_add(z, 8.332_161e-3).mul_add(z, -1.666_665_5e-1) * z * x + x;
+    let cos = 2.443_315_7e-5f32.mul_add(z, -1.388_731_6e-3).mul_add(z, 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
+    (sin, cos)
 }
 
 /// Uniform direction on the unit sphere.
@@ -439,6 +454,47 @@ impl Distribution1D {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quarter_sine_and_cosine_are_within_an_ulp() {
+        // Every 2^-20 step over [-π/4, π/4] against f64's sin and cos. The values reach
+        // 0.707 and 1, where an f32's ulp is 6e-8 (2^-24): measured worst 4.5e-8 (sine) and
+        // 5.8e-8 (cosine), one rounding of the result.
+        let n = 1 << 20;
+        let mut worst: (f64, f64) = (0.0, 0.0);
+        for i in -n..=n {
+            let x = FRAC_PI_4 * i as f32 / n as f32;
+            let (s, c) = sin_cos_quarter(x);
+            let (es, ec) = (x as f64).sin_cos();
+            worst = (worst.0.max((s as f64 - es).abs()), worst.1.max((c as f64 - ec).abs()));
+        }
+        assert!(worst.0 <= 6e-8 && worst.1 <= 6e-8, "worst sine, cosine error {worst:?}");
+    }
+
+    #[test]
+    fn concentric_disk_lands_where_the_trigonometric_map_does() {
+        // Shirley and Chiu's map written with f64 trigonometry, on a 513² grid that includes
+        // the diagonals, the axes and the square's edges.
+        let n = 512;
+        for i in 0..=n {
+            for j in 0..=n {
+                let u = Vec2::new(i as f32 / n as f32, j as f32 / n as f32);
+                let o = (2.0 * u.as_dvec2()) - glam::DVec2::ONE;
+                let want = if o == glam::DVec2::ZERO {
+                    glam::DVec2::ZERO
+                } else if o.x.abs() > o.y.abs() {
+                    let t = std::f64::consts::FRAC_PI_4 * (o.y / o.x);
+                    o.x * glam::DVec2::new(t.cos(), t.sin())
+                } else {
+                    let t = std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (o.x / o.y);
+                    o.y * glam::DVec2::new(t.cos(), t.sin())
+                };
+                let got = concentric_disk(u).as_dvec2();
+                assert!((got - want).abs().max_element() < 3e-7, "u {u}: {got} against {want}");
+                assert!(got.length() <= 1.0 + 3e-7, "u {u} leaves the disk: {got}");
+            }
+        }
+    }
 
     #[test]
     fn byte_table_sobol_is_the_crates_bit_for_bit() {
