@@ -15,7 +15,7 @@ use anyhow::{Context, Result, bail};
 use render_core::film::{Aov, Rect, TileFilm};
 use tessera_proto::v1 as pb;
 
-use crate::output::Image;
+use crate::output::{Image, TileRect};
 
 const MAGIC: &[u8; 8] = b"TSRFILM1";
 
@@ -100,7 +100,8 @@ impl ExactFilm {
         let total = self.passes.first().map_or(&empty, |(_, f)| f);
         for name in aovs {
             let aov = Aov::from_name(name).with_context(|| format!("unknown AOV {name}"))?;
-            image.write_tile(name, 0, 0, self.width, self.height, aov.channels() as u32, &total.resolve(aov));
+            let whole = TileRect { x: 0, y: 0, width: self.width, height: self.height };
+            image.write_tile(name, whole, aov.channels() as u32, &total.resolve(aov));
         }
         Ok(image)
     }

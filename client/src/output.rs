@@ -18,10 +18,32 @@ pub struct Image {
     pub layers: BTreeMap<String, (u32, Vec<f32>)>,
 }
 
+/// Where a tile lies in an image, in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileRect {
+    /// Left column.
+    pub x: u32,
+    /// Top row.
+    pub y: u32,
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+}
+
+impl TileRect {
+    /// The rectangle a streamed tile covers.
+    pub fn of(tile: &tessera_proto::v1::Tile) -> Self {
+        TileRect { x: tile.x, y: tile.y, width: tile.width, height: tile.height }
+    }
+}
+
 impl Image {
-    /// Copies a tile in.
-    pub fn write_tile(&mut self, aov: &str, x: u32, y: u32, w: u32, h: u32, channels: u32, data: &[f32]) {
+    /// Copies in a tile of `channels` interleaved channels covering `rect` (what falls
+    /// outside the image is dropped).
+    pub fn write_tile(&mut self, aov: &str, rect: TileRect, channels: u32, data: &[f32]) {
         let (width, height) = (self.width, self.height);
+        let TileRect { x, y, width: w, height: h } = rect;
         let (c, layer) = self.layers.entry(aov.to_string()).or_insert_with(|| (channels, vec![0.0; (width * height * channels) as usize]));
         let c = *c as usize;
         for row in 0..h.min(height.saturating_sub(y)) {

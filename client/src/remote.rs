@@ -329,7 +329,7 @@ impl Connection {
                 }
                 Event::Tile(t) => {
                     let data = tessera_wire::convert::tile_pixels(&t).map_err(status_error)?;
-                    report.image.write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &data);
+                    report.image.write_tile(&t.aov, crate::output::TileRect::of(&t), t.channels, &data);
                     report.tiles += 1;
                 }
                 Event::Film(t) => {

@@ -92,7 +92,7 @@ async fn a_restarted_render_equals_a_fresh_render_of_the_edited_scene() {
             pb::render_event::Event::Restarted(r) => version_now = r.scene_version,
             pb::render_event::Event::Tile(t) if version_now > 0 => {
                 let px: Vec<f32> = t.pixels.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-                image.write_tile(&t.aov, t.x, t.y, t.width, t.height, t.channels, &px);
+                image.write_tile(&t.aov, tessera::output::TileRect::of(&t), t.channels, &px);
             }
             pb::render_event::Event::Finished(f) => assert!(!f.cancelled),
             _ => {}
