@@ -52,20 +52,8 @@ async fn malformed_prims_are_skipped_and_the_rest_renders() {
 
     let out = std::env::temp_dir().join(format!("tessera-strict-{}.exr", std::process::id()));
     let job = tessera::commands::render::RenderJob {
-        scene: fixture("bad/malformed_prims.usda"),
-        output: out.clone(),
-        options: small(8, 8, 1),
-        server: None,
-        progress: false,
-        frame: None,
-        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
-        shutter: None,
-        motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
-        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
-        default_light: true,
         strict: true,
-        alf_progress: None,
-        film: Default::default(),
+        ..tessera::commands::render::RenderJob::new(fixture("bad/malformed_prims.usda"), out.clone(), small(8, 8, 1))
     };
     let e = format!("{:#}", tessera::commands::render::run(&job).await.unwrap_err());
     assert!(e.contains("4 warning(s)") && e.contains("--strict"), "{e}");

@@ -84,24 +84,7 @@ async fn cli_render_writes_a_multilayer_exr_and_a_png() {
     let out = dir.join("cornell.exr");
     let mut options = small(40, 30, 4);
     options.aovs = vec!["albedo".into(), "normal".into(), "depth".into()];
-    let report = run(&RenderJob {
-        scene: fixture("cornell_box.usda"),
-        output: out.clone(),
-        options,
-        server: None,
-        progress: false,
-        frame: None,
-        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
-        shutter: None,
-        motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
-        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
-        default_light: true,
-        strict: false,
-        alf_progress: None,
-        film: Default::default(),
-    })
-    .await
-    .expect("renders");
+    let report = run(&RenderJob::new(fixture("cornell_box.usda"), out.clone(), options)).await.expect("renders");
     let back = tessera::output::read_exr(&out).expect("reads back");
     assert_eq!((back.width, back.height), (40, 30));
     for aov in ["beauty", "albedo", "normal", "depth"] {

@@ -249,21 +249,12 @@ async fn geom_subsets_carry_their_own_materials() {
 async fn render_settings_supply_camera_and_resolution_and_flags_override_them() {
     use tessera::commands::render::{RenderJob, run};
     let dir = std::env::temp_dir().join(format!("tessera-render-settings-{}", std::process::id()));
-    let job = |width, height, camera: &str| RenderJob {
-        scene: fixture("usd/render_settings.usda"),
-        output: dir.join(format!("{width}x{height}{}.exr", camera.replace('/', "_"))),
-        options: tessera::remote::RenderOptions { width, height, camera: camera.into(), ..small(0, 0, 4) },
-        server: None,
-        progress: false,
-        frame: None,
-        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
-        shutter: None,
-        motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
-        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
-        default_light: true,
-        strict: false,
-        alf_progress: None,
-        film: Default::default(),
+    let job = |width, height, camera: &str| {
+        RenderJob::new(
+            fixture("usd/render_settings.usda"),
+            dir.join(format!("{width}x{height}{}.exr", camera.replace('/', "_"))),
+            tessera::remote::RenderOptions { width, height, camera: camera.into(), ..small(0, 0, 4) },
+        )
     };
     // Nothing on the command line: /Render/Settings says CamB (the red quad), 64 x 32.
     let r = run(&job(0, 0, "")).await.expect("renders");
@@ -380,22 +371,11 @@ async fn render_products_name_the_file_camera_resolution_and_aovs() {
     assert_eq!((o.width, o.height, o.pixel_aspect, o.aovs.as_slice()), (8, 8, 1.0, &["albedo".to_string()][..]));
 
     let dir = std::env::temp_dir().join(format!("tessera-products-{}", std::process::id()));
-    let job = RenderJob {
-        scene: fixture("usd/render_products.usda"),
-        output: dir.join("product.exr"),
-        options: tessera::remote::RenderOptions { width: 0, height: 0, ..small(0, 0, 2) },
-        server: None,
-        progress: false,
-        frame: None,
-        subdivision_level: tessera::usd::DEFAULT_SUBDIVISION_LEVEL,
-        shutter: None,
-        motion_samples: tessera::usd::DEFAULT_MOTION_SAMPLES,
-        curve_samples: tessera::usd::curves::DEFAULT_CURVE_SAMPLES,
-        default_light: true,
-        strict: false,
-        alf_progress: None,
-        film: Default::default(),
-    };
+    let job = RenderJob::new(
+        fixture("usd/render_products.usda"),
+        dir.join("product.exr"),
+        tessera::remote::RenderOptions { width: 0, height: 0, ..small(0, 0, 2) },
+    );
     let r = run(&job).await.expect("renders");
     assert_eq!((r.image.width, r.image.height), (40, 20));
     assert!(r.image.layers.contains_key("normal") && r.image.layers.contains_key("depth"));

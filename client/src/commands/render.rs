@@ -79,6 +79,29 @@ pub fn checkpoint_path(output: &Path) -> PathBuf {
 }
 
 impl RenderJob {
+    /// A render of `scene` into `output` with `options` on an embedded server, every other
+    /// setting at the CLI's default: the stage's default time, the default subdivision level,
+    /// motion and curve samples, a default light for unlit scenes, warnings not fatal, no
+    /// progress output, no film kept.
+    pub fn new(scene: PathBuf, output: PathBuf, options: RenderOptions) -> Self {
+        RenderJob {
+            scene,
+            output,
+            options,
+            server: None,
+            progress: false,
+            frame: None,
+            subdivision_level: crate::usd::DEFAULT_SUBDIVISION_LEVEL,
+            shutter: None,
+            motion_samples: crate::usd::DEFAULT_MOTION_SAMPLES,
+            curve_samples: crate::usd::curves::DEFAULT_CURVE_SAMPLES,
+            default_light: true,
+            strict: false,
+            alf_progress: None,
+            film: FilmMode::default(),
+        }
+    }
+
     /// How the scene is read for this job.
     pub fn load_options(&self) -> crate::usd::LoadOptions {
         crate::usd::LoadOptions {
