@@ -114,6 +114,44 @@ fn main() {
         println!("  batched hits ({threads} thr): closest {hc} ({}), occluded {ho} ({})", same(hc, hc1), same(ho, ho1));
     }
     flat_at_the_cap(&rays[..n_rays / 4]);
+    small_meshes();
+}
+
+/// Meshes of a few dozen triangles, which a BLAS tests whole rather than walks (up to eight
+/// chunks of eight; `bvh::SCAN_MAX_CHUNKS`): ours on one thread beside Embree's one thread,
+/// for rays from inside the mesh's bounds, as a TLAS hands them to a small instance.
+fn small_meshes() {
+    println!("\nsmall meshes: 1M rays from origins in [-1.2, 1.2]^3, uniform directions, 1 thread");
+    println!("{:<22} {:>16} {:>16} {:>20} {:>14}", "UV sphere", "closest (Mrays/s)", "vs embree", "occlusion (Mrays/s)", "vs embree");
+    let mut rng = Pcg32::new(9, 3);
+    let rays: Vec<TestRay> = (0..1_000_000)
+        .map(|_| {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.4 - Vec3::splat(1.2);
+            let d = uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+            TestRay { o, d, tmax: 0.1 + 3.0 * rng.next_f32() }
+        })
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    for (rings, segments) in [(2, 3), (4, 5), (4, 8), (4, 12), (8, 8)] {
+        let mesh = Mesh::uv_sphere(rings, segments);
+        let blas = Blas::build(&mesh, BuildQuality::Medium);
+        let ((best_c, hits_c), (best_o, hits_o)) = best_of_three(
+            &pool,
+            || rays.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count(),
+            || rays.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count(),
+        );
+        let (c, o) = (rays.len() as f64 / best_c / 1e6, rays.len() as f64 / best_o / 1e6);
+        let embree = run_embree(&write_embree_inputs(&mesh, &rays));
+        let e = |k: &str| embree.as_ref().and_then(|m| m.get(k).copied());
+        let ratio = |ours: f64, k: &str| e(k).map_or("-".into(), |t| format!("{:.2}x", ours / t));
+        let agree = match (e("closest_hits"), e("occluded_hits")) {
+            (Some(ec), Some(eo)) if (ec as usize, eo as usize) == (hits_c, hits_o) => "hits agree".to_string(),
+            (Some(ec), Some(eo)) => format!("hits {hits_c}/{hits_o} against embree's {ec}/{eo}"),
+            _ => String::new(),
+        };
+        let name = format!("{} triangles", mesh.indices.len());
+        println!("{name:<22} {c:>16.2} {:>16} {o:>20.2} {:>14}  {agree}", ratio(c, "closest_mrays"), ratio(o, "occluded_mrays"));
+    }
 }
 
 /// The process's anonymous memory in huge pages (Linux), in KiB.

@@ -194,6 +194,9 @@ fn unpack_chunks(packed: u32) -> Option<(u32, u32)> {
 /// the 1M-triangle one (44 MB), so the switch sits between the two.
 const IN_CACHE_BYTES: usize = 32 << 20;
 
+/// Meshes of at most this many chunks of eight triangles are tested whole, with no walk.
+const SCAN_MAX_CHUNKS: usize = 8;
+
 /// BVH size (nodes and triangles) above which a lone ray's walk asks for a node's leaf
 /// triangles a level ahead ([`Blas::prefetch_node_leaves`]). Measured on the project's 2-core
 /// Intel Xeon with the `rays` bench's incoherent rays on UV spheres, one thread, five
@@ -305,6 +308,13 @@ impl Blas {
         self.closest_bvh_order(&mut ray, time).map(|(t, id, bary)| (t, self.tris.id(id as usize), bary))
     }
 
+    /// True when the mesh is small enough that testing all its triangles costs less than
+    /// walking to some of them ([`SCAN_MAX_CHUNKS`]).
+    #[inline(always)]
+    fn scans(&self) -> bool {
+        self.tris.chunk_count() <= SCAN_MAX_CHUNKS
+    }
+
     /// True when the BVH's nodes and triangles are small enough to stay in cache: interleaving
     /// walks there only adds bookkeeping ([`IN_CACHE_BYTES`]).
     fn stays_in_cache(&self) -> bool {
@@ -322,6 +332,7 @@ impl Blas {
     #[inline(always)]
     fn closest_bvh_order(&self, ray: &mut BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
         match &self.deforming {
+            None if self.scans() => self.tris.closest_of_all(ray),
             None if self.leaf_chunks.is_empty() => {
                 closest_walk(&self.bvh, ray, |_| {}, |base, group, ray| self.tris.closest(base, group, ray))
             }
@@ -381,6 +392,7 @@ impl Blas {
             blocked
         };
         match &self.deforming {
+            None if self.scans() => return self.tris.any_of_all(&ray),
             None if self.leaf_chunks.is_empty() => walk(&self.bvh, &mut ray, |_| {}, &mut any),
             None => walk(&self.bvh, &mut ray, |c| self.prefetch_node_leaves(c), &mut any),
             Some(m) => walk(
@@ -1095,6 +1107,43 @@ mod tests {
                 (o, d, 0.1 + 3.0 * rng.next_f32())
             })
             .collect()
+    }
+
+    /// Small meshes are tested whole ([`Blas::scans`]): the hits are those of the walk, on
+    /// meshes of one to twelve chunks (the scan's cap is eight), the last chunk full or not.
+    #[test]
+    fn scanning_a_small_mesh_finds_what_the_walk_finds() {
+        for (rings, segments) in [(2, 2), (2, 3), (2, 5), (4, 5), (4, 8), (3, 11), (4, 12)] {
+            let mesh = Mesh::uv_sphere(rings, segments);
+            let blas = Blas::build(&mesh, BuildQuality::Medium);
+            let (mut hits, mut blocked) = (0, 0);
+            for (o, d, tmax) in random_rays(5, 4000) {
+                let ray = bvh_ray(o, d, f32::INFINITY);
+                let walked = closest_walk(&blas.bvh, &mut ray.clone(), |_| {}, |base, group, ray| blas.tris.closest(base, group, ray));
+                let scanned = blas.tris.closest_of_all(&ray);
+                // Equal distances (a shared edge) may name either triangle.
+                assert_eq!(scanned.map(|h| h.0), walked.map(|h| h.0), "{} triangles, ray {o} {d}", mesh.indices.len());
+                if scanned.map(|h| h.1) == walked.map(|h| h.1) {
+                    assert_eq!(scanned, walked);
+                }
+                let segment = bvh_ray(o, d, tmax);
+                let mut walked_blocked = false;
+                walk(
+                    &blas.bvh,
+                    &mut segment.clone(),
+                    |_| {},
+                    |ray, base, group| {
+                        walked_blocked = blas.tris.any(base, group, ray);
+                        walked_blocked
+                    },
+                );
+                assert_eq!(blas.tris.any_of_all(&segment), walked_blocked);
+                hits += usize::from(walked.is_some());
+                blocked += usize::from(walked_blocked);
+            }
+            // The rays meet the sphere often, and not always: the comparison has both kinds.
+            assert!(hits > 100 && hits < 3900 && blocked > 50, "{hits} hits, {blocked} blocked");
+        }
     }
 
     /// A walk that asks for leaves a level ahead (forced on a small mesh, which would not ask)

@@ -156,6 +156,40 @@ impl TriangleLanes {
         best
     }
 
+    /// Closest hit before `ray.tmax` among all the triangles, chunk by chunk with no tree:
+    /// the same hit as [`Self::closest`] over every triangle (highest chunk first, so equal
+    /// distances resolve alike).
+    #[inline(always)]
+    pub(super) fn closest_of_all(&self, ray: &BvhRay) -> Option<LaneHit> {
+        let mut best: Option<LaneHit> = None;
+        let mut tmax = ray.tmax;
+        for chunk in (0..self.chunks.len()).rev() {
+            if let Some((t, j, bary)) = self.closest_in_chunk(chunk, self.lanes_in(chunk), ray, tmax) {
+                tmax = t;
+                best = Some((t, (chunk * LANES) as u32 + j, bary));
+            }
+        }
+        best
+    }
+
+    /// True when any triangle lies on the ray before `ray.tmax`, chunk by chunk with no tree.
+    #[inline(always)]
+    pub(super) fn any_of_all(&self, ray: &BvhRay) -> bool {
+        (0..self.chunks.len()).any(|chunk| self.closest_in_chunk(chunk, self.lanes_in(chunk), ray, ray.tmax).is_some())
+    }
+
+    /// The lanes of chunk `chunk` that hold triangles.
+    #[inline(always)]
+    fn lanes_in(&self, chunk: usize) -> u32 {
+        let held = (self.count - chunk * LANES).min(LANES);
+        (1u32 << held) - 1
+    }
+
+    /// Chunks of triangles.
+    pub(super) fn chunk_count(&self) -> usize {
+        self.chunks.len()
+    }
+
     /// True when any of the triangles `base + j` (set bits `j` of `mask`) lies on the ray
     /// within (`tmin`, `tmax`).
     #[inline(always)]
