@@ -873,7 +873,23 @@ pub struct TlasInstance {
 }
 
 /// An instance as the TLAS leaves hold it: original index, BLAS, placement, motion.
-type Placed = (u32, usize, Transform, Option<std::sync::Arc<[glam::Affine3A]>>);
+/// An instance as the TLAS walk reads it: the map into its object space and the BLAS to walk
+/// there. Without the placement's world and normal matrices, which the walk never reads, an
+/// instance takes 96 bytes instead of 208, and the walk's reads of the instances it enters
+/// fall on fewer cache lines.
+struct Placed {
+    /// World to object (at rest, for a moving instance).
+    to_object: glam::Affine3A,
+    /// A moving instance's object-to-world samples over the shutter.
+    motion: Option<std::sync::Arc<[glam::Affine3A]>>,
+    /// The instance's index in the commit.
+    instance: u32,
+    /// The BLAS it places.
+    blas: u32,
+}
+
+// The size the comment above gives, held.
+const _: () = assert!(size_of::<Placed>() == 96);
 
 /// A closest hit.
 #[derive(Clone, Copy, Debug)]
@@ -966,7 +982,7 @@ impl Tlas {
             .iter()
             .map(|&i| {
                 let inst = &instances[i as usize];
-                (i, inst.blas, inst.transform, inst.motion.clone())
+                Placed { to_object: inst.transform.to_object, motion: inst.motion.clone(), instance: i, blas: inst.blas as u32 }
             })
             .collect();
         let ray_scale = ray_scale(&bvh.total_aabb);
@@ -1020,9 +1036,9 @@ impl Tlas {
             |r, base, group| {
                 for placed in bits_high_first(group).map(|j| &ordered[(base + j) as usize]) {
                     let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
-                    if let Some((t, tri, bary)) = blases[placed.1].intersect(o, d, r.tmax, ray.time) {
+                    if let Some((t, tri, bary)) = blases[placed.blas as usize].intersect(o, d, r.tmax, ray.time) {
                         r.tmax = t;
-                        best = Some(Hit { t: t * k, time: ray.time, instance: placed.0, triangle: tri, bary });
+                        best = Some(Hit { t: t * k, time: ray.time, instance: placed.instance, triangle: tri, bary });
                     }
                 }
                 false
@@ -1048,7 +1064,7 @@ impl Tlas {
             |r, base, group| {
                 blocked = bits_high_first(group).map(|j| &ordered[(base + j) as usize]).any(|placed| {
                     let (o, d) = into_object(placed, ray.time, r.origin, r.direction);
-                    blases[placed.1].occluded(o, d, r.tmax, ray.time)
+                    blases[placed.blas as usize].occluded(o, d, r.tmax, ray.time)
                 });
                 blocked
             },
@@ -1060,10 +1076,9 @@ impl Tlas {
 /// The ray (`o`, `d`) in the object space of `placed`, where the instance is at shutter `time`.
 #[inline(always)]
 fn into_object(placed: &Placed, time: f32, o: Vec3A, d: Vec3A) -> (Vec3A, Vec3A) {
-    let (_, _, xf, motion) = placed;
     let moved;
-    let to_object = match motion {
-        None => &xf.to_object,
+    let to_object = match &placed.motion {
+        None => &placed.to_object,
         Some(m) => {
             moved = crate::motion::to_object_at(m, time);
             &moved
