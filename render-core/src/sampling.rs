@@ -327,7 +327,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 /// within an ulp of the exact values (a test checks). libm's general `sincosf`, called here by
 /// every cosine-weighted sample, was 2% of a Cornell box render.
 #[inline(always)]
-pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+fn sin_cos_quarter(x: f32) -> (f32, f32) {
     let z = x * x;
     let sin = (-1.951_529_6e-4f32).mul_add(z, 8.332_161e-3).mul_add(z, -1.666_665_5e-1) * z * x + x;
     let cos = 2.443_315_7e-5f32.mul_add(z, -1.388_731_6e-3).mul_add(z, 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;

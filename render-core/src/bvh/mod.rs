@@ -872,7 +872,6 @@ pub struct TlasInstance {
     pub motion: Option<std::sync::Arc<[glam::Affine3A]>>,
 }
 
-/// An instance as the TLAS leaves hold it: original index, BLAS, placement, motion.
 /// An instance as the TLAS walk reads it: the map into its object space and the BLAS to walk
 /// there. Without the placement's world and normal matrices, which the walk never reads, an
 /// instance takes 96 bytes instead of 208, and the walk's reads of the instances it enters

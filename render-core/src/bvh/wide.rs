@@ -145,15 +145,7 @@ impl TriangleLanes {
     /// the highest index among the nearest.
     #[inline(always)]
     pub(super) fn closest(&self, base: u32, mask: u32, ray: &BvhRay) -> Option<LaneHit> {
-        let mut best: Option<LaneHit> = None;
-        let mut tmax = ray.tmax;
-        for (chunk, lanes) in Self::chunks(base, mask) {
-            if let Some((t, j, bary)) = self.closest_in_chunk(chunk, lanes, ray, tmax) {
-                tmax = t;
-                best = Some((t, (chunk * LANES) as u32 + j, bary));
-            }
-        }
-        best
+        self.closest_in(Self::chunks(base, mask), ray)
     }
 
     /// Closest hit before `ray.tmax` among all the triangles, chunk by chunk with no tree:
@@ -161,10 +153,17 @@ impl TriangleLanes {
     /// distances resolve alike).
     #[inline(always)]
     pub(super) fn closest_of_all(&self, ray: &BvhRay) -> Option<LaneHit> {
+        self.closest_in(self.every_chunk(), ray)
+    }
+
+    /// Closest hit before `ray.tmax` among the lanes of `chunks`, (chunk, lane mask) pairs,
+    /// taken in the order given.
+    #[inline(always)]
+    fn closest_in(&self, chunks: impl Iterator<Item = (usize, u32)>, ray: &BvhRay) -> Option<LaneHit> {
         let mut best: Option<LaneHit> = None;
         let mut tmax = ray.tmax;
-        for chunk in (0..self.chunks.len()).rev() {
-            if let Some((t, j, bary)) = self.closest_in_chunk(chunk, self.lanes_in(chunk), ray, tmax) {
+        for (chunk, lanes) in chunks {
+            if let Some((t, j, bary)) = self.closest_in_chunk(chunk, lanes, ray, tmax) {
                 tmax = t;
                 best = Some((t, (chunk * LANES) as u32 + j, bary));
             }
@@ -175,7 +174,19 @@ impl TriangleLanes {
     /// True when any triangle lies on the ray before `ray.tmax`, chunk by chunk with no tree.
     #[inline(always)]
     pub(super) fn any_of_all(&self, ray: &BvhRay) -> bool {
-        (0..self.chunks.len()).any(|chunk| self.closest_in_chunk(chunk, self.lanes_in(chunk), ray, ray.tmax).is_some())
+        self.any_in(self.every_chunk(), ray)
+    }
+
+    /// True when any triangle in the lanes of `chunks` lies on the ray before `ray.tmax`.
+    #[inline(always)]
+    fn any_in(&self, mut chunks: impl Iterator<Item = (usize, u32)>, ray: &BvhRay) -> bool {
+        chunks.any(|(chunk, lanes)| self.closest_in_chunk(chunk, lanes, ray, ray.tmax).is_some())
+    }
+
+    /// Every chunk with the lanes that hold triangles, the highest chunk first.
+    #[inline(always)]
+    fn every_chunk(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        (0..self.chunks.len()).rev().map(|chunk| (chunk, self.lanes_in(chunk)))
     }
 
     /// The lanes of chunk `chunk` that hold triangles.
@@ -194,7 +205,7 @@ impl TriangleLanes {
     /// within (`tmin`, `tmax`).
     #[inline(always)]
     pub(super) fn any(&self, base: u32, mask: u32, ray: &BvhRay) -> bool {
-        Self::chunks(base, mask).any(|(chunk, lanes)| self.closest_in_chunk(chunk, lanes, ray, ray.tmax).is_some())
+        self.any_in(Self::chunks(base, mask), ray)
     }
 
     /// Asks the cache for the chunks holding triangles `base + j` (set bits `j` of `mask`),
