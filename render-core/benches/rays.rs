@@ -1,8 +1,8 @@
 //! Ray throughput on a 1-million-triangle mesh: BVH build time, closest-hit and occlusion
 //! Mrays/s per thread for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one
-//! thread, run before and after ours, its best kept) on the same data, ray by ray and in
-//! batches (several walks in
-//! flight per thread, `Blas::intersect_many`); then, at the flat BVH's triangle cap, what a
+//! thread) on the same data: one thread ray by ray alternating with Embree over three rounds,
+//! each round's ratio printed; then 2 threads and batches (several walks in flight per thread,
+//! `Blas::intersect_many`) against Embree's best of those rounds; then, at the flat BVH's triangle cap, what a
 //! commit's rebuild costs and what tracing gains against two levels. Run:
 //! `cargo bench -p render-core --bench rays`.
 
@@ -43,29 +43,27 @@ fn main() {
     let blas = Blas::build(&mesh, BuildQuality::Medium);
     let build = t0.elapsed().as_secs_f64();
 
-    // Embree runs before and after ours, on the same mesh and rays: this machine's speed drifts
-    // by 10-25% over minutes, so each side keeps its best over the same stretch of time.
+    // This machine's speed drifts by 10-25% over minutes, so the one-thread rows alternate with
+    // Embree, on the same mesh and rays, for ROUNDS rounds: each round's ratio is taken against
+    // the Embree run just before it, and the spread of those ratios says how far to trust one.
     let dir = write_embree_inputs(&mesh, &rays);
-    let embree_before = run_embree(&dir);
+    let lone_pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let mut rounds = Vec::new();
+    let mut embree_runs = Vec::new();
+    for _ in 0..ROUNDS {
+        let anchor = run_embree(&dir);
+        rounds.push((ray_by_ray(&lone_pool, &blas, &rays), anchor.clone()));
+        embree_runs.push(anchor);
+    }
     let mut results = Vec::new();
     let mut batched = Vec::new();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let ((best_c, hits_c), (best_o, hits_o)) = best_of_three(
-            &pool,
-            || {
-                rays.par_chunks(4096)
-                    .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count())
-                    .sum()
-            },
-            || rays.par_chunks(4096).map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count()).sum(),
-        );
+        let ((best_c, hits_c), (best_o, hits_o)) = ray_by_ray(&pool, &blas, &rays);
         results.push((threads, n_rays as f64 / best_c / 1e6, n_rays as f64 / best_o / 1e6, hits_c, hits_o));
         batched.push((threads, trace_batched(&pool, &blas, &rays)));
     }
-
-    let embree_after = run_embree(&dir);
-    let embree = best_of_runs(embree_before.clone(), embree_after.clone());
+    let embree = embree_runs.into_iter().reduce(best_of_runs).flatten();
 
     println!("rays: {} triangles, {n_rays} incoherent rays (origins in [-1.5, 1.5]^3, uniform directions)", mesh.indices.len());
     if let Some(kb) = huge_page_kib() {
@@ -76,15 +74,9 @@ fn main() {
             blas.walked_bytes() as f64 / 1e6
         );
     }
-    for (when, run) in [("before", &embree_before), ("after", &embree_after)] {
-        if let Some(m) = run {
-            println!(
-                "embree {when} ours: closest {:.3}, occlusion {:.3} Mrays/s (ratios below take its best)",
-                m["closest_mrays"], m["occluded_mrays"]
-            );
-        }
-    }
+    print_rounds(&rounds, n_rays);
     let e = |k: &str| embree.as_ref().and_then(|m| m.get(k).copied());
+    println!("the rows below against Embree's best of the {ROUNDS} rounds:");
     println!("{:<34} {:>12} {:>14} {:>10}", "measure", "tessera", "embree (1 thr)", "ratio");
     let row = |name: &str, ours: f64, theirs: Option<f64>, higher_is_better: bool| {
         let ratio = theirs.map(|t| if higher_is_better { ours / t } else { t / ours });
@@ -115,6 +107,51 @@ fn main() {
     }
     flat_at_the_cap(&rays[..n_rays / 4]);
     small_meshes();
+}
+
+/// Rounds of Embree then ours alternating, one thread each ([`main`]).
+const ROUNDS: usize = 3;
+
+/// One round's timings: ours ray by ray ((closest s, hits), (occlusion s, hits)), and the
+/// Embree run just before.
+type Round = (((f64, usize), (f64, usize)), Option<Numbers>);
+
+/// Each alternating round's rates and ratios, then the range of the ratios.
+fn print_rounds(rounds: &[Round], n_rays: usize) {
+    let rate = |seconds: f64| n_rays as f64 / seconds / 1e6;
+    let mut ratios: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for (k, (((c, _), (o, _)), anchor)) in rounds.iter().enumerate() {
+        let Some(m) = anchor else { continue };
+        let (rc, ro) = (rate(*c) / m["closest_mrays"], rate(*o) / m["occluded_mrays"]);
+        println!(
+            "round {}: closest {:.3} vs embree {:.3} ({rc:.2}x), occlusion {:.3} vs embree {:.3} ({ro:.2}x) Mrays/s, 1 thread",
+            k + 1,
+            rate(*c),
+            m["closest_mrays"],
+            rate(*o),
+            m["occluded_mrays"]
+        );
+        ratios[0].push(rc);
+        ratios[1].push(ro);
+    }
+    let range =
+        |r: &[f64]| format!("{:.2}x-{:.2}x", r.iter().copied().fold(f64::INFINITY, f64::min), r.iter().copied().fold(0.0, f64::max));
+    if !ratios[0].is_empty() {
+        println!("per thread against Embree over the rounds: closest hit {}, occlusion {}", range(&ratios[0]), range(&ratios[1]));
+    }
+}
+
+/// Closest hits and occlusion ray by ray on `pool`, best of three each.
+fn ray_by_ray(pool: &rayon::ThreadPool, blas: &Blas, rays: &[TestRay]) -> ((f64, usize), (f64, usize)) {
+    best_of_three(
+        pool,
+        || {
+            rays.par_chunks(4096)
+                .map(|c| c.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count())
+                .sum()
+        },
+        || rays.par_chunks(4096).map(|c| c.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count()).sum(),
+    )
 }
 
 /// Meshes of a few dozen triangles, which a BLAS tests whole rather than walks (up to eight
@@ -191,7 +228,7 @@ fn run_embree(dir: &std::path::Path) -> Option<Numbers> {
     }
 }
 
-/// Embree's best over two runs: the higher rates, the shorter build (hit counts are the same).
+/// Embree's best of two runs: the higher rates, the shorter build (hit counts are the same).
 fn best_of_runs(a: Option<Numbers>, b: Option<Numbers>) -> Option<Numbers> {
     match (a, b) {
         (Some(mut a), Some(b)) => {
