@@ -196,6 +196,8 @@ const IN_CACHE_BYTES: usize = 32 << 20;
 
 /// Meshes of at most this many chunks of eight triangles are tested whole, with no walk.
 const SCAN_MAX_CHUNKS: usize = 8;
+// One pass of the chunk bounds' test (`wide::ChunkBounds`) meets every chunk of a scanned mesh.
+const _: () = assert!(SCAN_MAX_CHUNKS <= wide::LANES);
 
 /// BVH size (nodes and triangles) above which a lone ray's walk asks for a node's leaf
 /// triangles a level ahead ([`Blas::prefetch_node_leaves`]). Measured on the project's 2-core
@@ -917,7 +919,9 @@ pub struct Tlas {
     ray_scale: f32,
 }
 
-/// How a [`Tlas`] finds triangles.
+/// How a [`Tlas`] finds triangles. A scene holds one, so the flat variant's size (its BLAS
+/// keeps a small mesh's chunk bounds inline, read by every ray) costs nothing worth a box.
+#[allow(clippy::large_enum_variant)]
 enum Accel {
     /// A BVH over instance bounds whose leaves send the ray, moved into object space, down
     /// the instance's BLAS. `ordered`: instances in BVH order (original index, BLAS,
