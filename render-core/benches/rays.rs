@@ -169,7 +169,9 @@ fn small_meshes() {
         })
         .collect();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    for (rings, segments) in [(2, 3), (4, 5), (4, 6), (4, 8), (4, 10), (4, 12), (4, 14), (8, 8), (8, 10)] {
+    for (rings, segments) in
+        [(2, 3), (4, 5), (4, 6), (4, 8), (4, 10), (4, 12), (4, 14), (8, 8), (8, 10), (8, 12), (8, 14), (8, 16), (10, 16)]
+    {
         let mesh = Mesh::uv_sphere(rings, segments);
         let blas = Blas::build(&mesh, BuildQuality::Medium);
         let ((best_c, hits_c), (best_o, hits_o)) = best_of_three(
