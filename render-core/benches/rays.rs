@@ -2,9 +2,9 @@
 //! Mrays/s per thread for incoherent rays on 1 and 2 threads, each beside Embree (embreex, one
 //! thread) on the same data: one thread ray by ray alternating with Embree over three rounds,
 //! each round's ratio printed; then 2 threads and batches (several walks in flight per thread,
-//! `Blas::intersect_many`) against Embree's best of those rounds; then, at the flat BVH's triangle cap, what a
-//! commit's rebuild costs and what tracing gains against two levels. Run:
-//! `cargo bench -p render-core --bench rays`.
+//! `Blas::intersect_many`) against Embree's best of those rounds; then, at the flat BVH's
+//! triangle cap, what a commit's rebuild costs and what tracing gains against two levels; then
+//! small meshes beside Embree. Run: `cargo bench -p render-core --bench rays`.
 
 use std::time::Instant;
 
@@ -154,9 +154,10 @@ fn ray_by_ray(pool: &rayon::ThreadPool, blas: &Blas, rays: &[TestRay]) -> ((f64,
     )
 }
 
-/// Meshes of a few dozen triangles, which a BLAS tests whole rather than walks (up to eight
-/// chunks of eight; `bvh::SCAN_MAX_CHUNKS`): ours on one thread beside Embree's one thread,
-/// for rays from inside the mesh's bounds, as a TLAS hands them to a small instance.
+/// Meshes of a few dozen to a few hundred triangles, which a BLAS tests whole rather than
+/// walks (up to 32 chunks of eight, `bvh::SCAN_MAX_CHUNKS`; the last row is walked): ours on
+/// one thread beside Embree's one thread, for rays from inside the mesh's bounds, as a TLAS
+/// hands them to a small instance.
 fn small_meshes() {
     println!("\nsmall meshes: 1M rays from origins in [-1.2, 1.2]^3, uniform directions, 1 thread");
     println!("{:<22} {:>16} {:>16} {:>20} {:>14}", "UV sphere", "closest (Mrays/s)", "vs embree", "occlusion (Mrays/s)", "vs embree");
