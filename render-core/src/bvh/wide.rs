@@ -32,9 +32,8 @@ const NODE_TMIN: f32 = 1e-4;
 pub(super) struct TriangleLanes {
     chunks: Vec<Chunk>,
     count: usize,
-    /// Each chunk's bounds, when the mesh has [`BOUNDED_CHUNKS`] chunks (boxed: 768 bytes, which
-    /// every other mesh would carry for nothing).
-    bounds: Option<Box<ChunkBounds>>,
+    /// Each chunk's bounds, when the mesh has [`BOUNDED_CHUNKS`] chunks.
+    bounds: Option<ChunkBounds>,
 }
 
 /// Triangles tested per pass, and per chunk.
@@ -43,10 +42,11 @@ pub(super) const LANES: usize = 8;
 /// The bounds of a small mesh's chunks (lane `c`: chunk `c`), padded outwards by
 /// [`BOUNDS_PAD`] of the chunk's size. The whole-mesh scan meets them all in one pass and skips
 /// the chunks the ray misses.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 struct ChunkBounds {
-    /// Chunk `c`'s bounds are lane `c % LANES` of pass `c / LANES`.
-    passes: [BoundsPass; MAX_BOUNDED / LANES],
+    /// Chunk `c`'s bounds are lane `c % LANES` of pass `c / LANES`: as many passes as the
+    /// mesh has chunks for (24 bytes a chunk, three a triangle).
+    passes: Box<[BoundsPass]>,
     /// Bit `c` set for each chunk that exists.
     chunks: u32,
 }
@@ -128,7 +128,7 @@ impl TriangleLanes {
             false => chunks.par_extend((0..chunk_count).into_par_iter().with_min_len(1024).map(chunk)),
         }
         let mut lanes = TriangleLanes { chunks, count, bounds: None };
-        lanes.bounds = BOUNDED_CHUNKS.contains(&chunk_count).then(|| Box::new(ChunkBounds::of(&lanes)));
+        lanes.bounds = BOUNDED_CHUNKS.contains(&chunk_count).then(|| ChunkBounds::of(&lanes));
         lanes
     }
 
@@ -405,7 +405,7 @@ impl ChunkBounds {
     /// The padded bounds of the chunks of `lanes` (at most [`LANES`] of them).
     fn of(lanes: &TriangleLanes) -> Self {
         let empty = BoundsPass { lo: [[f32::MAX; LANES]; 3], hi: [[-f32::MAX; LANES]; 3] };
-        let mut b = ChunkBounds { passes: [empty; MAX_BOUNDED / LANES], chunks: 0 };
+        let mut b = ChunkBounds { passes: vec![empty; lanes.chunks.len().div_ceil(LANES)].into(), chunks: 0 };
         for i in 0..lanes.count {
             let (t, c) = (lanes.triangle(i), i / LANES);
             b.chunks |= 1 << c;
@@ -434,14 +434,10 @@ impl ChunkBounds {
     fn met(&self, ray: &BvhRay) -> u32 {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         {
-            // SAFETY: the target has AVX2 (checked at compile time).
+            // SAFETY (all three calls): the target has AVX2 (checked at compile time).
             let mut met = unsafe { avx2::chunks_met(&self.passes[0], ray) };
-            // Further passes only for meshes of more than one pass of chunks.
-            for (p, pass) in self.passes.iter().enumerate().skip(1) {
-                if self.chunks >> (p * LANES) == 0 {
-                    break;
-                }
-                met |= unsafe { avx2::chunks_met(pass, ray) } << (p * LANES);
+            for p in 1..self.passes.len() {
+                met |= unsafe { avx2::chunks_met(&self.passes[p], ray) } << (p * LANES);
             }
             met & self.chunks
         }
@@ -868,7 +864,7 @@ mod tests {
         for tris in meshes {
             let ids: Vec<u32> = (0..tris.len() as u32).collect();
             let lanes = TriangleLanes::new(&tris, &ids);
-            let bounds = lanes.bounds.as_deref().expect("six to thirty-two chunks are bounded");
+            let bounds = lanes.bounds.as_ref().expect("six to thirty-two chunks are bounded");
             for ray in bounds_rays(&mut rng, &tris, 6000) {
                 let every = lanes.closest_in(lanes.every_chunk(), &ray);
                 let culled = lanes.closest_of_all(&ray);
