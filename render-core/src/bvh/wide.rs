@@ -40,8 +40,8 @@ pub(super) struct TriangleLanes {
 pub(super) const LANES: usize = 8;
 
 /// The bounds of a small mesh's chunks (lane `c`: chunk `c`), padded outwards by
-/// [`BOUNDS_PAD`] of the chunk's size. The whole-mesh scan meets them all in one pass and skips
-/// the chunks the ray misses.
+/// [`BOUNDS_PAD`] of the chunk's size. The whole-mesh scan meets them eight to an AVX2 pass and
+/// skips the chunks the ray misses.
 #[derive(Clone, Debug, PartialEq)]
 struct ChunkBounds {
     /// Chunk `c`'s bounds are lane `c % LANES` of pass `c / LANES`: as many passes as the
