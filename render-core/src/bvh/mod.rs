@@ -315,8 +315,8 @@ impl Blas {
         self.closest_bvh_order(&mut ray, time).map(|(t, id, bary)| (t, self.tris.id(id as usize), bary))
     }
 
-    /// True when the mesh is small enough that testing all its triangles costs less than
-    /// walking to some of them ([`SCAN_MAX_CHUNKS`]).
+    /// True when the mesh is small enough that testing its chunks (those whose bounds the ray
+    /// meets, from six chunks up) costs less than walking to some of them ([`SCAN_MAX_CHUNKS`]).
     #[inline(always)]
     fn scans(&self) -> bool {
         self.tris.chunk_count() <= SCAN_MAX_CHUNKS
