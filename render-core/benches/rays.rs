@@ -4,7 +4,7 @@
 //! each round's ratio printed; then 2 threads and batches (several walks in flight per thread,
 //! `Blas::intersect_many`) against Embree's best of those rounds; then, at the flat BVH's
 //! triangle cap, what a commit's rebuild costs and what tracing gains against two levels; then
-//! small meshes beside Embree. Run: `cargo bench -p render-core --bench rays`.
+//! small and medium meshes beside Embree. Run: `cargo bench -p render-core --bench rays`.
 
 use std::time::Instant;
 
@@ -106,7 +106,7 @@ fn main() {
         println!("  batched hits ({threads} thr): closest {hc} ({}), occluded {ho} ({})", same(hc, hc1), same(ho, ho1));
     }
     flat_at_the_cap(&rays[..n_rays / 4]);
-    small_meshes();
+    small_and_medium_meshes();
 }
 
 /// Rounds of Embree then ours alternating, one thread each ([`main`]).
@@ -155,11 +155,12 @@ fn ray_by_ray(pool: &rayon::ThreadPool, blas: &Blas, rays: &[TestRay]) -> ((f64,
 }
 
 /// Meshes of a few dozen to a few hundred triangles, which a BLAS tests whole rather than
-/// walks (up to 32 chunks of eight, `bvh::SCAN_MAX_CHUNKS`; the last row is walked): ours on
-/// one thread beside Embree's one thread, for rays from inside the mesh's bounds, as a TLAS
-/// hands them to a small instance.
-fn small_meshes() {
-    println!("\nsmall meshes: 1M rays from origins in [-1.2, 1.2]^3, uniform directions, 1 thread");
+/// walks (up to 32 chunks of eight, `bvh::SCAN_MAX_CHUNKS`), and from 320 to 32 768 triangles,
+/// walked without asking for nodes ahead (`bvh::NODES_AHEAD_BYTES`): ours on one thread beside
+/// Embree's one thread, for rays from inside the mesh's bounds, as a TLAS hands them to an
+/// instance.
+fn small_and_medium_meshes() {
+    println!("\nsmall and medium meshes: 1M rays from origins in [-1.2, 1.2]^3, uniform directions, 1 thread");
     println!("{:<22} {:>16} {:>16} {:>20} {:>14}", "UV sphere", "closest (Mrays/s)", "vs embree", "occlusion (Mrays/s)", "vs embree");
     let mut rng = Pcg32::new(9, 3);
     let rays: Vec<TestRay> = (0..1_000_000)
@@ -170,9 +171,24 @@ fn small_meshes() {
         })
         .collect();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    for (rings, segments) in
-        [(2, 3), (4, 5), (4, 6), (4, 8), (4, 10), (4, 12), (4, 14), (8, 8), (8, 10), (8, 12), (8, 14), (8, 16), (10, 16)]
-    {
+    for (rings, segments) in [
+        (2, 3),
+        (4, 5),
+        (4, 6),
+        (4, 8),
+        (4, 10),
+        (4, 12),
+        (4, 14),
+        (8, 8),
+        (8, 10),
+        (8, 12),
+        (8, 14),
+        (8, 16),
+        (10, 16),
+        (16, 32),
+        (32, 64),
+        (64, 256),
+    ] {
         let mesh = Mesh::uv_sphere(rings, segments);
         let blas = Blas::build(&mesh, BuildQuality::Medium);
         let ((best_c, hits_c), (best_o, hits_o)) = best_of_three(

@@ -64,7 +64,8 @@ impl Walk {
             let slot = (child_offset - 24) ^ (s.oct_inv4 & 0xff);
             let relative = (hits_imask & !(0xffff_ffffu32 << slot)).count_ones();
             let node = &bvh.nodes[(s.current_group.x + relative) as usize];
-            let hitmask = wide::node_hits(&bvh.nodes, node, ray, s.oct_inv4, ahead);
+            // Walks in flight are for BVHs far bigger than the cache: every node is asked for.
+            let hitmask = wide::node_hits(&bvh.nodes, node, ray, s.oct_inv4, true, ahead);
             s.current_group = UVec2::new(node.child_base_idx, (hitmask & 0xff00_0000) | u32::from(node.imask));
             s.primitive_group = UVec2::new(node.primitive_base_idx, hitmask & 0x00ff_ffff);
         } else {
@@ -82,17 +83,24 @@ impl Walk {
 
 /// Walks `bvh` front to back, handing the leaves each node lets the ray into to `leaves` as
 /// (first primitive, bit mask of the primitives from it, bits below 24); `leaves` may shorten
-/// `ray.tmax` and returns true to stop the walk. `ahead` is told the index of every inner
-/// node the ray enters, when its parent is tested (to prefetch what the node leads to). A
+/// `ray.tmax` and returns true to stop the walk. With `fetch_inner`, every inner node the ray
+/// enters is prefetched when its parent is tested, and `ahead` is told its index (to prefetch
+/// what the node leads to). A
 /// lone ray keeps obvhs's macro: through [`Walk`] it costs the same (the Cornell box: +0.2%
 /// instructions under callgrind), and the macro stays an independent reference that the
 /// interleaved walks are tested against.
 #[inline(always)]
-pub(super) fn walk(bvh: &CwBvh, ray: &mut BvhRay, ahead: impl Fn(usize), mut leaves: impl FnMut(&mut BvhRay, u32, u32) -> bool) {
+pub(super) fn walk(
+    bvh: &CwBvh,
+    ray: &mut BvhRay,
+    fetch_inner: bool,
+    ahead: impl Fn(usize),
+    mut leaves: impl FnMut(&mut BvhRay, u32, u32) -> bool,
+) {
     let mut state = bvh.new_traversal(ray.direction);
     let mut node;
     'walk: {
-        obvhs::traverse!(bvh, node, state, wide::node_hits(&bvh.nodes, node, ray, state.oct_inv4, &ahead), {
+        obvhs::traverse!(bvh, node, state, wide::node_hits(&bvh.nodes, node, ray, state.oct_inv4, fetch_inner, &ahead), {
             // The macro hands primitives one at a time (highest bit first); take the node's
             // whole group at once instead.
             let base = state.primitive_group.x;

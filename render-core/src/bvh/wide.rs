@@ -354,22 +354,32 @@ impl TriangleLanes {
 }
 
 /// Children of `node` the ray enters before `ray.tmax`, as the CWBVH hit mask obvhs's
-/// traversal expects (`CwBvhNode::intersect_ray`'s result). The inner children entered are
-/// prefetched from `nodes` and handed to `ahead` by index: obvhs's walk visits every one of
-/// them (it keeps no distances to skip any), and a mesh bigger than the cache waited on each
-/// node in turn.
+/// traversal expects (`CwBvhNode::intersect_ray`'s result). With `fetch_inner`, the inner
+/// children entered are prefetched from `nodes` and handed to `ahead` by index: obvhs's walk
+/// visits every one of them (it keeps no distances to skip any), and a mesh bigger than the
+/// cache waited on each node in turn. A BVH that stays in the core's own caches walks without
+/// ([`super::NODES_AHEAD_BYTES`]).
 #[inline(always)]
-pub(super) fn node_hits(nodes: &[CwBvhNode], node: &CwBvhNode, ray: &BvhRay, oct_inv4: u32, ahead: impl Fn(usize)) -> u32 {
+pub(super) fn node_hits(
+    nodes: &[CwBvhNode],
+    node: &CwBvhNode,
+    ray: &BvhRay,
+    oct_inv4: u32,
+    fetch_inner: bool,
+    ahead: impl Fn(usize),
+) -> u32 {
     #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     {
         // SAFETY: the target has AVX2 (checked at compile time).
         let (entered, hits) = unsafe { avx2::children_entered(node, ray, oct_inv4) };
-        prefetch_inner(nodes, node, entered, ahead);
+        if fetch_inner {
+            prefetch_inner(nodes, node, entered, ahead);
+        }
         hits
     }
     #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
     {
-        let _ = (nodes, ahead);
+        let _ = (nodes, fetch_inner, ahead);
         node.intersect_ray(ray, oct_inv4)
     }
 }
@@ -730,7 +740,7 @@ mod tests {
         for ray in rays(&mut rng, 400) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
             for node in &bvh.nodes {
-                assert_eq!(node_hits(&bvh.nodes, node, &ray, oct, |_| {}), node.intersect_ray(&ray, oct), "{ray:?}\n{node:?}");
+                assert_eq!(node_hits(&bvh.nodes, node, &ray, oct, true, |_| {}), node.intersect_ray(&ray, oct), "{ray:?}\n{node:?}");
                 compared += 1;
             }
         }
@@ -750,7 +760,7 @@ mod tests {
         for ray in rays(&mut rng, 600) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
             for node in &bvh.nodes {
-                let leaves = node_hits(&bvh.nodes, node, &ray, oct, |_| {}) & 0x00ff_ffff;
+                let leaves = node_hits(&bvh.nodes, node, &ray, oct, true, |_| {}) & 0x00ff_ffff;
                 let chunks = TriangleLanes::chunks_of(node);
                 let has_leaves = node.child_meta.iter().enumerate().any(|(j, &m)| m != 0 && node.imask & (1 << j) == 0);
                 assert_eq!(chunks.is_some(), has_leaves, "{node:?}");
