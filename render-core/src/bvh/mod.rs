@@ -213,9 +213,10 @@ const _: () = assert!(SCAN_MAX_CHUNKS <= wide::MAX_BOUNDED);
 /// caches through a stream of rays, and the asking (a loop over the entered children, two
 /// prefetches each) only adds work. Measured on the project's 2-core Zen 4 EPYC (1 MiB of L2 a
 /// core) with incoherent rays on UV spheres, one thread, alternating builds: without it,
-/// closest hits gained 5-9% at 320 triangles, 4-5% at 4 096 and 2-5% at 32 768 (1.6 MB), and
-/// occlusion 4-9%; at 65 536 (3.1 MB) closest hits lost 6% and occlusion gained 7%, and from
-/// 262 144 both lost 5-15%. See `docs/benchmarks.md`, 2026-12-05 16:40 UTC.
+/// closest hits gained 7-11% at 320 triangles, 3-20% at 4 096 and a median 2% at 32 768
+/// (1.6 MB), occlusion 1-15%; at 65 536 (3.1 MB) closest hits lost a median 6% while occlusion
+/// gained 7%, and from 262 144 (12 MB) both mostly lost. See `docs/benchmarks.md`, 2026-12-05
+/// 16:40 UTC.
 const NODES_AHEAD_BYTES: usize = 2 << 20;
 
 /// BVH size (nodes and triangles) above which a lone ray's walk asks for a node's leaf
