@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Anchor measurements for Tessera's benchmarks, run by the Rust benches on the same data.
 
-    python3 bench/anchors.py rays DIR        Embree (embreex) on DIR/{vertices,indices,rays}.bin
+    python3 bench/anchors.py rays DIR        Embree (embreex) on DIR/{vertices,indices,rays}.bin,
+        on one thread and on two sharing the scene (embreex lets go of the GIL while it traces)
     python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core);
         ARGS: USD W H SPP MAX_DEPTH REF_SPP OUT_DIR VARIANT [SAMPLER] (SAMPLER: independent,
         the default, or multijitter / ldsampler / stratified / orthogonal)
@@ -48,14 +49,35 @@ def rays(d):
         t0 = time.perf_counter()
         occluded = scene.run(origins, directions, query="OCCLUDED", dists=tmax)
         best_occluded = min(best_occluded, time.perf_counter() - t0)
+    closest_2t = min(on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b]), len(origins)) for _ in range(3))
+    occluded_2t = min(
+        on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b], query="OCCLUDED", dists=tmax[a:b]), len(origins))
+        for _ in range(3)
+    )
     n = len(origins)
     return {
         "build_s": build,
         "closest_mrays": n / best_closest / 1e6,
         "occluded_mrays": n / best_occluded / 1e6,
+        # Per thread, as the Rust bench reports its own two-thread rows.
+        "closest_mrays_2t": n / closest_2t / 2e6,
+        "occluded_mrays_2t": n / occluded_2t / 2e6,
         "closest_hits": int((hits >= 0).sum()),
         "occluded_hits": int((occluded >= 0).sum()),
     }
+
+
+def on_two_threads(trace, n):
+    """Seconds for two threads to run trace(start, end) over the two halves of n rays."""
+    import threading
+
+    halves = [threading.Thread(target=trace, args=(k * n // 2, (k + 1) * n // 2)) for k in range(2)]
+    t0 = time.perf_counter()
+    for t in halves:
+        t.start()
+    for t in halves:
+        t.join()
+    return time.perf_counter() - t0
 
 
 def cornell_scene_dict(usd_path, width, height, max_depth, spp, ply_dir, sampler="independent"):
