@@ -5,7 +5,8 @@
         on one thread and on two sharing the scene (embreex lets go of the GIL while it traces)
     python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core);
         ARGS: USD W H SPP MAX_DEPTH REF_SPP OUT_DIR VARIANT [SAMPLER] (SAMPLER: independent,
-        the default, or multijitter / ldsampler / stratified / orthogonal)
+        the default, or multijitter / ldsampler / stratified / orthogonal; VARIANT llvm_ad_rgb:avx2
+        runs the LLVM variant eight lanes wide on AVX2, as on a CPU without AVX-512)
     python3 bench/anchors.py production USD W H SPP MAX_DEPTH OUT_DIR VARIANT
         Mitsuba 3 on the scene bench/production_scene.py writes (read with usd-core)
 
@@ -157,17 +158,40 @@ def best_of_three(scene, spp):
 def cornell(usd_path, width, height, spp, max_depth, ref_spp, out_dir, variant, sampler="independent"):
     import mitsuba as mi
 
+    variant, _, isa = variant.partition(":")
     mi.set_variant(variant)
+    if isa == "avx2":
+        jit_on_avx2()
     scene = mi.load_dict(cornell_scene_dict(usd_path, width, height, max_depth, spp, out_dir, sampler))
     best = best_of_three(scene, spp)
-    np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].astype(np.float32).tofile(os.path.join(out_dir, f"mitsuba_{sampler}.bin"))
-    result = {"variant": variant, "sampler": sampler, "seconds": best, "paths_per_s": width * height * spp / best}
+    image = os.path.join(out_dir, f"mitsuba_{sampler}{'_' + isa if isa else ''}.bin")
+    np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].astype(np.float32).tofile(image)
+    result = {"variant": variant, "isa": isa or "host", "sampler": sampler, "seconds": best, "paths_per_s": width * height * spp / best}
     if ref_spp > 0:
         t0 = time.perf_counter()
         ref = np.array(mi.render(scene, spp=ref_spp, seed=11))[:, :, :3]
         result["ref_seconds"] = time.perf_counter() - t0
         ref.astype(np.float32).tofile(os.path.join(out_dir, "mitsuba_ref.bin"))
     return result
+
+
+def jit_on_avx2():
+    """Has Dr.Jit's LLVM backend compile eight lanes wide for AVX2 and FMA (a Haswell-class
+    CPU), as Tessera's x86-64-v3 builds run, instead of sixteen on a host with AVX-512. Dr.Jit
+    1.5 does not bind `jit_llvm_set_target` in Python, so it is called in its core library by
+    its C++ name; another Dr.Jit that lacks it fails here, and the bench leaves the row out."""
+    import ctypes
+    import drjit
+
+    core = ctypes.CDLL(os.path.join(os.path.dirname(drjit.__file__), "libdrjit-core.so"))
+    set_target = core["_Z19jit_llvm_set_targetPKcS0_j"]  # jit_llvm_set_target(cpu, features, width)
+    set_target.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint]
+    features = b"+avx,+avx2,+fma,+f16c,+bmi,+bmi2,+lzcnt,+popcnt,+sse4.2,-avx512f,-avx512vl,-avx512dq,-avx512bw,-avx512cd"
+    set_target(b"haswell", features, 8)
+    width = core["_Z21jit_llvm_vector_widthv"]
+    width.restype = ctypes.c_uint
+    if width() != 8:
+        sys.exit(f"Dr.Jit kept a vector width of {width()}")
 
 
 def write_ply(path, points, triangles):
