@@ -176,73 +176,99 @@ mod avx {
         }
     }
 
+    /// The shading point as the eight lanes see it: its offset from each bound's centre and
+    /// the distances the importance reads, with the bounds' power.
+    struct Receiver {
+        v: [__m256; 3],
+        n: [__m256; 3],
+        /// No normal (a point in a medium): every direction receives.
+        no_normal: bool,
+        phi: __m256,
+        r2: __m256,
+        dist2: __m256,
+        /// `dist2.max(radius)`.
+        d2: __m256,
+    }
+
     /// [`super::FamilyBounds::importances`]: `LightBounds::importance` lane by lane, its
     /// branches as selects (every branch is computed; the lanes keep the one the scalar code
     /// takes).
     #[inline(always)]
     pub(super) unsafe fn importances(b: &FamilyBounds, p: Vec3, n: Vec3) -> [f32; LANES] {
         unsafe {
-            let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
             let v = [
                 _mm256_sub_ps(splat(p.x), load(&b.center[0])),
                 _mm256_sub_ps(splat(p.y), load(&b.center[1])),
                 _mm256_sub_ps(splat(p.z), load(&b.center[2])),
             ];
-            let nv = [splat(n.x), splat(n.y), splat(n.z)];
-            let no_normal = n == Vec3::ZERO;
             let (phi, radius) = (load(&b.phi), load(&b.radius));
-            let r2 = _mm256_mul_ps(radius, radius);
             let dist2 = dot(v, v);
             // `dist2.max(radius)`: maxps returns `radius` when `dist2` is NaN, as Rust does.
             let d2 = _mm256_max_ps(dist2, radius);
-
-            // Emitters facing every way: the receiver's bound alone (`sphere_receiver_cos`).
-            let omni = {
-                let a = abs(dot(v, nv));
-                let a2 = _mm256_mul_ps(a, a);
-                let t_r2 = _mm256_sub_ps(dist2, r2);
-                let c = max0(_mm256_add_ps(
-                    _mm256_mul_ps(a, _mm256_sqrt_ps(t_r2)),
-                    _mm256_sqrt_ps(_mm256_mul_ps(r2, max0(_mm256_sub_ps(dist2, a2)))),
-                ));
-                let whole = _mm256_or_ps(le(dist2, r2), _mm256_cmp_ps::<_CMP_GE_OQ>(a2, t_r2));
-                let whole = if no_normal { _mm256_castsi256_ps(_mm256_set1_epi32(-1)) } else { whole };
-                let (c, t) = (select(whole, one, c), select(whole, one, dist2));
-                _mm256_div_ps(_mm256_mul_ps(phi, c), _mm256_mul_ps(d2, t))
+            let at = Receiver {
+                v,
+                n: [splat(n.x), splat(n.y), splat(n.z)],
+                no_normal: n == Vec3::ZERO,
+                phi,
+                r2: _mm256_mul_ps(radius, radius),
+                dist2,
+                d2,
             };
-
-            // Emitters within a cone of normals.
-            let general = {
-                let inv = _mm256_div_ps(one, _mm256_sqrt_ps(dist2));
-                let ahead = gt(dist2, zero);
-                let wi = [0, 1, 2].map(|k| select(ahead, _mm256_mul_ps(v[k], inv), zero));
-                // `bounding_cone`.
-                let s2 = _mm256_div_ps(r2, dist2);
-                let inside = le(dist2, r2);
-                let sin_b = select(inside, zero, _mm256_sqrt_ps(s2));
-                let cos_b = select(inside, splat(-1.0), _mm256_sqrt_ps(max0(_mm256_sub_ps(one, s2))));
-                let w = [load(&b.w[0]), load(&b.w[1]), load(&b.w[2])];
-                let cos_w = dot(w, wi);
-                let cos_w = select(_mm256_load_ps(b.two_sided.as_ptr().cast()), abs(cos_w), cos_w);
-                let sin_w = sin_of(cos_w);
-                let (cos_x, sin_x) = sub_clamped(sin_w, cos_w, load(&b.sin_o), load(&b.cos_o));
-                let (cos_p, _) = sub_clamped(sin_x, cos_x, sin_b, cos_b);
-                // `receiver_cos`.
-                let receiver = if no_normal {
-                    one
-                } else {
-                    let cos_i = abs(dot(wi, nv));
-                    max0(sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).0)
-                };
-                let value = max0(_mm256_mul_ps(_mm256_div_ps(_mm256_mul_ps(phi, cos_p), d2), receiver));
-                select(le(cos_p, load(&b.cos_e)), zero, value)
-            };
-
-            let is_omni = _mm256_and_ps(le(load(&b.cos_o), splat(-1.0)), le(load(&b.cos_e), zero));
-            let value = select(le(phi, zero), zero, select(is_omni, omni, general));
+            let is_omni = _mm256_and_ps(le(load(&b.cos_o), splat(-1.0)), le(load(&b.cos_e), _mm256_setzero_ps()));
+            let value = select(le(phi, _mm256_setzero_ps()), _mm256_setzero_ps(), select(is_omni, omni(&at), within_cone(b, &at)));
             let mut out = [0.0f32; LANES];
             _mm256_storeu_ps(out.as_mut_ptr(), value);
             out
+        }
+    }
+
+    /// Emitters facing every way: the receiver's bound alone (`sphere_receiver_cos`).
+    #[inline(always)]
+    unsafe fn omni(at: &Receiver) -> __m256 {
+        unsafe {
+            let one = splat(1.0);
+            let a = abs(dot(at.v, at.n));
+            let a2 = _mm256_mul_ps(a, a);
+            let t_r2 = _mm256_sub_ps(at.dist2, at.r2);
+            let c = max0(_mm256_add_ps(
+                _mm256_mul_ps(a, _mm256_sqrt_ps(t_r2)),
+                _mm256_sqrt_ps(_mm256_mul_ps(at.r2, max0(_mm256_sub_ps(at.dist2, a2)))),
+            ));
+            let whole = _mm256_or_ps(le(at.dist2, at.r2), _mm256_cmp_ps::<_CMP_GE_OQ>(a2, t_r2));
+            let whole = if at.no_normal { _mm256_castsi256_ps(_mm256_set1_epi32(-1)) } else { whole };
+            let (c, t) = (select(whole, one, c), select(whole, one, at.dist2));
+            _mm256_div_ps(_mm256_mul_ps(at.phi, c), _mm256_mul_ps(at.d2, t))
+        }
+    }
+
+    /// Emitters within a cone of normals.
+    #[inline(always)]
+    unsafe fn within_cone(b: &FamilyBounds, at: &Receiver) -> __m256 {
+        unsafe {
+            let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
+            let inv = _mm256_div_ps(one, _mm256_sqrt_ps(at.dist2));
+            let ahead = gt(at.dist2, zero);
+            let wi = [0, 1, 2].map(|k| select(ahead, _mm256_mul_ps(at.v[k], inv), zero));
+            // `bounding_cone`.
+            let s2 = _mm256_div_ps(at.r2, at.dist2);
+            let inside = le(at.dist2, at.r2);
+            let sin_b = select(inside, zero, _mm256_sqrt_ps(s2));
+            let cos_b = select(inside, splat(-1.0), _mm256_sqrt_ps(max0(_mm256_sub_ps(one, s2))));
+            let w = [load(&b.w[0]), load(&b.w[1]), load(&b.w[2])];
+            let cos_w = dot(w, wi);
+            let cos_w = select(_mm256_load_ps(b.two_sided.as_ptr().cast()), abs(cos_w), cos_w);
+            let sin_w = sin_of(cos_w);
+            let (cos_x, sin_x) = sub_clamped(sin_w, cos_w, load(&b.sin_o), load(&b.cos_o));
+            let (cos_p, _) = sub_clamped(sin_x, cos_x, sin_b, cos_b);
+            // `receiver_cos`.
+            let receiver = if at.no_normal {
+                one
+            } else {
+                let cos_i = abs(dot(wi, at.n));
+                max0(sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).0)
+            };
+            let value = max0(_mm256_mul_ps(_mm256_div_ps(_mm256_mul_ps(at.phi, cos_p), at.d2), receiver));
+            select(le(cos_p, load(&b.cos_e)), zero, value)
         }
     }
 }
