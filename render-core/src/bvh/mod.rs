@@ -440,32 +440,49 @@ impl Blas {
     /// ([`walk_interleaved`]) when the BVH is too big to stay in cache, which hides much of
     /// the memory latency of its walks.
     pub fn intersect_many(&self, rays: &[(Vec3A, Vec3A, f32)], time: f32, hits: &mut [Option<(f32, u32, Vec2)>]) {
-        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        if self.stays_in_cache() {
-            for (hit, &(o, d, tmax)) in hits.iter_mut().zip(rays) {
-                *hit = self.intersect(o, d, tmax, time);
-            }
-            return;
-        }
-        let mut walked: Vec<BvhRay> = rays.iter().map(|&(o, d, tmax)| bvh_ray(o, d, tmax)).collect();
-        self.closest_interleaved(&mut walked, time, hits);
-        for hit in hits.iter_mut().flatten() {
-            hit.1 = self.tris.id(hit.1 as usize);
-        }
+        self.answer_each(
+            rays,
+            hits,
+            |o, d, tmax| self.intersect(o, d, tmax, time),
+            |walked, hits| {
+                self.closest_interleaved(walked, time, hits);
+                for hit in hits.iter_mut().flatten() {
+                    hit.1 = self.tris.id(hit.1 as usize);
+                }
+            },
+        );
     }
 
     /// [`Blas::occluded`] for each of `rays` (object-space origin, direction, tmax) at shutter
     /// `time`, into `blocked`, with several walks in flight.
     pub fn occluded_many(&self, rays: &[(Vec3A, Vec3A, f32)], time: f32, blocked: &mut [bool]) {
-        assert_eq!(rays.len(), blocked.len(), "one answer per ray");
+        self.answer_each(
+            rays,
+            blocked,
+            |o, d, tmax| self.occluded(o, d, tmax, time),
+            |walked, blocked| self.occluded_interleaved(walked, time, blocked),
+        );
+    }
+
+    /// An answer for each of `rays` into `answers`: from `lone`, one ray at a time, when the
+    /// BVH stays in cache (walks in flight only add bookkeeping there), else from `together`
+    /// over all the rays in obvhs's form.
+    fn answer_each<T>(
+        &self,
+        rays: &[(Vec3A, Vec3A, f32)],
+        answers: &mut [T],
+        lone: impl Fn(Vec3A, Vec3A, f32) -> T,
+        together: impl FnOnce(&mut [BvhRay], &mut [T]),
+    ) {
+        assert_eq!(rays.len(), answers.len(), "one answer per ray");
         if self.stays_in_cache() {
-            for (b, &(o, d, tmax)) in blocked.iter_mut().zip(rays) {
-                *b = self.occluded(o, d, tmax, time);
+            for (answer, &(o, d, tmax)) in answers.iter_mut().zip(rays) {
+                *answer = lone(o, d, tmax);
             }
             return;
         }
         let mut walked: Vec<BvhRay> = rays.iter().map(|&(o, d, tmax)| bvh_ray(o, d, tmax)).collect();
-        self.occluded_interleaved(&mut walked, time, blocked);
+        together(&mut walked, answers);
     }
 
     /// Closest hits (BVH-order triangle index) of `rays` (obvhs's form) with several walks in
