@@ -218,6 +218,8 @@ const _: () = assert!(SCAN_MAX_CHUNKS <= wide::MAX_BOUNDED);
 /// gained 7%, and from 262 144 (12 MB) both mostly lost. See `docs/benchmarks.md`, 2026-12-05
 /// 16:40 UTC.
 const NODES_AHEAD_BYTES: usize = 2 << 20;
+// A walk that asks for a node's leaves ahead asks for the node too.
+const _: () = assert!(NODES_AHEAD_BYTES <= LEAVES_AHEAD_BYTES);
 
 /// BVH size (nodes and triangles) above which a lone ray's walk asks for a node's leaf
 /// triangles a level ahead ([`Blas::prefetch_node_leaves`]). Measured on the project's 2-core
@@ -360,9 +362,13 @@ impl Blas {
             None if self.leaf_chunks.is_empty() => {
                 closest_walk(&self.bvh, ray, self.fetch_inner, |_| {}, |base, group, ray| self.tris.closest(base, group, ray))
             }
-            None => {
-                closest_walk(&self.bvh, ray, true, |c| self.prefetch_node_leaves(c), |base, group, ray| self.tris.closest(base, group, ray))
-            }
+            None => closest_walk(
+                &self.bvh,
+                ray,
+                self.fetch_inner,
+                |c| self.prefetch_node_leaves(c),
+                |base, group, ray| self.tris.closest(base, group, ray),
+            ),
             Some(m) => closest_walk(&self.bvh, ray, self.fetch_inner, |_| {}, |base, group, ray| m.closest(base, group, ray, time)),
         }
     }
@@ -420,7 +426,7 @@ impl Blas {
         match &self.deforming {
             None if self.scans() => return self.tris.any_of_all(&ray),
             None if self.leaf_chunks.is_empty() => walk(&self.bvh, &mut ray, self.fetch_inner, |_| {}, &mut any),
-            None => walk(&self.bvh, &mut ray, true, |c| self.prefetch_node_leaves(c), &mut any),
+            None => walk(&self.bvh, &mut ray, self.fetch_inner, |c| self.prefetch_node_leaves(c), &mut any),
             Some(m) => walk(
                 &self.bvh,
                 &mut ray,
@@ -1221,6 +1227,7 @@ mod tests {
         let mut nodes = Blas::build(&mesh, BuildQuality::Medium);
         nodes.fetch_inner = true;
         let mut leaves = Blas::build(&mesh, BuildQuality::Medium);
+        leaves.fetch_inner = true;
         leaves.leaf_chunks = leaves.bvh.nodes.iter().map(|n| pack_chunks(wide::TriangleLanes::chunks_of(n))).collect();
         let mut hits = 0;
         for (o, d, tmax) in random_rays(11, 3000) {

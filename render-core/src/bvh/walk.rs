@@ -85,10 +85,9 @@ impl Walk {
 /// (first primitive, bit mask of the primitives from it, bits below 24); `leaves` may shorten
 /// `ray.tmax` and returns true to stop the walk. With `fetch_inner`, every inner node the ray
 /// enters is prefetched when its parent is tested, and `ahead` is told its index (to prefetch
-/// what the node leads to). A
-/// lone ray keeps obvhs's macro: through [`Walk`] it costs the same (the Cornell box: +0.2%
-/// instructions under callgrind), and the macro stays an independent reference that the
-/// interleaved walks are tested against.
+/// what the node leads to). A lone ray keeps obvhs's macro: through [`Walk`] it costs the same
+/// (the Cornell box: +0.2% instructions under callgrind), and the macro stays an independent
+/// reference that the interleaved walks are tested against.
 #[inline(always)]
 pub(super) fn walk(
     bvh: &CwBvh,
