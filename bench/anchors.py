@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Anchor measurements for Tessera's benchmarks, run by the Rust benches on the same data.
 
-    python3 bench/anchors.py rays DIR        Embree (embreex) on DIR/{vertices,indices,rays}.bin,
-        on one thread and on two sharing the scene (embreex lets go of the GIL while it traces)
+    python3 bench/anchors.py rays DIR [THREADS]   Embree (embreex) on DIR/{vertices,indices,rays}.bin,
+        on one thread, and with THREADS 2 (the default) also on two sharing the scene (embreex
+        lets go of the GIL while it traces)
     python3 bench/anchors.py cornell ARGS    Mitsuba 3 on fixtures/cornell_box.usda (read with usd-core);
         ARGS: USD W H SPP MAX_DEPTH REF_SPP OUT_DIR VARIANT [SAMPLER] (SAMPLER: independent,
         the default, or multijitter / ldsampler / stratified / orthogonal; VARIANT llvm_ad_rgb:avx2
@@ -28,7 +29,7 @@ if __name__ == "__main__" and (len(sys.argv) < 3 or sys.argv[1] not in ("rays", 
 import numpy as np  # noqa: E402
 
 
-def rays(d):
+def rays(d, threads=2):
     import embreex.rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
 
@@ -50,22 +51,23 @@ def rays(d):
         t0 = time.perf_counter()
         occluded = scene.run(origins, directions, query="OCCLUDED", dists=tmax)
         best_occluded = min(best_occluded, time.perf_counter() - t0)
-    closest_2t = min(on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b]), len(origins)) for _ in range(3))
-    occluded_2t = min(
-        on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b], query="OCCLUDED", dists=tmax[a:b]), len(origins))
-        for _ in range(3)
-    )
     n = len(origins)
-    return {
+    result = {
         "build_s": build,
         "closest_mrays": n / best_closest / 1e6,
         "occluded_mrays": n / best_occluded / 1e6,
-        # Per thread, as the Rust bench reports its own two-thread rows.
-        "closest_mrays_2t": n / closest_2t / 2e6,
-        "occluded_mrays_2t": n / occluded_2t / 2e6,
         "closest_hits": int((hits >= 0).sum()),
         "occluded_hits": int((occluded >= 0).sum()),
     }
+    if threads == 2:
+        closest_2t = min(on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b]), n) for _ in range(3))
+        occluded_2t = min(
+            on_two_threads(lambda a, b: scene.run(origins[a:b], directions[a:b], query="OCCLUDED", dists=tmax[a:b]), n) for _ in range(3)
+        )
+        # Per thread, as the Rust bench reports its own two-thread rows.
+        result["closest_mrays_2t"] = n / closest_2t / 2e6
+        result["occluded_mrays_2t"] = n / occluded_2t / 2e6
+    return result
 
 
 def on_two_threads(trace, n):
@@ -294,7 +296,7 @@ def production(usd_path, width, height, spp, max_depth, out_dir, variant):
 
 if __name__ == "__main__":
     if sys.argv[1] == "rays":
-        print(json.dumps(rays(sys.argv[2])))
+        print(json.dumps(rays(sys.argv[2], int(sys.argv[3]) if len(sys.argv) > 3 else 2)))
     elif sys.argv[1] == "production":
         usd, w, h, spp, depth, out, variant = sys.argv[2:9]
         print(json.dumps(production(usd, int(w), int(h), int(spp), int(depth), out, variant)))

@@ -52,7 +52,7 @@ fn main() {
     let mut rounds = Vec::new();
     let mut embree_runs = Vec::new();
     for _ in 0..ROUNDS {
-        let anchor = run_embree(&dir);
+        let anchor = run_embree(&dir, 2);
         rounds.push((ray_by_ray(&lone_pool, &blas, &rays), anchor.clone()));
         embree_runs.push(anchor);
     }
@@ -200,7 +200,7 @@ fn small_and_medium_meshes() {
             || rays.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count(),
         );
         let (c, o) = (rays.len() as f64 / best_c / 1e6, rays.len() as f64 / best_o / 1e6);
-        let embree = run_embree(&write_embree_inputs(&mesh, &rays));
+        let embree = run_embree(&write_embree_inputs(&mesh, &rays), 1);
         let e = |k: &str| embree.as_ref().and_then(|m| m.get(k).copied());
         let ratio = |ours: f64, k: &str| e(k).map_or("-".into(), |t| format!("{:.2}x", ours / t));
         let agree = match (e("closest_hits"), e("occluded_hits")) {
@@ -232,11 +232,11 @@ fn write_embree_inputs(mesh: &Mesh, rays: &[TestRay]) -> std::path::PathBuf {
 
 type Numbers = std::collections::HashMap<String, f64>;
 
-/// One run of the Embree anchor (build, then best of three passes of each query), or None
-/// with a message when embreex is missing.
-fn run_embree(dir: &std::path::Path) -> Option<Numbers> {
+/// One run of the Embree anchor (build, then best of three passes of each query on one
+/// thread, and on two when `threads` is 2), or None with a message when embreex is missing.
+fn run_embree(dir: &std::path::Path, threads: usize) -> Option<Numbers> {
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/anchors.py");
-    match std::process::Command::new("python3").arg(&script).arg("rays").arg(dir).output() {
+    match std::process::Command::new("python3").arg(&script).arg("rays").arg(dir).arg(threads.to_string()).output() {
         Ok(out) if out.status.success() => String::from_utf8_lossy(&out.stdout).lines().last().and_then(parse_json_numbers),
         Ok(out) => {
             let why = String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("").to_string();

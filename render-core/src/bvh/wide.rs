@@ -444,7 +444,7 @@ impl ChunkBounds {
     fn met(&self, ray: &BvhRay) -> u32 {
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         {
-            // SAFETY (all three calls): the target has AVX2 (checked at compile time).
+            // SAFETY (both calls): the target has AVX2 (checked at compile time).
             let mut met = unsafe { avx2::chunks_met(&self.passes[0], ray) };
             for p in 1..self.passes.len() {
                 met |= unsafe { avx2::chunks_met(&self.passes[p], ray) } << (p * LANES);
