@@ -102,7 +102,7 @@ impl DisneyDiffuse {
 
     /// False for an uncoupled Lambertian base, whose terms are constants.
     #[inline]
-    fn reads_tables(&self) -> bool {
+    pub(super) fn reads_tables(&self) -> bool {
         !self.lambert || self.coupling.is_some()
     }
 

@@ -182,6 +182,17 @@ impl Lobe {
         }
     }
 
+    /// True when [`Lobe::prepare`] stores something for the view: the lobes that read energy
+    /// tables at the viewing angle.
+    #[inline]
+    fn reads_view(&self) -> bool {
+        match self {
+            Lobe::GgxReflection(_) | Lobe::Dielectric(_) => true,
+            Lobe::DisneyDiffuse(l) => l.reads_tables(),
+            _ => false,
+        }
+    }
+
     /// Directional albedo estimate, used for lobe selection and the albedo AOV.
     #[inline]
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
@@ -436,6 +447,22 @@ impl Bsdf {
         });
     }
 
+    /// True when [`Bsdf::prepare`] gives the same BSDF at every view: one lobe, no coat, and
+    /// nothing read at the viewing angle (a plain diffuse material). Such a BSDF, prepared
+    /// once, can be shaded with as it is ([`Bsdf::settle`]).
+    #[inline]
+    pub fn is_view_independent(&self) -> bool {
+        self.count == 1 && self.coats[0].is_none() && self.lobes[0].as_ref().is_some_and(|l| !l.reads_view())
+    }
+
+    /// Prepares a view-independent BSDF for every view at once (a material's own, when the
+    /// scene builds it), so shading points can share it instead of copying and preparing it.
+    pub fn settle(&mut self) {
+        if self.is_view_independent() {
+            self.prepare(Vec3::Z);
+        }
+    }
+
     /// True when nothing scatters.
     pub fn is_empty(&self) -> bool {
         self.count == 0
@@ -686,6 +713,47 @@ mod finite_everywhere {
                 format!("{:?}", (b.eval(wo, wi), b.pdf(wo, wi), b.albedo(wo), b.eval_by_kind(wo, wi), s))
             };
             prop_assert_eq!(bits(&here), bits(&elsewhere));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        /// A BSDF that calls itself view-independent, settled once, is what preparing a copy
+        /// for any view gives, to the bit: shading points share it instead of preparing a copy
+        /// (`integrator::shading`). Lobes of every kind, alone or two, at weight 1 or less,
+        /// coated or not.
+        #[test]
+        fn a_settled_bsdf_is_every_views_prepared_bsdf(
+            a in prop_oneof![lobe(), preparing_lobe()],
+            b in proptest::option::of(lobe()),
+            weight in prop_oneof![Just(1.0f32), 0.0f32..1.0],
+            coat in any::<bool>(),
+            wo in dir(),
+            wi in dir(),
+            u in (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0),
+        ) {
+            let mut bsdf = Bsdf::default();
+            bsdf.push_weighted(a, weight);
+            b.into_iter().for_each(|b| bsdf.push(b));
+            if coat {
+                bsdf.coat_with(Coat::Disney(Clearcoat::new(0.5, 0.5)), true);
+            }
+            let mut settled = bsdf.clone();
+            settled.settle();
+            if !settled.is_view_independent() {
+                // Left as it is, to be copied and prepared at each shading point.
+                prop_assert_eq!(format!("{settled:?}"), format!("{bsdf:?}"));
+                return Ok(());
+            }
+            prop_assert!(bsdf.len() == 1 && !coat);
+            let wo = wo.normalize_or_zero();
+            let mut here = bsdf.clone();
+            here.prepare(wo);
+            let bits = |b: &Bsdf| {
+                let s = b.sample_kind(wo, u.0, Vec2::new(u.1, u.2)).map(|(s, k, r)| (s.wi, s.weight, s.pdf, s.flags.delta, k, r));
+                format!("{:?}", (b.eval(wo, wi), b.pdf(wo, wi), b.eval_pdf(wo, wi), b.albedo(wo), b.eval_by_kind(wo, wi), s))
+            };
+            prop_assert_eq!(bits(&settled), bits(&here));
         }
     }
 

@@ -78,8 +78,10 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     }
 }
 
-/// The BSDF and textured material at a path's current vertex: filled anew at every vertex
-/// (see `Bsdf::clone_from`), the buffers kept from vertex to vertex to spare their copies.
+/// The BSDF and textured material at a path's current vertex, when they are built there (a
+/// material's BSDF that serves every view is shared instead: `Bsdf::settle`): filled anew at
+/// every vertex (see `Bsdf::clone_from`), the buffers kept from vertex to vertex to spare
+/// their copies.
 #[derive(Default)]
 struct VertexBuffers {
     bsdf: Bsdf,
@@ -263,17 +265,17 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         };
         tracer.add_surface_emission(path, &v, &hit, share);
         if path.depth == 0 {
-            record_first_hit(out, scene, &v, &at.bsdf, depth_of(hit.t));
+            record_first_hit(out, scene, &v, depth_of(hit.t));
         }
-        if path.depth >= settings.max_depth || at.bsdf.is_empty() {
+        if path.depth >= settings.max_depth || v.bsdf.is_empty() {
             return false;
         }
-        tracer.bounce(path, &v, &mut at.bsdf, rng, counters)
+        tracer.bounce(path, &v, rng, counters)
     }
 
     /// Direct light at `v`, then the next direction; false when the path ends there.
-    fn bounce(&self, path: &mut PathState, v: &Vertex, bsdf: &mut Bsdf, rng: &mut PathSampler, counters: &mut PathCounters) -> bool {
-        bsdf.prepare(v.wo_local);
+    fn bounce(&self, path: &mut PathState, v: &Vertex, rng: &mut PathSampler, counters: &mut PathCounters) -> bool {
+        let bsdf = v.bsdf;
         // Light sampling context: the geometric normal on the viewer's side.
         let ctx =
             ShadingContext { p: v.s.p, n: if v.ng.dot(v.wo) < 0.0 { -v.ng } else { v.ng }, both_sides: bsdf.transmits(), time: v.s.time };
@@ -306,13 +308,13 @@ impl<const FULL: bool> Tracer<'_, FULL> {
 }
 
 /// The first-hit AOVs: coverage, prim id, normal, depth, position and albedo.
-fn record_first_hit(out: &mut PixelSample, scene: &CommittedScene, v: &Vertex, bsdf: &Bsdf, depth: f32) {
+fn record_first_hit(out: &mut PixelSample, scene: &CommittedScene, v: &Vertex, depth: f32) {
     out.alpha = 1.0;
     out.prim_id = scene.instances[v.s.instance as usize].prim + 1;
     out.normal = v.ns;
     out.depth = depth;
     out.position = v.s.p;
-    out.albedo = bsdf.albedo(v.wo_local.with_z(v.wo_local.z.abs()));
+    out.albedo = v.bsdf.albedo(v.wo_local.with_z(v.wo_local.z.abs()));
 }
 
 /// The sample the path gathered; a non-finite one is dropped and counted.

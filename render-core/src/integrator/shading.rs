@@ -24,8 +24,11 @@ pub(super) struct Vertex<'l> {
     /// Towards the previous vertex.
     pub wo: Vec3,
     /// The material resolved here and its normal-map normal, for textured materials: in the
-    /// path's own buffer, as the BSDF is (a material is 464 bytes; every vertex moved it).
+    /// path's own buffer, as a BSDF built here is (a material is 464 bytes; every vertex
+    /// moved it).
     pub local: Option<&'l (Material, Option<Vec3>)>,
+    /// The BSDF, prepared for this view: the material's own or the path's buffer.
+    pub bsdf: &'l Bsdf,
     /// Shading and geometric normals, oriented for the BSDF (see [`Tracer::orient`]).
     pub ns: Vec3,
     pub ng: Vec3,
@@ -70,10 +73,14 @@ pub(super) enum Landing<'l> {
     Stopped,
 }
 
-impl<const FULL: bool> Tracer<'_, FULL> {
-    /// Sets up shading at `hit`, writing the BSDF into `bsdf` and a textured material resolved
-    /// here into `local` (buffers for the whole path).
-    pub(super) fn land<'l>(&self, path: &mut PathState, hit: &Hit, bsdf: &mut Bsdf, local: &'l mut LocalMaterial) -> Landing<'l> {
+impl<'a, const FULL: bool> Tracer<'a, FULL> {
+    /// Sets up shading at `hit`: the vertex's BSDF, prepared for its view, is the material's
+    /// own where that serves every view, or else written into `bsdf`; a textured material
+    /// resolved here goes into `local` (buffers for the whole path).
+    pub(super) fn land<'l>(&self, path: &mut PathState, hit: &Hit, bsdf: &'l mut Bsdf, local: &'l mut LocalMaterial) -> Landing<'l>
+    where
+        'a: 'l,
+    {
         let scene = self.scene;
         let mut s = scene.surface(hit);
         let ray = path.ray;
@@ -99,14 +106,15 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             s.ns = crate::tangents::normal_mapped(s.ns, s.tangent, s.dpds, s.dpdt, *n);
         }
         let wo = -ray.dir;
-        let glitter = self.choose_bsdf(path, &s, local, bsdf);
+        let (shared, glitter) = self.choose_bsdf(path, &s, local, bsdf);
         let a_roughness = self.own_roughness(&s, local);
-        let (ns, ng) = orient(&s, wo, bsdf.transmits());
-        let fibre = FULL && bsdf.is_fibre();
+        let chosen = shared.unwrap_or(bsdf);
+        let (ns, ng) = orient(&s, wo, chosen.transmits());
+        let fibre = FULL && chosen.is_fibre();
         let frame = if fibre {
             // A fibre's frame runs along the curve (the tube's texture t), root to tip.
             Frame::from_normal_along(ns, s.dpdt, s.up)
-        } else if self.force() || bsdf.is_anisotropic() {
+        } else if self.force() || chosen.is_anisotropic() {
             Frame::from_normal_around(ns, s.up)
         } else {
             Frame::from_normal(ns)
@@ -115,7 +123,14 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             self.apply_glitter(u, &s, ns, &frame, cone_here, bsdf);
         }
         let wo_local = frame.to_local(wo);
-        Landing::Surface(Vertex { s, wo, local: local.as_ref(), ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
+        let bsdf: &'l Bsdf = match shared {
+            Some(b) => b,
+            None => {
+                bsdf.prepare(wo_local);
+                bsdf
+            }
+        };
+        Landing::Surface(Vertex { s, wo, local: local.as_ref(), bsdf, ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
     }
 
     /// True when the ray passes `s` untouched: cut out here, not present for this ray where
@@ -126,10 +141,11 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         absent || local.as_ref().is_some_and(|(m, _)| m.cut_out) || self.scene.inside_fibre(s, dir)
     }
 
-    /// Writes the BSDF at `s` into `bsdf`: the material's (at caustic avoidance's roughness
-    /// floor), with every lobe when forced, or a glitter material's base lobes, whose flakes
-    /// are added once the frame is known (returned).
-    fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &LocalMaterial, bsdf: &mut Bsdf) -> Option<Uber> {
+    /// The BSDF at `s`: the material's (at caustic avoidance's roughness floor), with every
+    /// lobe when forced, or a glitter material's base lobes, whose flakes are added once the
+    /// frame is known (returned). A material's own BSDF that serves every view is returned to
+    /// be shared; any other is written into `bsdf`.
+    fn choose_bsdf(&self, path: &PathState, s: &SurfaceHit, local: &LocalMaterial, bsdf: &mut Bsdf) -> (Option<&'a Bsdf>, Option<Uber>) {
         let (ec, force) = (self.settings.energy_compensation, self.force());
         let level = if self.avoid() { path.floor.level() } else { 0 };
         // Glitter flakes depend on the point and footprint: such materials build their lobes
@@ -142,9 +158,17 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             Some((m, _)) if force => *bsdf = m.surface.bsdf_with_every_lobe(ec),
             Some((m, _)) => *bsdf = m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
             None if force => bsdf.clone_from(self.scene.bsdf_with_every_lobe(s.material, ec)),
-            None => bsdf.clone_from(self.scene.bsdf_floored(s.material, ec, level)),
+            None => {
+                let own = self.scene.bsdf_floored(s.material, ec, level);
+                if own.is_view_independent() {
+                    // Settled when the scene built it: copying and preparing it gave the same
+                    // lobe again, for 81 instructions a Cornell box vertex.
+                    return (Some(own), None);
+                }
+                bsdf.clone_from(own);
+            }
         }
-        glitter
+        (None, glitter)
     }
 
     /// The surface's own roughness (before clamping), which weighs transparent shadows

@@ -10,6 +10,13 @@ use crate::camera::CameraDesc;
 use crate::geometry::Ray;
 use crate::plan::Feature;
 
+/// A material's BSDF as the scene keeps it: settled for every view when it can be
+/// ([`crate::bsdf::Bsdf::settle`]), so shading points share it rather than copy it.
+fn settled(mut bsdf: crate::bsdf::Bsdf) -> crate::bsdf::Bsdf {
+    bsdf.settle();
+    bsdf
+}
+
 impl CommittedScene {
     /// Builds the BSDFs for one energy-compensation setting, and the energy tables their
     /// lobes read, for the materials some instance uses: a render calls this before its first
@@ -20,7 +27,7 @@ impl CommittedScene {
             let _span = tracing::info_span!("prepare_bsdfs", energy_compensation).entered();
             // Materials side by side: a glossy scene's first tile waits for the energy-table
             // rows its materials read, and a row holds the same bits whichever thread builds it.
-            let set: Vec<crate::bsdf::Bsdf> = self.materials.par_iter().map(|m| m.bsdf(energy_compensation)).collect();
+            let set: Vec<crate::bsdf::Bsdf> = self.materials.par_iter().map(|m| settled(m.bsdf(energy_compensation))).collect();
             self.used_materials.par_iter().for_each(|&m| set[m as usize].build_tables());
             set
         })
@@ -36,7 +43,7 @@ impl CommittedScene {
                 .into_par_iter()
                 .map(|level| {
                     let floor = crate::caustics::RoughnessFloor::of_level(level);
-                    self.materials.par_iter().map(|m| m.surface.with_roughness_floor(floor).bsdf(energy_compensation)).collect()
+                    self.materials.par_iter().map(|m| settled(m.surface.with_roughness_floor(floor).bsdf(energy_compensation))).collect()
                 })
                 .collect()
         })
