@@ -78,11 +78,6 @@ struct DiffuseTerms {
     coupling: (f32, f32),
 }
 
-impl DiffuseTerms {
-    /// An uncoupled Lambertian base's: unscaled, nothing to couple to.
-    const LAMBERT: DiffuseTerms = DiffuseTerms { scales: (1.0, 1.0), coupling: (0.0, 0.0) };
-}
-
 impl DisneyDiffuse {
     /// Reflection, not delta.
     pub const FLAGS: LobeFlags = LobeFlags { reflection: true, transmission: false, delta: false };
@@ -117,12 +112,23 @@ impl DisneyDiffuse {
     }
 
     /// f without the cosine.
+    #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z * wi.z <= 0.0 || (wo + wi).length_squared() == 0.0 {
             return Vec3::ZERO;
         }
+        if !self.reads_tables() {
+            // An uncoupled Lambertian base: exactly 1/π, as (1·(1/π) + 1·0)·1 below is.
+            // Inlined where the lobe is sampled and evaluated, which the general form was not.
+            return self.color * FRAC_1_PI;
+        }
+        self.eval_with_tables(wo, wi)
+    }
+
+    /// [`Self::eval`] for lobes that read the energy tables.
+    fn eval_with_tables(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let (base, retro) = if self.lambert { (FRAC_1_PI, 0.0) } else { Self::parts(self.roughness, self.flatness, wo, wi) };
-        let terms = if self.reads_tables() { self.at_view.get(wo, || self.find_terms(wo)) } else { DiffuseTerms::LAMBERT };
+        let terms = self.at_view.get(wo, || self.find_terms(wo));
         let (s, k) = terms.scales;
         let couple = match self.coupling {
             Some((eta, r)) => {
@@ -465,6 +471,27 @@ mod tests {
     }
 
     testing::lobe_battery!(lobes: lobes(), chi_square: resolvable(), seed: 400);
+
+    #[test]
+    fn an_uncoupled_lambertian_base_takes_the_general_forms_bits() {
+        // `eval`'s shortcut against the general form it skips, on both sides, at grazing
+        // angles, along the normal and with unnormalised directions.
+        let mut rng = crate::sampling::Pcg32::new(5, 5);
+        let mut dir = || {
+            let z = match rng.next_u32() % 4 {
+                0 => 0.0,
+                1 => 1e-7,
+                _ => 2.0 * rng.next_f32() - 1.0,
+            };
+            Vec3::new(2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 1.0, z)
+        };
+        for k in 0..100_000 {
+            let l = DisneyDiffuse::new(Vec3::new(0.725, 0.71, 0.68) * (k % 7) as f32, 0.5, 0.0, None, true);
+            let (wo, wi) = (dir(), dir());
+            let expected = if wo.z * wi.z <= 0.0 || (wo + wi).length_squared() == 0.0 { Vec3::ZERO } else { l.eval_with_tables(wo, wi) };
+            assert_eq!(l.eval(wo, wi).to_array().map(f32::to_bits), expected.to_array().map(f32::to_bits), "wo {wo}, wi {wi}");
+        }
+    }
 
     #[test]
     fn the_sharpest_clearcoat_samples_its_pdf_seen_from_above() {
