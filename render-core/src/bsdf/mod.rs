@@ -166,6 +166,10 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.eval_pdf(wo, wi),
             Lobe::Dielectric(l) => l.eval_pdf(wo, wi),
             Lobe::Clearcoat(l) => l.eval_pdf(wo, wi),
+            // The diffuse lobes directly: through `self.eval` and `self.pdf` they were two
+            // more dispatches, each a call, at every light sample of a diffuse surface.
+            Lobe::DisneyDiffuse(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
+            Lobe::Lambert(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
     }
