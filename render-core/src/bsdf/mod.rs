@@ -562,7 +562,7 @@ impl Bsdf {
     /// that lobe is.
     pub fn sample_kind(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<(LobeSample, PathKind, f32)> {
         let (s, i) = self.sample_lobe(wo, u_lobe, u)?;
-        let lobe = self.lobes[i]?;
+        let lobe = self.lobes[i].as_ref()?;
         Some((s, lobe.kind(wo, s.wi), lobe.roughness()))
     }
 
@@ -594,7 +594,7 @@ impl Bsdf {
             acc += self.select[i];
         }
         let (i, lo) = chosen?;
-        let lobe = self.lobes[i]?;
+        let lobe = self.lobes[i].as_ref()?;
         // Reuse the selection number inside the lobe, rescaled (Cycles' trick, which keeps
         // its stratification).
         let uc = if self.select[i] > 0.0 { ((u_lobe - lo) / self.select[i]).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.5 };
