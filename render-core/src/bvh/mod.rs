@@ -41,6 +41,14 @@ fn bvh_ray(o: Vec3A, d: Vec3A, tmax: f32) -> BvhRay {
     BvhRay::new(o, d + Vec3A::ZERO, 0.0, tmax)
 }
 
+/// [`bvh_ray`] for the scan of a small mesh ([`Blas::scans`]), which reads no inverse
+/// direction (its chunk bounds divide for themselves): left at zero, sparing the three
+/// guarded divisions of every closest-hit and shadow ray of a small scene.
+#[inline(always)]
+fn scan_ray(o: Vec3A, d: Vec3A, tmax: f32) -> BvhRay {
+    BvhRay { origin: o, direction: d + Vec3A::ZERO, inv_direction: Vec3A::ZERO, tmin: 0.0, tmax }
+}
+
 /// A triangle in BVH order, stored as vertex and edges for Möller-Trumbore.
 #[derive(Clone, Copy, Debug)]
 struct RtTriangle {
@@ -330,8 +338,11 @@ impl Blas {
     /// barycentrics).
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> Option<(f32, u32, Vec2)> {
-        let mut ray = bvh_ray(o, d, tmax);
-        self.closest_bvh_order(&mut ray, time).map(|(t, id, bary)| (t, self.tris.id(id as usize), bary))
+        let hit = match self.deforming.is_none() && self.scans() {
+            true => self.tris.closest_of_all(&scan_ray(o, d, tmax)),
+            false => self.closest_bvh_order(&mut bvh_ray(o, d, tmax), time),
+        };
+        hit.map(|(t, id, bary)| (t, self.tris.id(id as usize), bary))
     }
 
     /// True when the mesh is small enough that testing its chunks (those whose bounds the ray
@@ -417,6 +428,9 @@ impl Blas {
     /// True when anything lies on the segment (0, tmax) at shutter `time`.
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
+        if self.deforming.is_none() && self.scans() {
+            return self.tris.any_of_all(&scan_ray(o, d, tmax));
+        }
         let mut ray = bvh_ray(o, d, tmax);
         let mut blocked = false;
         let mut any = |ray: &mut BvhRay, base, group| {
@@ -424,7 +438,6 @@ impl Blas {
             blocked
         };
         match &self.deforming {
-            None if self.scans() => return self.tris.any_of_all(&ray),
             None if self.leaf_chunks.is_empty() => walk(&self.bvh, &mut ray, self.fetch_inner, |_| {}, &mut any),
             None => walk(&self.bvh, &mut ray, self.fetch_inner, |c| self.prefetch_node_leaves(c), &mut any),
             Some(m) => walk(
@@ -1067,17 +1080,18 @@ impl Tlas {
     /// Closest hit along `ray` before `ray.tmax`.
     pub fn intersect(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray) -> Option<Hit> {
         let k = self.ray_scale;
-        let mut wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, ray.tmax / k);
+        let (origin, dir, tmax) = (Vec3A::from(ray.origin), Vec3A::from(ray.dir) * k, ray.tmax / k);
         let mut best: Option<Hit> = None;
         let (bvh, ordered) = match self.accel.as_ref()? {
             Accel::Instances { bvh, ordered } => (bvh, ordered),
             Accel::Flat { world, ids } => {
-                return world.intersect(wray.origin, wray.direction, wray.tmax, ray.time).map(|(t, id, bary)| {
+                return world.intersect(origin, dir, tmax, ray.time).map(|(t, id, bary)| {
                     let (instance, triangle) = ids[id as usize];
                     Hit { t: t * k, time: ray.time, instance, triangle, bary }
                 });
             }
         };
+        let mut wray = bvh_ray(origin, dir, tmax);
         walk(
             bvh,
             &mut wray,
@@ -1101,12 +1115,13 @@ impl Tlas {
     /// True when anything blocks the segment from `ray.origin` to `ray.at(tmax)`.
     pub fn occluded(&self, blases: &[std::sync::Arc<Blas>], ray: &Ray, tmax: f32) -> bool {
         let k = self.ray_scale;
-        let mut wray = bvh_ray(ray.origin.into(), Vec3A::from(ray.dir) * k, tmax / k);
+        let (origin, dir, tmax) = (Vec3A::from(ray.origin), Vec3A::from(ray.dir) * k, tmax / k);
         let (bvh, ordered) = match &self.accel {
             None => return false,
             Some(Accel::Instances { bvh, ordered }) => (bvh, ordered),
-            Some(Accel::Flat { world, .. }) => return world.occluded(wray.origin, wray.direction, wray.tmax, ray.time),
+            Some(Accel::Flat { world, .. }) => return world.occluded(origin, dir, tmax, ray.time),
         };
+        let mut wray = bvh_ray(origin, dir, tmax);
         let mut blocked = false;
         walk(
             bvh,
