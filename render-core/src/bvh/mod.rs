@@ -338,7 +338,7 @@ impl Blas {
     /// barycentrics).
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> Option<(f32, u32, Vec2)> {
-        let hit = match self.deforming.is_none() && self.scans() {
+        let hit = match self.scans() {
             true => self.tris.closest_of_all(&scan_ray(o, d, tmax)),
             false => self.closest_bvh_order(&mut bvh_ray(o, d, tmax), time),
         };
@@ -346,10 +346,11 @@ impl Blas {
     }
 
     /// True when the mesh is small enough that testing its chunks (those whose bounds the ray
-    /// meets, from six chunks up) costs less than walking to some of them ([`SCAN_MAX_CHUNKS`]).
+    /// meets, from six chunks up) costs less than walking to some of them ([`SCAN_MAX_CHUNKS`]),
+    /// and keeps its shape (a deforming mesh's chunks hold no triangles of its own time).
     #[inline(always)]
     fn scans(&self) -> bool {
-        self.tris.chunk_count() <= SCAN_MAX_CHUNKS
+        self.deforming.is_none() && self.tris.chunk_count() <= SCAN_MAX_CHUNKS
     }
 
     /// True when the BVH's nodes and triangles are small enough to stay in cache: interleaving
@@ -363,13 +364,13 @@ impl Blas {
         self.bvh.nodes.len() * size_of::<obvhs::cwbvh::node::CwBvhNode>() + self.tris.bytes()
     }
 
-    /// Closest hit along `ray` at shutter `time`, its triangle as a BVH-order index. The
-    /// mesh's kind is matched once, outside the walk: matching per leaf group (as the
-    /// interleaved walks do) cost a lone ray about 10% more instructions.
+    /// Closest hit along `ray` at shutter `time` by walking the BVH (a scanned mesh's is
+    /// [`Blas::intersect`]'s), its triangle as a BVH-order index. The mesh's kind is matched
+    /// once, outside the walk: matching per leaf group (as the interleaved walks do) cost a
+    /// lone ray about 10% more instructions.
     #[inline(always)]
     fn closest_bvh_order(&self, ray: &mut BvhRay, time: f32) -> Option<(f32, u32, Vec2)> {
         match &self.deforming {
-            None if self.scans() => self.tris.closest_of_all(ray),
             None if self.leaf_chunks.is_empty() => {
                 closest_walk(&self.bvh, ray, self.fetch_inner, |_| {}, |base, group, ray| self.tris.closest(base, group, ray))
             }
@@ -428,7 +429,7 @@ impl Blas {
     /// True when anything lies on the segment (0, tmax) at shutter `time`.
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32, time: f32) -> bool {
-        if self.deforming.is_none() && self.scans() {
+        if self.scans() {
             return self.tris.any_of_all(&scan_ray(o, d, tmax));
         }
         let mut ray = bvh_ray(o, d, tmax);
