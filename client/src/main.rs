@@ -507,8 +507,20 @@ async fn real_main() -> Result<()> {
         }
         Command::Farm { what } => farm(what).await?,
         Command::Merge { parts, output, denoise } => merge(&parts, &output, denoise)?,
-        Command::Render { scene, explain_plan: true, frame, subdivision_level, sampling, .. } => {
-            print!("{}", tessera::commands::render::explain_plan(&scene, sampling.load_options(frame, subdivision_level))?);
+        Command::Render { scene, explain_plan: true, frame, subdivision_level, sampling, aov, caustics, force_all_effects, .. } => {
+            // The settings that choose the path loop, as the server derives them.
+            let settings = render_core::integrator::IntegratorSettings {
+                light_path_aovs: aov.iter().any(|a| render_core::film::Aov::from_name(a).is_some_and(|a| a.is_extra())),
+                caustics: if caustics == CausticsArg::Avoid {
+                    render_core::caustics::CausticMode::Avoid
+                } else {
+                    render_core::caustics::CausticMode::Full
+                },
+                force_all_effects,
+                ..Default::default()
+            };
+            let options = sampling.load_options(frame, subdivision_level);
+            print!("{}", tessera::commands::render::explain_plan_for(&scene, options, &settings)?);
         }
         cmd @ Command::Render { explain_plan: false, .. } => render_command(cmd).await?,
     }

@@ -1,5 +1,6 @@
 //! Image-level guarantees: determinism, format independence, the files the CLI writes.
 
+use render_core::integrator::IntegratorSettings;
 use tessera::commands::render::{RenderJob, run};
 use tessera_tests::*;
 
@@ -113,6 +114,13 @@ fn explain_plan_names_the_effects_and_the_prims_that_call_for_them() {
     let cornell = tessera::commands::render::explain_plan(&fixture("cornell_box.usda"), Default::default()).unwrap();
     assert!(cornell.contains("+ lights") && cornell.contains("/World/Lights/CeilingLight"), "{cornell}");
     assert!(!cornell.contains("+ transmission"), "a scene without glass pays nothing for it: {cornell}");
+    assert!(cornell.contains("= path loop          specialised"), "{cornell}");
+    // Settings can call for the general loop too, and are named.
+    let avoid = IntegratorSettings { caustics: render_core::caustics::CausticMode::Avoid, ..Default::default() };
+    let cornell = tessera::commands::render::explain_plan_for(&fixture("cornell_box.usda"), Default::default(), &avoid).unwrap();
+    assert!(cornell.contains("= path loop          general, for caustic avoidance"), "{cornell}");
+    let volume = tessera::commands::render::explain_plan(&fixture("usd/volume_box.usda"), Default::default()).unwrap();
+    assert!(volume.contains("general, for volumes"), "{volume}");
 }
 
 /// The render plan changes the price, not the picture: with every effect forced on, each

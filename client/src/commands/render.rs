@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use render_core::integrator::IntegratorSettings;
 use tessera_proto::v1 as pb;
 
 use crate::film::ExactFilm;
@@ -616,6 +617,11 @@ pub fn output_of(given: &Path, translation: &crate::usd::Translation) -> Result<
 /// from the same commit the server performs (`render_core::scene::commit`), plus what the
 /// USD translation could not render.
 pub fn explain_plan(scene: &Path, options: crate::usd::LoadOptions) -> Result<String> {
+    explain_plan_for(scene, options, &IntegratorSettings::default())
+}
+
+/// [`explain_plan`] for a render with `settings`, which also decide which path loop runs.
+pub fn explain_plan_for(scene: &Path, options: crate::usd::LoadOptions, settings: &IntegratorSettings) -> Result<String> {
     let translation = crate::usd::load_with(scene, options)?;
     let committed = render_core::scene::commit(&translation.to_scene_desc(), &mut render_core::scene::BlasCache::default())
         .with_context(|| format!("{}: the scene does not commit", scene.display()))?;
@@ -623,11 +629,25 @@ pub fn explain_plan(scene: &Path, options: crate::usd::LoadOptions) -> Result<St
     let plan = committed.plan.to_string();
     let split = plan.find("  - ").unwrap_or(plan.len());
     let reader = translation.reader_plan();
-    let mut out = format!("render plan for {}:\n{}{reader}{}", scene.display(), &plan[..split], &plan[split..]);
+    let path_loop = path_loop_line(committed.plan.features, settings);
+    let mut out = format!("render plan for {}:\n{}{reader}{path_loop}{}", scene.display(), &plan[..split], &plan[split..]);
     for w in translation.warnings.iter().chain(&committed.warnings) {
         out += &format!("  ! {w}\n");
     }
     Ok(out)
+}
+
+/// Which path loop the render runs, and what calls for the general one: a scene and settings
+/// without any of its machinery run the loop compiled without it.
+fn path_loop_line(features: render_core::plan::Features, settings: &IntegratorSettings) -> String {
+    let causes: Vec<&str> = render_core::integrator::general_loop_causes(features, settings).collect();
+    match causes.is_empty() {
+        true => {
+            let left_out: Vec<&str> = render_core::integrator::FULL_LOOP_FEATURES.iter().map(|f| f.name()).collect();
+            format!("  = {:<18} specialised: compiled without the machinery of {}\n", "path loop", left_out.join(", "))
+        }
+        false => format!("  = {:<18} general, for {}\n", "path loop", causes.join(", ")),
+    }
 }
 
 /// The render's price, pass by pass: samples, elapsed time, estimated noise (relative

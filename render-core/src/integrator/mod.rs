@@ -89,16 +89,25 @@ struct VertexBuffers {
 }
 
 /// Features whose machinery only the general path loop holds.
-const FULL_LOOP_FEATURES: [Feature; 6] =
+pub const FULL_LOOP_FEATURES: [Feature; 6] =
     [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair, Feature::Volumes];
 
 /// True when the scene's features or the render's settings need the general path loop.
 pub fn needs_full_loop(features: Features, settings: &IntegratorSettings) -> bool {
-    settings.general_loop
-        || settings.force_all_effects
-        || settings.light_path_aovs
-        || settings.caustics == CausticMode::Avoid
-        || features.has_any(&FULL_LOOP_FEATURES)
+    general_loop_causes(features, settings).next().is_some()
+}
+
+/// What makes a render take the general path loop, by name: the settings, then the scene's
+/// features, whose machinery only that loop holds. None for the specialised loop.
+pub fn general_loop_causes(features: Features, settings: &IntegratorSettings) -> impl Iterator<Item = &'static str> {
+    let asked = [
+        (settings.general_loop, "the general loop asked for"),
+        (settings.force_all_effects, "every effect forced on"),
+        (settings.light_path_aovs, "light-path AOVs"),
+        (settings.caustics == CausticMode::Avoid, "caustic avoidance"),
+    ];
+    let by_settings = asked.into_iter().filter(|&(on, _)| on).map(|(_, cause)| cause);
+    by_settings.chain(FULL_LOOP_FEATURES.into_iter().filter(move |&f| features.has(f)).map(Feature::name))
 }
 
 /// Radiance and first-hit AOVs along a camera ray.
@@ -327,4 +336,38 @@ fn finish(mut out: PixelSample, mut light: path::LightPaths, counters: &mut Path
     out.components = light.components;
     out.direct = light.direct;
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each feature alone takes the general loop exactly when that loop holds its machinery,
+    /// and is named as the cause; so is each setting that needs it.
+    #[test]
+    fn the_general_loop_names_what_calls_for_it() {
+        let plain = IntegratorSettings::default();
+        assert_eq!(general_loop_causes(Features::default(), &plain).count(), 0);
+        for &f in Feature::ALL {
+            let mut alone = Features::default();
+            alone.insert(f);
+            let causes: Vec<&str> = general_loop_causes(alone, &plain).collect();
+            let expected: Vec<&str> = FULL_LOOP_FEATURES.contains(&f).then_some(f.name()).into_iter().collect();
+            assert_eq!(causes, expected, "{}", f.name());
+            assert_eq!(needs_full_loop(alone, &plain), !expected.is_empty());
+        }
+        let settings = [
+            IntegratorSettings { general_loop: true, ..Default::default() },
+            IntegratorSettings { force_all_effects: true, ..Default::default() },
+            IntegratorSettings { light_path_aovs: true, ..Default::default() },
+            IntegratorSettings { caustics: CausticMode::Avoid, ..Default::default() },
+        ];
+        for s in &settings {
+            assert_eq!(general_loop_causes(Features::default(), s).count(), 1);
+        }
+        let mut volumes = Features::default();
+        volumes.insert(Feature::Volumes);
+        let both: Vec<&str> = general_loop_causes(volumes, &settings[3]).collect();
+        assert_eq!(both, ["caustic avoidance", Feature::Volumes.name()]);
+    }
 }
