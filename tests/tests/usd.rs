@@ -491,3 +491,60 @@ def Mesh "Ground" {
         assert!(local.z < 0.0 && (local.y / -local.z).abs() < half && (local.x / -local.z).abs() < half, "{corner:?} at {local}");
     }
 }
+
+/// The section named `name` in a .usdc's table of contents: (where the entry is, the section's
+/// start). The bootstrap holds the table's offset at byte 16; the table is a count, then 32
+/// bytes a section (a 16-byte name, its start and size).
+fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
+    let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let toc = u64_at(16);
+    (0..u64_at(toc))
+        .map(|k| toc + 8 + 32 * k)
+        .find(|&entry| bytes[entry..entry + 16].split(|&b| b == 0).next() == Some(name.as_bytes()))
+        .map(|entry| (entry, u64_at(entry + 16)))
+        .unwrap_or_else(|| panic!("no {name} section"))
+}
+
+/// USD writes data longer than LZ4's largest input (about 2 GB) as several LZ4 blocks, each
+/// after its size (`TfFastCompression`). No fixture can be that big, so the Cornell box's token
+/// block is rewritten as three such chunks, in a copy of the section appended to the file (the
+/// table of contents moved after it); the file must read as the original does.
+#[test]
+fn a_binary_files_block_in_lz4_chunks_reads_as_one_block() {
+    let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
+    let (entry, start) = usdc_section(&clean, "TOKENS");
+    let word = |at: usize| u64::from_le_bytes(clean[at..at + 8].try_into().unwrap()) as usize;
+    let (count, size, packed) = (word(start), word(start + 8), word(start + 16));
+    let block = &clean[start + 24..start + 24 + packed];
+    assert_eq!(block[0], 0, "the fixture's tokens are one block");
+    let tokens = lz4_flex::block::decompress(&block[1..], size).unwrap();
+    let mut chunked = vec![3u8];
+    for part in [&tokens[..size / 3], &tokens[size / 3..size / 2], &tokens[size / 2..]] {
+        let compressed = lz4_flex::block::compress(part);
+        chunked.extend((compressed.len() as i32).to_le_bytes());
+        chunked.extend(compressed);
+    }
+    let mut bytes = clean.clone();
+    let moved = bytes.len();
+    for v in [count, size, chunked.len()] {
+        bytes.extend((v as u64).to_le_bytes());
+    }
+    bytes.extend(&chunked);
+    // The table again after the new section, its TOKENS entry pointing there.
+    let toc = word(16);
+    let toc_len = 8 + 32 * word(toc);
+    let new_toc = bytes.len();
+    bytes.extend_from_within(toc..toc + toc_len);
+    let at = new_toc + (entry - toc);
+    bytes[at + 16..at + 24].copy_from_slice(&(moved as u64).to_le_bytes());
+    bytes[at + 24..at + 32].copy_from_slice(&((24 + chunked.len()) as u64).to_le_bytes());
+    bytes[16..24].copy_from_slice(&(new_toc as u64).to_le_bytes());
+    let dir = std::env::temp_dir().join(format!("tessera-lz4-chunks-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("cornell_box.usdc");
+    std::fs::write(&file, &bytes).unwrap();
+    let read = |path: &Path| tessera::commands::inspect::inspect(path, Default::default()).expect("the file reads");
+    let (original, rewritten) = (read(&fixture("cornell_box.usdc")), read(&file));
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(rewritten, original);
+}

@@ -1501,12 +1501,27 @@ fn decompress_lz4(mut input: &[u8], output: &mut [u8]) -> Result<usize> {
 
         Ok(size)
     } else {
-        // Decompress chunk by chunk.
-        // See https://github.com/PixarAnimationStudios/OpenUSD/blob/0b18ad3f840c24eb25e16b795a5b0821cf05126e/pxr/base/tf/fastCompression.cpp#L125
-
-        todo!("Support lz4 chunked decompression")
+        // Data past LZ4's largest input is written as `chunks` blocks, each after its
+        // compressed size (an i32), decompressed one after the other, each into at most
+        // LZ4_MAX_INPUT_SIZE bytes (TfFastCompression::DecompressFromBuffer, fastCompression.cpp).
+        let mut written = 0;
+        for chunk in 0..chunks {
+            let size = input.read_pod::<i32>().with_context(|| format!("Unable to read the size of lz4 chunk {chunk}"))?;
+            let size = usize::try_from(size).ok().filter(|&n| n <= input.len());
+            let size = size.with_context(|| format!("lz4 chunk {chunk} claims more bytes than the block holds"))?;
+            let (block, rest) = input.split_at(size);
+            let room = &mut output[written..];
+            let room_len = room.len().min(LZ4_MAX_INPUT_SIZE);
+            written += lz4_flex::decompress_into(block, &mut room[..room_len])
+                .with_context(|| format!("Failed to decompress lz4 chunk {chunk}, possibly corrupt?"))?;
+            input = rest;
+        }
+        Ok(written)
     }
 }
+
+/// The largest block LZ4 compresses (`LZ4_MAX_INPUT_SIZE` in lz4.h).
+const LZ4_MAX_INPUT_SIZE: usize = 0x7E00_0000;
 
 /// Most elements a list read item by item reserves room for up front; past it the list grows
 /// as items are actually read, so a corrupt count cannot reserve memory the file does not back.
