@@ -548,3 +548,21 @@ fn a_binary_files_block_in_lz4_chunks_reads_as_one_block() {
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(rewritten, original);
 }
+
+/// Crate files older than 0.4.0 are refused with the reason, as USD itself refuses them (the
+/// reader had `todo!`s there): the error names the file and the version.
+#[test]
+fn an_obsolete_binary_file_is_an_error_naming_its_version() {
+    let mut bytes = std::fs::read(fixture("cornell_box.usdc")).unwrap();
+    let dir = std::env::temp_dir().join(format!("tessera-obsolete-usdc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for old in [[0u8, 0, 1], [0, 3, 0]] {
+        bytes[8..11].copy_from_slice(&old);
+        let file = dir.join(format!("cornell_{}_{}_{}.usdc", old[0], old[1], old[2]));
+        std::fs::write(&file, &bytes).unwrap();
+        let e = format!("{:#}", tessera::usd::load(&file).err().expect("an obsolete file is an error"));
+        let version = format!("{}.{}.{}", old[0], old[1], old[2]);
+        assert!(e.contains(&version) && e.contains("obsolete") && e.contains(&file.display().to_string()), "{e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

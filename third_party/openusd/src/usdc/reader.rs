@@ -156,6 +156,12 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
             SW_VERSION.can_read(file_ver),
             "Usd crate version mismatch, file is {file_ver}, library supports {SW_VERSION}"
         );
+        // USD itself reads nothing older (Sdf_CrateFile's _CheckFileVersion): such files need
+        // an older USD to bring them forward (the OpenUSD FAQ, on obsolete assets).
+        ensure!(
+            file_ver >= OLDEST_READABLE,
+            "Usd crate file version {file_ver} is obsolete: the oldest readable is {OLDEST_READABLE}, as for USD itself"
+        );
 
         Ok(header)
     }
@@ -179,14 +185,10 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section.start)?;
 
-        let file_ver = self.version();
-
         // Read the number of tokens.
         let count = self.reader.read_count()?;
 
-        self.tokens = if file_ver < version(0, 4, 0) {
-            todo!("Support TOKENS reader for < 0.4.0 files");
-        } else {
+        self.tokens = {
             let uncompressed_size = self.reader.read_count()?;
             let mut buffer = self.read_compressed(uncompressed_size)?;
 
@@ -260,11 +262,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section.start)?;
 
-        let file_ver = self.version();
-
-        self.fields = if file_ver < version(0, 4, 0) {
-            todo!("Support FIELDS reader before < 0.4.0")
-        } else {
+        self.fields = {
             let field_count = self.reader.read_count()?;
 
             // Compressed fields in 0.4.0.
@@ -294,11 +292,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section.start)?;
 
-        let file_ver = self.version();
-
-        self.fieldsets = if file_ver < version(0, 4, 0) {
-            todo!("Support FIELDSETS reader for < 0.4.0 files");
-        } else {
+        self.fieldsets = {
             let count = self.reader.read_count()?;
 
             let decoded = self.read_encoded_ints::<u32>(count)?;
@@ -326,13 +320,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section_start)?;
 
-        let file_ver = self.version();
-
-        if file_ver == version(0, 0, 1) {
-            todo!("Support PATHS reader for == 0.0.1 files");
-        } else if file_ver < version(0, 4, 0) {
-            todo!("Support PATHS reader for < 0.4.0 files");
-        } else {
+        {
             // Read # of paths.
             let path_count = self.reader.read_count()?;
             // Each path is three encoded ints (at least 2 bits each) that LZ4 expands at most
@@ -450,13 +438,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section.start)?;
 
-        let file_ver = self.version();
-
-        self.specs = if file_ver == version(0, 0, 1) {
-            todo!("Support SPECS reader for == 0.0.1 files");
-        } else if file_ver < version(0, 4, 0) {
-            todo!("Support SPECS reader for < 0.4.0 files");
-        } else {
+        self.specs = {
             // Version 0.4.0 specs are compressed
 
             let spec_count = self.reader.read_count()?;
@@ -1519,6 +1501,9 @@ fn decompress_lz4(mut input: &[u8], output: &mut [u8]) -> Result<usize> {
         Ok(written)
     }
 }
+
+/// The oldest crate file version this reader (and USD's own) reads.
+const OLDEST_READABLE: Version = version(0, 4, 0);
 
 /// The largest block LZ4 compresses (`LZ4_MAX_INPUT_SIZE` in lz4.h).
 const LZ4_MAX_INPUT_SIZE: usize = 0x7E00_0000;
