@@ -560,7 +560,8 @@ fn an_obsolete_binary_file_is_an_error_naming_its_version() {
         bytes[8..11].copy_from_slice(&old);
         let file = dir.join(format!("cornell_{}_{}_{}.usdc", old[0], old[1], old[2]));
         std::fs::write(&file, &bytes).unwrap();
-        let e = format!("{:#}", tessera::usd::load(&file).err().expect("an obsolete file is an error"));
+        let Err(e) = tessera::usd::load(&file) else { panic!("{}: an obsolete file must be an error", file.display()) };
+        let e = format!("{e:#}");
         let version = format!("{}.{}.{}", old[0], old[1], old[2]);
         assert!(e.contains(&version) && e.contains("obsolete") && e.contains(&file.display().to_string()), "{e}");
     }

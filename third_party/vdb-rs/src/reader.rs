@@ -14,7 +14,13 @@ use log::{trace, warn};
 use std::collections::HashMap;
 use std::io::{Read, Seek, SeekFrom};
 
-pub const OPENVDB_MIN_SUPPORTED_VERSION: u32 = OPENVDB_FILE_VERSION_ROOTNODE_MAP;
+/// The oldest file version read: before 218 (OpenVDB's Boost UUID) the header and the grid
+/// descriptors are laid out differently, and this reader never read them (it stopped at
+/// `todo!`s there); such files are refused by version instead.
+pub const OPENVDB_MIN_SUPPORTED_VERSION: u32 = OPENVDB_FILE_VERSION_BOOST_UUID;
+
+/// What a VDB file starts with, as an int64.
+pub const OPENVDB_MAGIC: u64 = 0x5644_4220;
 
 pub const OPENVDB_FILE_VERSION_ROOTNODE_MAP: u32 = 213;
 pub const OPENVDB_FILE_VERSION_INTERNALNODE_COMPRESSION: u32 = 214;
@@ -33,9 +39,9 @@ pub const OPENVDB_FILE_VERSION_MULTIPASS_IO: u32 = 224;
 
 #[derive(thiserror::Error, Debug)]
 pub enum ParseError {
-    #[error("Magic bytes mismatched")]
+    #[error("Not a VDB file: it does not start with OpenVDB's magic number")]
     MagicMismatch,
-    #[error("Unsupported VDB version")]
+    #[error("Unsupported VDB file version {0}: the oldest this reader reads is {OPENVDB_MIN_SUPPORTED_VERSION}")]
     UnsupportedVersion(u32),
     #[error("Invalid compression {0}")]
     InvalidCompression(u32),
@@ -126,8 +132,9 @@ pub struct VdbReader<R: Read + Seek> {
 
 impl<R: Read + Seek> VdbReader<R> {
     pub fn new(mut reader: R) -> Result<Self, ParseError> {
+        // OpenVDB writes its magic number (0x56444220, "VDB " read backwards) as an int64.
         let magic = reader.read_u64::<LittleEndian>()?;
-        if magic == 0x2042445600000000 {
+        if magic != OPENVDB_MAGIC {
             return Err(ParseError::MagicMismatch);
         }
 
@@ -162,14 +169,9 @@ impl<R: Read + Seek> VdbReader<R> {
             }
         }
 
-        let guid = if file_version >= OPENVDB_FILE_VERSION_BOOST_UUID {
-            // UUID is stored as fixed-length ASCII string
-            // The extra 4 bytes are for the hyphens.
-            read_string(&mut reader, 36)?
-        } else {
-            // Older versions stored the UUID as a byte string.
-            todo!("File version {}", file_version);
-        };
+        // The UUID as a fixed-length ASCII string (the extra 4 bytes are the hyphens), as
+        // every supported version stores it.
+        let guid = read_string(&mut reader, 36)?;
 
         let meta_data = Self::read_metadata(&mut reader)?;
         let grid_count = reader.read_u32::<LittleEndian>()?;
@@ -587,19 +589,16 @@ impl<R: Read + Seek> VdbReader<R> {
         }
         let _ = Self::read_metadata(reader).unwrap();
 
-        if header.file_version >= OPENVDB_FILE_VERSION_GRID_INSTANCING {
-            let transform = Self::read_transform(reader)?;
-            let mut tree = Self::read_tree_topology(header, &gd, reader)?;
-            Self::read_tree_data(header, &gd, reader, &mut tree)?;
+        // Every supported version has grid instancing (216): the transform comes first.
+        let transform = Self::read_transform(reader)?;
+        let mut tree = Self::read_tree_topology(header, &gd, reader)?;
+        Self::read_tree_data(header, &gd, reader, &mut tree)?;
 
-            Ok(Grid {
-                tree,
-                transform,
-                descriptor: gd,
-            })
-        } else {
-            todo!("Old file version not supported {}", header.file_version);
-        }
+        Ok(Grid {
+            tree,
+            transform,
+            descriptor: gd,
+        })
     }
 
     fn read_grid_descriptors(
@@ -614,11 +613,8 @@ impl<R: Read + Seek> VdbReader<R> {
             let name = Self::read_name(reader)?;
             let grid_type = Self::read_name(reader)?;
 
-            let instance_parent = if header.file_version >= OPENVDB_FILE_VERSION_GRID_INSTANCING {
-                Self::read_name(reader)?
-            } else {
-                todo!("instance_parent, file version: {}", header.file_version)
-            };
+            // Stored from version 216 (grid instancing), older than every supported version.
+            let instance_parent = Self::read_name(reader)?;
 
             let grid_pos = reader.read_u64::<LittleEndian>()?;
             let block_pos = reader.read_u64::<LittleEndian>()?;
