@@ -362,9 +362,10 @@ def Volume "Drift"
     assert!(a.len() == 5 * 16 && a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-6), "ours {a:?}\nusd-core {b:?}");
 }
 
-/// A field file that is not a VDB, or a VDB older than the reader reads (file version 215
-/// here, stamped on tinted.vdb), is a warning naming the field and why, and the rest renders;
-/// the reader had stopped at `todo!`s for versions 213-217 and took any file for a VDB.
+/// A field file that is not a VDB, a VDB older than the reader reads (file version 215 here,
+/// stamped on tinted.vdb) or one whose grid transform it does not know is a warning naming the
+/// field and why, and the rest renders: the reader had stopped at `todo!`s for versions
+/// 213-217, took any file for a VDB, and panicked on other transforms.
 #[test]
 fn a_field_file_that_is_no_vdb_or_too_old_is_a_warning_naming_why() {
     let dir = std::env::temp_dir().join(format!("tessera-bad-vdb-{}", std::process::id()));
@@ -373,17 +374,29 @@ fn a_field_file_that_is_no_vdb_or_too_old_is_a_warning_naming_why() {
     old[8..12].copy_from_slice(&215u32.to_le_bytes());
     std::fs::write(dir.join("old.vdb"), old).unwrap();
     std::fs::write(dir.join("text.vdb"), "a text file named like a VDB, longer than its header").unwrap();
+    // A grid transform the reader does not know (OpenVDB's affine, unitary, translation and
+    // frustum maps): every map name in the file renamed, at the same length.
+    let mut renamed = std::fs::read(tessera_tests::fixture("usd/volumes/tinted.vdb")).unwrap();
+    let (map, unknown) = (b"UniformScaleTranslateMap", b"UniformScaleTranslateMaq");
+    for at in 0..renamed.len() - map.len() {
+        if renamed[at..].starts_with(map) {
+            renamed[at..at + map.len()].copy_from_slice(unknown);
+        }
+    }
+    std::fs::write(dir.join("unknown_map.vdb"), renamed).unwrap();
     let volume = |name: &str, file: &str| {
         format!(
             "def Volume \"{name}\" {{ rel field:density = </{name}/density>\n def OpenVDBAsset \"density\" {{ asset filePath = @./{file}@\n token fieldName = \"density\" }} }}\n"
         )
     };
-    let usda = format!("#usda 1.0\n{}{}def Sphere \"Ball\" {{}}\n", volume("Old", "old.vdb"), volume("Text", "text.vdb"));
+    let volumes = [volume("Old", "old.vdb"), volume("Text", "text.vdb"), volume("Affine", "unknown_map.vdb")];
+    let usda = format!("#usda 1.0\n{}def Sphere \"Ball\" {{}}\n", volumes.concat());
     std::fs::write(dir.join("bad.usda"), usda).unwrap();
     let t = tessera::usd::load(&dir.join("bad.usda")).expect("the stage loads");
     std::fs::remove_dir_all(&dir).ok();
     let warned = |needles: &[&str]| t.warnings.iter().any(|w| needles.iter().all(|n| w.contains(n)));
     assert!(warned(&["/Old/density", "version 215", "218"]), "{:#?}", t.warnings);
     assert!(warned(&["/Text/density", "Not a VDB file"]), "{:#?}", t.warnings);
+    assert!(warned(&["/Affine/density", "Unsupported grid transform UniformScaleTranslateMaq"]), "{:#?}", t.warnings);
     assert!(t.volumes.is_empty() && !t.meshes.is_empty(), "the volumes are skipped, the sphere renders");
 }

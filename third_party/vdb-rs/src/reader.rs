@@ -55,6 +55,12 @@ pub enum ParseError {
     InvalidCompressedSize(i64, usize),
     #[error("Invalid grid name: {0}.")]
     InvalidGridName(String),
+    #[error("Unsupported grid transform {0}: the reader reads scale and scale-translate maps")]
+    UnsupportedTransform(String),
+    #[error("Grid {0} appears twice in the file")]
+    DuplicateGrid(String),
+    #[error("The file was written as a stream, without grid offsets, which the reader needs")]
+    NoGridOffsets,
     #[error("IoError")]
     IoError(#[from] std::io::Error),
 }
@@ -233,7 +239,7 @@ impl<R: Read + Seek> VdbReader<R> {
                 inv_scale_sqr: read_d_vec3(reader)?,
                 inv_twice_scale: read_d_vec3(reader)?,
             },
-            v => panic!("Not supported {}", v),
+            _ => return Err(ParseError::UnsupportedTransform(name)),
         })
     }
 
@@ -582,12 +588,12 @@ impl<R: Read + Seek> VdbReader<R> {
         reader: &mut R,
         gd: GridDescriptor,
     ) -> Result<Grid<ValueTy>, ParseError> {
-        gd.seek_to_grid(reader).unwrap();
+        gd.seek_to_grid(reader)?;
         // Having to re-do this is ugly, as we already did this while parsing the descriptor
         if header.file_version >= OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION {
-            let _: Compression = reader.read_u32::<LittleEndian>()?.try_into().unwrap();
+            let _: Compression = reader.read_u32::<LittleEndian>()?.try_into()?;
         }
-        let _ = Self::read_metadata(reader).unwrap();
+        let _ = Self::read_metadata(reader)?;
 
         // Every supported version has grid instancing (216): the transform comes first.
         let transform = Self::read_transform(reader)?;
@@ -605,8 +611,10 @@ impl<R: Read + Seek> VdbReader<R> {
         header: &ArchiveHeader,
         reader: &mut R,
     ) -> Result<HashMap<String, GridDescriptor>, ParseError> {
-        // Should be guaranteed by minimum file version
-        assert!(header.has_grid_offsets);
+        // OpenVDB leaves them out only when it writes to a stream it cannot seek back in.
+        if !header.has_grid_offsets {
+            return Err(ParseError::NoGridOffsets);
+        }
 
         let mut result = HashMap::new();
         for _ in 0..header.grid_count {
@@ -638,10 +646,9 @@ impl<R: Read + Seek> VdbReader<R> {
             }
             gd.meta_data = Self::read_metadata(reader)?;
 
-            assert!(
-                result.insert(name.clone(), gd).is_none(),
-                "Grid named {name} already exists"
-            );
+            if result.insert(name.clone(), gd).is_some() {
+                return Err(ParseError::DuplicateGrid(name));
+            }
 
             reader.seek(SeekFrom::Start(end_pos))?;
         }
