@@ -400,3 +400,40 @@ fn a_field_file_that_is_no_vdb_or_too_old_is_a_warning_naming_why() {
     assert!(warned(&["/Affine/density", "Unsupported grid transform UniformScaleTranslateMaq"]), "{:#?}", t.warnings);
     assert!(t.volumes.is_empty() && !t.meshes.is_empty(), "the volumes are skipped, the sphere renders");
 }
+
+/// A grid whose VDB transform turns it (OpenVDB's `AffineMap`, rotated.vdb) lands where the
+/// same grid under a scale-translate map lands when the prim's USD transform turns it instead:
+/// the two index-to-world maps agree, and so do their voxels.
+#[test]
+fn an_affine_vdb_transform_places_the_grid_as_a_usd_transform_does() {
+    let dir = std::env::temp_dir().join(format!("tessera-affine-vdb-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["rotated.vdb", "box.vdb"] {
+        std::fs::copy(tessera_tests::fixture(&format!("usd/volumes/{name}")), dir.join(name)).unwrap();
+    }
+    let usda = "#usda 1.0\n\
+        def Volume \"InFile\" { rel field:density = </InFile/density>\n\
+         def OpenVDBAsset \"density\" { asset filePath = @./rotated.vdb@\n token fieldName = \"density\" } }\n\
+        def Volume \"InStage\" { rel field:density = </InStage/density>\n\
+         double3 xformOp:translate = (1, 0, 0)\n float xformOp:rotateZ = 90\n\
+         uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateZ\"]\n\
+         def OpenVDBAsset \"density\" { asset filePath = @./box.vdb@\n token fieldName = \"density\" } }\n";
+    std::fs::write(dir.join("turned.usda"), usda).unwrap();
+    let t = tessera::usd::load(&dir.join("turned.usda")).expect("the stage loads");
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(t.warnings.is_empty(), "{:#?}", t.warnings);
+    let volume = |path: &str| &t.volumes.iter().find(|(p, _)| p == path).unwrap_or_else(|| panic!("{path} renders")).1;
+    let (in_file, in_stage) = (volume("/InFile"), volume("/InStage"));
+    // Index (i, j, k) at (1 - (j + 0.5)/16, (i + 0.5)/16, (k + 0.5)/16), as make_vdb.py wrote it;
+    // 1e-6 is the f32 rounding of a quarter turn's cosine.
+    let voxel = in_file.index_to_world.transform_point3(Vec3::new(2.0, 3.0, 4.0));
+    assert!(voxel.abs_diff_eq(Vec3::new(1.0 - 3.5 / 16.0, 2.5 / 16.0, 4.5 / 16.0), 1e-6), "{voxel}");
+    assert!(
+        in_file.index_to_world.abs_diff_eq(in_stage.index_to_world, 1e-6),
+        "{:?} vs {:?}",
+        in_file.index_to_world,
+        in_stage.index_to_world
+    );
+    assert_eq!((in_file.density.origin, in_file.density.dims), (in_stage.density.origin, in_stage.density.dims));
+    assert_eq!(in_file.density.values, in_stage.density.values);
+}

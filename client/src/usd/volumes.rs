@@ -131,7 +131,7 @@ fn read_grid<T: GridValue>(stream: impl std::io::Read + std::io::Seek, name: &st
             grid.iter().map(|(p, v, level)| (IVec3::from_array(p.to_array().map(|x| x as i32)), v, level.scale() as i32)).collect();
         Ok(SparseGrid { voxels, index_to_object: index_to_object(&grid.transform), file: String::new(), name: name.to_string() })
     }));
-    read.unwrap_or_else(|_| Err(anyhow::anyhow!("the VDB reader cannot read it (an unsupported transform or file version)")))
+    read.unwrap_or_else(|_| Err(anyhow::anyhow!("the VDB reader failed on it (a corrupt grid tree)")))
 }
 
 /// A VDB transform as an affine map from index space to the grid's object space.
@@ -139,6 +139,12 @@ fn index_to_object(map: &vdb_rs::Map) -> Affine3A {
     let (scale, translation) = match map {
         vdb_rs::Map::UniformScaleMap { voxel_size, .. } => (voxel_size.to_array(), [0.0; 3]),
         vdb_rs::Map::ScaleTranslateMap { voxel_size, translation, .. } => (voxel_size.to_array(), translation.to_array()),
+        vdb_rs::Map::TranslationMap { translation } => ([1.0; 3], translation.to_array()),
+        // A projective last row (none in an affine map) is dropped; the commit rejects a
+        // singular or non-finite map, naming the volume.
+        vdb_rs::Map::AffineMap { index_to_world } => {
+            return Affine3A::from_mat4(glam::Mat4::from_cols_array(&index_to_world.to_cols_array().map(|x| x as f32)));
+        }
     };
     Affine3A::from_scale_rotation_translation(
         Vec3::from_array(scale.map(|x| x as f32)),

@@ -55,7 +55,7 @@ pub enum ParseError {
     InvalidCompressedSize(i64, usize),
     #[error("Invalid grid name: {0}.")]
     InvalidGridName(String),
-    #[error("Unsupported grid transform {0}: the reader reads scale and scale-translate maps")]
+    #[error("Unsupported grid transform {0}: the reader reads scale, translation and affine maps")]
     UnsupportedTransform(String),
     #[error("Grid {0} appears twice in the file")]
     DuplicateGrid(String),
@@ -67,6 +67,15 @@ pub enum ParseError {
 
 fn read_string<R: Read + Seek>(reader: &mut R, len: usize) -> Result<String, ParseError> {
     Ok(read_bytes(reader, len as u64)?.into_iter().map(char::from).collect())
+}
+
+/// A `Mat4d` as OpenVDB writes it: sixteen doubles, row after row, for row vectors (index
+/// times matrix, the translation in the last row). Taken as columns, they are the same map
+/// on column vectors.
+fn read_d_mat4<R: Read + Seek>(reader: &mut R) -> Result<glam::DMat4, ParseError> {
+    let mut m = [0.0; 16];
+    reader.read_f64_into::<LittleEndian>(&mut m)?;
+    Ok(glam::DMat4::from_cols_array(&m))
 }
 
 fn read_d_vec3<R: Read + Seek>(reader: &mut R) -> Result<glam::DVec3, ParseError> {
@@ -239,6 +248,8 @@ impl<R: Read + Seek> VdbReader<R> {
                 inv_scale_sqr: read_d_vec3(reader)?,
                 inv_twice_scale: read_d_vec3(reader)?,
             },
+            "AffineMap" | "UnitaryMap" => Map::AffineMap { index_to_world: read_d_mat4(reader)? },
+            "TranslationMap" => Map::TranslationMap { translation: read_d_vec3(reader)? },
             _ => return Err(ParseError::UnsupportedTransform(name)),
         })
     }

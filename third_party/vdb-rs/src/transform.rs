@@ -15,4 +15,9 @@ pub enum Map {
         inv_scale_sqr: glam::DVec3,
         inv_twice_scale: glam::DVec3,
     },
+    /// OpenVDB's `AffineMap`, and its `UnitaryMap` (a rotation, stored as an affine map):
+    /// index to world space as a matrix on column vectors.
+    AffineMap { index_to_world: glam::DMat4 },
+    /// OpenVDB's `TranslationMap`.
+    TranslationMap { translation: glam::DVec3 },
 }
