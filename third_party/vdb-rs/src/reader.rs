@@ -147,7 +147,7 @@ pub struct VdbReader<R: Read + Seek> {
 
 impl<R: Read + Seek> VdbReader<R> {
     pub fn new(mut reader: R) -> Result<Self, ParseError> {
-        // OpenVDB writes its magic number (0x56444220, "VDB " read backwards) as an int64.
+        // OpenVDB writes its magic number, 0x56444220, as an int64 (the bytes " BDV" on disk).
         let magic = reader.read_u64::<LittleEndian>()?;
         if magic != OPENVDB_MAGIC {
             return Err(ParseError::MagicMismatch);
