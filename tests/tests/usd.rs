@@ -492,16 +492,20 @@ def Mesh "Ground" {
     }
 }
 
+/// The little-endian u64 at byte `at` of a .usdc (offsets, sizes and counts are all such).
+fn u64_at(bytes: &[u8], at: usize) -> usize {
+    u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize
+}
+
 /// The section named `name` in a .usdc's table of contents: (where the entry is, the section's
 /// start). The bootstrap holds the table's offset at byte 16; the table is a count, then 32
 /// bytes a section (a 16-byte name, its start and size).
 fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
-    let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
-    let toc = u64_at(16);
-    (0..u64_at(toc))
+    let toc = u64_at(bytes, 16);
+    (0..u64_at(bytes, toc))
         .map(|k| toc + 8 + 32 * k)
         .find(|&entry| bytes[entry..entry + 16].split(|&b| b == 0).next() == Some(name.as_bytes()))
-        .map(|entry| (entry, u64_at(entry + 16)))
+        .map(|entry| (entry, u64_at(bytes, entry + 16)))
         .unwrap_or_else(|| panic!("no {name} section"))
 }
 
@@ -513,7 +517,7 @@ fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
 fn a_binary_files_block_in_lz4_chunks_reads_as_one_block() {
     let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
     let (entry, start) = usdc_section(&clean, "TOKENS");
-    let word = |at: usize| u64::from_le_bytes(clean[at..at + 8].try_into().unwrap()) as usize;
+    let word = |at: usize| u64_at(&clean, at);
     let (count, size, packed) = (word(start), word(start + 8), word(start + 16));
     let block = &clean[start + 24..start + 24 + packed];
     assert_eq!(block[0], 0, "the fixture's tokens are one block");

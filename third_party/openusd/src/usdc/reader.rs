@@ -320,19 +320,15 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
         self.set_position(section_start)?;
 
-        {
-            // Read # of paths.
-            let path_count = self.reader.read_count()?;
-            // Each path is three encoded ints (at least 2 bits each) that LZ4 expands at most
-            // 255 times: a count beyond that is corrupt, not a reason to allocate.
-            let most = usize::try_from(section_size).unwrap_or(usize::MAX).saturating_mul(255 * 4 / 3);
-            ensure!(path_count <= most, "Paths section of {section_size} bytes claims {path_count} paths");
-            self.paths = vec![sdf::Path::default(); path_count];
+        // Read # of paths.
+        let path_count = self.reader.read_count()?;
+        // Each path is three encoded ints (at least 2 bits each) that LZ4 expands at most
+        // 255 times: a count beyond that is corrupt, not a reason to allocate.
+        let most = usize::try_from(section_size).unwrap_or(usize::MAX).saturating_mul(255 * 4 / 3);
+        ensure!(path_count <= most, "Paths section of {section_size} bytes claims {path_count} paths");
+        self.paths = vec![sdf::Path::default(); path_count];
 
-            self.read_compressed_paths()?;
-        };
-
-        Ok(())
+        self.read_compressed_paths()
     }
 
     /// Read compressed paths.
