@@ -3,7 +3,10 @@
 //! cargo-fuzz targets in `fuzz/` (README: "Fuzzing" for the longer run). Every input must end
 //! in Ok or an error, never a panic; a panicking input is saved under `target/fuzz-failures/`.
 
+use std::cell::Cell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Once;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use tessera_tests::*;
 
@@ -60,6 +63,48 @@ fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
     v
 }
 
+thread_local! {
+    /// Set by the panic hook on the thread that panicked. The loaders catch the USD and VDB
+    /// readers' panics and turn them into errors, so a caught panic would otherwise pass as an
+    /// input the reader rejected.
+    static PANICKED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Fuzzing runs in progress: their panics are expected, and not printed.
+static QUIET: AtomicUsize = AtomicUsize::new(0);
+
+/// The panic hook for this test binary, installed once (tests run in parallel, so hooks swapped
+/// per test would restore each other's): it notes the panic for its thread, and prints it unless
+/// a fuzzing run is in progress.
+fn note_panics() {
+    static INSTALL: Once = Once::new();
+    INSTALL.call_once(|| {
+        let print = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            PANICKED.with(|p| p.set(true));
+            if QUIET.load(Ordering::SeqCst) == 0 {
+                print(info);
+            }
+        }));
+    });
+}
+
+/// Runs `f` and says whether anything panicked on this thread meanwhile, caught or not.
+fn panics_in(f: impl FnOnce()) -> bool {
+    PANICKED.with(|p| p.set(false));
+    let escaped = catch_unwind(AssertUnwindSafe(f)).is_err();
+    escaped || PANICKED.with(Cell::get)
+}
+
+/// Silences panics while `f` runs (see [`note_panics`]).
+fn quietly<T>(f: impl FnOnce() -> T) -> T {
+    note_panics();
+    QUIET.fetch_add(1, Ordering::SeqCst);
+    let out = f();
+    QUIET.fetch_sub(1, Ordering::SeqCst);
+    out
+}
+
 fn save_failure(kind: &str, k: usize, data: &[u8]) -> String {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/fuzz-failures");
     std::fs::create_dir_all(&dir).ok();
@@ -69,24 +114,24 @@ fn save_failure(kind: &str, k: usize, data: &[u8]) -> String {
 }
 
 /// Runs `f` on `n` mutants of each seed (times `TESSERA_FUZZ_SCALE`, default 1, for a longer
-/// local run); returns the saved paths of inputs that panicked.
+/// local run); returns the saved paths of inputs that panicked, whether or not the code under
+/// test caught the panic.
 fn run(kind: &str, seeds: &[Vec<u8>], n: usize, f: impl Fn(&[u8])) -> Vec<String> {
     let n = n * std::env::var("TESSERA_FUZZ_SCALE").ok().and_then(|s| s.parse().ok()).unwrap_or(1usize);
     let mut rng = Rng(render_core::sampling::Pcg32::new(0x7e55_e7a0, kind.len() as u64));
     let mut failures = Vec::new();
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
-    for (s, seed) in seeds.iter().enumerate() {
-        for k in 0..n {
-            let input = if k == 0 { seed.clone() } else { mutate(seed, &mut rng) };
-            // A stack overflow aborts the process: the input in flight is kept for it.
-            save_failure(&format!("{kind}-in-flight"), 0, &input);
-            if catch_unwind(AssertUnwindSafe(|| f(&input))).is_err() {
-                failures.push(save_failure(kind, s * n + k, &input));
+    quietly(|| {
+        for (s, seed) in seeds.iter().enumerate() {
+            for k in 0..n {
+                let input = if k == 0 { seed.clone() } else { mutate(seed, &mut rng) };
+                // A stack overflow aborts the process: the input in flight is kept for it.
+                save_failure(&format!("{kind}-in-flight"), 0, &input);
+                if panics_in(|| f(&input)) {
+                    failures.push(save_failure(kind, s * n + k, &input));
+                }
             }
         }
-    }
-    std::panic::set_hook(hook);
+    });
     failures
 }
 
@@ -127,47 +172,75 @@ fn mutated_sync_streams_never_panic_the_server() {
     assert!(failures.is_empty(), "inputs that panicked the server's validation: {failures:?}");
 }
 
-/// A corrupt binary USD file is an error naming the file, never an abort or a panic: windows of
-/// 8 bytes across `cornell_box.usdc` (its header, values and table of contents) and the same
-/// scene packaged as `.usdz` overwritten in turn with sizes too large, negative, or all ones.
-/// openusd 0.6 as released aborted the process on the first huge size (an allocation of 4 TB,
-/// 2026-12-03), which in the Python package took the DCC hosting it down; third_party/openusd
-/// checks each size first, and the loader turns the crate's remaining panics (indices out of
-/// range) into errors.
+/// A corrupt binary USD file is an error naming the file, never an abort or a panic, caught or
+/// not. Two kinds of damage:
+/// - windows of 8 bytes across `cornell_box.usdc` (its header, values and table of contents)
+///   and the same scene packaged as `.usdz`, overwritten in turn with sizes too large,
+///   negative, or all ones. openusd 0.6 as released aborted the process on the first huge size
+///   (an allocation of 4 TB, 2026-12-03), which in the Python package took the DCC hosting it
+///   down; third_party/openusd checks each size first;
+/// - a few random bytes or hostile 32-bit integers in `cornell_box.usdc`. Before
+///   third_party/openusd checked its indices, about one such file in six panicked the reader
+///   (token, path and string indices out of range, 2026-12-05); the loader caught it, but the
+///   CLI printed the panic and its backtrace.
 #[test]
-fn corrupt_binary_usd_files_are_errors_never_aborts() {
+fn corrupt_binary_usd_files_are_errors_never_panics() {
     let dir = std::env::temp_dir().join(format!("tessera-corrupt-usdc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
-    let (mut errors, mut escaped) = (Vec::new(), Vec::new());
-    // Every 5th offset of the 3,197-byte .usdc and every 11th of the 3,363-byte .usdz, four
-    // patterns: 3,780 loads, seconds in a debug build. A release run over every offset of both,
-    // and over the 3,000 bytes of sections that end hard/many_lights.usdc, survived too
-    // (2026-12-03).
-    for (name, step) in [("cornell_box.usdc", 5), ("cornell_box.usdz", 11)] {
-        let clean = std::fs::read(fixture(name)).unwrap();
+    let (mut errors, mut panicked) = (Vec::new(), Vec::new());
+    let mut load = |name: &str, bytes: &[u8], what: String| {
         let file = dir.join(format!("corrupt-{name}"));
-        for offset in (0..clean.len() - 8).step_by(step) {
-            for pattern in &patterns {
-                let mut bytes = clean.clone();
-                bytes[offset..offset + 8].copy_from_slice(pattern);
-                std::fs::write(&file, &bytes).unwrap();
-                match catch_unwind(AssertUnwindSafe(|| tessera::usd::load(&file))) {
-                    Ok(Err(e)) => errors.push(format!("{e:#}")),
-                    Ok(Ok(_)) => {}
-                    Err(_) => escaped.push((name, offset)),
+        std::fs::write(&file, bytes).unwrap();
+        let mut result = None;
+        if panics_in(|| result = Some(tessera::usd::load(&file))) {
+            panicked.push(format!("{name}: {what}"));
+        } else if let Some(Err(e)) = result {
+            errors.push(format!("{e:#}"));
+        }
+    };
+    quietly(|| {
+        // Every 5th offset of the 3,197-byte .usdc and every 11th of the 3,363-byte .usdz,
+        // four patterns: 3,780 loads. A release run over every offset of both, and over the
+        // 3,000 bytes of sections that end hard/many_lights.usdc, survived too (2026-12-03).
+        let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
+        for (name, step) in [("cornell_box.usdc", 5), ("cornell_box.usdz", 11)] {
+            let clean = std::fs::read(fixture(name)).unwrap();
+            for offset in (0..clean.len() - 8).step_by(step) {
+                for pattern in &patterns {
+                    let mut bytes = clean.clone();
+                    bytes[offset..offset + 8].copy_from_slice(pattern);
+                    load(name, &bytes, format!("{pattern:02x?} at {offset}"));
                 }
             }
         }
-    }
-    std::panic::set_hook(hook);
+        // Random damage; the seeded generator makes a failure reproducible. A release run of
+        // 2,300 such files made from nine fixtures with skinning, node graphs, instancers,
+        // curves, subsets and time samples (written as .usdc by usd-core) found no other
+        // panic (2026-12-05).
+        let mut rng = Rng(render_core::sampling::Pcg32::new(0xc0de_f11e, 3));
+        let hostile = [u32::MAX, 0x7fff_ffff, 0, 0x8000_0001];
+        for name in ["cornell_box.usdc"] {
+            let clean = std::fs::read(fixture(name)).unwrap();
+            for k in 0..800 {
+                let mut bytes = clean.clone();
+                for _ in 0..1 + rng.below(6) {
+                    // Past the 88-byte bootstrap, which the windows above cover.
+                    let at = 88 + rng.below(bytes.len() - 92);
+                    match k % 2 {
+                        0 => bytes[at] = rng.byte(),
+                        _ => bytes[at..at + 4].copy_from_slice(&hostile[rng.below(4)].to_le_bytes()),
+                    }
+                }
+                load(name, &bytes, format!("random damage {k}"));
+            }
+        }
+    });
     std::fs::remove_dir_all(&dir).ok();
-    assert!(escaped.is_empty(), "panics escaped the loader at {escaped:?}");
+    assert!(panicked.is_empty(), "{} corrupt files panicked the reader: {:?}", panicked.len(), &panicked[..5.min(panicked.len())]);
     assert!(
-        !errors.is_empty() && errors.iter().all(|e| e.contains("corrupt-cornell_box")),
-        "errors name the file: {:?}",
+        errors.len() > 1000 && errors.iter().all(|e| e.contains("corrupt-cornell_box")),
+        "{} errors, which name the file: {:?}",
+        errors.len(),
         &errors[..3.min(errors.len())]
     );
 }

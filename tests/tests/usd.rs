@@ -509,6 +509,76 @@ fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
         .unwrap_or_else(|| panic!("no {name} section"))
 }
 
+/// A copy of the .usdc `clean` whose section at table entry `entry` is `section`, appended to
+/// the file with the table of contents after it.
+fn with_section(clean: &[u8], entry: usize, section: &[u8]) -> Vec<u8> {
+    let mut bytes = clean.to_vec();
+    let moved = bytes.len();
+    bytes.extend(section);
+    let toc = u64_at(clean, 16);
+    let toc_len = 8 + 32 * u64_at(clean, toc);
+    let new_toc = bytes.len();
+    bytes.extend_from_within(toc..toc + toc_len);
+    let at = new_toc + (entry - toc);
+    bytes[at + 16..at + 24].copy_from_slice(&(moved as u64).to_le_bytes());
+    bytes[at + 24..at + 32].copy_from_slice(&(section.len() as u64).to_le_bytes());
+    bytes[16..24].copy_from_slice(&(new_toc as u64).to_le_bytes());
+    bytes
+}
+
+/// `ints` as a .usdc stores an integer array: Usd_IntegerCompression's deltas (no common
+/// value, each delta a full 32-bit integer, code 3) in one LZ4 block after its chunk count, 0.
+fn usdc_int_block(ints: &[i32]) -> Vec<u8> {
+    let mut raw = 0i32.to_le_bytes().to_vec();
+    // Four 2-bit codes a byte; the codes past the end stay 0 (the common value), or the
+    // decoder reads deltas that are not there.
+    let mut codes = vec![0u8; ints.len().div_ceil(4)];
+    (0..ints.len()).for_each(|i| codes[i / 4] |= 3 << (2 * (i % 4)));
+    raw.extend(codes);
+    let mut prev = 0i32;
+    for &v in ints {
+        raw.extend(v.wrapping_sub(prev).to_le_bytes());
+        prev = v;
+    }
+    let mut block = vec![0u8];
+    block.extend(lz4_flex::block::compress(&raw));
+    block
+}
+
+/// A .usdc's path tree is a list of entries, each saying whether a child follows it and where
+/// its next sibling is. When corrupt jumps send two branches to the same entries, a walk that
+/// follows every branch doubles at each of them: 2^n visits for n entries, a hang that the
+/// reader's index checks alone do not stop. It now stops after as many visits as there are
+/// entries. Here the Cornell box's PATHS section is rewritten as 22 entries that each have a
+/// child and a sibling, both the next entry (4 million visits before, one error now).
+#[test]
+fn a_binary_files_path_tree_that_jumps_back_into_itself_is_an_error() {
+    let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
+    let (entry, _) = usdc_section(&clean, "PATHS");
+    let (_, tokens_at) = usdc_section(&clean, "TOKENS");
+    let block = &clean[tokens_at + 24..tokens_at + 24 + u64_at(&clean, tokens_at + 16)];
+    let tokens = lz4_flex::block::decompress(&block[1..], u64_at(&clean, tokens_at + 8)).unwrap();
+    let world = tokens.split(|&b| b == 0).position(|t| t == b"World").expect("a World token") as i32;
+    const ENTRIES: usize = 22;
+    let paths: Vec<i32> = (0..ENTRIES as i32).collect();
+    let jumps: Vec<i32> = (0..ENTRIES).map(|i| if i + 1 < ENTRIES { 1 } else { -2 }).collect();
+    let mut section: Vec<u8> = [ENTRIES, ENTRIES].iter().flat_map(|&v| (v as u64).to_le_bytes()).collect();
+    for ints in [paths, vec![world; ENTRIES], jumps] {
+        let block = usdc_int_block(&ints);
+        section.extend((block.len() as u64).to_le_bytes());
+        section.extend(block);
+    }
+    let dir = std::env::temp_dir().join(format!("tessera-path-jumps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("cornell_box.usdc");
+    std::fs::write(&file, with_section(&clean, entry, &section)).unwrap();
+    let result = tessera::usd::load(&file);
+    std::fs::remove_dir_all(&dir).ok();
+    let Err(e) = result else { panic!("a path tree that revisits its entries must be an error") };
+    let e = format!("{e:#}");
+    assert!(e.contains("jump back into the tree") && e.contains(&file.display().to_string()), "{e}");
+}
+
 /// USD writes data longer than LZ4's largest input (about 2 GB) as several LZ4 blocks, each
 /// after its size (`TfFastCompression`). No fixture can be that big, so the Cornell box's token
 /// block is rewritten as three such chunks, in a copy of the section appended to the file (the
@@ -528,21 +598,9 @@ fn a_binary_files_block_in_lz4_chunks_reads_as_one_block() {
         chunked.extend((compressed.len() as i32).to_le_bytes());
         chunked.extend(compressed);
     }
-    let mut bytes = clean.clone();
-    let moved = bytes.len();
-    for v in [count, size, chunked.len()] {
-        bytes.extend((v as u64).to_le_bytes());
-    }
-    bytes.extend(&chunked);
-    // The table again after the new section, its TOKENS entry pointing there.
-    let toc = word(16);
-    let toc_len = 8 + 32 * word(toc);
-    let new_toc = bytes.len();
-    bytes.extend_from_within(toc..toc + toc_len);
-    let at = new_toc + (entry - toc);
-    bytes[at + 16..at + 24].copy_from_slice(&(moved as u64).to_le_bytes());
-    bytes[at + 24..at + 32].copy_from_slice(&((24 + chunked.len()) as u64).to_le_bytes());
-    bytes[16..24].copy_from_slice(&(new_toc as u64).to_le_bytes());
+    let mut section: Vec<u8> = [count, size, chunked.len()].iter().flat_map(|&v| (v as u64).to_le_bytes()).collect();
+    section.extend(&chunked);
+    let bytes = with_section(&clean, entry, &section);
     let dir = std::env::temp_dir().join(format!("tessera-lz4-chunks-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("cornell_box.usdc");

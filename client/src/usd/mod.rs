@@ -378,9 +378,10 @@ pub fn load_at(path: &std::path::Path, frame: Option<f64>) -> Result<Translation
     load_with(path, LoadOptions { frame, ..LoadOptions::default() })
 }
 
-/// Reads and translates the stage at `path` as `options` say. A panic while reading (the USD
-/// crate panics on some corrupt binary files rather than erring) is this file's error: the
-/// CLI, a farm worker and a DCC hosting the Python package keep running.
+/// Reads and translates the stage at `path` as `options` say. A panic while reading is this
+/// file's error, so the CLI, a farm worker and a DCC hosting the Python package keep running:
+/// the vendored USD crate checks what its fuzz tests reach, and this is the last defence for
+/// what they do not.
 pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Translation> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| translate(path, options))).unwrap_or_else(|panic| {
         let why = panic.downcast_ref::<String>().map(String::as_str).or_else(|| panic.downcast_ref::<&str>().copied());

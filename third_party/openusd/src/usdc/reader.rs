@@ -376,23 +376,43 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
             return Ok(());
         }
 
+        let count = path_indexes.len();
+        ensure!(
+            element_token_indexes.len() == count && jumps.len() == count,
+            "Paths section holds {count} path indexes, {} element tokens and {} jumps",
+            element_token_indexes.len(),
+            jumps.len()
+        );
+        let path_slot = |index: usize, paths_len: usize| -> Result<usize> {
+            let slot = path_indexes[index] as usize;
+            ensure!(slot < paths_len, "Path entry {index} names path {slot} of {paths_len}");
+            Ok(slot)
+        };
+
         let mut pending = vec![(0usize, sdf::Path::default())];
+        // A well-formed tree visits each entry once. Corrupt jumps can point two branches at
+        // the same entries, and the walk would then double at every such entry: it stops
+        // after `count` visits instead.
+        let mut visits = 0usize;
 
         while let Some((mut current_index, mut parent_path)) = pending.pop() {
             loop {
                 let index = current_index;
                 current_index += 1;
+                visits += 1;
+                ensure!(index < count, "Path entry {index} lies past the {count} entries");
+                ensure!(visits <= count, "Path entries jump back into the tree ({count} entries)");
 
                 if parent_path.is_empty() {
                     parent_path = sdf::Path::new("/")?;
-                    self.paths[index] = parent_path.clone();
+                    let slot = self.paths.get_mut(index).with_context(|| format!("Root path entry {index} out of range"))?;
+                    *slot = parent_path.clone();
                 } else {
                     let token_index = element_token_indexes[index];
                     let is_prim_property_path = token_index < 0;
-                    let token_index = token_index.unsigned_abs() as usize;
-                    let element_token = self.tokens[token_index].as_str();
+                    let element_token = self.token(token_index.unsigned_abs() as usize)?.as_str();
 
-                    self.paths[path_indexes[index] as usize] = if is_prim_property_path {
+                    let path = if is_prim_property_path {
                         parent_path.append_property(element_token)?
                     } else if element_token.starts_with('{') {
                         // Variant segments are appended directly without a separator
@@ -401,21 +421,24 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                     } else {
                         parent_path.append_path(element_token)?
                     };
+                    let slot = path_slot(index, self.paths.len())?;
+                    self.paths[slot] = path;
                 }
 
-                let has_child = jumps[index] > 0 || jumps[index] == -1;
-                let has_sibling = jumps[index] >= 0;
+                let jump = jumps[index];
+                let has_child = jump > 0 || jump == -1;
+                let has_sibling = jump >= 0;
 
                 if has_child {
                     if has_sibling {
-                        let sibling_index = index + jumps[index] as usize;
+                        let sibling_index = index + jump as usize;
                         // Siblings share this node's parent; defer the subtree.
                         pending.push((sibling_index, parent_path.clone()));
                     }
 
                     // Descend into the child (the next sequential entry) under
                     // this node's path.
-                    parent_path = self.paths[path_indexes[index] as usize].clone();
+                    parent_path = self.paths[path_slot(index, self.paths.len())?].clone();
                 }
 
                 if !has_child && !has_sibling {
@@ -466,9 +489,21 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
         self.sections.iter().find(|s| s.name() == name)
     }
 
-    fn resolve_string(&self, string_index: u32) -> String {
-        let token = self.strings[string_index as usize];
-        self.tokens[token].clone()
+    /// The token at `index`; a corrupt file's index out of range is an error, not a panic.
+    fn token(&self, index: usize) -> Result<&String> {
+        self.tokens.get(index).with_context(|| format!("Token index {index} out of range ({} tokens)", self.tokens.len()))
+    }
+
+    /// The path at `index`; a corrupt file's index out of range is an error, not a panic.
+    fn path(&self, index: usize) -> Result<&sdf::Path> {
+        self.paths.get(index).with_context(|| format!("Path index {index} out of range ({} paths)", self.paths.len()))
+    }
+
+    fn resolve_string(&self, string_index: u32) -> Result<String> {
+        let token = self.strings.get(string_index as usize).with_context(|| {
+            format!("String index {string_index} out of range ({} strings)", self.strings.len())
+        })?;
+        self.token(*token).cloned()
     }
 
     fn set_position(&mut self, position: u64) -> Result<()> {
@@ -499,7 +534,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
     fn read_token(&mut self, value: ValueRep) -> Result<String> {
         let index: u64 = self.unpack_value(value)?;
-        let value = self.tokens[index as usize].clone();
+        let value = self.token(usize::try_from(index).unwrap_or(usize::MAX))?.clone();
 
         Ok(value)
     }
@@ -513,9 +548,9 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
     fn read_asset_path(&mut self, value: ValueRep) -> Result<String> {
         let index = self.unpack_value::<u32>(value)?;
         if value.is_inlined() {
-            Ok(self.tokens[index as usize].clone())
+            self.token(index as usize).cloned()
         } else {
-            Ok(self.resolve_string(index))
+            self.resolve_string(index)
         }
     }
 
@@ -653,7 +688,9 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                 // straight out of LZ4.
                 b'i' => {
                     let ints: Vec<i32> = self.read_encoded_ints(count)?;
-                    ints.into_iter().map(|i| cast(i).unwrap()).collect()
+                    ints.into_iter()
+                        .map(|i| cast(i).with_context(|| format!("Integer {i} does not fit the array's type")))
+                        .collect::<Result<_>>()?
                 }
                 // Lookup table and indexes
                 b't' => {
@@ -666,12 +703,12 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                         "Read invalid number of indexes to decompress doubles array"
                     );
 
-                    let mut output = vec![T::zero(); count];
-                    for (i, index) in indexes.into_iter().enumerate() {
-                        output[i] = lut[index as usize];
-                    }
-
-                    output
+                    let entry = |index: u32| {
+                        lut.get(index as usize).copied().with_context(|| {
+                            format!("Lookup table index {index} out of range ({lut_size} entries)")
+                        })
+                    };
+                    indexes.into_iter().map(entry).collect::<Result<Vec<T>>>()?
                 }
                 _ => bail!("Invalid compressed double array code: {code}"),
             }
@@ -726,23 +763,23 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
     /// Reads a count-prefixed vector of `u32` indices and maps each through
     /// `lookup` to produce the element value.
-    fn read_indexed_vec<T>(&mut self, lookup: impl Fn(&Self, usize) -> T) -> Result<Vec<T>> {
+    fn read_indexed_vec<T>(&mut self, lookup: impl Fn(&Self, usize) -> Result<T>) -> Result<Vec<T>> {
         let count = self.reader.read_count()?;
         let indices = self.reader.read_vec::<u32>(count)?;
 
-        Ok(indices.into_iter().map(|index| lookup(self, index as usize)).collect())
+        indices.into_iter().map(|index| lookup(self, index as usize)).collect()
     }
 
     fn read_string_vec(&mut self) -> Result<Vec<String>> {
-        self.read_indexed_vec(|file, index| file.tokens[file.strings[index]].clone())
+        self.read_indexed_vec(|file, index| file.resolve_string(index as u32))
     }
 
     fn read_token_vec(&mut self) -> Result<Vec<String>> {
-        self.read_indexed_vec(|file, index| file.tokens[index].clone())
+        self.read_indexed_vec(|file, index| file.token(index).cloned())
     }
 
     fn read_path_vec(&mut self) -> Result<Vec<sdf::Path>> {
-        self.read_indexed_vec(|file, index| file.paths[index].clone())
+        self.read_indexed_vec(|file, index| file.path(index).cloned())
     }
 
     /// Reads a count-prefixed vector of POD values.
@@ -753,16 +790,14 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
 
     fn read_string(&mut self) -> Result<String> {
         let index = self.reader.read_pod::<u32>()?;
-        let string = self.resolve_string(index);
+        let string = self.resolve_string(index)?;
 
         Ok(string)
     }
 
     fn read_path(&mut self) -> Result<sdf::Path> {
         let index = self.reader.read_pod::<u32>()?;
-        let path = self.paths[index as usize].clone();
-
-        Ok(path)
+        self.path(index as usize).cloned()
     }
 
     fn read_reference(&mut self) -> Result<sdf::Reference> {
@@ -980,7 +1015,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                 ensure!(!value.is_array());
 
                 let string_index = self.unpack_value::<u32>(value)?;
-                sdf::Value::String(self.resolve_string(string_index))
+                sdf::Value::String(self.resolve_string(string_index)?)
             }
             Type::AssetPath if value.is_array() => {
                 // Asset arrays (`asset[]`, e.g. value-clip `assetPaths`) are
@@ -996,8 +1031,8 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                 let indices = self.reader.read_vec::<u32>(count)?;
                 let tokens = indices
                     .into_iter()
-                    .map(|i| self.tokens[i as usize].as_str().into())
-                    .collect();
+                    .map(|i| self.token(i as usize).map(|t| t.as_str().into()))
+                    .collect::<Result<_>>()?;
 
                 sdf::Value::TokenVec(tokens)
             }
@@ -1418,8 +1453,8 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                 for _ in 0..count {
                     let src_idx: u32 = self.reader.read_pod()?;
                     let tgt_idx: u32 = self.reader.read_pod()?;
-                    let src = self.paths[src_idx as usize].clone();
-                    let tgt = self.paths[tgt_idx as usize].clone();
+                    let src = self.path(src_idx as usize)?.clone();
+                    let tgt = self.path(tgt_idx as usize)?.clone();
                     pairs.push((src, tgt));
                 }
                 sdf::Value::Relocates(pairs)
