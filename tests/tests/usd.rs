@@ -509,6 +509,27 @@ fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
         .unwrap_or_else(|| panic!("no {name} section"))
 }
 
+/// The reader skips attributes a prim has no opinion for, from a list of the prim's properties
+/// it keeps while reading the prim. A file edited and read again (a DCC's reload, the farm's
+/// next frame in one worker) must not see the list of the same prim in the previous file: here
+/// the light's intensity, unauthored in the first file, is authored in the second.
+#[test]
+fn a_stage_read_again_after_an_edit_reads_the_new_opinions() {
+    let dir = std::env::temp_dir().join(format!("tessera-reread-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("light.usda");
+    let light = |input: &str| format!("#usda 1.0\n\ndef SphereLight \"Key\"\n{{\n    float inputs:radius = 0.5\n    {input}\n}}\n");
+    let intensity = |text: String| {
+        std::fs::write(&file, text).unwrap();
+        let t = tessera::usd::load(&file).expect("the file reads");
+        t.lights.iter().find(|(p, _)| p == "/Key").expect("the light").1.intensity
+    };
+    let before = intensity(light(""));
+    let after = intensity(light("float inputs:intensity = 7"));
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!((before, after), (1.0, 7.0), "UsdLux's fallback intensity, then the authored one");
+}
+
 /// A copy of the .usdc `clean` whose section at table entry `entry` is `section`, appended to
 /// the file with the table of contents after it.
 fn with_section(clean: &[u8], entry: usize, section: &[u8]) -> Vec<u8> {

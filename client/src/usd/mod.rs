@@ -403,6 +403,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
     {
         lint::check(&String::from_utf8_lossy(&bytes)).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e}", path.display()))?;
     }
+    stage::authored::new_stage();
     let stage = Stage::open(path_str).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
     let default_frame = if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 };
     let time = TimeCode::new(frame.unwrap_or(default_frame));

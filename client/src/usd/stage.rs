@@ -36,7 +36,50 @@ pub(super) fn under(path: &str, root: &str) -> bool {
 
 /// An attribute's value at `time`: its time samples interpolated, else its default.
 pub(super) fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {
+    if !authored::may_hold(prim, name) {
+        return Ok(None);
+    }
     prim.attribute(name).get_at::<Value>(time).map_err(|e| anyhow::anyhow!("attribute '{name}': {e:#}"))
+}
+
+/// Which properties the prim being read has opinions for. The translation asks for every input
+/// a schema defines, and most are not authored: a 10,000-light file asked the composed stage
+/// for a value that no layer held about twenty times a light. One list of the prim's composed
+/// property names answers those without composing each property.
+pub(super) mod authored {
+    use std::cell::RefCell;
+    use std::collections::HashSet;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    use openusd::usd::Prim;
+
+    /// Bumped for each stage read, so a list is never taken from another stage's prim of the
+    /// same path (a DCC reloading an edited file).
+    static STAGE: AtomicU64 = AtomicU64::new(0);
+
+    thread_local! {
+        /// (stage read, prim path, its composed property names) of the last prim asked about.
+        static LAST: RefCell<Option<(u64, String, HashSet<String>)>> = const { RefCell::new(None) };
+    }
+
+    /// Marks the start of a stage's reading: lists taken before are not used again.
+    pub(in crate::usd) fn new_stage() {
+        STAGE.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// False only when the prim's composed property names do not include `name`; true when
+    /// they do or cannot be listed (the value is then read as usual).
+    pub(in crate::usd) fn may_hold(prim: &Prim, name: &str) -> bool {
+        let stage = STAGE.load(Ordering::Relaxed);
+        LAST.with_borrow_mut(|last| {
+            let fresh = last.as_ref().is_some_and(|(s, p, _)| *s == stage && p == prim.path().as_str());
+            if !fresh {
+                let Ok(names) = prim.property_names() else { return true };
+                *last = Some((stage, prim.path().as_str().to_string(), names.iter().map(|n| n.as_str().to_string()).collect()));
+            }
+            last.as_ref().is_some_and(|(_, _, names)| names.contains(name))
+        })
+    }
 }
 
 /// An int array attribute of the prim at `p` (`None` unauthored); another type is an error
