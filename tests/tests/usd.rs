@@ -509,6 +509,39 @@ fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
         .unwrap_or_else(|| panic!("no {name} section"))
 }
 
+/// The stage's walk hands each prim its ancestors' `active`, specifier and class opinions
+/// instead of walking the ancestors again for each. Meshes render only where USD's default
+/// predicate says the prim is active, defined and not abstract: under an inactive prim, a
+/// `class` or an `over`, nothing renders, however deep; a prim reactivated below an inactive
+/// one stays hidden, as `active` is inherited.
+#[test]
+fn meshes_render_only_under_active_defined_concrete_ancestors() {
+    let dir = std::env::temp_dir().join(format!("tessera-prim-status-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("status.usda");
+    let mesh = |name: &str| {
+        let body = "point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\nint[] faceVertexCounts = [3]\nint[] faceVertexIndices = [0,1,2]";
+        format!("def Mesh \"{name}\" {{\n{body}\n}}")
+    };
+    let text = format!(
+        "#usda 1.0\n\ndef Xform \"World\" {{\n{shown}\ndef Xform \"Off\" (active = false) {{\ndef Xform \"On\" (active = true) {{\n{a}\n}}\n}}\n\
+         over \"Over\" {{\ndef Xform \"Deep\" {{\n{b}\n}}\n}}\ndef Xform \"Kept\" {{\ndef Xform \"Deeper\" {{\n{deep}\n}}\n}}\n}}\n\
+         class \"Template\" {{\ndef Xform \"Inner\" {{\n{c}\n}}\n}}\n",
+        shown = mesh("Shown"),
+        a = mesh("A"),
+        b = mesh("B"),
+        deep = mesh("Deep"),
+        c = mesh("C"),
+    );
+    std::fs::write(&file, text).unwrap();
+    let t = tessera::usd::load(&file).expect("the file reads");
+    std::fs::remove_dir_all(&dir).ok();
+    // usd-core 26.11's `Stage.Traverse()` over the same text lists these two meshes.
+    let mut meshes: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
+    meshes.sort();
+    assert_eq!(meshes, ["/World/Kept/Deeper/Deep", "/World/Shown"]);
+}
+
 /// The reader skips attributes a prim has no opinion for, from a list of the prim's properties
 /// it keeps while reading the prim. A file edited and read again (a DCC's reload, the farm's
 /// next frame in one worker) must not see the list of the same prim in the previous file: here

@@ -159,6 +159,23 @@ impl PrimPredicate {
     }
 }
 
+/// What a prim's ancestors, itself included, say about the inherited status bits, handed down
+/// a traversal so each prim reads only its own opinions.
+#[derive(Clone, Copy, Debug)]
+struct AncestorChain {
+    /// No prim on the chain authors `active = false`.
+    active: bool,
+    /// Every prim on the chain is a `def` or a `class`.
+    defined: bool,
+    /// Some prim on the chain is a `class`.
+    abstract_: bool,
+}
+
+impl AncestorChain {
+    /// The chain above the pseudo-root's children: nothing yet.
+    const ROOT: Self = Self { active: true, defined: true, abstract_: false };
+}
+
 impl Default for PrimPredicate {
     fn default() -> Self {
         Self::DEFAULT
@@ -2621,6 +2638,35 @@ impl Stage {
     /// Computes only the status bits set in `mask`. Bits outside `mask` are
     /// left unset. Used by traversal so unused checks (e.g. INSTANCE, MODEL
     /// for default traversal) are skipped.
+    /// [`Self::prim_status_masked`] for a prim whose ancestors' opinions `above` sums up, read
+    /// from this prim's own fields only; with the chain to hand to its children. The bits agree
+    /// with `Prim::is_active`, `is_loaded`, `is_defined` and `is_abstract`, which walk every
+    /// ancestor: each is "no spec: false", then the ancestors' chain and the prim's own opinion.
+    fn prim_status_below(&self, path: &sdf::Path, above: AncestorChain, mask: PrimStatus) -> Result<(PrimStatus, AncestorChain)> {
+        let inherited = PrimStatus::ACTIVE | PrimStatus::LOADED | PrimStatus::DEFINED | PrimStatus::ABSTRACT;
+        let mut status = self.prim_status_masked(path, mask.difference(inherited))?;
+        if !mask.intersects(inherited) {
+            return Ok((status, above));
+        }
+        let has_spec = self.has_spec(path)?;
+        let specifier = self.field::<sdf::Specifier>(path, sdf::FieldKey::Specifier)?;
+        let chain = AncestorChain {
+            active: above.active && self.field::<bool>(path, sdf::FieldKey::Active)?.unwrap_or(true),
+            defined: above.defined && matches!(specifier, Some(sdf::Specifier::Def | sdf::Specifier::Class)),
+            abstract_: above.abstract_ || specifier == Some(sdf::Specifier::Class),
+        };
+        let active = has_spec && chain.active;
+        status.set(PrimStatus::ACTIVE, mask.contains(PrimStatus::ACTIVE) && active);
+        status.set(PrimStatus::DEFINED, mask.contains(PrimStatus::DEFINED) && has_spec && chain.defined);
+        status.set(PrimStatus::ABSTRACT, mask.contains(PrimStatus::ABSTRACT) && has_spec && chain.abstract_);
+        if mask.contains(PrimStatus::LOADED) {
+            // Without load rules every active prim is loaded (`Prim::is_loaded`).
+            let loaded = active && (self.cache().load_rules().is_empty() || self.prim(path.clone()).is_loaded()?);
+            status.set(PrimStatus::LOADED, loaded);
+        }
+        Ok((status, chain))
+    }
+
     fn prim_status_masked(&self, prim: &sdf::Path, mask: PrimStatus) -> Result<PrimStatus> {
         let prim = self.prim(prim.clone());
         let mut status = PrimStatus::empty();
@@ -3132,18 +3178,16 @@ impl Stage {
     /// excludes those regions.
     pub fn traverse(&self, predicate: PrimPredicate, mut visitor: impl FnMut(&sdf::Path)) -> Result<()> {
         let needed = predicate.consulted_bits();
-        let mut stack = vec![sdf::Path::abs_root()];
+        let mut stack = vec![(sdf::Path::abs_root(), AncestorChain::ROOT)];
 
-        while let Some(path) = stack.pop() {
+        while let Some((path, above)) = stack.pop() {
+            let mut chain = above;
             if path != sdf::Path::abs_root() {
-                // TODO(perf): each `prim_status_masked` call recomputes the
-                // inherited bits (active/loaded/defined/abstract/model) by
-                // walking this prim's ancestor chain to the root, and several
-                // predicates re-walk it for the same fields. Since traversal is
-                // top-down, the parent's resolved inherited status could be
-                // threaded down the stack so each prim only consults its own
-                // local opinion — turning the per-prim O(depth) walk into O(1).
-                let status = self.prim_status_masked(&path, needed)?;
+                // The inherited bits (active, defined, abstract) come from the parent's chain
+                // and this prim's own opinions, so each prim reads its own fields once instead
+                // of walking its ancestors for each bit (see `AncestorChain`).
+                let status;
+                (status, chain) = self.prim_status_below(&path, above, needed)?;
                 if predicate.matches(status) {
                     visitor(&path);
                 }
@@ -3162,7 +3206,7 @@ impl Stage {
             // Push in reverse so first child is visited first.
             for name in children.iter().rev() {
                 if let Ok(child) = path.append_path(name.as_str()) {
-                    stack.push(child);
+                    stack.push((child, chain));
                 }
             }
         }
