@@ -188,50 +188,15 @@ fn corrupt_binary_usd_files_are_errors_never_panics() {
     let dir = std::env::temp_dir().join(format!("tessera-corrupt-usdc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (mut errors, mut panicked) = (Vec::new(), Vec::new());
-    let mut load = |name: &str, bytes: &[u8], what: String| {
-        let file = dir.join(format!("corrupt-{name}"));
-        std::fs::write(&file, bytes).unwrap();
-        let mut result = None;
-        if panics_in(|| result = Some(tessera::usd::load(&file))) {
-            panicked.push(format!("{name}: {what}"));
-        } else if let Some(Err(e)) = result {
-            errors.push(format!("{e:#}"));
-        }
-    };
     quietly(|| {
-        // Every 5th offset of the 3,197-byte .usdc and every 11th of the 3,363-byte .usdz,
-        // four patterns: 3,780 loads. A release run over every offset of both, and over the
-        // 3,000 bytes of sections that end hard/many_lights.usdc, survived too (2026-12-03).
-        let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
-        for (name, step) in [("cornell_box.usdc", 5), ("cornell_box.usdz", 11)] {
-            let clean = std::fs::read(fixture(name)).unwrap();
-            for offset in (0..clean.len() - 8).step_by(step) {
-                for pattern in &patterns {
-                    let mut bytes = clean.clone();
-                    bytes[offset..offset + 8].copy_from_slice(pattern);
-                    load(name, &bytes, format!("{pattern:02x?} at {offset}"));
-                }
-            }
-        }
-        // Random damage; the seeded generator makes a failure reproducible. A release run of
-        // 2,300 such files made from nine fixtures with skinning, node graphs, instancers,
-        // curves, subsets and time samples (written as .usdc by usd-core) found no other
-        // panic (2026-12-05).
-        let mut rng = Rng(render_core::sampling::Pcg32::new(0xc0de_f11e, 3));
-        let hostile = [u32::MAX, 0x7fff_ffff, 0, 0x8000_0001];
-        for name in ["cornell_box.usdc"] {
-            let clean = std::fs::read(fixture(name)).unwrap();
-            for k in 0..800 {
-                let mut bytes = clean.clone();
-                for _ in 0..1 + rng.below(6) {
-                    // Past the 88-byte bootstrap, which the windows above cover.
-                    let at = 88 + rng.below(bytes.len() - 92);
-                    match k % 2 {
-                        0 => bytes[at] = rng.byte(),
-                        _ => bytes[at..at + 4].copy_from_slice(&hostile[rng.below(4)].to_le_bytes()),
-                    }
-                }
-                load(name, &bytes, format!("random damage {k}"));
+        for (name, bytes, what) in windowed_damage().chain(random_damage()) {
+            let file = dir.join(format!("corrupt-{name}"));
+            std::fs::write(&file, bytes).unwrap();
+            let mut result = None;
+            if panics_in(|| result = Some(tessera::usd::load(&file))) {
+                panicked.push(format!("{name}: {what}"));
+            } else if let Some(Err(e)) = result {
+                errors.push(format!("{e:#}"));
             }
         }
     });
@@ -243,6 +208,49 @@ fn corrupt_binary_usd_files_are_errors_never_panics() {
         errors.len(),
         &errors[..3.min(errors.len())]
     );
+}
+
+/// Copies of the Cornell box's `.usdc` and `.usdz` with 8 bytes overwritten by a huge, negative
+/// or all-ones size: (file name, bytes, what was done). Every 5th offset of the 3,197-byte
+/// .usdc and every 11th of the 3,363-byte .usdz, four patterns: 3,780 files. A release run over
+/// every offset of both, and over the 3,000 bytes of sections that end hard/many_lights.usdc,
+/// survived too (2026-12-03).
+fn windowed_damage() -> impl Iterator<Item = (&'static str, Vec<u8>, String)> {
+    let patterns = [[0xff; 8], 0x7fff_ffff_ffff_fff0u64.to_le_bytes(), (-(1i64 << 40)).to_le_bytes(), 0x7fff_ffffu64.to_le_bytes()];
+    [("cornell_box.usdc", 5), ("cornell_box.usdz", 11)].into_iter().flat_map(move |(name, step)| {
+        let clean = std::fs::read(fixture(name)).unwrap();
+        (0..clean.len() - 8).step_by(step).flat_map(move |offset| {
+            let clean = clean.clone();
+            patterns.into_iter().map(move |pattern| {
+                let mut bytes = clean.clone();
+                bytes[offset..offset + 8].copy_from_slice(&pattern);
+                (name, bytes, format!("{pattern:02x?} at {offset}"))
+            })
+        })
+    })
+}
+
+/// 800 copies of the Cornell box's `.usdc` with one to six random bytes, or hostile 32-bit
+/// integers, past its 88-byte bootstrap (which the windows cover); seeded, so a failure
+/// reproduces. A release run of 2,300 such files made from nine fixtures with skinning, node
+/// graphs, instancers, curves, subsets and time samples (written as .usdc by usd-core) found
+/// no other panic (2026-12-05).
+fn random_damage() -> impl Iterator<Item = (&'static str, Vec<u8>, String)> {
+    let name = "cornell_box.usdc";
+    let clean = std::fs::read(fixture(name)).unwrap();
+    let mut rng = Rng(render_core::sampling::Pcg32::new(0xc0de_f11e, 3));
+    let hostile = [u32::MAX, 0x7fff_ffff, 0, 0x8000_0001];
+    (0..800).map(move |k| {
+        let mut bytes = clean.clone();
+        for _ in 0..1 + rng.below(6) {
+            let at = 88 + rng.below(bytes.len() - 92);
+            match k % 2 {
+                0 => bytes[at] = rng.byte(),
+                _ => bytes[at..at + 4].copy_from_slice(&hostile[rng.below(4)].to_le_bytes()),
+            }
+        }
+        (name, bytes, format!("random damage {k}"))
+    })
 }
 
 /// Replays one saved input with its panic and backtrace visible:
