@@ -2635,9 +2635,6 @@ impl Stage {
         self.prim_status_masked(&prim.into().prim_path(), PrimStatus::all())
     }
 
-    /// Computes only the status bits set in `mask`. Bits outside `mask` are
-    /// left unset. Used by traversal so unused checks (e.g. INSTANCE, MODEL
-    /// for default traversal) are skipped.
     /// [`Self::prim_status_masked`] for a prim whose ancestors' opinions `above` sums up, read
     /// from this prim's own fields only; with the chain to hand to its children. The bits agree
     /// with `Prim::is_active`, `is_loaded`, `is_defined` and `is_abstract`, which walk every
@@ -2667,6 +2664,9 @@ impl Stage {
         Ok((status, chain))
     }
 
+    /// Computes only the status bits set in `mask`. Bits outside `mask` are
+    /// left unset. Used by traversal so unused checks (e.g. INSTANCE, MODEL
+    /// for default traversal) are skipped.
     fn prim_status_masked(&self, prim: &sdf::Path, mask: PrimStatus) -> Result<PrimStatus> {
         let prim = self.prim(prim.clone());
         let mut status = PrimStatus::empty();
