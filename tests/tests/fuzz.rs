@@ -6,7 +6,6 @@
 use std::cell::Cell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Once;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use tessera_tests::*;
 
@@ -68,21 +67,21 @@ thread_local! {
     /// readers' panics and turn them into errors, so a caught panic would otherwise pass as an
     /// input the reader rejected.
     static PANICKED: Cell<bool> = const { Cell::new(false) };
+    /// This thread runs a fuzzing loop: its panics are expected, and not printed. Per thread,
+    /// so another test failing meanwhile still prints why.
+    static QUIET: Cell<bool> = const { Cell::new(false) };
 }
-
-/// Fuzzing runs in progress: their panics are expected, and not printed.
-static QUIET: AtomicUsize = AtomicUsize::new(0);
 
 /// The panic hook for this test binary, installed once (tests run in parallel, so hooks swapped
 /// per test would restore each other's): it notes the panic for its thread, and prints it unless
-/// a fuzzing run is in progress.
+/// that thread runs a fuzzing loop.
 fn note_panics() {
     static INSTALL: Once = Once::new();
     INSTALL.call_once(|| {
         let print = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             PANICKED.with(|p| p.set(true));
-            if QUIET.load(Ordering::SeqCst) == 0 {
+            if !QUIET.with(Cell::get) {
                 print(info);
             }
         }));
@@ -96,12 +95,12 @@ fn panics_in(f: impl FnOnce()) -> bool {
     escaped || PANICKED.with(Cell::get)
 }
 
-/// Silences panics while `f` runs (see [`note_panics`]).
+/// Silences this thread's panics while `f` runs (see [`note_panics`]).
 fn quietly<T>(f: impl FnOnce() -> T) -> T {
     note_panics();
-    QUIET.fetch_add(1, Ordering::SeqCst);
+    QUIET.with(|q| q.set(true));
     let out = f();
-    QUIET.fetch_sub(1, Ordering::SeqCst);
+    QUIET.with(|q| q.set(false));
     out
 }
 
