@@ -516,9 +516,6 @@ fn usdc_section(bytes: &[u8], name: &str) -> (usize, usize) {
 /// one stays hidden, as `active` is inherited.
 #[test]
 fn meshes_render_only_under_active_defined_concrete_ancestors() {
-    let dir = std::env::temp_dir().join(format!("tessera-prim-status-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("status.usda");
     let mesh = |name: &str| {
         let body = "point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\nint[] faceVertexCounts = [3]\nint[] faceVertexIndices = [0,1,2]";
         format!("def Mesh \"{name}\" {{\n{body}\n}}")
@@ -533,9 +530,7 @@ fn meshes_render_only_under_active_defined_concrete_ancestors() {
         deep = mesh("Deep"),
         c = mesh("C"),
     );
-    std::fs::write(&file, text).unwrap();
-    let t = tessera::usd::load(&file).expect("the file reads");
-    std::fs::remove_dir_all(&dir).ok();
+    let t = load_text("prim-status", &text);
     // usd-core 26.11's `Stage.Traverse()` over the same text lists these two meshes.
     let mut meshes: Vec<&str> = t.meshes.iter().map(|(p, _)| p.as_str()).collect();
     meshes.sort();
@@ -548,19 +543,24 @@ fn meshes_render_only_under_active_defined_concrete_ancestors() {
 /// the light's intensity, unauthored in the first file, is authored in the second.
 #[test]
 fn a_stage_read_again_after_an_edit_reads_the_new_opinions() {
-    let dir = std::env::temp_dir().join(format!("tessera-reread-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("light.usda");
-    let light = |input: &str| format!("#usda 1.0\n\ndef SphereLight \"Key\"\n{{\n    float inputs:radius = 0.5\n    {input}\n}}\n");
-    let intensity = |text: String| {
-        std::fs::write(&file, text).unwrap();
-        let t = tessera::usd::load(&file).expect("the file reads");
+    // The same file name both times, so the second read is of the same file edited.
+    let intensity = |input: &str| {
+        let text = format!("#usda 1.0\n\ndef SphereLight \"Key\"\n{{\n    float inputs:radius = 0.5\n    {input}\n}}\n");
+        let t = load_text("reread", &text);
         t.lights.iter().find(|(p, _)| p == "/Key").expect("the light").1.intensity
     };
-    let before = intensity(light(""));
-    let after = intensity(light("float inputs:intensity = 7"));
-    std::fs::remove_dir_all(&dir).ok();
+    let (before, after) = (intensity(""), intensity("float inputs:intensity = 7"));
     assert_eq!((before, after), (1.0, 7.0), "UsdLux's fallback intensity, then the authored one");
+}
+
+/// A .usdc's token section, stored as one LZ4 block: (its table entry, the token count, the
+/// tokens, NUL-separated).
+fn usdc_tokens(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
+    let (entry, start) = usdc_section(bytes, "TOKENS");
+    let (count, size, packed) = (u64_at(bytes, start), u64_at(bytes, start + 8), u64_at(bytes, start + 16));
+    let block = &bytes[start + 24..start + 24 + packed];
+    assert_eq!(block[0], 0, "the tokens are one block");
+    (entry, count, lz4_flex::block::decompress(&block[1..], size).unwrap())
 }
 
 /// A copy of the .usdc `clean` whose section at table entry `entry` is `section`, appended to
@@ -609,9 +609,7 @@ fn usdc_int_block(ints: &[i32]) -> Vec<u8> {
 fn a_binary_files_path_tree_that_jumps_back_into_itself_is_an_error() {
     let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
     let (entry, _) = usdc_section(&clean, "PATHS");
-    let (_, tokens_at) = usdc_section(&clean, "TOKENS");
-    let block = &clean[tokens_at + 24..tokens_at + 24 + u64_at(&clean, tokens_at + 16)];
-    let tokens = lz4_flex::block::decompress(&block[1..], u64_at(&clean, tokens_at + 8)).unwrap();
+    let (_, _, tokens) = usdc_tokens(&clean);
     let world = tokens.split(|&b| b == 0).position(|t| t == b"World").expect("a World token") as i32;
     const ENTRIES: usize = 22;
     let paths: Vec<i32> = (0..ENTRIES as i32).collect();
@@ -640,12 +638,8 @@ fn a_binary_files_path_tree_that_jumps_back_into_itself_is_an_error() {
 #[test]
 fn a_binary_files_block_in_lz4_chunks_reads_as_one_block() {
     let clean = std::fs::read(fixture("cornell_box.usdc")).unwrap();
-    let (entry, start) = usdc_section(&clean, "TOKENS");
-    let word = |at: usize| u64_at(&clean, at);
-    let (count, size, packed) = (word(start), word(start + 8), word(start + 16));
-    let block = &clean[start + 24..start + 24 + packed];
-    assert_eq!(block[0], 0, "the fixture's tokens are one block");
-    let tokens = lz4_flex::block::decompress(&block[1..], size).unwrap();
+    let (entry, count, tokens) = usdc_tokens(&clean);
+    let size = tokens.len();
     let mut chunked = vec![3u8];
     for part in [&tokens[..size / 3], &tokens[size / 3..size / 2], &tokens[size / 2..]] {
         let compressed = lz4_flex::block::compress(part);

@@ -408,19 +408,7 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                     let slot = self.paths.get_mut(index).with_context(|| format!("Root path entry {index} out of range"))?;
                     *slot = parent_path.clone();
                 } else {
-                    let token_index = element_token_indexes[index];
-                    let is_prim_property_path = token_index < 0;
-                    let element_token = self.token(token_index.unsigned_abs() as usize)?.as_str();
-
-                    let path = if is_prim_property_path {
-                        parent_path.append_property(element_token)?
-                    } else if element_token.starts_with('{') {
-                        // Variant segments are appended directly without a separator
-                        // to produce canonical paths like /Prim{set=sel}.
-                        parent_path.append_variant_segment(element_token)
-                    } else {
-                        parent_path.append_path(element_token)?
-                    };
+                    let path = self.entry_path(&parent_path, element_token_indexes[index])?;
                     let slot = path_slot(index, self.paths.len())?;
                     self.paths[slot] = path;
                 }
@@ -448,6 +436,21 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
         }
 
         Ok(())
+    }
+
+    /// The path of a path-tree entry under `parent`: its element token, a property's name
+    /// when the index is negative.
+    fn entry_path(&self, parent: &sdf::Path, token_index: i32) -> Result<sdf::Path> {
+        let element_token = self.token(token_index.unsigned_abs() as usize)?.as_str();
+        Ok(if token_index < 0 {
+            parent.append_property(element_token)?
+        } else if element_token.starts_with('{') {
+            // Variant segments are appended directly without a separator
+            // to produce canonical paths like /Prim{set=sel}.
+            parent.append_variant_segment(element_token)
+        } else {
+            parent.append_path(element_token)?
+        })
     }
 
     fn read_specs(&mut self) -> Result<()> {
