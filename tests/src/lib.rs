@@ -74,11 +74,16 @@ pub fn load(rel: &str) -> Translation {
 /// Reads a `.usda` layer given as text (written to a temporary folder of its own, so
 /// relative asset paths in it resolve there and find nothing).
 pub fn load_text(name: &str, usda: &str) -> Translation {
+    load_text_at(name, usda, None)
+}
+
+/// [`load_text`] at time code `frame` (None: the layer's start).
+pub fn load_text_at(name: &str, usda: &str, frame: Option<f64>) -> Translation {
     let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temporary folder");
     let file = dir.join(format!("{name}.usda"));
     std::fs::write(&file, usda).expect("layer written");
-    let t = tessera::usd::load(&file).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+    let t = tessera::usd::load_at(&file, frame).unwrap_or_else(|e| panic!("{name}: {e:#}"));
     std::fs::remove_dir_all(&dir).ok();
     t
 }

@@ -313,8 +313,9 @@ fn the_plan_names_what_moves_and_the_shutter_can_be_overridden() {
 }
 #[test]
 fn whole_number_time_samples_interpolate_between_keys() {
-    // openusd 0.6 held `{0: 0, 1: 90}` (ints, as usdcat writes whole floats) at 0 until frame
-    // 1; usd-core interpolates to 45° at frame 0.5, and so must we.
+    // openusd 0.6 parsed `{0: 0, 1: 90}` (as usdcat writes whole floats) as ints and held them
+    // at 0 until frame 1; usd-core interpolates to 45° at frame 0.5, and so must we (the
+    // vendored parser reads them as the declared float: third_party/openusd/PATCHES.md, 12).
     let layer = ortho_stage("").replace(
         "def DomeLight",
         "def Xform \"Turn\" {\n    float xformOp:rotateZ.timeSamples = { 0: 0, 1: 90 }\n    uniform token[] xformOpOrder = [\"xformOp:rotateZ\"]\n    def Cube \"Box\" { double3 xformOp:translate = (1, 0, 0)\n uniform token[] xformOpOrder = [\"xformOp:translate\"] }\n}\ndef DomeLight",

@@ -69,6 +69,9 @@ fn an_independent_reader_agrees_on_every_fixture() {
     cases.push((fixture("usd/motion_blur.usda"), Some(6.0)));
     // Shapes over an open shutter between points samples.
     cases.push((fixture("usd/deforming.usda"), Some(1.8)));
+    // Value clips: within the first clip, within the second, and the stage's own zoom.
+    cases.push((fixture("usd/clips/scene.usda"), Some(1.5)));
+    cases.push((fixture("usd/clips/scene.usda"), Some(4.0)));
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
     let all_theirs = usd_core_reads_all(&cases);
@@ -128,6 +131,46 @@ fn time_samples_are_read_at_the_frame() {
     assert_eq!(mover_x(Some(10.0)), (9.0, 3.0));
     // Past the last sample, the last value holds.
     assert_eq!(mover_x(Some(20.0)), (9.0, 3.0));
+}
+
+/// An animation cache's values come from its value clips even where the stage declares
+/// nothing of the attribute (usd-core resolves them through the manifest it generates), and
+/// are interpolated between a clip's samples; a default the stage authors wins over the clips.
+/// Before, the light kept its fallback of 1 and the triangle, with no points, was dropped.
+#[test]
+fn value_clips_supply_what_only_the_clips_author() {
+    let scene = fixture("usd/clips/scene.usda");
+    let read = |frame| {
+        let t = load_at(&scene, Some(frame)).unwrap();
+        let light = |p: &str| t.lights.iter().find(|(q, _)| q == p).unwrap_or_else(|| panic!("{p}")).1.intensity;
+        let (_, blob) = t.meshes.iter().find(|(p, _)| p == "/World/Anim/Blob").expect("the triangle, points from the clips");
+        (light("/World/Anim/Bulb"), light("/World/Anim/Lamp"), blob.mesh.positions[2].y)
+    };
+    // Clip 1 holds intensity 10 at 1 and 20 at 2, the apex at y = 1 and 2; clip 2, active
+    // from 3, holds 40 and 60 at 3 and 5, the apex at 3 and 5 (fixtures/make_fixtures.py).
+    assert_eq!(read(1.5), (15.0, 5.0, 1.5));
+    assert_eq!(read(4.0), (50.0, 5.0, 4.0));
+}
+
+/// A scalar's time samples written as whole numbers are the declared float type and are
+/// interpolated, as USD does; the parser used to keep them as integers, which were held at the
+/// earlier sample, and a mix of `10` and `20.5` was held too.
+#[test]
+fn whole_number_samples_of_a_float_are_interpolated() {
+    let t = load_text_at(
+        "float_samples",
+        r#"#usda 1.0
+def SphereLight "Bulb"
+{
+    float inputs:intensity.timeSamples = { 1: 10, 2: 20.5 }
+    float inputs:radius.timeSamples = { 1: 1, 2: 3 }
+}
+"#,
+        Some(1.5),
+    );
+    let (_, bulb) = &t.lights[0];
+    // Halfway between the samples: (10 + 20.5) / 2 and (1 + 3) / 2 (usd-core reads the same).
+    assert_eq!((bulb.intensity, bulb.kind), (15.25, render_core::light::LightKind::Sphere { radius: 2.0 }));
 }
 
 /// The composition arcs real assets use come through composed: a sublayer's dome, a

@@ -403,7 +403,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
     {
         lint::check(&String::from_utf8_lossy(&bytes)).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e}", path.display()))?;
     }
-    stage::authored::new_stage();
+    let _reading = stage::authored::Reading::start();
     let stage = Stage::open(path_str).map_err(|e| anyhow::anyhow!("{}: cannot read USD: {e:#}", path.display()))?;
     let default_frame = if stage.has_authored_time_code_range() { stage.start_time_code() } else { 0.0 };
     let time = TimeCode::new(frame.unwrap_or(default_frame));
@@ -423,7 +423,6 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         skins: HashMap::new(),
         skin_samples: HashMap::new(),
         shutter: None,
-        samples_fixed: std::collections::HashSet::new(),
         curve_samples: options.curve_samples.clamp(1, curves::MAX_CURVE_SAMPLES),
         motion_samples: options.motion_samples.clamp(2, render_core::motion::MAX_MOTION_SAMPLES),
         later: Vec::new(),
@@ -520,8 +519,6 @@ struct Reader<'s> {
     shutter: Option<(f64, f64)>,
     /// Transform samples over an open shutter.
     motion_samples: usize,
-    /// Prims whose whole-number xformOp samples were re-authored (see `fix_integral_samples`).
-    samples_fixed: std::collections::HashSet<String>,
     /// Samples per cubic span of curves' tubes.
     curve_samples: usize,
     /// Subdivision meshes refined after the traversal (see `refine_later`).

@@ -45,10 +45,11 @@ pub(super) fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Valu
 /// Which properties the prim being read has opinions for. The translation asks for every input
 /// a schema defines, and most are not authored: a 10,000-light file asked the composed stage
 /// for a value that no layer held about twenty times a light. One list of the prim's composed
-/// property names answers those without composing each property.
+/// property names answers those without composing each property. Under value clips it does not:
+/// an attribute only the clips author is no property of the prim, yet has a value.
 pub(super) mod authored {
     use std::cell::RefCell;
-    use std::collections::HashSet;
+    use std::collections::{HashMap, HashSet};
     use std::sync::atomic::{AtomicU64, Ordering};
 
     use openusd::usd::Prim;
@@ -57,27 +58,84 @@ pub(super) mod authored {
     /// same path (a DCC reloading an edited file).
     static STAGE: AtomicU64 = AtomicU64::new(0);
 
+    /// What is known of the last prim asked about.
+    struct Listed {
+        /// The stage read it belongs to ([`STAGE`]).
+        stage: u64,
+        prim: String,
+        /// Its composed property names; None when value clips may source its attributes or
+        /// the names could not be listed.
+        names: Option<HashSet<String>>,
+    }
+
     thread_local! {
-        /// (stage read, prim path, its composed property names) of the last prim asked about.
-        static LAST: RefCell<Option<(u64, String, HashSet<String>)>> = const { RefCell::new(None) };
+        static LAST: RefCell<Option<Listed>> = const { RefCell::new(None) };
+        /// For the stage being read: whether clips are anchored on each prim asked about or
+        /// on one of its ancestors.
+        static CLIPPED: RefCell<(u64, HashMap<String, bool>)> = RefCell::new((0, HashMap::new()));
     }
 
-    /// Marks the start of a stage's reading: lists taken before are not used again.
-    pub(in crate::usd) fn new_stage() {
-        STAGE.fetch_add(1, Ordering::Relaxed);
+    /// The reading of one stage on this thread: lists taken before it are not used, and what it
+    /// learnt is dropped with it (a million prims' clip marks would otherwise stay with the
+    /// thread until its next stage).
+    pub(in crate::usd) struct Reading(());
+
+    impl Reading {
+        pub(in crate::usd) fn start() -> Self {
+            STAGE.fetch_add(1, Ordering::Relaxed);
+            Reading(())
+        }
     }
 
-    /// False only when the prim's composed property names do not include `name`; true when
-    /// they do or cannot be listed (the value is then read as usual).
+    impl Drop for Reading {
+        fn drop(&mut self) {
+            LAST.take();
+            CLIPPED.take();
+        }
+    }
+
+    /// False only when the prim's composed property names do not include `name` and no value
+    /// clips may source it; true otherwise (the value is then read as usual).
     pub(in crate::usd) fn may_hold(prim: &Prim, name: &str) -> bool {
         let stage = STAGE.load(Ordering::Relaxed);
         LAST.with_borrow_mut(|last| {
-            let fresh = last.as_ref().is_some_and(|(s, p, _)| *s == stage && p == prim.path().as_str());
+            let fresh = last.as_ref().is_some_and(|l| l.stage == stage && l.prim == prim.path().as_str());
             if !fresh {
-                let Ok(names) = prim.property_names() else { return true };
-                *last = Some((stage, prim.path().as_str().to_string(), names.iter().map(|n| n.as_str().to_string()).collect()));
+                let names = match (under_clips(prim, stage), prim.property_names()) {
+                    (false, Ok(names)) => Some(names.iter().map(|n| n.as_str().to_string()).collect()),
+                    _ => None,
+                };
+                *last = Some(Listed { stage, prim: prim.path().as_str().to_string(), names });
             }
-            last.as_ref().is_some_and(|(_, _, names)| names.contains(name))
+            last.as_ref().and_then(|l| l.names.as_ref()).is_none_or(|names| names.contains(name))
+        })
+    }
+
+    /// True when value clips are anchored on `prim` or an ancestor (or that cannot be read):
+    /// an attribute only the clips author is then not among the prim's properties, yet has a
+    /// value, as USD resolves it through the manifest it generates from the clips.
+    fn under_clips(prim: &Prim, stage: u64) -> bool {
+        CLIPPED.with_borrow_mut(|(read, known)| {
+            if *read != stage {
+                (*read, *known) = (stage, HashMap::new());
+            }
+            // The ancestors not yet known, nearest first; then each from its parent down.
+            let mut unknown = Vec::new();
+            let mut path = prim.path().clone();
+            while !known.contains_key(path.as_str()) && !path.is_abs_root() {
+                let parent = path.parent();
+                unknown.push(path);
+                match parent {
+                    Some(parent) => path = parent,
+                    None => break,
+                }
+            }
+            for path in unknown.into_iter().rev() {
+                let above = path.parent().and_then(|p| known.get(p.as_str()).copied()).unwrap_or(false);
+                let here = prim.stage().prim(path.clone()).has_clips().unwrap_or(true);
+                known.insert(path.as_str().to_string(), above || here);
+            }
+            known.get(prim.path().as_str()).copied().unwrap_or(true)
         })
     }
 }
@@ -156,37 +214,6 @@ impl Reader<'_> {
         }
     }
 
-    /// openusd 0.6 reads a whole-number scalar time sample (the `90` of `{0: 0, 1: 90}`, as
-    /// usdcat writes whole floats) as an int, and holds int samples where it should
-    /// interpolate: a rotation keyed in whole degrees stood still between its keys. The prim's
-    /// time-sampled xformOps get such samples re-authored as doubles, in memory (the file is
-    /// never written), once per prim.
-    pub(super) fn fix_integral_samples(&mut self, prim: &Prim, p: &str) {
-        if !self.samples_fixed.insert(p.to_string()) {
-            return;
-        }
-        let Ok(Some(order)) = get(prim, "xformOpOrder", self.time) else { return };
-        for op in values::token_array(&order).unwrap_or_default() {
-            let name = op.trim_start_matches("!invert!");
-            if op == "!resetXformStack!" || !well_formed_name(name) {
-                continue;
-            }
-            let attr = prim.attribute(name);
-            let Ok(Some(samples)) = attr.time_samples() else { continue };
-            let integral = |v: &Value| matches!(v, Value::Int(_) | Value::Int64(_));
-            if samples.len() < 2 || !samples.iter().any(|(_, v)| integral(v)) {
-                continue;
-            }
-            for (t, v) in samples.into_iter().filter(|(_, v)| integral(v)) {
-                let Some(x) = values::scalar(&v) else { continue };
-                if prim.attribute(name).set_at(Value::Double(x), TimeCode::new(t)).is_err() {
-                    self.out.warnings.push(format!("{p}: attribute '{name}' has whole-number time samples, held between keys"));
-                    break;
-                }
-            }
-        }
-    }
-
     /// Local-to-world, composing parents and honouring `!resetXformStack!`.
     pub(super) fn world_transform(&mut self, path: &sdf::Path) -> Result<DMat4> {
         if let Some(m) = self.world.get(path.as_str()) {
@@ -224,7 +251,6 @@ impl Reader<'_> {
                 }
             }
         }
-        self.fix_integral_samples(&prim, path.as_str());
         let view = AnyXformable(prim);
         let local = values::matrix(&view.local_to_parent_transform(time)?);
         let parent = match path.parent() {

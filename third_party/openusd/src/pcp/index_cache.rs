@@ -644,14 +644,17 @@ impl IndexCache {
     /// Redirects `attr_path` through [`Self::effective_path`] and ensures the
     /// owning prim's index is composed, returning the owned prim path and
     /// property suffix for a subsequent [`Self::cached`] lookup. `None` when no
-    /// spec exists at the path (absent or masked out).
+    /// spec exists at the path (absent or masked out) and no value-clip set
+    /// sources it: an attribute only the clips author still resolves through
+    /// them, as USD resolves it through the manifest it generates from the
+    /// clips when none is authored (spec 12.3.4).
     fn ensure_attr_index(&mut self, graph: &LayerGraph, attr_path: &Path) -> Result<Option<(Path, String)>> {
         let attr_path = &self.effective_path(graph, attr_path)?;
-        if !self.has_spec_at(graph, attr_path)? {
-            return Ok(None);
-        }
         let prim = attr_path.prim_path();
         let suffix = attr_path.property_suffix().to_owned();
+        if !self.has_spec_at(graph, attr_path)? && self.clip_introspection(graph, &prim, &suffix)?.is_none() {
+            return Ok(None);
+        }
         self.ensure_index(graph, &prim)?;
         Ok(Some((prim, suffix)))
     }

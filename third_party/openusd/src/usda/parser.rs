@@ -1290,9 +1290,12 @@ impl<'a> Parser<'a> {
     /// - `[` for any array type (scalar arrays like `int[]`,
     ///   `float[]`, `token[]`, as well as arrays of tuples like
     ///   `quatf[]` or `matrix4d[]`).
-    /// - a bare number for a scalar `timecode`, so a sample like
-    ///   `1: 24` resolves to [`sdf::Value::TimeCode`] rather than the
-    ///   type-blind path's `Int64` / `Double`.
+    /// - a bare number for a scalar `timecode`, `half`, `float` or
+    ///   `double`, so a sample like `1: 24` resolves to the declared type
+    ///   ([`sdf::Value::TimeCode`], [`sdf::Value::Float`], ...) rather than
+    ///   the type-blind path's `Int64` / `Double`. Samples of mixed literal
+    ///   kinds (`1: 10, 2: 20.5`) would otherwise differ in type and be held,
+    ///   never interpolated, where USD interpolates them.
     ///
     /// Anything else (scalar literal, `None`, identifier) flows
     /// through the type-blind path so the spec corpus's lenient
@@ -1322,7 +1325,9 @@ impl<'a> Parser<'a> {
         match self.peek_next() {
             Some(Ok(Token::Punctuation('('))) => is_tuple_type,
             Some(Ok(Token::Punctuation('['))) => is_tuple_type || info.is_array,
-            Some(Ok(Token::Number(_))) => info.ty == Type::TimeCode && !info.is_array,
+            Some(Ok(Token::Number(_))) => {
+                !info.is_array && matches!(info.ty, Type::TimeCode | Type::Half | Type::Float | Type::Double)
+            }
             _ => false,
         }
     }
