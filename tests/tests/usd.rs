@@ -152,6 +152,18 @@ fn value_clips_supply_what_only_the_clips_author() {
     assert_eq!(read(4.0), (50.0, 5.0, 4.0));
 }
 
+/// Visibility is read at the frame: a quad invisible at frame 1 appears at frame 3 (its
+/// `visibility` is time-sampled, as a prop that enters mid-shot is authored). The vendored
+/// crate's `compute_visibility` reads defaults only, so the quad used to stay hidden.
+#[test]
+fn visibility_is_read_at_the_frame() {
+    let scene = fixture("usd/clips/scene.usda");
+    let visible =
+        |frame| load_at(&scene, Some(frame)).unwrap().meshes.iter().find(|(p, _)| p == "/World/Popper").expect("the quad").1.visible;
+    // Tokens are held between samples: still hidden at 2.9.
+    assert_eq!((visible(1.0), visible(2.9), visible(3.0), visible(5.0)), (false, false, true, true));
+}
+
 /// A scalar's time samples written as whole numbers are the declared float type and are
 /// interpolated, as USD does; the parser used to keep them as integers, which were held at the
 /// earlier sample, and a mix of `10` and `20.5` was held too.

@@ -292,7 +292,7 @@ impl Reader<'_> {
                 continue;
             }
             let view = AnyXformable(mprim.clone());
-            if matches!(view.compute_purpose()?, Purpose::Proxy | Purpose::Guide) || view.compute_visibility()? == Visibility::Invisible {
+            if matches!(view.compute_purpose()?, Purpose::Proxy | Purpose::Guide) || self.invisible(&member)? {
                 continue;
             }
             // The prototype mesh itself (one per bound GeomSubset too), never drawn directly.

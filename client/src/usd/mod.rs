@@ -40,7 +40,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use glam::{Affine3A, DMat4, Mat4, Vec3};
-use openusd::schemas::geom::{Imageable, Purpose, Visibility, Xformable};
+use openusd::schemas::geom::{Imageable, Purpose, Xformable};
 use openusd::schemas::shade::{Material, MaterialBindingAPI};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, PrimPredicate, SchemaBase, SchemaKind, Stage, TimeCode};
@@ -411,6 +411,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         stage: &stage,
         time,
         world: HashMap::new(),
+        hidden: HashMap::new(),
         out: Translation::default(),
         materials_seen: HashMap::new(),
         all_paths: Vec::new(),
@@ -493,6 +494,8 @@ struct Reader<'s> {
     /// Time at which time-sampled transforms are read: the stage's start time.
     time: TimeCode,
     world: HashMap<String, DMat4>,
+    /// Whether each prim asked about, or an ancestor, is invisible at `time`.
+    hidden: HashMap<String, bool>,
     out: Translation,
     materials_seen: HashMap<String, ()>,
     /// Every prim path the traversal visits, in order.

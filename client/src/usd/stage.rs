@@ -185,7 +185,7 @@ impl Reader<'_> {
         if matches!(purpose, Purpose::Proxy | Purpose::Guide) {
             return Ok(());
         }
-        let visible = view.compute_visibility()? != Visibility::Invisible;
+        let visible = !self.invisible(path)?;
         match type_name.as_str() {
             "Mesh" => self.mesh(&prim, &p, visible),
             t if IMPLICIT.contains(&t) => self.implicit(&prim, &p, t, visible),
@@ -212,6 +212,24 @@ impl Reader<'_> {
                 Ok(())
             }
         }
+    }
+
+    /// True when the prim at `path` or an ancestor is invisible at the frame, as
+    /// UsdGeomImageable's ComputeVisibility(time) says: `visibility` may be time-sampled (a prop
+    /// that appears mid-shot), where openusd's `compute_visibility` reads defaults only.
+    pub(super) fn invisible(&mut self, path: &sdf::Path) -> Result<bool> {
+        if let Some(&hidden) = self.hidden.get(path.as_str()) {
+            return Ok(hidden);
+        }
+        let prim = self.stage.prim(path.clone());
+        let here = get(&prim, "visibility", self.time)?.as_ref().and_then(values::token).is_some_and(|v| v == "invisible");
+        let hidden = here
+            || match path.parent() {
+                Some(parent) if !parent.is_abs_root() && !parent.as_str().is_empty() => self.invisible(&parent)?,
+                _ => false,
+            };
+        self.hidden.insert(path.as_str().to_string(), hidden);
+        Ok(hidden)
     }
 
     /// Local-to-world, composing parents and honouring `!resetXformStack!`.
