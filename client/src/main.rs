@@ -114,7 +114,7 @@ enum Command {
         light_split_budget: Option<u32>,
         /// Time code at which to evaluate animated attributes (default: the stage's
         /// startTimeCode, else 0).
-        #[arg(long, conflicts_with = "frames")]
+        #[arg(long, conflicts_with = "frames", allow_negative_numbers = true)]
         frame: Option<f64>,
         /// Refinement level of subdivision surfaces (meshes whose subdivisionScheme is not
         /// none) that do not name their own: 2^level segments per cage edge; 0 renders cages.
@@ -123,8 +123,8 @@ enum Command {
         #[command(flatten)]
         sampling: SceneSampling,
         /// Render a frame range in one process: FIRST-LAST[xSTEP], comma-separated
-        /// (`1-240x2`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
-        #[arg(long)]
+        /// (`1-240x2`, `-10-10`); `-o` names each frame with `####` or `$F4` (`out/shot.####.exr`).
+        #[arg(long, allow_hyphen_values = true)]
         frames: Option<String>,
         /// Print `ALF_PROGRESS n%` lines over the whole job (Tractor's and husk's convention).
         #[arg(long)]
@@ -218,7 +218,7 @@ enum Command {
         #[arg(long)]
         json: bool,
         /// Time code for animated attributes.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         frame: Option<f64>,
         /// As `render --subdivision-level`.
         #[arg(long, default_value_t = tessera::usd::DEFAULT_SUBDIVISION_LEVEL, value_parser = clap::value_parser!(u32).range(0..=8))]
@@ -290,7 +290,7 @@ enum FarmCommand {
         /// The scene.
         scene: PathBuf,
         /// Frames: FIRST-LAST[xSTEP], comma-separated.
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         frames: String,
         /// Output pattern with `####` or `$F4` for the frame number.
         #[arg(short, long)]
@@ -708,5 +708,23 @@ mod tests {
         assert!(parse_shutter("0,inf").unwrap_err().contains("not finite"));
         assert!(parse_shutter("0.5").unwrap_err().contains("OPEN,CLOSE"));
         assert!(parse_shutter("a,1").is_err());
+    }
+
+    /// USD time codes may be negative (a shot's pre-roll): `--frame -2` and `--frames -10-10`
+    /// are values, not flags.
+    #[test]
+    fn negative_frames_parse_as_values() {
+        let frame = |args: &[&str]| match Cli::try_parse_from(args).map(|c| c.command) {
+            Ok(Command::Inspect { frame, .. }) | Ok(Command::Render { frame, .. }) => frame,
+            other => panic!("{args:?}: {:?}", other.err()),
+        };
+        assert_eq!(frame(&["tessera", "inspect", "s.usda", "--frame", "-2"]), Some(-2.0));
+        assert_eq!(frame(&["tessera", "render", "s.usda", "--frame", "-0.5"]), Some(-0.5));
+        let Ok(Command::Render { frames, .. }) =
+            Cli::try_parse_from(["tessera", "render", "s.usda", "--frames", "-10-10", "-o", "f.####.exr"]).map(|c| c.command)
+        else {
+            panic!("--frames -10-10 parses");
+        };
+        assert_eq!(frames.as_deref(), Some("-10-10"));
     }
 }
