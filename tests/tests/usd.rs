@@ -185,6 +185,88 @@ def SphereLight "Bulb"
     assert_eq!((bulb.intensity, bulb.kind), (15.25, render_core::light::LightKind::Sphere { radius: 2.0 }));
 }
 
+/// Attribute splines (USD 25.05's `.spline`) evaluate as usd-core's `Ts` does: 200 random
+/// splines authored and evaluated by usd-core (`fixtures/spline_cases.py`: held, linear and
+/// curved segments, Bézier and Hermite, over-long tangents, dual values, and every
+/// extrapolation including the three loops and value blocks), each read at its knots and at 30
+/// times around them. Before, the vendored crate parsed tangents as (slope, width) where USD
+/// writes (width, slope), read `loop repeat` as a curve type, and never evaluated a spline.
+#[test]
+fn splines_evaluate_as_usd_core_does() {
+    let dir = std::env::temp_dir().join(format!("tessera-splines-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (usda, json) = (dir.join("splines.usda"), dir.join("splines.json"));
+    let made = std::process::Command::new("python3")
+        .arg(fixture("spline_cases.py"))
+        .args([usda.as_os_str(), json.as_os_str()])
+        .args(["200", "7"])
+        .output()
+        .expect("python3 runs");
+    assert!(made.status.success(), "spline_cases.py: {}", String::from_utf8_lossy(&made.stderr));
+    let expected: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let stage = openusd::usd::Stage::open(usda.to_str().unwrap()).unwrap();
+    let (mut probes, mut wrong) = (0, Vec::new());
+    for (name, samples) in expected.as_object().unwrap() {
+        let attr = stage.attribute(format!("/S.{name}").as_str());
+        for sample in samples.as_array().unwrap() {
+            let (time, theirs) = (sample[0].as_f64().unwrap(), sample[1].as_f64());
+            let ours = match attr.get_at::<openusd::sdf::Value>(openusd::usd::TimeCode::new(time)).unwrap() {
+                Some(openusd::sdf::Value::Double(x)) => Some(x),
+                None => None,
+                other => panic!("{name} at {time}: {other:?}"),
+            };
+            probes += 1;
+            // Within 1e-4 of the value (or of 1): over 13,000 probes the largest difference was
+            // 8.9e-5, in segments whose tangents are shortened against regression; a wrong
+            // segment or extrapolation is off by whole units.
+            let agree = match (theirs, ours) {
+                (Some(a), Some(b)) => (a - b).abs() <= 1e-4 * a.abs().max(1.0),
+                (a, b) => a == b,
+            };
+            if !agree {
+                wrong.push(format!("{name} at {time}: usd-core {theirs:?}, ours {ours:?}"));
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(probes > 6000, "{probes} probes");
+    assert!(wrong.is_empty(), "{} of {probes} differ:\n{}", wrong.len(), wrong[..wrong.len().min(20)].join("\n"));
+}
+
+/// A light whose intensity a spline animates reads the spline's value at the frame: 1 at frame
+/// 0 rising linearly to 11 at frame 10 is 6 at frame 5 (usd-core reads 6 too).
+#[test]
+fn a_light_animated_by_a_spline_reads_its_value_at_the_frame() {
+    let t = load_text_at(
+        "spline_light",
+        r#"#usda 1.0
+def SphereLight "Key"
+{
+    float inputs:intensity.spline = {
+        0: 1; pre (0, 0); post linear,
+        10: 11; post held,
+    }
+}
+"#,
+        Some(5.0),
+    );
+    assert_eq!(t.lights[0].1.intensity, 6.0);
+    assert!(t.warnings.iter().all(|w| !w.contains("spline")), "{:?}", t.warnings);
+}
+
+/// A tuple shorter than its type is an error naming the attribute; the parser used to leave
+/// the missing elements uninitialised (a `float3` written `(1, 2)` read garbage).
+#[test]
+fn a_short_tuple_is_an_error() {
+    let dir = std::env::temp_dir().join(format!("tessera-short-tuple-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("short.usda");
+    std::fs::write(&file, "#usda 1.0\ndef Sphere \"Ball\"\n{\n    float3 primvars:displayColor = (1, 2)\n}\n").unwrap();
+    let e = format!("{:#}", tessera::usd::load(&file).unwrap_err());
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(e.contains("tuple has 2 elements (expected 3)"), "{e}");
+}
+
 /// The composition arcs real assets use come through composed: a sublayer's dome, a
 /// referenced file's chair moved by an xform authored over the reference, a payload's lamp
 /// (loaded by default), the selected variant's geometry only, and an inherited class's child.

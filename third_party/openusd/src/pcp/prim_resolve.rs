@@ -539,9 +539,32 @@ impl PrimIndex {
         time: f64,
         interp: &dyn Fn(&sdf::TimeSampleMap, f64) -> Option<Value>,
     ) -> Result<Option<Option<Value>>> {
-        self.first_time_samples(stack, prop_suffix, local_layers, |map, offset| {
-            interp(map, offset.inverse().apply(time))
-        })
+        let samples = FieldKey::TimeSamples.as_str();
+        for site in self.contributing_sites(prop_suffix) {
+            let site = site?;
+            if local_layers.is_some_and(|local| !local.contains(&site.layer)) {
+                continue;
+            }
+            let data = stack.layer(site.layer).data();
+            let layer_time = site.offset.inverse().apply(time);
+            match data.try_field(&site.query_path, samples)?.as_deref() {
+                Some(Value::ValueBlock) => return Ok(None),
+                Some(Value::TimeSamples(map)) => return Ok(Some(interp(map, layer_time))),
+                _ => {}
+            }
+            // A spline stands where the layer's time samples would (USD reads the samples when
+            // a layer authors both). One this cannot evaluate (inner loops, or undecoded in a
+            // binary layer) is passed over, as before splines were read.
+            let Ok(Some(spline)) = data.try_field(&site.query_path, SPLINE) else { continue };
+            let Some(sample) = crate::usd::spline::Spline::from_value(&spline).and_then(|s| s.at(layer_time)) else {
+                continue;
+            };
+            return Ok(Some(match sample {
+                crate::usd::spline::Sample::Value(x) => Some(typed_scalar(x, data.try_field(&site.query_path, FieldKey::TypeName.as_str()).ok().flatten().as_deref())),
+                crate::usd::spline::Sample::Block => None,
+            }));
+        }
+        Ok(None)
     }
 
     /// Resolves the strongest authored `timeSamples` map together with its
@@ -927,6 +950,19 @@ fn dictionary_over(stronger: &mut HashMap<String, Value>, weaker: HashMap<String
                 entry.insert(weaker_value);
             }
         }
+    }
+}
+
+/// The field an attribute's spline is stored in (USD 25.05's `.spline`).
+const SPLINE: &str = "spline";
+
+/// A spline's value as the attribute's declared scalar type (`typeName`): splines animate
+/// `half`, `float` and `double` attributes; anything else reads as a double.
+fn typed_scalar(x: f64, type_name: Option<&Value>) -> Value {
+    match type_name {
+        Some(Value::Token(t)) if t.as_str() == "float" => Value::Float(x as f32),
+        Some(Value::Token(t)) if t.as_str() == "half" => Value::Half(gf::f16::from_f64(x)),
+        _ => Value::Double(x),
     }
 }
 

@@ -64,6 +64,12 @@ pub trait AbstractData {
     /// rely on this for reproducible output.
     fn spec_paths(&self) -> Vec<Path>;
 
+    /// Returns the paths of the specs that author `field`, in unspecified
+    /// order: whether a layer uses a field at all, without sorting its paths.
+    fn paths_with_field(&self, field: &str) -> Vec<Path> {
+        self.spec_paths().into_iter().filter(|p| self.has_field(p, field)).collect()
+    }
+
     /// Creates an empty spec of type `ty` at `path`, replacing any existing
     /// spec there. Mirrors C++ `SdfAbstractData::CreateSpec`. Fields are
     /// authored separately via [`set_field`](Self::set_field).
@@ -234,6 +240,10 @@ impl AbstractData for Data {
         paths
     }
 
+    fn paths_with_field(&self, field: &str) -> Vec<Path> {
+        self.specs.iter().filter(|(_, spec)| spec.contains(field)).map(|(p, _)| p.clone()).collect()
+    }
+
     fn create_spec(&mut self, path: Path, ty: SpecType) {
         self.specs.insert(path, SpecData::new(ty));
     }
@@ -279,6 +289,10 @@ impl<T: AbstractData + ?Sized> AbstractData for Box<T> {
 
     fn spec_paths(&self) -> Vec<Path> {
         (**self).spec_paths()
+    }
+
+    fn paths_with_field(&self, field: &str) -> Vec<Path> {
+        (**self).paths_with_field(field)
     }
 
     fn create_spec(&mut self, path: Path, ty: SpecType) {
@@ -522,6 +536,13 @@ impl<T: AbstractData> AbstractData for CowData<T> {
             }
             None => self.base.list_fields(path),
         }
+    }
+
+    fn paths_with_field(&self, field: &str) -> Vec<Path> {
+        if self.overlay.is_empty() {
+            return self.base.paths_with_field(field);
+        }
+        self.spec_paths().into_iter().filter(|p| self.has_field(p, field)).collect()
     }
 
     fn spec_paths(&self) -> Vec<Path> {

@@ -12,6 +12,7 @@ mod connections;
 mod diff;
 mod editor;
 mod interp;
+pub(crate) mod spline;
 mod prim;
 mod relationship;
 mod schema;
@@ -38,6 +39,7 @@ pub use stage::{
     EditContext, EditTarget, EditTargetArc, InitialLoadSet, LoadPolicy, PrimPredicate, PrimStatus, Stage,
     StageAuthoringError, StageBuilder, StagePopulationMask, WeakStage,
 };
+pub use spline::evaluates;
 pub use timecode::TimeCode;
 
 use crate::sdf;

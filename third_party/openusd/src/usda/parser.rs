@@ -1,7 +1,6 @@
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use logos::Logos;
 use std::iter::Peekable;
-use std::mem::MaybeUninit;
 use std::ops::Range;
 use std::{any::type_name, collections::HashMap, fmt::Debug, str::FromStr};
 
@@ -1089,10 +1088,17 @@ impl<'a> Parser<'a> {
 
     /// Parse an extrapolation mode: `mode [(slope)]`.
     fn parse_extrapolation(&mut self) -> Result<sdf::Value> {
-        let mode = self.expect_identifier()?;
-        if mode == "none" {
-            return Ok(sdf::Value::ValueBlock);
-        }
+        let mode = match self.expect_identifier()? {
+            "none" => return Ok(sdf::Value::ValueBlock),
+            // `loop repeat`, `loop reset`, `loop oscillate`: Ts's looping extrapolations.
+            "loop" => match self.expect_identifier()? {
+                "repeat" => "loopRepeat",
+                "reset" => "loopReset",
+                "oscillate" => "loopOscillate",
+                other => bail!("Unexpected loop extrapolation: loop {other}"),
+            },
+            mode => mode,
+        };
         let slope = if self.is_next(Token::Punctuation('(')) {
             self.ensure_pun('(')?;
             let v = self.parse_token::<f64>()?;
@@ -1107,14 +1113,38 @@ impl<'a> Parser<'a> {
         ])))
     }
 
+    /// Parse a knot's tangent, `(width, slope)`, or `(slope)` as Hermite splines write it
+    /// (their widths are fixed at a third of the segment): (width, slope), width 0 when
+    /// unwritten.
+    fn parse_tangent(&mut self) -> Result<(f64, f64)> {
+        let mut values = Vec::with_capacity(2);
+        self.parse_block('(', ')', |this| {
+            ensure!(values.len() < 2, "a tangent is (width, slope) or (slope)");
+            values.push(this.parse_token::<f64>()?);
+            Ok(())
+        })?;
+        match values[..] {
+            [slope] => Ok((0.0, slope)),
+            [width, slope] => Ok((width, slope)),
+            _ => bail!("a tangent is (width, slope) or (slope)"),
+        }
+    }
+
     /// Parse a spline value: `{ curveType, knots... }`.
     ///
     /// The result is stored as a `Dictionary` matching the baseline JSON structure:
     /// `{ curveType, preExtrapolation, postExtrapolation, loopParameters, knots, knotCustomData }`.
     fn parse_spline(&mut self) -> Result<sdf::Value> {
         let mut curve_type: Option<String> = None;
-        let mut pre_extrapolation = sdf::Value::ValueBlock;
-        let mut post_extrapolation = sdf::Value::ValueBlock;
+        // Unwritten extrapolation is held (Ts's default); `none` is a value block.
+        let held = || {
+            sdf::Value::Dictionary(HashMap::from([
+                ("mode".to_owned(), sdf::Value::token("held")),
+                ("slope".to_owned(), sdf::Value::Double(0.0)),
+            ]))
+        };
+        let mut pre_extrapolation = held();
+        let mut post_extrapolation = held();
         let mut loop_params = sdf::Value::ValueBlock;
         let mut knots = Vec::new();
         let mut knot_custom_data: HashMap<String, sdf::Value> = HashMap::new();
@@ -1170,12 +1200,13 @@ impl<'a> Parser<'a> {
                     let mut post_width = 0.0;
                     let mut interp_mode = "held".to_owned();
 
-                    // `time : value` or `time : preValue & value`
+                    // `time : value` or `time : preValue & value`; a knot that is not
+                    // dual-valued is approached from the left at its value.
                     let (pre_value, value) = if this.try_consume(Token::Punctuation('&')) {
                         let actual: f64 = this.parse_token()?;
                         (first, actual)
                     } else {
-                        (0.0, first)
+                        (first, first)
                     };
 
                     // Optional semicolon-separated knot attributes
@@ -1196,19 +1227,13 @@ impl<'a> Parser<'a> {
 
                         let dir = this.expect_identifier()?;
                         match dir {
-                            "pre" => {
-                                let vals = this.parse_tuple::<f64, 2>()?;
-                                pre_slope = vals[0];
-                                pre_width = vals[1];
-                            }
+                            "pre" => (pre_width, pre_slope) = this.parse_tangent()?,
                             "post" => {
-                                // `post mode` or `post mode (slope, width)`
+                                // `post mode` or `post mode (width, slope)`
                                 let mode = this.expect_identifier()?;
                                 interp_mode = mode.to_owned();
                                 if this.is_next(Token::Punctuation('(')) {
-                                    let vals = this.parse_tuple::<f64, 2>()?;
-                                    post_slope = vals[0];
-                                    post_width = vals[1];
+                                    (post_width, post_slope) = this.parse_tangent()?;
                                 }
                             }
                             other => bail!("Unexpected knot attribute: {other}"),
@@ -1785,16 +1810,16 @@ impl<'a> Parser<'a> {
         T: FromStr,
         <T as FromStr>::Err: Debug,
     {
-        let mut result: [MaybeUninit<T>; N] = unsafe { MaybeUninit::uninit().assume_init() };
-        let mut i = 0;
+        // Collected safely and checked for exactly N: a short tuple such as `(1, 2)` for a
+        // `float3` used to leave the missing elements uninitialised.
+        let mut items = Vec::with_capacity(N);
         self.parse_block('(', ')', |this| {
-            ensure!(i < N, "tuple has too many elements (expected {N})");
-            result[i] = MaybeUninit::new(this.parse_token::<T>()?);
-            i += 1;
+            ensure!(items.len() < N, "tuple has too many elements (expected {N})");
+            items.push(this.parse_token::<T>()?);
             Ok(())
         })?;
-        let result = unsafe { std::mem::transmute_copy::<_, [T; N]>(&result) };
-        Ok(result)
+        let n = items.len();
+        items.try_into().map_err(|_| anyhow::anyhow!("tuple has {n} elements (expected {N})"))
     }
 
     /// Parse a `[...]` array, using `parse_element` for each item.

@@ -353,7 +353,13 @@ impl<W: Write> Emitter<'_, W> {
             }
             Value::Dictionary(d) => {
                 let mode = match d.get("mode") {
-                    Some(Value::Token(t)) => t.as_str(),
+                    // The parser's names for `loop repeat`, `loop reset`, `loop oscillate`.
+                    Some(Value::Token(t)) => match t.as_str() {
+                        "loopRepeat" => "loop repeat",
+                        "loopReset" => "loop reset",
+                        "loopOscillate" => "loop oscillate",
+                        mode => mode,
+                    },
                     _ => "none",
                 };
                 let slope = match d.get("slope") {
@@ -417,7 +423,9 @@ impl<W: Write> Emitter<'_, W> {
         let mut buf = String::new();
         format_double(&mut buf, time);
         buf.push_str(": ");
-        if pre_value != 0.0 {
+        // Dual-valued when the value approached from the left differs (the parser gives a
+        // single-valued knot its own value there).
+        if pre_value != value {
             let mut pv = String::new();
             format_double(&mut pv, pre_value);
             buf.push_str(&pv);
@@ -426,10 +434,11 @@ impl<W: Write> Emitter<'_, W> {
         format_double(&mut buf, value);
 
         if pre_slope != 0.0 || pre_width != 0.0 {
+            // USD writes a tangent as (width, slope).
             buf.push_str("; pre (");
-            format_double(&mut buf, pre_slope);
-            buf.push_str(", ");
             format_double(&mut buf, pre_width);
+            buf.push_str(", ");
+            format_double(&mut buf, pre_slope);
             buf.push(')');
         }
 
@@ -438,9 +447,9 @@ impl<W: Write> Emitter<'_, W> {
             buf.push_str(interp);
             if post_slope != 0.0 || post_width != 0.0 {
                 buf.push_str(" (");
-                format_double(&mut buf, post_slope);
-                buf.push_str(", ");
                 format_double(&mut buf, post_width);
+                buf.push_str(", ");
+                format_double(&mut buf, post_slope);
                 buf.push(')');
             }
         }

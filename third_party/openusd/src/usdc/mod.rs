@@ -178,6 +178,20 @@ where
         Some(names)
     }
 
+    fn paths_with_field(&self, field: &str) -> Vec<sdf::Path> {
+        // The crate's field table lists every (name, value) pair once: a name absent from it
+        // is authored by no spec read from the file, which spares the walk over every spec.
+        let in_crate = {
+            let file = self.file.borrow();
+            file.fields.iter().any(|f| field_name(&file, f.token_index) == field)
+        };
+        let edited = self.data.values().any(|spec| !spec.authored.is_empty());
+        if !in_crate && !edited {
+            return Vec::new();
+        }
+        self.data.keys().filter(|p| self.has_field(p, field)).cloned().collect()
+    }
+
     fn spec_paths(&self) -> Vec<sdf::Path> {
         let mut paths: Vec<sdf::Path> = self.data.keys().cloned().collect();
         paths.sort_by(|a, b| a.as_str().cmp(b.as_str()));
