@@ -61,6 +61,9 @@ fn an_independent_reader_agrees_on_every_fixture() {
     cases.push((fixture("usd/animated.usda"), Some(5.5)));
     // Skinning between time samples: slerped joint rotations, interpolated blend shape weights.
     cases.push((fixture("usd/skinned_arm.usda"), Some(5.5)));
+    // Off the midpoint, half3 scales interpolate as GfVec3h does (products and sum rounded to
+    // half): rounded once, the points were 2e-4 (relative) from usd-core's.
+    cases.push((fixture("usd/skinned_arm.usda"), Some(7.7)));
     // Dual-quaternion skinning, the elbow's non-uniform scale blended beside it.
     cases.push((fixture("usd/skinned_arm_dq.usda"), Some(5.5)));
     cases.push((fixture("usd/skinned_arm_dq.usda"), Some(10.0)));

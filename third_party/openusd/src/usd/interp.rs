@@ -136,7 +136,7 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
     use crate::sdf::Value as V;
     let t32 = t as f32;
     Some(match (a, b) {
-        (V::Half(x), V::Half(y)) => V::Half(gf::lerp_half(*x, *y, t32)),
+        (V::Half(x), V::Half(y)) => V::Half(lerp_half(*x, *y, t)),
         (V::Float(x), V::Float(y)) => V::Float(gf::lerp(*x, *y, t32)),
         (V::Double(x), V::Double(y)) => V::Double(gf::lerp(*x, *y, t)),
         (V::TimeCode(x), V::TimeCode(y)) => V::TimeCode(gf::lerp(x.0, y.0, t).into()),
@@ -145,13 +145,13 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
         (V::Matrix3d(x), V::Matrix3d(y)) => V::Matrix3d(x.lerp(*y, t)),
         (V::Matrix4d(x), V::Matrix4d(y)) => V::Matrix4d(x.lerp(*y, t)),
 
-        (V::Vec2h(x), V::Vec2h(y)) => V::Vec2h(x.lerp(*y, t32)),
+        (V::Vec2h(x), V::Vec2h(y)) => V::Vec2h(lerp_vec2h(*x, *y, t)),
         (V::Vec2f(x), V::Vec2f(y)) => V::Vec2f(x.lerp(*y, t32)),
         (V::Vec2d(x), V::Vec2d(y)) => V::Vec2d(x.lerp(*y, t)),
-        (V::Vec3h(x), V::Vec3h(y)) => V::Vec3h(x.lerp(*y, t32)),
+        (V::Vec3h(x), V::Vec3h(y)) => V::Vec3h(lerp_vec3h(*x, *y, t)),
         (V::Vec3f(x), V::Vec3f(y)) => V::Vec3f(x.lerp(*y, t32)),
         (V::Vec3d(x), V::Vec3d(y)) => V::Vec3d(x.lerp(*y, t)),
-        (V::Vec4h(x), V::Vec4h(y)) => V::Vec4h(x.lerp(*y, t32)),
+        (V::Vec4h(x), V::Vec4h(y)) => V::Vec4h(lerp_vec4h(*x, *y, t)),
         (V::Vec4f(x), V::Vec4f(y)) => V::Vec4f(x.lerp(*y, t32)),
         (V::Vec4d(x), V::Vec4d(y)) => V::Vec4d(x.lerp(*y, t)),
 
@@ -162,7 +162,7 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
         // Array (VtArray) variants. Per C++: bracketing samples must
         // agree on length, otherwise fall back to held.
         (V::HalfVec(x), V::HalfVec(y)) if x.len() == y.len() => {
-            V::HalfVec(x.iter().zip(y).map(|(a, b)| gf::lerp_half(*a, *b, t32)).collect())
+            V::HalfVec(x.iter().zip(y).map(|(a, b)| lerp_half(*a, *b, t)).collect())
         }
         (V::FloatVec(x), V::FloatVec(y)) if x.len() == y.len() => {
             V::FloatVec(x.iter().zip(y).map(|(a, b)| gf::lerp(*a, *b, t32)).collect())
@@ -185,7 +185,7 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
         }
 
         (V::Vec2hVec(x), V::Vec2hVec(y)) if x.len() == y.len() => {
-            V::Vec2hVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
+            V::Vec2hVec(x.iter().zip(y).map(|(a, b)| lerp_vec2h(*a, *b, t)).collect())
         }
         (V::Vec2fVec(x), V::Vec2fVec(y)) if x.len() == y.len() => {
             V::Vec2fVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
@@ -194,7 +194,7 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
             V::Vec2dVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t)).collect())
         }
         (V::Vec3hVec(x), V::Vec3hVec(y)) if x.len() == y.len() => {
-            V::Vec3hVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
+            V::Vec3hVec(x.iter().zip(y).map(|(a, b)| lerp_vec3h(*a, *b, t)).collect())
         }
         (V::Vec3fVec(x), V::Vec3fVec(y)) if x.len() == y.len() => {
             V::Vec3fVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
@@ -203,7 +203,7 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
             V::Vec3dVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t)).collect())
         }
         (V::Vec4hVec(x), V::Vec4hVec(y)) if x.len() == y.len() => {
-            V::Vec4hVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
+            V::Vec4hVec(x.iter().zip(y).map(|(a, b)| lerp_vec4h(*a, *b, t)).collect())
         }
         (V::Vec4fVec(x), V::Vec4fVec(y)) if x.len() == y.len() => {
             V::Vec4fVec(x.iter().zip(y).map(|(a, b)| a.lerp(*b, t32)).collect())
@@ -224,6 +224,40 @@ fn lerp_value(a: &Value, b: &Value, t: f64) -> Option<Value> {
 
         _ => return None,
     })
+}
+
+/// A half as USD interpolates `GfHalf`: `(1-t)·a + t·b` in double precision, rounded to half
+/// once (through a float, as `GfHalf` converts).
+fn lerp_half(a: gf::f16, b: gf::f16, t: f64) -> gf::f16 {
+    gf::f16::from_f32(((1.0 - t) * a.to_f64() + t * b.to_f64()) as f32)
+}
+
+/// A half vector's component as USD interpolates `GfVec2h`/`GfVec3h`/`GfVec4h`:
+/// `(1-t)·a + t·b` where each product is a half vector and their sum is one too, so both
+/// products and the sum round to half. One rounding (what `lerp_half` does) differs from it by
+/// up to one half ulp: a skinned arm's half3 scales moved its points by 2e-4 relative to
+/// usd-core's.
+fn lerp_half_component(a: gf::f16, b: gf::f16, t: f64) -> gf::f16 {
+    let low = gf::f16::from_f32(((1.0 - t) * a.to_f64()) as f32);
+    let high = gf::f16::from_f32((t * b.to_f64()) as f32);
+    gf::f16::from_f32(low.to_f32() + high.to_f32())
+}
+
+fn lerp_vec2h(a: gf::Vec2h, b: gf::Vec2h, t: f64) -> gf::Vec2h {
+    gf::vec2h(lerp_half_component(a.x, b.x, t), lerp_half_component(a.y, b.y, t))
+}
+
+fn lerp_vec3h(a: gf::Vec3h, b: gf::Vec3h, t: f64) -> gf::Vec3h {
+    gf::vec3h(lerp_half_component(a.x, b.x, t), lerp_half_component(a.y, b.y, t), lerp_half_component(a.z, b.z, t))
+}
+
+fn lerp_vec4h(a: gf::Vec4h, b: gf::Vec4h, t: f64) -> gf::Vec4h {
+    gf::vec4h(
+        lerp_half_component(a.x, b.x, t),
+        lerp_half_component(a.y, b.y, t),
+        lerp_half_component(a.z, b.z, t),
+        lerp_half_component(a.w, b.w, t),
+    )
 }
 
 #[cfg(test)]
