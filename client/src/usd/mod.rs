@@ -390,9 +390,9 @@ pub fn load_with(path: &std::path::Path, options: LoadOptions) -> Result<Transla
 }
 
 /// One warning per attribute a layer animates with a spline (USD 25.05's `.spline`) that value
-/// resolution passes over: one with inner loops (deprecated in USD), or one in a binary layer,
-/// whose splines the vendored crate does not decode. Such an attribute reads its time samples,
-/// default or fallback instead.
+/// resolution passes over: one with inner loops (deprecated in USD), or binary data the
+/// vendored crate cannot decode (Maya-form tangents, time-valued splines). Such an attribute
+/// reads its time samples, default or fallback instead.
 fn spline_warnings(stage: &Stage) -> Vec<String> {
     let mut warnings = Vec::new();
     for id in stage.layer_identifiers() {
@@ -407,7 +407,7 @@ fn spline_warnings(stage: &Stage) -> Vec<String> {
                 continue;
             }
             warnings.push(format!(
-                "{}: attribute animated by a spline in {id} that is not evaluated (inner loops, or a binary layer's spline); its time samples, default or fallback are read",
+                "{}: attribute animated by a spline in {id} that is not evaluated (inner loops, or data the reader cannot decode); its time samples, default or fallback are read",
                 path.as_str()
             ));
         }

@@ -8,6 +8,7 @@ use layout::ValueRep;
 mod coding;
 mod layout;
 mod reader;
+mod spline;
 mod writer;
 
 pub use layout::{version, Version};

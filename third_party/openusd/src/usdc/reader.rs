@@ -1463,6 +1463,19 @@ impl<R: io::Read + io::Seek> CrateFile<R> {
                 sdf::Value::Relocates(pairs)
             }
 
+            Type::Spline => {
+                ensure!(!value.is_inlined() && !value.is_array(), "Spline {ty} can't be inlined or an array");
+                // The crate stores a u64 byte count and that many bytes of `Ts` binary data,
+                // then the knots' custom data, which nothing here reads. Offset 0: no spline.
+                if value.payload() == 0 {
+                    super::spline::decode(&[])?
+                } else {
+                    self.set_position(value.payload())?;
+                    let len = self.reader.read_count()?;
+                    super::spline::decode(&read_bytes(&mut self.reader, len)?)?
+                }
+            }
+
             _ => bail!("Unsupported value type: {ty}"),
         };
 
