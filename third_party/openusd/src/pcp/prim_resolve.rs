@@ -553,16 +553,10 @@ impl PrimIndex {
                 _ => {}
             }
             // A spline stands where the layer's time samples would (USD reads the samples when
-            // a layer authors both). One this cannot evaluate (inner loops, or undecoded in a
-            // binary layer) is passed over, as before splines were read.
-            let Ok(Some(spline)) = data.try_field(&site.query_path, SPLINE) else { continue };
-            let Some(sample) = crate::usd::spline::Spline::from_value(&spline).and_then(|s| s.at(layer_time)) else {
-                continue;
-            };
-            return Ok(Some(match sample {
-                crate::usd::spline::Sample::Value(x) => Some(typed_scalar(x, data.try_field(&site.query_path, FieldKey::TypeName.as_str()).ok().flatten().as_deref())),
-                crate::usd::spline::Sample::Block => None,
-            }));
+            // a layer authors both).
+            if let Some(value) = spline_at(data, &site.query_path, layer_time) {
+                return Ok(Some(value));
+            }
         }
         Ok(None)
     }
@@ -956,14 +950,22 @@ fn dictionary_over(stronger: &mut HashMap<String, Value>, weaker: HashMap<String
 /// The field an attribute's spline is stored in (USD 25.05's `.spline`).
 const SPLINE: &str = "spline";
 
-/// A spline's value as the attribute's declared scalar type (`typeName`): splines animate
-/// `half`, `float` and `double` attributes; anything else reads as a double.
-fn typed_scalar(x: f64, type_name: Option<&Value>) -> Value {
-    match type_name {
-        Some(Value::Token(t)) if t.as_str() == "float" => Value::Float(x as f32),
-        Some(Value::Token(t)) if t.as_str() == "half" => Value::Half(gf::f16::from_f64(x)),
-        _ => Value::Double(x),
-    }
+/// The value at `time` of the spline `data` authors at attribute `path`, as the attribute's
+/// declared type (`typeName`: splines animate `half`, `float` and `double`); `Some(None)` for a
+/// value block. `None` when there is no spline there, or one that is not evaluated (inner
+/// loops, or binary data the reader could not decode): it is passed over, as all splines were
+/// before they were read.
+fn spline_at(data: &dyn sdf::AbstractData, path: &Path, time: f64) -> Option<Option<Value>> {
+    use crate::usd::spline::{Sample, Spline};
+    let spline = data.try_field(path, SPLINE).ok()??;
+    Some(match Spline::from_value(&spline)?.at(time)? {
+        Sample::Value(x) => Some(match data.try_field(path, FieldKey::TypeName.as_str()).ok().flatten().as_deref() {
+            Some(Value::Token(t)) if t.as_str() == "float" => Value::Float(x as f32),
+            Some(Value::Token(t)) if t.as_str() == "half" => Value::Half(gf::f16::from_f64(x)),
+            _ => Value::Double(x),
+        }),
+        Sample::Block => None,
+    })
 }
 
 #[cfg(test)]
