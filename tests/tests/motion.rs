@@ -331,6 +331,23 @@ fn whole_number_time_samples_interpolate_between_keys() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A transform animated by a spline (USD 25.05) blurs as a time-sampled one does: the reader
+/// samples transforms over the shutter, whatever animates them. x rises linearly from 0 at
+/// frame 0 to 10 at frame 10, so the shutter [4.75, 5.25] spans x = 4.75 to 5.25.
+#[test]
+fn a_transform_animated_by_a_spline_blurs() {
+    let layer = "#usda 1.0\ndef Cube \"Box\"\n{\n    double xformOp:translateX.spline = {\n        0: 0; post linear,\n        10: 10; post held,\n    }\n    uniform token[] xformOpOrder = [\"xformOp:translateX\"]\n}\n";
+    let dir = std::env::temp_dir().join(format!("tessera-motion-spline-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("spline.usda");
+    std::fs::write(&file, layer).unwrap();
+    let options = LoadOptions { frame: Some(5.0), shutter: Some((-0.25, 0.25)), motion_samples: 3, ..Default::default() };
+    let t = load_with(&file, options).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let xs: Vec<f32> = t.meshes[0].1.motion.iter().map(|m| m.translation.x).collect();
+    assert_eq!(xs, [4.75, 5.0, 5.25]);
+}
+
 /// A UV sphere mesh of radius 1 (`rings` × `segments` quads) whose points are scaled from
 /// `r0` at frame 0 to `r1` at frame 1, as USD interpolates time-sampled points: linearly; or,
 /// `by_velocity`, points of radius `r0` with radial velocities that reach `r1` one frame (1/24
