@@ -72,8 +72,10 @@ fn an_independent_reader_agrees_on_every_fixture() {
     cases.push((fixture("usd/motion_blur.usda"), Some(6.0)));
     // Shapes over an open shutter between points samples.
     cases.push((fixture("usd/deforming.usda"), Some(1.8)));
-    // Value clips: within the first clip, within the second, and the stage's own zoom.
+    // Value clips: within the first clip, across the switch to the second, within the second;
+    // and the stage's own zoom.
     cases.push((fixture("usd/clips/scene.usda"), Some(1.5)));
+    cases.push((fixture("usd/clips/scene.usda"), Some(2.5)));
     cases.push((fixture("usd/clips/scene.usda"), Some(4.0)));
     let mut problems = Vec::new();
     let (mut textures_compared, mut materials_compared) = (0, 0);
@@ -138,8 +140,10 @@ fn time_samples_are_read_at_the_frame() {
 
 /// An animation cache's values come from its value clips even where the stage declares
 /// nothing of the attribute (usd-core resolves them through the manifest it generates), and
-/// are interpolated between a clip's samples; a default the stage authors wins over the clips.
-/// Before, the light kept its fallback of 1 and the triangle, with no points, was dropped.
+/// are interpolated between a clip's samples and, as USD does, from a clip's last sample into
+/// the next clip's first; a default the stage authors wins over the clips. Before, the light
+/// kept its fallback of 1, the triangle, with no points, was dropped, and between the clips the
+/// values held until the switch.
 #[test]
 fn value_clips_supply_what_only_the_clips_author() {
     let scene = fixture("usd/clips/scene.usda");
@@ -152,6 +156,8 @@ fn value_clips_supply_what_only_the_clips_author() {
     // Clip 1 holds intensity 10 at 1 and 20 at 2, the apex at y = 1 and 2; clip 2, active
     // from 3, holds 40 and 60 at 3 and 5, the apex at 3 and 5 (fixtures/make_fixtures.py).
     assert_eq!(read(1.5), (15.0, 5.0, 1.5));
+    // Between clip 1's last sample (2) and the switch to clip 2 (3): halfway from 20 to 40.
+    assert_eq!(read(2.5), (30.0, 5.0, 2.5));
     assert_eq!(read(4.0), (50.0, 5.0, 4.0));
 }
 

@@ -582,6 +582,9 @@ impl ClipCache {
             };
             let clip_time = set.map_stage_to_clip(time);
 
+            if let Some(value) = self.across_switch(graph, resolved, &clip_path, time, interp)? {
+                return Ok(Some(value));
+            }
             if let Some(value) = self.clip_sample_at(
                 graph,
                 asset.as_str(),
@@ -625,6 +628,64 @@ impl ClipCache {
         }
 
         Ok(None)
+    }
+
+    /// The value at `time` between the active clip's last sample and the next clip switch:
+    /// USD interpolates between the set's bracketing sample times, each read from the clip
+    /// active at it (`Usd_ClipSet`), so a value blends into the next clip's first one instead
+    /// of holding until the switch. `None` elsewhere (no later switch, or `time` within the
+    /// active clip's own samples, which the active clip alone interpolates the same way).
+    fn across_switch(
+        &mut self,
+        graph: &LayerGraph,
+        resolved: &ResolvedClipSet,
+        clip_path: &Path,
+        time: f64,
+        interp: &dyn Fn(&sdf::TimeSampleMap, f64) -> Option<Value>,
+    ) -> Result<Option<Value>> {
+        let set = &resolved.set;
+        let (Some(now), Some(switch)) = (set.active_clip(time), set.active.iter().map(|a| a.0).find(|&s| s > time)) else {
+            return Ok(None);
+        };
+        let Some(next) = set.active_clip(switch) else { return Ok(None) };
+        // Only the two clips around `time` can bracket it.
+        let mut per_clip = vec![Vec::new(); set.asset_paths.len()];
+        for clip in [now, next] {
+            if let Some(asset) = set.asset_paths.get(clip) {
+                per_clip[clip] = self.clip_in_clip_times(graph, asset.as_str(), resolved.asset_layer, clip_path)?;
+            }
+        }
+        let times = set.stage_sample_times(&per_clip);
+        let above = times.partition_point(|&t| t <= time);
+        let (Some(&lower), Some(&upper)) = (above.checked_sub(1).and_then(|i| times.get(i)), times.get(above)) else {
+            return Ok(None);
+        };
+        if upper != switch || lower == time {
+            return Ok(None);
+        }
+        let (Some(low), Some(high)) = (
+            self.clip_value_at_stage_time(graph, resolved, clip_path, lower, interp)?,
+            self.clip_value_at_stage_time(graph, resolved, clip_path, upper, interp)?,
+        ) else {
+            return Ok(None);
+        };
+        Ok(interp(&vec![(lower, low), (upper, high)], time))
+    }
+
+    /// The value the clip active at `stage_time` gives there.
+    fn clip_value_at_stage_time(
+        &mut self,
+        graph: &LayerGraph,
+        resolved: &ResolvedClipSet,
+        clip_path: &Path,
+        stage_time: f64,
+        interp: &dyn Fn(&sdf::TimeSampleMap, f64) -> Option<Value>,
+    ) -> Result<Option<Value>> {
+        let set = &resolved.set;
+        let Some(asset) = set.active_clip(stage_time).and_then(|clip| set.asset_paths.get(clip)) else {
+            return Ok(None);
+        };
+        self.clip_sample_at(graph, asset.as_str(), resolved.asset_layer, clip_path, set.map_stage_to_clip(stage_time), interp)
     }
 
     /// The value-clip introspection from the first set in `sets` (composed on
