@@ -176,10 +176,9 @@ impl Spline {
         match k0.next {
             Interp::Held | Interp::Block => 0.0,
             Interp::Linear => (k1.pre_value - k0.value) / (k1.time - k0.time),
-            Interp::Curve if self.hermite || (if before { k0.post_width } else { k1.pre_width }) > 0.0 => {
-                if before { k0.post_slope } else { k1.pre_slope }
-            }
-            Interp::Curve => 0.0,
+            // Along the knot's tangent, whatever its width (zero included).
+            Interp::Curve if before => k0.post_slope,
+            Interp::Curve => k1.pre_slope,
         }
     }
 }
