@@ -1117,13 +1117,7 @@ impl<'a> Parser<'a> {
     /// (their widths are fixed at a third of the segment): (width, slope), width 0 when
     /// unwritten.
     fn parse_tangent(&mut self) -> Result<(f64, f64)> {
-        let mut values = Vec::with_capacity(2);
-        self.parse_block('(', ')', |this| {
-            ensure!(values.len() < 2, "a tangent is (width, slope) or (slope)");
-            values.push(this.parse_token::<f64>()?);
-            Ok(())
-        })?;
-        match values[..] {
+        match self.parse_up_to::<f64>(2)?[..] {
             [slope] => Ok((0.0, slope)),
             [width, slope] => Ok((width, slope)),
             _ => bail!("a tangent is (width, slope) or (slope)"),
@@ -1812,14 +1806,24 @@ impl<'a> Parser<'a> {
     {
         // Collected safely and checked for exactly N: a short tuple such as `(1, 2)` for a
         // `float3` used to leave the missing elements uninitialised.
-        let mut items = Vec::with_capacity(N);
+        let items = self.parse_up_to::<T>(N)?;
+        let n = items.len();
+        items.try_into().map_err(|_| anyhow::anyhow!("tuple has {n} elements (expected {N})"))
+    }
+
+    /// Parse a `(...)` tuple of at most `max` elements, however many it has.
+    fn parse_up_to<T>(&mut self, max: usize) -> Result<Vec<T>>
+    where
+        T: FromStr,
+        <T as FromStr>::Err: Debug,
+    {
+        let mut items = Vec::with_capacity(max);
         self.parse_block('(', ')', |this| {
-            ensure!(items.len() < N, "tuple has too many elements (expected {N})");
+            ensure!(items.len() < max, "tuple has too many elements (expected at most {max})");
             items.push(this.parse_token::<T>()?);
             Ok(())
         })?;
-        let n = items.len();
-        items.try_into().map_err(|_| anyhow::anyhow!("tuple has {n} elements (expected {N})"))
+        Ok(items)
     }
 
     /// Parse a `[...]` array, using `parse_element` for each item.
