@@ -67,7 +67,7 @@ pub trait AbstractData {
     /// Returns the paths of the specs that author `field`, in unspecified
     /// order: whether a layer uses a field at all, without sorting its paths.
     fn paths_with_field(&self, field: &str) -> Vec<Path> {
-        self.spec_paths().into_iter().filter(|p| self.has_field(p, field)).collect()
+        paths_with_field_by_walk(self, field)
     }
 
     /// Creates an empty spec of type `ty` at `path`, replacing any existing
@@ -209,6 +209,11 @@ impl Data {
     pub fn is_empty(&self) -> bool {
         self.specs.is_empty()
     }
+}
+
+/// [`AbstractData::paths_with_field`] by asking every spec, for stores with no faster way.
+fn paths_with_field_by_walk<D: AbstractData + ?Sized>(data: &D, field: &str) -> Vec<Path> {
+    data.spec_paths().into_iter().filter(|p| data.has_field(p, field)).collect()
 }
 
 impl AbstractData for Data {
@@ -542,7 +547,7 @@ impl<T: AbstractData> AbstractData for CowData<T> {
         if self.overlay.is_empty() {
             return self.base.paths_with_field(field);
         }
-        self.spec_paths().into_iter().filter(|p| self.has_field(p, field)).collect()
+        paths_with_field_by_walk(self, field)
     }
 
     fn spec_paths(&self) -> Vec<Path> {
