@@ -50,18 +50,11 @@ pub(super) fn get(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Valu
 pub(super) mod authored {
     use std::cell::RefCell;
     use std::collections::{HashMap, HashSet};
-    use std::sync::atomic::{AtomicU64, Ordering};
 
     use openusd::usd::Prim;
 
-    /// Bumped for each stage read, so a list is never taken from another stage's prim of the
-    /// same path (a DCC reloading an edited file).
-    static STAGE: AtomicU64 = AtomicU64::new(0);
-
     /// What is known of the last prim asked about.
     struct Listed {
-        /// The stage read it belongs to ([`STAGE`]).
-        stage: u64,
         prim: String,
         /// Its composed property names; None when value clips may source its attributes or
         /// the names could not be listed.
@@ -70,42 +63,43 @@ pub(super) mod authored {
 
     thread_local! {
         static LAST: RefCell<Option<Listed>> = const { RefCell::new(None) };
-        /// For the stage being read: whether clips are anchored on each prim asked about or
-        /// on one of its ancestors.
-        static CLIPPED: RefCell<(u64, HashMap<String, bool>)> = RefCell::new((0, HashMap::new()));
+        /// Whether clips are anchored on each prim asked about or on one of its ancestors.
+        static CLIPPED: RefCell<HashMap<String, bool>> = RefCell::new(HashMap::new());
     }
 
-    /// The reading of one stage on this thread: lists taken before it are not used, and what it
-    /// learnt is dropped with it (a million prims' clip marks would otherwise stay with the
-    /// thread until its next stage).
+    /// The reading of one stage on this thread. What the thread knew is forgotten when it
+    /// starts (a DCC reloading an edited file reads the same paths again) and when it ends (a
+    /// million prims' clip marks would otherwise stay with the thread).
     pub(in crate::usd) struct Reading(());
 
     impl Reading {
         pub(in crate::usd) fn start() -> Self {
-            STAGE.fetch_add(1, Ordering::Relaxed);
+            forget();
             Reading(())
         }
     }
 
     impl Drop for Reading {
         fn drop(&mut self) {
-            LAST.take();
-            CLIPPED.take();
+            forget();
         }
+    }
+
+    fn forget() {
+        LAST.take();
+        CLIPPED.take();
     }
 
     /// False only when the prim's composed property names do not include `name` and no value
     /// clips may source it; true otherwise (the value is then read as usual).
     pub(in crate::usd) fn may_hold(prim: &Prim, name: &str) -> bool {
-        let stage = STAGE.load(Ordering::Relaxed);
         LAST.with_borrow_mut(|last| {
-            let fresh = last.as_ref().is_some_and(|l| l.stage == stage && l.prim == prim.path().as_str());
-            if !fresh {
-                let names = match (under_clips(prim, stage), prim.property_names()) {
+            if last.as_ref().is_none_or(|l| l.prim != prim.path().as_str()) {
+                let names = match (under_clips(prim), prim.property_names()) {
                     (false, Ok(names)) => Some(names.iter().map(|n| n.as_str().to_string()).collect()),
                     _ => None,
                 };
-                *last = Some(Listed { stage, prim: prim.path().as_str().to_string(), names });
+                *last = Some(Listed { prim: prim.path().as_str().to_string(), names });
             }
             last.as_ref().and_then(|l| l.names.as_ref()).is_none_or(|names| names.contains(name))
         })
@@ -114,11 +108,8 @@ pub(super) mod authored {
     /// True when value clips are anchored on `prim` or an ancestor (or that cannot be read):
     /// an attribute only the clips author is then not among the prim's properties, yet has a
     /// value, as USD resolves it through the manifest it generates from the clips.
-    fn under_clips(prim: &Prim, stage: u64) -> bool {
-        CLIPPED.with_borrow_mut(|(read, known)| {
-            if *read != stage {
-                (*read, *known) = (stage, HashMap::new());
-            }
+    fn under_clips(prim: &Prim) -> bool {
+        CLIPPED.with_borrow_mut(|known| {
             // The ancestors not yet known, nearest first; then each from its parent down.
             let mut unknown = Vec::new();
             let mut path = prim.path().clone();
