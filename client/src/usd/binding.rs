@@ -17,11 +17,46 @@ impl Reader<'_> {
         Ok(m)
     }
 
-    /// [`Self::bound_material`] without the cache.
+    /// [`Self::bound_material`] without the cache: UsdShade's resolution (the crate's
+    /// `compute_bound_material`), from the prim itself whether or not it applies
+    /// MaterialBindingAPI, with collection bindings asked about the prim. A binding that wins
+    /// but targets no Material binds nothing (warned), as in usd-core.
     pub(super) fn resolve_binding(&mut self, prim: &Prim) -> Result<Option<String>> {
-        if let Some(m) = self.stronger_ancestor_binding(prim)? {
-            return Ok(Some(m));
+        if self.malformed_binding_above(prim)? {
+            return Ok(None);
         }
+        let mut not_materials = Vec::new();
+        let api = MaterialBindingAPI::at(self.stage, prim.path().clone());
+        let m = api.compute_bound_material_with("full", &mut |target| {
+            let material = self.is_material_target(target)?;
+            if !material {
+                not_materials.push(target.as_str().to_string());
+            }
+            Ok(material)
+        })?;
+        for t in not_materials {
+            self.out.warnings.push(format!(
+                "{t}: material bindings target it, but it is not a Material prim; prims bound to it show their displayColor"
+            ));
+        }
+        let Some(m) = m else { return Ok(None) };
+        if !well_formed_path(m.as_str()) {
+            self.out.warnings.push(format!("{}: bound material '{}' is not a valid path; the binding is ignored", prim.path(), m.as_str()));
+            return Ok(None);
+        }
+        Ok(Some(m.as_str().to_string()))
+    }
+
+    /// A Material prim, or a prim inside a MaterialX document that a reference brings in
+    /// (usdMtlx composes those as Materials; the crate cannot read the document).
+    fn is_material_target(&self, target: &sdf::Path) -> Result<bool> {
+        let typed = self.stage.prim(target.clone()).type_name()?;
+        Ok(typed.is_some_and(|t| t.as_str() == "Material") || self.mtlx_reference(target.as_str())?.is_some())
+    }
+
+    /// True when a `material:binding` relationship on the prim or an ancestor targets
+    /// something that is not a path at all (warned): the prim's binding is then ignored.
+    fn malformed_binding_above(&mut self, prim: &Prim) -> Result<bool> {
         let mut cur = Some(prim.path().clone());
         while let Some(path) = cur {
             if path.as_str() == "/" || path.as_str().is_empty() {
@@ -34,63 +69,19 @@ impl Reader<'_> {
                 if !name.starts_with("material:binding") {
                     continue;
                 }
-                for t in rel.targets()? {
-                    if !well_formed_path(t.as_str()) {
-                        self.out.warnings.push(format!(
-                            "{path}: relationship '{name}' targets '{}', which is not a valid path; the binding is ignored",
-                            t.as_str()
-                        ));
-                        broken = true;
-                    }
+                for t in rel.targets()?.iter().filter(|t| !well_formed_path(t.as_str())) {
+                    self.out.warnings.push(format!(
+                        "{path}: relationship '{name}' targets '{}', which is not a valid path; the binding is ignored",
+                        t.as_str()
+                    ));
+                    broken = true;
                 }
             }
             if broken {
-                return Ok(None);
-            }
-            if let Some(api) = MaterialBindingAPI::get(self.stage, path.clone())?
-                && let Some(m) = api.compute_bound_material("full")?
-            {
-                if !well_formed_path(m.as_str()) {
-                    self.out.warnings.push(format!("{path}: bound material '{}' is not a valid path; the binding is ignored", m.as_str()));
-                    return Ok(None);
-                }
-                return Ok(Some(m.as_str().to_string()));
+                return Ok(true);
             }
             cur = path.parent();
         }
-        Ok(None)
-    }
-
-    /// The binding of the topmost ancestor whose `material:binding` is
-    /// `bindMaterialAs = "strongerThanDescendants"`: it overrides every binding beneath it.
-    /// openusd 0.6 reads that metadata only when it is a token, while usd-core writes it as a
-    /// string, so the strength is read here (through the property's metadata) and the crate's
-    /// own walk handles the rest.
-    pub(super) fn stronger_ancestor_binding(&mut self, prim: &Prim) -> Result<Option<String>> {
-        let mut ancestors = Vec::new();
-        let mut cur = prim.path().parent();
-        while let Some(path) = cur {
-            if path.as_str() == "/" || path.as_str().is_empty() {
-                break;
-            }
-            cur = path.parent();
-            ancestors.push(path);
-        }
-        for path in ancestors.into_iter().rev() {
-            let here = self.stage.prim(path.clone());
-            for name in ["material:binding:full", "material:binding"] {
-                let strength = here.attribute(name).get_metadata::<Value>("bindMaterialAs").ok().flatten();
-                let stronger = strength.as_ref().and_then(values::token).is_some_and(|t| t == "strongerThanDescendants");
-                if !stronger {
-                    continue;
-                }
-                if let Some(t) = here.relationship(name).targets()?.into_iter().next()
-                    && well_formed_path(t.as_str())
-                {
-                    return Ok(Some(t.as_str().to_string()));
-                }
-            }
-        }
-        Ok(None)
+        Ok(false)
     }
 }

@@ -161,7 +161,7 @@ impl Reader<'_> {
     /// authors the reference) and the material's path in the document's namespace. The
     /// reference may sit on the material itself or on an ancestor (`</MaterialX>` referenced
     /// whole, the material bound below it, as the USD-WG's MaterialXTest does).
-    fn mtlx_reference(&self, path: &str) -> Result<Option<(std::path::PathBuf, String)>> {
+    pub(super) fn mtlx_reference(&self, path: &str) -> Result<Option<(std::path::PathBuf, String)>> {
         let mut at = sdf::path(path)?;
         loop {
             if let Some((file, target)) = self.mtlx_reference_on(&at)? {

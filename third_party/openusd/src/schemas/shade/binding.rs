@@ -50,6 +50,14 @@ impl MaterialBindingAPI {
         get_with_api(stage, path, &[API_MATERIAL_BINDING]).map(|o| o.map(Self))
     }
 
+    /// View the prim at `path` whether or not it carries `MaterialBindingAPI`, as C++'s
+    /// schema constructor does. Bindings resolve from any prim: usd-core reads bindings
+    /// authored without the API too (with a warning, under its default
+    /// `USD_SHADE_MATERIAL_BINDING_API_CHECK=warnOnMissingAPI`).
+    pub fn at(stage: &Stage, path: impl Into<Path>) -> Self {
+        Self(stage.prim(path))
+    }
+
     /// Author an all-purpose **direct** binding (`material:binding`) targeting
     /// `material` (C++ `UsdShadeMaterialBindingAPI::Bind`).
     pub fn bind(&self, material: impl Into<Path>) -> Result<&Self> {
@@ -135,13 +143,31 @@ impl MaterialBindingAPI {
     /// topmost such ancestor then wins). At a single prim, a collection-based
     /// binding whose collection includes the prim beats a direct binding, and
     /// collection bindings resolve in native property order.
+    ///
+    /// A binding claims the prim whatever it targets, and the first purpose with a binding
+    /// decides: when its target is not a Material prim (or no prim), the prim is bound to
+    /// nothing, as in usd-core 26.11 (a `full` binding to a missing material hides every
+    /// all-purpose binding, and an all-purpose one on a child hides its parent's).
     pub fn compute_bound_material(&self, purpose: &str) -> Result<Option<Path>> {
+        let stage = self.stage();
+        self.compute_bound_material_with(purpose, &mut |target| is_material(stage, target))
+    }
+
+    /// [`Self::compute_bound_material`], with `is_material` deciding which targets count
+    /// as Materials: a caller that composes more than this crate does (a MaterialX document
+    /// behind a reference, say) can accept targets the crate does not see.
+    pub fn compute_bound_material_with(
+        &self,
+        purpose: &str,
+        is_material: &mut dyn FnMut(&Path) -> Result<bool>,
+    ) -> Result<Option<Path>> {
         let prim = self.path();
         // Cache each collection's membership query across the namespace walk.
         let mut cache: HashMap<Path, Option<MembershipQuery>> = HashMap::new();
         for pur in purpose_fallbacks(purpose) {
-            if let Some(material) = bound_material_for_single_purpose(self.stage(), prim, pur, &mut cache)? {
-                return Ok(Some(material));
+            let mut walk = Walk { stage: self.stage(), queried: prim, purpose: pur, cache: &mut cache };
+            if let Some(material) = walk.bound_material()? {
+                return Ok(is_material(&material)?.then_some(material));
             }
         }
         Ok(None)
@@ -186,8 +212,11 @@ fn apply_binding_strength(stage: &Stage, rel: Relationship, strength: BindingStr
 /// Composed `bindMaterialAs` strength on a binding relationship, falling back to
 /// the spec default when unauthored.
 fn composed_strength(stage: &Stage, rel: &Path) -> Result<BindingStrength> {
+    // The schema declares a token; usd-core's text layers write it quoted, which reads as a
+    // string.
     Ok(match stage.field::<Value>(rel.clone(), META_BIND_MATERIAL_AS)? {
         Some(Value::Token(t)) => BindingStrength::from_token(t).unwrap_or_default(),
+        Some(Value::String(s)) => BindingStrength::from_token(s.as_str()).unwrap_or_default(),
         _ => BindingStrength::default(),
     })
 }
@@ -204,50 +233,50 @@ fn binding_strength(stage: &Stage, prim: &Path, purpose: &str) -> Result<Binding
     composed_strength(stage, &rel)
 }
 
-/// Resolve the bound material for one concrete `purpose` by walking `prim` and
-/// its ancestors. The closest binding wins unless a `strongerThanDescendants`
-/// ancestor overrides it (the topmost such ancestor then wins).
-fn bound_material_for_single_purpose(
-    stage: &Stage,
-    prim: &Path,
-    purpose: &str,
-    cache: &mut HashMap<Path, Option<MembershipQuery>>,
-) -> Result<Option<Path>> {
-    let mut winner: Option<Path> = None;
-    let mut current = Some(prim.clone());
-    while let Some(p) = current {
-        if !p.is_abs_root() {
-            if let Some((material, strength)) = winning_binding_at(stage, &p, prim, purpose, cache)? {
-                if winner.is_none() || strength == BindingStrength::StrongerThanDescendants {
-                    winner = Some(material);
-                }
-            }
-        }
-        current = p.parent();
-    }
-    Ok(winner)
+/// Whether the prim at `path` is a Material (a prim that does not exist is not).
+fn is_material(stage: &Stage, path: &Path) -> Result<bool> {
+    Ok(stage.prim(path.clone()).type_name()?.is_some_and(|t| t.as_str() == "Material"))
 }
 
-/// The binding that wins at a single prim `p` for a concrete `purpose`, as
-/// `(material, strength)`. A collection binding whose collection includes
-/// `queried` beats the direct binding, in native property order.
-fn winning_binding_at(
-    stage: &Stage,
-    p: &Path,
-    queried: &Path,
-    purpose: &str,
-    cache: &mut HashMap<Path, Option<MembershipQuery>>,
-) -> Result<Option<(Path, BindingStrength)>> {
-    // Collection bindings beat direct, in native property order.
-    for (collection, material, strength) in collection_bindings_on(stage, p, purpose)? {
-        if is_collection_member(stage, &collection, queried, cache)? {
-            return Ok(Some((material, strength)));
+/// One purpose's resolution for the prim `queried`.
+struct Walk<'a> {
+    stage: &'a Stage,
+    queried: &'a Path,
+    purpose: &'a str,
+    /// Each collection's membership query, kept across the namespace walk.
+    cache: &'a mut HashMap<Path, Option<MembershipQuery>>,
+}
+
+impl Walk<'_> {
+    /// Walks `queried` and its ancestors, as C++ `ComputeBoundMaterial` does. At each prim,
+    /// its direct binding claims the queried prim when nothing closer has, or when it is
+    /// `strongerThanDescendants`. Then the first of its collection bindings whose collection
+    /// includes the queried prim claims it likewise, and also over a direct binding on the
+    /// same prim. Returns the winner's target, Material or not.
+    fn bound_material(&mut self) -> Result<Option<Path>> {
+        // The winning target and the prim whose binding it is.
+        let mut winner: Option<(Path, Path)> = None;
+        let mut current = Some(self.queried.clone());
+        while let Some(p) = current.filter(|p| !p.is_abs_root()) {
+            if let Some(material) = direct_binding(self.stage, &p, self.purpose)? {
+                if winner.is_none() || binding_strength(self.stage, &p, self.purpose)? == BindingStrength::StrongerThanDescendants {
+                    winner = Some((material, p.clone()));
+                }
+            }
+            for (collection, material, strength) in collection_bindings_on(self.stage, &p, self.purpose)? {
+                let claims = match &winner {
+                    None => true,
+                    Some((_, at)) => *at == p || strength == BindingStrength::StrongerThanDescendants,
+                };
+                if claims && is_collection_member(self.stage, &collection, self.queried, self.cache)? {
+                    winner = Some((material, p.clone()));
+                    break;
+                }
+            }
+            current = p.parent();
         }
+        Ok(winner.map(|(material, _)| material))
     }
-    if let Some(material) = direct_binding(stage, p, purpose)? {
-        return Ok(Some((material, binding_strength(stage, p, purpose)?)));
-    }
-    Ok(None)
 }
 
 /// The collection bindings authored on `p` for `purpose`, as
