@@ -169,7 +169,10 @@ fn each_warning_is_said_once() {
 /// range hides every mesh, a `model:drawMode` stand-in (the geometry renders), an `upAxis`
 /// that is neither Y nor Z, a reference and a payload whose files do not exist, a `purpose`
 /// token UsdGeom does not define (the prim renders as `default`), an attribute animated by a
-/// spline with inner loops (deprecated in USD, not evaluated: the light keeps its fallback).
+/// spline with inner loops (deprecated in USD, not evaluated: the light keeps its fallback),
+/// light linking (each light lights and shadows every prim), a mesh as a light (MeshLightAPI),
+/// and a collection defined by a path expression (the text layer failed to parse before: the
+/// crate knew no `pathExpression` type).
 #[test]
 fn silent_losses_are_said() {
     let t = load_text(
@@ -206,8 +209,26 @@ def Camera "Fine"
     double3 xformOp:translate = (0, 0, 5)
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }
-def SphereLight "Key"
+def Mesh "Glow" (prepend apiSchemas = ["MeshLightAPI"])
 {
+    point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0)]
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+}
+def Scope "Sets" (prepend apiSchemas = ["CollectionAPI:props"])
+{
+    uniform pathExpression collection:props:membershipExpression = "/Asset/*"
+}
+def RectLight "Fill" (prepend apiSchemas = ["CollectionAPI:shadowLink"])
+{
+    uniform bool collection:shadowLink:includeRoot = 0
+}
+def DiskLight "Plain"
+{
+}
+def SphereLight "Key" (prepend apiSchemas = ["CollectionAPI:lightLink"])
+{
+    rel collection:lightLink:includes = </Asset/Quad>
     float inputs:intensity.spline = {
         bezier,
         loop: (0, 10, 1, 1, 0),
@@ -228,9 +249,15 @@ def SphereLight "Key"
     one("unresolved Payload layer @");
     one("/Asset/Quad: purpose 'bogus'");
     one("/Key.inputs:intensity: attribute animated by a spline");
-    assert_eq!(t.lights[0].1.intensity, 1.0, "the fallback, not a half-read spline");
+    one("/Key: collection:lightLink limits which prims the light illuminates");
+    one("/Fill: collection:shadowLink limits which prims cast the light's shadows");
+    one("/Glow: MeshLightAPI (a Mesh as a light) is not supported yet");
+    one("/Sets: collection 'props' is defined by a membershipExpression");
+    assert!(!t.warnings.iter().any(|w| w.contains("/Plain")), "{:?}", t.warnings);
+    let key = t.lights.iter().find(|(path, _)| path == "/Key").expect("the key light");
+    assert_eq!(key.1.intensity, 1.0, "the fallback, not a half-read spline");
     assert!(!t.warnings.iter().any(|w| w.contains("/Fine")), "{:?}", t.warnings);
-    assert_eq!(t.meshes.len(), 1, "the geometry under a draw mode renders");
+    assert_eq!(t.meshes.len(), 2, "the geometry under a draw mode renders, and the mesh light as a mesh");
 }
 
 /// The commit says each thing once too: a textured material's unsupported input is said

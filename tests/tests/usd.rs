@@ -289,6 +289,34 @@ fn material_bindings_resolve_as_usd_core_does() {
     assert!(wrong.is_empty(), "{} of {} differ:\n{}", wrong.len(), meshes.len(), wrong[..wrong.len().min(20)].join("\n"));
 }
 
+/// Value types the vendored text parser did not know failed the whole layer: USD 23.11's
+/// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`.
+#[test]
+fn path_expressions_and_unsigned_arrays_parse() {
+    let dir = std::env::temp_dir().join(format!("tessera-value-types-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("types.usda");
+    std::fs::write(
+        &file,
+        r#"#usda 1.0
+def Scope "Sets" (prepend apiSchemas = ["CollectionAPI:props"])
+{
+    uniform pathExpression collection:props:membershipExpression = "/World/* - /World/Cam"
+    custom uint[] small = [1, 4294967295]
+    custom uint64[] large = [18446744073709551615]
+}
+"#,
+    )
+    .unwrap();
+    let stage = openusd::usd::Stage::open(file.to_str().unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let read = |name: &str| stage.attribute(format!("/Sets.{name}").as_str()).get::<openusd::sdf::Value>().unwrap();
+    use openusd::sdf::Value::{PathExpression, Uint64Vec, UintVec};
+    assert_eq!(read("collection:props:membershipExpression"), Some(PathExpression("/World/* - /World/Cam".into())));
+    assert_eq!(read("small"), Some(UintVec(vec![1, u32::MAX])));
+    assert_eq!(read("large"), Some(Uint64Vec(vec![u64::MAX])));
+}
+
 /// A light whose intensity a spline animates reads the spline's value at the frame: 1 at frame
 /// 0 rising linearly to 11 at frame 10 is 6 at frame 5 (usd-core reads 6 too).
 #[test]

@@ -155,6 +155,7 @@ impl Reader<'_> {
         let prim = self.stage.prim(path.clone());
         let type_name = prim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
         let p = path.as_str().to_string();
+        self.report_unsupported_apis(&prim, &p, &type_name)?;
         // Draw modes sit on models (Xforms): checked before structural prims are passed by.
         if let Some(mode) = get(&prim, "model:drawMode", self.time)?.as_ref().and_then(values::token)
             && !matches!(mode.as_str(), "default" | "inherited")
@@ -203,6 +204,47 @@ impl Reader<'_> {
                 Ok(())
             }
         }
+    }
+
+    /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
+    /// gprim as a light, light linking, and collections defined by a path expression.
+    fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
+        for api in prim.api_schemas()? {
+            let api = api.as_str();
+            if matches!(api, "MeshLightAPI" | "VolumeLightAPI") || (api == "LightAPI" && !LIGHTS.contains(&type_name)) {
+                self.out.warnings.push(format!(
+                    "{p}: {api} (a {type_name} as a light) is not supported yet; it renders with its bound material and emits only what that emits"
+                ));
+            }
+            if let Some(name) = api.strip_prefix("CollectionAPI:")
+                && get(prim, &format!("collection:{name}:membershipExpression"), self.time)?.is_some()
+            {
+                self.out.warnings.push(format!(
+                    "{p}: collection '{name}' is defined by a membershipExpression, which is not evaluated yet; it holds no prims, so material bindings through it bind nothing"
+                ));
+            }
+        }
+        if LIGHTS.contains(&type_name) {
+            for (link, limits, so) in [
+                ("lightLink", "which prims the light illuminates", "it illuminates every prim"),
+                ("shadowLink", "which prims cast the light's shadows", "every prim casts them"),
+            ] {
+                if self.links_a_subset(prim, link)? {
+                    self.out.warnings.push(format!("{p}: collection:{link} limits {limits}; light linking is not supported yet, so {so}"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// True when a light's link collection (`lightLink` or `shadowLink`) holds less than the
+    /// whole stage, its fallback: targets included or excluded, the root left out, or an
+    /// expression.
+    fn links_a_subset(&mut self, prim: &Prim, link: &str) -> Result<bool> {
+        let targets = |rel: &str| -> Result<bool> { Ok(!prim.relationship(format!("collection:{link}:{rel}")).targets()?.is_empty()) };
+        let attr = |name: &str| get(prim, &format!("collection:{link}:{name}"), self.time);
+        let root_left_out = attr("includeRoot")?.as_ref().and_then(values::scalar).is_some_and(|v| v == 0.0);
+        Ok(targets("includes")? || targets("excludes")? || root_left_out || attr("membershipExpression")?.is_some())
     }
 
     /// True when the prim at `path` or an ancestor is invisible at the frame, as

@@ -1500,9 +1500,11 @@ impl<'a> Parser<'a> {
             (Type::Int4, false) => sdf::Value::Vec4i(self.parse_gf::<i32, _, 4>()?),
             (Type::Int4, true) => sdf::Value::Vec4iVec(self.parse_gf_array::<i32, _, 4>()?),
             (Type::Uint, false) => sdf::Value::Uint(self.parse_token()?),
+            (Type::Uint, true) => sdf::Value::UintVec(self.parse_array()?),
             (Type::Int64, false) => sdf::Value::Int64(self.parse_token()?),
             (Type::Int64, true) => sdf::Value::Int64Vec(self.parse_array()?),
             (Type::Uint64, false) => sdf::Value::Uint64(self.parse_token()?),
+            (Type::Uint64, true) => sdf::Value::Uint64Vec(self.parse_array()?),
 
             (Type::Half, false) => sdf::Value::Half(self.parse_token()?),
             (Type::Half, true) => sdf::Value::HalfVec(self.parse_array()?),
@@ -1540,6 +1542,9 @@ impl<'a> Parser<'a> {
             (Type::Quatd, true) => sdf::Value::QuatdVec(self.parse_gf_array::<f64, _, 4>()?),
 
             (Type::String, false) => sdf::Value::String(self.fetch_str()?.to_owned()),
+            // `SdfPathExpression` (USD 23.11), written as a quoted string: a collection's
+            // `membershipExpression`. Kept as text; nothing here evaluates it.
+            (Type::PathExpression, false) => sdf::Value::PathExpression(self.fetch_str()?.to_owned()),
             (Type::Token, false) => sdf::Value::token(self.fetch_str()?),
             (Type::String | Type::Token, true) => sdf::Value::token_vec(self.parse_array::<String>()?),
 
@@ -1606,6 +1611,7 @@ impl<'a> Parser<'a> {
             "string" => Type::String,
             "token" => Type::Token,
             "asset" => Type::Asset,
+            "pathExpression" => Type::PathExpression,
             "timecode" => Type::TimeCode,
             "dictionary" => Type::Dictionary,
             _ => bail!("Unsupported type: {name}"),
@@ -1984,6 +1990,7 @@ enum Type {
     String,
     Token,
     Asset,
+    PathExpression,
     TimeCode,
     Matrix2d,
     Matrix3d,
