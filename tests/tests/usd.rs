@@ -520,6 +520,55 @@ fn a_mesh_bound_to_a_skeleton_without_animation_takes_its_rest_pose() {
     assert_eq!(t.skipped, vec!["/World/Character/Skel".to_string()], "the Skeleton itself does not render");
 }
 
+/// A PointInstancer inside another's prototype places each of its instances at every outer
+/// instance, as Hydra draws nested instancers (the independent-reader test compares every
+/// placement with usd-core's). `fixtures/usd/nested_instancers.usda`: six houses, one
+/// deactivated by `inactiveIds` (an int64 list op the text parser refused before, failing the
+/// whole file) and one hidden by `invisibleIds`, four windows each. Before, each window was
+/// drawn once per house at its own place in the prototype, ignoring the nested instancer.
+#[test]
+fn nested_point_instancers_place_every_inner_instance_at_every_outer_one() {
+    let t = load("usd/nested_instancers.usda");
+    let count = |key: &str| t.instancers.iter().find(|(k, _)| k == key).map(|(_, d)| d.transforms.len());
+    assert_eq!(count("/World/Street[/World/Street/Prototypes/House/Body]"), Some(4));
+    assert_eq!(count("/World/Street/Prototypes/House/Windows[/World/Street/Prototypes/House/Windows/Pane/Quad]"), Some(16));
+    assert_eq!(t.instancers.len(), 2, "{:?}", t.instancers.iter().map(|(k, _)| k).collect::<Vec<_>>());
+}
+
+/// A nested PointInstancer whose prototype holds the instancer itself is an error naming it,
+/// not an endless expansion; the rest of the stage renders.
+#[test]
+fn a_point_instancer_nested_in_itself_is_an_error() {
+    let t = load_text(
+        "self_nested",
+        r#"#usda 1.0
+def PointInstancer "Outer"
+{
+    rel prototypes = </Outer/Proto>
+    int[] protoIndices = [0, 0]
+    point3f[] positions = [(0, 0, 0), (1, 0, 0)]
+    def Xform "Proto"
+    {
+        def PointInstancer "Inner"
+        {
+            rel prototypes = </Outer/Proto>
+            int[] protoIndices = [0, 0]
+            point3f[] positions = [(0, 0, 0), (0, 1, 0)]
+        }
+        def Cube "Box"
+        {
+        }
+    }
+}
+def Cube "Fine"
+{
+}
+"#,
+    );
+    assert!(t.warnings.iter().any(|w| w.contains("/Outer/Proto/Inner: PointInstancers nest more than 8 deep")), "{:?}", t.warnings);
+    assert!(t.meshes.iter().any(|(path, _)| path == "/Fine"), "the rest of the stage renders");
+}
+
 #[test]
 fn instanceable_prims_share_one_mesh_per_prototype_and_material() {
     // 60 instanceable references of a two-mesh tree, half re-bound to red on the instance root

@@ -84,7 +84,48 @@ impl Reader<'_> {
         let per_proto = self.instance_transforms(prim, p, prototypes.len(), self.time, world)?;
         let motion = if visible { self.instance_motion(prim, p, &per_proto)? } else { Vec::new() };
         for (k, (proto, instances)) in prototypes.iter().zip(&per_proto).enumerate() {
-            self.instance_prototype(p, proto, instances, motion.get(k).map(Vec::as_slice), visible)?;
+            self.instance_prototype(p, proto, instances, motion.get(k).map(Vec::as_slice), visible, 0)?;
+        }
+        Ok(())
+    }
+
+    /// A PointInstancer inside another's prototype (`nested`, below the prototype root whose
+    /// parent's frame `root_parent` inverts): each of the outer `instances` places every
+    /// instance of the nested one, as Hydra draws nested instancers. Still only: the nested
+    /// instances do not blur with the outer ones' motion (warned).
+    fn nested_instancer(
+        &mut self,
+        nested: &sdf::Path,
+        root_parent: DMat4,
+        instances: &[DMat4],
+        moving: bool,
+        visible: bool,
+        depth: usize,
+    ) -> Result<()> {
+        let n = nested.as_str();
+        if depth >= MAX_NESTED_INSTANCERS {
+            anyhow::bail!("{n}: PointInstancers nest more than {MAX_NESTED_INSTANCERS} deep (a prototype that holds its own instancer?)");
+        }
+        if moving {
+            self.out
+                .warnings
+                .push(format!("{n}: a PointInstancer inside another's prototype renders without the outer instances' motion blur"));
+        }
+        let prim = self.stage.prim(nested.clone());
+        let prototypes = valid_targets(&prim, n, "prototypes")?;
+        let inner = root_parent * self.world_transform(nested)?;
+        let per_proto = self.instance_transforms(&prim, n, prototypes.len(), self.time, inner)?;
+        for (proto, placements) in prototypes.iter().zip(&per_proto) {
+            let total = instances.len().saturating_mul(placements.len());
+            if total as u64 > MAX_NESTED_PRODUCT {
+                anyhow::bail!(
+                    "{n}: {} outer instances times {} nested ones is more than {MAX_NESTED_PRODUCT}",
+                    instances.len(),
+                    placements.len()
+                );
+            }
+            let combined: Vec<DMat4> = instances.iter().flat_map(|outer| placements.iter().map(move |m| *outer * *m)).collect();
+            self.instance_prototype(n, proto, &combined, None, visible, depth + 1)?;
         }
         Ok(())
     }
@@ -159,8 +200,9 @@ impl Reader<'_> {
         if let Some((i, &k)) = proto_indices.iter().enumerate().find(|(_, k)| **k < 0 || **k as usize >= prototypes) {
             anyhow::bail!("{p}: attribute 'protoIndices': entry {i} is {k}, but there are {prototypes} prototypes");
         }
-        // Instances hidden by id (ids default to the instance index).
-        let hidden: std::collections::HashSet<i64> = ints("invisibleIds")?.unwrap_or_default().into_iter().collect();
+        // Instances hidden or deactivated by id (ids default to the instance index).
+        let mut hidden: std::collections::HashSet<i64> = ints("invisibleIds")?.unwrap_or_default().into_iter().collect();
+        hidden.extend(self.inactive_ids(prim));
         let ids = ints("ids")?;
         let mut per_proto: Vec<Vec<DMat4>> = vec![Vec::new(); prototypes];
         for i in 0..n {
@@ -178,6 +220,21 @@ impl Reader<'_> {
             per_proto[proto_indices[i] as usize].push(instancer_world * trs);
         }
         Ok(per_proto)
+    }
+
+    /// The instancer's `inactiveIds` (an int64 list-op metadatum, not time-varying), composed
+    /// over its prim stack from the weakest opinion up.
+    fn inactive_ids(&self, prim: &Prim) -> Vec<i64> {
+        let Ok(stack) = prim.prim_stack() else { return Vec::new() };
+        let mut ids = Vec::new();
+        for (layer_id, spec_path) in stack.into_iter().rev() {
+            let Some(layer) = self.stage.layer(&layer_id) else { continue };
+            let Some(spec) = layer.prim(spec_path) else { continue };
+            if let Ok(Some(Value::Int64ListOp(op))) = spec.field("inactiveIds") {
+                ids = op.compose_over(&ids);
+            }
+        }
+        ids
     }
 
     /// `positions` at `time`. With `velocities` authored (one per position), USD's
@@ -269,6 +326,7 @@ impl Reader<'_> {
         instances: &[DMat4],
         motion: Option<&[Vec<DMat4>]>,
         visible: bool,
+        depth: usize,
     ) -> Result<()> {
         let root = proto.as_str().to_string();
         let root_parent = match proto.parent() {
@@ -279,9 +337,20 @@ impl Reader<'_> {
         if members.is_empty() {
             anyhow::bail!("{p}: relationship 'prototypes' targets {root}, which is not a prim on the stage");
         }
+        let mut nested: Vec<String> = Vec::new();
         for member in members {
+            if nested.iter().any(|n| under(member.as_str(), n)) {
+                continue;
+            }
             let mprim = self.stage.prim(member.clone());
             let type_name = mprim.type_name()?.map(|t| t.as_str().to_string()).unwrap_or_default();
+            if type_name == "PointInstancer" {
+                nested.push(member.as_str().to_string());
+                if !self.invisible(&member)? {
+                    self.nested_instancer(&member, root_parent, instances, motion.is_some_and(|m| !m.is_empty()), visible, depth)?;
+                }
+                continue;
+            }
             if type_name != "Mesh" && !IMPLICIT.contains(&type_name.as_str()) {
                 if !STRUCTURAL.contains(&type_name.as_str()) {
                     self.out
@@ -334,6 +403,12 @@ impl Reader<'_> {
         Ok(())
     }
 }
+
+/// How deep PointInstancers may nest in each other's prototypes.
+const MAX_NESTED_INSTANCERS: usize = 8;
+
+/// The most placements one nested prototype may expand to (the server's default instance limit).
+const MAX_NESTED_PRODUCT: u64 = 10_000_000;
 
 /// One more instance of a native instancer, at `world`, moving through `motion` (its world
 /// transforms at the shutter's samples; empty when still). Once any instance moves, every

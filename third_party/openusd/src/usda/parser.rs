@@ -1066,6 +1066,15 @@ impl<'a> Parser<'a> {
                     .context("Unable to build clipSets listOp")?;
                 spec.add_list_op(FieldKey::ClipSets, sdf::Value::StringListOp(list_op));
             }
+            // UsdGeomPointInstancer's instances deactivated by id, an int64 list op
+            // (`append inactiveIds = [105]`, as `DeactivateId` writes it).
+            "inactiveIds" => {
+                let ids = self
+                    .one_or_list(|this| this.parse_token::<i64>())
+                    .context("Unable to parse inactiveIds")?;
+                let list_op = self.apply_list_op(list_op, ids).context("Unable to build inactiveIds listOp")?;
+                spec.add_list_op("inactiveIds", sdf::Value::Int64ListOp(list_op));
+            }
             // Unknown prim metadata - e.g. DCC / Omniverse hints like
             // `hide_in_stage_window` or `no_delete`. The Sdf grammar accepts
             // arbitrary identifier-keyed fields in the metadata block, so
