@@ -97,7 +97,8 @@ impl LiveSession {
     }
 
     /// Changes a camera's lens: any of `focal_length`, `f_stop`, `focus_distance` (scene
-    /// units), `horizontal_aperture`, `vertical_aperture` (millimetres as USD authors them).
+    /// units), `horizontal_aperture`, `vertical_aperture` (millimetres as USD authors them),
+    /// and its `exposure` (stops).
     pub async fn set_camera(&mut self, path: &str, params: &[(String, f64)]) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
             let (_, c) = t.cameras.iter_mut().find(|(p, _)| p == path).with_context(|| format!("{path}: no camera with this path"))?;
@@ -109,7 +110,10 @@ impl LiveSession {
                     "focus_distance" => c.focus_distance = v,
                     "horizontal_aperture" => c.horizontal_aperture = v,
                     "vertical_aperture" => c.vertical_aperture = v,
-                    _ => bail!("{path}: unknown camera parameter '{name}' (focal_length, f_stop, focus_distance, horizontal_aperture, vertical_aperture)"),
+                    "exposure" => c.exposure = v,
+                    _ => bail!(
+                        "{path}: unknown camera parameter '{name}' (focal_length, f_stop, focus_distance, horizontal_aperture, vertical_aperture, exposure)"
+                    ),
                 }
             }
             Ok(())

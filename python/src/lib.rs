@@ -127,7 +127,7 @@ impl Session {
     }
 
     /// Changes a camera's lens (focal_length, f_stop, focus_distance, horizontal_aperture,
-    /// vertical_aperture).
+    /// vertical_aperture) or its exposure (stops).
     #[pyo3(signature = (path, **params))]
     fn set_camera(&self, py: Python<'_>, path: String, params: Option<&Bound<'_, PyDict>>) -> PyResult<Py<PyList>> {
         let params: Vec<(String, f64)> =

@@ -170,7 +170,7 @@ class Session:
         return self._native.set_transform(prim_path, m.tolist())
 
     def set_camera(self, path: str, **params) -> list[dict]:
-        """Change a camera's focal_length, f_stop, focus_distance, horizontal_aperture or vertical_aperture."""
+        """Change a camera's focal_length, f_stop, focus_distance, horizontal_aperture, vertical_aperture or exposure (stops)."""
         return self._native.set_camera(path, **params)
 
     def set_light_params(self, path: str, **params) -> list[dict]:

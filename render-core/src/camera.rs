@@ -45,7 +45,15 @@ pub struct CameraDesc {
     /// Camera to world at evenly spaced times over the shutter when the camera moves
     /// ([`crate::motion`]); empty when it does not.
     pub motion: Vec<Affine3A>,
+    /// The image's exposure in stops: log2 of UsdGeomCamera's linear exposure scale (its
+    /// `exposure`, `exposure:iso`, `:time`, `:fStop` and `:responsivity`); 0 leaves the light
+    /// as it arrives.
+    pub exposure: f32,
 }
+
+/// The most stops a camera's exposure may brighten or darken the image: 2^±64, a range of
+/// about 10^19 either way, far past any photographic exposure.
+pub const MAX_EXPOSURE_STOPS: f32 = 64.0;
 
 impl Default for CameraDesc {
     /// UsdGeomCamera's schema defaults.
@@ -65,6 +73,7 @@ impl Default for CameraDesc {
             shutter_open: 0.0,
             shutter_close: 0.0,
             motion: Vec::new(),
+            exposure: 0.0,
         }
     }
 }
@@ -88,6 +97,8 @@ pub struct Camera {
     /// Thin lens radius and focus distance (scene units); radius 0 is a pinhole.
     lens_radius: f32,
     focus_distance: f32,
+    /// 2^exposure: what the image's light is multiplied by.
+    exposure_scale: f32,
 }
 
 impl Camera {
@@ -138,7 +149,14 @@ impl Camera {
             orthographic: desc.orthographic,
             lens_radius: if thin_lens { (f / 10.0) / (2.0 * desc.f_stop) } else { 0.0 },
             focus_distance: if thin_lens { desc.focus_distance } else { 0.0 },
+            exposure_scale: if desc.exposure.abs() <= MAX_EXPOSURE_STOPS { desc.exposure.exp2() } else { 1.0 },
         }
+    }
+
+    /// The linear scale of the camera's exposure (1 beyond [`MAX_EXPOSURE_STOPS`], which the
+    /// wire and the USD reader refuse).
+    pub fn exposure_scale(&self) -> f32 {
+        self.exposure_scale
     }
 
     /// A ray through image position (`x`, `y`) in pixels, y down, with its range clipped

@@ -531,7 +531,7 @@ pub fn render_to_framebuffer(scene: &CommittedScene, camera: &Camera, settings: 
 /// The render's path settings with the camera's pixel footprint (for texture filtering).
 fn integrator_for(camera: &Camera, settings: &RenderSettings) -> IntegratorSettings {
     let footprint = if settings.integrator.texture_filtering { camera.pixel_footprint() } else { (0.0, 0.0) };
-    IntegratorSettings { pixel_footprint: footprint, ..settings.integrator }
+    IntegratorSettings { pixel_footprint: footprint, exposure_scale: camera.exposure_scale(), ..settings.integrator }
 }
 
 /// Sample `k` of pixel (`x`, `y`), traced on its own.

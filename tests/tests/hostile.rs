@@ -385,6 +385,32 @@ async fn motion_samples_beyond_the_limit_or_broken_are_refused() {
     bystander_renders(&server).await;
 }
 
+/// A camera's exposure is a number the client controls: NaN, infinities and anything past
+/// ±64 stops (2^±64) are refused naming the field; 64 stops down syncs and renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_camera_exposure_past_the_limit_is_refused() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let camera = |exposure: f32| {
+        let lens =
+            pb::CameraPrim { focal_length: 50.0, horizontal_aperture: 20.0, vertical_aperture: 20.0, exposure, ..Default::default() };
+        tessera::sync::delta("/Evil/Cam", pb::PrimKind::Camera, pb::prim_delta::Payload::Camera(lens))
+    };
+    for exposure in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 64.5, -1e30] {
+        assert_status(raw.sync(&s, vec![camera(exposure)]).await, Code::InvalidArgument, &["/Evil/Cam", "exposure", "stops"]);
+    }
+    let mut items = camera_and_light();
+    if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Camera(c)), .. }) = &mut items[0] {
+        c.exposure = -64.0;
+    }
+    items.extend(mesh("/Tri", TRIANGLE.to_vec(), vec![0, 1, 2]));
+    raw.sync(&s, items).await.expect("64 stops down syncs");
+    let f = raw.render(&s, tiny(8, 2)).await.expect("renders");
+    assert_eq!(f.spp, 2);
+    bystander_renders(&server).await;
+}
+
 /// Deformation samples are a count and an array the client controls: a count outside 2..=64
 /// (u32::MAX included), points that are no whole number of sets, and a NaN in a later set are
 /// refused naming the field; a valid deformation syncs and renders.

@@ -65,3 +65,53 @@ async fn an_emissive_mesh_lights_like_an_area_light_of_its_radiance() {
     let corners = vec![DVec3::new(-hx, 0.5, -hz), DVec3::new(hx, 0.5, -hz), DVec3::new(hx, 0.5, hz), DVec3::new(-hx, 0.5, hz)];
     check_plane("lights/emissive_plane.usda", 1024, 0.005, |p| polygon_irradiance(p, &corners, 1.5)).await;
 }
+
+/// A camera's exposure scales the image by what usd-core's `ComputeLinearExposureScale` gives:
+/// `exposure` in stops times the physical exposure time × ISO × responsivity / (100 × f²).
+/// A wall under a uniform dome, seen through three cameras: the schema's defaults (scale 1),
+/// one stop up with ISO 200 at 1/2 s (scale 2), and ISO 400 at 1/125 s and f/2.8 (scale
+/// 0.00408). Every pixel's light scales by exactly that (the same paths, scaled as they reach
+/// the film; f32 rounding of each sample only), coverage does not.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cameras_exposure_scales_the_image_as_usd_core_computes_it() {
+    let dir = std::env::temp_dir().join(format!("tessera-camera-exposure-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cameras = [("Plain", 0.0, 100.0, 1.0, 1.0), ("Bright", 1.0, 200.0, 0.5, 1.0), ("Photo", 0.0, 400.0, 1.0 / 125.0, 2.8)];
+    let mut layer = String::from(
+        "#usda 1.0\ndef Mesh \"Wall\"\n{\n    point3f[] points = [(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)]\n    \
+         int[] faceVertexCounts = [4]\n    int[] faceVertexIndices = [0, 1, 2, 3]\n}\ndef DomeLight \"Sky\"\n{\n}\n",
+    );
+    for (name, stops, iso, seconds, f_stop) in cameras {
+        layer += &format!(
+            "def Camera \"{name}\"\n{{\n    float exposure = {stops}\n    float exposure:iso = {iso}\n    float exposure:time = {seconds}\n    \
+             float exposure:fStop = {f_stop}\n    double3 xformOp:translate = (0, 0, 5)\n    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
+        );
+    }
+    let file = dir.join("exposure.usda");
+    std::fs::write(&file, layer).unwrap();
+    let theirs = usd_core_reads(&file, None);
+    let t = tessera::usd::load(&file).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let (server, mut conn) = session_with(&t).await;
+    let mut images = Vec::new();
+    for (name, ..) in cameras {
+        let opts = tessera::remote::RenderOptions { camera: format!("/{name}"), ..small(24, 24, 8) };
+        images.push(conn.render(&opts, |_| {}).await.expect("renders").image);
+    }
+    server.stop().await.unwrap();
+    for (k, (name, ..)) in cameras.iter().enumerate().skip(1) {
+        let scale = theirs["cameras"][format!("/{name}")]["exposureScale"].as_f64().unwrap();
+        for (y, x) in (0..24).flat_map(|y| (0..24).map(move |x| (y, x))) {
+            let (plain, exposed) = (images[0].pixel("beauty", x, y), images[k].pixel("beauty", x, y));
+            for c in 0..3 {
+                let want = plain[c] as f64 * scale;
+                assert!(
+                    (exposed[c] as f64 - want).abs() <= 1e-5 * want.abs().max(1e-30),
+                    "{name} ({x}, {y})[{c}]: {} against {want}",
+                    exposed[c]
+                );
+            }
+            assert_eq!(exposed[3], plain[3], "{name}: coverage unchanged");
+        }
+    }
+}

@@ -174,6 +174,10 @@ pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, St
             return Err(invalid(prim, name, format!("{v} must be positive")));
         }
     }
+    if c.exposure.is_nan() || c.exposure.abs() > render_core::camera::MAX_EXPOSURE_STOPS {
+        let most = render_core::camera::MAX_EXPOSURE_STOPS;
+        return Err(invalid(prim, "exposure", format!("{} stops; an exposure is within ±{most}", c.exposure)));
+    }
     Ok(CameraDesc {
         transform: affine(prim, "transform", &c.transform)?,
         focal_length: c.focal_length,
@@ -189,6 +193,7 @@ pub fn camera_from_wire(prim: &str, c: &pb::CameraPrim) -> Result<CameraDesc, St
         shutter_open: c.shutter_open,
         shutter_close: c.shutter_close,
         motion: motion_from_wire(prim, "motion", &c.motion)?,
+        exposure: c.exposure,
     })
 }
 
@@ -209,6 +214,7 @@ pub fn camera_to_wire(c: &CameraDesc) -> pb::CameraPrim {
         shutter_open: c.shutter_open,
         shutter_close: c.shutter_close,
         motion: motion_to_wire(&c.motion),
+        exposure: c.exposure,
     }
 }
 

@@ -97,6 +97,7 @@ pub fn to_json(t: &Translation) -> Value {
                 "focusDistance": c.focus_distance,
                 "shutterOpen": c.shutter_open,
                 "shutterClose": c.shutter_close,
+                "exposureScale": c.exposure.exp2(),
             }),
         );
     }

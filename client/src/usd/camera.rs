@@ -32,8 +32,36 @@ impl Reader<'_> {
             shutter_open: float("shutter:open", 0.0)?,
             shutter_close: float("shutter:close", 0.0)?,
             motion: self.motion(prim, p)?,
+            exposure: self.exposure_stops(prim, p)?,
         };
         self.out.cameras.push((p.to_string(), desc));
         Ok(())
+    }
+
+    /// The camera's exposure in stops, from UsdGeomCamera's `exposure` (stops) and its
+    /// physical exposure (`exposure:time` × `exposure:iso` × `exposure:responsivity` /
+    /// (100 × `exposure:fStop`²), as `ComputeLinearExposureScale` gives it: 1 at the schema's
+    /// defaults). A scale that is not positive, or past ±64 stops, is warned and not applied.
+    fn exposure_stops(&mut self, prim: &Prim, p: &str) -> Result<f32> {
+        let time = self.time;
+        let read =
+            |name: &str, default: f64| -> Result<f64> { Ok(get(prim, name, time)?.as_ref().and_then(values::scalar).unwrap_or(default)) };
+        let (stops, iso, seconds, f_stop, responsivity) = (
+            read("exposure", 0.0)?,
+            read("exposure:iso", 100.0)?,
+            read("exposure:time", 1.0)?,
+            read("exposure:fStop", 1.0)?,
+            read("exposure:responsivity", 1.0)?,
+        );
+        let physical = seconds * iso * responsivity / (100.0 * f_stop * f_stop);
+        let total = stops + physical.log2();
+        if total.is_finite() && total.abs() <= render_core::camera::MAX_EXPOSURE_STOPS as f64 {
+            return Ok(total as f32);
+        }
+        self.out.warnings.push(format!(
+            "{p}: exposure {stops}, exposure:iso {iso}, exposure:time {seconds}, exposure:fStop {f_stop} and exposure:responsivity {responsivity} give a scale of {:e}; the image is not scaled",
+            stops.exp2() * physical
+        ));
+        Ok(0.0)
     }
 }

@@ -196,7 +196,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             });
         }
         samples.clear();
-        samples.extend(states.drain(..).map(|(path, out)| finish(out, path.light, counters)));
+        samples.extend(states.drain(..).map(|(path, out)| finish(out, path.light, self.settings.exposure_scale, counters)));
     }
 
     /// The path loop: each ray traced, then the path's [`Tracer::step`] at what it found.
@@ -218,7 +218,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
                 break;
             }
         }
-        finish(out, path.light, counters)
+        finish(out, path.light, self.settings.exposure_scale, counters)
     }
 
     /// What the path does where its ray found `hit` (or nothing): media and volumes crossed,
@@ -327,14 +327,14 @@ fn record_first_hit(out: &mut PixelSample, scene: &CommittedScene, v: &Vertex, d
 }
 
 /// The sample the path gathered; a non-finite one is dropped and counted.
-fn finish(mut out: PixelSample, mut light: path::LightPaths, counters: &mut PathCounters) -> PixelSample {
+fn finish(mut out: PixelSample, mut light: path::LightPaths, exposure: f32, counters: &mut PathCounters) -> PixelSample {
     if !is_finite(light.total) {
         counters.non_finite += 1;
         light.clear();
     }
-    out.radiance = light.total;
-    out.components = light.components;
-    out.direct = light.direct;
+    out.radiance = light.total * exposure;
+    out.components = light.components.map(|c| c * exposure);
+    out.direct = light.direct.map(|c| c * exposure);
     out
 }
 

@@ -34,6 +34,9 @@ pub struct IntegratorSettings {
     /// A camera ray's footprint as a cone, (width, spread angle), for texture filtering;
     /// the renderer sets it from the camera. (0, 0) fetches the finest texture level.
     pub pixel_footprint: (f32, f32),
+    /// What every path's light is multiplied by as it reaches the film: the camera's
+    /// exposure as a linear scale; the renderer sets it from the camera.
+    pub exposure_scale: f32,
     /// Filter textures over the ray's footprint (mip-mapping by ray cones); off, every lookup
     /// reads the finest level and only pixel supersampling filters (the reference's way).
     pub texture_filtering: bool,
@@ -56,6 +59,7 @@ impl Default for IntegratorSettings {
             general_loop: false,
             strategy: LightStrategy::Mis,
             pixel_footprint: (0.0, 0.0),
+            exposure_scale: 1.0,
             texture_filtering: true,
             light_split_budget: crate::light::tree::SPLIT_BUDGET,
         }
