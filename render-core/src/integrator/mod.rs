@@ -332,9 +332,15 @@ fn finish(mut out: PixelSample, mut light: path::LightPaths, exposure: f32, coun
         counters.non_finite += 1;
         light.clear();
     }
-    out.radiance = light.total * exposure;
-    out.components = light.components.map(|c| c * exposure);
-    out.direct = light.direct.map(|c| c * exposure);
+    if exposure != 1.0 {
+        // Only a camera with an exposure pays for it (10 vector products a path).
+        light.total *= exposure;
+        light.components = light.components.map(|c| c * exposure);
+        light.direct = light.direct.map(|c| c * exposure);
+    }
+    out.radiance = light.total;
+    out.components = light.components;
+    out.direct = light.direct;
     out
 }
 
