@@ -70,6 +70,13 @@ pub trait AbstractData {
         paths_with_field_by_walk(self, field)
     }
 
+    /// False only when no spec of the layer can use a token that `matches` (a property name,
+    /// or a token value such as an `apiSchemas` entry): a quick way to skip a search. True by
+    /// default, for stores with no faster way to tell.
+    fn may_use_token(&self, _matches: &dyn Fn(&str) -> bool) -> bool {
+        true
+    }
+
     /// Creates an empty spec of type `ty` at `path`, replacing any existing
     /// spec there. Mirrors C++ `SdfAbstractData::CreateSpec`. Fields are
     /// authored separately via [`set_field`](Self::set_field).
@@ -298,6 +305,10 @@ impl<T: AbstractData + ?Sized> AbstractData for Box<T> {
 
     fn paths_with_field(&self, field: &str) -> Vec<Path> {
         (**self).paths_with_field(field)
+    }
+
+    fn may_use_token(&self, matches: &dyn Fn(&str) -> bool) -> bool {
+        (**self).may_use_token(matches)
     }
 
     fn create_spec(&mut self, path: Path, ty: SpecType) {
@@ -541,6 +552,10 @@ impl<T: AbstractData> AbstractData for CowData<T> {
             }
             None => self.base.list_fields(path),
         }
+    }
+
+    fn may_use_token(&self, matches: &dyn Fn(&str) -> bool) -> bool {
+        !self.overlay.is_empty() || self.base.may_use_token(matches)
     }
 
     fn paths_with_field(&self, field: &str) -> Vec<Path> {

@@ -193,6 +193,11 @@ where
         self.data.keys().filter(|p| self.has_field(p, field)).cloned().collect()
     }
 
+    fn may_use_token(&self, matches: &dyn Fn(&str) -> bool) -> bool {
+        // Property names and token values are each one entry of the file's token table.
+        self.data.values().any(|spec| !spec.authored.is_empty()) || self.file.borrow().tokens.iter().any(|t| matches(t))
+    }
+
     fn spec_paths(&self) -> Vec<sdf::Path> {
         let mut paths: Vec<sdf::Path> = self.data.keys().cloned().collect();
         paths.sort_by(|a, b| a.as_str().cmp(b.as_str()));
