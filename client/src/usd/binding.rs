@@ -27,13 +27,16 @@ impl Reader<'_> {
         }
         let mut not_materials = Vec::new();
         let api = MaterialBindingAPI::at(self.stage, prim.path().clone());
-        let m = api.compute_bound_material_with("full", &mut |target| {
+        let mut cache = std::mem::take(&mut self.binding_cache);
+        let m = api.compute_bound_material_with("full", &mut cache, &mut |target| {
             let material = self.is_material_target(target)?;
             if !material {
                 not_materials.push(target.as_str().to_string());
             }
             Ok(material)
-        })?;
+        });
+        self.binding_cache = cache;
+        let m = m?;
         for t in not_materials {
             self.out.warnings.push(format!(
                 "{t}: material bindings target it, but it is not a Material prim; prims bound to it show their displayColor"

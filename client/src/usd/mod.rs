@@ -474,6 +474,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         instancer_roots: Vec::new(),
         native: HashMap::new(),
         bindings: HashMap::new(),
+        binding_cache: Default::default(),
         subdivision_level: options.subdivision_level.min(subdivision::MAX_LEVEL),
         unmappable: std::collections::HashSet::new(),
         mtlx_documents: std::collections::HashSet::new(),
@@ -566,6 +567,8 @@ struct Reader<'s> {
     /// Each prim's resolved material binding: a mesh asks for its own and its subsets' several
     /// times (material, texture coordinates, primvars), and a broken binding is reported once.
     bindings: HashMap<String, Option<String>>,
+    /// The bindings read at each prim, shared by every prim's resolution.
+    binding_cache: openusd::schemas::shade::BindingsCache,
     /// Refinement level of subdivision surfaces that name none.
     subdivision_level: u32,
     /// Materials whose surface shader has no mapping: their meshes show displayColor.

@@ -150,28 +150,44 @@ impl MaterialBindingAPI {
     /// all-purpose binding, and an all-purpose one on a child hides its parent's).
     pub fn compute_bound_material(&self, purpose: &str) -> Result<Option<Path>> {
         let stage = self.stage();
-        self.compute_bound_material_with(purpose, &mut |target| is_material(stage, target))
+        self.compute_bound_material_with(purpose, &mut BindingsCache::default(), &mut |target| is_material(stage, target))
     }
 
     /// [`Self::compute_bound_material`], with `is_material` deciding which targets count
-    /// as Materials: a caller that composes more than this crate does (a MaterialX document
-    /// behind a reference, say) can accept targets the crate does not see.
+    /// as Materials (a caller that composes more than this crate does, a MaterialX document
+    /// behind a reference say, can accept targets the crate does not see), and the bindings
+    /// read at each prim kept in `cache` for the next query (C++'s `BindingsCache` and
+    /// `CollectionQueryCache`): prims that share ancestors read each ancestor once.
     pub fn compute_bound_material_with(
         &self,
         purpose: &str,
+        cache: &mut BindingsCache,
         is_material: &mut dyn FnMut(&Path) -> Result<bool>,
     ) -> Result<Option<Path>> {
-        let prim = self.path();
-        // Cache each collection's membership query across the namespace walk.
-        let mut cache: HashMap<Path, Option<MembershipQuery>> = HashMap::new();
         for pur in purpose_fallbacks(purpose) {
-            let mut walk = Walk { stage: self.stage(), queried: prim, purpose: pur, cache: &mut cache };
+            let mut walk = Walk { stage: self.stage(), queried: self.path(), purpose: pur, cache: &mut *cache };
             if let Some(material) = walk.bound_material()? {
                 return Ok(is_material(&material)?.then_some(material));
             }
         }
         Ok(None)
     }
+}
+
+/// The bindings read at each prim (by purpose) and each collection's membership, kept across
+/// [`MaterialBindingAPI::compute_bound_material_with`] queries on one unchanged stage.
+#[derive(Default)]
+pub struct BindingsCache {
+    at: HashMap<(Path, String), BindingsAt>,
+    collections: HashMap<Path, Option<MembershipQuery>>,
+}
+
+/// One prim's bindings for one purpose: the direct one with its strength, and the collection
+/// ones (collection, material, strength) in native property order.
+#[derive(Clone)]
+struct BindingsAt {
+    direct: Option<(Path, BindingStrength)>,
+    collections: Vec<(Path, Path, BindingStrength)>,
 }
 
 impl_shade_schema!(single_api MaterialBindingAPI);
@@ -243,8 +259,7 @@ struct Walk<'a> {
     stage: &'a Stage,
     queried: &'a Path,
     purpose: &'a str,
-    /// Each collection's membership query, kept across the namespace walk.
-    cache: &'a mut HashMap<Path, Option<MembershipQuery>>,
+    cache: &'a mut BindingsCache,
 }
 
 impl Walk<'_> {
@@ -258,17 +273,18 @@ impl Walk<'_> {
         let mut winner: Option<(Path, Path)> = None;
         let mut current = Some(self.queried.clone());
         while let Some(p) = current.filter(|p| !p.is_abs_root()) {
-            if let Some(material) = direct_binding(self.stage, &p, self.purpose)? {
-                if winner.is_none() || binding_strength(self.stage, &p, self.purpose)? == BindingStrength::StrongerThanDescendants {
+            let here = self.bindings_at(&p)?;
+            if let Some((material, strength)) = here.direct {
+                if winner.is_none() || strength == BindingStrength::StrongerThanDescendants {
                     winner = Some((material, p.clone()));
                 }
             }
-            for (collection, material, strength) in collection_bindings_on(self.stage, &p, self.purpose)? {
+            for (collection, material, strength) in here.collections {
                 let claims = match &winner {
                     None => true,
                     Some((_, at)) => *at == p || strength == BindingStrength::StrongerThanDescendants,
                 };
-                if claims && is_collection_member(self.stage, &collection, self.queried, self.cache)? {
+                if claims && is_collection_member(self.stage, &collection, self.queried, &mut self.cache.collections)? {
                     winner = Some((material, p.clone()));
                     break;
                 }
@@ -276,6 +292,21 @@ impl Walk<'_> {
             current = p.parent();
         }
         Ok(winner.map(|(material, _)| material))
+    }
+
+    /// The bindings at `p` for this purpose, read once per cache.
+    fn bindings_at(&mut self, p: &Path) -> Result<BindingsAt> {
+        let key = (p.clone(), self.purpose.to_string());
+        if let Some(known) = self.cache.at.get(&key) {
+            return Ok(known.clone());
+        }
+        let direct = match direct_binding(self.stage, p, self.purpose)? {
+            Some(material) => Some((material, binding_strength(self.stage, p, self.purpose)?)),
+            None => None,
+        };
+        let here = BindingsAt { direct, collections: collection_bindings_on(self.stage, p, self.purpose)? };
+        self.cache.at.insert(key, here.clone());
+        Ok(here)
     }
 }
 

@@ -57,7 +57,7 @@ mod preview;
 mod schema;
 mod traits;
 
-pub use binding::MaterialBindingAPI;
+pub use binding::{BindingsCache, MaterialBindingAPI};
 pub use connectable::base_name;
 pub use preview::{read_preview_surface, Channel, ReadPreviewSurface};
 pub use schema::{Material, NodeGraph, Shader};
