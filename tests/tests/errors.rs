@@ -260,6 +260,43 @@ def SphereLight "Key" (prepend apiSchemas = ["CollectionAPI:lightLink"])
     assert_eq!(t.meshes.len(), 2, "the geometry under a draw mode renders, and the mesh light as a mesh");
 }
 
+/// What a payload's layer asks for is reported too, though the layer loads only when
+/// composition reaches its prim, after the stage opened: light linking and a mesh light inside
+/// a payload each get their warning.
+#[test]
+fn a_payloads_unsupported_requests_are_said() {
+    let dir = std::env::temp_dir().join(format!("tessera-payload-reports-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("asset.usda"),
+        r#"#usda 1.0
+(
+    defaultPrim = "A"
+)
+def Xform "A"
+{
+    def Mesh "Glow" (prepend apiSchemas = ["MeshLightAPI"])
+    {
+        point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0)]
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+    }
+    def SphereLight "Key"
+    {
+        rel collection:lightLink:includes = </A/Glow>
+    }
+}
+"#,
+    )
+    .unwrap();
+    std::fs::write(dir.join("scene.usda"), "#usda 1.0\ndef \"World\" (prepend payload = @./asset.usda@)\n{\n}\n").unwrap();
+    let t = tessera::usd::load(&dir.join("scene.usda")).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    for needle in ["/World/Glow: MeshLightAPI", "/World/Key: collection:lightLink limits which prims the light illuminates"] {
+        assert_eq!(t.warnings.iter().filter(|w| w.contains(needle)).count(), 1, "'{needle}': {:?}", t.warnings);
+    }
+}
+
 /// The commit says each thing once too: a textured material's unsupported input is said
 /// once, though its network is both compiled (texture graph) and resolved (constant part).
 #[test]

@@ -415,31 +415,48 @@ fn spline_warnings(stage: &Stage) -> Vec<String> {
     warnings
 }
 
-/// Whether any layer of the stage authors a property of a light's `lightLink` or `shadowLink`
-/// collection. Asking each light instead composed four properties a light (the schema lists
-/// them, authored or not): 5-8% of a 10,000-light file's load. A binary layer rules itself out
-/// from its token table.
-fn links_authored(stage: &Stage) -> bool {
-    let names: Vec<String> =
-        ["lightLink", "shadowLink"].iter().flat_map(|link| LINK_PROPERTIES.iter().map(move |p| format!("collection:{link}:{p}"))).collect();
-    stage.layer_identifiers().iter().filter_map(|id| stage.layer(id)).any(|layer| {
-        let data = layer.data();
-        if !data.may_use_token(&|t| names.iter().any(|n| n == t)) {
-            return false;
-        }
-        ["targetPaths", "default"].iter().flat_map(|field| data.paths_with_field(field)).any(|path| {
-            let property = path.as_str().split_once('.').map_or("", |(_, name)| name);
-            names.iter().any(|n| n == property)
-        })
-    })
+/// Whether the layers read so far author a light's link collection, or may apply an API
+/// schema the reader reports as unsupported (a gprim as a light, a collection). Asking each
+/// light and prim instead composed four link properties a light (the schema lists them,
+/// authored or not) and every prim's `apiSchemas`: 6.5% of a 10,000-light file's load. A
+/// binary layer rules itself out from its token table. Layers load as composition reaches
+/// them (a payload's when its prim is composed), so each is scanned when first seen.
+#[derive(Default)]
+pub(super) struct ReportedNames {
+    scanned: std::collections::HashSet<String>,
+    pub(super) links: bool,
+    pub(super) apis: bool,
 }
 
-/// Whether any layer may apply an API schema the reader reports as unsupported (a gprim as a
-/// light, or a collection): a binary layer that never names one spares each prim the
-/// composition of its `apiSchemas` (1% of a 10,000-light file's load).
-fn unsupported_apis_authored(stage: &Stage) -> bool {
-    let reported = |t: &str| matches!(t, "MeshLightAPI" | "VolumeLightAPI" | "LightAPI") || t.starts_with("CollectionAPI:");
-    stage.layer_identifiers().iter().filter_map(|id| stage.layer(id)).any(|layer| layer.data().may_use_token(&reported))
+impl ReportedNames {
+    /// Scans the stage's layers not scanned yet.
+    pub(super) fn update(&mut self, stage: &Stage) {
+        for id in stage.layer_identifiers() {
+            if self.scanned.contains(&id) {
+                continue;
+            }
+            if let Some(layer) = stage.layer(&id) {
+                let data = layer.data();
+                self.links |= authors_link_properties(&*data);
+                self.apis |=
+                    data.may_use_token(&|t| matches!(t, "MeshLightAPI" | "VolumeLightAPI" | "LightAPI") || t.starts_with("CollectionAPI:"));
+            }
+            self.scanned.insert(id);
+        }
+    }
+}
+
+/// Whether a layer authors a property of a light's `lightLink` or `shadowLink` collection.
+fn authors_link_properties(data: &dyn openusd::sdf::AbstractData) -> bool {
+    let names: Vec<String> =
+        ["lightLink", "shadowLink"].iter().flat_map(|link| LINK_PROPERTIES.iter().map(move |p| format!("collection:{link}:{p}"))).collect();
+    if !data.may_use_token(&|t| names.iter().any(|n| n == t)) {
+        return false;
+    }
+    ["targetPaths", "default"].iter().flat_map(|field| data.paths_with_field(field)).any(|path| {
+        let property = path.as_str().split_once('.').map_or("", |(_, name)| name);
+        names.iter().any(|n| n == property)
+    })
 }
 
 /// The properties of a link collection that make it hold less than the whole stage.
@@ -484,8 +501,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         curve_samples: options.curve_samples.clamp(1, curves::MAX_CURVE_SAMPLES),
         motion_samples: options.motion_samples.clamp(2, render_core::motion::MAX_MOTION_SAMPLES),
         later: Vec::new(),
-        links_authored: links_authored(&stage),
-        unsupported_apis_authored: unsupported_apis_authored(&stage),
+        reported_names: ReportedNames::default(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -588,8 +604,6 @@ struct Reader<'s> {
     curve_samples: usize,
     /// Subdivision meshes refined after the traversal (see `refine_later`).
     later: Vec<refine_later::LaterRefinement>,
-    /// Whether any layer authors a light's link collection (see [`links_authored`]).
-    links_authored: bool,
-    /// Whether any layer may apply an API schema Tessera reports as unsupported.
-    unsupported_apis_authored: bool,
+    /// Whether the layers read so far name what the reader reports as unsupported.
+    reported_names: ReportedNames,
 }

@@ -209,7 +209,8 @@ impl Reader<'_> {
     /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
     /// gprim as a light, light linking, and collections defined by a path expression.
     fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
-        let applied = if self.unsupported_apis_authored { prim.api_schemas()? } else { Vec::new() };
+        self.reported_names.update(self.stage);
+        let applied = if self.reported_names.apis { prim.api_schemas()? } else { Vec::new() };
         for api in applied {
             let api = api.as_str();
             if matches!(api, "MeshLightAPI" | "VolumeLightAPI") || (api == "LightAPI" && !LIGHTS.contains(&type_name)) {
@@ -225,7 +226,7 @@ impl Reader<'_> {
                 ));
             }
         }
-        if self.links_authored && LIGHTS.contains(&type_name) {
+        if self.reported_names.links && LIGHTS.contains(&type_name) {
             for (link, limits, so) in [
                 ("lightLink", "which prims the light illuminates", "it illuminates every prim"),
                 ("shadowLink", "which prims cast the light's shadows", "every prim casts them"),
