@@ -437,7 +437,7 @@ impl ReportedNames {
             }
             if let Some(layer) = stage.layer(&id) {
                 let data = layer.data();
-                self.links |= authors_link_properties(&*data);
+                self.links |= authors_link_properties(data);
                 self.apis |=
                     data.may_use_token(&|t| matches!(t, "MeshLightAPI" | "VolumeLightAPI" | "LightAPI") || t.starts_with("CollectionAPI:"));
             }
