@@ -289,17 +289,23 @@ fn material_bindings_resolve_as_usd_core_does() {
     assert!(wrong.is_empty(), "{} of {} differ:\n{}", wrong.len(), meshes.len(), wrong[..wrong.len().min(20)].join("\n"));
 }
 
-/// Value types the vendored text parser did not know failed the whole layer: USD 23.11's
-/// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`.
+/// Values the vendored text parser did not know failed the whole layer: USD 23.11's
+/// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`, and
+/// list ops of prim metadata it does not know (`prepend pipelineIds = [3, 4]`, which
+/// usd-core keeps).
 #[test]
-fn path_expressions_and_unsigned_arrays_parse() {
+fn path_expressions_unsigned_arrays_and_unknown_list_op_metadata_parse() {
     let dir = std::env::temp_dir().join(format!("tessera-value-types-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("types.usda");
     std::fs::write(
         &file,
         r#"#usda 1.0
-def Scope "Sets" (prepend apiSchemas = ["CollectionAPI:props"])
+def Scope "Sets" (
+    prepend apiSchemas = ["CollectionAPI:props"]
+    prepend pipelineIds = [3, 4]
+    append studioTags = ["hero", "lod0"]
+)
 {
     uniform pathExpression collection:props:membershipExpression = "/World/* - /World/Cam"
     custom uint[] small = [1, 4294967295]

@@ -1080,15 +1080,24 @@ impl<'a> Parser<'a> {
             // arbitrary identifier-keyed fields in the metadata block, so
             // tolerate and stash them on the spec rather than failing the
             // parse (matches Pixar, which preserves unrecognized metadata).
+            // With a list op (`prepend someIds = [1, 2]`), integers and strings become list ops
+            // of their kind, as Sdf keeps them; other values cannot be listed.
             other => {
-                ensure!(
-                    list_op.is_none(),
-                    "list ops are not supported for unknown prim metadata: {other}"
-                );
                 let value = self
                     .parse_property_metadata_value()
                     .with_context(|| format!("Unable to parse prim metadata value for {other}"))?;
-                spec.add(other, value);
+                if list_op.is_none() {
+                    spec.add(other, value);
+                } else {
+                    let listed = match value {
+                        sdf::Value::Int64(i) => sdf::Value::Int64ListOp(self.apply_list_op(list_op, vec![i])?),
+                        sdf::Value::Int64Vec(v) => sdf::Value::Int64ListOp(self.apply_list_op(list_op, v)?),
+                        sdf::Value::String(s) => sdf::Value::StringListOp(self.apply_list_op(list_op, vec![s])?),
+                        sdf::Value::StringVec(v) => sdf::Value::StringListOp(self.apply_list_op(list_op, v)?),
+                        other_value => bail!("a list op of {other_value:?} is not supported for prim metadata {other}"),
+                    };
+                    spec.add_list_op(other, listed);
+                }
             }
         }
 
