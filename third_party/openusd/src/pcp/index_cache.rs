@@ -316,22 +316,21 @@ impl IndexCache {
         };
         let local_layers = graph.local_layers();
 
-        // TODO: only the default-sourced returns below resolve their `asset`
-        // values (via `anchor_asset_paths`); values from time samples
-        // (`resolve_value_at`) and value clips (`resolve_clip_value`) are
-        // returned with `evaluated_path` and `resolved_path` unset. To close
-        // this, those resolvers must surface the contributing layer/node so it
-        // can be anchored and its expression variables composed — note a clip
-        // value anchors against the *clip layer*, not a host-stack opinion, so
-        // it cannot reuse `asset_context` directly. Asset-valued time samples
-        // and clips are rare in practice.
+        // Defaults and time samples resolve their `asset` values (via
+        // `anchor_asset_paths`, time samples against the strongest layer that
+        // authors samples: a texture sequence `1: @tex.1001.png@` resolves beside
+        // it). TODO: values from value clips (`resolve_clip_value`) are returned
+        // with `evaluated_path` and `resolved_path` unset; a clip value anchors
+        // against the *clip layer*, not a host-stack opinion, so it cannot reuse
+        // `asset_context` directly.
+        let samples = FieldKey::TimeSamples.as_str();
 
         // 1) Local time samples take precedence over clip data.
         if let Some(value) =
             self.cached(&prim)
                 .resolve_value_at(graph, Some(&suffix), Some(&local_layers), time, interp)?
         {
-            return Ok(value);
+            return Ok(self.anchor_asset_paths(graph, &prim, samples, Some(&suffix), value));
         }
 
         // 2) Local defaults also take precedence over clip data.
@@ -354,7 +353,7 @@ impl IndexCache {
             .cached(&prim)
             .resolve_value_at(graph, Some(&suffix), None, time, interp)?
         {
-            return Ok(value);
+            return Ok(self.anchor_asset_paths(graph, &prim, samples, Some(&suffix), value));
         }
 
         // 5) Fall back to the strongest authored default.

@@ -252,7 +252,13 @@ impl<'a> Parser<'a> {
             .fetch_next()?
             .try_as_magic()
             .ok_or_else(|| anyhow!("Text file must start with magic token, got {:?}", self.peek_next()))?;
-        ensure!(version.starts_with("1.0"), "Unsupported USDA version: {version:?}");
+        // usd-core writes the lowest version a layer's contents need (1.0 unless it uses newer
+        // value types): a newer one is read, and a construct the parser does not know fails
+        // with its own error.
+        ensure!(
+            ["1.0", "1.1", "1.2", "1.3", "1.4"].iter().any(|v| version.starts_with(v)),
+            "Unsupported USDA version: {version:?}"
+        );
 
         let mut root = sdf::SpecData::new(sdf::SpecType::PseudoRoot);
 
@@ -1365,6 +1371,8 @@ impl<'a> Parser<'a> {
             Some(Ok(Token::Number(_))) => {
                 !info.is_array && matches!(info.ty, Type::TimeCode | Type::Half | Type::Float | Type::Double)
             }
+            // `1: @tex.1001.png@`: a texture sequence; the type-blind path knows no assets.
+            Some(Ok(Token::AssetRef(_))) => !info.is_array && info.ty == Type::Asset,
             _ => false,
         }
     }
