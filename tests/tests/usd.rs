@@ -295,7 +295,7 @@ fn material_bindings_resolve_as_usd_core_does() {
 /// Values the vendored text parser did not know failed the whole layer: USD 23.11's
 /// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`, and
 /// list ops of prim metadata it does not know (`prepend pipelineIds = [3, 4]`, which
-/// usd-core keeps).
+/// usd-core keeps), and an asset in untyped metadata (the layer's `colorConfiguration`).
 #[test]
 fn path_expressions_unsigned_arrays_and_unknown_list_op_metadata_parse() {
     let dir = std::env::temp_dir().join(format!("tessera-value-types-{}", std::process::id()));
@@ -304,6 +304,9 @@ fn path_expressions_unsigned_arrays_and_unknown_list_op_metadata_parse() {
     std::fs::write(
         &file,
         r#"#usda 1.0
+(
+    colorConfiguration = @studio.ocio@
+)
 def Scope "Sets" (
     prepend apiSchemas = ["CollectionAPI:props"]
     prepend pipelineIds = [3, 4]

@@ -803,6 +803,8 @@ impl<'a> Parser<'a> {
             Token::None => Ok(sdf::Value::ValueBlock),
             Token::String(value) => Ok(sdf::Value::String(value.to_owned())),
             Token::Identifier(value) | Token::NamespacedIdentifier(value) => Ok(sdf::Value::token(value)),
+            // An asset where no type is declared: the layer's `colorConfiguration`, say.
+            Token::AssetRef(value) => Ok(sdf::Value::AssetPath(value.into())),
             Token::Number(raw) => {
                 if let Ok(int) = raw.parse::<i64>() {
                     Ok(sdf::Value::Int64(int))
