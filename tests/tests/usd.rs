@@ -295,7 +295,8 @@ fn material_bindings_resolve_as_usd_core_does() {
 /// Values the vendored text parser did not know failed the whole layer: USD 23.11's
 /// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`, and
 /// list ops of prim metadata it does not know (`prepend pipelineIds = [3, 4]`, which
-/// usd-core keeps), and an asset in untyped metadata (the layer's `colorConfiguration`).
+/// usd-core keeps), an asset in untyped metadata (the layer's `colorConfiguration`), and the
+/// namespace-editing hints `prefixSubstitutions` and `symmetryFunction`.
 #[test]
 fn path_expressions_unsigned_arrays_and_unknown_list_op_metadata_parse() {
     let dir = std::env::temp_dir().join(format!("tessera-value-types-{}", std::process::id()));
@@ -311,6 +312,10 @@ def Scope "Sets" (
     prepend apiSchemas = ["CollectionAPI:props"]
     prepend pipelineIds = [3, 4]
     append studioTags = ["hero", "lod0"]
+    prefixSubstitutions = {
+        "left": "right",
+    }
+    symmetryFunction = mirror
 )
 {
     uniform pathExpression collection:props:membershipExpression = "/World/* - /World/Cam"

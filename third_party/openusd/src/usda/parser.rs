@@ -928,6 +928,11 @@ impl<'a> Parser<'a> {
             Token::CustomData => "customData",
             Token::Doc => FieldKey::Documentation.as_str(),
             Token::Permission => FieldKey::Permission.as_str(),
+            // Namespace-editing hints usd-core writes (dictionaries and an identifier), kept as
+            // the metadata they are.
+            Token::PrefixSubstitutions | Token::SuffixSubstitutions | Token::SymmetryArguments | Token::SymmetryFunction => {
+                name_token.keyword_lexeme().unwrap_or_default()
+            }
             other => bail!("Unexpected metadata name token: {other:?}"),
         };
 
@@ -1073,6 +1078,18 @@ impl<'a> Parser<'a> {
                     .apply_list_op(list_op, values)
                     .context("Unable to build clipSets listOp")?;
                 spec.add_list_op(FieldKey::ClipSets, sdf::Value::StringListOp(list_op));
+            }
+            // `{"from": "to", ...}`: string substitutions for namespace editing.
+            "prefixSubstitutions" | "suffixSubstitutions" => {
+                let mut map = HashMap::new();
+                self.parse_block('{', '}', |this| {
+                    let from = this.fetch_str()?.to_owned();
+                    this.ensure_pun(':')?;
+                    map.insert(from, sdf::Value::String(this.fetch_str()?.to_owned()));
+                    Ok(())
+                })
+                .with_context(|| format!("Unable to parse {name}"))?;
+                spec.add(name, sdf::Value::Dictionary(map));
             }
             // UsdGeomPointInstancer's instances deactivated by id, an int64 list op
             // (`append inactiveIds = [105]`, as `DeactivateId` writes it).
