@@ -296,7 +296,8 @@ fn material_bindings_resolve_as_usd_core_does() {
 /// `pathExpression` (a collection's `membershipExpression`), `uint[]` and `uint64[]`, and
 /// list ops of prim metadata it does not know (`prepend pipelineIds = [3, 4]`, which
 /// usd-core keeps), an asset in untyped metadata (the layer's `colorConfiguration`), and the
-/// namespace-editing hints `prefixSubstitutions` and `symmetryFunction`.
+/// namespace-editing hints `prefixSubstitutions` and `symmetryFunction`, and the retired
+/// `config` variability (read as uniform, as usd-core reads it).
 #[test]
 fn path_expressions_unsigned_arrays_and_unknown_list_op_metadata_parse() {
     let dir = std::env::temp_dir().join(format!("tessera-value-types-{}", std::process::id()));
@@ -321,6 +322,7 @@ def Scope "Sets" (
     uniform pathExpression collection:props:membershipExpression = "/World/* - /World/Cam"
     custom uint[] small = [1, 4294967295]
     custom uint64[] large = [18446744073709551615]
+    config float legacy = 1
 }
 "#,
     )
@@ -332,6 +334,7 @@ def Scope "Sets" (
     assert_eq!(read("collection:props:membershipExpression"), Some(PathExpression("/World/* - /World/Cam".into())));
     assert_eq!(read("small"), Some(UintVec(vec![1, u32::MAX])));
     assert_eq!(read("large"), Some(Uint64Vec(vec![u64::MAX])));
+    assert_eq!(read("legacy"), Some(openusd::sdf::Value::Float(1.0)));
 }
 
 /// A light whose intensity a spline animates reads the spline's value at the frame: 1 at frame

@@ -569,7 +569,8 @@ impl<'a> Parser<'a> {
         let mut variability = sdf::Variability::Varying;
         if self.try_consume(Token::Varying) {
             // default
-        } else if self.try_consume(Token::Uniform) {
+        } else if self.try_consume(Token::Uniform) || self.try_consume(Token::Config) {
+            // `config`, a retired variability that usd-core still reads, is uniform.
             variability = sdf::Variability::Uniform;
         }
 
