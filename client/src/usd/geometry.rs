@@ -452,12 +452,41 @@ impl Reader<'_> {
             None => shapes::Axis::Z,
             Some(t) => shapes::Axis::parse(&t).with_context(|| format!("{p}: attribute 'axis' is '{t}', expected X, Y or Z"))?,
         };
+        // Cylinder_1's radii may be 0 (a cone), not both.
+        let ends = |default: f64| -> Result<(f32, f32)> {
+            let end = |name: &str| -> Result<f32> {
+                let v = get(prim, name, time)?.as_ref().and_then(values::scalar).unwrap_or(default);
+                if !(v.is_finite() && v >= 0.0) {
+                    anyhow::bail!("{p}: attribute '{name}' is {v}; it must be finite and not negative");
+                }
+                Ok(v as f32)
+            };
+            let (bottom, top) = (end("radiusBottom")?, end("radiusTop")?);
+            if bottom == 0.0 && top == 0.0 {
+                anyhow::bail!("{p}: attributes 'radiusBottom' and 'radiusTop' are both 0");
+            }
+            Ok((bottom, top))
+        };
         let shape = match type_name {
             "Sphere" => shapes::Shape::Sphere { radius: size("radius", 1.0)? },
             "Cube" => shapes::Shape::Cube { size: size("size", 2.0)? },
-            "Cylinder" => shapes::Shape::Cylinder { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
+            "Cylinder" => {
+                let radius = size("radius", 1.0)?;
+                shapes::Shape::Cylinder { bottom: radius, top: radius, height: size("height", 2.0)?, axis }
+            }
+            "Cylinder_1" => {
+                let (bottom, top) = ends(1.0)?;
+                shapes::Shape::Cylinder { bottom, top, height: size("height", 2.0)?, axis }
+            }
             "Cone" => shapes::Shape::Cone { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
-            "Capsule" => shapes::Shape::Capsule { radius: size("radius", 0.5)?, height: size("height", 1.0)?, axis },
+            "Capsule" => {
+                let radius = size("radius", 0.5)?;
+                shapes::Shape::Capsule { bottom: radius, top: radius, height: size("height", 1.0)?, axis }
+            }
+            "Capsule_1" => {
+                let (bottom, top) = ends(0.5)?;
+                shapes::Shape::Capsule { bottom, top, height: size("height", 1.0)?, axis }
+            }
             _ => shapes::Shape::Plane { width: size("width", 2.0)?, length: size("length", 2.0)?, axis },
         };
         self.add_mesh(prim, p, shapes::tessellate(shape), visible)

@@ -364,7 +364,7 @@ impl Xformable for AnyXformable {}
 
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
 const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
-const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cone", "Capsule", "Plane"];
+const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cylinder_1", "Cone", "Capsule", "Capsule_1", "Plane"];
 const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "CylinderLight", "DistantLight", "DomeLight", "DomeLight_1"];
 
 /// Reads and translates the stage at `path` at its default frame.

@@ -1,7 +1,8 @@
-//! UsdGeom's implicit prims (`Sphere`, `Cube`, `Cylinder`, `Cone`, `Capsule`, `Plane`)
-//! tessellated into triangle meshes with exact analytic normals, in the prim's own space and
-//! with the schema's defaults (UsdGeom schema: radius 1, size 2, height 2, axis Z, plane
-//! width/length 2, capsule radius 0.5 and height 1).
+//! UsdGeom's implicit prims (`Sphere`, `Cube`, `Cylinder`, `Cone`, `Capsule`, `Plane`, and
+//! USD 24.11's `Cylinder_1` and `Capsule_1`, whose two ends may differ in radius) tessellated
+//! into triangle meshes with exact analytic normals, in the prim's own space and with the
+//! schema's defaults (UsdGeom schema: radius 1, size 2, height 2, axis Z, plane width/length 2,
+//! capsule radius 0.5 and height 1).
 //!
 //! Curved surfaces use enough segments that the silhouette is within 0.05% of the radius
 //! (128 around, 64 along a half-circle), and shade with the analytic normal, so only
@@ -22,12 +23,15 @@ pub enum Shape {
     Sphere { radius: f32 },
     /// `Cube.size` (edge length).
     Cube { size: f32 },
-    /// `Cylinder` with caps.
-    Cylinder { radius: f32, height: f32, axis: Axis },
+    /// `Cylinder` with caps; `Cylinder_1` may narrow from `bottom` (at −height/2) to `top`
+    /// radius, either of which may be 0.
+    Cylinder { bottom: f32, top: f32, height: f32, axis: Axis },
     /// `Cone`: apex at +height/2 along the axis, base cap at −height/2.
     Cone { radius: f32, height: f32, axis: Axis },
-    /// `Capsule`: a cylinder of `height` with hemispherical ends of `radius`.
-    Capsule { radius: f32, height: f32, axis: Axis },
+    /// `Capsule`: a cylinder of `height` with hemispherical ends of `radius`. `Capsule_1`'s
+    /// ends are spheres of radius `bottom` and `top` centred ±height/2 along the axis, joined by
+    /// the cone tangent to both.
+    Capsule { bottom: f32, top: f32, height: f32, axis: Axis },
     /// A flat round disc in the XY plane facing +Z (not a UsdGeom prim: `Points` with
     /// `normals` draw one per point).
     Disc { radius: f32 },
@@ -147,32 +151,45 @@ pub fn tessellate(shape: Shape) -> Mesh {
             });
             b.finish(Axis::Z)
         }
-        Shape::Capsule { radius, height, axis } => {
+        Shape::Capsule { bottom, top, height, axis } => {
             let h = 0.5 * height;
+            // The side's normal leans by α, where the cone touches both spheres:
+            // sin α = (bottom − top) / height (0 for equal ends: hemispheres and a cylinder).
+            let alpha = ((bottom - top) / height).clamp(-1.0, 1.0).asin();
             let half = ALONG / 2;
-            // Lower hemisphere, the cylinder, the upper hemisphere, as one profile.
+            // The lower sphere from its pole up to α, the cone, the upper sphere from α, as
+            // one profile.
             b.revolve(ALONG + 1, |t| {
                 let k = t * (ALONG + 1) as f32;
-                if k <= half as f32 {
-                    let theta = -half_pi + half_pi * k / half as f32;
+                let on_sphere = |r: f32, z: f32, theta: f32| {
                     let (s, c) = theta.sin_cos();
-                    (radius * c, -h + radius * s, c, s)
+                    (r * c, z + r * s, c, s)
+                };
+                if k <= half as f32 {
+                    on_sphere(bottom, -h, -half_pi + (alpha + half_pi) * k / half as f32)
                 } else if k <= half as f32 + 1.0 {
                     let u = k - half as f32;
-                    (radius, -h + 2.0 * h * u, 1.0, 0.0)
+                    let (s, c) = alpha.sin_cos();
+                    let (r, z) = (bottom + (top - bottom) * u, -h + bottom * s + (2.0 * h + (top - bottom) * s) * u);
+                    (r * c, z, c, s)
                 } else {
-                    let theta = half_pi * (k - half as f32 - 1.0) / half as f32;
-                    let (s, c) = theta.sin_cos();
-                    (radius * c, h + radius * s, c, s)
+                    on_sphere(top, h, alpha + (half_pi - alpha) * (k - half as f32 - 1.0) / half as f32)
                 }
             });
             b.finish(axis)
         }
-        Shape::Cylinder { radius, height, axis } => {
+        Shape::Cylinder { bottom, top, height, axis } => {
             let h = 0.5 * height;
-            b.revolve(1, |t| (radius, -h + height * t, 1.0, 0.0));
-            b.cap(radius, -h, false);
-            b.cap(radius, h, true);
+            // A narrowing side's normal leans up: (height, bottom − top) normalised.
+            let len = (height * height + (bottom - top) * (bottom - top)).sqrt();
+            let (nr, nz) = (height / len, (bottom - top) / len);
+            b.revolve(1, |t| (bottom + (top - bottom) * t, -h + height * t, nr, nz));
+            if bottom > 0.0 {
+                b.cap(bottom, -h, false);
+            }
+            if top > 0.0 {
+                b.cap(top, h, true);
+            }
             b.finish(axis)
         }
         Shape::Cone { radius, height, axis } => {
@@ -235,19 +252,44 @@ mod tests {
         (area, volume, worst)
     }
 
+    /// A `Capsule_1` with its analytic area and volume: spheres of radius `r1` and `r2` at
+    /// ∓height/2 and the cone tangent to both, touching them at the angle α with
+    /// sin α = (r1 − r2) / height. Sphere zones (2πr² times the height fraction), the cone's
+    /// lateral area π(ρ1 + ρ2)·slant, spherical segments and a frustum.
+    fn tapered_capsule(r1: f64, r2: f64, height: f64) -> (Shape, f64, f64) {
+        use std::f64::consts::PI;
+        let (h, s) = (height / 2.0, (r1 - r2) / height);
+        let c = (1.0 - s * s).sqrt();
+        let (z1, z2) = (-h + r1 * s, h + r2 * s);
+        let (p1, p2) = (r1 * c, r2 * c);
+        let slant = ((z2 - z1).powi(2) + (p2 - p1).powi(2)).sqrt();
+        let area = 2.0 * PI * r1 * r1 * (1.0 + s) + 2.0 * PI * r2 * r2 * (1.0 - s) + PI * (p1 + p2) * slant;
+        let caps = PI * r1.powi(3) * (s - s.powi(3) / 3.0 + 2.0 / 3.0) + PI * r2.powi(3) * (2.0 / 3.0 - s + s.powi(3) / 3.0);
+        let volume = caps + PI * (z2 - z1) * (p1 * p1 + p1 * p2 + p2 * p2) / 3.0;
+        (Shape::Capsule { bottom: r1 as f32, top: r2 as f32, height: height as f32, axis: Axis::X }, area, volume)
+    }
+
     #[test]
     fn closed_shapes_have_their_analytic_area_and_volume_and_face_outwards() {
         use std::f64::consts::PI;
         let cases = [
             (Shape::Sphere { radius: 2.0 }, 16.0 * PI, 32.0 * PI / 3.0),
             (Shape::Cube { size: 3.0 }, 54.0, 27.0),
-            (Shape::Cylinder { radius: 1.0, height: 3.0, axis: Axis::X }, 2.0 * PI + 6.0 * PI, 3.0 * PI),
+            (Shape::Cylinder { bottom: 1.0, top: 1.0, height: 3.0, axis: Axis::X }, 2.0 * PI + 6.0 * PI, 3.0 * PI),
+            // Cylinder_1 narrowing from radius 1 to 0.5 over height 2: a frustum.
+            (
+                Shape::Cylinder { bottom: 1.0, top: 0.5, height: 2.0, axis: Axis::Y },
+                PI * 1.5 * 4.25f64.sqrt() + PI * 1.25,
+                PI * 2.0 * (1.0 + 0.5 + 0.25) / 3.0,
+            ),
             (Shape::Cone { radius: 1.0, height: 2.0, axis: Axis::Y }, PI + PI * 5f64.sqrt(), 2.0 * PI / 3.0),
             (
-                Shape::Capsule { radius: 0.5, height: 1.0, axis: Axis::Z },
+                Shape::Capsule { bottom: 0.5, top: 0.5, height: 1.0, axis: Axis::Z },
                 4.0 * PI * 0.25 + 2.0 * PI * 0.5,
                 PI * 0.25 + 4.0 * PI * 0.125 / 3.0,
             ),
+            // Capsule_1 with ends of radius 0.6 and 0.3, 1.2 apart.
+            tapered_capsule(0.6, 0.3, 1.2),
         ];
         for (shape, area, volume) in cases {
             let (a, v, worst) = measure(&tessellate(shape));
@@ -269,7 +311,7 @@ mod tests {
             let (area, _, _) = measure(&m);
             assert!((area - 8.0).abs() < 1e-5);
             // The cylinder's axis runs along `axis`.
-            let cyl = tessellate(Shape::Cylinder { radius: 0.1, height: 10.0, axis });
+            let cyl = tessellate(Shape::Cylinder { bottom: 0.1, top: 0.1, height: 10.0, axis });
             let extent = cyl.positions.iter().fold(Vec3::ZERO, |e, p| e.max(p.abs()));
             assert!((extent.dot(up) - 5.0).abs() < 1e-5, "{axis:?}: {extent}");
         }
