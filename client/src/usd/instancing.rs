@@ -225,12 +225,9 @@ impl Reader<'_> {
     /// The instancer's `inactiveIds` (an int64 list-op metadatum, not time-varying), composed
     /// over its prim stack from the weakest opinion up.
     fn inactive_ids(&self, prim: &Prim) -> Vec<i64> {
-        let Ok(stack) = prim.prim_stack() else { return Vec::new() };
         let mut ids = Vec::new();
-        for (layer_id, spec_path) in stack.into_iter().rev() {
-            let Some(layer) = self.stage.layer(&layer_id) else { continue };
-            let Some(spec) = layer.prim(spec_path) else { continue };
-            if let Ok(Some(Value::Int64ListOp(op))) = spec.field("inactiveIds") {
+        for (_, value) in self.opinions(prim, "inactiveIds").into_iter().rev() {
+            if let Value::Int64ListOp(op) = value {
                 ids = op.compose_over(&ids);
             }
         }

@@ -177,12 +177,8 @@ impl Reader<'_> {
 
     /// A `.mtlx` reference authored on the prim at `at`, in any layer of its prim stack.
     fn mtlx_reference_on(&self, at: &sdf::Path) -> Result<Option<(std::path::PathBuf, String)>> {
-        let prim = self.stage.prim(at.clone());
-        let Ok(stack) = prim.prim_stack() else { return Ok(None) };
-        for (layer_id, spec_path) in stack {
-            let Some(layer) = self.stage.layer(&layer_id) else { continue };
-            let Some(spec) = layer.prim(spec_path) else { continue };
-            let Ok(Some(Value::ReferenceListOp(op))) = spec.field("references") else { continue };
+        for (layer_id, value) in self.opinions(&self.stage.prim(at.clone()), "references") {
+            let Value::ReferenceListOp(op) = value else { continue };
             let items = op.explicit_items.iter().chain(&op.prepended_items).chain(&op.appended_items).chain(&op.added_items);
             if let Some(r) = items.into_iter().find(|r| r.asset_path.ends_with(".mtlx")) {
                 let dir = std::path::Path::new(&layer_id).parent().unwrap_or(std::path::Path::new("."));

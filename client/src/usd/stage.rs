@@ -206,6 +206,21 @@ impl Reader<'_> {
         }
     }
 
+    /// Each opinion on the prim's metadata `field` along its prim stack, strongest first, with
+    /// the identifier of the layer that holds it (relative assets resolve beside it).
+    pub(super) fn opinions(&self, prim: &Prim, field: &str) -> Vec<(String, Value)> {
+        let Ok(stack) = prim.prim_stack() else { return Vec::new() };
+        let mut found = Vec::new();
+        for (layer_id, spec_path) in stack {
+            let Some(layer) = self.stage.layer(&layer_id) else { continue };
+            let Some(spec) = layer.prim(spec_path) else { continue };
+            if let Ok(Some(value)) = spec.field(field) {
+                found.push((layer_id, value));
+            }
+        }
+        found
+    }
+
     /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
     /// gprim as a light, light linking, and collections defined by a path expression.
     fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
