@@ -467,24 +467,25 @@ impl Reader<'_> {
             }
             Ok((bottom, top))
         };
+        // The legacy prims' one `radius`, or the `_1` prims' two ends.
+        let radii = |legacy: bool, default: f64| -> Result<(f32, f32)> {
+            if legacy {
+                let radius = size("radius", default)?;
+                Ok((radius, radius))
+            } else {
+                ends(default)
+            }
+        };
         let shape = match type_name {
             "Sphere" => shapes::Shape::Sphere { radius: size("radius", 1.0)? },
             "Cube" => shapes::Shape::Cube { size: size("size", 2.0)? },
-            "Cylinder" => {
-                let radius = size("radius", 1.0)?;
-                shapes::Shape::Cylinder { bottom: radius, top: radius, height: size("height", 2.0)?, axis }
-            }
-            "Cylinder_1" => {
-                let (bottom, top) = ends(1.0)?;
+            "Cylinder" | "Cylinder_1" => {
+                let (bottom, top) = radii(type_name == "Cylinder", 1.0)?;
                 shapes::Shape::Cylinder { bottom, top, height: size("height", 2.0)?, axis }
             }
             "Cone" => shapes::Shape::Cone { radius: size("radius", 1.0)?, height: size("height", 2.0)?, axis },
-            "Capsule" => {
-                let radius = size("radius", 0.5)?;
-                shapes::Shape::Capsule { bottom: radius, top: radius, height: size("height", 1.0)?, axis }
-            }
-            "Capsule_1" => {
-                let (bottom, top) = ends(0.5)?;
+            "Capsule" | "Capsule_1" => {
+                let (bottom, top) = radii(type_name == "Capsule", 0.5)?;
                 shapes::Shape::Capsule { bottom, top, height: size("height", 1.0)?, axis }
             }
             _ => shapes::Shape::Plane { width: size("width", 2.0)?, length: size("length", 2.0)?, axis },
