@@ -57,6 +57,7 @@ fn sparse(smoke: &VolumeDesc) -> VolumeDesc {
         index_to_world,
         shading: smoke.shading,
         motion: Vec::new(),
+        link_collections: Vec::new(),
     }
 }
 

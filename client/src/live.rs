@@ -210,6 +210,7 @@ fn dirty_names(bits: u32) -> Vec<&'static str> {
         (pb::DirtyBits::DirtyMaterialId, "material_id"),
         (pb::DirtyBits::DirtyParams, "params"),
         (pb::DirtyBits::DirtyVisibility, "visibility"),
+        (pb::DirtyBits::DirtyCategories, "categories"),
     ];
     names.into_iter().filter(|(b, _)| bits & (*b as u32) != 0).map(|(_, n)| n).collect()
 }

@@ -81,6 +81,7 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             primvars: Vec::new(),
             motion: convert::motion_to_wire(&m.motion),
             point_samples: m.mesh.deformation_samples() as u32,
+            link_collections: m.link_collections.clone(),
         };
         let primvars: Vec<(pb::PrimvarInfo, Vec<f32>)> = m
             .mesh
@@ -112,6 +113,7 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             prototype_path: inst.prototype.clone(),
             transforms_len: transforms.len() as u64,
             motion_samples: inst.motion_samples() as u32,
+            link_collections: inst.link_collections.clone(),
         };
         items.push(delta(path, pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim)));
         items.extend(chunks(path, pb::ArrayField::InstanceTransforms, &transforms, |c, v| c.doubles = v));
@@ -143,6 +145,7 @@ fn volume_sync(path: &str, v: &render_core::volume::VolumeDesc) -> Vec<pb::sync_
         shading: Some(convert::volume_shading_to_wire(&v.shading)),
         color_len: color.len() as u64,
         motion: convert::motion_to_wire(&v.motion),
+        link_collections: v.link_collections.clone(),
     };
     let mut items = vec![delta(path, pb::PrimKind::Volume, pb::prim_delta::Payload::Volume(prim))];
     items.extend(chunks(path, pb::ArrayField::VolumeDensity, &v.density.values, |c, v| c.floats = v));
@@ -210,18 +213,21 @@ pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_
         material_path: m.material.clone(),
         visible: m.visible,
         double_sided: true,
+        link_collections: m.link_collections.clone(),
         ..Default::default()
     };
+    let bits =
+        [pb::DirtyBits::DirtyTransform, pb::DirtyBits::DirtyMaterialId, pb::DirtyBits::DirtyVisibility, pb::DirtyBits::DirtyCategories];
     pb::sync_request::Item::Prim(pb::PrimDelta {
         path: path.to_string(),
         kind: pb::PrimKind::Mesh as i32,
-        dirty: (pb::DirtyBits::DirtyTransform as u32) | (pb::DirtyBits::DirtyMaterialId as u32) | (pb::DirtyBits::DirtyVisibility as u32),
+        dirty: bits.into_iter().fold(0, |acc, b| acc | b as u32),
         payload: Some(pb::prim_delta::Payload::Mesh(prim)),
     })
 }
 
 /// A mesh delta for a mesh whose geometry is unchanged, with the dirty bits of just what
-/// changed from `before` (transform, material binding, visibility).
+/// changed from `before` (transform, material binding, visibility, light-link collections).
 pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
     let mut item = mesh_placement(path, after);
     if let pb::sync_request::Item::Prim(d) = &mut item {
@@ -229,6 +235,7 @@ pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &rend
             (before.transform != after.transform || before.motion != after.motion, pb::DirtyBits::DirtyTransform),
             (before.material != after.material, pb::DirtyBits::DirtyMaterialId),
             (before.visible != after.visible, pb::DirtyBits::DirtyVisibility),
+            (before.link_collections != after.link_collections, pb::DirtyBits::DirtyCategories),
         ];
         d.dirty = bits.into_iter().filter(|(changed, _)| *changed).fold(0, |acc, (_, b)| acc | b as u32);
     }

@@ -61,6 +61,8 @@ features! {
     Subsurface = "subsurface": "random walk in a homogeneous medium behind a dielectric boundary (van de Hulst albedo)",
     DepthOfField = "depth-of-field": "thin-lens cameras (fStop, focusDistance): rays from points on the lens",
     Volumes = "volumes": "UsdVol volumes: delta tracking through a majorant grid, ratio-tracked shadows, Henyey-Greenstein scattering, emission and black-body fire",
+    LightLinking = "light-linking": "lights that illuminate only the prims of their collection:lightLink, checked per light sample and per light a path finds",
+    ShadowLinking = "shadow-linking": "lights whose shadows only the prims of their collection:shadowLink cast: shadow rays pass the others, and those lights are found by light sampling alone",
     MotionBlur = "motion-blur": "motion over the shutter: each camera sample at its own time, moving instances, lights and volumes placed and deforming meshes shaped per ray",
 }
 

@@ -47,9 +47,19 @@ fn a_hundred_thousand_instances_of_ten_thousand_triangles_fit_in_a_few_hundred_m
     let mut desc = SceneDesc::default();
     desc.meshes.insert(
         "/Proto".into(),
-        MeshDesc { mesh: Arc::new(proto), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: false },
+        MeshDesc {
+            mesh: Arc::new(proto),
+            transform: Affine3A::IDENTITY,
+            motion: Vec::new(),
+            material: String::new(),
+            visible: false,
+            link_collections: Vec::new(),
+        },
     );
-    desc.instancers = BTreeMap::from([("/Forest".into(), InstancerDesc { prototype: "/Proto".into(), transforms, motion: Vec::new() })]);
+    desc.instancers = BTreeMap::from([(
+        "/Forest".into(),
+        InstancerDesc { prototype: "/Proto".into(), transforms, motion: Vec::new(), link_collections: Vec::new() },
+    )]);
 
     let before = rss_bytes();
     let scene = commit(&desc, &mut BlasCache::default()).expect("commits");

@@ -145,9 +145,9 @@ pub struct Transaction {
     textures: HashMap<String, StagedTexture>,
     store: Arc<TextureStore>,
     meshes: HashMap<String, StagedMesh>,
-    /// Instancers staged: prototype, transforms (then motion) as they arrive, declared length,
-    /// motion samples per instance.
-    instancers: HashMap<String, (String, Vec<f64>, u64, u64)>,
+    /// Instancers staged: their delta, transforms (then motion) as they arrive, declared
+    /// length, motion samples per instance.
+    instancers: HashMap<String, (pb::InstancerPrim, Vec<f64>, u64, u64)>,
     /// Volumes staged: their delta, then density, temperature and colour voxels as they arrive.
     volumes: HashMap<String, StagedVolume>,
     /// Prims applied.
@@ -517,6 +517,7 @@ impl Transaction {
     fn apply_mesh(&mut self, path: String, dirty: u32, m: pb::MeshPrim) -> Result<(), Status> {
         let geometry_dirty =
             dirty & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32) != 0;
+        convert::link_collections_from_wire(&path, &m.link_collections)?;
         if geometry_dirty {
             let tris = m.triangle_indices_len / 3;
             if tris > self.limits.max_triangles_per_mesh {
@@ -580,6 +581,9 @@ impl Transaction {
             if bit(pb::DirtyBits::DirtyVisibility) {
                 existing.visible = m.visible;
             }
+            if bit(pb::DirtyBits::DirtyCategories) {
+                existing.link_collections = m.link_collections;
+            }
         }
         Ok(())
     }
@@ -603,12 +607,14 @@ impl Transaction {
             return Err(Status::resource_exhausted(format!("{path}: more than {} instances", self.limits.max_instances)));
         }
         check_prim_path(&i.prototype_path)?;
+        convert::link_collections_from_wire(&path, &i.link_collections)?;
         Budget::check_fits(
             &self.budgets,
             instances.saturating_mul(BYTES_PER_INSTANCE + 128 + 48 * k),
             &format!("{path}: {instances} instances as declared"),
         )?;
-        self.instancers.insert(path, (i.prototype_path, Vec::new(), i.transforms_len, k));
+        let declared = i.transforms_len;
+        self.instancers.insert(path, (i, Vec::new(), declared, k));
         Ok(())
     }
 
@@ -816,11 +822,10 @@ impl Transaction {
             render_core::scene::validate_mesh(&path, &mesh).map_err(|e| Status::invalid_argument(e.to_string()))?;
             let transform = convert::affine(&path, "transform", &p.transform)?;
             let motion = convert::motion_from_wire(&path, "motion", &p.motion)?;
-            self.desc
-                .meshes
-                .insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material: p.material_path.clone(), visible: p.visible });
+            let (material, visible, link_collections) = (p.material_path.clone(), p.visible, p.link_collections.clone());
+            self.desc.meshes.insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections });
         }
-        for (path, (prototype, data, _, k)) in self.instancers {
+        for (path, (prim, data, _, k)) in self.instancers {
             let affines = |field: &str, values: &[f64]| {
                 values
                     .chunks_exact(16)
@@ -830,7 +835,8 @@ impl Transaction {
             let instances = data.len() / (16 * (1 + k as usize));
             let transforms = affines("transforms", &data[..16 * instances])?;
             let motion = affines("motion", &data[16 * instances..])?;
-            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms, motion });
+            let (prototype, link_collections) = (prim.prototype_path, prim.link_collections);
+            self.desc.instancers.insert(path, InstancerDesc { prototype, transforms, motion, link_collections });
         }
         for (path, v) in self.volumes {
             let volume = volume_from_staged(&path, v)?;
@@ -873,6 +879,7 @@ fn volume_from_staged(path: &str, v: StagedVolume) -> Result<VolumeDesc, Status>
         index_to_world: convert::affine(path, "index_to_world", &p.index_to_world)?,
         shading: convert::volume_shading_from_wire(&p.shading),
         motion: convert::motion_from_wire(path, "motion", &p.motion)?,
+        link_collections: convert::link_collections_from_wire(path, &p.link_collections)?,
     })
 }
 

@@ -272,6 +272,7 @@ mod production {
             motion: Vec::new(),
             material: material.into(),
             visible,
+            link_collections: Vec::new(),
         };
         desc.meshes.insert("/World/Hero".into(), mesh(Mesh::uv_sphere(500, 1000), Affine3A::from_scale(Vec3::splat(2.0)), "/M/Hero", true));
         desc.meshes.insert("/World/Rock".into(), mesh(Mesh::uv_sphere(50, 50), Affine3A::IDENTITY, "/M/Rock", false));
@@ -281,7 +282,10 @@ mod production {
                 Affine3A::from_scale_rotation_translation(Vec3::splat(0.2), glam::Quat::from_rotation_y(i as f32), Vec3::new(x, -2.0, z))
             })
             .collect();
-        desc.instancers.insert("/World/Scatter".into(), InstancerDesc { prototype: "/World/Rock".into(), transforms, motion: Vec::new() });
+        desc.instancers.insert(
+            "/World/Scatter".into(),
+            InstancerDesc { prototype: "/World/Rock".into(), transforms, motion: Vec::new(), link_collections: Vec::new() },
+        );
         desc.materials.insert("/M/Hero".into(), preview("/M/Hero", Vec3::new(0.8, 0.2, 0.1), 0.3));
         desc.materials.insert("/M/Rock".into(), preview("/M/Rock", Vec3::splat(0.4), 0.8));
         desc.lights.insert("/Lights/Key".into(), light(LightKind::Sphere { radius: 0.5 }, Vec3::new(3.0, 5.0, 3.0), 50.0));

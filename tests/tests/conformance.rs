@@ -223,6 +223,8 @@ fn textured_roughness_matches_constant_roughness() {
         specular: 1.0,
         texture: None,
         motion: Vec::new(),
+        light_link: None,
+        shadow_link: None,
     };
     t.lights.push(("/Sun".into(), sun));
     let r = render(t, (240, 160), 32);

@@ -16,6 +16,7 @@ mod hard;
 mod hostile;
 mod images;
 mod interactive;
+mod light_linking;
 mod light_units;
 mod materials;
 mod materialx;

@@ -55,7 +55,14 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
     assert!(mesh.indices.len() * 12 + mesh.positions.len() * 24 > 4 << 20);
     t.meshes.push((
         "/Grid".into(),
-        MeshDesc { mesh: Arc::new(mesh), transform: glam::Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true },
+        MeshDesc {
+            mesh: Arc::new(mesh),
+            transform: glam::Affine3A::IDENTITY,
+            motion: Vec::new(),
+            material: String::new(),
+            visible: true,
+            link_collections: Vec::new(),
+        },
     ));
     t.lights.push((
         "/Dome".into(),
@@ -72,6 +79,8 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
             diffuse: 1.0,
             specular: 1.0,
             motion: Vec::new(),
+            light_link: None,
+            shadow_link: None,
         },
     ));
     let (server, mut conn) = session_with(&t).await;

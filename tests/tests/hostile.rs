@@ -185,7 +185,12 @@ async fn a_hundred_thousand_identical_instances_render() {
     let n = 100_000usize;
     let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let transforms: Vec<f64> = (0..n).flat_map(|_| identity).collect();
-    let inst = pb::InstancerPrim { prototype_path: "/Proto".into(), transforms_len: transforms.len() as u64, motion_samples: 0 };
+    let inst = pb::InstancerPrim {
+        prototype_path: "/Proto".into(),
+        transforms_len: transforms.len() as u64,
+        motion_samples: 0,
+        link_collections: Vec::new(),
+    };
     items.push(tessera::sync::delta("/Evil/Instancer", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(inst)));
     for (k, c) in transforms.chunks(tessera::sync::CHUNK_ELEMENTS).enumerate() {
         items.push(Item::Chunk(pb::ArrayChunk {
@@ -454,7 +459,7 @@ async fn instancer_motion_that_fits_no_instances_is_refused() {
     let mut raw = Raw::connect(&server).await;
     let s = raw.session().await.unwrap();
     let instancer = |motion_samples: u32, transforms_len: u64| {
-        let prim = pb::InstancerPrim { prototype_path: "/Evil/Proto".into(), transforms_len, motion_samples };
+        let prim = pb::InstancerPrim { prototype_path: "/Evil/Proto".into(), transforms_len, motion_samples, link_collections: Vec::new() };
         vec![tessera::sync::delta("/Evil/Crowd", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(prim))]
     };
     assert_status(raw.sync(&s, instancer(1, 32)).await, Code::InvalidArgument, &["/Evil/Crowd", "motion_samples", "2 to 64"]);
@@ -971,4 +976,47 @@ async fn slices_are_bounded_and_stream_exact_sums() {
     assert_eq!(tiles, 0, "no resolved tiles when sums are streamed");
     assert_eq!(film.range, 64..128);
     server.stop().await.unwrap();
+}
+
+/// Light-link collection names and counts are sizes the client controls: a light's link name
+/// past 8 KiB or holding a control character, and a mesh or instancer in more than 1024
+/// collections, are refused naming the prim and field; a mesh in 1024 collections, one of
+/// them linked, syncs and renders.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn light_link_names_and_counts_past_the_limits_are_refused() {
+    use tessera_wire::convert::{MAX_LINK_COLLECTION_BYTES, MAX_LINK_COLLECTIONS};
+    let server = EmbeddedServer::start().await.unwrap();
+    let mut raw = Raw::connect(&server).await;
+    let s = raw.session().await.unwrap();
+    let lamp = |light_link: String, shadow_link: String| {
+        let l = pb::LightPrim { light_type: pb::LightType::Dome as i32, intensity: 1.0, light_link, shadow_link, ..Default::default() };
+        tessera::sync::delta("/Evil/Lamp", pb::PrimKind::Light, pb::prim_delta::Payload::Light(l))
+    };
+    let long = "c".repeat(MAX_LINK_COLLECTION_BYTES + 1);
+    assert_status(raw.sync(&s, vec![lamp(long.clone(), String::new())]).await, Code::InvalidArgument, &["/Evil/Lamp", "light_link"]);
+    assert_status(raw.sync(&s, vec![lamp(String::new(), "a\0b".into())]).await, Code::InvalidArgument, &["/Evil/Lamp", "shadow_link"]);
+    let in_collections = |n: usize| {
+        let mut items = mesh("/Evil/Tri", TRIANGLE.to_vec(), vec![0, 1, 2]);
+        if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
+            m.link_collections = (0..n).map(|i| format!("/L{i}.collection:lightLink")).collect();
+        }
+        items
+    };
+    assert_status(raw.sync(&s, in_collections(MAX_LINK_COLLECTIONS + 1)).await, Code::InvalidArgument, &["/Evil/Tri", "link_collections"]);
+    let scatter = pb::InstancerPrim {
+        prototype_path: "/Evil/Tri".into(),
+        link_collections: vec![String::new(); MAX_LINK_COLLECTIONS + 1],
+        ..Default::default()
+    };
+    let items = vec![tessera::sync::delta("/Evil/Scatter", pb::PrimKind::Instancer, pb::prim_delta::Payload::Instancer(scatter))];
+    assert_status(raw.sync(&s, items).await, Code::InvalidArgument, &["/Evil/Scatter", "link_collections"]);
+    let mut items = camera_and_light();
+    if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Light(l)), .. }) = &mut items[1] {
+        l.light_link = "/L1023.collection:lightLink".into();
+    }
+    items.extend(in_collections(MAX_LINK_COLLECTIONS));
+    raw.sync(&s, items).await.expect("1024 collections sync");
+    let f = raw.render(&s, tiny(8, 2)).await.expect("renders");
+    assert_eq!(f.spp, 2);
+    bystander_renders(&server).await;
 }

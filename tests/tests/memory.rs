@@ -95,9 +95,13 @@ async fn million_points() {
         motion: Vec::new(),
         material: String::new(),
         visible: false,
+        link_collections: Vec::new(),
     };
     t.meshes.push(("/Dots[sphere]".into(), desc));
-    t.instancers.push(("/Dots[points]".into(), InstancerDesc { prototype: "/Dots[sphere]".into(), transforms, motion: Vec::new() }));
+    t.instancers.push((
+        "/Dots[points]".into(),
+        InstancerDesc { prototype: "/Dots[sphere]".into(), transforms, motion: Vec::new(), link_collections: Vec::new() },
+    ));
     t.cameras.push(("/Camera".into(), CameraDesc::default()));
     t.add_default_light();
     let (server, mut conn) = tessera_tests::session_with(&t).await;

@@ -25,6 +25,7 @@ fn unit_box(n: u32, shading: VolumeShading) -> VolumeDesc {
         index_to_world: Affine3A::from_scale_rotation_translation(Vec3::splat(1.0 / n as f32), Quat::IDENTITY, Vec3::splat(0.5 / n as f32)),
         shading,
         motion: Vec::new(),
+        link_collections: Vec::new(),
     }
 }
 

@@ -79,7 +79,13 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
     {
         return Err(invalid(prim, "color", format!("({}, {}, {}) must be finite and not negative", c.x, c.y, c.z)));
     }
+    let link = |field: &str, name: &str| -> Result<Option<String>, Status> {
+        check_link_collection(prim, field, name)?;
+        Ok((!name.is_empty()).then(|| name.to_string()))
+    };
     Ok(LightDesc {
+        light_link: link("light_link", &l.light_link)?,
+        shadow_link: link("shadow_link", &l.shadow_link)?,
         kind,
         transform: affine(prim, "transform", &l.transform)?,
         intensity: l.intensity,
@@ -131,6 +137,8 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
             focus_tint: Some(float3(s.focus_tint)),
         }),
         texture: l.texture.as_ref().map(|t| pb::TextureRef { content_hash: t.hash.clone(), source: t.source.clone() }),
+        light_link: l.light_link.clone().unwrap_or_default(),
+        shadow_link: l.shadow_link.clone().unwrap_or_default(),
         ..Default::default()
     };
     match l.kind {
@@ -142,6 +150,39 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         LightKind::Cylinder { radius, length } => (w.light_type, w.radius, w.length) = (pb::LightType::Cylinder as i32, radius, length),
     }
     w
+}
+
+/// Most light-link collections one prim may belong to.
+pub const MAX_LINK_COLLECTIONS: usize = 1024;
+
+/// Longest light-link collection name, in bytes (a USD collection's path is a prim path and a
+/// property name).
+pub const MAX_LINK_COLLECTION_BYTES: usize = 8192;
+
+/// A light-link collection name as a client sends it: bounded and printable.
+fn check_link_collection(prim: &str, field: &str, name: &str) -> Result<(), Status> {
+    if name.len() > MAX_LINK_COLLECTION_BYTES {
+        return Err(invalid(
+            prim,
+            field,
+            format!("a collection name of {} bytes, over the limit of {MAX_LINK_COLLECTION_BYTES}", name.len()),
+        ));
+    }
+    if name.chars().any(char::is_control) {
+        return Err(invalid(prim, field, "a collection name holds a control character"));
+    }
+    Ok(())
+}
+
+/// A prim's light-link collections (`link_collections` of `prim`), checked.
+pub fn link_collections_from_wire(prim: &str, names: &[String]) -> Result<Vec<String>, Status> {
+    if names.len() > MAX_LINK_COLLECTIONS {
+        return Err(invalid(prim, "link_collections", format!("{} collections, more than {MAX_LINK_COLLECTIONS}", names.len())));
+    }
+    for name in names {
+        check_link_collection(prim, "link_collections", name)?;
+    }
+    Ok(names.to_vec())
 }
 
 /// Placements over the shutter (`field` of `prim`): 2 to

@@ -47,8 +47,10 @@ pub fn to_json(t: &Translation) -> Value {
     let subdivision_of = |path: &str| {
         subdivided.get(path).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| subdivided.get(mesh))).map(|s| subdivision_json(s))
     };
+    let links = LinkLists::of(t);
     for n in &t.native_instances {
         let mut mesh = json!({ "world": usd_matrix(&n.world), "triangles": n.triangles, "material": n.material, "visible": n.visible });
+        links.add_to(&mut mesh, &t.instancers[n.instancer].1.link_collections);
         if !n.motion.is_empty() {
             mesh["motion"] = Value::Array(n.motion.iter().map(usd_matrix).collect());
         }
@@ -60,7 +62,9 @@ pub fn to_json(t: &Translation) -> Value {
     for (path, m) in t.meshes.iter().filter(|(p, _)| !prototypes.contains(p.as_str())) {
         // GeomSubsets render as meshes of their own, named by the subset under the mesh.
         let skin = skinned.get(path.as_str()).or_else(|| path.rsplit_once('/').and_then(|(mesh, _)| skinned.get(mesh)));
-        meshes.insert(path.clone(), mesh_json(m, subdivision_of(path), skin.copied()));
+        let mut mesh = mesh_json(m, subdivision_of(path), skin.copied());
+        links.add_to(&mut mesh, &m.link_collections);
+        meshes.insert(path.clone(), mesh);
     }
     let mut instancers = Map::new();
     for (path, i) in t.instancers.iter().enumerate().filter(|(k, _)| !native.contains(k)).map(|(_, x)| x) {
@@ -154,6 +158,31 @@ fn skinning_json(s: &crate::usd::Skinned, m: &render_core::scene::MeshDesc, with
         out["worldPoints"] = Value::Array(points);
     }
     out
+}
+
+/// Light linking as a mesh sees it, listed only when some light links: the lights that
+/// illuminate it (`litBy`) and those whose shadows it casts (`shadowedBy`).
+struct LinkLists<'t> {
+    /// Each light's path and its light-link and shadow-link collections.
+    lights: Vec<(&'t str, [Option<&'t str>; 2])>,
+}
+
+impl<'t> LinkLists<'t> {
+    fn of(t: &'t Translation) -> Self {
+        LinkLists { lights: t.lights.iter().map(|(p, l)| (p.as_str(), [l.light_link.as_deref(), l.shadow_link.as_deref()])).collect() }
+    }
+
+    fn add_to(&self, mesh: &mut Value, collections: &[String]) {
+        if self.lights.iter().all(|(_, links)| links == &[None, None]) {
+            return;
+        }
+        for (k, name) in ["litBy", "shadowedBy"].into_iter().enumerate() {
+            let holds = |link: Option<&str>| link.is_none_or(|c| collections.iter().any(|m| m == c));
+            let mut paths: Vec<&str> = self.lights.iter().filter(|(_, links)| holds(links[k])).map(|(p, _)| *p).collect();
+            paths.sort_unstable();
+            mesh[name] = json!(paths);
+        }
+    }
 }
 
 /// One mesh: placement, triangles, material, visibility, and its subdivision, motion,

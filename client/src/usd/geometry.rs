@@ -406,7 +406,8 @@ impl Reader<'_> {
             Some(m) => m,
             None => self.display_color_material(prim, p)?.unwrap_or_default(),
         };
-        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible }));
+        let link_collections = self.link_collections(prim.path());
+        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections }));
         Ok(())
     }
 

@@ -25,28 +25,21 @@ impl Reader<'_> {
         if self.unmappable.contains(&shared_material) {
             return Ok(false);
         }
-        let key = (shared.to_string(), shared_material.clone());
+        // Instances in different light-link collections share the mesh, not the instancer.
+        let link_collections = self.link_collections(prim.path());
+        let key = (shared.to_string(), shared_material.clone(), link_collections.clone());
         let index = match self.native.get(&key) {
             Some(&i) => i,
             None => {
-                let (mesh, _, _) = self.read_mesh(prim, p)?;
-                let same_prototype = self.native.keys().filter(|(s, _)| s == shared).count();
-                let mesh_path = if same_prototype == 0 { shared.to_string() } else { format!("{shared}[{same_prototype}]") };
-                // Refined once, for every instance: named by the prototype mesh it became.
-                if let Some(s) = self.out.subdivided.last_mut().filter(|s| s.path == p) {
-                    s.path = mesh_path.clone();
-                }
-                let desc = MeshDesc {
-                    mesh: Arc::new(mesh),
-                    transform: Affine3A::IDENTITY,
-                    motion: Vec::new(),
-                    material: shared_material,
-                    visible: false,
+                let same_mesh = self.native.iter().find(|((s, m, _), _)| s == shared && *m == shared_material);
+                let mesh_path = match same_mesh.map(|(_, &i)| self.out.instancers[i].1.prototype.clone()) {
+                    Some(mesh_path) => mesh_path,
+                    None => self.native_prototype_mesh(prim, p, shared, &shared_material)?,
                 };
-                self.out.meshes.push((mesh_path.clone(), desc));
+                let links = if link_collections.is_empty() { String::new() } else { format!("[{}]", link_collections.join(",")) };
                 self.out.instancers.push((
-                    format!("{mesh_path}[instances]"),
-                    InstancerDesc { prototype: mesh_path, transforms: Vec::new(), motion: Vec::new() },
+                    format!("{mesh_path}[instances]{links}"),
+                    InstancerDesc { prototype: mesh_path, transforms: Vec::new(), motion: Vec::new(), link_collections },
                 ));
                 self.native.insert(key.clone(), self.out.instancers.len() - 1);
                 self.out.instancers.len() - 1
@@ -69,6 +62,29 @@ impl Reader<'_> {
             motion,
         });
         Ok(true)
+    }
+
+    /// The hidden mesh the instances of prototype mesh `shared` with material `material` share,
+    /// read from the instance proxy `prim` at `p`; returns its path.
+    fn native_prototype_mesh(&mut self, prim: &Prim, p: &str, shared: &str, material: &str) -> Result<String> {
+        let (mesh, _, _) = self.read_mesh(prim, p)?;
+        let same_prototype =
+            self.native.keys().filter(|(s, _, _)| s == shared).map(|(_, m, _)| m).collect::<std::collections::HashSet<_>>().len();
+        let mesh_path = if same_prototype == 0 { shared.to_string() } else { format!("{shared}[{same_prototype}]") };
+        // Refined once, for every instance: named by the prototype mesh it became.
+        if let Some(s) = self.out.subdivided.last_mut().filter(|s| s.path == p) {
+            s.path = mesh_path.clone();
+        }
+        let desc = MeshDesc {
+            mesh: Arc::new(mesh),
+            transform: Affine3A::IDENTITY,
+            motion: Vec::new(),
+            material: material.to_string(),
+            visible: false,
+            link_collections: Vec::new(),
+        };
+        self.out.meshes.push((mesh_path.clone(), desc));
+        Ok(mesh_path)
     }
 
     /// A `PointInstancer`: each mesh (or implicit prim) of each prototype becomes one
@@ -326,6 +342,9 @@ impl Reader<'_> {
         depth: usize,
     ) -> Result<()> {
         let root = proto.as_str().to_string();
+        // The instances belong to the instancer's link collections, and to each prototype
+        // mesh's own.
+        let instancer_links = self.link_collections(&sdf::path(p)?);
         let root_parent = match proto.parent() {
             Some(pp) if pp.as_str() != "/" && !pp.as_str().is_empty() => self.world_transform(&pp)?.inverse(),
             _ => DMat4::IDENTITY,
@@ -393,7 +412,12 @@ impl Reader<'_> {
                 }
                 self.out.instancers.push((
                     format!("{p}[{part}]"),
-                    InstancerDesc { prototype: mesh_key.clone(), transforms: transforms.clone(), motion: motion.clone() },
+                    InstancerDesc {
+                        prototype: mesh_key.clone(),
+                        transforms: transforms.clone(),
+                        motion: motion.clone(),
+                        link_collections: instancer_links.clone(),
+                    },
                 ));
             }
         }

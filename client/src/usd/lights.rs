@@ -69,7 +69,10 @@ impl Reader<'_> {
                 motion.iter_mut().for_each(|m| *m *= turn);
             }
         }
+        let [light_link, shadow_link] = self.light_links(p);
         let desc = LightDesc {
+            light_link,
+            shadow_link,
             kind,
             transform,
             // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.

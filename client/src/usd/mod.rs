@@ -15,6 +15,7 @@ mod dqs;
 mod geometry;
 mod instancing;
 mod lights;
+mod links;
 mod materialx;
 mod materialx_hair;
 mod mesh;
@@ -502,6 +503,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         motion_samples: options.motion_samples.clamp(2, render_core::motion::MAX_MOTION_SAMPLES),
         later: Vec::new(),
         reported_names: ReportedNames::default(),
+        links: Default::default(),
     };
     // Stage metrics first: DomeLight_1's pole follows the up axis.
     let up_axis = stage.stage_metadata("upAxis").ok().flatten().as_ref().and_then(values::token);
@@ -522,6 +524,7 @@ fn translate(path: &std::path::Path, options: LoadOptions) -> Result<Translation
         .traverse(PrimPredicate::DEFAULT_PROXIES, |p| paths.push(p.clone()))
         .map_err(|e| anyhow::anyhow!("{}: traversal failed: {e:#}", path.display()))?;
     reader.all_paths = paths.clone();
+    reader.resolve_light_links(&paths);
     reader.shutter = motion::shutter_interval(&stage, &paths, time.value(), &options)
         .map_err(|e| anyhow::anyhow!("{}: the shutter cannot be read: {e:#}", path.display()))?;
     for p in paths {
@@ -578,8 +581,9 @@ struct Reader<'s> {
     all_paths: Vec<sdf::Path>,
     /// PointInstancers seen so far: prims beneath them render only through them.
     instancer_roots: Vec<String>,
-    /// Native instancing: (prototype mesh path, material) → index of its instancer.
-    native: HashMap<(String, String), usize>,
+    /// Native instancing: (prototype mesh path, material, light-link collections) → index of
+    /// its instancer.
+    native: HashMap<(String, String, Vec<String>), usize>,
     /// Each prim's resolved material binding: a mesh asks for its own and its subsets' several
     /// times (material, texture coordinates, primvars), and a broken binding is reported once.
     bindings: HashMap<String, Option<String>>,
@@ -606,4 +610,6 @@ struct Reader<'s> {
     later: Vec<refine_later::LaterRefinement>,
     /// Whether the layers read so far name what the reader reports as unsupported.
     reported_names: ReportedNames,
+    /// The lights' link collections.
+    links: links::LinkQueries,
 }

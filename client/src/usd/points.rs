@@ -72,7 +72,10 @@ impl Reader<'_> {
             (Some(n), true) => disc_instances(world, &points, &widths, n),
             (None, true) => sphere_instances(world, &points, &widths),
         };
-        self.out.instancers.push((format!("{p}[points]"), InstancerDesc { prototype: proto, transforms, motion: Vec::new() }));
+        let link_collections = self.link_collections(prim.path());
+        self.out
+            .instancers
+            .push((format!("{p}[points]"), InstancerDesc { prototype: proto, transforms, motion: Vec::new(), link_collections }));
         Ok(())
     }
 

@@ -222,7 +222,7 @@ impl Reader<'_> {
     }
 
     /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
-    /// gprim as a light, light linking, and collections defined by a path expression.
+    /// gprim as a light, and collections defined by a path expression.
     fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
         self.reported_names.update(self.stage);
         let applied = if self.reported_names.apis { prim.api_schemas()? } else { Vec::new() };
@@ -241,32 +241,7 @@ impl Reader<'_> {
                 ));
             }
         }
-        if self.reported_names.links && LIGHTS.contains(&type_name) {
-            for (link, limits, so) in [
-                ("lightLink", "which prims the light illuminates", "it illuminates every prim"),
-                ("shadowLink", "which prims cast the light's shadows", "every prim casts them"),
-            ] {
-                if self.links_a_subset(prim, link)? {
-                    self.out.warnings.push(format!("{p}: collection:{link} limits {limits}; light linking is not supported yet, so {so}"));
-                }
-            }
-        }
         Ok(())
-    }
-
-    /// True when a light's link collection (`lightLink` or `shadowLink`) holds less than the
-    /// whole stage, its fallback: targets included or excluded, the root left out, or an
-    /// expression.
-    fn links_a_subset(&mut self, prim: &Prim, link: &str) -> Result<bool> {
-        // Composing a relationship costs more than reading the prim's whole light (a fifth of a
-        // 10,000-light file's load): asked only when the prim has the property.
-        let targets = |rel: &str| -> Result<bool> {
-            let name = format!("collection:{link}:{rel}");
-            Ok(authored::may_hold(prim, &name) && !prim.relationship(name).targets()?.is_empty())
-        };
-        let attr = |name: &str| get(prim, &format!("collection:{link}:{name}"), self.time);
-        let root_left_out = attr("includeRoot")?.as_ref().and_then(values::scalar).is_some_and(|v| v == 0.0);
-        Ok(targets("includes")? || targets("excludes")? || root_left_out || attr("membershipExpression")?.is_some())
     }
 
     /// True when the prim at `path` or an ancestor is invisible at the frame, as

@@ -193,6 +193,7 @@ impl Reader<'_> {
             index_to_world: source.world * density.index_to_object,
             shading: self.volume_shading(prim, p)?,
             motion: source.motion.iter().map(|world| *world * density.index_to_object).collect(),
+            link_collections: self.link_collections(prim.path()),
         };
         if visible {
             self.out.volumes.push((p.to_string(), desc));

@@ -44,26 +44,35 @@ pub(super) struct DirectLighting<'v> {
 
 impl<const FULL: bool> Tracer<'_, FULL> {
     /// The light samples `u` (light position, light choice) draws from `ctx`, a textured
-    /// emitter's radiance read where each landed; samples that carry no light are dropped.
-    /// None when the scene has no lights or only BSDF sampling may find them.
-    pub(super) fn each_light_sample(&self, ctx: &ShadingContext, u: [f32; 3], mut visit: impl FnMut(LightSample, &Light)) {
+    /// emitter's radiance read where each landed; samples that carry no light are dropped, and
+    /// so are lights that do not reach link group `group` (light linking). None when the scene
+    /// has no lights or only BSDF sampling may find them.
+    pub(super) fn each_light_sample(
+        &self,
+        ctx: &ShadingContext,
+        u: [f32; 3],
+        group: u32,
+        mut visit: impl FnMut(LightSample, &Light, usize),
+    ) {
         if self.scene.lights.is_empty() || self.settings.strategy == LightStrategy::BsdfOnly {
             return;
         }
         let [ul_x, ul_y, u_sel] = u;
-        self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), self.settings.light_split_budget, |mut ls, light| {
+        let reaches = |i: usize| self.reaches(i, group);
+        self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), self.settings.light_split_budget, reaches, |mut ls, light, i| {
             if let Some((instance, triangle)) = light.textured_emitter {
                 ls.li = self.scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist, ctx.time);
             }
             if ls.li != Vec3::ZERO && ls.pdf > 0.0 {
-                visit(ls, light);
+                visit(ls, light, i);
             }
         });
     }
 
     /// Adds the direct light at vertex `d.v` to the path.
     pub(super) fn add_direct_light(&self, path: &mut PathState, d: &DirectLighting, counters: &mut PathCounters) {
-        self.each_light_sample(&d.ctx, d.u, |ls, light| self.add_light_sample(path, d, &ls, light, counters));
+        let group = self.group_of_instance(d.v.s.instance);
+        self.each_light_sample(&d.ctx, d.u, group, |ls, light, i| self.add_light_sample(path, d, &ls, (light, i), counters));
     }
 
     /// Whether the first surface's light is split by lobe into the light-path AOVs.
@@ -73,8 +82,15 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     }
 
     /// One light sample's contribution through the BSDF, if its shadow ray gets through.
-    fn add_light_sample(&self, path: &mut PathState, d: &DirectLighting, ls: &LightSample, light: &Light, counters: &mut PathCounters) {
-        let (v, bsdf) = (d.v, d.bsdf);
+    fn add_light_sample(
+        &self,
+        path: &mut PathState,
+        d: &DirectLighting,
+        ls: &LightSample,
+        light: (&Light, usize),
+        counters: &mut PathCounters,
+    ) {
+        let ((v, bsdf), (light, index)) = ((d.v, d.bsdf), light);
         let wi_local = v.frame.to_local(ls.wi);
         // A light with diffuse/specular multipliers weighs each kind of lobe apart.
         let parts = (light.has_multipliers() || self.splits_by_lobe(path.depth)).then(|| {
@@ -84,8 +100,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             }
             parts
         });
-        // MIS weighs the sample by the BSDF's density there unless only the light can find it.
-        let needs_pdf = !ls.delta && self.settings.strategy != LightStrategy::LightOnly;
+        // MIS weighs the sample by the BSDF's density there unless only the light can find it
+        // (a shadow-linked light is found by light sampling alone: see `found_light_weight`).
+        let needs_pdf = !ls.delta && self.settings.strategy != LightStrategy::LightOnly && !self.shadow_linked(index);
         let (f, bsdf_pdf) = match &parts {
             _ if !v.sides_agree(ls.wi, wi_local.z) => (Vec3::ZERO, None),
             Some(p) => (p[0] + p[1] + p[2], None),
@@ -100,7 +117,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         }
         let shadow = shadow_ray(v.leave(ls.wi).origin, v.s.p, ls).with_time(v.s.time);
         counters.rays += 1;
-        let Some(glass) = self.shadow_pass(&shadow, v.a_roughness) else { return };
+        let Some(glass) = self.shadow_pass(&shadow, v.a_roughness, index) else { return };
         let tr = self.volume_transmittance(&shadow);
         if tr == 0.0 {
             return;
@@ -130,18 +147,30 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Whether the shadow ray gets through: None when blocked; Some(None) unoccluded;
     /// Some(Some(t)) through smooth glass with transmittance `t` weighted against the paths
     /// that refract through it (caustic avoidance; nothing else samples that straight line,
-    /// so no MIS weight). `a_roughness`: the roughness of the surface the shadow leaves.
-    fn shadow_pass(&self, shadow: &Ray, a_roughness: f32) -> Option<Option<Vec3>> {
+    /// so no MIS weight). `a_roughness`: the roughness of the surface the shadow leaves;
+    /// `light`: the light it aims at, whose shadow links say what blocks it.
+    fn shadow_pass(&self, shadow: &Ray, a_roughness: f32, light: usize) -> Option<Option<Vec3>> {
+        let light = self.shadow_linked(light).then_some(light);
         if self.avoid() {
-            self.scene.shadow_transmittance(shadow, shadow.tmax).map(|pass| match pass.crossings {
+            self.scene.shadow_transmittance_for(shadow, shadow.tmax, light).map(|pass| match pass.crossings {
                 0 => None,
                 _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
             })
         } else if self.force() {
             // The transparent-shadow walk, with glass still opaque.
-            self.scene.shadow_transmittance(shadow, shadow.tmax).filter(|p| p.crossings == 0).map(|_| None)
+            self.scene.shadow_transmittance_for(shadow, shadow.tmax, light).filter(|p| p.crossings == 0).map(|_| None)
         } else {
-            (!self.scene.occluded(shadow, shadow.tmax)).then_some(None)
+            (!self.occluded(shadow, light)).then_some(None)
+        }
+    }
+
+    /// Whether anything blocks `shadow` before its end: for a shadow-linked `light`, only the
+    /// prims that cast its shadows.
+    #[inline]
+    pub(super) fn occluded(&self, shadow: &Ray, light: Option<usize>) -> bool {
+        match light {
+            Some(light) if FULL => self.scene.occluded_for(shadow, shadow.tmax, light),
+            _ => self.scene.occluded(shadow, shadow.tmax),
         }
     }
 }

@@ -20,6 +20,10 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             Some(p) if p.delta || p.in_medium => 1.0,
             Some(_) if self.settings.strategy == LightStrategy::BsdfOnly => 1.0,
             Some(_) if self.settings.strategy == LightStrategy::LightOnly => 0.0,
+            // Prims that do not cast a shadow-linked light's shadows still stop the rays that
+            // BSDF sampling traces, so those rays cannot find it everywhere light sampling
+            // does: light sampling alone counts it.
+            Some(_) if self.shadow_linked(light as usize) => 0.0,
             Some(p) => {
                 let pmf = self.scene.lights.pmf(&p.ctx, light as usize, self.settings.light_split_budget);
                 power_heuristic(p.bsdf_pdf, pmf * pdf_light)
@@ -30,6 +34,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// Adds the radiance `le · tint` of light `light` reached along the path's ray, at
     /// light-sampling density `pdf_light` from the previous vertex.
     fn add_emission(&self, path: &mut PathState, le: Vec3, tint: Vec3, light: u32, pdf_light: f32, share: f32) {
+        if path.prev.is_some_and(|p| !self.reaches(light as usize, p.receiver)) {
+            return;
+        }
         let multiplier = path.prev.map_or(1.0, |p| self.scene.lights.lights[light as usize].multiplier(p.kind));
         let weight = self.found_light_weight(&path.prev, light, pdf_light);
         let c = clamped(path.beta * le * tint * (multiplier * share * weight), path.depth >= 2, self.settings.clamp_indirect);

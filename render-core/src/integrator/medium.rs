@@ -12,7 +12,7 @@ use crate::subsurface::{Medium, Step};
 
 use super::direct::shadow_ray;
 use super::path::{PathState, PrevVertex, clamped};
-use super::{LightStrategy, PathCounters, Tracer};
+use super::{LightStrategy, NO_GROUP, PathCounters, Tracer};
 
 /// Most scattering events one path takes inside subsurface media.
 const MAX_MEDIUM_STEPS: u32 = 4096;
@@ -33,6 +33,8 @@ struct MediumPoint {
     kind: PathKind,
     /// The path's shutter time.
     time: f32,
+    /// The link group it is lit as.
+    receiver: u32,
 }
 
 /// Where a step of the walk took the path.
@@ -71,9 +73,11 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let ray = path.ray;
         let p = ray.origin + ray.dir * t;
         let kind = path.prev.map_or(PathKind::Transmission, |p| p.kind);
+        // The walk is lit as the surface it entered through.
+        let receiver = path.prev.map_or(NO_GROUP, |p| p.receiver);
         if self.avoid() && path.walk.shadows && !self.scene.lights.is_empty() && self.settings.strategy != LightStrategy::BsdfOnly {
             let [ul_x, ul_y, u_sel, _] = rng.next_4d();
-            let at = MediumPoint { medium, p, dir: ray.dir, beta: path.beta, kind, time: ray.time };
+            let at = MediumPoint { medium, p, dir: ray.dir, beta: path.beta, kind, time: ray.time, receiver };
             let c = self.light_through_boundary(&at, [ul_x, ul_y, u_sel], counters);
             let (first, in_walk) = (path.light.first, path.light.in_walk);
             path.light.add(first, c, in_walk);
@@ -86,6 +90,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             kind,
             roughness: MEDIUM_ROUGHNESS,
             in_medium: true,
+            receiver,
         });
         path.ray = Ray::new(p, wi).with_time(path.ray.time);
         WalkStep::Scattered
@@ -116,11 +121,11 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let scene = self.scene;
         let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
         let mut total = Vec3::ZERO;
-        self.each_light_sample(&ctx, u, |ls, light| {
+        self.each_light_sample(&ctx, u, at.receiver, |ls, light, i| {
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
-            let Some(pass) = scene.shadow_transmittance_from(&shadow, shadow.tmax, Some(at.medium)).filter(|pass| pass.crossings > 0)
-            else {
+            let linked = self.shadow_linked(i).then_some(i);
+            let Some(pass) = scene.shadow_walk(&shadow, shadow.tmax, Some(at.medium), linked).filter(|pass| pass.crossings > 0) else {
                 return;
             };
             let w = caustics::roughness_weight(MEDIUM_ROUGHNESS, pass.roughness);

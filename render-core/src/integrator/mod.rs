@@ -32,7 +32,7 @@ use crate::light::ShadingContext;
 use crate::math::is_finite;
 use crate::plan::{Feature, Features};
 use crate::sampling::PathSampler;
-use crate::scene::CommittedScene;
+use crate::scene::{CommittedScene, NO_GROUP};
 
 use direct::DirectLighting;
 use medium::WalkStep;
@@ -76,6 +76,30 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     fn light_path_aovs(&self) -> bool {
         FULL && self.settings.light_path_aovs
     }
+
+    /// The scene's light links, in the general loop (the plan sends linked scenes there).
+    #[inline(always)]
+    fn links(&self) -> Option<&crate::scene::LightLinks> {
+        if FULL { self.scene.links.as_ref() } else { None }
+    }
+
+    /// The link group of a point on instance `instance`.
+    #[inline(always)]
+    fn group_of_instance(&self, instance: u32) -> u32 {
+        self.links().map_or(NO_GROUP, |l| l.instance_group(instance))
+    }
+
+    /// True when light `light` illuminates points of link group `group`.
+    #[inline(always)]
+    fn reaches(&self, light: usize, group: u32) -> bool {
+        self.links().is_none_or(|l| l.illuminates(light, group))
+    }
+
+    /// True when only some prims cast light `light`'s shadows.
+    #[inline(always)]
+    fn shadow_linked(&self, light: usize) -> bool {
+        self.links().is_some_and(|l| l.shadow_linked(light))
+    }
 }
 
 /// The BSDF and textured material at a path's current vertex, when they are built there (a
@@ -89,8 +113,16 @@ struct VertexBuffers {
 }
 
 /// Features whose machinery only the general path loop holds.
-pub const FULL_LOOP_FEATURES: [Feature; 6] =
-    [Feature::Subsurface, Feature::TexturedCutouts, Feature::PartialPresence, Feature::Glitter, Feature::Hair, Feature::Volumes];
+pub const FULL_LOOP_FEATURES: [Feature; 8] = [
+    Feature::Subsurface,
+    Feature::TexturedCutouts,
+    Feature::PartialPresence,
+    Feature::Glitter,
+    Feature::Hair,
+    Feature::Volumes,
+    Feature::LightLinking,
+    Feature::ShadowLinking,
+];
 
 /// True when the scene's features or the render's settings need the general path loop.
 pub fn needs_full_loop(features: Features, settings: &IntegratorSettings) -> bool {

@@ -52,6 +52,9 @@ pub(super) struct PrevVertex {
     /// A scattering event inside a subsurface medium: no next-event estimation there finds a
     /// light this direction can hit (only lights outside, through transparent shadows).
     pub in_medium: bool,
+    /// The link group of the point ([`crate::scene::LightLinks`]): a linked light the
+    /// direction finds counts only if it illuminates that group.
+    pub receiver: u32,
 }
 
 /// The radiance a path has gathered, and its split into the light-path AOVs.

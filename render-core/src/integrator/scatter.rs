@@ -61,7 +61,9 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             _ if light.in_walk && inside_here => (true, path.walk.medium.is_some()),
             _ => (false, false),
         };
-        path.prev = Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: v.a_roughness, in_medium: false });
+        let receiver = self.group_of_instance(v.s.instance);
+        path.prev =
+            Some(PrevVertex { ctx, bsdf_pdf: bs.pdf, delta: bs.flags.delta, kind, roughness: v.a_roughness, in_medium: false, receiver });
         path.cone = path.cone.after_bounce(v.cone_here, if bs.flags.delta { 0.0 } else { lobe_roughness });
         path.ray = v.leave(wi);
         path.depth += 1;

@@ -14,7 +14,7 @@ use crate::volume::tracking::{self, Stream};
 use super::direct::shadow_ray;
 use super::medium::MEDIUM_ROUGHNESS;
 use super::path::{PathState, PrevVertex, clamped};
-use super::{LightStrategy, PathCounters, Tracer};
+use super::{LightStrategy, NO_GROUP, PathCounters, Tracer};
 
 /// What the path did along its ray's segment through the volumes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,6 +34,8 @@ struct Collision<'s> {
     /// Towards where the path came from.
     wo: Vec3,
     time: f32,
+    /// Its link group.
+    receiver: u32,
 }
 
 impl<const FULL: bool> Tracer<'_, FULL> {
@@ -58,14 +60,14 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         if path.depth == 0 {
             path.light.first = PathKind::Diffuse as usize;
         }
-        let at = Collision { volume, p, wo: -ray.dir, time: ray.time };
+        let at = Collision { volume, p, wo: -ray.dir, time: ray.time, receiver: self.links().map_or(NO_GROUP, |l| l.volume_group(k)) };
         let [ul_x, ul_y, up_x, up_y] = rng.next_4d();
         self.add_phase_direct(path, &at, [ul_x, ul_y, u_sel], counters);
         let (wi, pdf) = volume.phase.sample(at.wo, Vec2::new(up_x, up_y));
         (path.light.seg_direct, path.light.in_walk) = (path.depth == 0, false);
         let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
-        path.prev =
-            Some(PrevVertex { ctx, bsdf_pdf: pdf, delta: false, kind: PathKind::Diffuse, roughness: MEDIUM_ROUGHNESS, in_medium: false });
+        let (kind, receiver) = (PathKind::Diffuse, at.receiver);
+        path.prev = Some(PrevVertex { ctx, bsdf_pdf: pdf, delta: false, kind, roughness: MEDIUM_ROUGHNESS, in_medium: false, receiver });
         path.cone = path.cone.after_bounce(path.cone.width_at(t), MEDIUM_ROUGHNESS);
         path.ray = Ray::new(at.p, wi).with_time(at.time);
         path.depth += 1;
@@ -79,16 +81,16 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// transmittance, the phase function, MIS against phase sampling.
     fn add_phase_direct(&self, path: &mut PathState, at: &Collision, u: [f32; 3], counters: &mut PathCounters) {
         let ctx = ShadingContext { p: at.p, n: Vec3::ZERO, both_sides: true, time: at.time };
-        let scene = self.scene;
-        self.each_light_sample(&ctx, u, |ls, light| {
+        self.each_light_sample(&ctx, u, at.receiver, |ls, light, i| {
             let phase = at.volume.phase.eval(at.wo, ls.wi);
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
-            if scene.occluded(&shadow, shadow.tmax) {
+            let linked = self.shadow_linked(i).then_some(i);
+            if self.occluded(&shadow, linked) {
                 return;
             }
             let tr = self.volume_transmittance(&shadow);
-            let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly {
+            let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly || linked.is_some() {
                 true => 1.0,
                 false => power_heuristic(ls.pdf, phase),
             };

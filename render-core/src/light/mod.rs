@@ -50,6 +50,12 @@ pub struct LightDesc {
     /// Object to world at evenly spaced times over the shutter ([`crate::motion`]) when the
     /// light moves; empty when it does not.
     pub motion: Vec<Affine3A>,
+    /// The link collection whose prims alone the light illuminates (UsdLux
+    /// `collection:lightLink`); None: every prim ([`crate::scene::LightLinks`]).
+    pub light_link: Option<String>,
+    /// The link collection whose prims alone cast the light's shadows
+    /// (`collection:shadowLink`); None: every prim.
+    pub shadow_link: Option<String>,
 }
 
 /// UsdLux `ShapingAPI` controls. The schema leaves the exact falloff to renderers ("TODO:
@@ -243,6 +249,8 @@ impl LightDesc {
             specular: 1.0,
             texture: None,
             motion: Vec::new(),
+            light_link: None,
+            shadow_link: None,
         }
     }
 
@@ -356,21 +364,26 @@ impl LightSet {
     /// one light at infinity, or the finite lights the tree's walks reach (one per cluster
     /// of its adaptive split, `budget` at most, up to [`tree::SPLIT_BUDGET`]; 1: no split).
     /// Each sample's pdf includes the chance of its light being picked, so their
-    /// contributions add.
+    /// contributions add. A picked light that `reaches` says does not reach the point
+    /// (light linking) gives no sample: its share is zero, and the choice stays unbiased.
     pub fn sample_each(
         &self,
         ctx: &ShadingContext,
         u_select: f32,
         u: glam::Vec2,
         budget: usize,
-        mut visit: impl FnMut(LightSample, &Light),
+        reaches: impl Fn(usize) -> bool,
+        mut visit: impl FnMut(LightSample, &Light, usize),
     ) {
         let mut emit = |i: usize, p: f32| {
+            if !reaches(i) {
+                return;
+            }
             let Some(light) = self.lights[i].at(ctx.time) else { return };
             if let Some(mut s) = light.shape.sample(ctx, u) {
                 s.pdf *= p;
                 s.li *= light.shaped(-s.wi);
-                visit(s, &light);
+                visit(s, &light, i);
             }
         };
         if u_select < self.p_infinite {

@@ -9,7 +9,7 @@ use glam::{Affine3A, Vec3};
 
 use super::features::plan_of;
 use super::materials::Materials;
-use super::{BlasCache, CommittedScene, InstanceData, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
+use super::{BlasCache, CommittedScene, InstanceData, LightLinks, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
 use crate::bvh::{Blas, BuildQuality, Tlas, TlasInstance};
 use crate::caustics::ShadowGlass;
 use crate::geometry::{Attribute, Mesh, Transform};
@@ -39,6 +39,10 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
     let lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
     lights.plan(&mut plan);
+    let links = LightLinks::build(desc, &lights.usd_lights, &instances, &prim_paths);
+    if let Some(links) = &links {
+        plan_links(links, &lights.usd_lights, &mut plan);
+    }
     if lights.all.is_empty() {
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
@@ -74,6 +78,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         used_materials,
         lights: light_set,
         crossable_lights: lights.crossable,
+        links,
         infinite_lights: lights.infinite,
         prim_paths,
         cameras: desc.cameras.clone(),
@@ -350,6 +355,21 @@ impl Lights {
         let reason = format!("{} emissive triangle(s) sampled by area with MIS", self.emissive_triangles);
         plan.call_for_because(Feature::EmissiveMeshes, reason, emissive);
     }
+}
+
+/// The linking features, each with the lights that call for it.
+fn plan_links(links: &LightLinks, usd_lights: &[String], plan: &mut RenderPlan) {
+    let (mut light, mut shadow) = (Vec::new(), Vec::new());
+    for (i, l, s) in links.linked() {
+        if l {
+            light.push(usd_lights[i].clone());
+        }
+        if s {
+            shadow.push(usd_lights[i].clone());
+        }
+    }
+    plan.call_for(Feature::LightLinking, light);
+    plan.call_for(Feature::ShadowLinking, shadow);
 }
 
 /// One triangle light per triangle of each instance whose material emits, appended to

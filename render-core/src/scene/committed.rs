@@ -67,6 +67,8 @@ pub struct CommittedScene {
     pub crossable_lights: crate::light::tree::LightTree,
     /// Indices of the lights at infinity.
     pub infinite_lights: Vec<u32>,
+    /// Which lights reach and are shadowed by which prims; None when no light links.
+    pub links: Option<super::LightLinks>,
     /// Prim path of each instance's source.
     pub prim_paths: Vec<String>,
     /// Cameras, copied from the description.

@@ -24,6 +24,8 @@ pub struct MeshDesc {
     pub material: String,
     /// Rendered at all (false for invisible meshes and instancer prototypes).
     pub visible: bool,
+    /// The light-link collections the prim belongs to ([`super::LightLinks`]).
+    pub link_collections: Vec<String>,
 }
 
 /// A point instancer: world transforms of instances of one prototype mesh.
@@ -37,6 +39,9 @@ pub struct InstancerDesc {
     /// spaced times over the shutter ([`crate::motion`]), instance after instance; empty
     /// when they do not.
     pub motion: Vec<Affine3A>,
+    /// The light-link collections its instances belong to, besides their prototype's
+    /// ([`super::LightLinks`]).
+    pub link_collections: Vec<String>,
 }
 
 impl InstancerDesc {

@@ -13,6 +13,7 @@ mod commit;
 mod committed;
 mod desc;
 mod features;
+mod links;
 mod materials;
 mod query;
 mod shadows;
@@ -21,6 +22,7 @@ pub use cache::BlasCache;
 pub use commit::commit;
 pub use committed::{CommittedScene, InstanceData, MAX_CUTOUT_CROSSINGS, SurfaceHit, ray_hash, see_through_coin};
 pub use desc::{InstancerDesc, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
+pub use links::{LightLinks, NO_GROUP};
 pub use shadows::ShadowPass;
 
 #[cfg(test)]
@@ -57,7 +59,14 @@ mod tests {
         let mut desc = SceneDesc::default();
         desc.meshes.insert(
             "/A".into(),
-            MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true },
+            MeshDesc {
+                mesh: tri_mesh(),
+                transform: Affine3A::IDENTITY,
+                motion: Vec::new(),
+                material: String::new(),
+                visible: true,
+                link_collections: Vec::new(),
+            },
         );
         let mut cache = BlasCache::default();
         commit(&desc, &mut cache).unwrap();
@@ -85,7 +94,14 @@ mod tests {
         };
         let mut desc = SceneDesc::default();
         for k in 0..40 {
-            let m = MeshDesc { mesh: mesh(k), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true };
+            let m = MeshDesc {
+                mesh: mesh(k),
+                transform: Affine3A::IDENTITY,
+                motion: Vec::new(),
+                material: String::new(),
+                visible: true,
+                link_collections: Vec::new(),
+            };
             desc.meshes.insert(format!("/M{k:02}"), m);
         }
         // One mesh big enough to be built alone (a 256 × 256 grid of quads at x = -100).
@@ -101,7 +117,14 @@ mod tests {
             Arc::new(Mesh { positions, indices: indices.collect(), normals: Normals::None, ..Default::default() })
         };
         assert!(big.indices.len() >= commit::BUILT_ALONE);
-        let m = MeshDesc { mesh: big.clone(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: String::new(), visible: true };
+        let m = MeshDesc {
+            mesh: big.clone(),
+            transform: Affine3A::IDENTITY,
+            motion: Vec::new(),
+            material: String::new(),
+            visible: true,
+            link_collections: Vec::new(),
+        };
         desc.meshes.insert("/Big".into(), m);
         let mut cache = BlasCache::default();
         commit(&desc, &mut cache).unwrap();
@@ -143,7 +166,14 @@ mod tests {
             desc.materials.insert("/M".into(), network(opacity));
             desc.meshes.insert(
                 "/A".into(),
-                MeshDesc { mesh: tri_mesh(), transform: Affine3A::IDENTITY, motion: Vec::new(), material: "/M".into(), visible: true },
+                MeshDesc {
+                    mesh: tri_mesh(),
+                    transform: Affine3A::IDENTITY,
+                    motion: Vec::new(),
+                    material: "/M".into(),
+                    visible: true,
+                    link_collections: Vec::new(),
+                },
             );
             let scene = commit(&desc, &mut BlasCache::default()).unwrap();
             let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z);

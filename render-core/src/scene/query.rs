@@ -187,14 +187,28 @@ impl CommittedScene {
         self.tlas.occluded(&self.blases, ray, tmax)
     }
 
+    /// Occlusion of a shadow ray towards light `light`, whose shadows only some prims may
+    /// cast (UsdLux `collection:shadowLink`): the ray walks past the others.
+    pub fn occluded_for(&self, ray: &Ray, tmax: f32, light: usize) -> bool {
+        match &self.links {
+            Some(links) if links.shadow_linked(light) => self.occluded_past(ray, tmax, |hit| links.casts_shadow(light, hit.instance)),
+            _ => self.occluded(ray, tmax),
+        }
+    }
+
     /// Occlusion walking through the points of surfaces their opacity cuts out.
     fn occluded_past_cutouts(&self, ray: &Ray, tmax: f32) -> bool {
+        self.occluded_past(ray, tmax, |_| true)
+    }
+
+    /// Occlusion walking past cut-out points and past the hits `blocks` says do not count.
+    fn occluded_past(&self, ray: &Ray, tmax: f32, blocks: impl Fn(&Hit) -> bool) -> bool {
         let mut r = ray.with_tmax(tmax);
-        // Each step passes one cut-out surface; a stack of more than this is treated as opaque.
+        // Each step passes one surface; a stack of more than this is treated as opaque.
         for _ in 0..MAX_CUTOUT_CROSSINGS {
             let Some(hit) = self.tlas.intersect(&self.blases, &r) else { return false };
             let s = self.surface(&hit);
-            if !self.see_through_at(&s, r.dir) {
+            if blocks(&hit) && !self.see_through_at(&s, r.dir) {
                 return true;
             }
             let origin = crate::geometry::offset_ray_origin(s.p, if r.dir.dot(s.ng) > 0.0 { s.ng } else { -s.ng }, s.offset_scale);

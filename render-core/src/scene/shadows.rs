@@ -26,7 +26,13 @@ impl CommittedScene {
     /// rough glass) blocks it, else the glass's transmittance without refraction, (1 − F) and
     /// the tint per interface, a thin sheet's series weight once.
     pub fn shadow_transmittance(&self, ray: &Ray, tmax: f32) -> Option<ShadowPass> {
-        self.shadow_transmittance_from(ray, tmax, None)
+        self.shadow_walk(ray, tmax, None, None)
+    }
+
+    /// [`Self::shadow_transmittance`] towards a shadow-linked light `light`, if given: only
+    /// the prims that cast its shadows count.
+    pub fn shadow_transmittance_for(&self, ray: &Ray, tmax: f32, light: Option<usize>) -> Option<ShadowPass> {
+        self.shadow_walk(ray, tmax, None, light)
     }
 
     /// [`Self::shadow_transmittance`] for a shadow ray that starts inside the subsurface
@@ -37,7 +43,18 @@ impl CommittedScene {
     /// fully rough. Without the refraction's η² there is nothing to undo: inside, the light's
     /// radiance is η² higher over a solid angle η² smaller, which leaves its in-scattered
     /// radiance as it is.
-    pub fn shadow_transmittance_from(&self, ray: &Ray, tmax: f32, mut inside: Option<Medium>) -> Option<ShadowPass> {
+    pub fn shadow_transmittance_from(&self, ray: &Ray, tmax: f32, inside: Option<Medium>) -> Option<ShadowPass> {
+        self.shadow_walk(ray, tmax, inside, None)
+    }
+
+    /// The walk of [`Self::shadow_transmittance_from`]; with a shadow-linked `light`, surfaces
+    /// of prims that do not cast its shadows are passed as if absent (the boundary of the medium
+    /// it starts in still counts).
+    pub fn shadow_walk(&self, ray: &Ray, tmax: f32, mut inside: Option<Medium>, light: Option<usize>) -> Option<ShadowPass> {
+        let casts = |instance: u32| match (light, &self.links) {
+            (Some(light), Some(links)) => links.casts_shadow(light, instance),
+            _ => true,
+        };
         let mut pass = ShadowPass { transmittance: Vec3::ONE, roughness: 0.0, crossings: 0 };
         let mut r = *ray;
         let mut left = tmax;
@@ -48,7 +65,7 @@ impl CommittedScene {
             }
             let s = self.surface(&hit);
             // A point a textured opacity cuts out is no surface at all.
-            if !self.see_through_at(&s, r.dir) {
+            if !self.see_through_at(&s, r.dir) && (inside.is_some() || casts(hit.instance)) {
                 let glass = match inside.take() {
                     Some(m) => {
                         pass.transmittance *= m.transmittance((s.p - ray.origin).length());

@@ -76,6 +76,8 @@ pub struct VolumeDesc {
     /// Index space to world at evenly spaced times over the shutter ([`crate::motion`]) when
     /// the volume moves; empty when it does not.
     pub motion: Vec<Affine3A>,
+    /// The light-link collections the volume belongs to ([`crate::scene::LightLinks`]).
+    pub link_collections: Vec<String>,
 }
 
 impl VolumeDesc {
@@ -305,6 +307,7 @@ mod tests {
             index_to_world: unit_box_transform(n),
             shading: VolumeShading { density: sigma, ..shading },
             motion: Vec::new(),
+            link_collections: Vec::new(),
         };
         validate_volume("/V", &desc).unwrap();
         Volume::new("/V", &desc)
@@ -375,6 +378,7 @@ mod tests {
             index_to_world: unit_box_transform(4),
             shading: VolumeShading::default(),
             motion: Vec::new(),
+            link_collections: Vec::new(),
         };
         let v = [Volume::new("/V", &desc)];
         let corner = Ray::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.01, 0.01, 1.0).normalize());
@@ -404,6 +408,7 @@ mod tests {
             index_to_world: Affine3A::IDENTITY,
             shading: VolumeShading::default(),
             motion: Vec::new(),
+            link_collections: Vec::new(),
         };
         let err = |d: VolumeDesc| validate_volume("/V", &d).unwrap_err().to_string();
         let mut nan = constant_grid(2, 1.0);

@@ -1,0 +1,104 @@
+//! Light linking: each light's `collection:lightLink` and `collection:shadowLink` resolved as
+//! usd-core's `ComputeMembershipQuery` resolves them, and each gprim's membership in them, sent
+//! as Hydra sends it: the prim lists the link collections it belongs to ("categories"), and the
+//! light names its collection ([`render_core::scene::LightLinks`]).
+
+use std::collections::HashMap;
+
+use anyhow::Result;
+use openusd::usd::{Collection, ExpansionRule, MembershipQuery, PathRule};
+
+use super::*;
+
+/// The lights' link collections that hold less than the whole stage.
+#[derive(Default)]
+pub(super) struct LinkQueries {
+    /// Each such collection, by its id (`<light>.collection:lightLink`).
+    queries: Vec<(String, MembershipQuery)>,
+    /// Per light path, the ids of its light-link and shadow-link collections.
+    lights: HashMap<String, [Option<String>; 2]>,
+}
+
+/// The link collections every light has, as UsdLux's LightAPI declares them.
+const LINKS: [&str; 2] = ["lightLink", "shadowLink"];
+
+impl Reader<'_> {
+    /// Resolves the link collections of the lights among `paths`. Called after the traversal,
+    /// which loads every payload's layer, and only when some layer authors a link property.
+    pub(super) fn resolve_light_links(&mut self, paths: &[sdf::Path]) {
+        self.reported_names.update(self.stage);
+        if !self.reported_names.links {
+            return;
+        }
+        for path in paths {
+            let prim = self.stage.prim(path.clone());
+            let is_light = prim.type_name().ok().flatten().is_some_and(|t| LIGHTS.contains(&t.as_str()));
+            if !is_light {
+                continue;
+            }
+            let p = path.as_str();
+            let mut ids = [None, None];
+            for (k, link) in LINKS.into_iter().enumerate() {
+                match self.link_query(&prim, p, link) {
+                    Ok(Some(query)) => {
+                        let id = format!("{p}.collection:{link}");
+                        self.links.queries.push((id.clone(), query));
+                        ids[k] = Some(id);
+                    }
+                    Ok(None) => {}
+                    Err(e) => {
+                        self.out.warnings.push(format!("{p}: collection:{link} cannot be read ({e:#}); it is taken to hold every prim"))
+                    }
+                }
+            }
+            if ids.iter().any(Option::is_some) {
+                self.links.lights.insert(p.to_string(), ids);
+            }
+        }
+    }
+
+    /// The membership of light `prim`'s collection `link`, or None when it holds every prim.
+    /// LightAPI gives the link collections an `includeRoot` fallback of true, which the
+    /// crate's query (authored opinions only) does not know.
+    fn link_query(&mut self, prim: &Prim, p: &str, link: &str) -> Result<Option<MembershipQuery>> {
+        let collection = Collection::new(prim.path().clone(), link);
+        let authored = |name: &str| get(prim, &format!("collection:{link}:{name}"), self.time);
+        let expression = authored("membershipExpression")?.is_some();
+        let (includes, excludes) = (collection.includes(self.stage)?, collection.excludes(self.stage)?);
+        if expression && includes.is_empty() && excludes.is_empty() {
+            let (limits, so) = match link {
+                "lightLink" => ("which prims the light illuminates", "it illuminates every prim"),
+                _ => ("which prims cast the light's shadows", "every prim casts them"),
+            };
+            self.out
+                .warnings
+                .push(format!("{p}: collection:{link} limits {limits} by a membershipExpression, which is not evaluated yet, so {so}"));
+            return Ok(None);
+        }
+        let query = collection.compute_membership_query(self.stage)?;
+        let mut rules = query.rule_map().clone();
+        let root_authored = authored("includeRoot")?.is_some();
+        let expansion = collection.expansion_rule(self.stage)?;
+        if !root_authored && expansion != ExpansionRule::ExplicitOnly {
+            let rule = match expansion {
+                ExpansionRule::ExpandPrimsAndProperties => PathRule::ExpandPrimsAndProperties,
+                _ => PathRule::ExpandPrims,
+            };
+            rules.entry(sdf::Path::abs_root()).or_insert(rule);
+        }
+        // The root expanded, and nothing below it excluded or held to itself alone.
+        let expands = |rule: &PathRule| matches!(rule, PathRule::ExpandPrims | PathRule::ExpandPrimsAndProperties);
+        let everything = rules.get(&sdf::Path::abs_root()).is_some_and(expands) && rules.values().all(expands);
+        Ok((!everything).then(|| MembershipQuery::new(rules)))
+    }
+
+    /// The ids of the link collections that hold the prim at `path`.
+    pub(super) fn link_collections(&self, path: &sdf::Path) -> Vec<String> {
+        self.links.queries.iter().filter(|(_, q)| q.is_path_included(path)).map(|(id, _)| id.clone()).collect()
+    }
+
+    /// Light `p`'s light-link and shadow-link collection ids (None: every prim).
+    pub(super) fn light_links(&self, p: &str) -> [Option<String>; 2] {
+        self.links.lights.get(p).cloned().unwrap_or_default()
+    }
+}
