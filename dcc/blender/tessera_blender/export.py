@@ -9,6 +9,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Camera visibility: Blender's lights are not seen by camera rays unless the object's
   ray visibility says so (``visible_camera``, off by default); UsdLux lights are seen. We
   write ``tessera:visibleToCamera`` from it.
+* Light linking: the exporter drops a light's receiver and blocker collections; we write
+  them as the light's ``collection:lightLink`` and ``collection:shadowLink``, with Blender's
+  rule: included objects only when any is included, all but the excluded ones otherwise.
 * Glass: UsdPreviewSurface has no transmission, so the exporter drops the Principled BSDF's
   Transmission Weight. A material that has one becomes ``tessera:Principled`` with
   ``specTrans`` and the Principled inputs it shares (Disney's names).
@@ -35,6 +38,8 @@ class Export:
     prims: dict[str, list[str]] = field(default_factory=dict)
     #: What the corrections changed, for the log.
     corrections: list[str] = field(default_factory=list)
+    #: Blender object name -> the path of the Xform prim that holds its prims.
+    xforms: dict[str, str] = field(default_factory=dict)
 
 
 def _pxr():
@@ -69,18 +74,53 @@ def correct(exported: Export, scene) -> None:
     """Applies the corrections above to the exported file and maps objects to prims."""
     Sdf, Usd, UsdLux, UsdShade = _pxr()
     stage = Usd.Stage.Open(exported.path)
+    lights = []
     for prim in stage.Traverse():
         name_attr = prim.GetAttribute("userProperties:blender:object_name")
         if name_attr and name_attr.HasValue():
             obj = bpy.data.objects.get(name_attr.Get())
+            exported.xforms[name_attr.Get()] = str(prim.GetPath())
             children = [c for c in prim.GetChildren() if c.GetTypeName() in ("Mesh", "Camera") or c.HasAPI(UsdLux.LightAPI)]
             exported.prims.setdefault(name_attr.Get(), []).extend(str(c.GetPath()) for c in children)
             for child in children:
                 if obj is not None and obj.type == "LIGHT" and child.HasAPI(UsdLux.LightAPI):
                     _correct_light(exported, child, obj, UsdLux, Sdf)
+                    lights.append((child, obj))
         if prim.IsA(UsdShade.Material):
             _correct_glass(exported, prim, Sdf, UsdShade)
+    # After the traversal: a light may link objects exported after it.
+    for prim, obj in lights:
+        _link_light(exported, prim, obj, UsdLux)
     stage.GetRootLayer().Save()
+
+
+def _collection_states(collection, state=None):
+    """(object name, link state) for every object in a light-linking collection: an object
+    listed directly has its own state; one inside a child collection takes the child's."""
+    for obj, entry in zip(collection.objects, collection.collection_objects):
+        yield obj.name, state or entry.light_linking.link_state
+    for child, entry in zip(collection.children, collection.collection_children):
+        yield from _collection_states(child, state or entry.light_linking.link_state)
+
+
+def _link_light(exported: Export, prim, obj, UsdLux) -> None:
+    """Blender's receiver and blocker collections as the light's link collections."""
+    api = UsdLux.LightAPI(prim)
+    links = obj.light_linking
+    for collection, usd, what in (
+        (links.receiver_collection, api.GetLightLinkCollectionAPI(), "receiver"),
+        (links.blocker_collection, api.GetShadowLinkCollectionAPI(), "blocker"),
+    ):
+        if collection is None:
+            continue
+        states = list(_collection_states(collection))
+        paths = {state: sorted({exported.xforms[n] for n, s in states if s == state and n in exported.xforms}) for state in ("INCLUDE", "EXCLUDE")}
+        if any(s == "INCLUDE" for _, s in states):
+            usd.CreateIncludeRootAttr(False)
+            usd.GetIncludesRel().SetTargets(paths["INCLUDE"])
+        if paths["EXCLUDE"]:
+            usd.GetExcludesRel().SetTargets(paths["EXCLUDE"])
+        exported.corrections.append(f"{prim.GetPath()}: light linking from the {what} collection '{collection.name}' (the exporter drops it)")
 
 
 def _correct_light(exported: Export, prim, obj, UsdLux, Sdf) -> None:

@@ -1,4 +1,4 @@
-"""The three comparison scenes, built with bpy, and how each renderer renders them.
+"""The comparison scenes, built with bpy, and how each renderer renders them.
 
 Every object carries a ``pass_index``: the region it is compared in.
 """
@@ -14,10 +14,12 @@ REGIONS = {
     "box_matte": {1: "floor", 2: "red wall", 3: "green wall", 4: "back wall", 5: "rough metal sphere"},
     "glass": {1: "floor", 2: "glass sphere"},
     "textured": {1: "textured plane"},
+    "linked": {1: "floor", 2: "key-lit sphere", 3: "unlinked sphere"},
 }
 
 def build(kind, directory):
-    """A fresh scene of `kind` (box, glass, textured); files it needs go in `directory`."""
+    """A fresh scene of `kind` (box, box_matte, glass, textured, linked); files it needs go in
+    `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
@@ -27,7 +29,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind == "box_matte" and metal == 0.0:
+        if kind in ("box_matte", "linked") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -48,6 +50,21 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -8, 3); rot = (1.2, 0, 0)
+    elif kind == "linked":
+        # Light linking: the key reaches the left sphere alone (its receiver collection
+        # includes it); the right sphere casts none of the fill's shadows (excluded from the
+        # fill's blocker collection).
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+        left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
+        right = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='AREA', location=(0, 0, 3)); key = bpy.context.object; key.data.energy = 300; key.data.size = 1
+        receivers = bpy.data.collections.new("key receivers"); receivers.objects.link(left)
+        key.light_linking.receiver_collection = receivers
+        bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object; fill.data.energy = 200; fill.data.shadow_soft_size = 0.2
+        blockers = bpy.data.collections.new("fill blockers"); blockers.objects.link(right)
+        blockers.collection_objects[0].light_linking.link_state = 'EXCLUDE'
+        fill.light_linking.blocker_collection = blockers
+        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")
         img = bpy.data.images.new("checker", 64, 64)
