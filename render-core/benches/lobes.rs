@@ -136,12 +136,12 @@ fn light_row(name: &str, set: &LightSet, budget: usize, points: &[(ShadingContex
     let ns = time(|| {
         let mut sum = 0.0;
         for (ctx, u_sel, u) in points {
-            set.sample_each(ctx, *u_sel, *u, budget, |_| true, |s, _, _| sum += s.pdf.min(1e6));
+            set.sample_each(ctx, *u_sel, *u, budget, 0, |_| true, |s, _, _| sum += s.pdf.min(1e6));
         }
         sum
     });
     let mut samples = 0usize;
-    points.iter().for_each(|(ctx, u_sel, u)| set.sample_each(ctx, *u_sel, *u, budget, |_| true, |_, _, _| samples += 1));
+    points.iter().for_each(|(ctx, u_sel, u)| set.sample_each(ctx, *u_sel, *u, budget, 0, |_| true, |_, _, _| samples += 1));
     println!("{name:<44} {ns:>10.1} {:>10.2}", samples as f64 / points.len() as f64);
 }
 

@@ -59,7 +59,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         }
         let [ul_x, ul_y, u_sel] = u;
         let reaches = |i: usize| self.reaches(i, group);
-        self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), self.settings.light_split_budget, reaches, |mut ls, light, i| {
+        let budget = self.settings.light_split_budget;
+        self.scene.lights.sample_each(ctx, u_sel, Vec2::new(ul_x, ul_y), budget, group, reaches, |mut ls, light, i| {
             if let Some((instance, triangle)) = light.textured_emitter {
                 ls.li = self.scene.emission_at(instance, triangle, ctx.p + ls.wi * ls.dist, ctx.time);
             }

@@ -25,7 +25,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             // does: light sampling alone counts it.
             Some(_) if self.shadow_linked(light as usize) => 0.0,
             Some(p) => {
-                let pmf = self.scene.lights.pmf(&p.ctx, light as usize, self.settings.light_split_budget);
+                let pmf = self.scene.lights.pmf(&p.ctx, light as usize, self.settings.light_split_budget, p.receiver);
                 power_heuristic(p.bsdf_pdf, pmf * pdf_light)
             }
         }

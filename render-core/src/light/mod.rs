@@ -316,11 +316,25 @@ fn shaping_profile(shaping: Option<Shaping>, xf: &Affine3A) -> Option<ShapingPro
 /// The set of lights and how next-event estimation picks one: lights at infinity by power
 /// among themselves, finite lights (UsdLux prims and emissive triangles) through a
 /// [`tree::LightTree`] by their likely contribution at the shading point, the two groups in
-/// proportion to their power.
+/// proportion to their power. With light linking, each receiver group whose lights differ has
+/// a choice of its own over the lights that reach it ([`LightSet::select_per_group`]), as
+/// Cycles builds a light tree per light set: no sample is spent on a light the point cannot see.
 #[derive(Default)]
 pub struct LightSet {
     /// Lights, including one per emissive triangle.
     pub lights: Vec<Light>,
+    /// Each light's power, as the choices weigh it.
+    power: Vec<f32>,
+    /// The choices: 0 among every light, then one per distinct set of lights that reach a
+    /// receiver group.
+    selections: Vec<Selection>,
+    /// Per receiver group, its choice (empty: choice 0 for every group).
+    by_group: Vec<u32>,
+}
+
+/// The choice among some of the lights.
+#[derive(Default)]
+struct Selection {
     /// Indices of the lights at infinity, and the choice among them by power.
     infinite: Vec<u32>,
     infinite_selection: Distribution1D,
@@ -331,19 +345,18 @@ pub struct LightSet {
     tree: tree::LightTree,
 }
 
-impl LightSet {
-    /// Builds the light tree and the choice among lights at infinity; `scene_radius` sizes
-    /// the infinite lights' power.
-    pub fn new(lights: Vec<Light>, scene_radius: f32) -> Self {
-        let power: Vec<f32> = lights.iter().map(|l| luminance(l.shape.power(scene_radius)).max(0.0)).collect();
-        let infinite: Vec<u32> = (0..lights.len() as u32).filter(|&i| lights[i as usize].shape.is_infinite()).collect();
+impl Selection {
+    /// The choice among the lights `member` admits.
+    fn new(lights: &[Light], power: &[f32], member: impl Fn(usize) -> bool) -> Self {
+        let infinite: Vec<u32> =
+            (0..lights.len() as u32).filter(|&i| lights[i as usize].shape.is_infinite() && member(i as usize)).collect();
         let mut infinite_slot = vec![None; lights.len()];
         for (k, &i) in infinite.iter().enumerate() {
             infinite_slot[i as usize] = Some(k as u32);
         }
         let infinite_power: Vec<f32> = infinite.iter().map(|&i| power[i as usize]).collect();
         let finite: Vec<(u32, tree::LightBounds)> =
-            (0..lights.len()).filter_map(|i| lights[i].bounds(power[i]).map(|b| (i as u32, b))).collect();
+            (0..lights.len()).filter(|&i| member(i)).filter_map(|i| lights[i].bounds(power[i]).map(|b| (i as u32, b))).collect();
         let (p_inf, p_fin): (f32, f32) = (infinite_power.iter().sum(), finite.iter().map(|(i, _)| power[*i as usize]).sum());
         let tree = tree::LightTree::build(finite, lights.len());
         let p_infinite = match (infinite.is_empty(), tree.is_empty()) {
@@ -352,7 +365,59 @@ impl LightSet {
             (false, false) if p_inf + p_fin > 0.0 => p_inf / (p_inf + p_fin),
             _ => 0.5,
         };
-        LightSet { lights, infinite_selection: Distribution1D::new(&infinite_power), infinite, infinite_slot, p_infinite, tree }
+        Selection { infinite_selection: Distribution1D::new(&infinite_power), infinite, infinite_slot, p_infinite, tree }
+    }
+}
+
+/// Most light indices the per-group choices may hold together (each holds a table over every
+/// light): past it, groups share the choice among every light and lights that do not reach a
+/// point are skipped there.
+pub const MAX_GROUP_SELECTION_ENTRIES: usize = 1 << 24;
+
+impl LightSet {
+    /// Builds the light tree and the choice among lights at infinity; `scene_radius` sizes
+    /// the infinite lights' power.
+    pub fn new(lights: Vec<Light>, scene_radius: f32) -> Self {
+        let power: Vec<f32> = lights.iter().map(|l| luminance(l.shape.power(scene_radius)).max(0.0)).collect();
+        let all = Selection::new(&lights, &power, |_| true);
+        LightSet { lights, power, selections: vec![all], by_group: Vec::new() }
+    }
+
+    /// Gives each of `groups` receiver groups a choice among the lights `reaches` says reach
+    /// it; groups reached by the same lights share one. Returns how many choices there are
+    /// beyond the one among every light, or None when they would hold more than
+    /// [`MAX_GROUP_SELECTION_ENTRIES`] (then every group keeps the shared choice).
+    pub fn select_per_group(&mut self, groups: usize, reaches: impl Fn(usize, u32) -> bool) -> Option<usize> {
+        let n = self.lights.len();
+        let mut distinct: std::collections::HashMap<Vec<bool>, u32> = std::collections::HashMap::new();
+        let mut by_group = Vec::with_capacity(groups);
+        for g in 0..groups as u32 {
+            let set: Vec<bool> = (0..n).map(|i| reaches(i, g)).collect();
+            if set.iter().all(|&r| r) {
+                by_group.push(0);
+                continue;
+            }
+            let next = distinct.len() as u32 + 1;
+            by_group.push(*distinct.entry(set).or_insert(next));
+            if distinct.len().saturating_mul(n) > MAX_GROUP_SELECTION_ENTRIES {
+                return None;
+            }
+        }
+        let mut sets: Vec<(Vec<bool>, u32)> = distinct.into_iter().collect();
+        sets.sort_by_key(|(_, k)| *k);
+        for (set, _) in &sets {
+            let selection = Selection::new(&self.lights, &self.power, |i| set[i]);
+            self.selections.push(selection);
+        }
+        self.by_group = by_group;
+        Some(sets.len())
+    }
+
+    /// The choice receiver group `group` uses.
+    #[inline]
+    fn selection(&self, group: u32) -> &Selection {
+        let k = self.by_group.get(group as usize).copied().unwrap_or(0);
+        &self.selections[k as usize]
     }
 
     /// True when nothing emits.
@@ -360,18 +425,21 @@ impl LightSet {
         self.lights.is_empty()
     }
 
-    /// Picks lights with `u_select` for the shading point and samples a direction on each:
-    /// one light at infinity, or the finite lights the tree's walks reach (one per cluster
-    /// of its adaptive split, `budget` at most, up to [`tree::SPLIT_BUDGET`]; 1: no split).
-    /// Each sample's pdf includes the chance of its light being picked, so their
+    /// Picks lights with `u_select` for a shading point of receiver group `group` and samples
+    /// a direction on each: one light at infinity, or the finite lights the tree's walks reach
+    /// (one per cluster of its adaptive split, `budget` at most, up to [`tree::SPLIT_BUDGET`];
+    /// 1: no split). Each sample's pdf includes the chance of its light being picked, so their
     /// contributions add. A picked light that `reaches` says does not reach the point
-    /// (light linking) gives no sample: its share is zero, and the choice stays unbiased.
+    /// (light linking, when the groups share the choice among every light) gives no sample:
+    /// its share is zero, and the choice stays unbiased.
+    #[allow(clippy::too_many_arguments)]
     pub fn sample_each(
         &self,
         ctx: &ShadingContext,
         u_select: f32,
         u: glam::Vec2,
         budget: usize,
+        group: u32,
         reaches: impl Fn(usize) -> bool,
         mut visit: impl FnMut(LightSample, &Light, usize),
     ) {
@@ -386,21 +454,66 @@ impl LightSet {
                 visit(s, &light, i);
             }
         };
-        if u_select < self.p_infinite {
-            let (k, p) = self.infinite_selection.sample((u_select / self.p_infinite).min(1.0 - f32::EPSILON));
-            emit(self.infinite[k] as usize, p * self.p_infinite);
+        let sel = self.selection(group);
+        if u_select < sel.p_infinite {
+            let (k, p) = sel.infinite_selection.sample((u_select / sel.p_infinite).min(1.0 - f32::EPSILON));
+            emit(sel.infinite[k] as usize, p * sel.p_infinite);
         } else {
-            let u = ((u_select - self.p_infinite) / (1.0 - self.p_infinite)).clamp(0.0, 1.0 - f32::EPSILON);
-            self.tree.sample_split(ctx.p, ctx.n, u, budget, |i, p| emit(i as usize, p * (1.0 - self.p_infinite)));
+            let u = ((u_select - sel.p_infinite) / (1.0 - sel.p_infinite)).clamp(0.0, 1.0 - f32::EPSILON);
+            sel.tree.sample_split(ctx.p, ctx.n, u, budget, |i, p| emit(i as usize, p * (1.0 - sel.p_infinite)));
         }
     }
 
-    /// The probability that [`LightSet::sample_each`] picks light `i` at the shading point `ctx`.
-    pub fn pmf(&self, ctx: &ShadingContext, i: usize, budget: usize) -> f32 {
-        match self.infinite_slot.get(i) {
-            Some(Some(k)) => self.p_infinite * self.infinite_selection.pmf(*k as usize),
-            Some(None) => (1.0 - self.p_infinite) * self.tree.pmf(ctx.p, ctx.n, i, budget),
+    /// The probability that [`LightSet::sample_each`] picks light `i` at the shading point
+    /// `ctx` of receiver group `group`.
+    pub fn pmf(&self, ctx: &ShadingContext, i: usize, budget: usize, group: u32) -> f32 {
+        let sel = self.selection(group);
+        match sel.infinite_slot.get(i) {
+            Some(Some(k)) => sel.p_infinite * sel.infinite_selection.pmf(*k as usize),
+            Some(None) => (1.0 - sel.p_infinite) * sel.tree.pmf(ctx.p, ctx.n, i, budget),
             None => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod group_tests {
+    use super::*;
+
+    /// With light linking, a receiver group picks among the lights that reach it alone: no
+    /// sample lands on another, their chances sum to one, and groups reached by the same lights
+    /// share a choice (the one among every light when all reach them).
+    #[test]
+    fn each_receiver_group_chooses_among_the_lights_that_reach_it() {
+        let lights: Vec<Light> = (0..4)
+            .map(|i| LightDesc::new(LightKind::Sphere { radius: 0.2 }, Affine3A::from_translation(Vec3::new(i as f32, 2.0, 0.0)), 1.0))
+            .map(|d| d.commit().unwrap())
+            .collect();
+        let mut set = LightSet::new(lights, 10.0);
+        let reach: [&[usize]; 4] = [&[0, 1, 2, 3], &[0, 2], &[1, 2, 3], &[0, 2]];
+        assert_eq!(set.select_per_group(4, |light, group| reach[group as usize].contains(&light)), Some(2));
+        let ctx = ShadingContext { p: Vec3::ZERO, n: Vec3::Y, both_sides: false, time: 0.0 };
+        for (group, lights) in reach.iter().enumerate() {
+            let group = group as u32;
+            let mut seen = std::collections::BTreeSet::new();
+            for k in 0..256 {
+                let u_select = (k as f32 + 0.5) / 256.0;
+                set.sample_each(
+                    &ctx,
+                    u_select,
+                    glam::Vec2::splat(0.5),
+                    1,
+                    group,
+                    |_| true,
+                    |_, _, i| {
+                        seen.insert(i);
+                    },
+                );
+            }
+            assert!(seen.iter().all(|i| lights.contains(i)), "group {group} sampled {seen:?}");
+            let total: f32 = lights.iter().map(|&i| set.pmf(&ctx, i, 1, group)).sum();
+            assert!((total - 1.0).abs() < 1e-5, "group {group}: chances sum to {total}");
+            assert!((0..4).filter(|i| !lights.contains(i)).all(|i| set.pmf(&ctx, i, 1, group) == 0.0));
         }
     }
 }

@@ -55,7 +55,11 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let medium_boundary = per_material(ShadowGlass::of_medium_boundary, subsurface);
     let media = materials.list.iter().map(|m| if subsurface { m.medium() } else { None }).collect();
     let smooth_subsurface = plan.prims(Feature::Subsurface).iter().filter(|m| materials.smooth_behind(m)).cloned().collect();
-    let light_set = LightSet::new(lights.all, scene_radius);
+    let mut light_set = LightSet::new(lights.all, scene_radius);
+    if let Some(links) = &links {
+        let per_group = light_set.select_per_group(links.group_count(), |light, group| links.illuminates(light, group));
+        plan.call_for_because(Feature::LightLinking, links_reason(per_group), Vec::new());
+    }
     // Each thing is said once, however many instances or lobes run into it.
     let mut said = std::collections::HashSet::new();
     warnings.retain(|w| said.insert(w.clone()));
@@ -354,6 +358,18 @@ impl Lights {
         emissive.dedup();
         let reason = format!("{} emissive triangle(s) sampled by area with MIS", self.emissive_triangles);
         plan.call_for_because(Feature::EmissiveMeshes, reason, emissive);
+    }
+}
+
+/// What light linking does for this scene, for the plan.
+fn links_reason(per_group: Option<usize>) -> String {
+    let what = "lights that illuminate only the prims of their collection:lightLink";
+    match per_group {
+        Some(n) => format!("{what}: {n} light choice(s) of their own for the receiver groups, each among the lights that reach it"),
+        None => format!(
+            "{what}: too many receiver groups for a light choice each (over {} entries), so they share one and skip the lights that do not reach them",
+            crate::light::MAX_GROUP_SELECTION_ENTRIES
+        ),
     }
 }
 

@@ -98,6 +98,11 @@ impl LightLinks {
         Some(interner.links)
     }
 
+    /// How many receiver groups there are (group 0, [`NO_GROUP`], included).
+    pub fn group_count(&self) -> usize {
+        self.groups.len()
+    }
+
     /// The group of the surface of instance `instance`.
     #[inline]
     pub fn instance_group(&self, instance: u32) -> u32 {
