@@ -370,8 +370,8 @@ impl Selection {
 }
 
 /// Most light indices the per-group choices may hold together (each holds a table over every
-/// light): past it, groups share the choice among every light and lights that do not reach a
-/// point are skipped there.
+/// light), and a quarter of the (group, light) pairs asked to build them: past either, groups
+/// share the choice among every light and lights that do not reach a point are skipped there.
 pub const MAX_GROUP_SELECTION_ENTRIES: usize = 1 << 24;
 
 impl LightSet {
@@ -389,6 +389,11 @@ impl LightSet {
     /// [`MAX_GROUP_SELECTION_ENTRIES`] (then every group keeps the shared choice).
     pub fn select_per_group(&mut self, groups: usize, reaches: impl Fn(usize, u32) -> bool) -> Option<usize> {
         let n = self.lights.len();
+        // Asking every group about every light is the work: a client's millions of distinct
+        // groups must not hold a commit for minutes.
+        if groups.saturating_mul(n) > 4 * MAX_GROUP_SELECTION_ENTRIES {
+            return None;
+        }
         let mut distinct: std::collections::HashMap<Vec<bool>, u32> = std::collections::HashMap::new();
         let mut by_group = Vec::with_capacity(groups);
         for g in 0..groups as u32 {
@@ -515,6 +520,16 @@ mod group_tests {
             assert!((total - 1.0).abs() < 1e-5, "group {group}: chances sum to {total}");
             assert!((0..4).filter(|i| !lights.contains(i)).all(|i| set.pmf(&ctx, i, 1, group) == 0.0));
         }
+        // Past the budget (2^25 groups × 4 lights), the groups share the choice among every
+        // light without asking a single pair.
+        let asked = std::cell::Cell::new(0u64);
+        let reaches = |_: usize, _: u32| {
+            asked.set(asked.get() + 1);
+            true
+        };
+        let mut shared = LightSet::new(set.lights.clone(), 10.0);
+        assert_eq!((shared.select_per_group(1 << 25, reaches), asked.get()), (None, 0));
+        assert!((0..4).all(|i| (shared.pmf(&ctx, i, 1, 7) - shared.pmf(&ctx, i, 1, 0)).abs() == 0.0));
     }
 }
 

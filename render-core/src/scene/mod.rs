@@ -6,7 +6,8 @@
 //! * [`cache`]: what commits keep for the next — a mesh whose geometry `Arc` is unchanged
 //!   keeps its BLAS, so moving an object or a light costs a TLAS rebuild and nothing more;
 //! * [`committed`] and the queries on it (hits, occlusion, surfaces, BSDFs, transparent
-//!   shadows).
+//!   shadows);
+//! * [`links`]: light linking, which lights reach and are shadowed by which prims.
 
 mod cache;
 mod commit;
