@@ -160,8 +160,9 @@ fn skinning_json(s: &crate::usd::Skinned, m: &render_core::scene::MeshDesc, with
     out
 }
 
-/// Light linking as a mesh sees it, listed only when some light links: the lights that
-/// illuminate it (`litBy`) and those whose shadows it casts (`shadowedBy`).
+/// Light linking as a mesh sees it: the lights that illuminate it (`litBy`, when some light
+/// has a light link) and those whose shadows it casts (`shadowedBy`, when some light has a
+/// shadow link).
 struct LinkLists<'t> {
     /// Each light's path and its light-link and shadow-link collections.
     lights: Vec<(&'t str, [Option<&'t str>; 2])>,
@@ -172,11 +173,13 @@ impl<'t> LinkLists<'t> {
         LinkLists { lights: t.lights.iter().map(|(p, l)| (p.as_str(), [l.light_link.as_deref(), l.shadow_link.as_deref()])).collect() }
     }
 
+    /// Each list only when some light links that way (a list of every light per mesh would
+    /// say nothing, at length).
     fn add_to(&self, mesh: &mut Value, collections: &[String]) {
-        if self.lights.iter().all(|(_, links)| links == &[None, None]) {
-            return;
-        }
         for (k, name) in ["litBy", "shadowedBy"].into_iter().enumerate() {
+            if self.lights.iter().all(|(_, links)| links[k].is_none()) {
+                continue;
+            }
             let holds = |link: Option<&str>| link.is_none_or(|c| collections.iter().any(|m| m == c));
             let mut paths: Vec<&str> = self.lights.iter().filter(|(_, links)| holds(links[k])).map(|(p, _)| *p).collect();
             paths.sort_unstable();

@@ -13,8 +13,13 @@ use super::*;
 /// The lights' link collections that hold less than the whole stage.
 #[derive(Default)]
 pub(super) struct LinkQueries {
-    /// Each such collection, by its id (`<light>.collection:lightLink`).
-    queries: Vec<(String, MembershipQuery)>,
+    /// Each such collection's id (`<light>.collection:lightLink`).
+    ids: Vec<String>,
+    /// Every path some collection has an opinion on, with those opinions (collection, rule):
+    /// a prim's membership in each is decided by its closest ancestor with an opinion, so one
+    /// walk up from the prim decides them all (asking each collection in turn cost 1.7 s for
+    /// 1,000 linked lights over 10,000 cubes).
+    opinions: HashMap<sdf::Path, Vec<(u32, PathRule)>>,
     /// Per light path, the ids of its light-link and shadow-link collections.
     lights: HashMap<String, [Option<String>; 2]>,
 }
@@ -42,7 +47,11 @@ impl Reader<'_> {
                 match self.link_query(&prim, p, link) {
                     Ok(Some(query)) => {
                         let id = format!("{p}.collection:{link}");
-                        self.links.queries.push((id.clone(), query));
+                        let index = self.links.ids.len() as u32;
+                        for (path, rule) in query.rule_map() {
+                            self.links.opinions.entry(path.clone()).or_default().push((index, *rule));
+                        }
+                        self.links.ids.push(id.clone());
                         ids[k] = Some(id);
                     }
                     Ok(None) => {}
@@ -92,9 +101,31 @@ impl Reader<'_> {
         Ok((!everything).then(|| MembershipQuery::new(rules)))
     }
 
-    /// The ids of the link collections that hold the prim at `path`.
+    /// The ids of the link collections that hold the prim at `path`, as usd-core's
+    /// `IsPathIncluded` decides: by the closest opinion on the path or an ancestor, where an
+    /// `explicitOnly` opinion holds its own path alone and is passed over for what lies below.
     pub(super) fn link_collections(&self, path: &sdf::Path) -> Vec<String> {
-        self.links.queries.iter().filter(|(_, q)| q.is_path_included(path)).map(|(id, _)| id.clone()).collect()
+        if self.links.ids.is_empty() {
+            return Vec::new();
+        }
+        let (mut decided, mut held) = (std::collections::HashSet::new(), Vec::new());
+        let mut at = Some(path.clone());
+        while let Some(current) = at {
+            for &(index, rule) in self.links.opinions.get(&current).into_iter().flatten() {
+                let holds = match rule {
+                    PathRule::ExpandPrims | PathRule::ExpandPrimsAndProperties => true,
+                    PathRule::ExplicitOnly if &current == path => true,
+                    PathRule::ExplicitOnly => continue,
+                    PathRule::Exclude => false,
+                };
+                if decided.insert(index) && holds {
+                    held.push(index);
+                }
+            }
+            at = current.parent().filter(|p| !p.is_empty());
+        }
+        held.sort_unstable();
+        held.into_iter().map(|i| self.links.ids[i as usize].clone()).collect()
     }
 
     /// Says, once per pair, where a volume at `p` in `collections` casts a shadow-linked light's

@@ -555,9 +555,12 @@ impl MembershipQuery {
     /// `path`'s own children — without re-walking ancestors. An opinion
     /// authored directly on `path` overrides the inherited `parent_rule`.
     pub fn is_path_included_below(&self, path: &Path, parent_rule: PathRule) -> (bool, PathRule) {
-        let on_self = self.rule_map.contains_key(path);
-        let rule = self.rule_map.get(path).copied().unwrap_or(parent_rule);
-        (rule_includes(rule, on_self, path.is_property_path()), rule)
+        match self.rule_map.get(path).copied() {
+            // An explicitOnly opinion holds the path alone: its children keep the rule above.
+            Some(PathRule::ExplicitOnly) => (true, parent_rule),
+            Some(rule) => (rule_includes(rule, true, path.is_property_path()), rule),
+            None => (rule_includes(parent_rule, false, path.is_property_path()), parent_rule),
+        }
     }
 
     /// The rule governing `path` by its closest-ancestor opinion, or
@@ -565,17 +568,35 @@ impl MembershipQuery {
     /// top-down traversal in [`compute_included_paths`] for a parent the
     /// traversal predicate skipped (so it isn't in the rule cache).
     fn effective_rule(&self, path: &Path) -> PathRule {
-        self.closest_rule(path).0
+        // The rule children inherit: the nearest opinion at or above `path`
+        // that is not explicitOnly (which holds its own path alone).
+        let mut current = path.clone();
+        loop {
+            match self.rule_map.get(&current) {
+                Some(PathRule::ExplicitOnly) | None => {}
+                Some(rule) => return *rule,
+            }
+            match current.parent() {
+                Some(parent) if !parent.is_empty() => current = parent,
+                _ => return PathRule::Exclude,
+            }
+        }
     }
 
     /// Walk from `path` toward the root and return the closest opinion: its
     /// rule and whether that opinion sits on `path` itself. Returns
     /// [`PathRule::Exclude`] with `on_self = false` when no ancestor opines.
+    /// An `explicitOnly` opinion on an ancestor is passed over, as usd-core's
+    /// `IsPathIncluded` searches for the nearest ancestor that is not
+    /// explicitOnly: it holds that ancestor alone, and says nothing of what
+    /// lies below it.
     fn closest_rule(&self, path: &Path) -> (PathRule, bool) {
         let mut current = path.clone();
         loop {
-            if let Some(rule) = self.rule_map.get(&current) {
-                return (*rule, &current == path);
+            match self.rule_map.get(&current) {
+                Some(PathRule::ExplicitOnly) if &current != path => {}
+                Some(rule) => return (*rule, &current == path),
+                None => {}
             }
             match current.parent() {
                 Some(parent) if !parent.is_empty() => current = parent,
