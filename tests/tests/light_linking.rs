@@ -147,3 +147,30 @@ async fn a_shadow_linked_light_is_found_by_light_sampling_alone() {
     // blocked BSDF rays the unlinked floor came out 0.7% dark.
     assert!((a - b).abs() < 2e-3 * b, "the floor's middle with the blocker unlinked {a}, without the blocker {b}");
 }
+
+/// A live edit that moves a prim into a light's link collection and another out of it goes
+/// as two mesh deltas with only `categories` dirty (no arrays), and the next render swaps
+/// which quad is lit, exactly black where the light no longer reaches.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn moving_prims_between_link_collections_sends_only_their_categories() {
+    let before = load_text("link_edit_before", &two_quads("/Left"));
+    let mut after = before.clone();
+    for (path, mesh) in &mut after.meshes {
+        mesh.link_collections = if path == "/Right" { vec!["/Key.collection:lightLink".into()] } else { Vec::new() };
+    }
+    let items = tessera::sync::changes(&before, &after);
+    let sent = tessera::live::summarize(&items);
+    let described: Vec<(String, Vec<&str>, usize)> = sent.iter().map(|s| (s.path.clone(), s.dirty.clone(), s.chunks)).collect();
+    assert_eq!(described, [("/Left".to_string(), vec!["categories"], 0), ("/Right".to_string(), vec!["categories"], 0)]);
+    let (server, mut conn) = session_with(&before).await;
+    conn.sync(items).await.expect("the edit syncs");
+    let report = conn.render(&small(32, 16, 16), |_| {}).await.expect("renders");
+    server.stop().await.unwrap();
+    for y in 0..16 {
+        for x in 0..16 {
+            assert_eq!(&report.image.pixel("beauty", x, y)[..3], &[0.0, 0.0, 0.0], "pixel ({x}, {y}) of the left quad is lit");
+        }
+    }
+    let lit = mean_where(&report.image, "beauty", 1, |x, _| x >= 16).0;
+    assert!(lit > 0.02, "the right quad, now linked: {lit}");
+}
