@@ -11,6 +11,44 @@ use tessera_proto::v1 as pb;
 use crate::remote::Connection;
 use crate::usd::Translation;
 
+/// Puts every mesh, instancer and volume of `t` at or under one of `prims` into link
+/// collection `id` and takes every other out of it (all out when `prims` is None).
+fn relink(t: &mut Translation, id: &str, prims: Option<&[String]>) -> Result<()> {
+    let held = |path: &str| {
+        // Keys name their prim, then what the reader split it into ("/A[points]", "/P[/P/M]").
+        let prim = path.split('[').next().unwrap_or(path);
+        prims.is_some_and(|ps| ps.iter().any(|p| p == "/" || crate::usd::under(prim, p)))
+    };
+    let set = |collections: &mut Vec<String>, on: bool| {
+        collections.retain(|c| c != id);
+        if on {
+            collections.push(id.to_string());
+        }
+    };
+    let native: std::collections::BTreeSet<usize> = t.native_instances.iter().map(|n| n.instancer).collect();
+    for (path, m) in &mut t.meshes {
+        set(&mut m.link_collections, held(path));
+    }
+    for (path, v) in &mut t.volumes {
+        set(&mut v.link_collections, held(path));
+    }
+    for (k, (path, inst)) in t.instancers.iter_mut().enumerate() {
+        let on = match native.contains(&k) {
+            false => held(path),
+            true => {
+                let sides: std::collections::BTreeSet<bool> =
+                    t.native_instances.iter().filter(|n| n.instancer == k).map(|n| held(&n.path)).collect();
+                if sides.len() > 1 {
+                    bail!("{id}: instances drawn by {path} fall on both sides of the link; author the link in USD and sync it instead");
+                }
+                sides.contains(&true)
+            }
+        };
+        set(&mut inst.link_collections, on);
+    }
+    Ok(())
+}
+
 /// One prim a sync sent.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SentPrim {
@@ -139,6 +177,32 @@ impl LiveSession {
                         v.len()
                     ),
                 }
+            }
+            Ok(())
+        })
+        .await
+    }
+
+    /// Links light `path` (UsdLux light linking, as a DCC's light-linking editor sets it): with
+    /// `illuminates`, the light reaches only the prims at or under those paths; with
+    /// `shadowed_by`, only they cast its shadows; None for either: every prim. Prims move in or
+    /// out of the light's link collections, so the deltas are categories-only mesh edits. Native
+    /// instances of one prototype share an instancer: all of them must fall on the same side.
+    pub async fn set_light_links(
+        &mut self,
+        path: &str,
+        illuminates: Option<Vec<String>>,
+        shadowed_by: Option<Vec<String>>,
+    ) -> Result<Vec<SentPrim>> {
+        self.edit(|t| {
+            let (_, l) = t.lights.iter_mut().find(|(p, _)| p == path).with_context(|| format!("{path}: no light with this path"))?;
+            let links = [("lightLink", illuminates), ("shadowLink", shadowed_by)];
+            let ids: Vec<(String, Option<Vec<String>>)> =
+                links.into_iter().map(|(link, prims)| (format!("{path}.collection:{link}"), prims)).collect();
+            l.light_link = ids[0].1.as_ref().map(|_| ids[0].0.clone());
+            l.shadow_link = ids[1].1.as_ref().map(|_| ids[1].0.clone());
+            for (id, prims) in &ids {
+                relink(t, id, prims.as_deref())?;
             }
             Ok(())
         })

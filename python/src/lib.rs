@@ -145,6 +145,19 @@ impl Session {
         self.edit(py, |live| async move { live.lock().await.set_light_params(&path, &params).await })
     }
 
+    /// Links a light: it illuminates only the prims at or under `illuminates` and only those
+    /// at or under `shadowed_by` cast its shadows (None: every prim).
+    #[pyo3(signature = (path, illuminates=None, shadowed_by=None))]
+    fn set_light_links(
+        &self,
+        py: Python<'_>,
+        path: String,
+        illuminates: Option<Vec<String>>,
+        shadowed_by: Option<Vec<String>>,
+    ) -> PyResult<Py<PyList>> {
+        self.edit(py, |live| async move { live.lock().await.set_light_links(&path, illuminates, shadowed_by).await })
+    }
+
     /// Sets a shader input of a material: a float, three floats, or a string.
     fn set_material_input(
         &self,

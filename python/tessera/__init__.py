@@ -177,6 +177,12 @@ class Session:
         """Change a light's intensity, exposure, diffuse, specular or color."""
         return self._native.set_light_params(path, **params)
 
+    def set_light_links(self, path: str, illuminates: list[str] | None = None, shadowed_by: list[str] | None = None) -> list[dict]:
+        """Link a light: it illuminates only the prims at or under `illuminates`, and only those at
+        or under `shadowed_by` cast its shadows (None: every prim), as UsdLux's
+        collection:lightLink and collection:shadowLink do."""
+        return self._native.set_light_links(path, illuminates, shadowed_by)
+
     def set_material_input(self, material_path: str, shader: str, input: str, value) -> list[dict]:
         """Set one input of one shader node (its path, or its name under the material)."""
         if isinstance(value, (list, tuple, np.ndarray)):

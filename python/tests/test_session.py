@@ -81,6 +81,31 @@ def test_resyncing_a_moved_prim_sends_one_transform_delta(client, tmp_path):
     assert not np.array_equal(before.layers["beauty"], after.layers["beauty"]), "the image shows the move"
 
 
+def test_light_links_without_reexport(client):
+    """A light linked to the two boxes alone: the light and every mesh whose membership changed
+    go as deltas (meshes with only their categories dirty), the walls lose the light's direct
+    light, and unlinking restores the first image bit for bit (the scene is as synced)."""
+    session = client.session()
+    session.sync_usd(CORNELL)
+    light = "/World/Lights/CeilingLight"
+    _, base = render(session)
+    boxes = ["/World/Geo/ShortBox", "/World/Geo/TallBox"]
+    sent = session.set_light_links(light, illuminates=boxes)
+    assert {"path": light, "kind": "light", "dirty": ["all"], "chunks": 0} in sent
+    assert sorted(s["path"] for s in sent if s["kind"] == "mesh") == boxes
+    assert all(s["dirty"] == ["categories"] and s["chunks"] == 0 for s in sent if s["kind"] == "mesh")
+    _, linked = render(session)
+    # The walls, most of the image, now see the light only by way of the boxes: the median
+    # pixel fell from 0.050 to 0.0002 (4 spp); the light itself is still seen.
+    b, lk = (img.layers["beauty"][..., :3].mean(axis=2) for img in (base, linked))
+    assert np.median(lk) < 0.05 * np.median(b)
+    session.set_light_links(light)
+    _, unlinked = render(session)
+    assert np.array_equal(unlinked.layers["beauty"], base.layers["beauty"])
+    with pytest.raises(tessera.TesseraError, match="no light with this path"):
+        session.set_light_links("/World/NoSuchLight", illuminates=boxes)
+
+
 def test_edits_without_reexport(client):
     session = client.session()
     sent = session.sync_usd(CORNELL)

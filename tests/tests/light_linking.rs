@@ -5,6 +5,8 @@
 //! Which lights reach which prims, as read from USD, is checked against usd-core's membership
 //! queries on `fixtures/usd/light_linking.usda` by `usd::an_independent_reader_agrees_on_every_fixture`.
 
+use tessera::remote::Connection;
+use tessera_server::EmbeddedServer;
 use tessera_tests::*;
 
 /// Two coplanar quads side by side, seen head-on through an orthographic camera (the left one
@@ -173,4 +175,25 @@ async fn moving_prims_between_link_collections_sends_only_their_categories() {
     }
     let lit = mean_where(&report.image, "beauty", 1, |x, _| x >= 16).0;
     assert!(lit > 0.02, "the right quad, now linked: {lit}");
+}
+
+/// A DCC links a light through the live session: every instance of a native prototype in
+/// the forest at once links (their shared instancer moves into the collection), while a link
+/// that would split the instances one instancer draws is refused, naming it, and changes
+/// nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_live_light_link_moves_whole_instancers_and_refuses_to_split_one() {
+    let server = EmbeddedServer::start().await.unwrap();
+    let conn = Connection::connect(&server.url(), "links").await.unwrap();
+    let mut live = tessera::live::LiveSession::new(conn);
+    live.sync_usd(&fixture("usd/instancing/forest.usda"), None).await.unwrap();
+    let sent = live.set_light_links("/World/Sky", Some(vec!["/World/Trees".into()]), None).await.unwrap();
+    assert!(sent.iter().any(|s| s.kind == "instancer"), "{sent:?}");
+    let split = live.set_light_links("/World/Sky", Some(vec!["/World/Trees/Tree_00".into()]), None).await;
+    let e = format!("{:#}", split.expect_err("one instancer's trees on both sides"));
+    assert!(e.contains("fall on both sides of the link") && e.contains("[instances]"), "{e}");
+    // The refused edit left the session as it was: asking for the first link again sends nothing.
+    let again = live.set_light_links("/World/Sky", Some(vec!["/World/Trees".into()]), None).await.unwrap();
+    assert!(again.is_empty(), "{again:?}");
+    server.stop().await.unwrap();
 }

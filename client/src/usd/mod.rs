@@ -34,7 +34,8 @@ mod volumes;
 
 use render_settings::valid_targets;
 pub use render_settings::{RenderProductDesc, RenderSettingsDesc};
-use stage::{get, get_floats, get_ints, to_affine, under, usd_rotation};
+pub use stage::under;
+use stage::{get, get_floats, get_ints, to_affine, usd_rotation};
 
 use std::collections::HashMap;
 use std::sync::Arc;

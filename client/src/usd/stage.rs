@@ -30,7 +30,7 @@ pub(super) fn usd_rotation(q: glam::DQuat) -> glam::DMat3 {
 }
 
 /// True when `path` is `root` or beneath it.
-pub(super) fn under(path: &str, root: &str) -> bool {
+pub fn under(path: &str, root: &str) -> bool {
     path == root || (path.starts_with(root) && path.as_bytes().get(root.len()) == Some(&b'/'))
 }
 
