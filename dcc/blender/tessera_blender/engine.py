@@ -124,6 +124,8 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
         width, height = resolution(scene)
         session = client_for(preferences()).session("blender")
         session.sync_usd(self.exported.path)
+        for w in self.exported.warnings:
+            self.report({"WARNING"}, f"Tessera: {w}")
         denoise = scene.tessera.denoise
         aovs = passes.aovs_for(depsgraph.view_layer, denoise)
         self.update_stats("Tessera", "rendering")

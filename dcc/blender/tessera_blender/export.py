@@ -40,6 +40,8 @@ class Export:
     corrections: list[str] = field(default_factory=list)
     #: Blender object name -> the path of the Xform prim that holds its prims.
     xforms: dict[str, str] = field(default_factory=dict)
+    #: What the export cannot carry, for the artist.
+    warnings: list[str] = field(default_factory=list)
 
 
 def _pxr():
@@ -86,6 +88,9 @@ def correct(exported: Export, scene) -> None:
                 if obj is not None and obj.type == "LIGHT" and child.HasAPI(UsdLux.LightAPI):
                     _correct_light(exported, child, obj, UsdLux, Sdf)
                     lights.append((child, obj))
+            links = getattr(obj, "light_linking", None)
+            if obj is not None and obj.type != "LIGHT" and links and (links.receiver_collection or links.blocker_collection):
+                exported.warnings.append(f"{obj.name}: light linking of an object's emission is not exported yet; its emission reaches, and is shadowed by, every object")
         if prim.IsA(UsdShade.Material):
             _correct_glass(exported, prim, Sdf, UsdShade)
     # After the traversal: a light may link objects exported after it.
