@@ -196,15 +196,11 @@ impl LiveSession {
     ) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
             let (_, l) = t.lights.iter_mut().find(|(p, _)| p == path).with_context(|| format!("{path}: no light with this path"))?;
-            let links = [("lightLink", illuminates), ("shadowLink", shadowed_by)];
-            let ids: Vec<(String, Option<Vec<String>>)> =
-                links.into_iter().map(|(link, prims)| (format!("{path}.collection:{link}"), prims)).collect();
-            l.light_link = ids[0].1.as_ref().map(|_| ids[0].0.clone());
-            l.shadow_link = ids[1].1.as_ref().map(|_| ids[1].0.clone());
-            for (id, prims) in &ids {
-                relink(t, id, prims.as_deref())?;
-            }
-            Ok(())
+            let (light, shadow) = (crate::usd::link_collection_id(path, "lightLink"), crate::usd::link_collection_id(path, "shadowLink"));
+            l.light_link = illuminates.is_some().then(|| light.clone());
+            l.shadow_link = shadowed_by.is_some().then(|| shadow.clone());
+            relink(t, &light, illuminates.as_deref())?;
+            relink(t, &shadow, shadowed_by.as_deref())
         })
         .await
     }

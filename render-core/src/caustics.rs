@@ -14,7 +14,7 @@
 //!    reflection inside included, as the slides do).
 //! 4. **Subsurface** ("Brute-force subsurface scattering"): every scattering event of a random
 //!    walk connects to the lights through a transparent shadow across its medium's boundary
-//!    ([`shadow_transmittance_from`]), weighted by [`roughness_weight`] of a phase function
+//!    ([`shadow_transmittance`] from inside the medium), weighted by [`roughness_weight`] of a phase function
 //!    (roughness 1) against the boundary's; the direct light a walk finds by leaving keeps
 //!    w'(B_p), the indirect light beyond the exit all of it.
 //!

@@ -145,9 +145,9 @@ pub struct Transaction {
     textures: HashMap<String, StagedTexture>,
     store: Arc<TextureStore>,
     meshes: HashMap<String, StagedMesh>,
-    /// Instancers staged: their delta, transforms (then motion) as they arrive, declared
-    /// length, motion samples per instance.
-    instancers: HashMap<String, (pb::InstancerPrim, Vec<f64>, u64, u64)>,
+    /// Instancers staged: their delta (declared length, motion samples per instance), then
+    /// transforms (then motion) as they arrive.
+    instancers: HashMap<String, (pb::InstancerPrim, Vec<f64>)>,
     /// Volumes staged: their delta, then density, temperature and colour voxels as they arrive.
     volumes: HashMap<String, StagedVolume>,
     /// Prims applied.
@@ -613,8 +613,7 @@ impl Transaction {
             instances.saturating_mul(BYTES_PER_INSTANCE + 128 + 48 * k),
             &format!("{path}: {instances} instances as declared"),
         )?;
-        let declared = i.transforms_len;
-        self.instancers.insert(path, (i, Vec::new(), declared, k));
+        self.instancers.insert(path, (i, Vec::new()));
         Ok(())
     }
 
@@ -668,10 +667,10 @@ impl Transaction {
             return fill(&t.source, "texture bytes", &mut t.bytes, t.declared, c.offset, &c.data, &mut filled);
         }
         if field == pb::ArrayField::InstanceTransforms {
-            let (_, data, declared, _) =
+            let (prim, data) =
                 self.instancers.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no instancer delta precedes this chunk"))?;
             let mut filled = 0;
-            return fill(&c.path, "transforms", data, *declared, c.offset, &c.doubles, &mut filled);
+            return fill(&c.path, "transforms", data, prim.transforms_len, c.offset, &c.doubles, &mut filled);
         }
         if matches!(field, pb::ArrayField::VolumeDensity | pb::ArrayField::VolumeTemperature | pb::ArrayField::VolumeColor) {
             let v = self.volumes.get_mut(&c.path).ok_or_else(|| invalid(&c.path, "chunk", "no volume delta precedes this chunk"))?;
@@ -825,7 +824,8 @@ impl Transaction {
             let (material, visible, link_collections) = (p.material_path.clone(), p.visible, p.link_collections.clone());
             self.desc.meshes.insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections });
         }
-        for (path, (prim, data, _, k)) in self.instancers {
+        for (path, (prim, data)) in self.instancers {
+            let k = prim.motion_samples;
             let affines = |field: &str, values: &[f64]| {
                 values
                     .chunks_exact(16)

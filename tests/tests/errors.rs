@@ -334,3 +334,24 @@ fn a_volume_left_out_of_a_shadow_link_is_said() {
     assert_eq!(t.warnings.iter().filter(|w| w.contains(needle)).count(), 1, "{:?}", t.warnings);
     assert_eq!(t.volumes.len(), 1, "the volume still renders");
 }
+
+/// A light link given by a `membershipExpression` is reported only where usd-core would
+/// evaluate it: with `includeRoot` authored false. Left to LightAPI's fallback (true), or
+/// authored true, the root holds every prim in usd-core too, and nothing is lost.
+#[test]
+fn a_link_expression_is_said_only_where_it_would_limit_the_light() {
+    let expression = |name: &str, root: &str| {
+        format!("def SphereLight \"{name}\"\n{{\n{root}    uniform pathExpression collection:lightLink:membershipExpression = \"/A\"\n}}\n")
+    };
+    let usda = format!(
+        "#usda 1.0\ndef Cube \"A\"\n{{\n}}\n{}{}{}",
+        expression("Fallback", ""),
+        expression("RootOn", "    uniform bool collection:lightLink:includeRoot = 1\n"),
+        expression("RootOff", "    uniform bool collection:lightLink:includeRoot = 0\n"),
+    );
+    let t = load_text("link_expression", &usda);
+    let said: Vec<&String> = t.warnings.iter().filter(|w| w.contains("membershipExpression")).collect();
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(said[0].starts_with("/RootOff: collection:lightLink limits which prims the light illuminates"), "{said:?}");
+    assert!(t.lights.iter().all(|(_, l)| l.light_link.is_none()), "every light reaches every prim");
+}

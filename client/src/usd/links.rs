@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use anyhow::Result;
-use openusd::usd::{Collection, ExpansionRule, MembershipQuery, PathRule};
+use openusd::usd::{Collection, ExpansionRule, PathExpansionRuleMap, PathRule};
 
 use super::*;
 
@@ -27,6 +27,12 @@ pub(super) struct LinkQueries {
 /// The link collections every light has, as UsdLux's LightAPI declares them.
 const LINKS: [&str; 2] = ["lightLink", "shadowLink"];
 
+/// The id of light `light`'s link collection `link` (`lightLink` or `shadowLink`): its
+/// collection path, as Hydra names a category.
+pub fn link_collection_id(light: &str, link: &str) -> String {
+    format!("{light}.collection:{link}")
+}
+
 impl Reader<'_> {
     /// Resolves the link collections of the lights among `paths`. Called after the traversal,
     /// which loads every payload's layer, and only when some layer authors a link property.
@@ -45,11 +51,11 @@ impl Reader<'_> {
             let mut ids = [None, None];
             for (k, link) in LINKS.into_iter().enumerate() {
                 match self.link_query(&prim, p, link) {
-                    Ok(Some(query)) => {
-                        let id = format!("{p}.collection:{link}");
+                    Ok(Some(rules)) => {
+                        let id = link_collection_id(p, link);
                         let index = self.links.ids.len() as u32;
-                        for (path, rule) in query.rule_map() {
-                            self.links.opinions.entry(path.clone()).or_default().push((index, *rule));
+                        for (path, rule) in rules {
+                            self.links.opinions.entry(path).or_default().push((index, rule));
                         }
                         self.links.ids.push(id.clone());
                         ids[k] = Some(id);
@@ -66,15 +72,15 @@ impl Reader<'_> {
         }
     }
 
-    /// The membership of light `prim`'s collection `link`, or None when it holds every prim.
-    /// LightAPI gives the link collections an `includeRoot` fallback of true, which the
-    /// crate's query (authored opinions only) does not know.
-    fn link_query(&mut self, prim: &Prim, p: &str, link: &str) -> Result<Option<MembershipQuery>> {
+    /// The rules of light `prim`'s collection `link` (its resolved membership), or None when
+    /// it holds every prim. LightAPI gives the link collections an `includeRoot` fallback of
+    /// true, which the crate's query (authored opinions only) does not know; usd-core then
+    /// holds every prim, and evaluates a `membershipExpression` only when `includeRoot` is
+    /// authored false.
+    fn link_query(&mut self, prim: &Prim, p: &str, link: &str) -> Result<Option<PathExpansionRuleMap>> {
         let collection = Collection::new(prim.path().clone(), link);
-        let authored = |name: &str| get(prim, &format!("collection:{link}:{name}"), self.time);
-        let expression = authored("membershipExpression")?.is_some();
-        let (includes, excludes) = (collection.includes(self.stage)?, collection.excludes(self.stage)?);
-        if expression && includes.is_empty() && excludes.is_empty() {
+        let root_authored = get(prim, &format!("collection:{link}:includeRoot"), self.time)?.is_some();
+        if root_authored && collection.has_expression(self.stage)? {
             let (limits, so) = match link {
                 "lightLink" => ("which prims the light illuminates", "it illuminates every prim"),
                 _ => ("which prims cast the light's shadows", "every prim casts them"),
@@ -84,9 +90,7 @@ impl Reader<'_> {
                 .push(format!("{p}: collection:{link} limits {limits} by a membershipExpression, which is not evaluated yet, so {so}"));
             return Ok(None);
         }
-        let query = collection.compute_membership_query(self.stage)?;
-        let mut rules = query.rule_map().clone();
-        let root_authored = authored("includeRoot")?.is_some();
+        let mut rules = collection.compute_membership_query(self.stage)?.rule_map().clone();
         let expansion = collection.expansion_rule(self.stage)?;
         if !root_authored && expansion != ExpansionRule::ExplicitOnly {
             let rule = match expansion {
@@ -98,7 +102,7 @@ impl Reader<'_> {
         // The root expanded, and nothing below it excluded or held to itself alone.
         let expands = |rule: &PathRule| matches!(rule, PathRule::ExpandPrims | PathRule::ExpandPrimsAndProperties);
         let everything = rules.get(&sdf::Path::abs_root()).is_some_and(expands) && rules.values().all(expands);
-        Ok((!everything).then(|| MembershipQuery::new(rules)))
+        Ok((!everything).then_some(rules))
     }
 
     /// The ids of the link collections that hold the prim at `path`, as usd-core's

@@ -151,27 +151,26 @@ impl<const FULL: bool> Tracer<'_, FULL> {
     /// so no MIS weight). `a_roughness`: the roughness of the surface the shadow leaves;
     /// `light`: the light it aims at, whose shadow links say what blocks it.
     fn shadow_pass(&self, shadow: &Ray, a_roughness: f32, light: usize) -> Option<Option<Vec3>> {
-        let light = self.shadow_linked(light).then_some(light);
         if self.avoid() {
-            self.scene.shadow_transmittance_for(shadow, shadow.tmax, light).map(|pass| match pass.crossings {
+            self.scene.shadow_transmittance(shadow, shadow.tmax, None, Some(light)).map(|pass| match pass.crossings {
                 0 => None,
                 _ => Some(pass.transmittance * caustics::transparent_weight(a_roughness, pass.roughness)),
             })
         } else if self.force() {
             // The transparent-shadow walk, with glass still opaque.
-            self.scene.shadow_transmittance_for(shadow, shadow.tmax, light).filter(|p| p.crossings == 0).map(|_| None)
+            self.scene.shadow_transmittance(shadow, shadow.tmax, None, Some(light)).filter(|p| p.crossings == 0).map(|_| None)
         } else {
             (!self.occluded(shadow, light)).then_some(None)
         }
     }
 
-    /// Whether anything blocks `shadow` before its end: for a shadow-linked `light`, only the
-    /// prims that cast its shadows.
+    /// Whether anything blocks `shadow` towards `light` before its end: for a shadow-linked
+    /// light, only the prims that cast its shadows (linked scenes take the general loop).
     #[inline]
-    pub(super) fn occluded(&self, shadow: &Ray, light: Option<usize>) -> bool {
-        match light {
-            Some(light) if FULL => self.scene.occluded_for(shadow, shadow.tmax, light),
-            _ => self.scene.occluded(shadow, shadow.tmax),
+    pub(super) fn occluded(&self, shadow: &Ray, light: usize) -> bool {
+        match FULL {
+            true => self.scene.occluded_for(shadow, shadow.tmax, light),
+            false => self.scene.occluded(shadow, shadow.tmax),
         }
     }
 }

@@ -124,8 +124,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         self.each_light_sample(&ctx, u, at.receiver, |ls, light, i| {
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
-            let linked = self.shadow_linked(i).then_some(i);
-            let Some(pass) = scene.shadow_walk(&shadow, shadow.tmax, Some(at.medium), linked).filter(|pass| pass.crossings > 0) else {
+            let Some(pass) = scene.shadow_transmittance(&shadow, shadow.tmax, Some(at.medium), Some(i)).filter(|pass| pass.crossings > 0)
+            else {
                 return;
             };
             let w = caustics::roughness_weight(MEDIUM_ROUGHNESS, pass.roughness);

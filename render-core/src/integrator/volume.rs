@@ -85,12 +85,11 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             let phase = at.volume.phase.eval(at.wo, ls.wi);
             let shadow = shadow_ray(at.p, at.p, &ls).with_time(at.time);
             counters.rays += 1;
-            let linked = self.shadow_linked(i).then_some(i);
-            if self.occluded(&shadow, linked) {
+            if self.occluded(&shadow, i) {
                 return;
             }
             let tr = self.volume_transmittance(&shadow);
-            let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly || linked.is_some() {
+            let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly || self.shadow_linked(i) {
                 true => 1.0,
                 false => power_heuristic(ls.pdf, phase),
             };

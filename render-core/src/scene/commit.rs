@@ -40,9 +40,6 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
     lights.plan(&mut plan);
     let links = LightLinks::build(desc, &lights.usd_lights, &instances, &prim_paths);
-    if let Some(links) = &links {
-        plan_links(links, &lights.usd_lights, &mut plan);
-    }
     if lights.all.is_empty() {
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
@@ -58,7 +55,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let mut light_set = LightSet::new(lights.all, scene_radius);
     if let Some(links) = &links {
         let per_group = light_set.select_per_group(links.group_count(), |light, group| links.illuminates(light, group));
-        plan.call_for_because(Feature::LightLinking, links_reason(per_group), Vec::new());
+        plan_links(links, &lights.usd_lights, per_group, &mut plan);
     }
     // Each thing is said once, however many instances or lobes run into it.
     let mut said = std::collections::HashSet::new();
@@ -373,8 +370,9 @@ fn links_reason(per_group: Option<usize>) -> String {
     }
 }
 
-/// The linking features, each with the lights that call for it.
-fn plan_links(links: &LightLinks, usd_lights: &[String], plan: &mut RenderPlan) {
+/// The linking features, each with the lights that call for it; `per_group`: the light
+/// choices of their own the receiver groups got ([`LightSet::select_per_group`]).
+fn plan_links(links: &LightLinks, usd_lights: &[String], per_group: Option<usize>, plan: &mut RenderPlan) {
     let (mut light, mut shadow) = (Vec::new(), Vec::new());
     for (i, l, s) in links.linked() {
         if l {
@@ -384,7 +382,7 @@ fn plan_links(links: &LightLinks, usd_lights: &[String], plan: &mut RenderPlan) 
             shadow.push(usd_lights[i].clone());
         }
     }
-    plan.call_for(Feature::LightLinking, light);
+    plan.call_for_because(Feature::LightLinking, links_reason(per_group), light);
     plan.call_for(Feature::ShadowLinking, shadow);
 }
 

@@ -25,32 +25,18 @@ impl CommittedScene {
     /// Follows a shadow ray to `tmax` through smooth glass: None when something opaque (or
     /// rough glass) blocks it, else the glass's transmittance without refraction, (1 − F) and
     /// the tint per interface, a thin sheet's series weight once.
-    pub fn shadow_transmittance(&self, ray: &Ray, tmax: f32) -> Option<ShadowPass> {
-        self.shadow_walk(ray, tmax, None, None)
-    }
-
-    /// [`Self::shadow_transmittance`] towards a shadow-linked light `light`, if given: only
-    /// the prims that cast its shadows count.
-    pub fn shadow_transmittance_for(&self, ray: &Ray, tmax: f32, light: Option<usize>) -> Option<ShadowPass> {
-        self.shadow_walk(ray, tmax, None, light)
-    }
-
-    /// [`Self::shadow_transmittance`] for a shadow ray that starts inside the subsurface
-    /// medium `inside` (Kulla & Conty, "Revisiting Physically Based Shading at Imageworks",
-    /// the brute-force subsurface scattering slides: with a smooth interface, lighting inside
-    /// the medium comes through transparent shadows). The medium attenuates by e^(−σ_t d) up
-    /// to its boundary, which passes as smooth glass would (1 − F, no bending) unless it is
-    /// fully rough. Without the refraction's η² there is nothing to undo: inside, the light's
-    /// radiance is η² higher over a solid angle η² smaller, which leaves its in-scattered
-    /// radiance as it is.
-    pub fn shadow_transmittance_from(&self, ray: &Ray, tmax: f32, inside: Option<Medium>) -> Option<ShadowPass> {
-        self.shadow_walk(ray, tmax, inside, None)
-    }
-
-    /// The walk of [`Self::shadow_transmittance_from`]; with a shadow-linked `light`, surfaces
-    /// of prims that do not cast its shadows are passed as if absent (the boundary of the medium
-    /// it starts in still counts).
-    pub fn shadow_walk(&self, ray: &Ray, tmax: f32, mut inside: Option<Medium>, light: Option<usize>) -> Option<ShadowPass> {
+    ///
+    /// A ray that starts inside the subsurface medium `inside` (Kulla & Conty, "Revisiting
+    /// Physically Based Shading at Imageworks", the brute-force subsurface scattering slides:
+    /// with a smooth interface, lighting inside the medium comes through transparent shadows)
+    /// is attenuated by e^(−σ_t d) up to the medium's boundary, which passes as smooth glass
+    /// would (1 − F, no bending) unless it is fully rough. Without the refraction's η² there is
+    /// nothing to undo: inside, the light's radiance is η² higher over a solid angle η²
+    /// smaller, which leaves its in-scattered radiance as it is.
+    ///
+    /// Towards a shadow-linked `light`, surfaces of prims that do not cast its shadows are
+    /// passed as if absent (the boundary of the medium the ray starts in still counts).
+    pub fn shadow_transmittance(&self, ray: &Ray, tmax: f32, mut inside: Option<Medium>, light: Option<usize>) -> Option<ShadowPass> {
         let casts = |instance: u32| match (light, &self.links) {
             (Some(light), Some(links)) => links.casts_shadow(light, instance),
             _ => true,
