@@ -217,7 +217,7 @@ def Mesh "Glow" (prepend apiSchemas = ["MeshLightAPI"])
 }
 def Scope "Sets" (prepend apiSchemas = ["CollectionAPI:props"])
 {
-    uniform pathExpression collection:props:membershipExpression = "/Asset/*"
+    uniform pathExpression collection:props:membershipExpression = "/Asset/* //{bogus}"
 }
 def RectLight "Fill" (prepend apiSchemas = ["CollectionAPI:shadowLink"])
 {
@@ -250,7 +250,7 @@ def SphereLight "Key" (prepend apiSchemas = ["CollectionAPI:lightLink"])
     one("/Asset/Quad: purpose 'bogus'");
     one("/Key.inputs:intensity: attribute animated by a spline");
     one("/Glow: MeshLightAPI (a Mesh as a light) is not supported yet");
-    one("/Sets: collection 'props' is defined by a membershipExpression");
+    one("/Sets: collection 'props': its membershipExpression cannot be evaluated");
     assert!(!t.warnings.iter().any(|w| w.contains("/Plain")), "{:?}", t.warnings);
     let key = t.lights.iter().find(|(path, _)| path == "/Key").expect("the key light");
     assert_eq!(key.1.intensity, 1.0, "the fallback, not a half-read spline");
@@ -335,23 +335,33 @@ fn a_volume_left_out_of_a_shadow_link_is_said() {
     assert_eq!(t.volumes.len(), 1, "the volume still renders");
 }
 
-/// A light link given by a `membershipExpression` is reported only where usd-core would
-/// evaluate it: with `includeRoot` authored false. Left to LightAPI's fallback (true), or
-/// authored true, the root holds every prim in usd-core too, and nothing is lost.
+/// A light link given by a `membershipExpression` limits the light only where usd-core
+/// evaluates it: with `includeRoot` authored false. Left to LightAPI's fallback (true), or
+/// authored true, the root holds every prim in usd-core too. An expression that cannot be
+/// evaluated (a predicate nobody defines) holds nothing, and says so, naming the light.
 #[test]
-fn a_link_expression_is_said_only_where_it_would_limit_the_light() {
-    let expression = |name: &str, root: &str| {
-        format!("def SphereLight \"{name}\"\n{{\n{root}    uniform pathExpression collection:lightLink:membershipExpression = \"/A\"\n}}\n")
+fn a_link_expression_limits_the_light_only_where_usd_core_evaluates_it() {
+    let expression = |name: &str, root: &str, text: &str| {
+        format!(
+            "def SphereLight \"{name}\"\n{{\n{root}    uniform pathExpression collection:lightLink:membershipExpression = \"{text}\"\n}}\n"
+        )
     };
+    let (on, off) = ("    uniform bool collection:lightLink:includeRoot = 1\n", "    uniform bool collection:lightLink:includeRoot = 0\n");
     let usda = format!(
-        "#usda 1.0\ndef Cube \"A\"\n{{\n}}\n{}{}{}",
-        expression("Fallback", ""),
-        expression("RootOn", "    uniform bool collection:lightLink:includeRoot = 1\n"),
-        expression("RootOff", "    uniform bool collection:lightLink:includeRoot = 0\n"),
+        "#usda 1.0\ndef Cube \"A\"\n{{\n}}\ndef Cube \"B\"\n{{\n}}\n{}{}{}{}",
+        expression("Fallback", "", "/A"),
+        expression("RootOn", on, "/A"),
+        expression("RootOff", off, "/A"),
+        expression("Unknown", off, "//{bogus}"),
     );
     let t = load_text("link_expression", &usda);
     let said: Vec<&String> = t.warnings.iter().filter(|w| w.contains("membershipExpression")).collect();
     assert_eq!(said.len(), 1, "{said:?}");
-    assert!(said[0].starts_with("/RootOff: collection:lightLink limits which prims the light illuminates"), "{said:?}");
-    assert!(t.lights.iter().all(|(_, l)| l.light_link.is_none()), "every light reaches every prim");
+    assert!(said[0].starts_with("/Unknown: collection:lightLink:membershipExpression cannot be evaluated"), "{said:?}");
+    let link = |light: &str| t.lights.iter().find(|(path, _)| path == light).and_then(|(_, l)| l.light_link.clone());
+    assert_eq!((link("/Fallback"), link("/RootOn")), (None, None), "the root holds every prim");
+    let collections = |mesh: &str| t.meshes.iter().find(|(path, _)| path == mesh).map(|(_, m)| m.link_collections.clone()).unwrap();
+    assert_eq!(collections("/A"), ["/RootOff.collection:lightLink"], "the expression holds /A alone");
+    assert!(collections("/B").is_empty());
+    assert_eq!(link("/Unknown").as_deref(), Some("/Unknown.collection:lightLink"), "a link that holds nothing");
 }

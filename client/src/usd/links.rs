@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use anyhow::Result;
-use openusd::usd::{Collection, ExpansionRule, PathExpansionRuleMap, PathRule};
+use openusd::usd::{Collection, CollectionMode, ExpansionRule, MembershipQuery, PathExpansionRuleMap, PathRule};
 
 use super::*;
 
@@ -20,8 +20,21 @@ pub(super) struct LinkQueries {
     /// walk up from the prim decides them all (asking each collection in turn cost 1.7 s for
     /// 1,000 linked lights over 10,000 cubes).
     opinions: HashMap<sdf::Path, Vec<(u32, PathRule)>>,
+    /// The collections a `membershipExpression` defines, asked about each prim in turn: an
+    /// expression holds exactly the paths it matches, with no closest-ancestor rule to share.
+    expressions: Vec<(u32, MembershipQuery)>,
     /// Per light path, the ids of its light-link and shadow-link collections.
     lights: HashMap<String, [Option<String>; 2]>,
+}
+
+/// What a light's link collection holds.
+enum Membership {
+    /// Every prim: the link limits nothing.
+    Everything,
+    /// What its relationships' rules hold.
+    Rules(PathExpansionRuleMap),
+    /// What its `membershipExpression` matches.
+    Expression(MembershipQuery),
 }
 
 /// The link collections every light has, as UsdLux's LightAPI declares them.
@@ -51,16 +64,22 @@ impl Reader<'_> {
             let mut ids = [None, None];
             for (k, link) in LINKS.into_iter().enumerate() {
                 match self.link_query(&prim, p, link) {
-                    Ok(Some(rules)) => {
+                    Ok(Membership::Everything) => {}
+                    Ok(membership) => {
                         let id = link_collection_id(p, link);
                         let index = self.links.ids.len() as u32;
-                        for (path, rule) in rules {
-                            self.links.opinions.entry(path).or_default().push((index, rule));
+                        match membership {
+                            Membership::Rules(rules) => {
+                                for (path, rule) in rules {
+                                    self.links.opinions.entry(path).or_default().push((index, rule));
+                                }
+                            }
+                            Membership::Expression(query) => self.links.expressions.push((index, query)),
+                            Membership::Everything => unreachable!("matched above"),
                         }
                         self.links.ids.push(id.clone());
                         ids[k] = Some(id);
                     }
-                    Ok(None) => {}
                     Err(e) => {
                         self.out.warnings.push(format!("{p}: collection:{link} cannot be read ({e:#}); it is taken to hold every prim"))
                     }
@@ -72,27 +91,31 @@ impl Reader<'_> {
         }
     }
 
-    /// The rules of light `prim`'s collection `link` (its resolved membership), or None when
-    /// it holds every prim. LightAPI gives the link collections an `includeRoot` fallback of
-    /// true, which the crate's query (authored opinions only) does not know; usd-core then
-    /// holds every prim, and evaluates a `membershipExpression` only when `includeRoot` is
-    /// authored false.
-    fn link_query(&mut self, prim: &Prim, p: &str, link: &str) -> Result<Option<PathExpansionRuleMap>> {
+    /// The resolved membership of light `prim`'s collection `link`. LightAPI gives the link
+    /// collections an `includeRoot` fallback of true, which the crate's query (authored
+    /// opinions only) does not know: outside `mode = "expression"`, usd-core then answers by
+    /// the relationships, and a `membershipExpression` counts only where `includeRoot` is
+    /// authored false or the `expansionRule` is `explicitOnly` (under which the root holds
+    /// nothing, so the relationships may say nothing).
+    fn link_query(&mut self, prim: &Prim, p: &str, link: &str) -> Result<Membership> {
         let collection = Collection::new(prim.path().clone(), link);
         let root_authored = get(prim, &format!("collection:{link}:includeRoot"), self.time)?.is_some();
-        if root_authored && collection.has_expression(self.stage)? {
-            let (limits, so) = match link {
-                "lightLink" => ("which prims the light illuminates", "it illuminates every prim"),
-                _ => ("which prims cast the light's shadows", "every prim casts them"),
-            };
-            self.out
-                .warnings
-                .push(format!("{p}: collection:{link} limits {limits} by a membershipExpression, which is not evaluated yet, so {so}"));
-            return Ok(None);
-        }
-        let mut rules = collection.compute_membership_query(self.stage)?.rule_map().clone();
         let expansion = collection.expansion_rule(self.stage)?;
-        if !root_authored && expansion != ExpansionRule::ExplicitOnly {
+        // The root holds nothing under explicitOnly, so the rule map may be left empty.
+        let root_fallback =
+            !root_authored && expansion != ExpansionRule::ExplicitOnly && collection.mode(self.stage)? != CollectionMode::Expression;
+        let query = collection.compute_membership_query(self.stage)?;
+        if !root_fallback {
+            if let Some(error) = collection.expression_error(self.stage)?.filter(|_| query.rule_map().is_empty()) {
+                let nothing = if link == "lightLink" { "the light illuminates nothing" } else { "no prim casts its shadows" };
+                self.out.warnings.push(format!("{p}: collection:{link}:membershipExpression cannot be evaluated ({error}), so {nothing}"));
+            }
+            if query.expression_evaluator().is_some() {
+                return Ok(Membership::Expression(query));
+            }
+        }
+        let mut rules = query.rule_map().clone();
+        if root_fallback {
             let rule = match expansion {
                 ExpansionRule::ExpandPrimsAndProperties => PathRule::ExpandPrimsAndProperties,
                 _ => PathRule::ExpandPrims,
@@ -102,7 +125,7 @@ impl Reader<'_> {
         // The root expanded, and nothing below it excluded or held to itself alone.
         let expands = |rule: &PathRule| matches!(rule, PathRule::ExpandPrims | PathRule::ExpandPrimsAndProperties);
         let everything = rules.get(&sdf::Path::abs_root()).is_some_and(expands) && rules.values().all(expands);
-        Ok((!everything).then_some(rules))
+        Ok(if everything { Membership::Everything } else { Membership::Rules(rules) })
     }
 
     /// The ids of the link collections that hold the prim at `path`, as usd-core's
@@ -128,6 +151,7 @@ impl Reader<'_> {
             }
             at = current.parent().filter(|p| !p.is_empty());
         }
+        held.extend(self.links.expressions.iter().filter(|(_, query)| query.is_path_included(path)).map(|&(index, _)| index));
         held.sort_unstable();
         held.into_iter().map(|i| self.links.ids[i as usize].clone()).collect()
     }

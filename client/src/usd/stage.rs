@@ -1,6 +1,7 @@
 //! Walking the composed stage: visiting prims in order, world transforms, attribute reads at the frame.
 
 use anyhow::{Context, Result};
+use openusd::usd::Collection;
 
 use super::*;
 
@@ -222,7 +223,7 @@ impl Reader<'_> {
     }
 
     /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
-    /// gprim as a light, and collections defined by a path expression.
+    /// gprim as a light, and collections whose path expression cannot be evaluated.
     fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
         self.reported_names.update(self.stage);
         let applied = if self.reported_names.apis { prim.api_schemas()? } else { Vec::new() };
@@ -234,10 +235,10 @@ impl Reader<'_> {
                 ));
             }
             if let Some(name) = api.strip_prefix("CollectionAPI:")
-                && get(prim, &format!("collection:{name}:membershipExpression"), self.time)?.is_some()
+                && let Some(error) = Collection::new(prim.path().clone(), name).expression_error(self.stage)?
             {
                 self.out.warnings.push(format!(
-                    "{p}: collection '{name}' is defined by a membershipExpression, which is not evaluated yet; it holds no prims, so material bindings through it bind nothing"
+                    "{p}: collection '{name}': its membershipExpression cannot be evaluated ({error}); where it decides, it holds no prims"
                 ));
             }
         }

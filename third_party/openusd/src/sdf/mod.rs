@@ -22,6 +22,7 @@ pub(crate) mod layer_registry;
 mod ordering;
 mod path;
 mod path_table;
+pub mod path_expr;
 pub mod schema;
 pub mod sink;
 mod spec;
@@ -42,6 +43,7 @@ pub use layer::{AuthoringError, EditError, Layer, LayerEdit, LayerSink, LayerSin
 pub use layer_registry::LayerRegistry;
 pub use ordering::{apply_ordering, element_cmp};
 pub use path::{path, Path, PathComponent, PathComponents, PathElement};
+pub use path_expr::PathExpression;
 pub use path_table::PathTable;
 pub use schema::{ChildrenKey, FieldKey};
 pub use spec::{

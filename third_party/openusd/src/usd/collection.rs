@@ -17,17 +17,20 @@
 //! and reading their authored opinions. [`MembershipQuery`] is the resolved
 //! path-membership predicate built from those opinions.
 //!
-//! The newer pattern-based `membershipExpression` mode (an
-//! `SdfPathExpression` predicate) is read here as a raw string but is not
-//! yet *evaluated* — that engine is a separate effort. Relationship-mode
-//! collections are fully supported.
+//! The pattern-based `membershipExpression` mode (an `SdfPathExpression`)
+//! is evaluated by [`super::collection_expr`], backported from openusd 0.8
+//! (PATCHES.md item 23); a collection's `mode` chooses between the two as
+//! usd-core's does.
 
 use std::collections::{HashMap, HashSet};
+use std::rc::Rc;
 
 use anyhow::Result;
 
 use crate::sdf::{FieldKey, Path, Value, Variability};
 use crate::usd::{Prim, PrimPredicate, Relationship, Stage};
+
+use super::collection_expr::{resolve_complete_membership_expression, CollectionEvaluator};
 
 /// Multiple-apply API schema name; instances appear in `apiSchemas` as
 /// `CollectionAPI:<name>`.
@@ -41,6 +44,7 @@ const INCLUDE_ROOT: &str = "includeRoot";
 const INCLUDES: &str = "includes";
 const EXCLUDES: &str = "excludes";
 const MEMBERSHIP_EXPRESSION: &str = "membershipExpression";
+const MODE: &str = "mode";
 
 // `expansionRule` token values.
 const TOK_EXPLICIT_ONLY: &str = "explicitOnly";
@@ -150,8 +154,8 @@ impl Collection {
         stage.relationship(self.prop(EXCLUDES)?).targets()
     }
 
-    /// The raw `membershipExpression` string, if authored. Read-only —
-    /// expression-mode evaluation is not implemented yet.
+    /// The raw `membershipExpression` string, if authored (the strongest
+    /// opinion); [`Self::compute_membership_query`] evaluates it.
     pub fn membership_expression(&self, stage: &Stage) -> Result<Option<String>> {
         Ok(
             match stage.field::<Value>(self.prop(MEMBERSHIP_EXPRESSION)?, FieldKey::Default)? {
@@ -162,14 +166,20 @@ impl Collection {
         )
     }
 
-    /// Whether this collection is authored in expression mode (a
-    /// `membershipExpression` with no `includes`/`excludes`/`includeRoot`).
-    /// Such collections are not yet evaluated.
-    pub fn has_expression(&self, stage: &Stage) -> Result<bool> {
-        Ok(self.membership_expression(stage)?.is_some()
-            && self.includes(stage)?.is_empty()
-            && self.excludes(stage)?.is_empty()
-            && !self.include_root(stage)?)
+    /// The collection's `mode` (`automatic` when unauthored or unknown):
+    /// `relationship` ignores the expression, `expression` the relationships.
+    pub fn mode(&self, stage: &Stage) -> Result<CollectionMode> {
+        let value = stage.field::<Value>(self.prop(MODE)?, FieldKey::Default)?;
+        let token = match &value {
+            Some(Value::Token(t)) => t.as_str(),
+            Some(Value::String(s)) => s.as_str(),
+            _ => "",
+        };
+        Ok(match token {
+            "relationship" => CollectionMode::Relationship,
+            "expression" => CollectionMode::Expression,
+            _ => CollectionMode::Automatic,
+        })
     }
 
     /// Resolve this collection's authored opinions into a
@@ -180,14 +190,38 @@ impl Collection {
     ///
     /// Cycles among chained collections are broken (each collection visited
     /// once); excludes are applied last so they always win over includes.
-    /// Expression-mode collections (`has_expression`) currently resolve to
-    /// an empty query.
+    /// Where the relationships give no opinion (or `mode` is `expression`),
+    /// the resolved `membershipExpression` answers instead. An expression
+    /// that does not compile (a predicate called with arguments it refuses)
+    /// holds nothing, as in usd-core after its warning.
     pub fn compute_membership_query(&self, stage: &Stage) -> Result<MembershipQuery> {
+        let mode = self.mode(stage)?;
         let mut map = PathExpansionRuleMap::new();
-        let mut visited = HashSet::new();
-        visited.insert(self.collection_path()?);
-        self.build_into(stage, &mut map, &mut visited)?;
-        Ok(MembershipQuery::new(map))
+        if mode != CollectionMode::Expression {
+            let mut visited = HashSet::new();
+            visited.insert(self.collection_path()?);
+            self.build_into(stage, &mut map, &mut visited)?;
+        }
+        let mut query = MembershipQuery::new(map);
+        if mode != CollectionMode::Relationship && query.rule_map.is_empty() {
+            let expression = resolve_complete_membership_expression(stage, self)?;
+            if !expression.is_empty() {
+                query.evaluator = CollectionEvaluator::build(stage, expression).ok().map(Rc::new);
+            }
+        }
+        Ok(query)
+    }
+
+    /// The `membershipExpression` resolved as [`Self::compute_membership_query`]
+    /// reads it, and why it cannot be evaluated when it cannot: None when the
+    /// collection has none.
+    pub fn expression_error(&self, stage: &Stage) -> Result<Option<String>> {
+        let Some(text) = self.membership_expression(stage)? else { return Ok(None) };
+        if let Some(error) = crate::sdf::PathExpression::parse(&text).parse_error() {
+            return Ok(Some(error.to_string()));
+        }
+        let expression = resolve_complete_membership_expression(stage, self)?;
+        Ok(CollectionEvaluator::build(stage, expression).err().map(|e| e.to_string()))
     }
 
     /// `collection:<name>:<suffix>` relationship/property name (unanchored).
@@ -508,21 +542,44 @@ impl PathRule {
 /// collection's includes/excludes/expansionRule/includeRoot opinions.
 pub type PathExpansionRuleMap = HashMap<Path, PathRule>;
 
-/// A resolved, stage-free membership predicate for a collection (the
-/// relationship-linking mode). Build it once (see
+/// A collection's `mode`: which of its two membership languages answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CollectionMode {
+    /// The relationships when they give any opinion, else the expression.
+    #[default]
+    Automatic,
+    /// The relationships alone.
+    Relationship,
+    /// The expression alone.
+    Expression,
+}
+
+/// A resolved membership predicate for a collection. Build it once (see
 /// `compute_membership_query`) and query [`is_path_included`] cheaply; it
 /// clones freely so consumers can cache one per collection path.
 ///
+/// It holds the relationships' rule map, or, where that is empty, the
+/// compiled membership expression, which answers a path exactly (no
+/// expansion to descendants) and reads the stage at each query.
+///
 /// [`is_path_included`]: MembershipQuery::is_path_included
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default)]
 pub struct MembershipQuery {
     rule_map: PathExpansionRuleMap,
+    evaluator: Option<Rc<CollectionEvaluator>>,
+}
+
+impl PartialEq for MembershipQuery {
+    /// Two queries with expressions are never known equal (usd-core's rule).
+    fn eq(&self, other: &Self) -> bool {
+        self.rule_map == other.rule_map && self.evaluator.is_none() && other.evaluator.is_none()
+    }
 }
 
 impl MembershipQuery {
     /// Build a query from a resolved rule map.
     pub fn new(rule_map: PathExpansionRuleMap) -> Self {
-        MembershipQuery { rule_map }
+        MembershipQuery { rule_map, evaluator: None }
     }
 
     /// The resolved per-path rule map.
@@ -530,9 +587,14 @@ impl MembershipQuery {
         &self.rule_map
     }
 
+    /// The compiled membership expression, when it answers.
+    pub fn expression_evaluator(&self) -> Option<&CollectionEvaluator> {
+        self.evaluator.as_deref()
+    }
+
     /// `true` when the query has no opinions (includes nothing).
     pub fn is_empty(&self) -> bool {
-        self.rule_map.is_empty()
+        self.rule_map.is_empty() && self.evaluator.is_none()
     }
 
     /// Whether `path` is a member, by walking from `path` toward the root and
@@ -544,8 +606,12 @@ impl MembershipQuery {
     ///   the explicitly listed path;
     /// - `ExpandPrimsAndProperties` → member.
     ///
-    /// Paths with no ancestor opinion are not members.
+    /// Paths with no ancestor opinion are not members. Without opinions, the
+    /// membership expression answers.
     pub fn is_path_included(&self, path: &Path) -> bool {
+        if let Some(evaluator) = &self.evaluator {
+            return evaluator.match_path(path).value;
+        }
         let (rule, on_self) = self.closest_rule(path);
         rule_includes(rule, on_self, path.is_property_path())
     }
@@ -555,6 +621,9 @@ impl MembershipQuery {
     /// `path`'s own children — without re-walking ancestors. An opinion
     /// authored directly on `path` overrides the inherited `parent_rule`.
     pub fn is_path_included_below(&self, path: &Path, parent_rule: PathRule) -> (bool, PathRule) {
+        if self.evaluator.is_some() {
+            return (self.is_path_included(path), parent_rule);
+        }
         match self.rule_map.get(path).copied() {
             // An explicitOnly opinion holds the path alone: its children keep the rule above.
             Some(PathRule::ExplicitOnly) => (true, parent_rule),
