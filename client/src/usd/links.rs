@@ -20,9 +20,15 @@ pub(super) struct LinkQueries {
     /// walk up from the prim decides them all (asking each collection in turn cost 1.7 s for
     /// 1,000 linked lights over 10,000 cubes).
     opinions: HashMap<sdf::Path, Vec<(u32, PathRule)>>,
-    /// The collections a `membershipExpression` defines, asked about each prim in turn: an
-    /// expression holds exactly the paths it matches, with no closest-ancestor rule to share.
+    /// The collections a `membershipExpression` defines: an expression holds exactly the
+    /// paths it matches, with no closest-ancestor rule to share.
     expressions: Vec<(u32, MembershipQuery)>,
+    /// The expression collections that hold each prim of the traversal, found by one
+    /// incremental search per expression along it (asking each expression about each prim
+    /// anew cost 9.2 s for 1,000 linked lights over 10,000 cubes).
+    matched: HashMap<sdf::Path, Vec<u32>>,
+    /// The traversal's prims, which [`Self::matched`] answers for.
+    searched: std::collections::HashSet<sdf::Path>,
     /// Per light path, the ids of its light-link and shadow-link collections.
     lights: HashMap<String, [Option<String>; 2]>,
 }
@@ -89,6 +95,26 @@ impl Reader<'_> {
                 self.links.lights.insert(p.to_string(), ids);
             }
         }
+        self.search_expressions(paths);
+    }
+
+    /// Fills [`LinkQueries::matched`]: each expression collection searched along the traversal
+    /// (`paths`, depth first), which carries each pattern's partial match from a prim to its
+    /// children and skips what an answer constant over a subtree already decides.
+    fn search_expressions(&mut self, paths: &[sdf::Path]) {
+        if self.links.expressions.is_empty() {
+            return;
+        }
+        for (index, query) in &self.links.expressions {
+            let Some(evaluator) = query.expression_evaluator() else { continue };
+            let mut searcher = evaluator.incremental_searcher();
+            for path in paths {
+                if searcher.next_composed(path).value {
+                    self.links.matched.entry(path.clone()).or_default().push(*index);
+                }
+            }
+        }
+        self.links.searched = paths.iter().cloned().collect();
     }
 
     /// The resolved membership of light `prim`'s collection `link`. LightAPI gives the link
@@ -151,7 +177,11 @@ impl Reader<'_> {
             }
             at = current.parent().filter(|p| !p.is_empty());
         }
-        held.extend(self.links.expressions.iter().filter(|(_, query)| query.is_path_included(path)).map(|&(index, _)| index));
+        match self.links.searched.contains(path) {
+            true => held.extend(self.links.matched.get(path).into_iter().flatten()),
+            // A prim outside the traversal (a prototype under an `over`, say) is asked directly.
+            false => held.extend(self.links.expressions.iter().filter(|(_, q)| q.is_path_included(path)).map(|&(i, _)| i)),
+        }
         held.sort_unstable();
         held.into_iter().map(|i| self.links.ids[i as usize].clone()).collect()
     }

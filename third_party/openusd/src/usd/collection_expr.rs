@@ -130,6 +130,12 @@ impl CollectionSearcher<'_> {
         }
         Ok(self.searcher.next(path))
     }
+
+    /// [`Self::next`] for a path the caller knows is composed on the stage
+    /// (one its own traversal found), without asking the stage again.
+    pub fn next_composed(&mut self, path: &Path) -> PredResult {
+        self.searcher.next(path)
+    }
 }
 
 /// Resolves a collection's composed `membershipExpression` into a complete
