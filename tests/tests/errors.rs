@@ -365,3 +365,42 @@ fn a_link_expression_limits_the_light_only_where_usd_core_evaluates_it() {
     assert!(collections("/B").is_empty());
     assert_eq!(link("/Unknown").as_deref(), Some("/Unknown.collection:lightLink"), "a link that holds nothing");
 }
+
+/// Path expressions are hostile input too: each worst case loads (on a test thread's 2 MiB
+/// stack), says why its light's link cannot be evaluated, and leaves the light illuminating
+/// nothing. A chain of 50,000 `-` overflowed the stack in the evaluator's recursive walks
+/// before the parser bounded operators (512); references that double at each of 40
+/// collections would expand to 2^40 terms (bounded at 4,096); and a chain of references
+/// recurses once per collection (bounded at 64).
+#[test]
+fn path_expressions_past_the_limits_are_said_not_crashed_on() {
+    let light = |expression: &str| {
+        format!(
+            "def SphereLight \"L\"\n{{\n    uniform bool collection:lightLink:includeRoot = 0\n    uniform pathExpression collection:lightLink:membershipExpression = \"{expression}\"\n}}\n"
+        )
+    };
+    let collections = |count: usize, refer: &dyn Fn(usize) -> String| -> String {
+        (0..count)
+            .map(|i| {
+                let text = if i + 1 < count { refer(i + 1) } else { "/A".to_string() };
+                format!("def Scope \"S{i}\" (\n    prepend apiSchemas = [\"CollectionAPI:c\"]\n)\n{{\n    uniform pathExpression collection:c:membershipExpression = \"{text}\"\n}}\n")
+            })
+            .collect()
+    };
+    let cases = [
+        ("operators", light(&vec!["/A"; 50_000].join(" - ")), "more than 512 operators"),
+        ("predicates", light(&format!("//{{{}}}", vec!["isa:Cube"; 50_000].join(" and "))), "more than 512 operators"),
+        ("doubling", light("%/S0:c") + &collections(40, &|n| format!("%/S{n}:c %/S{n}:c")), "more than 4096 terms"),
+        ("chain", light("%/S0:c") + &collections(200, &|n| format!("%/S{n}:c")), "more than 64 collections in a chain"),
+    ];
+    for (name, body, why) in cases {
+        let t = load_text(&format!("expression-{name}"), &format!("#usda 1.0\ndef Cube \"A\"\n{{\n}}\n{body}"));
+        let said: Vec<&String> = t.warnings.iter().filter(|w| w.starts_with("/L: collection:lightLink:membershipExpression")).collect();
+        assert_eq!(said.len(), 1, "{name}: {:?}", t.warnings.iter().take(3).collect::<Vec<_>>());
+        assert!(said[0].contains(why) && said[0].len() < 600, "{name}: {}", said[0]);
+        let cube = t.meshes.iter().find(|(path, _)| path == "/A").expect("the cube renders");
+        assert!(cube.1.link_collections.is_empty(), "{name}: the light holds nothing");
+        let l = t.lights.iter().find(|(path, _)| path == "/L").expect("the light");
+        assert_eq!(l.1.light_link.as_deref(), Some("/L.collection:lightLink"), "{name}");
+    }
+}

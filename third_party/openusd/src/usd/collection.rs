@@ -192,8 +192,9 @@ impl Collection {
     /// once); excludes are applied last so they always win over includes.
     /// Where the relationships give no opinion (or `mode` is `expression`),
     /// the resolved `membershipExpression` answers instead. An expression
-    /// that does not compile (a predicate called with arguments it refuses)
-    /// holds nothing, as in usd-core after its warning.
+    /// that does not compile (a predicate called with arguments it refuses),
+    /// or whose references expand past the resolution's bounds, holds
+    /// nothing, as in usd-core after its warning.
     pub fn compute_membership_query(&self, stage: &Stage) -> Result<MembershipQuery> {
         let mode = self.mode(stage)?;
         let mut map = PathExpansionRuleMap::new();
@@ -204,7 +205,9 @@ impl Collection {
         }
         let mut query = MembershipQuery::new(map);
         if mode != CollectionMode::Relationship && query.rule_map.is_empty() {
-            let expression = resolve_complete_membership_expression(stage, self)?;
+            // An expression that references past the resolution's bounds holds
+            // nothing, like one that does not compile.
+            let expression = resolve_complete_membership_expression(stage, self).unwrap_or_default();
             if !expression.is_empty() {
                 query.evaluator = CollectionEvaluator::build(stage, expression).ok().map(Rc::new);
             }
@@ -215,13 +218,21 @@ impl Collection {
     /// The `membershipExpression` resolved as [`Self::compute_membership_query`]
     /// reads it, and why it cannot be evaluated when it cannot: None when the
     /// collection has none.
+    /// The message is cut to 240 characters: a parse error quotes the whole
+    /// expression, which may be megabytes.
     pub fn expression_error(&self, stage: &Stage) -> Result<Option<String>> {
         let Some(text) = self.membership_expression(stage)? else { return Ok(None) };
-        if let Some(error) = crate::sdf::PathExpression::parse(&text).parse_error() {
-            return Ok(Some(error.to_string()));
-        }
-        let expression = resolve_complete_membership_expression(stage, self)?;
-        Ok(CollectionEvaluator::build(stage, expression).err().map(|e| e.to_string()))
+        let error = match crate::sdf::PathExpression::parse(&text).parse_error() {
+            Some(error) => Some(error.to_string()),
+            None => match resolve_complete_membership_expression(stage, self) {
+                Ok(expression) => CollectionEvaluator::build(stage, expression).err().map(|e| e.to_string()),
+                Err(e) => Some(format!("{e:#}")),
+            },
+        };
+        Ok(error.map(|message| match message.char_indices().nth(240) {
+            Some((cut, _)) => format!("{}…", &message[..cut]),
+            None => message,
+        }))
     }
 
     /// `collection:<name>:<suffix>` relationship/property name (unanchored).

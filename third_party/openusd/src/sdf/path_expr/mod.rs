@@ -434,6 +434,20 @@ impl PathExpression {
         rebuild(root, f)
     }
 
+    /// How many nodes (atoms and operators) the expression's tree holds.
+    /// Tessera's patch: collection resolution bounds what references expand
+    /// to with it.
+    pub fn node_count(&self) -> usize {
+        fn count(node: &ExprNode) -> usize {
+            match node {
+                ExprNode::Pattern(_) | ExprNode::Reference(_) => 1,
+                ExprNode::Complement(inner) => 1 + count(inner),
+                ExprNode::Op(_, left, right) => 1 + count(left) + count(right),
+            }
+        }
+        self.root().map_or(0, count)
+    }
+
     /// The expression tree, for the evaluator's walk.
     pub(super) fn root(&self) -> Option<&ExprNode> {
         match &self.0 {

@@ -16,6 +16,12 @@ use super::{ExpressionReference, PathExpression, SetOp};
 /// files, so nesting is bounded rather than crashing on crafted input.
 const MAX_NESTING: usize = 128;
 
+/// How many binary operators one expression may hold, path and predicate
+/// operators together. A chain of operators builds a tree as deep as it is
+/// long, which the recursive walks over it (evaluation, rebuilding, drop)
+/// would follow to a stack overflow (seen at 50,000 `-`). Tessera's patch.
+pub(crate) const MAX_OPERATORS: usize = 512;
+
 /// Parses a full path expression, capturing a failure as the empty
 /// expression plus its error text.
 pub(super) fn parse_path_expression(input: &str) -> PathExpression {
@@ -77,6 +83,8 @@ pub(super) fn is_bare_argument_token(text: &str) -> bool {
 struct Cursor {
     chars: Vec<char>,
     pos: usize,
+    /// Binary operators read so far ([`MAX_OPERATORS`]).
+    operators: usize,
 }
 
 /// A parse failure at a character position; the position is 1-based in the
@@ -92,8 +100,14 @@ impl ParseFail {
             .chars()
             .nth(self.pos)
             .unwrap_or_else(|| input.chars().last().unwrap_or(' '));
+        // A crafted expression may be megabytes long: quote its start only
+        // (Tessera's patch).
+        let quoted = match input.char_indices().nth(80) {
+            Some((cut, _)) => format!("{}…", &input[..cut]),
+            None => input.to_string(),
+        };
         format!(
-            "Ill-formed {what} <{input}> at character {} ('{at}'): {}",
+            "Ill-formed {what} <{quoted}> at character {} ('{at}'): {}",
             self.pos + 1,
             self.message
         )
@@ -105,6 +119,16 @@ impl Cursor {
         Cursor {
             chars: input.chars().collect(),
             pos: 0,
+            operators: 0,
+        }
+    }
+
+    /// Counts one binary operator, failing past [`MAX_OPERATORS`].
+    fn count_operator(&mut self) -> Result<(), ParseFail> {
+        self.operators += 1;
+        match self.operators > MAX_OPERATORS {
+            true => Err(self.fail(&format!("more than {MAX_OPERATORS} operators in one expression"))),
+            false => Ok(()),
         }
     }
 
@@ -234,6 +258,7 @@ fn parse_expr(cursor: &mut Cursor, min_bp: u8, depth: usize) -> Result<PathExpre
                 return Err(cursor.fail("expected path expression after operator"));
             }
         }
+        cursor.count_operator()?;
         let rhs = parse_expr(cursor, binding_power(op) + 1, depth)?;
         lhs = PathExpression::make_op(op, lhs, rhs);
     }
@@ -548,6 +573,7 @@ fn parse_pred_expr(cursor: &mut Cursor, min_bp: u8, depth: usize) -> Result<Pred
         }
         cursor.pos += keyword;
         cursor.skip_blanks();
+        cursor.count_operator()?;
         let rhs = parse_pred_expr(cursor, pred_binding_power(op) + 1, depth)?;
         lhs = PredNode::Op(op, Box::new(lhs), Box::new(rhs));
     }
