@@ -318,23 +318,6 @@ fn a_commit_says_each_warning_once() {
     assert_eq!(said, 1, "{:?}", scene.warnings);
 }
 
-/// Volumes shadow every light: one left out of a light's shadow link still casts that light's
-/// shadows, and the reader says so, naming both.
-#[test]
-fn a_volume_left_out_of_a_shadow_link_is_said() {
-    let base = fixture("usd/volume_box.usda");
-    let t = load_text(
-        "volume_shadow_link",
-        &format!(
-            "#usda 1.0\n(\n    subLayers = [@{}@]\n)\ndef DistantLight \"Sun\"\n{{\n    uniform bool collection:shadowLink:includeRoot = 0\n}}\n",
-            base.display()
-        ),
-    );
-    let needle = "/World/Box: the volume is left out of /Sun's collection:shadowLink";
-    assert_eq!(t.warnings.iter().filter(|w| w.contains(needle)).count(), 1, "{:?}", t.warnings);
-    assert_eq!(t.volumes.len(), 1, "the volume still renders");
-}
-
 /// A light link given by a `membershipExpression` limits the light only where usd-core
 /// evaluates it: with `includeRoot` authored false. Left to LightAPI's fallback (true), or
 /// authored true, the root holds every prim in usd-core too. An expression that cannot be

@@ -197,3 +197,50 @@ async fn a_live_light_link_moves_whole_instancers_and_refuses_to_split_one() {
     assert!(again.is_empty(), "{again:?}");
     server.stop().await.unwrap();
 }
+
+/// A volume left out of a light's shadow link lets that light through, as a surface does. A
+/// sun at 45° shines past the fixture's ink box onto a wall behind it; the wall is seen beside
+/// the box, not through it, so the camera's rays cross no volume there. With no link the
+/// box's shadow darkens the wall; with the shadow link leaving every prim out, the shadowed
+/// spot is lit as the open wall is.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_volume_outside_a_lights_shadow_link_casts_none_of_its_shadows() {
+    let scene = |link: &str| {
+        format!(
+            "#usda 1.0\n(\n    subLayers = [@{}@]\n)\nover \"World\"\n{{\n    over \"Camera\"\n    {{\n        float horizontalAperture = 60\n        float verticalAperture = 60\n    }}\n    over \"Sky\"\n    {{\n        float inputs:intensity = 0\n    }}\n}}\n\
+             def Material \"Matte\"\n{{\n    token outputs:surface.connect = </Matte/S.outputs:surface>\n    def Shader \"S\"\n    {{\n        \
+             uniform token info:id = \"UsdPreviewSurface\"\n        color3f inputs:diffuseColor = (0.5, 0.5, 0.5)\n        float inputs:ior = 1\n        \
+             token outputs:surface\n    }}\n}}\n\
+             def Mesh \"Wall\" (prepend apiSchemas = [\"MaterialBindingAPI\"])\n{{\n    \
+             point3f[] points = [(-3, -3, -1), (4, -3, -1), (4, 4, -1), (-3, 4, -1)]\n    int[] faceVertexCounts = [4]\n    \
+             int[] faceVertexIndices = [0, 1, 2, 3]\n    uniform token subdivisionScheme = \"none\"\n    rel material:binding = </Matte>\n}}\n\
+             def DistantLight \"Sun\"\n{{\n    float inputs:intensity = 2\n    bool inputs:normalize = 1\n    float3 xformOp:rotateXYZ = (0, 45, 0)\n    \
+             uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]\n{link}}}\n",
+            fixture("usd/volume_box.usda").display()
+        )
+    };
+    let mut means = Vec::new();
+    for link in ["", "    uniform bool collection:shadowLink:includeRoot = 0\n"] {
+        let t = load_text("volume_shadow_link", &scene(link));
+        assert_eq!(t.volumes.len(), 1, "the box is a volume");
+        let (server, mut conn) = session_with(&t).await;
+        let report = conn.render(&small(24, 24, 64), |_| {}).await.expect("renders");
+        server.stop().await.unwrap();
+        // The camera widened to 6 units (apertures are in tenths of a unit): 4 pixels a unit
+        // over x, y in [-2.5, 3.5]. The unit box's shadow falls on x in [-2, 0], y in [0, 1];
+        // x in [2, 3] at the same height is open wall.
+        let shadow = |x: u32, y: u32| (4..8).contains(&x) && (11..14).contains(&y);
+        let open = |x: u32, y: u32| (18..22).contains(&x) && (11..14).contains(&y);
+        means.push((mean_where(&report.image, "beauty", 1, shadow).0, mean_where(&report.image, "beauty", 1, open).0));
+    }
+    let [(shadowed, open), (linked, open_linked)] = [means[0], means[1]];
+    // Albedo 0.5 under an illuminance of 2 at 45°: 0.5 · 2 cos 45° / π. Light sampling of a
+    // distant light is noiseless but for its half-degree disk.
+    let lit = 0.5 * 2.0 * std::f64::consts::FRAC_1_SQRT_2 / std::f64::consts::PI;
+    // Measured: 0.16 of it over these pixels (the whole path of √2 through density 2 leaves
+    // e^(-2√2) = 0.06; the pixels nearer the shadow's edge cross less of the box).
+    assert!(shadowed < 0.5 * lit, "the box's shadow without a link: {shadowed} against {lit}");
+    for (what, v) in [("the open wall", open), ("the open wall with the link", open_linked), ("the shadow's spot with the link", linked)] {
+        assert!((v - lit).abs() < 1e-3 * lit, "{what}: {v} against {lit}");
+    }
+}

@@ -186,24 +186,6 @@ impl Reader<'_> {
         held.into_iter().map(|i| self.links.ids[i as usize].clone()).collect()
     }
 
-    /// Says, once per pair, where a volume at `p` in `collections` casts a shadow-linked light's
-    /// shadows though the link leaves it out: volumes attenuate every shadow ray (not yet
-    /// filtered by link).
-    pub(super) fn report_volume_shadow_links(&mut self, p: &str, collections: &[String]) {
-        let mut left_out: Vec<&String> = self
-            .links
-            .lights
-            .iter()
-            .filter_map(|(light, [_, shadow])| shadow.as_ref().filter(|id| !collections.contains(id)).map(|_| light))
-            .collect();
-        left_out.sort();
-        for light in left_out {
-            self.out.warnings.push(format!(
-                "{p}: the volume is left out of {light}'s collection:shadowLink, but volumes shadow every light (not yet linked)"
-            ));
-        }
-    }
-
     /// Light `p`'s light-link and shadow-link collection ids (None: every prim).
     pub(super) fn light_links(&self, p: &str) -> [Option<String>; 2] {
         self.links.lights.get(p).cloned().unwrap_or_default()

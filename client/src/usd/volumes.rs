@@ -195,7 +195,6 @@ impl Reader<'_> {
             motion: source.motion.iter().map(|world| *world * density.index_to_object).collect(),
             link_collections: self.link_collections(prim.path()),
         };
-        self.report_volume_shadow_links(p, &desc.link_collections);
         if visible {
             self.out.volumes.push((p.to_string(), desc));
             self.out.volume_sources.push(source);

@@ -119,7 +119,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         let shadow = shadow_ray(v.leave(ls.wi).origin, v.s.p, ls).with_time(v.s.time);
         counters.rays += 1;
         let Some(glass) = self.shadow_pass(&shadow, v.a_roughness, index) else { return };
-        let tr = self.volume_transmittance(&shadow);
+        let tr = self.volume_transmittance(&shadow, index);
         if tr == 0.0 {
             return;
         }

@@ -88,7 +88,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             if self.occluded(&shadow, i) {
                 return;
             }
-            let tr = self.volume_transmittance(&shadow);
+            let tr = self.volume_transmittance(&shadow, i);
             let w = match ls.delta || self.settings.strategy == LightStrategy::LightOnly || self.shadow_linked(i) {
                 true => 1.0,
                 false => power_heuristic(ls.pdf, phase),
@@ -99,13 +99,16 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         });
     }
 
-    /// The volumes' transmittance along a shadow ray (1 without volumes), by ratio tracking
-    /// with numbers hashed from the ray, so it needs no sampler dimension.
-    pub(super) fn volume_transmittance(&self, shadow: &Ray) -> f32 {
+    /// The volumes' transmittance along a shadow ray towards light `light` (1 without
+    /// volumes), by ratio tracking with numbers hashed from the ray, so it needs no sampler
+    /// dimension. Volumes outside a shadow-linked light's link let its light through.
+    pub(super) fn volume_transmittance(&self, shadow: &Ray, light: usize) -> f32 {
         if !FULL || self.scene.volumes.is_empty() {
             return 1.0;
         }
         let seed = crate::scene::ray_hash(shadow.origin, shadow.dir, 0x7a1e_5eed);
-        tracking::transmittance(&self.scene.volumes, shadow, shadow.tmax, &mut Stream::new(seed))
+        let links = self.links().filter(|l| l.shadow_linked(light));
+        let casts = |k: usize| links.is_none_or(|l| l.volume_casts_shadow(light, k));
+        tracking::transmittance(&self.scene.volumes, shadow, shadow.tmax, &mut Stream::new(seed), casts)
     }
 }

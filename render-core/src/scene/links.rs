@@ -145,6 +145,15 @@ impl LightLinks {
         }
     }
 
+    /// True when volume `volume` casts light `light`'s shadows.
+    #[inline]
+    pub fn volume_casts_shadow(&self, light: usize, volume: usize) -> bool {
+        match self.shadow_link.get(light).copied().flatten() {
+            None => true,
+            Some(id) => self.holds(self.volume_group(volume), id),
+        }
+    }
+
     /// The lights (committed order) that link anything, for the plan: (light linked, shadow
     /// linked).
     pub fn linked(&self) -> impl Iterator<Item = (usize, bool, bool)> + '_ {

@@ -323,7 +323,7 @@ mod tests {
             let expected = (-sigma).exp();
             let n = 200_000;
             let mut s = Stream::new(7);
-            let ratio: f64 = (0..n).map(|_| transmittance(&v, &ray, f32::INFINITY, &mut s) as f64).sum::<f64>() / n as f64;
+            let ratio: f64 = (0..n).map(|_| transmittance(&v, &ray, f32::INFINITY, &mut s, |_| true) as f64).sum::<f64>() / n as f64;
             let escaped = (0..n).filter(|_| fly(&v, &ray, f32::INFINITY, &mut s).collision.is_none()).count() as f64 / n as f64;
             // Bernoulli escapes: σ = sqrt(T(1 − T)/n) ≤ 0.0011; 4σ bounds. Ratio tracking's
             // variance is smaller.
@@ -332,7 +332,7 @@ mod tests {
             assert!((escaped - expected as f64).abs() < bound, "σ = {sigma}: escaped {escaped} vs {expected}");
             assert!((ratio - expected as f64).abs() < bound, "σ = {sigma}: ratio tracking {ratio} vs {expected}");
             // A segment ending at mid-depth sees half the optical depth.
-            let half: f64 = (0..n).map(|_| transmittance(&v, &ray, 2.5, &mut s) as f64).sum::<f64>() / n as f64;
+            let half: f64 = (0..n).map(|_| transmittance(&v, &ray, 2.5, &mut s, |_| true) as f64).sum::<f64>() / n as f64;
             let half_bound = 4.0 * (half_expected * (1.0 - half_expected) / n as f32).sqrt() as f64;
             assert!((half - half_expected as f64).abs() < half_bound, "σ = {sigma}: half-way {half} vs {half_expected}");
         }
@@ -368,7 +368,7 @@ mod tests {
         let ray = Ray::new(Vec3::new(0.5, 0.5, -1.0), Vec3::Z);
         let mut s = Stream::new(3);
         assert!(fly(&v, &ray, f32::INFINITY, &mut s).collision.is_some());
-        assert_eq!(transmittance(&v, &ray, f32::INFINITY, &mut s), 0.0);
+        assert_eq!(transmittance(&v, &ray, f32::INFINITY, &mut s, |_| true), 0.0);
         let mut holed = constant_grid(4, 1e30);
         holed.values[0] = 0.0;
         let desc = VolumeDesc {

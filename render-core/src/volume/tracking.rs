@@ -107,19 +107,21 @@ enum Stop {
     TooMany(f32, usize),
 }
 
-/// The tentative collisions of every volume along the ray, merged nearest first: `visit`
-/// gets each (t, majorant, index-space point, volume) and says whether to go on.
+/// The tentative collisions of every volume along the ray that `include` admits, merged
+/// nearest first: `visit` gets each (t, majorant, index-space point, volume) and says whether
+/// to go on.
 fn merged(
     volumes: &[Volume],
     ray: &Ray,
     t_max: f32,
     emission: bool,
     s: &mut Stream,
+    include: impl Fn(usize) -> bool,
     mut visit: impl FnMut(f32, f32, Vec3, usize, &mut Stream) -> bool,
 ) -> Stop {
     // Each overlapping volume's tracker and its next tentative collision.
     let mut trackers: Vec<(usize, Tracker, (f32, f32, Vec3))> = Vec::new();
-    for (k, v) in volumes.iter().enumerate().filter(|(_, v)| v.overlaps(ray, t_max)) {
+    for (k, v) in volumes.iter().enumerate().filter(|&(k, v)| include(k) && v.overlaps(ray, t_max)) {
         let Some(mut tracker) = Tracker::new(v, ray, t_max, emission) else { continue };
         if let Some(first) = tracker.next(s) {
             trackers.push((k, tracker, first));
@@ -145,26 +147,35 @@ fn merged(
 /// emission it gathers before (each tentative collision adds ε/σ̄).
 pub fn fly(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> Flight {
     let mut flight = Flight { emitted: Vec3::ZERO, collision: None };
-    let stop = merged(volumes, ray, t_max, true, s, |t, sigma, p, k, s| {
-        let (extinction, emission) = volumes[k].extinction_and_emission_at(p);
-        flight.emitted += emission / sigma;
-        if s.uniform() * sigma < extinction {
-            flight.collision = Some((t, k));
-            return false;
-        }
-        true
-    });
+    let stop = merged(
+        volumes,
+        ray,
+        t_max,
+        true,
+        s,
+        |_| true,
+        |t, sigma, p, k, s| {
+            let (extinction, emission) = volumes[k].extinction_and_emission_at(p);
+            flight.emitted += emission / sigma;
+            if s.uniform() * sigma < extinction {
+                flight.collision = Some((t, k));
+                return false;
+            }
+            true
+        },
+    );
     if let Stop::TooMany(t, k) = stop {
         flight.collision = Some((t, k));
     }
     flight
 }
 
-/// Ratio tracking: an unbiased estimate of the transmittance along the ray up to `t_max`,
-/// with Russian roulette once it falls below 0.1.
-pub fn transmittance(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream) -> f32 {
+/// Ratio tracking: an unbiased estimate of the transmittance along the ray up to `t_max`
+/// through the volumes `casts` admits (a shadow-linked light's), with Russian roulette once it
+/// falls below 0.1.
+pub fn transmittance(volumes: &[Volume], ray: &Ray, t_max: f32, s: &mut Stream, casts: impl Fn(usize) -> bool) -> f32 {
     let mut tr = 1.0f32;
-    let stop = merged(volumes, ray, t_max, false, s, |_, sigma, p, k, s| {
+    let stop = merged(volumes, ray, t_max, false, s, casts, |_, sigma, p, k, s| {
         tr *= 1.0 - (volumes[k].extinction_at(p) / sigma).min(1.0);
         if tr < 0.1 {
             if s.uniform() < 0.5 {
