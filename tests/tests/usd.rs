@@ -320,6 +320,54 @@ fn light_link_expressions_resolve_as_usd_core_does() {
     links_agree_with_usd_core(&["40", "7", "expressions"]);
 }
 
+/// A path expression's opinions compose as usd-core composes them: an expression authored in a
+/// referenced asset names the asset's prims by the asset's paths (absolute `/Asset/Geo`, and
+/// relative `../Other`), mapped to where the reference puts them; a stronger layer's `%_`
+/// takes in the weaker sublayer's expression; and a collection the asset's expression refers
+/// to (`%/Asset/Sets:grp`) is found where the reference puts it. Before, the light in the
+/// asset held nothing and the stronger opinion dropped the weaker one's prim.
+#[test]
+fn link_expressions_compose_across_layers_and_arcs_as_usd_core_does() {
+    let dir = std::env::temp_dir().join(format!("tessera-expression-arcs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let light = |name: &str, expression: &str| {
+        format!(
+            "    def SphereLight \"{name}\"\n    {{\n        uniform bool collection:lightLink:includeRoot = 0\n        uniform pathExpression collection:lightLink:membershipExpression = \"{expression}\"\n    }}\n"
+        )
+    };
+    let asset = format!(
+        "#usda 1.0\n(\n    defaultPrim = \"Asset\"\n)\ndef Xform \"Asset\"\n{{\n    def Cube \"Geo\"\n    {{\n    }}\n    def Cube \"Other\"\n    {{\n    }}\n    \
+         def Scope \"Sets\" (\n        prepend apiSchemas = [\"CollectionAPI:grp\"]\n    )\n    {{\n        \
+         uniform pathExpression collection:grp:membershipExpression = \"/Asset/Other\"\n    }}\n{}{}{}}}\n",
+        light("L", "/Asset/Geo"),
+        light("R", "../Other"),
+        light("S", "%/Asset/Sets:grp"),
+    );
+    std::fs::write(dir.join("asset.usda"), asset).unwrap();
+    std::fs::write(
+        dir.join("weak.usda"),
+        format!("#usda 1.0\ndef Cube \"A\"\n{{\n}}\ndef Cube \"B\"\n{{\n}}\ndef Scope \"Rig\"\n{{\n{}}}\n", light("W", "/A")),
+    )
+    .unwrap();
+    let shot = dir.join("shot.usda");
+    std::fs::write(
+        &shot,
+        "#usda 1.0\n(\n    subLayers = [@weak.usda@]\n)\ndef Xform \"World\"\n{\n    def \"Ref\" (references = @asset.usda@)\n    {\n    }\n}\n\
+         over \"Rig\"\n{\n    over \"W\"\n    {\n        uniform pathExpression collection:lightLink:membershipExpression = \"%_ /B\"\n    }\n}\n",
+    )
+    .unwrap();
+    let theirs = usd_core_reads(&shot, None);
+    let ours = tessera::commands::inspect::inspect(&shot, Default::default()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let lit = |json: &serde_json::Value, mesh: &str| json["meshes"][mesh]["litBy"].clone();
+    let expected = [("/A", "/Rig/W"), ("/B", "/Rig/W"), ("/World/Ref/Geo", "/World/Ref/L"), ("/World/Ref/Other", "/World/Ref/R")];
+    for (mesh, light) in expected {
+        assert_eq!(lit(&ours, mesh), lit(&theirs, mesh), "{mesh}");
+        assert!(lit(&theirs, mesh).as_array().unwrap().iter().any(|l| l == light), "usd-core: {mesh} lit by {light}");
+    }
+    assert_eq!(lit(&ours, "/World/Ref/Other"), serde_json::json!(["/World/Ref/R", "/World/Ref/S"]));
+}
+
 /// Writes `link_cases.py`'s cases with `args` and compares every cube's `litBy` and
 /// `shadowedBy` in `tessera inspect` with usd-core's.
 fn links_agree_with_usd_core(args: &[&str]) {

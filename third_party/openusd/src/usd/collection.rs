@@ -27,7 +27,7 @@ use std::rc::Rc;
 
 use anyhow::Result;
 
-use crate::sdf::{FieldKey, Path, Value, Variability};
+use crate::sdf::{FieldKey, Path, PathExpression, Value, Variability};
 use crate::usd::{Prim, PrimPredicate, Relationship, Stage};
 
 use super::collection_expr::{resolve_complete_membership_expression, CollectionEvaluator};
@@ -164,6 +164,37 @@ impl Collection {
                 _ => None,
             },
         )
+    }
+
+    /// The `membershipExpression` composed as usd-core composes a path
+    /// expression's opinions: strongest first, each `%_` (weaker) reference
+    /// replaced by the next opinion along the prim stack, and each opinion's
+    /// paths anchored at the prim that holds it and mapped across the arc
+    /// that brought it in (an expression authored in a referenced asset names
+    /// the asset's prims by the asset's paths). None when no opinion exists.
+    pub fn composed_membership_expression(&self, stage: &Stage) -> Result<Option<PathExpression>> {
+        let name = self.rel_name(MEMBERSHIP_EXPRESSION);
+        let mut composed: Option<PathExpression> = None;
+        for (layer_id, spec_path) in stage.prim(self.prim.clone()).prim_stack()? {
+            let Some(layer) = stage.layer(&layer_id) else { continue };
+            let Some(value) = layer.attribute(spec_path.append_property(&name)?).and_then(|a| a.default()) else { continue };
+            let text = match value {
+                Value::PathExpression(s) | Value::String(s) => s,
+                Value::Token(t) => t.to_string(),
+                _ => continue,
+            };
+            let opinion = map_across_arc(PathExpression::parse(&text).make_absolute(&spec_path), &spec_path, &self.prim);
+            let expression = match composed.take() {
+                None => opinion,
+                Some(stronger) => stronger.compose_over(&opinion),
+            };
+            let done = !expression.contains_weaker_reference();
+            composed = Some(expression);
+            if done {
+                break;
+            }
+        }
+        Ok(composed)
     }
 
     /// The collection's `mode` (`automatic` when unauthored or unknown):
@@ -552,6 +583,23 @@ impl PathRule {
 /// `Exclude` sentinel marks excluded subtrees). The resolved form of a
 /// collection's includes/excludes/expansionRule/includeRoot opinions.
 pub type PathExpansionRuleMap = HashMap<Path, PathRule>;
+
+/// `expression` authored on the prim at `spec_path` in some layer, in the
+/// stage's namespace where that prim is `stage_path`: the prefixes the two
+/// paths do not share (the arc's source and target) are swapped.
+fn map_across_arc(expression: PathExpression, spec_path: &Path, stage_path: &Path) -> PathExpression {
+    if spec_path == stage_path {
+        return expression;
+    }
+    let (mut from, mut to) = (spec_path.clone(), stage_path.clone());
+    while from.name().is_some() && from.name() == to.name() {
+        match (from.parent(), to.parent()) {
+            (Some(a), Some(b)) if !a.is_empty() && !b.is_empty() => (from, to) = (a, b),
+            _ => break,
+        }
+    }
+    expression.replace_prefix(&from, &to)
+}
 
 /// A collection's `mode`: which of its two membership languages answers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

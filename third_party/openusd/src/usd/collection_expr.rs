@@ -191,16 +191,15 @@ struct Resolved {
 }
 
 fn resolve_impl(stage: &Stage, collection: &Collection, state: &mut ResolveState) -> Result<Resolved> {
-    let Some(expression) = collection.membership_expression(stage)?.map(|text| sdf::PathExpression::parse(&text)) else {
+    let Some(expression) = collection.composed_membership_expression(stage)? else {
         return Ok(Resolved {
             expression: sdf::PathExpression::nothing(),
             nodes: 0,
             cacheable: true,
         });
     };
-    // Relative paths are anchored at the collection's prim. This crate reads
-    // the strongest opinion only, so a `%_` (weaker) reference matches nothing.
-    let expression = expression.make_absolute(collection.prim());
+    // Composition anchored each opinion and mapped it across its arc; a `%_`
+    // left over (no weaker opinion) matches nothing.
     let mut cacheable = true;
     let mut error = None;
     let mut nodes = expression.node_count();
