@@ -25,12 +25,21 @@ pub(super) struct LinkQueries {
     expressions: Vec<(u32, MembershipQuery)>,
     /// The expression collections that hold each prim of the traversal, found by one
     /// incremental search per expression along it (asking each expression about each prim
-    /// anew cost 9.2 s for 1,000 linked lights over 10,000 cubes).
+    /// anew took 5.2 s against 2.4 s for 1,000 subtree expressions over 10,000 cubes).
     matched: HashMap<sdf::Path, Vec<u32>>,
     /// The traversal's prims, which [`Self::matched`] answers for.
     searched: std::collections::HashSet<sdf::Path>,
     /// Per light path, the ids of its light-link and shadow-link collections.
     lights: HashMap<String, [Option<String>; 2]>,
+}
+
+impl LinkQueries {
+    /// Records light `p`'s collection `link` as the next linked collection; its id.
+    fn add_id(&mut self, p: &str, link: &str) -> String {
+        let id = link_collection_id(p, link);
+        self.ids.push(id.clone());
+        id
+    }
 }
 
 /// What a light's link collection holds.
@@ -71,20 +80,16 @@ impl Reader<'_> {
             for (k, link) in LINKS.into_iter().enumerate() {
                 match self.link_query(&prim, p, link) {
                     Ok(Membership::Everything) => {}
-                    Ok(membership) => {
-                        let id = link_collection_id(p, link);
+                    Ok(Membership::Rules(rules)) => {
                         let index = self.links.ids.len() as u32;
-                        match membership {
-                            Membership::Rules(rules) => {
-                                for (path, rule) in rules {
-                                    self.links.opinions.entry(path).or_default().push((index, rule));
-                                }
-                            }
-                            Membership::Expression(query) => self.links.expressions.push((index, query)),
-                            Membership::Everything => unreachable!("matched above"),
+                        for (path, rule) in rules {
+                            self.links.opinions.entry(path).or_default().push((index, rule));
                         }
-                        self.links.ids.push(id.clone());
-                        ids[k] = Some(id);
+                        ids[k] = Some(self.links.add_id(p, link));
+                    }
+                    Ok(Membership::Expression(query)) => {
+                        self.links.expressions.push((self.links.ids.len() as u32, query));
+                        ids[k] = Some(self.links.add_id(p, link));
                     }
                     Err(e) => {
                         self.out.warnings.push(format!("{p}: collection:{link} cannot be read ({e:#}); it is taken to hold every prim"))

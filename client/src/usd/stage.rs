@@ -234,7 +234,9 @@ impl Reader<'_> {
                     "{p}: {api} (a {type_name} as a light) is not supported yet; it renders with its bound material and emits only what that emits"
                 ));
             }
-            if let Some(name) = api.strip_prefix("CollectionAPI:")
+            // A light's own link collections are said by the light links' reader.
+            let light_link = |name: &str| LIGHTS.contains(&type_name) && matches!(name, "lightLink" | "shadowLink");
+            if let Some(name) = api.strip_prefix("CollectionAPI:").filter(|name| !light_link(name))
                 && let Some(error) = Collection::new(prim.path().clone(), name).expression_error(self.stage)?
             {
                 self.out.warnings.push(format!(
