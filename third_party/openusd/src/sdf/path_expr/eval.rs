@@ -745,7 +745,7 @@ impl<D> PatternImpl<D> {
             return false;
         }
         match component.program_index {
-            Some(index) => self.programs[index].eval(&domain(&element.path)).value,
+            Some(index) => self.programs[index].eval(&domain(&Path::new(element.path).unwrap_or_default())).value,
             None => true,
         }
     }
@@ -755,7 +755,7 @@ impl<D> PatternImpl<D> {
 /// at it (the object a predicate evaluates against).
 struct Element<'a> {
     name: &'a str,
-    path: Path,
+    path: &'a str,
 }
 
 /// The depth the matchers measure paths by: the number of [`Element`]s the
@@ -779,39 +779,29 @@ fn tail_elements<'a>(path: &'a Path, prefix: &Path) -> Option<Vec<Element<'a>>> 
 }
 
 /// The deepest `count` elements of `path`, root-ward first, the property
-/// tail last; the whole path when it has fewer.
-// TODO(perf): an `Element` could be a byte-offset view into the path's
-// string, materializing the predicate's domain `Path` only when a component
-// actually carries a predicate; that would drop the per-element `Path`
-// allocations here for predicate-free patterns.
+/// tail last; the whole path when it has fewer. Each element borrows its name
+/// and its subpath from `path`'s text (an addressable path's prim names hold
+/// no `/` or `.`), so no path is built unless a predicate asks for one
+/// (Tessera's patch: the crate's TODO(perf); a load with 1,000 linked lights
+/// spent most of its time in these allocations).
 fn last_elements(path: &Path, count: usize) -> Vec<Element<'_>> {
-    let mut elements = Vec::new();
+    let mut elements = Vec::with_capacity(count);
     if count == 0 {
         return elements;
     }
-    let (prim_path, property) = match path.split_property() {
-        Some((prim, name)) => (prim, Some(name)),
-        None => (path.clone(), None),
-    };
-
-    let prim_count = count - usize::from(property.is_some());
-    let chain: Vec<Path> = prim_path.ancestors_below_root().take(prim_count).collect();
-    for ancestor in chain.into_iter().rev() {
-        let name_len = ancestor.name().expect("chain holds named ancestors").len();
-        let start = ancestor.as_str().len() - name_len;
-        elements.push(Element {
-            // Borrow the name out of `path`, which shares the ancestor text.
-            name: &path.as_str()[start..start + name_len],
-            path: ancestor,
-        });
+    let text = path.as_str();
+    let mut end = text.len();
+    if let Some(dot) = text.rfind('.').filter(|_| path.is_property_path()) {
+        elements.push(Element { name: &text[dot + 1..], path: text });
+        end = dot;
     }
-    if let Some(name) = property {
-        let start = path.as_str().len() - name.len();
-        elements.push(Element {
-            name: &path.as_str()[start..],
-            path: path.clone(),
-        });
+    while elements.len() < count && end > 0 && &text[..end] != "/" {
+        // A relative path's first name has no '/' before it.
+        let start = text[..end].rfind('/').map_or(0, |slash| slash + 1);
+        elements.push(Element { name: &text[start..end], path: &text[..end] });
+        end = start.saturating_sub(1);
     }
+    elements.reverse();
     elements
 }
 
