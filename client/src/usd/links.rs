@@ -137,12 +137,15 @@ impl Reader<'_> {
             !root_authored && expansion != ExpansionRule::ExplicitOnly && collection.mode(self.stage)? != CollectionMode::Expression;
         let query = collection.compute_membership_query(self.stage)?;
         if !root_fallback {
-            if let Some(error) = collection.expression_error(self.stage)?.filter(|_| query.rule_map().is_empty()) {
-                let nothing = if link == "lightLink" { "the light illuminates nothing" } else { "no prim casts its shadows" };
-                self.out.warnings.push(format!("{p}: collection:{link}:membershipExpression cannot be evaluated ({error}), so {nothing}"));
-            }
             if query.expression_evaluator().is_some() {
                 return Ok(Membership::Expression(query));
+            }
+            // No evaluator where the expression would decide: say why, if there is one.
+            if query.rule_map().is_empty()
+                && let Some(error) = collection.expression_error(self.stage)?
+            {
+                let nothing = if link == "lightLink" { "the light illuminates nothing" } else { "no prim casts its shadows" };
+                self.out.warnings.push(format!("{p}: collection:{link}:membershipExpression cannot be evaluated ({error}), so {nothing}"));
             }
         }
         let mut rules = query.rule_map().clone();

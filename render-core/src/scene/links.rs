@@ -139,19 +139,20 @@ impl LightLinks {
     /// True when instance `instance` casts light `light`'s shadows.
     #[inline]
     pub fn casts_shadow(&self, light: usize, instance: u32) -> bool {
-        match self.shadow_link.get(light).copied().flatten() {
-            None => true,
-            Some(id) => self.holds(self.instance_group(instance), id),
-        }
+        self.group_casts_shadow(light, self.instance_group(instance))
     }
 
     /// True when volume `volume` casts light `light`'s shadows.
     #[inline]
     pub fn volume_casts_shadow(&self, light: usize, volume: usize) -> bool {
-        match self.shadow_link.get(light).copied().flatten() {
-            None => true,
-            Some(id) => self.holds(self.volume_group(volume), id),
-        }
+        self.group_casts_shadow(light, self.volume_group(volume))
+    }
+
+    /// True when prims of `group` cast light `light`'s shadows: every group, unless the light
+    /// has a shadow link.
+    #[inline]
+    fn group_casts_shadow(&self, light: usize, group: u32) -> bool {
+        self.shadow_link.get(light).copied().flatten().is_none_or(|id| self.holds(group, id))
     }
 
     /// The lights (committed order) that link anything, for the plan: (light linked, shadow

@@ -14,7 +14,7 @@ use std::rc::Rc;
 
 use anyhow::Result;
 use crate::sdf::path_expr::{
-    FnArg, GlobPattern, IncrementalSearcher, PathExpressionEval, PredResult, PredicateArg, PredicateLibrary,
+    FnArg, GlobPattern, IncrementalSearcher, PathExpressionEval, PredResult, PredicateArg, PredicateFn, PredicateLibrary,
 };
 use crate::sdf::{self, Path};
 use crate::usd::{Collection, Prim, Stage};
@@ -262,217 +262,234 @@ fn resolve_impl(stage: &Stage, collection: &Collection, state: &mut ResolveState
 }
 
 /// The predicate functions membership expressions may call (C++
-/// `UsdGetCollectionPredicateLibrary`); each predicate's doc note in the
-/// binder body names its semantics and constancy.
+/// `UsdGetCollectionPredicateLibrary`); each binder's doc names its
+/// predicate's semantics and constancy.
 fn predicate_library() -> PredicateLibrary<CollectionObject> {
     PredicateLibrary::new()
-        // abstract(isAbstract=true): the closest prim's abstractness. An
-        // abstract prim's subtree stays abstract, so a `true` answer is
-        // constant; a non-abstract prim may root abstract descendants.
-        .define("abstract", |args| {
-            let wanted = flag_argument(args, "isAbstract")?;
-            Some(predicate(move |obj| {
-                let is_abstract = obj.closest_prim().is_abstract().unwrap_or(false);
-                PredResult {
-                    value: is_abstract == wanted,
-                    constant: is_abstract || !obj.is_prim(),
-                }
-            }))
-        })
-        // defined(isDefined=true): the closest prim's definedness. An
-        // undefined prim's subtree stays undefined (every ancestor must
-        // define), so a `false` is constant.
-        .define("defined", |args| {
-            let wanted = flag_argument(args, "isDefined")?;
-            Some(predicate(move |obj| {
-                let is_defined = obj.closest_prim().is_defined().unwrap_or(false);
-                PredResult {
-                    value: is_defined == wanted,
-                    constant: !is_defined || !obj.is_prim(),
-                }
-            }))
-        })
-        // model(isModel=true): model-hierarchy membership; non-prims are
-        // plain false. A prim's answer varies over its subtree either way:
-        // an instance below a non-model has proxies its prototype
-        // classifies, under a root that is a group.
-        .define("model", |args| {
-            let wanted = flag_argument(args, "isModel")?;
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let is_model = obj.closest_prim().is_model().unwrap_or(false);
-                PredResult::varying(is_model == wanted)
-            }))
-        })
-        // group(isGroup=true): like `model`, for groups.
-        .define("group", |args| {
-            let wanted = flag_argument(args, "isGroup")?;
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let is_group = obj.closest_prim().is_group().unwrap_or(false);
-                PredResult::varying(is_group == wanted)
-            }))
-        })
-        // kind(k1, ..., kN, strict=false): the prim's kind is one of the
-        // named kinds — exactly under `strict`, else as the kind registry
-        // derives it. A named kind the registry does not know is dropped, and
-        // a call naming no known kind refuses to bind. The prim's own kind is
-        // what is read, wherever the prim sits in the model hierarchy.
-        .define("kind", move |args| {
-            if !keywords_within(args, &["strict"]) {
-                return None;
-            }
-            let strict = strict_argument(args)?;
-            let mut wanted = string_arguments(args)?;
-            wanted.retain(|kind| KINDS.iter().any(|(k, _)| k == kind));
-            if wanted.is_empty() {
-                return None;
-            }
-            // The registry is fixed, so every kind the call accepts is known
-            // when it binds.
-            let accepted: Vec<String> = if strict {
-                wanted
-            } else {
-                KINDS
-                    .iter()
-                    .map(|(kind, _)| *kind)
-                    .filter(|kind| wanted.iter().any(|wanted| kind_is_a(kind, wanted)))
-                    .map(str::to_owned)
-                    .collect()
-            };
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let Ok(Some(kind)) = obj.closest_prim().kind() else {
-                    return PredResult::varying(false);
-                };
-                PredResult::varying(accepted.iter().any(|accepted| kind == accepted.as_str()))
-            }))
-        })
-        // specifier(s1, ..., sN): the prim's specifier is one of `over`,
-        // `class`, `def`; anything else refuses to bind.
-        .define("specifier", |args| {
-            let names = string_arguments(args)?;
-            if args.len() != names.len()
-                || names.is_empty()
-                || !names.iter().all(|n| matches!(n.as_str(), "over" | "class" | "def"))
-            {
-                return None;
-            }
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let Ok(Some(specifier)) = obj.closest_prim().specifier() else {
-                    return PredResult::varying(false);
-                };
-                let token = match specifier {
-                    sdf::Specifier::Def => "def",
-                    sdf::Specifier::Over => "over",
-                    sdf::Specifier::Class => "class",
-                };
-                PredResult::varying(names.iter().any(|n| n == token))
-            }))
-        })
-        // isa(schema1, ..., schemaN, strict=false): the prim's typed schema
-        // is one of the named schemas — exactly under `strict`, else any
-        // subtype (through [`TYPED_SCHEMAS`]).
-        .define("isa", |args| {
-            if !keywords_within(args, &["strict"]) {
-                return None;
-            }
-            let strict = strict_argument(args)?;
-            let schemas = string_arguments(args)?;
-            if schemas.is_empty() {
-                return None;
-            }
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let prim = obj.closest_prim();
-                let value = schemas.iter().any(|schema| {
-                    if strict {
-                        prim.type_name().ok().flatten().is_some_and(|t| t.as_str() == schema)
-                    } else {
-                        prim.type_name().ok().flatten().is_some_and(|t| schema_is_a(t.as_str(), schema))
-                    }
-                });
-                PredResult::varying(value)
-            }))
-        })
-        // hasAPI(api1, ..., apiN, instanceName=name): any of the named
-        // applied API schemas is present, optionally as the given instance.
-        .define("hasAPI", |args| {
-            if !keywords_within(args, &["instanceName"]) {
-                return None;
-            }
-            let instance = match args.iter().find(|a| a.name.as_deref() == Some("instanceName")) {
-                Some(arg) => Some(arg.value.as_str()?.to_string()),
-                None => None,
-            };
-            let apis = string_arguments(args)?;
-            if apis.is_empty() {
-                return None;
-            }
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let prim = obj.closest_prim();
-                let value = apis.iter().any(|api| {
-                    let name = match instance.as_deref() {
-                        Some(instance) if !instance.is_empty() => format!("{api}:{instance}"),
-                        _ => api.clone(),
-                    };
-                    prim.has_api_schema(name).unwrap_or(false)
-                });
-                PredResult::varying(value)
-            }))
-        })
-        // variant(set1=sel1, ..., setN=selN): every named variant set's
-        // selection matches its value — a literal selection name, or a glob.
-        // All arguments must be keyword strings.
-        .define("variant", |args| {
-            if args.is_empty() {
-                return None;
-            }
-            let mut wanted = Vec::new();
-            for arg in args {
-                let set = arg.name.clone()?;
-                let selection = arg.value.as_str()?;
-                let matcher = if Path::is_valid_identifier(selection) {
-                    SelectionMatch::Exact(selection.to_string())
-                } else {
-                    SelectionMatch::Glob(GlobPattern::new(selection))
-                };
-                wanted.push((set, matcher));
-            }
-            Some(predicate(move |obj| {
-                if !obj.is_prim() {
-                    return PredResult::constant(false);
-                }
-                let selections = obj
-                    .closest_prim()
-                    .variant_sets()
-                    .get_all_variant_selections()
-                    .unwrap_or_default();
-                let value = wanted.iter().all(|(set, matcher)| {
-                    selections
-                        .iter()
-                        .find(|(s, _)| s == set)
-                        .is_some_and(|(_, selection)| matcher.matches(selection))
-                });
-                PredResult::varying(value)
-            }))
-        })
+        .define("abstract", bind_abstract)
+        .define("defined", bind_defined)
+        .define("model", bind_model)
+        .define("group", bind_group)
+        .define("kind", bind_kind)
+        .define("specifier", bind_specifier)
+        .define("isa", bind_isa)
+        .define("hasAPI", bind_has_api)
+        .define("variant", bind_variant)
 }
 
+/// abstract(isAbstract=true): the closest prim's abstractness. An
+/// abstract prim's subtree stays abstract, so a `true` answer is
+/// constant; a non-abstract prim may root abstract descendants.
+fn bind_abstract(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    let wanted = flag_argument(args, "isAbstract")?;
+    Some(predicate(move |obj| {
+        let is_abstract = obj.closest_prim().is_abstract().unwrap_or(false);
+        PredResult {
+            value: is_abstract == wanted,
+            constant: is_abstract || !obj.is_prim(),
+        }
+    }))
+}
+
+/// defined(isDefined=true): the closest prim's definedness. An
+/// undefined prim's subtree stays undefined (every ancestor must
+/// define), so a `false` is constant.
+fn bind_defined(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    let wanted = flag_argument(args, "isDefined")?;
+    Some(predicate(move |obj| {
+        let is_defined = obj.closest_prim().is_defined().unwrap_or(false);
+        PredResult {
+            value: is_defined == wanted,
+            constant: !is_defined || !obj.is_prim(),
+        }
+    }))
+}
+
+/// model(isModel=true): model-hierarchy membership; non-prims are
+/// plain false. A prim's answer varies over its subtree either way:
+/// an instance below a non-model has proxies its prototype
+/// classifies, under a root that is a group.
+fn bind_model(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    let wanted = flag_argument(args, "isModel")?;
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let is_model = obj.closest_prim().is_model().unwrap_or(false);
+        PredResult::varying(is_model == wanted)
+    }))
+}
+
+/// group(isGroup=true): like `model`, for groups.
+fn bind_group(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    let wanted = flag_argument(args, "isGroup")?;
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let is_group = obj.closest_prim().is_group().unwrap_or(false);
+        PredResult::varying(is_group == wanted)
+    }))
+}
+
+/// kind(k1, ..., kN, strict=false): the prim's kind is one of the
+/// named kinds — exactly under `strict`, else as the kind registry
+/// derives it. A named kind the registry does not know is dropped, and
+/// a call naming no known kind refuses to bind. The prim's own kind is
+/// what is read, wherever the prim sits in the model hierarchy.
+fn bind_kind(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    if !keywords_within(args, &["strict"]) {
+        return None;
+    }
+    let strict = strict_argument(args)?;
+    let mut wanted = string_arguments(args)?;
+    wanted.retain(|kind| KINDS.iter().any(|(k, _)| k == kind));
+    if wanted.is_empty() {
+        return None;
+    }
+    // The registry is fixed, so every kind the call accepts is known
+    // when it binds.
+    let accepted: Vec<String> = if strict {
+        wanted
+    } else {
+        KINDS
+            .iter()
+            .map(|(kind, _)| *kind)
+            .filter(|kind| wanted.iter().any(|wanted| kind_is_a(kind, wanted)))
+            .map(str::to_owned)
+            .collect()
+    };
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let Ok(Some(kind)) = obj.closest_prim().kind() else {
+            return PredResult::varying(false);
+        };
+        PredResult::varying(accepted.iter().any(|accepted| kind == accepted.as_str()))
+    }))
+}
+
+/// specifier(s1, ..., sN): the prim's specifier is one of `over`,
+/// `class`, `def`; anything else refuses to bind.
+fn bind_specifier(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    let names = string_arguments(args)?;
+    if args.len() != names.len()
+        || names.is_empty()
+        || !names.iter().all(|n| matches!(n.as_str(), "over" | "class" | "def"))
+    {
+        return None;
+    }
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let Ok(Some(specifier)) = obj.closest_prim().specifier() else {
+            return PredResult::varying(false);
+        };
+        let token = match specifier {
+            sdf::Specifier::Def => "def",
+            sdf::Specifier::Over => "over",
+            sdf::Specifier::Class => "class",
+        };
+        PredResult::varying(names.iter().any(|n| n == token))
+    }))
+}
+
+/// isa(schema1, ..., schemaN, strict=false): the prim's typed schema
+/// is one of the named schemas — exactly under `strict`, else any
+/// subtype (through [`TYPED_SCHEMAS`]).
+fn bind_isa(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    if !keywords_within(args, &["strict"]) {
+        return None;
+    }
+    let strict = strict_argument(args)?;
+    let schemas = string_arguments(args)?;
+    if schemas.is_empty() {
+        return None;
+    }
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let prim = obj.closest_prim();
+        let value = schemas.iter().any(|schema| {
+            if strict {
+                prim.type_name().ok().flatten().is_some_and(|t| t.as_str() == schema)
+            } else {
+                prim.type_name().ok().flatten().is_some_and(|t| schema_is_a(t.as_str(), schema))
+            }
+        });
+        PredResult::varying(value)
+    }))
+}
+
+/// hasAPI(api1, ..., apiN, instanceName=name): any of the named
+/// applied API schemas is present, optionally as the given instance.
+fn bind_has_api(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    if !keywords_within(args, &["instanceName"]) {
+        return None;
+    }
+    let instance = match args.iter().find(|a| a.name.as_deref() == Some("instanceName")) {
+        Some(arg) => Some(arg.value.as_str()?.to_string()),
+        None => None,
+    };
+    let apis = string_arguments(args)?;
+    if apis.is_empty() {
+        return None;
+    }
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let prim = obj.closest_prim();
+        let value = apis.iter().any(|api| {
+            let name = match instance.as_deref() {
+                Some(instance) if !instance.is_empty() => format!("{api}:{instance}"),
+                _ => api.clone(),
+            };
+            prim.has_api_schema(name).unwrap_or(false)
+        });
+        PredResult::varying(value)
+    }))
+}
+
+/// variant(set1=sel1, ..., setN=selN): every named variant set's
+/// selection matches its value — a literal selection name, or a glob.
+/// All arguments must be keyword strings.
+fn bind_variant(args: &[FnArg]) -> Option<PredicateFn<CollectionObject>> {
+    if args.is_empty() {
+        return None;
+    }
+    let mut wanted = Vec::new();
+    for arg in args {
+        let set = arg.name.clone()?;
+        let selection = arg.value.as_str()?;
+        let matcher = if Path::is_valid_identifier(selection) {
+            SelectionMatch::Exact(selection.to_string())
+        } else {
+            SelectionMatch::Glob(GlobPattern::new(selection))
+        };
+        wanted.push((set, matcher));
+    }
+    Some(predicate(move |obj| {
+        if !obj.is_prim() {
+            return PredResult::constant(false);
+        }
+        let selections = obj
+            .closest_prim()
+            .variant_sets()
+            .get_all_variant_selections()
+            .unwrap_or_default();
+        let value = wanted.iter().all(|(set, matcher)| {
+            selections
+                .iter()
+                .find(|(s, _)| s == set)
+                .is_some_and(|(_, selection)| matcher.matches(selection))
+        });
+        PredResult::varying(value)
+    }))
+}
 /// Wraps a plain closure as the reference-counted predicate function the
 /// library stores.
 fn predicate(f: impl Fn(&CollectionObject) -> PredResult + 'static) -> Rc<dyn Fn(&CollectionObject) -> PredResult> {

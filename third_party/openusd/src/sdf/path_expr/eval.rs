@@ -471,54 +471,14 @@ impl<D> PatternImpl<D> {
         if let Some((_, value)) = state.constant {
             return PredResult::constant(value);
         }
-
-        let Visit { path, depth, .. } = *visit;
-
-        // The prefix needs checking only until the first segment lands;
-        // once segments have matched, the walk is inside the prefix subtree.
-        if state.segment_match_depths.is_empty() && !path.has_prefix(&self.prefix) {
-            return if self.prefix.has_prefix(path) {
-                PredResult::varying(false)
-            } else {
-                state.constant = Some((self.prefix_depth, false));
-                PredResult::constant(false)
-            };
-        }
-
-        // A prim pattern can never match a property or anything below it. A
-        // property pattern cannot match a prim, but the prim's elements
+        // A property pattern cannot match a prim, but the prim's elements
         // still feed interior segments and its properties may match below,
         // so the machinery runs and a would-be match is demoted.
-        if self.matches == ObjectKind::PrimOnly && visit.is_property {
-            return PredResult::constant(false);
-        }
         let demote = self.matches == ObjectKind::PropertyOnly && !visit.is_property;
-
-        if self.components.is_empty() {
-            // Pure prefix: with a stretch the whole subtree matches; without
-            // one only the prefix itself does.
-            if self.stretch_begin || self.stretch_end {
-                if demote {
-                    return PredResult::varying(false);
-                }
-                state.constant = Some((self.prefix_depth, true));
-                return PredResult::constant(true);
-            }
-            return if depth != self.prefix_depth {
-                state.constant = Some((self.prefix_depth, false));
-                PredResult::constant(false)
-            } else if demote {
-                PredResult::varying(false)
-            } else {
-                PredResult::varying(true)
-            };
+        if let Some(answer) = self.answer_before_segments(state, visit, demote) {
+            return answer;
         }
-
-        if !visit.addressable {
-            state.constant = Some((depth, false));
-            return PredResult::constant(false);
-        }
-
+        let Visit { path, depth, .. } = *visit;
         // With every segment already matched, the trailing segment gets to
         // re-match deeper: `//Foo//foo/bar` against
         // `/Foo/geom/foo/bar/foo/bar` re-lands `foo/bar` at each deeper
@@ -534,6 +494,71 @@ impl<D> PatternImpl<D> {
         let first_prev = state.segment_match_depths.last().copied().unwrap_or(self.prefix_depth);
         let elements = last_elements(path, (depth - first_prev + 1).min(self.widest_segment + 1));
 
+        if let Some(answer) = self.match_new_segments(state, depth, &elements, domain) {
+            return answer;
+        }
+        self.answer_after_segments(state, depth, demote)
+    }
+
+    /// What [`Self::next`] knows before trying segments: outside the prefix,
+    /// an object of the wrong kind, a pattern that is all prefix, a path the
+    /// grammar cannot address. None when the segments must decide.
+    fn answer_before_segments(&self, state: &mut PatternSearchState, visit: &Visit<'_>, demote: bool) -> Option<PredResult> {
+        let Visit { path, depth, .. } = *visit;
+        // The prefix needs checking only until the first segment lands;
+        // once segments have matched, the walk is inside the prefix subtree.
+        if state.segment_match_depths.is_empty() && !path.has_prefix(&self.prefix) {
+            return Some(if self.prefix.has_prefix(path) {
+                PredResult::varying(false)
+            } else {
+                state.constant = Some((self.prefix_depth, false));
+                PredResult::constant(false)
+            });
+        }
+
+        // A prim pattern can never match a property or anything below it.
+        if self.matches == ObjectKind::PrimOnly && visit.is_property {
+            return Some(PredResult::constant(false));
+        }
+
+        if self.components.is_empty() {
+            // Pure prefix: with a stretch the whole subtree matches; without
+            // one only the prefix itself does.
+            if self.stretch_begin || self.stretch_end {
+                if demote {
+                    return Some(PredResult::varying(false));
+                }
+                state.constant = Some((self.prefix_depth, true));
+                return Some(PredResult::constant(true));
+            }
+            return Some(if depth != self.prefix_depth {
+                state.constant = Some((self.prefix_depth, false));
+                PredResult::constant(false)
+            } else if demote {
+                PredResult::varying(false)
+            } else {
+                PredResult::varying(true)
+            });
+        }
+
+        if !visit.addressable {
+            state.constant = Some((depth, false));
+            return Some(PredResult::constant(false));
+        }
+
+        None
+    }
+
+    /// Extends `state`'s segment matches by the element `depth` adds (the
+    /// path's tail among `elements`). Some answer when that already decides
+    /// it; None when [`Self::answer_after_segments`] should.
+    fn match_new_segments(
+        &self,
+        state: &mut PatternSearchState,
+        depth: usize,
+        elements: &[Element<'_>],
+        domain: &impl Fn(&Path) -> D,
+    ) -> Option<PredResult> {
         // Segments can overlap — a leading bare predicate may bind the
         // element the previous segment ended on, consuming nothing — so one
         // visit may complete several segments.
@@ -547,7 +572,7 @@ impl<D> PatternImpl<D> {
             // prefix) are all this segment may consume.
             let available = depth - prev_end;
             if available < self.segment_min_match_elts(segment) {
-                return PredResult::varying(false);
+                return Some(PredResult::varying(false));
             }
             let has_stretch = has_prev || self.stretch_begin;
             let width = segment.width();
@@ -555,7 +580,7 @@ impl<D> PatternImpl<D> {
                 // The head-anchored segment needed to consume every element,
                 // and the walk has grown past it.
                 state.constant = Some((depth, false));
-                return PredResult::constant(false);
+                return Some(PredResult::constant(false));
             }
             // This segment's window: the deepest `available` elements, plus
             // the prior element a leading bare predicate may bind to, capped
@@ -594,6 +619,12 @@ impl<D> PatternImpl<D> {
             }
         }
 
+        None
+    }
+
+    /// The answer once the segments that can match have: every segment
+    /// matched is a match (constant below a trailing stretch).
+    fn answer_after_segments(&self, state: &mut PatternSearchState, depth: usize, demote: bool) -> PredResult {
         if state.segment_match_depths.len() == self.segments.len() {
             let last = *state.segment_match_depths.last().expect("all segments matched");
             if demote {
