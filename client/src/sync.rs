@@ -82,6 +82,7 @@ pub fn scene_sync(t: &Translation, upload: impl Fn(&str) -> bool) -> Vec<pb::syn
             motion: convert::motion_to_wire(&m.motion),
             point_samples: m.mesh.deformation_samples() as u32,
             link_collections: m.link_collections.clone(),
+            light: m.light.as_ref().map(convert::mesh_light_to_wire),
         };
         let primvars: Vec<(pb::PrimvarInfo, Vec<f32>)> = m
             .mesh
@@ -214,10 +215,16 @@ pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_
         visible: m.visible,
         double_sided: true,
         link_collections: m.link_collections.clone(),
+        light: m.light.as_ref().map(convert::mesh_light_to_wire),
         ..Default::default()
     };
-    let bits =
-        [pb::DirtyBits::DirtyTransform, pb::DirtyBits::DirtyMaterialId, pb::DirtyBits::DirtyVisibility, pb::DirtyBits::DirtyCategories];
+    let bits = [
+        pb::DirtyBits::DirtyTransform,
+        pb::DirtyBits::DirtyMaterialId,
+        pb::DirtyBits::DirtyVisibility,
+        pb::DirtyBits::DirtyCategories,
+        pb::DirtyBits::DirtyParams,
+    ];
     pb::sync_request::Item::Prim(pb::PrimDelta {
         path: path.to_string(),
         kind: pb::PrimKind::Mesh as i32,
@@ -227,7 +234,8 @@ pub fn mesh_placement(path: &str, m: &render_core::scene::MeshDesc) -> pb::sync_
 }
 
 /// A mesh delta for a mesh whose geometry is unchanged, with the dirty bits of just what
-/// changed from `before` (transform, material binding, visibility, light-link collections).
+/// changed from `before` (transform, material binding, visibility, light-link collections,
+/// mesh light).
 pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &render_core::scene::MeshDesc) -> pb::sync_request::Item {
     let mut item = mesh_placement(path, after);
     if let pb::sync_request::Item::Prim(d) = &mut item {
@@ -236,6 +244,7 @@ pub fn mesh_edit(path: &str, before: &render_core::scene::MeshDesc, after: &rend
             (before.material != after.material, pb::DirtyBits::DirtyMaterialId),
             (before.visible != after.visible, pb::DirtyBits::DirtyVisibility),
             (before.link_collections != after.link_collections, pb::DirtyBits::DirtyCategories),
+            (before.light != after.light, pb::DirtyBits::DirtyParams),
         ];
         d.dirty = bits.into_iter().filter(|(changed, _)| *changed).fold(0, |acc, (_, b)| acc | b as u32);
     }

@@ -54,6 +54,7 @@ fn a_hundred_thousand_instances_of_ten_thousand_triangles_fit_in_a_few_hundred_m
             material: String::new(),
             visible: false,
             link_collections: Vec::new(),
+            light: None,
         },
     );
     desc.instancers = BTreeMap::from([(

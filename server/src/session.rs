@@ -518,6 +518,7 @@ impl Transaction {
         let geometry_dirty =
             dirty & (pb::DirtyBits::DirtyPoints as u32 | pb::DirtyBits::DirtyTopology as u32 | pb::DirtyBits::DirtyNormals as u32) != 0;
         convert::link_collections_from_wire(&path, &m.link_collections)?;
+        let light = m.light.as_ref().map(|l| convert::mesh_light_from_wire(&path, l)).transpose()?;
         if geometry_dirty {
             let tris = m.triangle_indices_len / 3;
             if tris > self.limits.max_triangles_per_mesh {
@@ -583,6 +584,9 @@ impl Transaction {
             }
             if bit(pb::DirtyBits::DirtyCategories) {
                 existing.link_collections = m.link_collections;
+            }
+            if bit(pb::DirtyBits::DirtyParams) {
+                existing.light = light;
             }
         }
         Ok(())
@@ -822,7 +826,9 @@ impl Transaction {
             let transform = convert::affine(&path, "transform", &p.transform)?;
             let motion = convert::motion_from_wire(&path, "motion", &p.motion)?;
             let (material, visible, link_collections) = (p.material_path.clone(), p.visible, p.link_collections.clone());
-            self.desc.meshes.insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections });
+            // Checked when the delta arrived.
+            let light = p.light.as_ref().and_then(|l| convert::mesh_light_from_wire(&path, l).ok());
+            self.desc.meshes.insert(path, MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections, light });
         }
         for (path, (prim, data)) in self.instancers {
             let k = prim.motion_samples;

@@ -273,6 +273,7 @@ mod production {
             material: material.into(),
             visible,
             link_collections: Vec::new(),
+            light: None,
         };
         desc.meshes.insert("/World/Hero".into(), mesh(Mesh::uv_sphere(500, 1000), Affine3A::from_scale(Vec3::splat(2.0)), "/M/Hero", true));
         desc.meshes.insert("/World/Rock".into(), mesh(Mesh::uv_sphere(50, 50), Affine3A::IDENTITY, "/M/Rock", false));

@@ -21,6 +21,7 @@ mod light_units;
 mod materials;
 mod materialx;
 mod memory;
+mod mesh_lights;
 mod motion;
 mod points;
 mod preview_surface;

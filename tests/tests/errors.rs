@@ -170,7 +170,7 @@ fn each_warning_is_said_once() {
 /// that is neither Y nor Z, a reference and a payload whose files do not exist, a `purpose`
 /// token UsdGeom does not define (the prim renders as `default`), an attribute animated by a
 /// spline with inner loops (deprecated in USD, not evaluated: the light keeps its fallback),
-/// a mesh as a light (MeshLightAPI),
+/// a volume as a light (VolumeLightAPI; a mesh as a light is read, not reported),
 /// and a collection defined by a path expression (the text layer failed to parse before: the
 /// crate knew no `pathExpression` type).
 #[test]
@@ -215,6 +215,9 @@ def Mesh "Glow" (prepend apiSchemas = ["MeshLightAPI"])
     int[] faceVertexCounts = [3]
     int[] faceVertexIndices = [0, 1, 2]
 }
+def Volume "Haze" (prepend apiSchemas = ["VolumeLightAPI"])
+{
+}
 def Scope "Sets" (prepend apiSchemas = ["CollectionAPI:props"])
 {
     uniform pathExpression collection:props:membershipExpression = "/Asset/* //{bogus}"
@@ -249,7 +252,11 @@ def SphereLight "Key" (prepend apiSchemas = ["CollectionAPI:lightLink"])
     one("unresolved Payload layer @");
     one("/Asset/Quad: purpose 'bogus'");
     one("/Key.inputs:intensity: attribute animated by a spline");
-    one("/Glow: MeshLightAPI (a Mesh as a light) is not supported yet");
+    one("/Haze: VolumeLightAPI (a Volume as a light) is not supported yet");
+    assert!(!t.warnings.iter().any(|w| w.contains("/Glow")), "{:?}", t.warnings);
+    let glow = t.meshes.iter().find(|(path, _)| path == "/Glow").expect("the mesh light");
+    let light = glow.1.light.as_ref().expect("read as a light");
+    assert_eq!((light.intensity, light.sync), (1.0, render_core::light::MaterialSync::GlowTintsLight), "MeshLightAPI's fallbacks");
     one("/Sets: collection 'props': its membershipExpression cannot be evaluated");
     assert!(!t.warnings.iter().any(|w| w.contains("/Plain")), "{:?}", t.warnings);
     let key = t.lights.iter().find(|(path, _)| path == "/Key").expect("the key light");
@@ -267,7 +274,7 @@ def SphereLight "Key" (prepend apiSchemas = ["CollectionAPI:lightLink"])
 
 /// What a payload's layer asks for is read or reported too, though the layer loads only when
 /// composition reaches its prim, after the stage opened: a light link inside a payload links,
-/// and a mesh light there gets its warning.
+/// a mesh light there is read as a light, and a volume light there gets its warning.
 #[test]
 fn a_payloads_unsupported_requests_are_said() {
     let dir = std::env::temp_dir().join(format!("tessera-payload-reports-{}", std::process::id()));
@@ -291,6 +298,9 @@ def Xform "A"
         uniform bool collection:lightLink:includeRoot = 0
         rel collection:lightLink:includes = </A/Glow>
     }
+    def Volume "Haze" (prepend apiSchemas = ["VolumeLightAPI"])
+    {
+    }
 }
 "#,
     )
@@ -298,11 +308,12 @@ def Xform "A"
     std::fs::write(dir.join("scene.usda"), "#usda 1.0\ndef \"World\" (prepend payload = @./asset.usda@)\n{\n}\n").unwrap();
     let t = tessera::usd::load(&dir.join("scene.usda")).unwrap();
     std::fs::remove_dir_all(&dir).ok();
-    assert_eq!(t.warnings.iter().filter(|w| w.contains("/World/Glow: MeshLightAPI")).count(), 1, "{:?}", t.warnings);
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("/World/Haze: VolumeLightAPI")).count(), 1, "{:?}", t.warnings);
     let key = &t.lights.iter().find(|(p, _)| p == "/World/Key").expect("the light").1;
     assert_eq!(key.light_link.as_deref(), Some("/World/Key.collection:lightLink"));
     let glow = &t.meshes.iter().find(|(p, _)| p == "/World/Glow").expect("the mesh").1;
     assert_eq!(glow.link_collections, ["/World/Key.collection:lightLink"]);
+    assert!(glow.light.is_some(), "the payload's mesh light is a light");
 }
 
 /// The commit says each thing once too: a textured material's unsupported input is said

@@ -62,6 +62,7 @@ async fn a_mesh_larger_than_the_message_limit_syncs_in_chunks() {
             material: String::new(),
             visible: true,
             link_collections: Vec::new(),
+            light: None,
         },
     ));
     t.lights.push((

@@ -917,6 +917,25 @@ async fn bad_paths_parameters_and_chunks_are_refused_by_name() {
     assert_status(raw.sync(&s, light(-1.0, white)).await, Code::InvalidArgument, &["/Evil/Light", "radius", "negative"]);
     let nan = pb::Float3 { x: f32::NAN, y: 1.0, z: 1.0 };
     assert_status(raw.sync(&s, light(1.0, nan)).await, Code::InvalidArgument, &["/Evil/Light", "color", "finite"]);
+    // A mesh light's inputs: a NaN intensity, a negative colour, a sync mode no one defined and
+    // an oversized link name, each by its own name.
+    let lit_mesh = |light: pb::MeshLight| {
+        let mut items = mesh("/Evil/Glow", TRIANGLE.to_vec(), vec![0, 1, 2]);
+        if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
+            m.light = Some(light);
+        }
+        items
+    };
+    let glow = pb::MeshLight { intensity: 1.0, ..Default::default() };
+    let long = "c".repeat(tessera_wire::convert::MAX_LINK_COLLECTION_BYTES + 1);
+    for (bad, field) in [
+        (pb::MeshLight { intensity: f32::NAN, ..glow.clone() }, "light.intensity"),
+        (pb::MeshLight { color: Some(pb::Float3 { x: -1.0, y: 1.0, z: 1.0 }), ..glow.clone() }, "light.color"),
+        (pb::MeshLight { material_sync: 99, ..glow.clone() }, "light.material_sync"),
+        (pb::MeshLight { light_link: long, ..glow.clone() }, "light.light_link"),
+    ] {
+        assert_status(raw.sync(&s, lit_mesh(bad)).await, Code::InvalidArgument, &["/Evil/Glow", field]);
+    }
     // A chunk over the advertised element limit.
     let limit = tessera_server::limits::Limits::default().max_array_chunk_elements as usize;
     let prim = pb::MeshPrim { points_len: 3 * (limit as u64 + 3), triangle_indices_len: 3, visible: true, ..Default::default() };

@@ -96,6 +96,7 @@ async fn million_points() {
         material: String::new(),
         visible: false,
         link_collections: Vec::new(),
+        light: None,
     };
     t.meshes.push(("/Dots[sphere]".into(), desc));
     t.instancers.push((

@@ -4,7 +4,7 @@
 use glam::{Affine3A, DMat4, Mat4, Vec3};
 use render_core::camera::CameraDesc;
 use render_core::film::{Aov, TileFilm};
-use render_core::light::{LightDesc, LightKind};
+use render_core::light::{LightDesc, LightKind, MaterialSync, MeshLight};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 use render_core::render::MAX_COARSE_START;
 use tessera_proto::v1 as pb;
@@ -74,18 +74,10 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
             return Err(invalid(prim, name, format!("{v} is negative; sizes are zero or more")));
         }
     }
-    if let Some(c) = &l.color
-        && !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite() && c.x >= 0.0 && c.y >= 0.0 && c.z >= 0.0)
-    {
-        return Err(invalid(prim, "color", format!("({}, {}, {}) must be finite and not negative", c.x, c.y, c.z)));
-    }
-    let link = |field: &str, name: &str| -> Result<Option<String>, Status> {
-        check_link_collection(prim, field, name)?;
-        Ok((!name.is_empty()).then(|| name.to_string()))
-    };
+    check_color(prim, "color", &l.color)?;
     Ok(LightDesc {
-        light_link: link("light_link", &l.light_link)?,
-        shadow_link: link("shadow_link", &l.shadow_link)?,
+        light_link: link(prim, "light_link", &l.light_link)?,
+        shadow_link: link(prim, "shadow_link", &l.shadow_link)?,
         kind,
         transform: affine(prim, "transform", &l.transform)?,
         intensity: l.intensity,
@@ -150,6 +142,74 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
         LightKind::Cylinder { radius, length } => (w.light_type, w.radius, w.length) = (pb::LightType::Cylinder as i32, radius, length),
     }
     w
+}
+
+/// A wire mesh light to render-core: its inputs finite, its colour not negative.
+pub fn mesh_light_from_wire(prim: &str, l: &pb::MeshLight) -> Result<MeshLight, Status> {
+    for (name, v) in [
+        ("light.intensity", l.intensity),
+        ("light.exposure", l.exposure),
+        ("light.diffuse", l.diffuse.unwrap_or(1.0)),
+        ("light.specular", l.specular.unwrap_or(1.0)),
+    ] {
+        if !v.is_finite() {
+            return Err(invalid(prim, name, format!("{v} is not finite")));
+        }
+    }
+    check_color(prim, "light.color", &l.color)?;
+    let sync = match pb::MaterialSync::try_from(l.material_sync) {
+        Ok(pb::MaterialSync::GlowTintsLight) => MaterialSync::GlowTintsLight,
+        Ok(pb::MaterialSync::Independent) => MaterialSync::Independent,
+        Ok(pb::MaterialSync::NoMaterialResponse) => MaterialSync::NoMaterialResponse,
+        Err(_) => return Err(invalid(prim, "light.material_sync", format!("{} is not a MaterialSync", l.material_sync))),
+    };
+    Ok(MeshLight {
+        intensity: l.intensity,
+        exposure: l.exposure,
+        color: vec3(&l.color, Vec3::ONE),
+        normalize: l.normalize,
+        diffuse: l.diffuse.unwrap_or(1.0),
+        specular: l.specular.unwrap_or(1.0),
+        sync,
+        light_link: link(prim, "light.light_link", &l.light_link)?,
+        shadow_link: link(prim, "light.shadow_link", &l.shadow_link)?,
+    })
+}
+
+/// render-core mesh light to wire.
+pub fn mesh_light_to_wire(l: &MeshLight) -> pb::MeshLight {
+    let sync = match l.sync {
+        MaterialSync::GlowTintsLight => pb::MaterialSync::GlowTintsLight,
+        MaterialSync::Independent => pb::MaterialSync::Independent,
+        MaterialSync::NoMaterialResponse => pb::MaterialSync::NoMaterialResponse,
+    };
+    pb::MeshLight {
+        intensity: l.intensity,
+        exposure: l.exposure,
+        color: Some(float3(l.color)),
+        normalize: l.normalize,
+        diffuse: (l.diffuse != 1.0).then_some(l.diffuse),
+        specular: (l.specular != 1.0).then_some(l.specular),
+        material_sync: sync as i32,
+        light_link: l.light_link.clone().unwrap_or_default(),
+        shadow_link: l.shadow_link.clone().unwrap_or_default(),
+    }
+}
+
+/// A colour (`field` of `prim`) that is finite and not negative, when given.
+fn check_color(prim: &str, field: &str, c: &Option<pb::Float3>) -> Result<(), Status> {
+    match c {
+        Some(c) if !(c.x.is_finite() && c.y.is_finite() && c.z.is_finite() && c.x >= 0.0 && c.y >= 0.0 && c.z >= 0.0) => {
+            Err(invalid(prim, field, format!("({}, {}, {}) must be finite and not negative", c.x, c.y, c.z)))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// A light-link collection name (`field` of `prim`), checked; empty for none.
+fn link(prim: &str, field: &str, name: &str) -> Result<Option<String>, Status> {
+    check_link_collection(prim, field, name)?;
+    Ok((!name.is_empty()).then(|| name.to_string()))
 }
 
 /// Most light-link collections one prim may belong to.

@@ -169,8 +169,14 @@ struct LinkLists<'t> {
 }
 
 impl<'t> LinkLists<'t> {
+    /// UsdLux lights and mesh lights.
     fn of(t: &'t Translation) -> Self {
-        LinkLists { lights: t.lights.iter().map(|(p, l)| (p.as_str(), [l.light_link.as_deref(), l.shadow_link.as_deref()])).collect() }
+        let usd = t.lights.iter().map(|(p, l)| (p.as_str(), [l.light_link.as_deref(), l.shadow_link.as_deref()]));
+        // An invisible mesh lights nothing.
+        let meshes = t.meshes.iter().filter(|(_, m)| m.visible);
+        let meshes =
+            meshes.filter_map(|(p, m)| m.light.as_ref().map(|l| (p.as_str(), [l.light_link.as_deref(), l.shadow_link.as_deref()])));
+        LinkLists { lights: usd.chain(meshes).collect() }
     }
 
     /// Each list only when some light links that way (a list of every light per mesh would
@@ -188,6 +194,23 @@ impl<'t> LinkLists<'t> {
     }
 }
 
+/// A mesh light's inputs, named as UsdLux names them.
+fn mesh_light_json(l: &render_core::light::MeshLight) -> Value {
+    use render_core::light::MaterialSync;
+    let sync = match l.sync {
+        MaterialSync::GlowTintsLight => "materialGlowTintsLight",
+        MaterialSync::Independent => "independent",
+        MaterialSync::NoMaterialResponse => "noMaterialResponse",
+    };
+    json!({
+        "intensity": l.intensity,
+        "exposure": l.exposure,
+        "color": [l.color.x, l.color.y, l.color.z],
+        "normalize": l.normalize,
+        "materialSyncMode": sync,
+    })
+}
+
 /// One mesh: placement, triangles, material, visibility, and its subdivision, motion,
 /// skinning and deformation where it has them.
 fn mesh_json(m: &render_core::scene::MeshDesc, subdivision: Option<Value>, skin: Option<&crate::usd::Skinned>) -> Value {
@@ -203,6 +226,9 @@ fn mesh_json(m: &render_core::scene::MeshDesc, subdivision: Option<Value>, skin:
     }
     if !m.motion.is_empty() {
         mesh["motion"] = Value::Array(m.motion.iter().map(usd_matrix).collect());
+    }
+    if let Some(l) = &m.light {
+        mesh["light"] = mesh_light_json(l);
     }
     if let Some(s) = skin {
         mesh["skinning"] = skinning_json(s, m, !refined);

@@ -407,7 +407,10 @@ impl Reader<'_> {
             None => self.display_color_material(prim, p)?.unwrap_or_default(),
         };
         let link_collections = self.link_collections(prim.path());
-        self.out.meshes.push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections }));
+        let light = self.gprim_light(prim, p)?;
+        self.out
+            .meshes
+            .push((p.to_string(), MeshDesc { mesh: Arc::new(mesh), transform, motion, material, visible, link_collections, light }));
         Ok(())
     }
 

@@ -82,6 +82,7 @@ impl Reader<'_> {
             material: material.to_string(),
             visible: false,
             link_collections: Vec::new(),
+            light: None,
         };
         self.out.meshes.push((mesh_path.clone(), desc));
         Ok(mesh_path)

@@ -7,15 +7,8 @@ use super::*;
 impl Reader<'_> {
     pub(super) fn light(&mut self, prim: &Prim, p: &str, type_name: &str, visible: bool) -> Result<()> {
         let time = self.time;
-        // UsdLux inputs; pre-2021 files spell them without the `inputs:` prefix.
-        let input = |name: &str| -> Result<Option<Value>> {
-            match get(prim, &format!("inputs:{name}"), time)? {
-                Some(v) => Ok(Some(v)),
-                None => get(prim, name, time),
-            }
-        };
-        let float =
-            |name: &str, default: f32| -> Result<f32> { Ok(input(name)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32)) };
+        let input = |name: &str| light_input(prim, name, time);
+        let float = |name: &str, default: f32| light_float(prim, name, default, time);
         let kind = match type_name {
             "SphereLight" => LightKind::Sphere { radius: float("radius", 0.5)? },
             "RectLight" => LightKind::Rect { width: float("width", 1.0)?, height: float("height", 1.0)? },
@@ -43,10 +36,6 @@ impl Reader<'_> {
                 .push(format!("{p}: inputs:texture:file on a RectLight is not supported yet; the light's constant colour is used")),
             _ => {}
         }
-        // UsdLux: the colour temperature multiplies `color` when enabled (default 6500 K).
-        let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
-            .then(|| float("colorTemperature", 6500.0))
-            .transpose()?;
         let mut transform = self.affine(prim, p)?;
         let mut motion = self.motion(prim, p)?;
         if type_name == "DomeLight_1" {
@@ -70,23 +59,23 @@ impl Reader<'_> {
             }
         }
         let [light_link, shadow_link] = self.light_links(p);
+        // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
+        let common = LightInputs::read(prim, if type_name == "DistantLight" { 50000.0 } else { 1.0 }, time)?;
         let desc = LightDesc {
             light_link,
             shadow_link,
             kind,
             transform,
-            // UsdLux: DistantLight's intensity defaults to 50000, every other light's to 1.
-            intensity: float("intensity", if type_name == "DistantLight" { 50000.0 } else { 1.0 })?,
-            exposure: float("exposure", 0.0)?,
-            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE)
-                * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
-            normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
+            intensity: common.intensity,
+            exposure: common.exposure,
+            color: common.color,
+            normalize: common.normalize,
             // `tessera:visibleToCamera` (default on, as UsdLux lights are seen): DCCs whose lights
             // camera rays do not see (Blender's default) say so with it.
             visible_to_camera: get(prim, "tessera:visibleToCamera", time)?.as_ref().and_then(values::scalar).is_none_or(|v| v != 0.0),
             shaping: self.shaping(prim, p, type_name)?,
-            diffuse: float("diffuse", 1.0)?,
-            specular: float("specular", 1.0)?,
+            diffuse: common.diffuse,
+            specular: common.specular,
             texture,
             motion,
         };
@@ -95,6 +84,49 @@ impl Reader<'_> {
         }
         self.out.lights.push((p.to_string(), desc));
         Ok(())
+    }
+
+    /// The light a gprim is, when `MeshLightAPI` or `LightAPI` is applied to it: its inputs,
+    /// links and `light:materialSyncMode` (fallback `materialGlowTintsLight` under
+    /// `MeshLightAPI`, `noMaterialResponse` under plain `LightAPI`).
+    pub(super) fn gprim_light(&mut self, prim: &Prim, p: &str) -> Result<Option<MeshLight>> {
+        let Some(api) = self.gprim_light_api(prim)? else { return Ok(None) };
+        let time = self.time;
+        let fallback = if api == "MeshLightAPI" { MaterialSync::GlowTintsLight } else { MaterialSync::NoMaterialResponse };
+        let sync = match get(prim, "light:materialSyncMode", time)?.as_ref().and_then(values::token).as_deref() {
+            None => fallback,
+            Some("materialGlowTintsLight") => MaterialSync::GlowTintsLight,
+            Some("independent") => MaterialSync::Independent,
+            Some("noMaterialResponse") => MaterialSync::NoMaterialResponse,
+            Some(other) => {
+                self.out.warnings.push(format!("{p}: light:materialSyncMode '{other}' is not one UsdLux defines; using {fallback:?}"));
+                fallback
+            }
+        };
+        let common = LightInputs::read(prim, 1.0, time)?;
+        let [light_link, shadow_link] = self.light_links(p);
+        Ok(Some(MeshLight {
+            intensity: common.intensity,
+            exposure: common.exposure,
+            color: common.color,
+            normalize: common.normalize,
+            diffuse: common.diffuse,
+            specular: common.specular,
+            sync,
+            light_link,
+            shadow_link,
+        }))
+    }
+
+    /// `MeshLightAPI` or `LightAPI` when applied to `prim`, a gprim rendered as a mesh
+    /// ([`lit_as_mesh`]), else None.
+    pub(super) fn gprim_light_api(&mut self, prim: &Prim) -> Result<Option<&'static str>> {
+        self.reported_names.update(self.stage);
+        if !self.reported_names.apis || !prim.type_name()?.is_some_and(|t| lit_as_mesh(t.as_str())) {
+            return Ok(None);
+        }
+        let applied = prim.api_schemas()?;
+        Ok(["MeshLightAPI", "LightAPI"].into_iter().find(|api| applied.iter().any(|a| a.as_str() == *api)))
     }
 
     /// `ShapingAPI` inputs when any is authored (on the area lights it applies to); IES
@@ -121,5 +153,50 @@ impl Reader<'_> {
             focus: scalar(&focus, d.focus),
             focus_tint: tint.as_ref().and_then(values::vec3).unwrap_or(d.focus_tint),
         }))
+    }
+}
+
+/// A UsdLux input of `prim` at `time`; pre-2021 files spell them without the `inputs:` prefix.
+fn light_input(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {
+    match get(prim, &format!("inputs:{name}"), time)? {
+        Some(v) => Ok(Some(v)),
+        None => get(prim, name, time),
+    }
+}
+
+/// A scalar UsdLux input, or `default` when it is not authored.
+fn light_float(prim: &Prim, name: &str, default: f32, time: TimeCode) -> Result<f32> {
+    Ok(light_input(prim, name, time)?.as_ref().and_then(values::scalar).map_or(default, |v| v as f32))
+}
+
+/// The inputs every UsdLux light has (`LightAPI`'s), with the schema's fallbacks.
+struct LightInputs {
+    intensity: f32,
+    exposure: f32,
+    /// `inputs:color`, times the colour temperature's RGB when that is enabled.
+    color: Vec3,
+    normalize: bool,
+    diffuse: f32,
+    specular: f32,
+}
+
+impl LightInputs {
+    /// Read at `time`; `intensity` is the light type's fallback for `inputs:intensity`.
+    fn read(prim: &Prim, intensity: f32, time: TimeCode) -> Result<LightInputs> {
+        let input = |name: &str| light_input(prim, name, time);
+        let float = |name: &str, default: f32| light_float(prim, name, default, time);
+        // UsdLux: the colour temperature multiplies `color` when enabled (default 6500 K).
+        let temperature = (input("enableColorTemperature")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0)
+            .then(|| float("colorTemperature", 6500.0))
+            .transpose()?;
+        Ok(LightInputs {
+            intensity: float("intensity", intensity)?,
+            exposure: float("exposure", 0.0)?,
+            color: input("color")?.as_ref().and_then(values::vec3).unwrap_or(Vec3::ONE)
+                * temperature.map_or(Vec3::ONE, render_core::light::blackbody::blackbody_rgb),
+            normalize: input("normalize")?.as_ref().and_then(values::scalar).unwrap_or(0.0) != 0.0,
+            diffuse: float("diffuse", 1.0)?,
+            specular: float("specular", 1.0)?,
+        })
     }
 }

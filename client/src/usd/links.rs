@@ -72,7 +72,7 @@ impl Reader<'_> {
         for path in paths {
             let prim = self.stage.prim(path.clone());
             let is_light = prim.type_name().ok().flatten().is_some_and(|t| LIGHTS.contains(&t.as_str()));
-            if !is_light {
+            if !is_light && !matches!(self.gprim_light_api(&prim), Ok(Some(_))) {
                 continue;
             }
             let p = path.as_str();

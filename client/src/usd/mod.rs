@@ -48,7 +48,7 @@ use openusd::schemas::shade::{Material, MaterialBindingAPI};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, PrimPredicate, SchemaBase, SchemaKind, Stage, TimeCode};
 use render_core::camera::CameraDesc;
-use render_core::light::{LightDesc, LightKind};
+use render_core::light::{LightDesc, LightKind, MaterialSync, MeshLight};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 use render_core::scene::{InstancerDesc, MeshDesc, SceneDesc};
 
@@ -368,6 +368,12 @@ impl Xformable for AnyXformable {}
 /// Types that only organise the scene or feed materials: read, never reported as skipped.
 const STRUCTURAL: &[&str] = &["", "Xform", "Scope", "Material", "Shader", "NodeGraph", "GeomSubset"];
 const IMPLICIT: &[&str] = &["Sphere", "Cube", "Cylinder", "Cylinder_1", "Cone", "Capsule", "Capsule_1", "Plane"];
+
+/// True for the gprims that render as meshes and so may be lights (`MeshLightAPI`, or
+/// `LightAPI` applied to a gprim): meshes and the implicit shapes.
+fn lit_as_mesh(type_name: &str) -> bool {
+    type_name == "Mesh" || IMPLICIT.contains(&type_name)
+}
 const LIGHTS: &[&str] = &["SphereLight", "RectLight", "DiskLight", "CylinderLight", "DistantLight", "DomeLight", "DomeLight_1"];
 
 /// Reads and translates the stage at `path` at its default frame.

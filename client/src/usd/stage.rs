@@ -223,13 +223,16 @@ impl Reader<'_> {
     }
 
     /// Applied API schemas that ask for what Tessera does not do yet, said once per prim: a
-    /// gprim as a light, and collections whose path expression cannot be evaluated.
+    /// volume or a prim not rendered as a mesh as a light, and collections whose path
+    /// expression cannot be evaluated.
     fn report_unsupported_apis(&mut self, prim: &Prim, p: &str, type_name: &str) -> Result<()> {
         self.reported_names.update(self.stage);
         let applied = if self.reported_names.apis { prim.api_schemas()? } else { Vec::new() };
         for api in applied {
             let api = api.as_str();
-            if matches!(api, "MeshLightAPI" | "VolumeLightAPI") || (api == "LightAPI" && !LIGHTS.contains(&type_name)) {
+            // A gprim tessellated to a mesh is read as a mesh light ([`Reader::gprim_light`]).
+            let gprim_light = matches!(api, "MeshLightAPI" | "LightAPI") && lit_as_mesh(type_name);
+            if !gprim_light && (matches!(api, "MeshLightAPI" | "VolumeLightAPI") || (api == "LightAPI" && !LIGHTS.contains(&type_name))) {
                 self.out.warnings.push(format!(
                     "{p}: {api} (a {type_name} as a light) is not supported yet; it renders with its bound material and emits only what that emits"
                 ));

@@ -90,13 +90,37 @@ def correct(exported: Export, scene) -> None:
                     lights.append((child, obj))
             links = getattr(obj, "light_linking", None)
             if obj is not None and obj.type != "LIGHT" and links and (links.receiver_collection or links.blocker_collection):
-                exported.warnings.append(f"{obj.name}: light linking of an object's emission is not exported yet; its emission reaches, and is shadowed by, every object")
+                # An emissive object's own linking: its meshes become mesh lights that carry
+                # it (an object that emits nothing has nothing to link, in Blender too).
+                for child in (c for c in children if c.GetTypeName() == "Mesh" and _emits(c, UsdShade)):
+                    _make_mesh_light(exported, child, obj, UsdLux)
+                    lights.append((child, obj))
         if prim.IsA(UsdShade.Material):
             _correct_glass(exported, prim, Sdf, UsdShade)
     # After the traversal: a light may link objects exported after it.
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
     stage.GetRootLayer().Save()
+
+
+def _emits(prim, UsdShade) -> bool:
+    """True when the surface bound to `prim` has an emissive colour above black, or a
+    connected one."""
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    shader = material.ComputeSurfaceSource()[0] if material else None
+    emissive = shader.GetInput("emissiveColor") if shader else None
+    if not emissive:
+        return False
+    value = emissive.Get()
+    return emissive.HasConnectedSource() or (value is not None and max(value) > 0.0)
+
+
+def _make_mesh_light(exported: Export, prim, obj, UsdLux) -> None:
+    """`prim` as a UsdLux mesh light whose glow is its material's emission at intensity 1, so
+    it emits what it did, and can carry `obj`'s light linking."""
+    UsdLux.MeshLightAPI.Apply(prim)
+    UsdLux.LightAPI(prim).CreateMaterialSyncModeAttr().Set("materialGlowTintsLight")
+    exported.corrections.append(f"{prim.GetPath()}: a mesh light (MeshLightAPI) for {obj.name}'s light linking")
 
 
 def _collection_states(collection, state=None):

@@ -143,14 +143,6 @@ def interactive():
     }
 
 
-def unexported_links_are_said():
-    """An emissive object's light linking is not exported: the export says so, by object."""
-    scenes.build("linked", OUT)
-    floor = next(o for o in bpy.data.objects if o.type == "MESH" and o.pass_index == 1)
-    floor.light_linking.receiver_collection = bpy.data.collections["key receivers"]
-    return export.export_scene(bpy.context.evaluated_depsgraph_get()).warnings
-
-
 def errors_reach_the_artist():
     """A render whose export cannot be synced reports the error (the operator fails with it,
     as F12 shows it in the status bar) rather than saving a silent black image."""
@@ -177,6 +169,5 @@ if __name__ == "__main__":
     denoised("box")
     results["interactive"] = interactive()
     results["error_reports"] = errors_reach_the_artist()
-    results["unexported_links"] = unexported_links_are_said()
     with open(os.path.join(OUT, "results.json"), "w") as f:
         json.dump(results, f, indent=1)

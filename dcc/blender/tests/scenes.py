@@ -15,10 +15,11 @@ REGIONS = {
     "glass": {1: "floor", 2: "glass sphere"},
     "textured": {1: "textured plane"},
     "linked": {1: "floor", 2: "key-lit sphere", 3: "unlinked sphere"},
+    "emitter_linked": {1: "floor", 2: "panel-lit sphere", 3: "unlinked sphere"},
 }
 
 def build(kind, directory):
-    """A fresh scene of `kind` (box, box_matte, glass, textured, linked); files it needs go in
+    """A fresh scene of `kind` (box, box_matte, glass, textured, linked, emitter_linked); files it needs go in
     `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -29,7 +30,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -64,6 +65,22 @@ def build(kind, directory):
         blockers = bpy.data.collections.new("fill blockers"); blockers.objects.link(right)
         blockers.collection_objects[0].light_linking.link_state = 'EXCLUDE'
         fill.light_linking.blocker_collection = blockers
+        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    elif kind == "emitter_linked":
+        # An emissive object's own light linking: the panel lights the left sphere alone (its
+        # receiver collection); a dim point light reaches everything, so no region is black.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+        left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
+        glow = mat("glow", (0.0, 0.0, 0.0))
+        p = glow.node_tree.nodes["Principled BSDF"]
+        p.inputs["Emission Color"].default_value = (1.0, 0.9, 0.8, 1)
+        p.inputs["Emission Strength"].default_value = 20.0
+        panel = add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1, location=(-1.2, 0, 2.6), rotation=(3.14159, 0, 0))
+        panel.name = "Panel"
+        receivers = bpy.data.collections.new("panel receivers"); receivers.objects.link(left)
+        panel.light_linking.receiver_collection = receivers
+        bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object.data; fill.energy = 100; fill.shadow_soft_size = 0.2
         cam = (0, -7, 2.5); rot = (1.25, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")

@@ -86,7 +86,7 @@ impl<const FULL: bool> Tracer<'_, FULL> {
         // combines the two only if both estimate the same emission (a footprint-blurred
         // lookup made BSDF-sampled light 20% off light-sampled light on a lit floor).
         let le = match (&v.local, light.textured_emitter) {
-            (Some((m, _)), Some(_)) if path.depth == 0 => m.emission,
+            (Some((m, _)), Some(_)) if path.depth == 0 => m.emission * self.scene.glow_scale(hit.instance),
             (_, Some((instance, triangle))) => self.scene.emission_at(instance, triangle, v.s.p, hit.time),
             _ => light.shape.radiance(),
         };

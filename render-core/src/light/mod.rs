@@ -10,11 +10,13 @@
 
 pub mod blackbody;
 pub mod environment;
+mod mesh_light;
 pub mod motion;
 mod shapes;
 pub mod spherical_rect;
 pub mod tree;
 
+pub use mesh_light::{MaterialSync, MeshLight};
 pub use shapes::{LightHit, LightSample, Shape};
 
 use glam::{Affine3A, Vec3};

@@ -14,7 +14,7 @@ use crate::bvh::{Blas, BuildQuality, Tlas, TlasInstance};
 use crate::caustics::ShadowGlass;
 use crate::geometry::{Attribute, Mesh, Transform};
 use crate::light::motion::{LightMotion, Placement};
-use crate::light::{Light, LightSet, Shape};
+use crate::light::{Light, LightSet, MaterialSync, MeshLight, Shape};
 use crate::material::Material;
 use crate::plan::{Feature, RenderPlan};
 
@@ -37,9 +37,9 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         instances.iter().map(|i| TlasInstance { blas: i.mesh, transform: i.transform, motion: i.motion.clone() }).collect();
     let tlas = Tlas::build(&geometry.blases, &tlas_instances);
     let scene_radius = if lo.x <= hi.x { 0.5 * (hi - lo).length().max(1e-3) } else { 1.0 };
-    let lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
+    let mut lights = Lights::gather(desc, &materials, &geometry.meshes, &mut instances, &prim_paths, &mut warnings);
     lights.plan(&mut plan);
-    let links = LightLinks::build(desc, &lights.usd_lights, &instances, &prim_paths);
+    let links = LightLinks::build(desc, &lights.usd_lights, &lights.emitters.runs, &instances, &prim_paths);
     if lights.all.is_empty() {
         warnings.push("the scene has no lights and no emissive surfaces: the image will be black".into());
     }
@@ -52,10 +52,10 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let medium_boundary = per_material(ShadowGlass::of_medium_boundary, subsurface);
     let media = materials.list.iter().map(|m| if subsurface { m.medium() } else { None }).collect();
     let smooth_subsurface = plan.prims(Feature::Subsurface).iter().filter(|m| materials.smooth_behind(m)).cloned().collect();
-    let mut light_set = LightSet::new(lights.all, scene_radius);
+    let mut light_set = LightSet::new(std::mem::take(&mut lights.all), scene_radius);
     if let Some(links) = &links {
         let per_group = light_set.select_per_group(links.group_count(), |light, group| links.illuminates(light, group));
-        plan_links(links, &lights.usd_lights, per_group, &mut plan);
+        plan_links(links, &lights, per_group, &mut plan);
     }
     // Each thing is said once, however many instances or lobes run into it.
     let mut said = std::collections::HashSet::new();
@@ -78,6 +78,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
         media,
         used_materials,
         lights: light_set,
+        glow_scales: std::mem::take(&mut lights.emitters.glow_scales),
         crossable_lights: lights.crossable,
         links,
         infinite_lights: lights.infinite,
@@ -182,7 +183,7 @@ fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials)
     };
     for (path, m) in desc.meshes.iter().filter(|(_, m)| m.visible) {
         if let Some(&slot) = geometry.slot.get(path.as_str()) {
-            let material = materials.of(path, &m.material);
+            let material = materials.for_mesh(path, m);
             if !materials.removes_its_surfaces(material) {
                 push(path, slot, &m.transform, material, motion_of(path, m)?)?;
             }
@@ -195,7 +196,7 @@ fn place_instances(desc: &SceneDesc, geometry: &Geometry, materials: &Materials)
             }
             return Err(SceneError::Dangling { prim: path.clone(), field: "prototype".into(), target: inst.prototype.clone() });
         };
-        let material = materials.of(path, &desc.meshes[&inst.prototype].material);
+        let material = materials.for_mesh(path, &desc.meshes[&inst.prototype]);
         if materials.removes_its_surfaces(material) {
             continue;
         }
@@ -307,9 +308,8 @@ struct Lights {
     all: Vec<Light>,
     /// Paths of the UsdLux lights (the first entries of [`Self::all`]).
     usd_lights: Vec<String>,
-    /// Instances' prims whose material emits, and their triangle count.
-    emissive_prims: Vec<String>,
-    emissive_triangles: usize,
+    /// The emitting instances' triangle lights (after the UsdLux lights).
+    emitters: Emitters,
     /// The UsdLux lights a ray can pass through, in a BVH: with thousands of them a linear
     /// scan per ray would dominate the render.
     crossable: crate::light::tree::LightTree,
@@ -339,11 +339,20 @@ impl Lights {
                 }
             }
         }
-        let (emissive_prims, emissive_triangles) = add_emitters(&mut all, materials, meshes, instances, prim_paths);
+        let emitters = add_emitters(&mut all, desc, materials, meshes, instances, prim_paths);
         let n = usd_lights.len();
         let crossable = crate::light::tree::LightTree::build((0..n).filter_map(|i| all[i].bounds(1.0).map(|b| (i as u32, b))).collect(), n);
         let infinite = (0..n as u32).filter(|&i| all[i as usize].shape.is_infinite()).collect();
-        Lights { all, usd_lights, emissive_prims, emissive_triangles, crossable, infinite }
+        Lights { all, usd_lights, emitters, crossable, infinite }
+    }
+
+    /// The prim light `i` (committed order) comes from.
+    fn name_of(&self, i: usize) -> String {
+        if let Some(path) = self.usd_lights.get(i) {
+            return path.clone();
+        }
+        let run = self.emitters.runs.partition_point(|r| (r.first as usize) <= i).saturating_sub(1);
+        self.emitters.runs.get(run).map_or_else(String::new, |r| r.prim.clone())
     }
 
     /// The light features, with the prims that call for them.
@@ -351,9 +360,13 @@ impl Lights {
         let n = self.usd_lights.len();
         let reason = format!("{n} UsdLux light(s), chosen through a light tree with adaptive splitting, MIS (power heuristic)");
         plan.call_for_because(Feature::Lights, reason, self.usd_lights.iter().cloned());
-        let mut emissive = self.emissive_prims.clone();
+        let mut emissive: Vec<String> = self.emitters.runs.iter().map(|r| r.prim.clone()).collect();
         emissive.dedup();
-        let reason = format!("{} emissive triangle(s) sampled by area with MIS", self.emissive_triangles);
+        let e = &self.emitters;
+        let reason = match e.mesh_lights {
+            0 => format!("{} emissive triangle(s) sampled by area with MIS", e.triangles),
+            n => format!("{} emissive triangle(s) sampled by area with MIS, {n} mesh(es) of them UsdLux mesh lights", e.triangles),
+        };
         plan.call_for_because(Feature::EmissiveMeshes, reason, emissive);
     }
 }
@@ -370,60 +383,107 @@ fn links_reason(per_group: Option<usize>) -> String {
     }
 }
 
-/// The linking features, each with the lights that call for it; `per_group`: the light
-/// choices of their own the receiver groups got ([`LightSet::select_per_group`]).
-fn plan_links(links: &LightLinks, usd_lights: &[String], per_group: Option<usize>, plan: &mut RenderPlan) {
+/// The linking features, each with the lights (UsdLux lights and mesh lights) that call for
+/// it; `per_group`: the light choices of their own the receiver groups got
+/// ([`LightSet::select_per_group`]).
+fn plan_links(links: &LightLinks, lights: &Lights, per_group: Option<usize>, plan: &mut RenderPlan) {
     let (mut light, mut shadow) = (Vec::new(), Vec::new());
     for (i, l, s) in links.linked() {
-        if l {
-            light.push(usd_lights[i].clone());
-        }
-        if s {
-            shadow.push(usd_lights[i].clone());
+        // A mesh light links each of its triangles: named once.
+        let name = lights.name_of(i);
+        for (linked, names) in [(l, &mut light), (s, &mut shadow)] {
+            if linked && names.last() != Some(&name) {
+                names.push(name.clone());
+            }
         }
     }
     plan.call_for_because(Feature::LightLinking, links_reason(per_group), light);
     plan.call_for(Feature::ShadowLinking, shadow);
 }
 
-/// One triangle light per triangle of each instance whose material emits, appended to
-/// `lights`; returns the instances' prims and the triangle count.
+/// The mesh light of the prim an instance comes from: its mesh's, or its instancer
+/// prototype's.
+fn mesh_light_of<'d>(desc: &'d SceneDesc, prim: &str) -> Option<&'d MeshLight> {
+    let mesh = desc.meshes.get(prim).or_else(|| desc.instancers.get(prim).and_then(|i| desc.meshes.get(&i.prototype)));
+    mesh.and_then(|m| m.light.as_ref())
+}
+
+/// The triangle lights of one emitting instance: `count` lights from `first`, from `prim`,
+/// with its mesh light's links.
+pub(super) struct EmitterRun {
+    pub first: u32,
+    pub count: u32,
+    pub prim: String,
+    pub links: (Option<String>, Option<String>),
+}
+
+/// What the emitting instances added: their runs of triangle lights, and the scale of each
+/// textured glow a mesh light multiplies (by instance).
+#[derive(Default)]
+struct Emitters {
+    runs: Vec<EmitterRun>,
+    triangles: usize,
+    mesh_lights: usize,
+    glow_scales: Vec<(u32, Vec3)>,
+}
+
+/// One triangle light per triangle of each instance whose material emits or whose mesh is a
+/// light, appended to `lights`.
 fn add_emitters(
     lights: &mut Vec<Light>,
+    desc: &SceneDesc,
     materials: &Materials,
     meshes: &[Arc<Mesh>],
     instances: &mut [InstanceData],
     prim_paths: &[String],
-) -> (Vec<String>, usize) {
-    let mut prims = Vec::new();
-    let mut triangles = 0;
+) -> Emitters {
+    let mut out = Emitters::default();
     for (index, inst) in instances.iter_mut().enumerate() {
         let m = &materials.list[inst.material as usize];
-        if !m.is_emissive() {
+        let prim = &prim_paths[inst.prim as usize];
+        let mesh_light = mesh_light_of(desc, prim);
+        if mesh_light.is_none() && !m.is_emissive() {
             continue;
         }
-        let varies = materials.textured[inst.material as usize].as_ref().is_some_and(|t| t.emission_varies());
-        inst.emitter_base = Some(lights.len() as u32);
         let mesh = &meshes[inst.mesh];
+        let world = |t: usize| mesh.triangle(t).map(|v| inst.transform.to_world.transform_point3(v));
+        let textured_glow = materials.textured[inst.material as usize].as_ref().is_some_and(|t| t.emission_varies());
+        let (emission, varies) = match mesh_light {
+            None => (m.emission, textured_glow),
+            Some(l) => {
+                let area = |[a, b, c]: [Vec3; 3]| 0.5 * (b - a).cross(c - a).length();
+                let area: f32 = (0..mesh.triangle_count()).map(|t| area(world(t))).filter(|a| a.is_finite()).sum();
+                let tints = l.sync == MaterialSync::GlowTintsLight && m.is_emissive();
+                if tints && textured_glow {
+                    out.glow_scales.push((index as u32, l.radiance(Vec3::ZERO, area)));
+                }
+                (l.radiance(m.emission, area), tints && textured_glow)
+            }
+        };
+        let first = lights.len() as u32;
+        inst.emitter_base = Some(first);
         let placement = match &inst.motion {
             Some(samples) => Placement::Moving(samples.clone()),
             None => Placement::Still(inst.transform.to_world),
         };
         let moves = inst.motion.is_some() || mesh.deformation_samples() > 0;
         for t in 0..mesh.triangle_count() {
-            let p = mesh.triangle(t).map(|v| inst.transform.to_world.transform_point3(v));
+            let p = world(t);
             // Degenerate triangles keep their slot (indices must line up) but emit nothing.
-            let shape = Shape::triangle(p, m.emission).unwrap_or(Shape::Triangle { p, n: Vec3::Z, area: 0.0, l: Vec3::ZERO });
+            let shape = Shape::triangle(p, emission).unwrap_or(Shape::Triangle { p, n: Vec3::Z, area: 0.0, l: Vec3::ZERO });
             let mut light = Light::plain(shape, true);
+            light.multipliers = mesh_light.map_or((1.0, 1.0), MeshLight::multipliers);
             light.textured_emitter = varies.then_some((index as u32, t as u32));
             light.motion = moves.then(|| {
                 let (mesh, triangle, placement) = (mesh.clone(), t as u32, placement.clone());
-                Arc::new(LightMotion::Triangle { mesh, triangle, placement, l: m.emission })
+                Arc::new(LightMotion::Triangle { mesh, triangle, placement, l: emission })
             });
             lights.push(light);
         }
-        triangles += mesh.triangle_count();
-        prims.push(prim_paths[inst.prim as usize].clone());
+        out.triangles += mesh.triangle_count();
+        out.mesh_lights += usize::from(mesh_light.is_some());
+        let links = mesh_light.map_or((None, None), |l| (l.light_link.clone(), l.shadow_link.clone()));
+        out.runs.push(EmitterRun { first, count: mesh.triangle_count() as u32, prim: prim.clone(), links });
     }
-    (prims, triangles)
+    out
 }

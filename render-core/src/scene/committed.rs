@@ -62,6 +62,9 @@ pub struct CommittedScene {
     pub(super) used_materials: Vec<u32>,
     /// Lights and their selection distribution.
     pub lights: LightSet,
+    /// Per instance whose textured glow tints a mesh light (sorted by instance): what the
+    /// light multiplies the glow by ([`crate::light::MeshLight::radiance`] without the tint).
+    pub glow_scales: Vec<(u32, glam::Vec3)>,
     /// Indices of the finite lights a ray may cross (area lights; not triangle emitters,
     /// which are found through the BVH).
     pub crossable_lights: crate::light::tree::LightTree,

@@ -26,6 +26,8 @@ pub struct MeshDesc {
     pub visible: bool,
     /// The light-link collections the prim belongs to ([`super::LightLinks`]).
     pub link_collections: Vec<String>,
+    /// UsdLux `MeshLightAPI` (or `LightAPI`) on the mesh: it is a light as well.
+    pub light: Option<crate::light::MeshLight>,
 }
 
 /// A point instancer: world transforms of instances of one prototype mesh.

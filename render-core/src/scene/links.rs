@@ -9,6 +9,7 @@
 
 use std::collections::HashMap;
 
+use super::commit::EmitterRun;
 use super::{InstanceData, SceneDesc};
 
 /// The receiver group of a point that belongs to no link collection (and of every point when
@@ -67,9 +68,16 @@ impl<'d> Interner<'d> {
 
 impl LightLinks {
     /// The links of a committed scene: `lights` are the committed UsdLux lights' paths in
-    /// order (emissive triangles follow them and link nothing), `instances` the TLAS's
+    /// order, `emitters` the runs of triangle lights that follow them (a mesh light's links
+    /// each of its triangles; an emissive material's link nothing), `instances` the TLAS's
     /// instances with their prims' paths. None when no light names a collection.
-    pub(super) fn build(desc: &SceneDesc, lights: &[String], instances: &[InstanceData], prim_paths: &[String]) -> Option<LightLinks> {
+    pub(super) fn build(
+        desc: &SceneDesc,
+        lights: &[String],
+        emitters: &[EmitterRun],
+        instances: &[InstanceData],
+        prim_paths: &[String],
+    ) -> Option<LightLinks> {
         let mut interner = Interner::default();
         interner.links.groups.push((0, 0)); // NO_GROUP
         let links_of = |path: &String| desc.lights.get(path).map(|l| (l.light_link.as_deref(), l.shadow_link.as_deref()));
@@ -77,6 +85,14 @@ impl LightLinks {
             let (l, s) = (light.map(|c| interner.id(c)), shadow.map(|c| interner.id(c)));
             interner.links.light_link.push(l);
             interner.links.shadow_link.push(s);
+        }
+        for run in emitters.iter().filter(|r| r.links.0.is_some() || r.links.1.is_some()) {
+            let (l, s) = (run.links.0.as_deref().map(|c| interner.id(c)), run.links.1.as_deref().map(|c| interner.id(c)));
+            // Lights between the linked runs link nothing.
+            interner.links.light_link.resize(run.first as usize, None);
+            interner.links.shadow_link.resize(run.first as usize, None);
+            interner.links.light_link.extend(std::iter::repeat_n(l, run.count as usize));
+            interner.links.shadow_link.extend(std::iter::repeat_n(s, run.count as usize));
         }
         if interner.ids.is_empty() {
             return None;
@@ -184,6 +200,7 @@ mod tests {
             material: String::new(),
             visible,
             link_collections: collections.iter().map(|c| c.to_string()).collect(),
+            light: None,
         }
     }
 
@@ -223,6 +240,34 @@ mod tests {
         assert!((0..4).all(|i| links.casts_shadow(key, i)) && !links.shadow_linked(key) && links.shadow_linked(rim));
         assert_eq!(scene.plan.prims(Feature::LightLinking), ["/Key"]);
         assert_eq!(scene.plan.prims(Feature::ShadowLinking), ["/Rim"]);
+    }
+
+    /// A mesh light links each of its triangle lights (after the UsdLux lights and any
+    /// emissive material's triangles, which link nothing), and the plan names it once.
+    #[test]
+    fn a_mesh_lights_triangles_reach_what_its_link_holds() {
+        let mut desc = SceneDesc::default();
+        let quad = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        let linked = crate::light::MeshLight { light_link: Some("glow".into()), ..Default::default() };
+        let glow = MeshDesc { mesh: Arc::new(quad), light: Some(linked), ..mesh(true, &[]) };
+        desc.meshes.insert("/A".into(), mesh(true, &["glow"]));
+        desc.meshes.insert("/C".into(), mesh(true, &[]));
+        desc.meshes.insert("/Glow".into(), glow);
+        desc.lights.insert("/Fill".into(), light(None, None));
+        let scene = commit(&desc, &mut BlasCache::default()).unwrap();
+        let links = scene.links.as_ref().expect("the mesh light links");
+        // Lights: /Fill, then the glow's two triangles. Instances: /A, /C, /Glow.
+        assert_eq!(scene.lights.lights.len(), 3);
+        let (a, c) = (links.instance_group(0), links.instance_group(1));
+        for triangle in [1, 2] {
+            assert!(links.illuminates(triangle, a) && !links.illuminates(triangle, c), "triangle light {triangle}");
+        }
+        assert!(links.illuminates(0, a) && links.illuminates(0, c), "the fill links nothing");
+        assert_eq!(scene.plan.prims(Feature::LightLinking), ["/Glow"]);
     }
 
     /// Collections alone link nothing: without a light that names one, the scene has no links

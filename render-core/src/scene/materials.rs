@@ -5,9 +5,12 @@ use std::cell::RefCell;
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
-use super::{BlasCache, SceneDesc};
+use glam::Vec3;
+
+use super::{BlasCache, MeshDesc, SceneDesc};
 use crate::caustics::ShadowGlass;
-use crate::material::{Material, ResolveReport, TexturedMaterial};
+use crate::light::MaterialSync;
+use crate::material::{Material, Principled, ResolveReport, TexturedMaterial};
 use crate::texture::{ColorSpace, Texture};
 
 /// The materials resolved: index 0 is the fallback for unbound meshes.
@@ -20,6 +23,9 @@ pub(super) struct Materials<'d> {
     pub index: HashMap<&'d str, u32>,
     /// Dome light maps by light path.
     pub environments: BTreeMap<&'d str, Arc<Texture>>,
+    /// The black material of mesh lights with no material response (UsdLux
+    /// `noMaterialResponse`), when a mesh light asks for it.
+    pub no_response: Option<u32>,
 }
 
 impl<'d> Materials<'d> {
@@ -47,6 +53,7 @@ impl<'d> Materials<'d> {
             textured: vec![None],
             index: HashMap::new(),
             environments: BTreeMap::new(),
+            no_response: None,
         };
         for (path, network) in &desc.materials {
             let mut report = ResolveReport::default();
@@ -72,7 +79,23 @@ impl<'d> Materials<'d> {
             }
         }
         cache.textures = pyramids.into_inner();
+        let reflects_nothing = |m: &MeshDesc| m.light.as_ref().is_some_and(|l| l.sync == MaterialSync::NoMaterialResponse);
+        if desc.meshes.values().any(reflects_nothing) {
+            out.no_response = Some(out.list.len() as u32);
+            // Black Lambert and no specular (F0 = 0.08 · specular = 0): nothing reflects.
+            out.list.push(Material::principled(Principled { lambert: true, base_color: Vec3::ZERO, specular: 0.0, ..Default::default() }));
+            out.textured.push(None);
+        }
         out
+    }
+
+    /// The material mesh `mesh` at `prim` renders with: its bound one, or the black one of a
+    /// mesh light with no material response.
+    pub(super) fn for_mesh(&self, prim: &str, mesh: &MeshDesc) -> u32 {
+        match (&mesh.light, self.no_response) {
+            (Some(l), Some(black)) if l.sync == MaterialSync::NoMaterialResponse => black,
+            _ => self.of(prim, &mesh.material),
+        }
     }
 
     /// The material bound at `path` for prim `prim`, or the default where it is missing.

@@ -67,6 +67,7 @@ mod tests {
                 material: String::new(),
                 visible: true,
                 link_collections: Vec::new(),
+                light: None,
             },
         );
         let mut cache = BlasCache::default();
@@ -102,6 +103,7 @@ mod tests {
                 material: String::new(),
                 visible: true,
                 link_collections: Vec::new(),
+                light: None,
             };
             desc.meshes.insert(format!("/M{k:02}"), m);
         }
@@ -125,6 +127,7 @@ mod tests {
             material: String::new(),
             visible: true,
             link_collections: Vec::new(),
+            light: None,
         };
         desc.meshes.insert("/Big".into(), m);
         let mut cache = BlasCache::default();
@@ -174,6 +177,7 @@ mod tests {
                     material: "/M".into(),
                     visible: true,
                     link_collections: Vec::new(),
+                    light: None,
                 },
             );
             let scene = commit(&desc, &mut BlasCache::default()).unwrap();

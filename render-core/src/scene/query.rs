@@ -110,6 +110,21 @@ impl CommittedScene {
     /// shutter time `time`, for materials whose emission is textured (finest texture level: a
     /// light sample has no footprint).
     pub fn emission_at(&self, instance: u32, triangle: u32, p: Vec3, time: f32) -> Vec3 {
+        self.textured_emission_at(instance, triangle, p, time) * self.glow_scale(instance)
+    }
+
+    /// What a mesh light multiplies the textured glow of `instance` by; 1 for an emissive
+    /// material that is not a light's.
+    #[inline]
+    pub fn glow_scale(&self, instance: u32) -> Vec3 {
+        match self.glow_scales.binary_search_by_key(&instance, |&(i, _)| i) {
+            Ok(k) => self.glow_scales[k].1,
+            Err(_) => Vec3::ONE,
+        }
+    }
+
+    /// The material's emission of `triangle` of `instance` at `p`.
+    fn textured_emission_at(&self, instance: u32, triangle: u32, p: Vec3, time: f32) -> Vec3 {
         let inst = &self.instances[instance as usize];
         let Some(t) = self.textured(inst.material) else { return self.materials[inst.material as usize].emission };
         let to_world = self.placement(instance, time).to_world;
