@@ -5,6 +5,7 @@
 
 use anyhow::{Context, Result, bail};
 use glam::{Affine3A, DMat4, Vec3};
+use render_core::light::{LightDesc, MeshLight};
 use render_core::material::ParamValue;
 use tessera_proto::v1 as pb;
 
@@ -159,19 +160,19 @@ impl LiveSession {
         .await
     }
 
-    /// Changes a light's inputs: `intensity`, `exposure`, `diffuse`, `specular` (numbers) and
+    /// Changes a light's (a UsdLux light's or a mesh light's) inputs: `intensity`, `exposure`, `diffuse`, `specular` (numbers) and
     /// `color` (three numbers).
     pub async fn set_light_params(&mut self, path: &str, params: &[(String, Vec<f64>)]) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
-            let (_, l) = t.lights.iter_mut().find(|(p, _)| p == path).with_context(|| format!("{path}: no light with this path"))?;
+            let l = light_fields(t, path).with_context(|| format!("{path}: no light with this path"))?;
             for (name, v) in params {
                 let v: Vec<f32> = v.iter().map(|&x| finite(path, name, x).map(|x| x as f32)).collect::<Result<_>>()?;
                 match (name.as_str(), v.as_slice()) {
-                    ("intensity", [x]) => l.intensity = *x,
-                    ("exposure", [x]) => l.exposure = *x,
-                    ("diffuse", [x]) => l.diffuse = *x,
-                    ("specular", [x]) => l.specular = *x,
-                    ("color", [r, g, b]) => l.color = Vec3::new(*r, *g, *b),
+                    ("intensity", [x]) => *l.intensity = *x,
+                    ("exposure", [x]) => *l.exposure = *x,
+                    ("diffuse", [x]) => *l.diffuse = *x,
+                    ("specular", [x]) => *l.specular = *x,
+                    ("color", [r, g, b]) => *l.color = Vec3::new(*r, *g, *b),
                     _ => bail!(
                         "{path}: '{name}' is not a light parameter taking {} value(s) (intensity, exposure, diffuse, specular, color)",
                         v.len()
@@ -183,7 +184,8 @@ impl LiveSession {
         .await
     }
 
-    /// Links light `path` (UsdLux light linking, as a DCC's light-linking editor sets it): with
+    /// Links light `path` (a UsdLux light or a mesh light; UsdLux light linking, as a DCC's
+    /// light-linking editor sets it): with
     /// `illuminates`, the light reaches only the prims at or under those paths; with
     /// `shadowed_by`, only they cast its shadows; None for either: every prim. Prims move in or
     /// out of the light's link collections, so the deltas are categories-only mesh edits. Native
@@ -195,10 +197,10 @@ impl LiveSession {
         shadowed_by: Option<Vec<String>>,
     ) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
-            let (_, l) = t.lights.iter_mut().find(|(p, _)| p == path).with_context(|| format!("{path}: no light with this path"))?;
             let (light, shadow) = (crate::usd::link_collection_id(path, "lightLink"), crate::usd::link_collection_id(path, "shadowLink"));
-            l.light_link = illuminates.is_some().then(|| light.clone());
-            l.shadow_link = shadowed_by.is_some().then(|| shadow.clone());
+            let l = light_fields(t, path).with_context(|| format!("{path}: no light with this path"))?;
+            *l.light_link = illuminates.is_some().then(|| light.clone());
+            *l.shadow_link = shadowed_by.is_some().then(|| shadow.clone());
             relink(t, &light, illuminates.as_deref())?;
             relink(t, &shadow, shadowed_by.as_deref())
         })
@@ -222,6 +224,28 @@ impl LiveSession {
         })
         .await
     }
+}
+
+/// What a live edit may change of a light: its inputs and links.
+struct LightFields<'t> {
+    intensity: &'t mut f32,
+    exposure: &'t mut f32,
+    diffuse: &'t mut f32,
+    specular: &'t mut f32,
+    color: &'t mut Vec3,
+    light_link: &'t mut Option<String>,
+    shadow_link: &'t mut Option<String>,
+}
+
+/// The fields of the light at `path`: a UsdLux light's, or a mesh light's.
+fn light_fields<'t>(t: &'t mut Translation, path: &str) -> Option<LightFields<'t>> {
+    if let Some((_, l)) = t.lights.iter_mut().find(|(p, _)| p == path) {
+        let LightDesc { intensity, exposure, diffuse, specular, color, light_link, shadow_link, .. } = l;
+        return Some(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link });
+    }
+    let (_, mesh) = t.meshes.iter_mut().find(|(p, m)| p == path && m.light.is_some())?;
+    let MeshLight { intensity, exposure, diffuse, specular, color, light_link, shadow_link, .. } = mesh.light.as_mut()?;
+    Some(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link })
 }
 
 fn finite(prim: &str, name: &str, v: f64) -> Result<f64> {

@@ -174,11 +174,12 @@ class Session:
         return self._native.set_camera(path, **params)
 
     def set_light_params(self, path: str, **params) -> list[dict]:
-        """Change a light's intensity, exposure, diffuse, specular or color."""
+        """Change a light's (a UsdLux light's or a mesh light's) intensity, exposure, diffuse,
+        specular or color."""
         return self._native.set_light_params(path, **params)
 
     def set_light_links(self, path: str, illuminates: list[str] | None = None, shadowed_by: list[str] | None = None) -> list[dict]:
-        """Link a light: it illuminates only the prims at or under `illuminates`, and only those at
+        """Link a light (a UsdLux light or a mesh light): it illuminates only the prims at or under `illuminates`, and only those at
         or under `shadowed_by` cast its shadows (None: every prim), as UsdLux's
         collection:lightLink and collection:shadowLink do."""
         return self._native.set_light_links(path, illuminates, shadowed_by)

@@ -167,3 +167,34 @@ async fn editing_a_mesh_lights_inputs_sends_only_its_params() {
         assert!((y - 2.0 * x).abs() < 1e-5 * y, "{a:?} then {b:?}");
     }
 }
+
+/// A DCC links a mesh light through the live session as it links a UsdLux light: linking the
+/// fixture's sign to the floor alone sends the sign's params and the floor's categories, and
+/// the edited session renders what a fresh session holding the linked scene renders, to the
+/// bit, and not what it rendered before.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_live_session_links_a_mesh_light() {
+    let server = tessera_server::EmbeddedServer::start().await.unwrap();
+    let conn = tessera::remote::Connection::connect(&server.url(), "mesh-light-links").await.unwrap();
+    let mut live = tessera::live::LiveSession::new(conn);
+    live.sync_usd(&fixture("usd/mesh_lights.usda"), None).await.unwrap();
+    let opts = small(32, 24, 4);
+    let before = live.conn.render(&opts, |_| {}).await.unwrap();
+    let sent = live.set_light_links("/World/Sign", Some(vec!["/World/Floor".into()]), None).await.unwrap();
+    let described: Vec<(&str, Vec<&str>)> = sent.iter().map(|s| (s.path.as_str(), s.dirty.clone())).collect();
+    assert!(described.contains(&("/World/Sign", vec!["params"])), "{described:?}");
+    assert!(described.contains(&("/World/Floor", vec!["categories"])), "{described:?}");
+    let edited = live.conn.render(&opts, |_| {}).await.unwrap();
+    let linked = live.held().expect("the held scene").clone();
+    let sign = linked.meshes.iter().find(|(p, _)| p == "/World/Sign").and_then(|(_, m)| m.light.as_ref()).expect("the sign's light");
+    assert_eq!(sign.light_link.as_deref(), Some("/World/Sign.collection:lightLink"));
+    server.stop().await.unwrap();
+    let (fresh_server, mut fresh) = session_with(&linked).await;
+    let fresh_image = fresh.render(&opts, |_| {}).await.unwrap().image;
+    fresh_server.stop().await.unwrap();
+    let pixels = |image: &tessera::output::Image| -> Vec<f32> {
+        (0..24).flat_map(|y| (0..32).flat_map(move |x| image.pixel("beauty", x, y)[..3].to_vec())).collect()
+    };
+    assert_eq!(pixels(&edited.image), pixels(&fresh_image), "the live edit renders as the linked scene does");
+    assert_ne!(pixels(&edited.image), pixels(&before.image), "the link changed the image");
+}
