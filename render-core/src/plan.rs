@@ -42,7 +42,7 @@ features! {
     NormalMaps = "normal-maps": "tangent-space normal maps (MikkTSpace tangents built for the meshes that use them)",
     TexturedCutouts = "textured-cutouts": "opacity textures cut surfaces out per point, for every ray",
     TexturedEmission = "textured-emission": "emission looked up per texel where light sampling lands",
-    EmissiveMeshes = "emissive-meshes": "emissive triangles sampled by area with MIS",
+    EmissiveMeshes = "emissive-meshes": "emissive triangles sampled by solid angle (by area when small or far) with MIS",
     Diffuse = "diffuse": "diffuse reflection (Lambertian; Disney's for tessera:Principled)",
     Metal = "metal": "GGX conductor reflection",
     Transmission = "transmission": "rough dielectric refraction (glass)",

@@ -71,7 +71,7 @@ fn panel(extra: &str) -> String {
 /// irradiance under the middle of a square of side 2 at height 1 is π·L·F with the view
 /// factor F = 4 · (1/2π) · 2 · atan(1/√2)/√2 (four corner rectangles of sides 1, 1 at
 /// distance 1), so a floor of albedo 0.5 there has radiance 0.5 · L · F = 0.554. The mesh
-/// light (two triangles sampled by area) and the `RectLight` of its shape (sampled by solid
+/// light (two triangles, each sampled by its solid angle) and the `RectLight` of its shape (sampled by solid
 /// angle) both give it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_mesh_light_emits_in_usdlux_units_as_the_rect_light_of_its_shape_does() {

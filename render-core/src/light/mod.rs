@@ -14,6 +14,7 @@ mod mesh_light;
 pub mod motion;
 mod shapes;
 pub mod spherical_rect;
+pub mod spherical_triangle;
 pub mod tree;
 
 pub use mesh_light::{MaterialSync, MeshLight};

@@ -364,8 +364,11 @@ impl Lights {
         emissive.dedup();
         let e = &self.emitters;
         let reason = match e.mesh_lights {
-            0 => format!("{} emissive triangle(s) sampled by area with MIS", e.triangles),
-            n => format!("{} emissive triangle(s) sampled by area with MIS, {n} mesh(es) of them UsdLux mesh lights", e.triangles),
+            0 => format!("{} emissive triangle(s) sampled by solid angle (by area when small or far) with MIS", e.triangles),
+            n => format!(
+                "{} emissive triangle(s) sampled by solid angle (by area when small or far) with MIS, {n} mesh(es) of them UsdLux mesh lights",
+                e.triangles
+            ),
         };
         plan.call_for_because(Feature::EmissiveMeshes, reason, emissive);
     }
