@@ -120,10 +120,6 @@ impl LightBounds {
         self.lo.cmple(o.lo).all() && self.hi.cmpge(o.hi).all()
     }
 
-    fn centroid(&self) -> Vec3 {
-        self.center
-    }
-
     /// The union: boxes and powers add, normal cones merge (the smallest cone holding both).
     fn union(&self, o: &LightBounds) -> LightBounds {
         if self.phi <= 0.0 {
@@ -260,6 +256,106 @@ pub const SPLIT_BUDGET: usize = 8;
 /// A cluster splits when the point is closer to its centre than this many half-diagonals.
 const SPLIT_DISTANCE: f32 = 2.0;
 
+/// Buckets per axis where a split is weighed (pbrt-v4's light BVH uses 12).
+const BUCKETS: usize = 12;
+
+/// The bucket split replaces the median's only when it costs less than this share of it.
+const CLEARLY_CHEAPER: f32 = 0.5;
+
+/// From this depth on, clusters split at the median: the tree then ends within log2 n more
+/// levels, so a light's trail of left/right bits stays within 63 levels.
+const MEDIAN_FROM_DEPTH: u32 = 40;
+
+/// What a bucket of emitters holds: the box of their bounds and their power.
+#[derive(Clone, Copy)]
+struct Bucket {
+    lo: Vec3,
+    hi: Vec3,
+    phi: f32,
+    count: usize,
+}
+
+impl Bucket {
+    const EMPTY: Bucket = Bucket { lo: Vec3::INFINITY, hi: Vec3::NEG_INFINITY, phi: 0.0, count: 0 };
+
+    fn add(self, o: Bucket) -> Bucket {
+        Bucket { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi), phi: self.phi + o.phi, count: self.count + o.count }
+    }
+
+    /// Power times surface area: how often a cluster is weighed and split, times what it
+    /// holds (pbrt-v4's surface area orientation heuristic, without the orientation term,
+    /// whose cone unions would cost the build an arccosine per emitter and bucket).
+    fn cost(&self) -> f32 {
+        let d = (self.hi - self.lo).max(Vec3::ZERO);
+        self.phi * 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+    }
+}
+
+/// Reorders `items` into the two clusters of a split and returns the first one's length.
+///
+/// The split minimizes power × surface area over the two sides, among [`BUCKETS`] bucket
+/// boundaries along each axis (stretched along the longest, as pbrt-v4's regularization
+/// does), so a large emitter beside a dense mesh of small ones (a sign beside a lamp of
+/// 16 000 triangles) sits in a cluster of its own near the root. Splitting at the median
+/// count instead kept it with half the lamp's triangles down to the leaves, and every cluster
+/// on its way spanned both: points near either split them and walked into the lamp. Past
+/// [`MEDIAN_FROM_DEPTH`], or when no bucket boundary separates the centroids, the median.
+fn split(items: &mut [(u32, LightBounds)], depth: u32) -> usize {
+    let (lo, hi) = items.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), (_, b)| (lo.min(b.center), hi.max(b.center)));
+    let extent = hi - lo;
+    let median = |items: &mut [(u32, LightBounds)]| {
+        let (axis, mid) = (extent.max_position(), items.len() / 2);
+        items.select_nth_unstable_by(mid, |a, b| a.1.center[axis].total_cmp(&b.1.center[axis]));
+        mid
+    };
+    if depth >= MEDIAN_FROM_DEPTH || items.len() <= 2 || extent.max_element() <= 0.0 {
+        return median(items);
+    }
+    let bucket_of =
+        |b: &LightBounds, axis: usize| (((b.center[axis] - lo[axis]) / extent[axis] * BUCKETS as f32) as usize).min(BUCKETS - 1);
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in (0..3).filter(|&a| extent[a] > 0.0) {
+        let mut buckets = [Bucket::EMPTY; BUCKETS];
+        for (_, b) in items.iter() {
+            let k = bucket_of(b, axis);
+            buckets[k] = buckets[k].add(Bucket { lo: b.lo, hi: b.hi, phi: b.phi, count: 1 });
+        }
+        let stretch = extent.max_element() / extent[axis];
+        for cut in 1..BUCKETS {
+            let (left, right) = (buckets[..cut].iter(), buckets[cut..].iter());
+            let (l, r) = (left.fold(Bucket::EMPTY, |a, b| a.add(*b)), right.fold(Bucket::EMPTY, |a, b| a.add(*b)));
+            if l.count == 0 || r.count == 0 {
+                continue;
+            }
+            let cost = stretch * (l.cost() + r.cost());
+            if best.is_none_or(|(c, ..)| cost < c) {
+                best = Some((cost, axis, cut));
+            }
+        }
+    }
+    let Some((cost, axis, cut)) = best else { return median(items) };
+    // A balanced tree walks in log2 n levels: the median stands unless the buckets' split
+    // is clearly cheaper (emitters of very different sizes or powers, not a mesh of alike
+    // triangles, whose median split costs about the same).
+    let mid = median(items);
+    let side = |part: &[(u32, LightBounds)]| {
+        part.iter().fold(Bucket::EMPTY, |a, (_, b)| a.add(Bucket { lo: b.lo, hi: b.hi, phi: b.phi, count: 1 }))
+    };
+    let median_cost = extent.max_element() / extent[extent.max_position()] * (side(&items[..mid]).cost() + side(&items[mid..]).cost());
+    if cost >= CLEARLY_CHEAPER * median_cost {
+        return mid;
+    }
+    // Partition in place: the first `n` items are those below the cut.
+    let mut n = 0;
+    for i in 0..items.len() {
+        if bucket_of(&items[i].1, axis) < cut {
+            items.swap(i, n);
+            n += 1;
+        }
+    }
+    n
+}
+
 #[derive(Clone, Copy, Debug)]
 enum Node {
     Leaf {
@@ -318,8 +414,7 @@ impl LightTree {
         tree
     }
 
-    /// Builds the node for `items` and returns its bounds. Splits at the median of the
-    /// centroids along their widest axis, which keeps the tree balanced (depth log2 n).
+    /// Builds the node for `items` and returns its bounds, split where [`split`] says.
     fn build_node(&mut self, items: &mut [(u32, LightBounds)], bits: u64, depth: u32) -> LightBounds {
         if items.len() == 1 || depth >= 63 {
             let bounds = items.iter().skip(1).fold(items[0].1, |acc, (_, b)| acc.union(b));
@@ -330,11 +425,7 @@ impl LightTree {
             self.nodes.push(Node::Leaf { light, bounds });
             return bounds;
         }
-        let (lo, hi) =
-            items.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), (_, b)| (lo.min(b.centroid()), hi.max(b.centroid())));
-        let axis = (hi - lo).max_position();
-        let mid = items.len() / 2;
-        items.select_nth_unstable_by(mid, |a, b| a.1.centroid()[axis].total_cmp(&b.1.centroid()[axis]));
+        let mid = split(items, depth);
         let at = self.nodes.len();
         self.nodes.push(Node::Leaf { light: 0, bounds: items[0].1 });
         let (left, right) = items.split_at_mut(mid);
@@ -865,5 +956,26 @@ mod tests {
         // of the same power has no selection spread at all; the tree's 1.58 is what remains.
         assert!(with_tree < 2.0, "tree relative spread {with_tree}");
         assert!(by_power > 10.0 * with_tree, "by power {by_power} vs tree {with_tree}");
+    }
+
+    /// A large emitter beside a dense cluster of small ones (a neon sign beside a lamp of
+    /// 4 096 triangles) gets a cluster of its own one level below the root, where the median
+    /// split kept it with half the small ones down to depth 12; a grid of alike lights keeps
+    /// its balanced depth (the median stands: the bucket split is not clearly cheaper).
+    #[test]
+    fn a_large_emitter_beside_many_small_ones_gets_a_cluster_of_its_own() {
+        let triangle = |c: Vec3, size: f32, phi: f32| {
+            let s = Shape::triangle([c, c + Vec3::X * size, c + Vec3::Y * size], Vec3::ONE).unwrap();
+            (s, phi)
+        };
+        let mut lights = vec![triangle(Vec3::new(-3.0, 2.0, -1.9), 3.0, 10.0)];
+        lights.extend(
+            (0..4096).map(|k| triangle(Vec3::new(1.8 + 0.004 * (k % 64) as f32, 0.25 + 0.004 * (k / 64) as f32, 0.5), 0.004, 0.01)),
+        );
+        let tree = tree_of(&lights);
+        assert_eq!(tree.trails[0].map(|(_, depth)| depth), Some(1), "the sign's depth");
+        let grid: Vec<(Shape, f32)> = (0..1024).map(|k| sphere(Vec3::new((k % 32) as f32, 1.0, (k / 32) as f32), 1.0)).collect();
+        let balanced = tree_of(&grid);
+        assert!(balanced.trails.iter().all(|t| t.is_some_and(|(_, depth)| depth == 10)), "a 1024-light grid is 10 levels deep");
     }
 }
