@@ -54,21 +54,20 @@ pub fn light_from_wire(prim: &str, l: &pb::LightPrim) -> Result<LightDesc, Statu
         pb::LightType::Cylinder => LightKind::Cylinder { radius: l.radius, length: l.length },
         pb::LightType::Unspecified => return Err(invalid(prim, "light_type", "unspecified")),
     };
-    for (name, v) in [
-        ("intensity", l.intensity),
-        ("exposure", l.exposure),
-        ("radius", l.radius),
-        ("width", l.width),
-        ("height", l.height),
-        ("angle", l.angle),
-        ("length", l.length),
-        ("diffuse", l.diffuse.unwrap_or(1.0)),
-        ("specular", l.specular.unwrap_or(1.0)),
-    ] {
-        if !v.is_finite() {
-            return Err(invalid(prim, name, format!("{v} is not finite")));
-        }
-    }
+    check_finite(
+        prim,
+        &[
+            ("intensity", l.intensity),
+            ("exposure", l.exposure),
+            ("radius", l.radius),
+            ("width", l.width),
+            ("height", l.height),
+            ("angle", l.angle),
+            ("length", l.length),
+            ("diffuse", l.diffuse.unwrap_or(1.0)),
+            ("specular", l.specular.unwrap_or(1.0)),
+        ],
+    )?;
     for (name, v) in [("radius", l.radius), ("width", l.width), ("height", l.height), ("angle", l.angle), ("length", l.length)] {
         if v < 0.0 {
             return Err(invalid(prim, name, format!("{v} is negative; sizes are zero or more")));
@@ -146,16 +145,13 @@ pub fn light_to_wire(l: &LightDesc) -> pb::LightPrim {
 
 /// A wire mesh light to render-core: its inputs finite, its colour not negative.
 pub fn mesh_light_from_wire(prim: &str, l: &pb::MeshLight) -> Result<MeshLight, Status> {
-    for (name, v) in [
+    let inputs = [
         ("light.intensity", l.intensity),
         ("light.exposure", l.exposure),
         ("light.diffuse", l.diffuse.unwrap_or(1.0)),
         ("light.specular", l.specular.unwrap_or(1.0)),
-    ] {
-        if !v.is_finite() {
-            return Err(invalid(prim, name, format!("{v} is not finite")));
-        }
-    }
+    ];
+    check_finite(prim, &inputs)?;
     check_color(prim, "light.color", &l.color)?;
     let sync = match pb::MaterialSync::try_from(l.material_sync) {
         Ok(pb::MaterialSync::GlowTintsLight) => MaterialSync::GlowTintsLight,
@@ -193,6 +189,14 @@ pub fn mesh_light_to_wire(l: &MeshLight) -> pb::MeshLight {
         material_sync: sync as i32,
         light_link: l.light_link.clone().unwrap_or_default(),
         shadow_link: l.shadow_link.clone().unwrap_or_default(),
+    }
+}
+
+/// Each (field, value) of `prim` finite, or an error naming the first that is not.
+fn check_finite(prim: &str, fields: &[(&str, f32)]) -> Result<(), Status> {
+    match fields.iter().find(|(_, v)| !v.is_finite()) {
+        Some((name, v)) => Err(invalid(prim, name, format!("{v} is not finite"))),
+        None => Ok(()),
     }
 }
 

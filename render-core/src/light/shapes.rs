@@ -689,6 +689,20 @@ mod tests {
             .abs()
     }
 
+    /// The mean and relative spread of 40 000 one-sample estimates of the irradiance on a
+    /// surface facing +Y from `sample`'s light samples.
+    fn irradiance_moments(sample: &dyn Fn(Vec2) -> Option<LightSample>) -> (f64, f64) {
+        let mut rng = Pcg32::new(9, 9);
+        let (mut m1, mut m2, n) = (0.0f64, 0.0f64, 40_000);
+        for _ in 0..n {
+            let e = sample(rng.next_2d()).map_or(0.0, |s| (s.li.x * s.wi.dot(Vec3::Y).max(0.0) / s.pdf) as f64);
+            m1 += e;
+            m2 += e * e;
+        }
+        let mean = m1 / n as f64;
+        (mean, (m2 / n as f64 - mean * mean).max(0.0).sqrt() / mean)
+    }
+
     /// A ceiling panel 10 × 10 at height 2 (the many-lights grid's extent): solid-angle
     /// sampling reproduces Lambert's closed form, and with far less spread per sample than
     /// sampling by area (whose density ignores that the corners are far and oblique).
@@ -705,22 +719,11 @@ mod tests {
             let c = ctx(p, Vec3::Y);
             let corners = [center - u - v, center + u - v, center + u + v, center - u + v].map(|q| q - p);
             let exact = polygon_irradiance(&corners, Vec3::Y);
-            let moments = |sample: &dyn Fn(Vec2) -> Option<LightSample>| {
-                let mut rng = Pcg32::new(9, 9);
-                let (mut m1, mut m2, n) = (0.0f64, 0.0f64, 40_000);
-                for _ in 0..n {
-                    let e = sample(rng.next_2d()).map_or(0.0, |s| (s.li.x * s.wi.dot(Vec3::Y).max(0.0) / s.pdf) as f64);
-                    m1 += e;
-                    m2 += e * e;
-                }
-                let mean = m1 / n as f64;
-                (mean, (m2 / n as f64 - mean * mean).max(0.0).sqrt() / mean)
-            };
-            let (solid, solid_spread) = moments(&|u| s.sample(&c, u));
+            let (solid, solid_spread) = irradiance_moments(&|u| s.sample(&c, u));
             let (by_area, area_spread) =
-                moments(&|uv| area_sample(p, center + (2.0 * uv.x - 1.0) * u + (2.0 * uv.y - 1.0) * v, n, area, l, false));
+                irradiance_moments(&|uv| area_sample(p, center + (2.0 * uv.x - 1.0) * u + (2.0 * uv.y - 1.0) * v, n, area, l, false));
             let sr = rect_by_solid_angle(p, center, u, v).unwrap();
-            let (_, uniform_spread) = moments(&|uv| {
+            let (_, uniform_spread) = irradiance_moments(&|uv| {
                 let to = sr.sample(uv) - p;
                 Some(LightSample { wi: to.normalize(), dist: to.length(), li: l, pdf: 1.0 / sr.solid_angle, delta: false })
             });
@@ -757,23 +760,12 @@ mod tests {
         for (p, near) in [(Vec3::ZERO, true), (Vec3::new(1.0, 0.0, 0.4), true), (Vec3::new(0.0, -60.0, 0.0), false)] {
             let c = ctx(p, Vec3::Y);
             let exact = polygon_irradiance(&corners.map(|q| q - p), Vec3::Y);
-            let moments = |sample: &dyn Fn(Vec2) -> Option<LightSample>| {
-                let mut rng = Pcg32::new(9, 9);
-                let (mut m1, mut m2, n) = (0.0f64, 0.0f64, 40_000);
-                for _ in 0..n {
-                    let e = sample(rng.next_2d()).map_or(0.0, |s| (s.li.x * s.wi.dot(Vec3::Y).max(0.0) / s.pdf) as f64);
-                    m1 += e;
-                    m2 += e * e;
-                }
-                let mean = m1 / n as f64;
-                (mean, (m2 / n as f64 - mean * mean).max(0.0).sqrt() / mean)
-            };
-            let (solid, solid_spread) = moments(&|u| s.sample(&c, u));
+            let (solid, solid_spread) = irradiance_moments(&|u| s.sample(&c, u));
             let by_area = |u: Vec2| {
                 let b = crate::sampling::uniform_triangle(u);
                 area_sample(p, corners[0] * (1.0 - b.x - b.y) + corners[1] * b.x + corners[2] * b.y, n, area, l, true)
             };
-            let (_, area_spread) = moments(&by_area);
+            let (_, area_spread) = irradiance_moments(&by_area);
             println!("{p}: Lambert {exact:.6}, sampled {solid:.6} (spread {solid_spread:.3}), by area spread {area_spread:.3}");
             assert!((solid / exact - 1.0).abs() < 0.01, "{p}: {solid} vs Lambert {exact}");
             match near {
