@@ -198,3 +198,47 @@ async fn a_live_session_links_a_mesh_light() {
     assert_eq!(pixels(&edited.image), pixels(&fresh_image), "the live edit renders as the linked scene does");
     assert_ne!(pixels(&edited.image), pixels(&before.image), "the link changed the image");
 }
+
+/// A mesh light split by a material `GeomSubset` is a light in each part, and each part keeps
+/// the mesh's light link (the parts are named by their subsets; the link by the mesh).
+#[test]
+fn a_mesh_lights_subsets_keep_its_links() {
+    let t = load_text(
+        "mesh_light_subsets",
+        r#"#usda 1.0
+def Mesh "Sign" (prepend apiSchemas = ["MeshLightAPI"])
+{
+    uniform token subdivisionScheme = "none"
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0)]
+    int[] faceVertexCounts = [4, 4]
+    int[] faceVertexIndices = [0, 1, 2, 3, 1, 4, 5, 2]
+    uniform bool collection:lightLink:includeRoot = 0
+    rel collection:lightLink:includes = </Floor>
+    def GeomSubset "Left" (prepend apiSchemas = ["MaterialBindingAPI"])
+    {
+        uniform token elementType = "face"
+        uniform token familyName = "materialBind"
+        int[] indices = [0]
+        rel material:binding = </Red>
+    }
+}
+def Material "Red"
+{
+}
+def Mesh "Floor"
+{
+    point3f[] points = [(-1, -1, -1), (1, -1, -1), (1, 1, -1)]
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+}
+"#,
+    );
+    let parts: Vec<(&str, Option<&str>)> = t
+        .meshes
+        .iter()
+        .filter(|(p, _)| p.starts_with("/Sign"))
+        .map(|(p, m)| (p.as_str(), m.light.as_ref().and_then(|l| l.light_link.as_deref())))
+        .collect();
+    assert_eq!(parts.len(), 2, "{parts:?}");
+    assert!(parts.iter().all(|(_, link)| *link == Some("/Sign.collection:lightLink")), "{parts:?}");
+}

@@ -104,7 +104,9 @@ impl Reader<'_> {
             }
         };
         let common = LightInputs::read(prim, 1.0, time)?;
-        let [light_link, shadow_link] = self.light_links(p);
+        // By the prim's path: the parts of a mesh split by GeomSubsets (`p` names each part)
+        // carry the mesh's links.
+        let [light_link, shadow_link] = self.light_links(prim.path().as_str());
         Ok(Some(MeshLight {
             intensity: common.intensity,
             exposure: common.exposure,
