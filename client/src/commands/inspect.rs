@@ -196,12 +196,7 @@ impl<'t> LinkLists<'t> {
 
 /// A mesh light's inputs, named as UsdLux names them.
 fn mesh_light_json(l: &render_core::light::MeshLight) -> Value {
-    use render_core::light::MaterialSync;
-    let sync = match l.sync {
-        MaterialSync::GlowTintsLight => "materialGlowTintsLight",
-        MaterialSync::Independent => "independent",
-        MaterialSync::NoMaterialResponse => "noMaterialResponse",
-    };
+    let sync = crate::usd::SYNC_TOKENS.iter().find(|(_, sync)| *sync == l.sync).map(|(token, _)| *token);
     json!({
         "intensity": l.intensity,
         "exposure": l.exposure,

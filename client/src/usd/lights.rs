@@ -93,11 +93,10 @@ impl Reader<'_> {
         let Some(api) = self.gprim_light_api(prim)? else { return Ok(None) };
         let time = self.time;
         let fallback = if api == "MeshLightAPI" { MaterialSync::GlowTintsLight } else { MaterialSync::NoMaterialResponse };
-        let sync = match get(prim, "light:materialSyncMode", time)?.as_ref().and_then(values::token).as_deref() {
+        let token = get(prim, "light:materialSyncMode", time)?.as_ref().and_then(values::token);
+        let sync = match token.as_deref() {
             None => fallback,
-            Some("materialGlowTintsLight") => MaterialSync::GlowTintsLight,
-            Some("independent") => MaterialSync::Independent,
-            Some("noMaterialResponse") => MaterialSync::NoMaterialResponse,
+            Some(t) if let Some(&(_, sync)) = SYNC_TOKENS.iter().find(|(name, _)| *name == t) => sync,
             Some(other) => {
                 self.out.warnings.push(format!("{p}: light:materialSyncMode '{other}' is not one UsdLux defines; using {fallback:?}"));
                 fallback
@@ -157,6 +156,13 @@ impl Reader<'_> {
         }))
     }
 }
+
+/// UsdLux's `light:materialSyncMode` tokens and what each asks for.
+pub const SYNC_TOKENS: [(&str, MaterialSync); 3] = [
+    ("materialGlowTintsLight", MaterialSync::GlowTintsLight),
+    ("independent", MaterialSync::Independent),
+    ("noMaterialResponse", MaterialSync::NoMaterialResponse),
+];
 
 /// A UsdLux input of `prim` at `time`; pre-2021 files spell them without the `inputs:` prefix.
 fn light_input(prim: &Prim, name: &str, time: TimeCode) -> Result<Option<Value>> {

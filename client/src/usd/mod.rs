@@ -32,6 +32,7 @@ pub mod subdivision;
 mod values;
 mod volumes;
 
+pub use lights::SYNC_TOKENS;
 pub use links::link_collection_id;
 use render_settings::valid_targets;
 pub use render_settings::{RenderProductDesc, RenderSettingsDesc};

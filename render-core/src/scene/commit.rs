@@ -346,15 +346,6 @@ impl Lights {
         Lights { all, usd_lights, emitters, crossable, infinite }
     }
 
-    /// The prim light `i` (committed order) comes from.
-    fn name_of(&self, i: usize) -> String {
-        if let Some(path) = self.usd_lights.get(i) {
-            return path.clone();
-        }
-        let run = self.emitters.runs.partition_point(|r| (r.first as usize) <= i).saturating_sub(1);
-        self.emitters.runs.get(run).map_or_else(String::new, |r| r.prim.clone())
-    }
-
     /// The light features, with the prims that call for them.
     fn plan(&self, plan: &mut RenderPlan) {
         let n = self.usd_lights.len();
@@ -390,12 +381,15 @@ fn links_reason(per_group: Option<usize>) -> String {
 /// it; `per_group`: the light choices of their own the receiver groups got
 /// ([`LightSet::select_per_group`]).
 fn plan_links(links: &LightLinks, lights: &Lights, per_group: Option<usize>, plan: &mut RenderPlan) {
-    let (mut light, mut shadow) = (Vec::new(), Vec::new());
-    for (i, l, s) in links.linked() {
-        // A mesh light links each of its triangles: named once.
-        let name = lights.name_of(i);
+    // UsdLux lights by their own links; mesh lights by their runs of triangle lights, not
+    // triangle by triangle (an instancer's instances, consecutive runs, named once).
+    let n = lights.usd_lights.len();
+    let usd = links.linked().take_while(|&(i, ..)| i < n).map(|(i, l, s)| (&lights.usd_lights[i], l, s));
+    let meshes = lights.emitters.runs.iter().map(|r| (&r.prim, r.links.0.is_some(), r.links.1.is_some()));
+    let (mut light, mut shadow): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+    for (name, l, s) in usd.chain(meshes) {
         for (linked, names) in [(l, &mut light), (s, &mut shadow)] {
-            if linked && names.last() != Some(&name) {
+            if linked && names.last() != Some(name) {
                 names.push(name.clone());
             }
         }
