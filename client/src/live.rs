@@ -164,22 +164,29 @@ impl LiveSession {
     /// `color` (three numbers).
     pub async fn set_light_params(&mut self, path: &str, params: &[(String, Vec<f64>)]) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
-            let l = light_fields(t, path).with_context(|| format!("{path}: no light with this path"))?;
+            let mut values = Vec::new();
             for (name, v) in params {
                 let v: Vec<f32> = v.iter().map(|&x| finite(path, name, x).map(|x| x as f32)).collect::<Result<_>>()?;
-                match (name.as_str(), v.as_slice()) {
-                    ("intensity", [x]) => *l.intensity = *x,
-                    ("exposure", [x]) => *l.exposure = *x,
-                    ("diffuse", [x]) => *l.diffuse = *x,
-                    ("specular", [x]) => *l.specular = *x,
-                    ("color", [r, g, b]) => *l.color = Vec3::new(*r, *g, *b),
-                    _ => bail!(
+                if !matches!((name.as_str(), v.len()), ("intensity" | "exposure" | "diffuse" | "specular", 1) | ("color", 3)) {
+                    bail!(
                         "{path}: '{name}' is not a light parameter taking {} value(s) (intensity, exposure, diffuse, specular, color)",
                         v.len()
-                    ),
+                    );
                 }
+                values.push((name.as_str(), v));
             }
-            Ok(())
+            for_each_light(t, path, |l| {
+                for (name, v) in &values {
+                    match (*name, v.as_slice()) {
+                        ("intensity", [x]) => *l.intensity = *x,
+                        ("exposure", [x]) => *l.exposure = *x,
+                        ("diffuse", [x]) => *l.diffuse = *x,
+                        ("specular", [x]) => *l.specular = *x,
+                        ("color", [r, g, b]) => *l.color = Vec3::new(*r, *g, *b),
+                        _ => unreachable!("each name and count is checked above"),
+                    }
+                }
+            })
         })
         .await
     }
@@ -198,9 +205,10 @@ impl LiveSession {
     ) -> Result<Vec<SentPrim>> {
         self.edit(|t| {
             let (light, shadow) = (crate::usd::link_collection_id(path, "lightLink"), crate::usd::link_collection_id(path, "shadowLink"));
-            let l = light_fields(t, path).with_context(|| format!("{path}: no light with this path"))?;
-            *l.light_link = illuminates.is_some().then(|| light.clone());
-            *l.shadow_link = shadowed_by.is_some().then(|| shadow.clone());
+            for_each_light(t, path, |l| {
+                *l.light_link = illuminates.is_some().then(|| light.clone());
+                *l.shadow_link = shadowed_by.is_some().then(|| shadow.clone());
+            })?;
             relink(t, &light, illuminates.as_deref())?;
             relink(t, &shadow, shadowed_by.as_deref())
         })
@@ -237,15 +245,23 @@ struct LightFields<'t> {
     shadow_link: &'t mut Option<String>,
 }
 
-/// The fields of the light at `path`: a UsdLux light's, or a mesh light's.
-fn light_fields<'t>(t: &'t mut Translation, path: &str) -> Option<LightFields<'t>> {
+/// Calls `edit` with the fields of the light at `path`: a UsdLux light's, or a mesh light's
+/// (each of its parts when its GeomSubsets split it); an error when there is none.
+fn for_each_light(t: &mut Translation, path: &str, mut edit: impl FnMut(LightFields)) -> Result<()> {
     if let Some((_, l)) = t.lights.iter_mut().find(|(p, _)| p == path) {
         let LightDesc { intensity, exposure, diffuse, specular, color, light_link, shadow_link, .. } = l;
-        return Some(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link });
+        edit(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link });
+        return Ok(());
     }
-    let (_, mesh) = t.meshes.iter_mut().find(|(p, m)| p == path && m.light.is_some())?;
-    let MeshLight { intensity, exposure, diffuse, specular, color, light_link, shadow_link, .. } = mesh.light.as_mut()?;
-    Some(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link })
+    let mut found = false;
+    for (p, mesh) in t.meshes.iter_mut() {
+        let Some(light) = mesh.light.as_mut().filter(|l| p == path || l.part_of.as_deref() == Some(path)) else { continue };
+        let MeshLight { intensity, exposure, diffuse, specular, color, light_link, shadow_link, .. } = light;
+        edit(LightFields { intensity, exposure, diffuse, specular, color, light_link, shadow_link });
+        found = true;
+    }
+    anyhow::ensure!(found, "{path}: no light with this path");
+    Ok(())
 }
 
 fn finite(prim: &str, name: &str, v: f64) -> Result<f64> {

@@ -917,8 +917,9 @@ async fn bad_paths_parameters_and_chunks_are_refused_by_name() {
     assert_status(raw.sync(&s, light(-1.0, white)).await, Code::InvalidArgument, &["/Evil/Light", "radius", "negative"]);
     let nan = pb::Float3 { x: f32::NAN, y: 1.0, z: 1.0 };
     assert_status(raw.sync(&s, light(1.0, nan)).await, Code::InvalidArgument, &["/Evil/Light", "color", "finite"]);
-    // A mesh light's inputs: a NaN intensity, a negative colour, a sync mode no one defined and
-    // an oversized link name, each by its own name.
+    // A mesh light's inputs: a NaN intensity, a negative colour, a sync mode no one defined, an
+    // oversized link name, and a mesh it is part of named by an oversized or a relative path,
+    // each by its own name.
     let lit_mesh = |light: pb::MeshLight| {
         let mut items = mesh("/Evil/Glow", TRIANGLE.to_vec(), vec![0, 1, 2]);
         if let Item::Prim(pb::PrimDelta { payload: Some(pb::prim_delta::Payload::Mesh(m)), .. }) = &mut items[0] {
@@ -932,7 +933,9 @@ async fn bad_paths_parameters_and_chunks_are_refused_by_name() {
         (pb::MeshLight { intensity: f32::NAN, ..glow.clone() }, "light.intensity"),
         (pb::MeshLight { color: Some(pb::Float3 { x: -1.0, y: 1.0, z: 1.0 }), ..glow.clone() }, "light.color"),
         (pb::MeshLight { material_sync: 99, ..glow.clone() }, "light.material_sync"),
-        (pb::MeshLight { light_link: long, ..glow.clone() }, "light.light_link"),
+        (pb::MeshLight { light_link: long.clone(), ..glow.clone() }, "light.light_link"),
+        (pb::MeshLight { part_of: format!("/{long}"), ..glow.clone() }, "light.part_of"),
+        (pb::MeshLight { part_of: "Sign".into(), ..glow.clone() }, "light.part_of"),
     ] {
         assert_status(raw.sync(&s, lit_mesh(bad)).await, Code::InvalidArgument, &["/Evil/Glow", field]);
     }

@@ -242,3 +242,75 @@ def Mesh "Floor"
     assert_eq!(parts.len(), 2, "{parts:?}");
     assert!(parts.iter().all(|(_, link)| *link == Some("/Sign.collection:lightLink")), "{parts:?}");
 }
+
+/// The panel of [`panel`] as two 1×2 halves, each half claimed by a material `GeomSubset`, so
+/// that no face is left to the mesh itself: three prims' worth of parts, one light.
+fn split_panel() -> String {
+    let subset = |name: &str, face: u32| {
+        format!(
+            "    def GeomSubset \"{name}\" (prepend apiSchemas = [\"MaterialBindingAPI\"])\n    {{\n        uniform token elementType = \
+             \"face\"\n        uniform token familyName = \"materialBind\"\n        int[] indices = [{face}]\n        rel material:binding = \
+             </Matte>\n    }}\n"
+        )
+    };
+    format!(
+        "def Mesh \"Panel\" (prepend apiSchemas = [\"LightAPI\"])\n{{\n    uniform token subdivisionScheme = \"none\"\n    \
+         point3f[] points = [(-1, 1, 1), (0, 1, 1), (1, 1, 1), (1, 1, -1), (0, 1, -1), (-1, 1, -1)]\n    \
+         int[] faceVertexCounts = [4, 4]\n    int[] faceVertexIndices = [0, 1, 4, 5, 1, 2, 3, 4]\n    \
+         float inputs:intensity = 8\n    bool inputs:normalize = 1\n{}{}}}\n",
+        subset("Left", 0),
+        subset("Right", 1)
+    )
+}
+
+/// UsdLux's `normalize` divides by the light's whole surface: the panel split by its subsets
+/// into two halves lights the floor as the whole panel does (the closed form of
+/// [`a_mesh_light_emits_in_usdlux_units_as_the_rect_light_of_its_shape_does`]), not twice as
+/// brightly, as it did when each half divided by its own area.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_normalized_mesh_light_split_by_subsets_divides_by_its_whole_area() {
+    let t = load_text("split_panel", &floor_under(&split_panel()));
+    let parts: Vec<(&str, Option<&str>)> = t
+        .meshes
+        .iter()
+        .filter(|(_, m)| m.light.is_some())
+        .map(|(p, m)| (p.as_str(), m.light.as_ref().unwrap().part_of.as_deref()))
+        .collect();
+    assert_eq!(parts, [("/Panel/Left", Some("/Panel")), ("/Panel/Right", Some("/Panel"))]);
+    let view_factor = 4.0 / std::f64::consts::PI * (1.0f64 / 2f64.sqrt()).atan() / 2f64.sqrt();
+    let expected = 0.5 * 2.0 * view_factor;
+    let (image, _) = render(&floor_under(&split_panel()), 8, 256).await;
+    let v = mean_rgb(&image);
+    // As in the whole panel's test: 16 384 samples hold the mean to about 0.3% (1σ).
+    for c in v {
+        assert!((c - expected).abs() < 0.012 * expected, "{v:?} against the closed form {expected}");
+    }
+}
+
+/// A live edit of a split mesh light, named by its mesh's path (which no part carries once
+/// every face is claimed), reaches each part: both go as params-only deltas, and the floor
+/// doubles with the intensity.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_live_edit_of_a_split_mesh_light_reaches_every_part() {
+    let dir = std::env::temp_dir().join(format!("tessera-split-panel-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("split_panel.usda");
+    std::fs::write(&file, floor_under(&split_panel())).unwrap();
+    let server = tessera_server::EmbeddedServer::start().await.unwrap();
+    let conn = tessera::remote::Connection::connect(&server.url(), "split-mesh-light").await.unwrap();
+    let mut live = tessera::live::LiveSession::new(conn);
+    live.sync_usd(&file, None).await.unwrap();
+    let opts = small(4, 4, 64);
+    let before = live.conn.render(&opts, |_| {}).await.unwrap();
+    let sent = live.set_light_params("/Panel", &[("intensity".into(), vec![16.0])]).await.unwrap();
+    let described: Vec<(&str, Vec<&str>)> = sent.iter().map(|s| (s.path.as_str(), s.dirty.clone())).collect();
+    assert_eq!(described, [("/Panel/Left", vec!["params"]), ("/Panel/Right", vec!["params"])]);
+    let after = live.conn.render(&opts, |_| {}).await.unwrap();
+    server.stop().await.unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let (a, b) = (mean_rgb(&before.image), mean_rgb(&after.image));
+    // The same samples at twice the radiance: equal to float rounding.
+    for (x, y) in a.iter().zip(b) {
+        assert!((y - 2.0 * x).abs() < 1e-5 * y, "{a:?} then {b:?}");
+    }
+}

@@ -169,7 +169,20 @@ pub fn mesh_light_from_wire(prim: &str, l: &pb::MeshLight) -> Result<MeshLight, 
         sync,
         light_link: link(prim, "light.light_link", &l.light_link)?,
         shadow_link: link(prim, "light.shadow_link", &l.shadow_link)?,
+        part_of: part_of(prim, &l.part_of)?,
     })
+}
+
+/// The mesh a mesh light is a part of (`light.part_of`): an absolute prim path, bounded and
+/// printable, or none.
+fn part_of(prim: &str, path: &str) -> Result<Option<String>, Status> {
+    const FIELD: &str = "light.part_of";
+    check_printable(prim, FIELD, "a prim path", path)?;
+    match path {
+        "" => Ok(None),
+        p if p.starts_with('/') => Ok(Some(p.to_string())),
+        _ => Err(invalid(prim, FIELD, "not an absolute prim path")),
+    }
 }
 
 /// render-core mesh light to wire.
@@ -189,6 +202,7 @@ pub fn mesh_light_to_wire(l: &MeshLight) -> pb::MeshLight {
         material_sync: sync as i32,
         light_link: l.light_link.clone().unwrap_or_default(),
         shadow_link: l.shadow_link.clone().unwrap_or_default(),
+        part_of: l.part_of.clone().unwrap_or_default(),
     }
 }
 
@@ -225,15 +239,17 @@ pub const MAX_LINK_COLLECTION_BYTES: usize = 8192;
 
 /// A light-link collection name as a client sends it: bounded and printable.
 fn check_link_collection(prim: &str, field: &str, name: &str) -> Result<(), Status> {
+    check_printable(prim, field, "a collection name", name)
+}
+
+/// A name (`what`: a collection name, a prim path) as a client sends it: at most
+/// [`MAX_LINK_COLLECTION_BYTES`] long, without control characters.
+fn check_printable(prim: &str, field: &str, what: &str, name: &str) -> Result<(), Status> {
     if name.len() > MAX_LINK_COLLECTION_BYTES {
-        return Err(invalid(
-            prim,
-            field,
-            format!("a collection name of {} bytes, over the limit of {MAX_LINK_COLLECTION_BYTES}", name.len()),
-        ));
+        return Err(invalid(prim, field, format!("{what} of {} bytes, over the limit of {MAX_LINK_COLLECTION_BYTES}", name.len())));
     }
     if name.chars().any(char::is_control) {
-        return Err(invalid(prim, field, "a collection name holds a control character"));
+        return Err(invalid(prim, field, format!("{what} holds a control character")));
     }
     Ok(())
 }

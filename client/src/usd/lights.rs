@@ -116,6 +116,8 @@ impl Reader<'_> {
             sync,
             light_link,
             shadow_link,
+            // `p` names a part when the mesh is split by its GeomSubsets.
+            part_of: (p != prim.path().as_str()).then(|| prim.path().to_string()),
         }))
     }
 

@@ -46,6 +46,10 @@ pub struct MeshLight {
     pub light_link: Option<String>,
     /// The link collection whose prims alone cast its shadows; None: every prim.
     pub shadow_link: Option<String>,
+    /// The mesh prim this mesh is a part of (the faces of one of its `GeomSubset`s, or the
+    /// faces no subset claims); None: a whole mesh. A mesh's parts are one light: under
+    /// `normalize` they divide by their summed area, not each by its own.
+    pub part_of: Option<String>,
 }
 
 impl Default for MeshLight {
@@ -61,6 +65,7 @@ impl Default for MeshLight {
             sync: MaterialSync::GlowTintsLight,
             light_link: None,
             shadow_link: None,
+            part_of: None,
         }
     }
 }

@@ -405,6 +405,38 @@ fn mesh_light_of<'d>(desc: &'d SceneDesc, prim: &str) -> Option<&'d MeshLight> {
     mesh.and_then(|m| m.light.as_ref())
 }
 
+/// A normalized mesh light's key: the mesh it is part of (itself when whole) and where the
+/// instance places it, so the parts of one placed mesh share their light's area.
+type LightKey<'a> = (&'a str, [u32; 12]);
+
+fn light_key<'a>(light: &'a MeshLight, prim: &'a str, inst: &InstanceData) -> LightKey<'a> {
+    (light.part_of.as_deref().unwrap_or(prim), inst.transform.to_world.to_cols_array().map(f32::to_bits))
+}
+
+/// The world-space area of each normalized mesh light, summed over its parts (UsdLux's
+/// `normalize` divides by the light's whole surface, however its faces are split).
+fn mesh_light_areas<'a>(
+    desc: &'a SceneDesc,
+    meshes: &[Arc<Mesh>],
+    instances: &[InstanceData],
+    prim_paths: &'a [String],
+) -> HashMap<LightKey<'a>, f32> {
+    let mut areas = HashMap::new();
+    for inst in instances {
+        let prim = prim_paths[inst.prim as usize].as_str();
+        let Some(light) = mesh_light_of(desc, prim).filter(|l| l.normalize) else { continue };
+        let mesh = &meshes[inst.mesh];
+        let xf = inst.transform.to_world;
+        let area = |[a, b, c]: [Vec3; 3]| {
+            let [a, b, c] = [a, b, c].map(|v| xf.transform_point3(v));
+            0.5 * (b - a).cross(c - a).length()
+        };
+        let sum: f32 = (0..mesh.triangle_count()).map(|t| area(mesh.triangle(t))).filter(|a| a.is_finite()).sum();
+        *areas.entry(light_key(light, prim, inst)).or_insert(0.0) += sum;
+    }
+    areas
+}
+
 /// The triangle lights of one emitting instance: `count` lights from `first`, from `prim`,
 /// with its mesh light's links.
 pub(super) struct EmitterRun {
@@ -435,6 +467,7 @@ fn add_emitters(
     prim_paths: &[String],
 ) -> Emitters {
     let mut out = Emitters::default();
+    let areas = mesh_light_areas(desc, meshes, instances, prim_paths);
     for (index, inst) in instances.iter_mut().enumerate() {
         let m = &materials.list[inst.material as usize];
         let prim = &prim_paths[inst.prim as usize];
@@ -448,8 +481,7 @@ fn add_emitters(
         let (emission, varies) = match mesh_light {
             None => (m.emission, textured_glow),
             Some(l) => {
-                let area = |[a, b, c]: [Vec3; 3]| 0.5 * (b - a).cross(c - a).length();
-                let area: f32 = (0..mesh.triangle_count()).map(|t| area(world(t))).filter(|a| a.is_finite()).sum();
+                let area = areas.get(&light_key(l, prim, inst)).copied().unwrap_or(0.0);
                 let tints = l.sync == MaterialSync::GlowTintsLight && m.is_emissive();
                 if tints && textured_glow {
                     out.glow_scales.push((index as u32, l.radiance(Vec3::ZERO, area)));
