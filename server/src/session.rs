@@ -744,18 +744,19 @@ impl Transaction {
         for (material, network) in &self.desc.materials {
             for node in &network.nodes {
                 for (input, value) in &node.parameters {
-                    let render_core::material::ParamValue::Texture { hash, source } = value else { continue };
-                    named.insert(hash.clone());
-                    if self.desc.textures.contains_key(hash) {
-                        continue;
+                    for (hash, source) in value.texture_files() {
+                        named.insert(hash.to_string());
+                        if self.desc.textures.contains_key(hash) {
+                            continue;
+                        }
+                        let image = self.store.get(hash).ok_or_else(|| {
+                            Status::failed_precondition(format!(
+                                "{material}: {}: input '{input}' names texture '{source}' ({hash}), which was not uploaded; send it as a TexturePrim",
+                                node.path
+                            ))
+                        })?;
+                        self.desc.textures.insert(hash.to_string(), image);
                     }
-                    let image = self.store.get(hash).ok_or_else(|| {
-                        Status::failed_precondition(format!(
-                            "{material}: {}: input '{input}' names texture '{source}' ({hash}), which was not uploaded; send it as a TexturePrim",
-                            node.path
-                        ))
-                    })?;
-                    self.desc.textures.insert(hash.clone(), image);
                 }
             }
         }

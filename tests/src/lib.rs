@@ -227,6 +227,18 @@ pub mod hostile_inputs {
         ]
     }
 
+    /// A material whose texture node reads the UDIM set `tiles` (tile number, content hash).
+    pub fn udim_material(tiles: &[(u32, &str)]) -> Vec<Item> {
+        let tiles = tiles.iter().map(|&(tile, hash)| pb::UdimTile { tile, content_hash: hash.into() }).collect();
+        let udim = pb::param_value::Value::UdimValue(pb::UdimSet { tiles, source: "tiles.<UDIM>.png".into() });
+        let net = pb::MaterialNetwork {
+            nodes: vec![node("/M/S", "UsdPreviewSurface", vec![]), node("/M/Tex", "UsdUVTexture", vec![("file", udim)])],
+            connections: vec![],
+            surface_node: "/M/S".into(),
+        };
+        vec![tessera::sync::delta("/Evil/Tiles", pb::PrimKind::Material, pb::prim_delta::Payload::Material(net))]
+    }
+
     /// A mesh delta declaring `triangles` triangles (and half as many points), with no data.
     pub fn declared_mesh(path: &str, triangles: u64) -> Vec<Item> {
         let m = pb::MeshPrim { points_len: 3 * triangles / 2, triangle_indices_len: 3 * triangles, visible: true, ..Default::default() };

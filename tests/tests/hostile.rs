@@ -939,6 +939,23 @@ async fn bad_paths_parameters_and_chunks_are_refused_by_name() {
     ] {
         assert_status(raw.sync(&s, lit_mesh(bad)).await, Code::InvalidArgument, &["/Evil/Glow", field]);
     }
+    // UDIM sets: a tile outside 1001-1100, a tile twice (a set of more than 100 tiles must
+    // repeat one), and a tile whose file was never uploaded.
+    let h = "sha256:".to_string() + &"a".repeat(64);
+    let past: Vec<(u32, &str)> = (1001..=1101).map(|t| (t, h.as_str())).collect();
+    let twice: Vec<(u32, &str)> = (0..10_000).map(|_| (1001, h.as_str())).collect();
+    for (tiles, words) in [
+        (vec![(1001, h.as_str()), (5000, h.as_str())], &["/Evil/Tiles", "'file'", "UDIM tile 5000"][..]),
+        (past, &["/Evil/Tiles", "UDIM tile 1101"]),
+        (twice, &["/Evil/Tiles", "UDIM tile 1001 follows tile 1001"]),
+    ] {
+        assert_status(raw.sync(&s, hostile_inputs::udim_material(&tiles)).await, Code::InvalidArgument, words);
+    }
+    assert_status(
+        raw.sync(&s, hostile_inputs::udim_material(&[(1001, h.as_str())])).await,
+        Code::FailedPrecondition,
+        &["/Evil/Tiles", "tiles.<UDIM>.png", "not uploaded"],
+    );
     // A chunk over the advertised element limit.
     let limit = tessera_server::limits::Limits::default().max_array_chunk_elements as usize;
     let prim = pb::MeshPrim { points_len: 3 * (limit as u64 + 3), triangle_indices_len: 3, visible: true, ..Default::default() };

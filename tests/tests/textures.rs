@@ -178,6 +178,56 @@ async fn textured_emission_is_seen_per_texel() {
     assert_color(at((-0.9, -0.1, -0.9, -0.1)), BL, "emission, bottom-left");
 }
 
+/// A UDIM set (`maps/udim_tile.<UDIM>.png`, tiles 1001, 1002 and 1011 of `UDIM_TILES` in
+/// make_fixtures.py) over st 0..2: each unit square of texture space shows its own tile, with
+/// no repeat of tile 1001 beyond it, and the square whose tile is absent (1012) the node's
+/// fallback of 0.5.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_udim_set_shows_each_tile_and_the_fallback_where_none_is() {
+    let report = render_fixture("textures/udim.usda", &small(100, 100, 16)).await;
+    assert!(report.started.warnings.is_empty(), "{:?}", report.started.warnings);
+    let view = (-1.25, 1.25, 0.025);
+    let at = |rect| mean_in(&report.image, view, rect);
+    assert_color(at((-0.9, -0.1, -0.9, -0.1)), [200, 40, 40], "tile 1001, bottom-left");
+    assert_color(at((0.1, 0.9, -0.9, -0.1)), [40, 200, 40], "tile 1002, bottom-right");
+    assert_color(at((-0.9, -0.1, 0.1, 0.9)), [40, 40, 200], "tile 1011, top-left");
+    let fallback = at((0.1, 0.9, 0.1, 0.9));
+    // The fallback is linear: 0.5 exactly under the white dome.
+    assert!(fallback.iter().all(|c| (c - 0.5).abs() < 1e-3), "tile 1012 is absent: {fallback:?}");
+}
+
+/// A MaterialX `image` whose `filename` names a UDIM set (`&lt;UDIM&gt;` in the XML) reads
+/// the same three tiles, in order, each uploaded once.
+#[test]
+fn a_materialx_image_reads_a_udim_set() {
+    let dir = std::env::temp_dir().join(format!("tessera-mtlx-udim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tiles = tessera_tests::fixture("textures/maps/udim_tile.&lt;UDIM&gt;.png");
+    let doc = std::fs::read_to_string(tessera_tests::fixture("usd/materialx/materials.mtlx")).unwrap();
+    let doc = doc.replace("../../textures/maps/checker.png", &tiles.display().to_string());
+    std::fs::write(dir.join("materials.mtlx"), doc).unwrap();
+    std::fs::copy(tessera_tests::fixture("usd/materialx/materialx.usda"), dir.join("materialx.usda")).unwrap();
+    let t = tessera::usd::load(&dir.join("materialx.usda")).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let (_, checker) = t.materials.iter().find(|(p, _)| p == "/World/Looks/Checker").expect("the checker material");
+    let udim = checker.nodes.iter().find_map(|n| match n.parameters.get("file") {
+        Some(render_core::material::ParamValue::Udim { tiles, .. }) => Some(tiles.iter().map(|(tile, _)| *tile).collect::<Vec<_>>()),
+        _ => None,
+    });
+    assert_eq!(udim, Some(vec![1001, 1002, 1011]), "{:?}", checker.nodes);
+    assert_eq!(t.textures.len(), 3, "one upload per tile");
+}
+
+/// A dome light cannot be a UDIM set: said, and its constant colour used.
+#[test]
+fn a_udim_set_on_a_dome_light_is_reported() {
+    let tiles = tessera_tests::fixture("textures/maps/udim_tile.<UDIM>.png");
+    let usda = format!("#usda 1.0\ndef DomeLight \"Sky\"\n{{\n    asset inputs:texture:file = @{}@\n}}\n", tiles.display());
+    let t = tessera_tests::load_text("udim_dome", &usda);
+    assert!(t.lights[0].1.texture.is_none());
+    assert!(t.warnings.iter().any(|w| w.contains("/Sky") && w.contains("UDIM set")), "{:?}", t.warnings);
+}
+
 #[test]
 fn light_sampling_reads_textured_emission_where_it_samples() {
     // A ceiling glowing 20x the quadrant texture (red and blue texels on -X, green and white on

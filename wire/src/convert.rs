@@ -377,6 +377,11 @@ fn param_from_wire(v: &pb::ParamValue) -> Option<ParamValue> {
         V::Float2Value(c) => ParamValue::Float2(glam::Vec2::new(c.x, c.y)),
         V::Float4Value(c) => ParamValue::Float4(glam::Vec4::new(c.x, c.y, c.z, c.w)),
         V::TextureValue(t) => ParamValue::Texture { hash: t.content_hash.clone(), source: t.source.clone() },
+        V::UdimValue(u) => ParamValue::Udim {
+            // A tile number past u16 stays out of range; validation names it.
+            tiles: u.tiles.iter().map(|t| (u16::try_from(t.tile).unwrap_or(u16::MAX), t.content_hash.clone())).collect(),
+            source: u.source.clone(),
+        },
     })
 }
 
@@ -430,6 +435,13 @@ pub fn material_to_wire(m: &MaterialNetwork) -> pb::MaterialNetwork {
                             ParamValue::Texture { hash, source } => {
                                 V::TextureValue(pb::TextureRef { content_hash: hash.clone(), source: source.clone() })
                             }
+                            ParamValue::Udim { tiles, source } => V::UdimValue(pb::UdimSet {
+                                tiles: tiles
+                                    .iter()
+                                    .map(|(tile, hash)| pb::UdimTile { tile: u32::from(*tile), content_hash: hash.clone() })
+                                    .collect(),
+                                source: source.clone(),
+                            }),
                         };
                         (k.clone(), pb::ParamValue { value: Some(value) })
                     })

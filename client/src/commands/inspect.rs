@@ -28,7 +28,7 @@ fn param(v: &ParamValue) -> Value {
         ParamValue::Float2(c) => json!([c.x, c.y]),
         ParamValue::Float4(c) => json!([c.x, c.y, c.z, c.w]),
         // The authored path, as usd-core reports the asset; the hash says it was read.
-        ParamValue::Texture { source, .. } => json!(source),
+        ParamValue::Texture { source, .. } | ParamValue::Udim { source, .. } => json!(source),
     }
 }
 

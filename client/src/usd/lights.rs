@@ -26,8 +26,12 @@ impl Reader<'_> {
                         "{p}: texture:format '{format}' is not supported (only latlong); the map is read as latitude-longitude"
                     ));
                 }
-                if let ParamValue::Texture { hash, source } = self.texture_param(p, "texture:file", &a) {
-                    texture = Some(render_core::texture::TextureRef { hash, source });
+                match self.texture_param(p, "texture:file", &a) {
+                    ParamValue::Texture { hash, source } => texture = Some(render_core::texture::TextureRef { hash, source }),
+                    ParamValue::Udim { source, .. } => self.out.warnings.push(format!(
+                        "{p}: texture:file '{source}' is a UDIM set, which an environment map cannot be; the light's constant colour is used"
+                    )),
+                    _ => {}
                 }
             }
             ("RectLight", Some(_)) => self

@@ -29,6 +29,7 @@ pub mod shapes;
 mod skinning;
 mod stage;
 pub mod subdivision;
+mod udim;
 mod values;
 mod volumes;
 

@@ -359,6 +359,9 @@ impl Reader<'_> {
         if a.is_empty() {
             return ParamValue::Asset(String::new());
         }
+        if a.as_str().contains(super::udim::UDIM_TOKEN) {
+            return self.udim_param(node, input, a);
+        }
         if let Some(resolved) = a.resolved_path() {
             self.out.texture_paths.push((format!("{node}.inputs:{input}"), resolved.to_string()));
         }
@@ -368,11 +371,14 @@ impl Reader<'_> {
     /// An image file a MaterialX document names, read as [`Self::texture_param`] reads assets.
     fn texture_file(&mut self, node: &str, input: &str, file: &std::path::Path) -> ParamValue {
         let source = file.display().to_string();
+        if source.contains(super::udim::UDIM_TOKEN) {
+            return self.udim_tiles(node, input, &source, &source);
+        }
         self.keep_texture(node, input, &source, std::fs::read(file))
     }
 
     /// A texture's bytes kept for upload by content hash, or the failure reported.
-    fn keep_texture(&mut self, node: &str, input: &str, source: &str, bytes: std::io::Result<Vec<u8>>) -> ParamValue {
+    pub(super) fn keep_texture(&mut self, node: &str, input: &str, source: &str, bytes: std::io::Result<Vec<u8>>) -> ParamValue {
         match bytes {
             Ok(bytes) => {
                 let hash = tessera_wire::content_hash(&bytes);

@@ -31,6 +31,31 @@ pub enum ParamValue {
         /// The authored file, for messages.
         source: String,
     },
+    /// A UDIM texture set: one file per unit square of texture space, the square at
+    /// (u, v) (0 to 9 each) in tile `1001 + u + 10·v`.
+    Udim {
+        /// Each tile present, by its number ([`UDIM_TILES`]), in increasing order, with
+        /// its file's content hash.
+        tiles: Vec<(u16, String)>,
+        /// The authored path, with `<UDIM>` where the tile number goes, for messages.
+        source: String,
+    },
+}
+
+/// The UDIM tiles read: ten columns by ten rows of texture space, as USD's
+/// `UsdShadeUdimUtils` reads them.
+pub const UDIM_TILES: std::ops::RangeInclusive<u16> = 1001..=1100;
+
+impl ParamValue {
+    /// The texture files the value names: (content hash, the authored path), none for a
+    /// value that is not a texture.
+    pub fn texture_files(&self) -> Vec<(&str, &str)> {
+        match self {
+            ParamValue::Texture { hash, source } => vec![(hash.as_str(), source.as_str())],
+            ParamValue::Udim { tiles, source } => tiles.iter().map(|(_, hash)| (hash.as_str(), source.as_str())).collect(),
+            _ => Vec::new(),
+        }
+    }
 }
 
 /// One shader node.

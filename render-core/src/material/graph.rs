@@ -75,6 +75,27 @@ enum Expr {
         linear: Mat2,
         translation: Vec2,
     },
+    /// A UDIM set: the tile under `st` (its texel grid clamped at the tile's edges, so
+    /// neighbouring tiles never bleed into each other), or the fallback where no tile is.
+    Udim {
+        tiles: Box<UdimGrid>,
+        st: Box<Expr>,
+        scale: Vec4,
+        bias: Vec4,
+        fallback: Vec4,
+    },
+}
+
+/// A UDIM set's tiles by unit square of texture space: `[u + 10·v]` for tile
+/// `1001 + u + 10·v`.
+type UdimGrid = [Option<Arc<Texture>>; 100];
+
+/// The tile of `grid` under `st` and `st` within it.
+fn udim_tile(grid: &UdimGrid, st: Vec2) -> Option<(&Texture, Vec2)> {
+    let cell = st.floor();
+    let inside = (0.0..10.0).contains(&cell.x) && (0.0..10.0).contains(&cell.y);
+    let tile = grid.get(cell.x as usize + 10 * cell.y as usize).filter(|_| inside)?.as_deref()?;
+    Some((tile, st - cell))
 }
 
 impl Expr {
@@ -99,6 +120,23 @@ impl Expr {
                     ray_cone_lod(sp.width, sp.cos, sp.uv_density * stretch, texture.size())
                 };
                 (texture.lookup(Vec2::new(st.x, st.y), lod, *wrap) * *scale + *bias, 1.0)
+            }
+            Expr::Udim { tiles, st, scale, bias, fallback } => {
+                let (st, stretch) = st.eval(sp);
+                let clamp = [Wrap::Clamp; 2];
+                if sp.width.is_infinite() {
+                    // The whole set: the mean of its tiles' means.
+                    let means: Vec<Vec4> = tiles.iter().flatten().map(|t| t.lookup(Vec2::splat(0.5), f32::INFINITY, clamp)).collect();
+                    let mean = means.iter().sum::<Vec4>() / means.len().max(1) as f32;
+                    return (if means.is_empty() { *fallback } else { mean * *scale + *bias }, 1.0);
+                }
+                match udim_tile(tiles, Vec2::new(st.x, st.y)) {
+                    Some((tile, local)) => {
+                        let lod = ray_cone_lod(sp.width, sp.cos, sp.uv_density * stretch, tile.size());
+                        (tile.lookup(local, lod, clamp) * *scale + *bias, 1.0)
+                    }
+                    None => (*fallback, 1.0),
+                }
             }
             Expr::Transform2d { input, linear, translation } => {
                 let (v, stretch) = input.eval(sp);
@@ -375,6 +413,15 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
                 _ => ColorSpace::Auto,
             };
             let st = upstream("st", report).unwrap_or(Expr::Const(float2("st", Vec2::ZERO).extend(0.0).extend(0.0)));
+            if let Some(ParamValue::Udim { tiles, source }) = p("file") {
+                let grid = udim_grid(tiles, space, textures);
+                if grid.iter().all(Option::is_none) {
+                    report.warnings.push(format!("{}: no tile of UDIM texture '{source}' is on the server; using the fallback", node.path));
+                    return Expr::Const(fallback);
+                }
+                let (scale, bias) = (float4("scale", Vec4::ONE), float4("bias", Vec4::ZERO));
+                return Expr::Udim { tiles: grid, st: Box::new(st), scale, bias, fallback };
+            }
             let texture = match p("file") {
                 Some(ParamValue::Texture { hash, source }) => {
                     let t = textures(hash, space);
@@ -400,6 +447,17 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
             }
         }
     }
+}
+
+/// The tiles of a UDIM set looked up by hash in `space`, placed by tile number.
+fn udim_grid(tiles: &[(u16, String)], space: ColorSpace, textures: &TextureSource) -> Box<UdimGrid> {
+    let mut grid: Box<UdimGrid> = Box::new(std::array::from_fn(|_| None));
+    for (tile, hash) in tiles {
+        if let Some(slot) = tile.checked_sub(*super::desc::UDIM_TILES.start()).and_then(|i| grid.get_mut(i as usize)) {
+            *slot = textures(hash, space);
+        }
+    }
+    grid
 }
 
 #[cfg(test)]

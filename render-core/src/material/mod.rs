@@ -19,7 +19,7 @@ mod principled;
 pub mod uber;
 
 pub use graph::{ShadingPoint, TexturedMaterial};
-pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport};
+pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport, UDIM_TILES};
 pub use principled::Principled;
 pub use uber::Uber;
 

@@ -2,7 +2,7 @@
 //! a [`Material`].
 
 use super::Material;
-pub use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+pub use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, UDIM_TILES};
 pub(crate) use super::inputs::Inputs;
 pub use super::inputs::ResolveReport;
 use super::inputs::{Overrides, evaluable};
@@ -77,6 +77,11 @@ impl MaterialNetwork {
                 check("input name", input)?;
                 if let Some(v) = non_finite(value) {
                     return Err(NetworkError(format!("{material}: {}: input '{input}' is not finite or beyond ±1e18 ({v})", n.path)));
+                }
+                if let ParamValue::Udim { tiles, .. } = value
+                    && let Some(why) = bad_udim_tiles(tiles)
+                {
+                    return Err(NetworkError(format!("{material}: {}: input '{input}': {why}", n.path)));
                 }
             }
         }
@@ -326,6 +331,19 @@ impl MaterialNetwork {
 const MAX_PARAM_MAGNITUDE: f32 = 1e18;
 
 /// The printed value of a parameter with a NaN, infinite or absurdly large component.
+/// What is wrong with a UDIM set's tiles, if anything: each must be one of
+/// [`super::desc::UDIM_TILES`], each once, in increasing order.
+fn bad_udim_tiles(tiles: &[(u16, String)]) -> Option<String> {
+    let range = super::desc::UDIM_TILES;
+    if let Some((tile, _)) = tiles.iter().find(|(t, _)| !range.contains(t)) {
+        return Some(format!("UDIM tile {tile} is outside {}-{}", range.start(), range.end()));
+    }
+    tiles
+        .windows(2)
+        .find(|w| w[0].0 >= w[1].0)
+        .map(|w| format!("UDIM tile {} follows tile {} (tiles go once each, in increasing order)", w[1].0, w[0].0))
+}
+
 fn non_finite(v: &ParamValue) -> Option<String> {
     let ok = |x: &[f32]| x.iter().all(|c| c.is_finite() && c.abs() <= MAX_PARAM_MAGNITUDE);
     let finite = match v {
@@ -486,5 +504,29 @@ pub(crate) mod tests {
             assert!(a <= 1.0 + 1e-3 + 0.01, "at {wo:?}: {a}");
         }
         testing::assert_reciprocal(&bsdf);
+    }
+
+    /// A UDIM set's tiles are checked: within 1001-1100, each once, in increasing order.
+    #[test]
+    fn udim_tiles_out_of_range_or_repeated_are_refused() {
+        let set = |tiles: &[u16]| {
+            let tiles = tiles.iter().map(|&t| (t, "sha256:x".to_string())).collect();
+            MaterialNetwork {
+                nodes: vec![node("/M/Tex", "UsdUVTexture", &[("file", ParamValue::Udim { tiles, source: "t.<UDIM>.png".into() })])],
+                connections: vec![],
+                surface_node: "/M/Tex".into(),
+            }
+            .validate("/M")
+        };
+        assert!(set(&[1001, 1002, 1100]).is_ok());
+        for (tiles, said) in [
+            (&[1000][..], "UDIM tile 1000 is outside"),
+            (&[1101], "UDIM tile 1101"),
+            (&[1002, 1001], "follows tile 1002"),
+            (&[1005, 1005], "follows tile 1005"),
+        ] {
+            let e = set(tiles).expect_err("refused").to_string();
+            assert!(e.contains("/M/Tex") && e.contains(said), "{tiles:?}: {e}");
+        }
     }
 }

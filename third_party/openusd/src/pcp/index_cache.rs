@@ -1173,8 +1173,22 @@ impl IndexCache {
         };
         if let Some(resolved) = graph.layer_registry().resolve(&identifier) {
             asset.set_resolved_path(resolved.to_string_lossy().into_owned());
+        } else if let Some(udim) = Self::resolve_udim(graph, &identifier) {
+            asset.set_resolved_path(udim);
         }
         asset
+    }
+
+    /// A UDIM texture set (`tex.<UDIM>.png`) names no file itself: as
+    /// `UsdShadeUdimUtils::ResolveUdimPath` does, it resolves to the anchored
+    /// identifier with `<UDIM>` kept when any tile from 1001 to 1100 resolves,
+    /// so a reader can find each tile next to the layer that authored it.
+    fn resolve_udim(graph: &LayerGraph, identifier: &str) -> Option<String> {
+        const UDIM: &str = "<UDIM>";
+        let (prefix, suffix) = identifier.split_once(UDIM)?;
+        (1001..=1100)
+            .any(|tile| graph.layer_registry().resolve(&format!("{prefix}{tile}{suffix}")).is_some())
+            .then(|| identifier.to_string())
     }
 
     /// Returns the composed `apiSchemas` list for a prim.

@@ -1,0 +1,66 @@
+//! UDIM texture sets (`tex.<UDIM>.png`): one file per unit square of texture space, found
+//! next to the layer that authored the set, as USD's `UsdShadeUdimUtils` finds them.
+
+use openusd::ar::Resolver;
+use render_core::material::{ParamValue, UDIM_TILES};
+
+use super::Reader;
+
+/// Where a UDIM set's path holds its tile number.
+pub(super) const UDIM_TOKEN: &str = "<UDIM>";
+
+/// The tiles of the set at `resolved` (a path holding [`UDIM_TOKEN`]) that exist, each with
+/// its bytes or the error reading them.
+fn read_tiles(resolved: &str) -> Vec<(u16, String, std::io::Result<Vec<u8>>)> {
+    let resolver = openusd::ar::DefaultResolver::new();
+    UDIM_TILES
+        .filter_map(|tile| {
+            let path = resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1);
+            let opened = resolver.open_asset(&openusd::ar::ResolvedPath::new(std::path::PathBuf::from(&path)));
+            let bytes = match opened {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+                Err(e) => Err(e),
+                Ok(mut asset) => {
+                    let mut bytes = Vec::new();
+                    std::io::Read::read_to_end(&mut asset, &mut bytes).map(|_| bytes)
+                }
+            };
+            Some((tile, path, bytes))
+        })
+        .collect()
+}
+
+impl Reader<'_> {
+    /// A UDIM asset input of a shader, its tiles found next to the layer that authored it
+    /// ([`Self::udim_tiles`]); lookups where no tile is take the node's fallback.
+    pub(super) fn udim_param(&mut self, node: &str, input: &str, a: &openusd::sdf::AssetPath) -> ParamValue {
+        let source = a.as_str().to_string();
+        let Some(resolved) = a.resolved_path().filter(|r| r.contains(UDIM_TOKEN)) else {
+            self.out.warnings.push(format!(
+                "{node}: input '{input}': no tile of UDIM texture '{source}' ({}-{}) is next to the layer that authored it",
+                UDIM_TILES.start(),
+                UDIM_TILES.end()
+            ));
+            return ParamValue::Asset(source);
+        };
+        self.out.texture_paths.push((format!("{node}.inputs:{input}"), resolved.to_string()));
+        self.udim_tiles(node, input, &source, resolved)
+    }
+
+    /// The tiles of the UDIM set `source` found at `resolved`, each read and kept for upload
+    /// (a tile that cannot be read is reported and left out), or the authored path with a
+    /// warning when there is none.
+    pub(super) fn udim_tiles(&mut self, node: &str, input: &str, source: &str, resolved: &str) -> ParamValue {
+        let mut tiles = Vec::new();
+        for (tile, path, bytes) in read_tiles(resolved) {
+            if let ParamValue::Texture { hash, .. } = self.keep_texture(node, input, &path, bytes) {
+                tiles.push((tile, hash));
+            }
+        }
+        if tiles.is_empty() {
+            self.out.warnings.push(format!("{node}: input '{input}': UDIM texture '{source}' has no tile that could be read"));
+            return ParamValue::Asset(source.to_string());
+        }
+        ParamValue::Udim { tiles, source: source.to_string() }
+    }
+}
