@@ -228,6 +228,41 @@ fn a_udim_set_on_a_dome_light_is_reported() {
     assert!(t.warnings.iter().any(|w| w.contains("/Sky") && w.contains("UDIM set")), "{:?}", t.warnings);
 }
 
+/// A file's `colorSpace` metadata decides its decoding where `sourceColorSpace` is `auto`
+/// (or unauthored), as Hydra reads it; an authored `sourceColorSpace` wins; what the decoding
+/// leaves out (another gamut) and names USD does not define are said.
+#[test]
+fn a_files_color_space_metadata_decides_its_decoding() {
+    let cases = [
+        ("raw", "", "raw", None),
+        ("lin_rec709_scene", "", "raw", None),
+        ("srgb_rec709_scene", "    token inputs:sourceColorSpace = \"auto\"\n", "sRGB", None),
+        ("lin_ap1_scene", "", "raw", Some("primaries other than Rec.709's")),
+        ("raw", "    token inputs:sourceColorSpace = \"sRGB\"\n", "sRGB", None),
+        ("acescg_typo", "", "auto", Some("not one USD names")),
+    ];
+    for (declared, authored, expected, said) in cases {
+        let usda = format!(
+            "#usda 1.0\ndef Shader \"T\"\n{{\n    uniform token info:id = \"UsdUVTexture\"\n    asset inputs:file = @q.png@ (\n        \
+             colorSpace = \"{declared}\"\n    )\n{authored}}}\ndef Material \"M\"\n{{\n    token outputs:surface.connect = </S.outputs:surface>\n}}\n\
+             def Shader \"S\"\n{{\n    uniform token info:id = \"UsdPreviewSurface\"\n    color3f inputs:diffuseColor.connect = </T.outputs:rgb>\n    \
+             token outputs:surface\n}}\ndef Mesh \"Quad\" (prepend apiSchemas = [\"MaterialBindingAPI\"])\n{{\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n    \
+             int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    rel material:binding = </M>\n}}\n"
+        );
+        let t = tessera_tests::load_text("color_space_metadata", &usda);
+        let (_, net) = t.materials.iter().find(|(p, _)| p == "/M").expect("the material");
+        let tex = net.nodes.iter().find(|n| n.path == "/T").expect("the texture node");
+        let space = tex.parameters.get("sourceColorSpace");
+        let want = (expected != "auto").then(|| render_core::material::ParamValue::String(expected.into()));
+        assert_eq!(space.cloned().filter(|s| *s != render_core::material::ParamValue::String("auto".into())), want, "{declared}");
+        let warned = t.warnings.iter().any(|w| w.contains("/T") && w.contains(&format!("colorSpace '{declared}'")));
+        assert_eq!(warned, said.is_some(), "{declared}: {:?}", t.warnings);
+        if let Some(said) = said {
+            assert!(t.warnings.iter().any(|w| w.contains(said)), "{declared}: {:?}", t.warnings);
+        }
+    }
+}
+
 #[test]
 fn light_sampling_reads_textured_emission_where_it_samples() {
     // A ceiling glowing 20x the quadrant texture (red and blue texels on -X, green and white on

@@ -296,7 +296,34 @@ impl Reader<'_> {
                 self.input_value(&mut node, input, &v);
             }
         }
+        if node.node_type_id == "UsdUVTexture" {
+            self.file_color_space(&prim, &mut node)?;
+        }
         Ok(node)
+    }
+
+    /// A texture file's own `colorSpace` metadata (`asset inputs:file = @n.png@ (colorSpace =
+    /// "raw")`) decides its decoding where `sourceColorSpace` is left at `auto`, as Hydra reads
+    /// it. USD's colour-space names say a transfer function and primaries: linear ones and
+    /// `data` read raw, sRGB-encoded ones decode sRGB ([`decoding_of`]; what that leaves out
+    /// is a warning).
+    fn file_color_space(&mut self, prim: &Prim, node: &mut MaterialNode) -> Result<()> {
+        if matches!(node.parameters.get("sourceColorSpace"), Some(ParamValue::String(s)) if s != "auto") {
+            return Ok(());
+        }
+        let declared = prim.attribute("inputs:file").get_metadata::<Value>("colorSpace")?;
+        let Some(name) = declared.as_ref().and_then(values::token) else { return Ok(()) };
+        let Some((space, caveat)) = decoding_of(&name) else {
+            self.out
+                .warnings
+                .push(format!("{}: the file's colorSpace '{name}' is not one USD names; sourceColorSpace auto applies", node.path));
+            return Ok(());
+        };
+        if let Some(caveat) = caveat {
+            self.out.warnings.push(format!("{}: the file's colorSpace '{name}' has {caveat}", node.path));
+        }
+        node.parameters.insert("sourceColorSpace".to_string(), ParamValue::String(space.to_string()));
+        Ok(())
     }
 
     /// A connection of `node`'s `input` to `src`: to another shader's output, returned; to the
@@ -391,6 +418,25 @@ impl Reader<'_> {
             }
         }
     }
+}
+
+/// The `sourceColorSpace` a USD colour-space name decodes as (`raw`, `sRGB` or `auto`), and
+/// what that decoding leaves out, if anything; None for a name USD does not define. The names
+/// are the OpenUSD Color User's Guide's canonical ones, the older `raw` and `sRGB`, and
+/// MaterialX's `lin_srgb` and `srgb_texture`.
+fn decoding_of(name: &str) -> Option<(&'static str, Option<&'static str>)> {
+    const PRIMARIES: &str = "primaries other than Rec.709's, read as Rec.709's (not converted)";
+    const GAMMA: &str = "a pure gamma curve, decoded with sRGB's (the nearest one here)";
+    let scene = |prefix: &str| name.strip_prefix(prefix).and_then(|n| n.strip_suffix("_scene"));
+    Some(match name {
+        "raw" | "data" | "identity" | "lin_srgb" | "lin_rec709_scene" => ("raw", None),
+        "sRGB" | "srgb_texture" | "srgb_rec709_scene" => ("sRGB", None),
+        "auto" | "unknown" => ("auto", None),
+        _ if scene("lin_").is_some() => ("raw", Some(PRIMARIES)),
+        _ if scene("srgb_").is_some() => ("sRGB", Some(PRIMARIES)),
+        _ if scene("g22_").or(scene("g18_")).is_some() => ("sRGB", Some(GAMMA)),
+        _ => return None,
+    })
 }
 
 /// `path` without `.` components and with each `..` taking its parent off, as the stage
