@@ -125,10 +125,12 @@ impl Expr {
                 let (st, stretch) = st.eval(sp);
                 let clamp = [Wrap::Clamp; 2];
                 if sp.width.is_infinite() {
-                    // The whole set: the mean of its tiles' means.
-                    let means: Vec<Vec4> = tiles.iter().flatten().map(|t| t.lookup(Vec2::splat(0.5), f32::INFINITY, clamp)).collect();
-                    let mean = means.iter().sum::<Vec4>() / means.len().max(1) as f32;
-                    return (if means.is_empty() { *fallback } else { mean * *scale + *bias }, 1.0);
+                    // The whole set: the mean of its tiles' means (compile checked it has one).
+                    let (sum, n) = tiles
+                        .iter()
+                        .flatten()
+                        .fold((Vec4::ZERO, 0.0), |(sum, n), t| (sum + t.lookup(Vec2::splat(0.5), f32::INFINITY, clamp), n + 1.0));
+                    return (if n > 0.0 { sum / n * *scale + *bias } else { *fallback }, 1.0);
                 }
                 match udim_tile(tiles, Vec2::new(st.x, st.y)) {
                     Some((tile, local)) => {

@@ -409,6 +409,7 @@ fn mesh_light_of<'d>(desc: &'d SceneDesc, prim: &str) -> Option<&'d MeshLight> {
 /// instance places it, so the parts of one placed mesh share their light's area.
 type LightKey<'a> = (&'a str, [u32; 12]);
 
+/// The [`LightKey`] of instance `inst` of `prim`, whose mesh light is `light`.
 fn light_key<'a>(light: &'a MeshLight, prim: &'a str, inst: &InstanceData) -> LightKey<'a> {
     (light.part_of.as_deref().unwrap_or(prim), inst.transform.to_world.to_cols_array().map(f32::to_bits))
 }
