@@ -218,6 +218,27 @@ fn a_materialx_image_reads_a_udim_set() {
     assert_eq!(t.textures.len(), 3, "one upload per tile");
 }
 
+/// Tiles past 1100 are not read (USD's range), and said by number.
+#[test]
+fn udim_tiles_past_1100_are_reported() {
+    let dir = std::env::temp_dir().join(format!("tessera-udim-past-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for tile in [1001, 1105] {
+        std::fs::copy(tessera_tests::fixture("textures/maps/udim_tile.1001.png"), dir.join(format!("t.{tile}.png"))).unwrap();
+    }
+    let usda = "#usda 1.0\ndef Material \"M\"\n{\n    token outputs:surface.connect = </M/S.outputs:surface>\n    def Shader \"S\"\n    {\n        \
+                uniform token info:id = \"UsdPreviewSurface\"\n        color3f inputs:diffuseColor.connect = </M/T.outputs:rgb>\n        \
+                token outputs:surface\n    }\n    def Shader \"T\"\n    {\n        uniform token info:id = \"UsdUVTexture\"\n        \
+                asset inputs:file = @t.<UDIM>.png@\n        color3f outputs:rgb\n    }\n}\ndef Mesh \"Quad\" (prepend apiSchemas = \
+                [\"MaterialBindingAPI\"])\n{\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n    int[] faceVertexCounts = [3]\n    \
+                int[] faceVertexIndices = [0, 1, 2]\n    rel material:binding = </M>\n}\n";
+    std::fs::write(dir.join("scene.usda"), usda).unwrap();
+    let t = tessera::usd::load(&dir.join("scene.usda")).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(t.textures.len(), 1, "tile 1001 alone is read");
+    assert!(t.warnings.iter().any(|w| w.contains("/M/T") && w.contains("past 1100 (1105)")), "{:?}", t.warnings);
+}
+
 /// A dome light cannot be a UDIM set: said, and its constant colour used.
 #[test]
 fn a_udim_set_on_a_dome_light_is_reported() {

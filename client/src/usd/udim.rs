@@ -30,6 +30,14 @@ fn read_tiles(resolved: &str) -> Vec<(u16, String, std::io::Result<Vec<u8>>)> {
         .collect()
 }
 
+/// Tiles 1101 to 1999 of the set at `resolved` that exist: texture space beyond the ten
+/// columns and rows USD reads, which a painting tool may still have written.
+fn tiles_past_the_last(resolved: &str) -> Vec<u16> {
+    (UDIM_TILES.end() + 1..=1999)
+        .filter(|tile| std::path::Path::new(&resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1)).exists())
+        .collect()
+}
+
 impl Reader<'_> {
     /// A UDIM asset input of a shader, its tiles found next to the layer that authored it
     /// ([`Self::udim_tiles`]); lookups where no tile is take the node's fallback.
@@ -51,6 +59,14 @@ impl Reader<'_> {
     /// (a tile that cannot be read is reported and left out), or the authored path with a
     /// warning when there is none.
     pub(super) fn udim_tiles(&mut self, node: &str, input: &str, source: &str, resolved: &str) -> ParamValue {
+        let beyond = tiles_past_the_last(resolved);
+        if !beyond.is_empty() {
+            self.out.warnings.push(format!(
+                "{node}: input '{input}': UDIM texture '{source}' has tiles past {} ({}), which are not read (USD reads none either)",
+                UDIM_TILES.end(),
+                beyond.iter().map(u16::to_string).collect::<Vec<_>>().join(", ")
+            ));
+        }
         let mut tiles = Vec::new();
         for (tile, path, bytes) in read_tiles(resolved) {
             if let ParamValue::Texture { hash, .. } = self.keep_texture(node, input, &path, bytes) {
