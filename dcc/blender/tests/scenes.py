@@ -16,11 +16,25 @@ REGIONS = {
     "textured": {1: "textured plane"},
     "linked": {1: "floor", 2: "key-lit sphere", 3: "unlinked sphere"},
     "emitter_linked": {1: "floor", 2: "panel-lit sphere", 3: "unlinked sphere"},
+    "udim": {1: "tile 1001 plane", 2: "tile 1002 plane"},
 }
 
+def udim_image(directory):
+    """A tiled image of two solid tiles, 1001 reddish and 1002 bluish, saved as
+    `tiles.<UDIM>.png` in `directory` (the exporter copies each tile beside the scene)."""
+    for tile, color in ((1001, (0.8, 0.2, 0.1)), (1002, (0.1, 0.4, 0.8))):
+        img = bpy.data.images.new(f"tile{tile}", 8, 8)
+        px = np.zeros((8, 8, 4), np.float32); px[..., :3] = color; px[..., 3] = 1
+        img.pixels.foreach_set(px.ravel()); img.filepath_raw = os.path.join(directory, f"tiles.{tile}.png"); img.file_format = 'PNG'; img.save()
+    tiled = bpy.data.images.load(os.path.join(directory, "tiles.1001.png"))
+    tiled.source = 'TILED'
+    assert sorted(t.number for t in tiled.tiles) == [1001, 1002], list(tiled.tiles)
+    return tiled
+
+
 def build(kind, directory):
-    """A fresh scene of `kind` (box, box_matte, glass, textured, linked, emitter_linked); files it needs go in
-    `directory`."""
+    """A fresh scene of `kind` (box, box_matte, glass, textured, linked, emitter_linked, udim); files it
+    needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
@@ -30,7 +44,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -82,6 +96,18 @@ def build(kind, directory):
         panel.light_linking.receiver_collection = receivers
         bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object.data; fill.energy = 100; fill.shadow_soft_size = 0.2
         cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    elif kind == "udim":
+        # One material over a UDIM set; the left plane's UVs lie in tile 1001, the right
+        # plane's in tile 1002, so each region shows one tile's colour (Lambertian, IOR 1).
+        m = mat("tiles", (1, 1, 1))
+        t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = udim_image(directory)
+        m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+        for index, x in ((1, -1.05), (2, 1.05)):
+            plane = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2, location=(x, 0, 0))
+            for loop in plane.data.uv_layers.active.data:
+                loop.uv.x += index - 1
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -5, 4); rot = (0.9, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")
         img = bpy.data.images.new("checker", 64, 64)
