@@ -259,6 +259,8 @@ fn a_files_color_space_metadata_decides_its_decoding() {
         ("lin_rec709_scene", "", "raw", None),
         ("srgb_rec709_scene", "    token inputs:sourceColorSpace = \"auto\"\n", "sRGB", None),
         ("lin_ap1_scene", "", "raw", Some("primaries other than Rec.709's")),
+        ("g22_rec709_scene", "", "sRGB", Some("a pure gamma curve")),
+        ("g22_ap1_scene", "", "sRGB", Some("a pure gamma curve, decoded with sRGB's, and primaries")),
         ("raw", "    token inputs:sourceColorSpace = \"sRGB\"\n", "sRGB", None),
         ("acescg_typo", "", "auto", Some("not one USD names")),
     ];

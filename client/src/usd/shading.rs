@@ -427,6 +427,7 @@ impl Reader<'_> {
 fn decoding_of(name: &str) -> Option<(&'static str, Option<&'static str>)> {
     const PRIMARIES: &str = "primaries other than Rec.709's, read as Rec.709's (not converted)";
     const GAMMA: &str = "a pure gamma curve, decoded with sRGB's (the nearest one here)";
+    const BOTH: &str = "a pure gamma curve, decoded with sRGB's, and primaries other than Rec.709's (not converted)";
     let scene = |prefix: &str| name.strip_prefix(prefix).and_then(|n| n.strip_suffix("_scene"));
     Some(match name {
         "raw" | "data" | "identity" | "lin_srgb" | "lin_rec709_scene" => ("raw", None),
@@ -434,8 +435,10 @@ fn decoding_of(name: &str) -> Option<(&'static str, Option<&'static str>)> {
         "auto" | "unknown" => ("auto", None),
         _ if scene("lin_").is_some() => ("raw", Some(PRIMARIES)),
         _ if scene("srgb_").is_some() => ("sRGB", Some(PRIMARIES)),
-        _ if scene("g22_").or(scene("g18_")).is_some() => ("sRGB", Some(GAMMA)),
-        _ => return None,
+        _ => match scene("g22_").or(scene("g18_"))? {
+            "rec709" => ("sRGB", Some(GAMMA)),
+            _ => ("sRGB", Some(BOTH)),
+        },
     })
 }
 
