@@ -105,3 +105,126 @@ async fn glitter_never_gains_energy_and_is_planned() {
     let line = plan.lines().position(|l| l.contains("+ glitter ")).unwrap_or_else(|| panic!("no glitter: {plan}"));
     assert!(plan.lines().nth(line + 1).unwrap_or_default().contains("/World/Looks/Glitter"), "{plan}");
 }
+
+/// A sphere of `tessera:SolidDielectric` lit from the side by a sphere light and dimly by a
+/// dome, seen by a pinhole camera on +Z: `scattering` is spliced into the shader. (A small
+/// sun lights a medium through its rough boundary as fireflies, docs/materials.md.)
+fn side_lit_sphere(scattering: &str) -> String {
+    format!(
+        r#"#usda 1.0
+(
+    upAxis = "Y"
+)
+def Material "Skin"
+{{
+    token outputs:surface.connect = </Skin/Shader.outputs:surface>
+    def Shader "Shader"
+    {{
+        uniform token info:id = "tessera:SolidDielectric"
+        color3f inputs:albedo = (0.8, 0.6, 0.4)
+        float inputs:refractiveIndex = 1.4
+        float inputs:roughness = 0.4
+        {scattering}
+        token outputs:surface
+    }}
+}}
+def Sphere "Ball" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{{
+    double radius = 1
+    rel material:binding = </Skin>
+}}
+def DomeLight "Sky"
+{{
+    float inputs:intensity = 0.3
+}}
+def SphereLight "Lamp"
+{{
+    bool inputs:normalize = 1
+    float inputs:intensity = 20
+    float inputs:radius = 0.7
+    double3 xformOp:translate = (2.5, 0, 0.5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+{camera}"#,
+        camera = camera_usda(50.0, 24.0)
+    )
+}
+
+/// Renders `usda` and returns its beauty's mean per 8×8 block of pixels (red, green, blue).
+async fn block_means(name: &str, usda: &str, opts: &tessera::remote::RenderOptions) -> Vec<f64> {
+    let (server, mut conn) = session_with(&load_text(name, usda)).await;
+    let img = conn.render(opts, |_| {}).await.expect("renders").image;
+    server.stop().await.expect("server stops");
+    assert_all_finite(&img);
+    let mut blocks = Vec::new();
+    for (by, bx, c) in block_channels(img.width / 8, img.height / 8) {
+        let keep = |x: u32, y: u32| x / 8 == bx && y / 8 == by;
+        blocks.push(mean_where(&img, "beauty", c, keep).0);
+    }
+    blocks
+}
+
+/// Every (block row, block column, channel).
+fn block_channels(w: u32, h: u32) -> Vec<(u32, u32, usize)> {
+    (0..h).flat_map(|y| (0..w).flat_map(move |x| (0..3).map(move |c| (y, x, c)))).collect()
+}
+
+/// `scatteringWeight` mixes the medium with a plain diffuse reflection as a mix of closures
+/// does: on a lone convex sphere (so no path meets its outside twice) the image at weight
+/// 0.4 is 0.4 × the image with all of the base a medium plus 0.6 × the image with none of it.
+/// Weight 0 is the plain material to the bit. Tolerance: per 8×8 block, two seeds differ by
+/// 2.4% RMS (all medium) and 1.7% (weight 0.4), and the mix came within 0.7% and 1.4% of its
+/// ends' mix with two seeds (measured 2026-12-06), so 3%. Reading the mix from inside the
+/// medium too (the diffuse share reflecting back into it) measured 18% and fails; the ends
+/// differ by 18%.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn scattering_weight_mixes_the_medium_with_a_diffuse_reflection() {
+    let opts = tessera::remote::RenderOptions { max_depth: 64, ..small(32, 32, 128) };
+    let medium = |w: f32| format!("float inputs:scatteringRadius = 0.3\n        float inputs:scatteringWeight = {w}");
+    let plain = block_means("sss_plain", &side_lit_sphere(""), &opts).await;
+    let none = block_means("sss_none", &side_lit_sphere(&medium(0.0)), &opts).await;
+    assert_eq!(plain, none, "weight 0 is the plain material");
+    let all = block_means("sss_all", &side_lit_sphere(&medium(1.0)), &opts).await;
+    let mixed = block_means("sss_mixed", &side_lit_sphere(&medium(0.4)), &opts).await;
+    let expected: Vec<f64> = all.iter().zip(&plain).map(|(a, p)| 0.4 * a + 0.6 * p).collect();
+    let rms = |a: &[f64], b: &[f64]| {
+        let (d, n) = a.iter().zip(b).fold((0.0, 0.0), |(d, n), (x, y)| (d + (x - y).powi(2), n + y * y));
+        (d / n).sqrt()
+    };
+    let (err, contrast) = (rms(&mixed, &expected), rms(&all, &plain));
+    println!("weight 0.4 against the mix of its ends: relative RMS {err:.4}; the ends differ by {contrast:.4}");
+    assert!(contrast > 0.05, "the medium should change the image: {contrast}");
+    assert!(err < 0.03, "weight 0.4 is not the mix of its ends: {err}");
+}
+
+/// The layered shaders take a normal map as UsdPreviewSurface does: the tilted-normals
+/// furnace sphere of `hard/normal_map_furnace.usda` shaded by a white `tessera:SolidDielectric`
+/// without a specular renders what its UsdPreviewSurface form renders (the same Lambertian
+/// lobe, so the same pixels). Before the map was read, the sphere rendered a flat 1.0 where
+/// the map's 80° stripes give 0.85 (docs: tests/tests/hard.rs).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn layered_shaders_read_a_normal_map_as_the_preview_surface_does() {
+    let text = std::fs::read_to_string(fixture("hard/normal_map_furnace.usda")).expect("fixture");
+    let maps = fixture("hard/maps");
+    let preview = text.replace("@maps/", &format!("@{}/", maps.display()));
+    let native = preview
+        .replace("\"UsdPreviewSurface\"", "\"tessera:SolidDielectric\"")
+        .replace("inputs:diffuseColor", "inputs:albedo")
+        .replace("float inputs:ior = 1", "float inputs:refractiveIndex = 1");
+    let opts = small(32, 32, 16);
+    let mut means = Vec::new();
+    for (name, usda) in [("bumpy_preview", &preview), ("bumpy_native", &native)] {
+        let t = load_text(name, usda);
+        assert!(t.warnings.is_empty(), "{name}: {:?}", t.warnings);
+        let (server, mut conn) = session_with(&t).await;
+        let report = conn.render(&opts, |_| {}).await.expect("renders");
+        server.stop().await.expect("stops");
+        let ([mean, ..], n) = covered_rgb(&report);
+        println!("{name}: mean {mean:.4} over {n} pixels");
+        means.push(mean);
+    }
+    assert!(means[1] < 0.9, "the native shader ignored its normal map: {}", means[1]);
+    assert!((means[0] - means[1]).abs() < 1e-6, "preview {} against native {}", means[0], means[1]);
+}

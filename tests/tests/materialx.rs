@@ -260,3 +260,81 @@ def Material "M" (
     let (_, ball) = t.meshes.iter().find(|(p, _)| p == "/Ball").unwrap();
     assert_ne!(ball.material, "/M");
 }
+
+/// Subsurface scattering maps onto `tessera:SolidDielectric`'s random walk, by meaning: the
+/// mean free path per channel is Standard Surface's radius × scale (OpenPBR's radius × its
+/// colour scale), written as the longest channel and each channel's share of it; the weight
+/// becomes `scatteringWeight`; the medium's colour is `subsurface_color`, mixed with the base
+/// colour by the weight where the weight is partial. A metal (no medium under it here) keeps
+/// the diffuse reading, said once.
+#[test]
+fn subsurface_maps_onto_a_scattering_medium() {
+    const STANDARD: &str = "ND_standard_surface_surfaceshader";
+    let v3 = |x, y, z| Some(ParamValue::Float3(glam::Vec3::new(x, y, z)));
+    let t = load_text(
+        "mtlx_sss_standard",
+        &stage(
+            STANDARD,
+            "float inputs:subsurface = 1\n color3f inputs:subsurface_color = (0.9, 0.5, 0.3)\n color3f inputs:subsurface_radius = (1, 0.5, 0.25)\n float inputs:subsurface_scale = 0.2\n float inputs:subsurface_anisotropy = 0.3\n float inputs:coat = 0.4",
+            "",
+        ),
+    );
+    let net = network(&t);
+    assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:SolidDielectric");
+    let param = |name| surface_param(net, name).cloned();
+    assert_eq!(param("albedo"), v3(0.9, 0.5, 0.3));
+    assert_eq!(param("scatteringRadius"), Some(ParamValue::Float(0.2)));
+    assert_eq!(param("scatteringColor"), v3(1.0, 0.5, 0.25));
+    assert_eq!(param("scatteringWeight"), Some(ParamValue::Float(1.0)));
+    assert_eq!(param("scatteringAnisotropy"), Some(ParamValue::Float(0.3)));
+    // Standard Surface's own defaults: specular IOR 1.5, roughness 0.2, coat IOR 1.5.
+    assert_eq!(param("refractiveIndex"), Some(ParamValue::Float(1.5)));
+    assert_eq!(param("roughness"), Some(ParamValue::Float(0.2)));
+    assert_eq!(param("clearcoat"), Some(ParamValue::Float(0.4)));
+    assert_eq!(param("clearcoatRefractiveIndex"), Some(ParamValue::Float(1.5)));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+
+    // OpenPBR at half weight with its defaults: base and subsurface colours 0.8 mix to 0.8,
+    // radius 1 × (1, 0.5, 0.25), coat IOR 1.6.
+    let t = load_text(
+        "mtlx_sss_open_pbr",
+        &stage(
+            "ND_open_pbr_surface_surfaceshader",
+            "float inputs:subsurface_weight = 0.5\n color3f inputs:base_color = (0.4, 0.4, 0.4)",
+            "",
+        ),
+    );
+    let net = network(&t);
+    let param = |name| surface_param(net, name).cloned();
+    let albedo = match param("albedo") {
+        Some(ParamValue::Float3(c)) => c,
+        other => panic!("{other:?}"),
+    };
+    assert!((albedo - glam::Vec3::splat(0.6)).abs().max_element() < 1e-6, "half of 0.4 and half of 0.8: {albedo}");
+    assert_eq!(param("scatteringRadius"), Some(ParamValue::Float(1.0)));
+    assert_eq!(param("scatteringColor"), v3(1.0, 0.5, 0.25));
+    assert_eq!(param("scatteringWeight"), Some(ParamValue::Float(0.5)));
+    assert_eq!(param("clearcoatRefractiveIndex"), Some(ParamValue::Float(1.6)));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+
+    // A metal with subsurface: no medium, said once.
+    let t = load_text("mtlx_sss_metal", &stage(STANDARD, "float inputs:subsurface = 1\n float inputs:metalness = 0.5", ""));
+    let net = network(&t);
+    assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "UsdPreviewSurface");
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Surface") && w.contains("subsurface")).count(), 1, "{:?}", t.warnings);
+}
+
+/// A MaterialX subsurface sphere whose medium shows 0.5 behind an index-matched boundary
+/// renders 0.5 in the white furnace, as `tessera:SolidDielectric` does
+/// (`subsurface_with_a_tiny_mean_free_path_looks_like_its_diffuse_colour` in materials.rs:
+/// within the van de Hulst formula's 2%, plus the noise).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_materialx_subsurface_sphere_keeps_its_colour_in_the_furnace() {
+    let mean = furnace(
+        "ND_open_pbr_surface_surfaceshader",
+        "float inputs:subsurface_weight = 1\n color3f inputs:subsurface_color = (0.5, 0.5, 0.5)\n float inputs:subsurface_radius = 0.001\n float inputs:specular_ior = 1",
+    )
+    .await;
+    println!("OpenPBR subsurface, colour 0.5, mfp 0.001: furnace mean {mean:.4}");
+    assert!((mean - 0.5).abs() < 0.03, "{mean}");
+}

@@ -3,8 +3,8 @@
 //! knows. The surface node — Autodesk Standard Surface, OpenPBR Surface or MaterialX's
 //! UsdPreviewSurface — becomes a `UsdPreviewSurface` when that expresses it (diffuse,
 //! metal, dielectric specular, coat, emission, opacity, normal map), else a
-//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight);
-//! a plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
+//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight),
+//! or a `tessera:SolidDielectric` with a scattering medium (subsurface, without those); a plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
@@ -93,6 +93,8 @@ impl Lin {
     }
     fn add(a: Lin, b: Lin) -> Option<Lin> {
         match (&a.texture, &b.texture) {
+            // One image read twice (a base and a subsurface colour from one map) stays one.
+            (Some(x), Some(y)) if x == y => Some(Lin { scale: a.scale + b.scale, bias: a.bias + b.bias, ..a }),
             (Some(_), Some(_)) => None,
             (_, None) => Some(Lin { bias: a.bias + b.bias, ..a }),
             (None, _) => Some(Lin { bias: a.bias + b.bias, ..b }),
@@ -228,6 +230,12 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         coat_roughness: g.get(s, "coat_roughness", 0.1),
         sheen: g.get(s, "sheen", 0.0),
         subsurface: g.get(s, "subsurface", 0.0),
+        medium: Medium {
+            color: g.get3(s, "subsurface_color", Vec3::ONE),
+            radius: Lin::mul(g.get3(s, "subsurface_radius", Vec3::ONE), g.get(s, "subsurface_scale", 1.0)),
+            anisotropy: g.get(s, "subsurface_anisotropy", 0.0),
+        },
+        coat_ior: g.get(s, "coat_IOR", 1.5),
         thin: g.get(s, "thin_walled", 0.0),
         emission,
         opacity,
@@ -255,6 +263,12 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         coat_roughness: g.get(s, "coat_roughness", 0.0),
         sheen: g.get(s, "fuzz_weight", 0.0),
         subsurface: g.get(s, "subsurface_weight", 0.0),
+        medium: Medium {
+            color: g.get3(s, "subsurface_color", Vec3::splat(0.8)),
+            radius: Lin::mul(g.get3(s, "subsurface_radius_scale", Vec3::new(1.0, 0.5, 0.25)), g.get(s, "subsurface_radius", 1.0)),
+            anisotropy: g.get(s, "subsurface_scatter_anisotropy", 0.0),
+        },
+        coat_ior: g.get(s, "coat_ior", 1.6),
         thin: g.get(s, "geometry_thin_walled", 0.0),
         emission,
         opacity: g.get(s, "geometry_opacity", 1.0),
@@ -298,6 +312,8 @@ struct Lobes {
     coat_roughness: Lin,
     sheen: Lin,
     subsurface: Lin,
+    medium: Medium,
+    coat_ior: Lin,
     thin: Lin,
     emission: Lin,
     opacity: Lin,
@@ -308,14 +324,17 @@ impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:Principled` otherwise.
     fn inputs(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
         let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
+        let beyond_preview =
+            !zero(&self.transmission, 0.0) || !zero(&self.sheen, 0.0) || !zero(&self.thin, 0.0) || !zero(&self.specular_weight, 1.0);
         if !zero(&self.subsurface, 0.0) {
-            warnings.push(format!("{surface}: subsurface is rendered as diffuse reflection (not mapped yet)"));
+            if !beyond_preview && zero(&self.metalness, 0.0) {
+                return self.solid_dielectric(surface, warnings);
+            }
+            warnings.push(format!(
+                "{surface}: subsurface is rendered as diffuse reflection (a scattering medium needs no metalness, transmission, sheen, thin walls or specular weight other than 1)"
+            ));
         }
-        let principled = !zero(&self.transmission, 0.0)
-            || !zero(&self.sheen, 0.0)
-            || !zero(&self.anisotropy, 0.0)
-            || !zero(&self.thin, 0.0)
-            || !zero(&self.specular_weight, 1.0);
+        let principled = beyond_preview || !zero(&self.anisotropy, 0.0);
         if !principled {
             let mut values = vec![
                 ("diffuseColor", self.base, true),
@@ -332,9 +351,6 @@ impl Lobes {
             }
             return Inputs { id: "UsdPreviewSurface", values };
         }
-        if self.normal.is_some() {
-            warnings.push(format!("{surface}: its normal map is not applied (tessera:Principled takes none yet)"));
-        }
         // Disney's specular is F0 / 0.08; the MaterialX specular weight scales F0.
         let f0 = |ior: f32| ((ior - 1.0) / (ior + 1.0)).powi(2);
         let ior = self.ior.value().map_or(1.5, |v| v.x);
@@ -347,7 +363,7 @@ impl Lobes {
             Some(t) => Lin::add(self.base.clone().times(Vec4::ONE - t), self.transmission_color.times(t)).unwrap_or(self.base),
             None => self.base,
         };
-        let values = vec![
+        let mut values = vec![
             ("baseColor", base, true),
             ("metallic", self.metalness, false),
             ("roughness", self.roughness, false),
@@ -361,7 +377,68 @@ impl Lobes {
             ("emission", self.emission, true),
             ("thin", Lin::constant(Vec4::splat(if thin { 1.0 } else { 0.0 })), false),
         ];
+        if let Some(n) = self.normal {
+            values.push(("normal", n, true));
+        }
         Inputs { id: "tessera:Principled", values }
+    }
+}
+
+/// The subsurface inputs: the colour the medium shows, its mean free path per channel (the
+/// radius times its scale) and its phase function's eccentricity.
+struct Medium {
+    color: Lin,
+    radius: Option<Lin>,
+    anisotropy: Lin,
+}
+
+impl Lobes {
+    /// A dielectric whose base is partly or wholly a scattering medium: `tessera:SolidDielectric`
+    /// with its random walk (docs/materials.md, "Subsurface scattering"). The weight becomes
+    /// `scatteringWeight`; the medium and the diffuse beside it share one colour, the two
+    /// colours mixed by the weight (exact at weights 0 and 1, and for their mean under even
+    /// light).
+    fn solid_dielectric(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
+        let m = self.medium;
+        let albedo = match self.subsurface.value() {
+            Some(w) if w.x >= 1.0 => Some(m.color.clone()),
+            Some(w) => Lin::add(self.base.clone().times(Vec4::splat(1.0 - w.x)), m.color.clone().times(Vec4::splat(w.x))),
+            None => None,
+        }
+        .unwrap_or_else(|| {
+            warnings.push(format!(
+                "{surface}: the diffuse beside the medium shows subsurface_color (its weight or colours are textured apart)"
+            ));
+            m.color
+        });
+        // One radius scaled per channel: the largest channel's path, the others relative to it.
+        let mfp = m.radius.and_then(|r| r.value()).map(|r| r.truncate().max(Vec3::ZERO)).unwrap_or_else(|| {
+            warnings.push(format!("{surface}: a textured subsurface radius is not read; using 1 in each channel"));
+            Vec3::ONE
+        });
+        let longest = mfp.max_element();
+        let spread = if longest > 0.0 && longest.is_finite() { mfp / longest } else { Vec3::ONE };
+        if !self.opacity.value().is_some_and(|o| o.x >= 1.0) {
+            warnings.push(format!("{surface}: opacity is not applied to a surface with subsurface scattering"));
+        }
+        let mut values = vec![
+            ("albedo", albedo, true),
+            ("refractiveIndex", self.ior, false),
+            ("roughness", self.roughness, false),
+            ("anisotropy", self.anisotropy, false),
+            ("scatteringRadius", Lin::constant(Vec4::splat(if longest.is_finite() { longest } else { 0.0 })), false),
+            ("scatteringColor", Lin::constant(spread.extend(1.0)), true),
+            ("scatteringWeight", self.subsurface, false),
+            ("scatteringAnisotropy", m.anisotropy, false),
+            ("clearcoat", self.coat, false),
+            ("clearcoatRoughness", self.coat_roughness, false),
+            ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("emission", self.emission, true),
+        ];
+        if let Some(n) = self.normal {
+            values.push(("normal", n, true));
+        }
+        Inputs { id: "tessera:SolidDielectric", values }
     }
 }
 

@@ -155,6 +155,15 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
             .then(|| if force { *uber_here } else { uber_here.with_roughness_floor(RoughnessFloor::of_level(level)) });
         match local {
             _ if let Some(u) = &glitter => *bsdf = u.base_bsdf(ec, force),
+            // From inside its medium a partly scattering surface is the boundary alone.
+            _ if FULL && path.walk.medium.is_some() && uber_here.is_partly_medium() => {
+                let inside = uber_here.inside_medium();
+                *bsdf = if force {
+                    inside.bsdf_with_every_lobe(ec)
+                } else {
+                    inside.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec)
+                }
+            }
             Some((m, _)) if force => *bsdf = m.surface.bsdf_with_every_lobe(ec),
             Some((m, _)) => *bsdf = m.surface.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec),
             None if force => bsdf.clone_from(self.scene.bsdf_with_every_lobe(s.material, ec)),

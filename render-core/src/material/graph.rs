@@ -244,7 +244,7 @@ impl TexturedMaterial {
         }
         let surface = network.nodes.iter().find(|n| n.path == network.surface_node);
         let normal = surface
-            .filter(|n| n.node_type_id == "UsdPreviewSurface")
+            .filter(|n| super::native::takes_normal_map(&n.node_type_id))
             .and_then(|s| keys.iter().position(|(n, i)| *n == s.path && i == "normal"));
         let means = exprs.iter().map(|(e, o)| o.value(e.eval(&ShadingPoint::whole_texture()).0)).collect();
         let fixed = constant_frontier(&compiled, &keys).into_iter().map(|n| (n.clone(), compiled.resolve_subtree(path, &n))).collect();

@@ -95,7 +95,19 @@ pub const SHARED: &[Input] = &[
     float("doubleSpecularMix", 0.0, (0.0, 1.0), "double specular: the second roughness's share"),
     unbounded_color("emission", "emitted radiance, in UsdLux units"),
     float("specularControl", 1.0, (0.0, 1.0), "scales every specular lobe; 0 kills specular in pits and gaps"),
+    Input {
+        name: "normal",
+        kind: Kind::Color,
+        default: [0.0, 0.0, 1.0],
+        range: (-1.0, 1.0),
+        doc: "tangent-space normal map, read where a texture is connected (as UsdPreviewSurface's `normal`); a constant changes nothing",
+    },
 ];
+
+/// True when shader `id` perturbs its shading normal by a connected `normal` input.
+pub fn takes_normal_map(id: &str) -> bool {
+    matches!(id, "UsdPreviewSurface" | "tessera:Principled") || SHADERS.iter().any(|s| s.id == id && s.shared)
+}
 
 /// The specialized shaders.
 pub const SHADERS: &[Shader] = &[
@@ -146,6 +158,12 @@ pub const SHADERS: &[Shader] = &[
                 "mean free path of a subsurface medium behind a dielectric boundary (0: Lambertian); `albedo` is then the colour the medium shows",
             ),
             color("scatteringColor", 1.0, "per-channel scale of scatteringRadius: how far each colour travels"),
+            float(
+                "scatteringWeight",
+                1.0,
+                (0.0, 1.0),
+                "share of the diffuse base that is the medium when scatteringRadius > 0; the rest stays a Lambertian reflection under the specular",
+            ),
             float(
                 "scatteringAnisotropy",
                 0.0,
@@ -317,6 +335,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 coupling_eta: eta,
                 scattering_radius: v.f("scatteringRadius"),
                 scattering_color: v.c("scatteringColor"),
+                scattering_weight: v.f("scatteringWeight"),
                 scattering_anisotropy: v.f("scatteringAnisotropy"),
                 ..Plastic::default()
             };

@@ -137,6 +137,8 @@ fn native_principled(node: Inputs, report: &mut ResolveReport) -> Resolved {
             "baseColor" => matches!(value, ParamValue::Float3(c) if { p.base_color = *c; true }),
             "emission" => matches!(value, ParamValue::Float3(c) if { m.emission = c.max(Vec3::ZERO); true }),
             "thin" => matches!(value, ParamValue::Bool(b) if { p.thin = *b; true }),
+            // A tangent-space normal map, read where a texture is connected (graph.rs).
+            "normal" => matches!(value, ParamValue::Float3(_)),
             other => {
                 let slot = match other {
                     "metallic" => &mut p.metallic,

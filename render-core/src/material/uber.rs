@@ -142,6 +142,9 @@ pub struct Plastic {
     pub scattering_radius: f32,
     /// Per-channel scale of the mean free path (`scatteringColor`).
     pub scattering_color: Vec3,
+    /// Share of the diffuse base that is the medium (`scatteringWeight`); the rest stays a
+    /// diffuse reflection under the specular, as a mix of closures weighs them.
+    pub scattering_weight: f32,
     /// Phase function eccentricity of the medium.
     pub scattering_anisotropy: f32,
 }
@@ -161,6 +164,7 @@ impl Default for Plastic {
             disney_sheen: Vec3::ZERO,
             scattering_radius: 0.0,
             scattering_color: Vec3::ONE,
+            scattering_weight: 1.0,
             scattering_anisotropy: 0.0,
         }
     }
@@ -185,6 +189,7 @@ impl Mix for Plastic {
             disney_sheen: self.disney_sheen.mix(wa, &o.disney_sheen, wb),
             scattering_radius: self.scattering_radius.mix(wa, &o.scattering_radius, wb),
             scattering_color: self.scattering_color.mix(wa, &o.scattering_color, wb),
+            scattering_weight: self.scattering_weight.mix(wa, &o.scattering_weight, wb),
             scattering_anisotropy: self.scattering_anisotropy.mix(wa, &o.scattering_anisotropy, wb),
         }
     }
@@ -507,9 +512,24 @@ impl Uber {
     pub fn medium(&self) -> Option<crate::subsurface::Medium> {
         let p = &self.plastic.params;
         let r = p.scattering_radius;
-        (self.plastic.weight > 0.0 && r.is_finite() && r > 0.0)
+        (self.plastic.weight > 0.0 && r.is_finite() && r > 0.0 && p.scattering_weight > 0.0)
             .then(|| crate::subsurface::Medium::new(r * p.scattering_color.max(Vec3::splat(1e-3)), p.diffuse, p.scattering_anisotropy))
             .flatten()
+    }
+
+    /// True when part of the diffuse base, not all of it, is a scattering medium
+    /// (`scatteringWeight` between 0 and 1).
+    pub fn is_partly_medium(&self) -> bool {
+        self.medium().is_some() && self.plastic.params.scattering_weight < 1.0
+    }
+
+    /// The surface as a path inside its medium meets it: the medium's boundary alone. The
+    /// diffuse share beside the medium faces the outside; light walking inside only ever
+    /// reaches the boundary.
+    pub fn inside_medium(&self) -> Uber {
+        let mut u = *self;
+        u.plastic.params.scattering_weight = 1.0;
+        u
     }
 
     /// True when a lobe transmits light through a solid's boundary (bending it).
@@ -558,7 +578,8 @@ impl Uber {
         let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
         let spec_scale = finite(self.specular_control);
         let plastic_w = finite(self.plastic.weight);
-        if plastic_w > 0.0 && self.medium().is_some() {
+        let medium_share = if plastic_w > 0.0 && self.medium().is_some() { finite(self.plastic.params.scattering_weight) } else { 0.0 };
+        if medium_share > 0.0 {
             // Subsurface: the plastic's specular becomes the boundary of its medium, which the
             // integrator's random walk crosses; its diffuse colour lives in the medium.
             let p = &self.plastic.params;
@@ -566,9 +587,14 @@ impl Uber {
             let eta = p.coupling_eta.max(1.0);
             bsdf.push_weighted(
                 Lobe::Dielectric(Dielectric::new(roughness, anisotropic, eta, Vec3::ONE).compensated(compensate)),
-                plastic_w,
+                plastic_w * medium_share,
             );
-        } else if plastic_w > 0.0 || every {
+        }
+        // The rest of the plastic is a surface: a mix of the medium's boundary and the plain
+        // plastic, weighed as a mix of closures is (each conserves energy, so the sum does).
+        let surface_w = plastic_w * (1.0 - medium_share);
+        if surface_w > 0.0 || (every && medium_share == 0.0) {
+            let plastic_w = surface_w;
             let p = &self.plastic.params;
             let coupling = match p.specular {
                 Some(s) if compensate => {
@@ -577,7 +603,9 @@ impl Uber {
                 }
                 _ => None,
             };
-            let dt = finite(p.diffuse_transmission);
+            // Beside a medium, light that crosses the surface is the medium's: a diffuse
+            // transmission would enter it as if through the boundary.
+            let dt = if medium_share > 0.0 { 0.0 } else { finite(p.diffuse_transmission) };
             let scale = if compensate { p.diffuse_scale } else { 1.0 };
             bsdf.push_weighted(
                 Lobe::DisneyDiffuse(DisneyDiffuse::new(p.diffuse, p.diffuse_roughness, p.flatness, coupling, p.lambert)),
