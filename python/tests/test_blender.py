@@ -45,6 +45,8 @@ AGREE = [
     # UVs lie in one tile, so each shows one solid colour under a sun (Lambertian, IOR 1).
     ("udim", "tile 1001 plane"),
     ("udim", "tile 1002 plane"),
+    # Subsurface (docs/blender.md): the floor the spheres light agrees like any Lambertian floor.
+    ("subsurface", "floor"),
 ]
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
@@ -54,6 +56,13 @@ DIFFER = {
     ("box", "green wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
     ("box", "back wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
     ("textured", "textured plane"): (1.0, 1.07, "layering, and texture interpolation across colour edges (docs/blender.md)"),
+    # Random-walk subsurface in both, behind IOR 1.4: measured 0.968 (all of the base) and 0.970
+    # (half) at 256 spp, where Tessera's region means move by up to 5% between seeds (light
+    # leaves the medium through a rough boundary; Cycles' exit closure is smoother) and the
+    # albedo inversions differ (Cycles' fit against van de Hulst's with Saunderson's boundary
+    # term). Before the boundary term the full sphere read 0.60.
+    ("subsurface", "subsurface sphere"): (0.9, 1.06, "random-walk noise and the two albedo inversions (docs/blender.md)"),
+    ("subsurface", "half subsurface sphere"): (0.9, 1.06, "random-walk noise and the two albedo inversions (docs/blender.md)"),
 }
 
 
@@ -127,7 +136,7 @@ def region_ratios(out: Path, kind: str, names: dict) -> dict:
 
 def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
     out, r = results
-    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim")
+    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface")
     ratios = {(k, n): v for k in r if k in kinds for n, v in region_ratios(out, k, r[k]["regions"]).items()}
     for key in AGREE:
         # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of
@@ -142,6 +151,9 @@ def test_the_exporter_is_corrected(results):
     _, r = results
     assert any("sun strength x4" in c for c in r["glass"]["corrections"]), r["glass"]["corrections"]
     assert any("tessera:Principled specTrans" in c for c in r["glass"]["corrections"])
+    subsurface = r["subsurface"]["corrections"]
+    assert any("subsurface (weight 1, mean free path 0.05) as tessera:SolidDielectric" in c for c in subsurface), subsurface
+    assert any("subsurface (weight 0.5, mean free path 0.05) as tessera:SolidDielectric" in c for c in subsurface), subsurface
     linked = r["linked"]["corrections"]
     assert any("light linking from the receiver collection 'key receivers'" in c for c in linked), linked
     assert any("light linking from the blocker collection 'fill blockers'" in c for c in linked), linked

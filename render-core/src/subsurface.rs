@@ -29,6 +29,24 @@ pub fn albedo_from_color(c: Vec3, g: f32) -> Vec3 {
     Vec3::new(one(c.x), one(c.y), one(c.z))
 }
 
+/// The colour the medium itself must reflect (index-matched, as van de Hulst's formula
+/// assumes) for the surface to show `color` behind a boundary of relative index `eta`.
+///
+/// Light that reaches the boundary from inside mostly reflects back (a share
+/// 1 − F_avg(1/η) escapes: 47% at η = 1.4) and meets the medium again, so the surface shows
+/// Saunderson's series t·R/(1 − (1 − t)·R) of the medium's own reflectance R, darker channels
+/// losing most: without this, a medium of colour 0.5 behind IOR 1.4 rendered 0.33 in the white
+/// furnace where its Lambertian counterpart renders 0.53. Solving for R keeps the colour the
+/// artist set, as the slides' inversion does for an index-matched medium (Kulla & Conty 2017,
+/// "Revisiting Physically Based Shading at Imageworks", "Subsurface scattering - color
+/// control", which assumes a half space without a boundary).
+pub fn color_under_boundary(color: Vec3, eta: f32) -> Vec3 {
+    let eta = if eta.is_finite() { eta.max(1.0) } else { 1.0 };
+    let t = 1.0 - crate::bsdf::fresnel::dielectric_avg_fit(1.0 / eta);
+    let c = color.clamp(Vec3::ZERO, Vec3::splat(0.999));
+    c / (Vec3::splat(t) + c * (1.0 - t))
+}
+
 /// Van de Hulst's forward formula: the colour C a semi-infinite medium of albedo α and
 /// eccentricity g shows under uniform light, C = (1 − s)(1 − 0.139s)/(1 + 1.17s),
 /// s = √((1 − α)/(1 − αg)).
@@ -66,12 +84,13 @@ pub enum Step {
 }
 
 impl Medium {
-    /// The medium of a mean free path per channel, visible colour and eccentricity.
-    pub fn new(mfp: Vec3, color: Vec3, g: f32) -> Option<Self> {
+    /// The medium of a mean free path per channel, visible colour and eccentricity, behind a
+    /// boundary of relative index `eta` (1: index-matched).
+    pub fn new(mfp: Vec3, color: Vec3, g: f32, eta: f32) -> Option<Self> {
         let mfp = mfp.max(Vec3::splat(1e-9));
         (mfp.is_finite() && mfp.min_element() > 0.0).then(|| {
             let g = if g.is_finite() { g.clamp(-MAX_ECCENTRICITY, MAX_ECCENTRICITY) } else { 0.0 };
-            Medium { sigma_t: mfp.recip(), albedo: albedo_from_color(color, g), g }
+            Medium { sigma_t: mfp.recip(), albedo: albedo_from_color(color_under_boundary(color, eta), g), g }
         })
     }
 
@@ -128,6 +147,27 @@ mod tests {
 
     /// The slides' closed form is the root of the forward formula: C → α → C round-trips,
     /// for several eccentricities.
+    #[test]
+    fn the_boundary_term_returns_the_colour_asked_for() {
+        // Index-matched: nothing to undo.
+        let c = Vec3::new(0.8, 0.45, 0.3);
+        assert_eq!(color_under_boundary(c, 1.0), c);
+        for eta in [1.1, 1.4, 2.0, 3.0] {
+            let t = 1.0 - crate::bsdf::fresnel::dielectric_avg_fit(1.0 / eta);
+            let r = color_under_boundary(c, eta);
+            // Saunderson's series of the medium's reflectance gives back the colour, and the
+            // medium must reflect more than the surface shows, most for the darkest channel.
+            let shown = t * r / (Vec3::ONE - (1.0 - t) * r);
+            assert!((shown - c).abs().max_element() < 1e-5, "η {eta}: {shown} against {c}");
+            assert!(r.cmpgt(c).all() && (r / c).z > (r / c).x, "η {eta}: {r}");
+            assert!(r.cmplt(Vec3::ONE).all());
+        }
+        for bad in [f32::NAN, f32::INFINITY, 0.5, -2.0] {
+            assert!(color_under_boundary(c, bad).is_finite(), "η {bad}");
+        }
+        assert!(color_under_boundary(Vec3::new(f32::NAN, 2.0, -1.0), 1.4).is_finite());
+    }
+
     #[test]
     fn van_de_hulst_inversion_round_trips() {
         for g in [-0.9f32, -0.3, 0.0, 0.5, 0.9] {

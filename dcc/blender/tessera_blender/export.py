@@ -15,6 +15,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Glass: UsdPreviewSurface has no transmission, so the exporter drops the Principled BSDF's
   Transmission Weight. A material that has one becomes ``tessera:Principled`` with
   ``specTrans`` and the Principled inputs it shares (Disney's names).
+* Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
+  ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
+  free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 """
 
 from __future__ import annotations
@@ -97,6 +100,7 @@ def correct(exported: Export, scene) -> None:
                     lights.append((child, obj))
         if prim.IsA(UsdShade.Material):
             _correct_glass(exported, prim, Sdf, UsdShade)
+            _correct_subsurface(exported, prim, Sdf, UsdShade)
     # After the traversal: a light may link objects exported after it.
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
@@ -200,3 +204,66 @@ def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
             shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
     shader.CreateInput("specTrans", Sdf.ValueTypeNames.Float).Set(transmission)
     exported.corrections.append(f"{prim.GetPath()}: glass (Transmission Weight {transmission:g}) as tessera:Principled specTrans")
+
+
+#: UsdPreviewSurface inputs that keep their meaning on ``tessera:SolidDielectric``, by its names.
+SOLID_DIELECTRIC_NAMES = {
+    "diffuseColor": ("albedo", "Color3f"),
+    "roughness": ("roughness", "Float"),
+    "ior": ("refractiveIndex", "Float"),
+    "clearcoat": ("clearcoat", "Float"),
+    "clearcoatRoughness": ("clearcoatRoughness", "Float"),
+    "emissiveColor": ("emission", "Color3f"),
+    "normal": ("normal", "Normal3f"),
+}
+
+
+def _subsurface_of(material_name: str):
+    """The Principled BSDF of `material_name` when its surface scatters below (Subsurface
+    Weight above 0), else None."""
+    node = _principled_of(material_name)
+    weight = node.inputs["Subsurface Weight"] if node else None
+    if weight is None or (not weight.is_linked and float(weight.default_value) <= 0.0):
+        return None
+    return node
+
+
+def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
+    name_attr = prim.GetAttribute("userProperties:blender:data_name")
+    name = name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
+    node = _subsurface_of(name)
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0] if node else None
+    if not surface:
+        return
+    weight = node.inputs["Subsurface Weight"]
+    others = [n for n in ("Metallic", "Transmission Weight") if node.inputs[n].is_linked or node.inputs[n].default_value > 0.0]
+    if weight.is_linked or others:
+        why = "its weight is textured" if weight.is_linked else f"{' and '.join(others)} above 0"
+        exported.warnings.append(f"{name}: subsurface is rendered as diffuse reflection ({why})")
+        return
+    shader = UsdShade.Shader(surface.GetPrim())
+    shader.SetShaderId("tessera:SolidDielectric")
+    for inp in list(shader.GetInputs()):
+        old = inp.GetBaseName()
+        new, kind = SOLID_DIELECTRIC_NAMES.get(old, (None, None))
+        if new and new != old:
+            moved = shader.CreateInput(new, getattr(Sdf.ValueTypeNames, kind))
+            if inp.HasConnectedSource():
+                moved.ConnectToSource(inp.GetConnectedSources()[0][0])
+            else:
+                moved.Set(inp.Get())
+        if new != old:
+            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    if node.subsurface_method == "RANDOM_WALK_SKIN":
+        # Skin's own boundary index (Cycles' "Random Walk (Skin)" reads Subsurface IOR).
+        shader.CreateInput("refractiveIndex", Sdf.ValueTypeNames.Float).Set(float(node.inputs["Subsurface IOR"].default_value))
+    radius = [float(r) * float(node.inputs["Subsurface Scale"].default_value) for r in node.inputs["Subsurface Radius"].default_value]
+    longest = max(radius)
+    spread = [r / longest for r in radius] if longest > 0.0 else [1.0, 1.0, 1.0]
+    shader.CreateInput("scatteringRadius", Sdf.ValueTypeNames.Float).Set(longest)
+    shader.CreateInput("scatteringColor", Sdf.ValueTypeNames.Color3f).Set(tuple(spread))
+    shader.CreateInput("scatteringWeight", Sdf.ValueTypeNames.Float).Set(float(weight.default_value))
+    shader.CreateInput("scatteringAnisotropy", Sdf.ValueTypeNames.Float).Set(float(node.inputs["Subsurface Anisotropy"].default_value))
+    exported.corrections.append(
+        f"{prim.GetPath()}: subsurface (weight {weight.default_value:g}, mean free path {longest:g}) as tessera:SolidDielectric"
+    )

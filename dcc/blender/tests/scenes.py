@@ -17,6 +17,7 @@ REGIONS = {
     "linked": {1: "floor", 2: "key-lit sphere", 3: "unlinked sphere"},
     "emitter_linked": {1: "floor", 2: "panel-lit sphere", 3: "unlinked sphere"},
     "udim": {1: "tile 1001 plane", 2: "tile 1002 plane"},
+    "subsurface": {1: "floor", 2: "subsurface sphere", 3: "half subsurface sphere"},
 }
 
 def udim_image(directory):
@@ -44,7 +45,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -108,6 +109,23 @@ def build(kind, directory):
                 loop.uv.x += index - 1
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind == "subsurface":
+        # Random-walk subsurface scattering (Cycles' default method) behind a rough boundary
+        # of IOR 1.4, all of the base on the left sphere and half of it on the right; the mean
+        # free path (Blender's default radius × 0.05) is 0.05 in red, a fourteenth of the
+        # spheres' radius, and a fifth and a tenth of that in green and blue.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+        for index, x, weight in ((2, -1.0, 1.0), (3, 1.0, 0.5)):
+            skin = mat(f"skin{index}", (0.8, 0.45, 0.3), rough=0.4)
+            p = skin.node_tree.nodes["Principled BSDF"]
+            p.inputs["IOR"].default_value = 1.4
+            p.inputs["Subsurface Weight"].default_value = weight
+            p.inputs["Subsurface Scale"].default_value = 0.05
+            add(bpy.ops.mesh.primitive_uv_sphere_add, skin, index, radius=0.7, location=(x, 0, 0.7), segments=64, ring_count=32)
+        # A large light in front: a small one lights a medium through its rough boundary as
+        # fireflies in both renderers.
+        bpy.ops.object.light_add(type='AREA', location=(0, -2.5, 3.5), rotation=(0.6, 0, 0)); key = bpy.context.object.data; key.energy = 800; key.size = 3
+        cam = (0, -6, 2.2); rot = (1.3, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")
         img = bpy.data.images.new("checker", 64, 64)

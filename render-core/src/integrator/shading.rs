@@ -157,11 +157,13 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
             _ if let Some(u) = &glitter => *bsdf = u.base_bsdf(ec, force),
             // From inside its medium a partly scattering surface is the boundary alone.
             _ if FULL && path.walk.medium.is_some() && uber_here.is_partly_medium() => {
-                let inside = uber_here.inside_medium();
-                *bsdf = if force {
-                    inside.bsdf_with_every_lobe(ec)
-                } else {
-                    inside.with_roughness_floor(RoughnessFloor::of_level(level)).bsdf(ec)
+                match self.scene.bsdf_inside_medium(s.material, ec) {
+                    Some(own) if local.is_none() && !force && level == 0 => bsdf.clone_from(own),
+                    _ => {
+                        let inside = uber_here.inside_medium();
+                        let floor = RoughnessFloor::of_level(level);
+                        *bsdf = if force { inside.bsdf_with_every_lobe(ec) } else { inside.with_roughness_floor(floor).bsdf(ec) }
+                    }
                 }
             }
             Some((m, _)) if force => *bsdf = m.surface.bsdf_with_every_lobe(ec),

@@ -513,14 +513,17 @@ impl Uber {
         let p = &self.plastic.params;
         let r = p.scattering_radius;
         (self.plastic.weight > 0.0 && r.is_finite() && r > 0.0 && p.scattering_weight > 0.0)
-            .then(|| crate::subsurface::Medium::new(r * p.scattering_color.max(Vec3::splat(1e-3)), p.diffuse, p.scattering_anisotropy))
+            .then(|| {
+                let mfp = r * p.scattering_color.max(Vec3::splat(1e-3));
+                crate::subsurface::Medium::new(mfp, p.diffuse, p.scattering_anisotropy, p.coupling_eta)
+            })
             .flatten()
     }
 
     /// True when part of the diffuse base, not all of it, is a scattering medium
     /// (`scatteringWeight` between 0 and 1).
     pub fn is_partly_medium(&self) -> bool {
-        self.medium().is_some() && self.plastic.params.scattering_weight < 1.0
+        self.plastic.params.scattering_weight < 1.0 && self.medium().is_some()
     }
 
     /// The surface as a path inside its medium meets it: the medium's boundary alone. The

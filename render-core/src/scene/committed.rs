@@ -52,6 +52,9 @@ pub struct CommittedScene {
     pub(super) floored_bsdfs: [std::sync::OnceLock<Vec<Vec<crate::bsdf::Bsdf>>>; 2],
     /// Each material's BSDF with every lobe (`force_all_effects`), built on first use.
     pub(super) every_lobe_bsdfs: [std::sync::OnceLock<Vec<crate::bsdf::Bsdf>>; 2],
+    /// Per material whose base is partly a subsurface medium, its BSDF as a path inside the
+    /// medium meets it (the boundary alone), built on first use.
+    pub(super) inside_medium_bsdfs: [std::sync::OnceLock<Vec<Option<crate::bsdf::Bsdf>>>; 2],
     /// Each material's subsurface medium.
     pub(super) media: Vec<Option<crate::subsurface::Medium>>,
     /// Each material's smooth glass as transparent shadows see it.
