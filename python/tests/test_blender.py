@@ -159,6 +159,27 @@ def test_the_exporter_is_corrected(results):
     assert any("light linking from the blocker collection 'fill blockers'" in c for c in linked), linked
 
 
+#: UsdPreviewSurface's inputs (its specification, version 2.6).
+PREVIEW_SURFACE_INPUTS = {
+    "diffuseColor", "emissiveColor", "useSpecularWorkflow", "specularColor", "metallic", "roughness", "clearcoat",
+    "clearcoatRoughness", "opacity", "opacityMode", "opacityThreshold", "ior", "normal", "displacement", "occlusion",
+}
+
+
+def test_exported_preview_surfaces_hold_only_the_specifications_inputs(results):
+    """Blender writes its Specular IOR Level as `specular`, which the reader would report as an
+    unknown input on every material; the export correction drops it at the neutral 0.5."""
+    _, r = results
+    assert scenes_compared(r), "no comparison scene recorded its inputs"
+    for kind in scenes_compared(r):
+        extra = set(r[kind]["preview_inputs"]) - PREVIEW_SURFACE_INPUTS
+        assert not extra, f"{kind}: {sorted(extra)}"
+
+
+def scenes_compared(r) -> list:
+    return [k for k in r if isinstance(r[k], dict) and "preview_inputs" in r[k]]
+
+
 def test_an_emissive_objects_light_linking_is_exported_as_a_mesh_light(results):
     _, r = results
     corrections = r["emitter_linked"]["corrections"]

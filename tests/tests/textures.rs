@@ -286,6 +286,44 @@ fn a_files_color_space_metadata_decides_its_decoding() {
     }
 }
 
+/// A texture whose file comes through the material's interface (a NodeGraph's input, itself
+/// connected to the Material's) decodes by the `colorSpace` declared where the asset is: the
+/// nearest interface input that carries one. The texture's own metadata, where it has any,
+/// wins.
+#[test]
+fn an_interface_inputs_color_space_decides_the_files_decoding() {
+    let stage = |material_meta: &str, graph_meta: &str, own: &str| {
+        format!(
+            "#usda 1.0\ndef Material \"M\"\n{{\n    asset inputs:tex = @q.png@ {material_meta}\n    \
+             token outputs:surface.connect = </M/S.outputs:surface>\n    def NodeGraph \"G\"\n    {{\n        \
+             asset inputs:tex = @q.png@ {graph_meta}\n        asset inputs:tex.connect = </M.inputs:tex>\n        \
+             float3 outputs:rgb.connect = </M/G/T.outputs:rgb>\n        def Shader \"T\"\n        {{\n            \
+             uniform token info:id = \"UsdUVTexture\"\n            asset inputs:file {own}\n            \
+             asset inputs:file.connect = </M/G.inputs:tex>\n            float3 outputs:rgb\n        }}\n    }}\n    \
+             def Shader \"S\"\n    {{\n        uniform token info:id = \"UsdPreviewSurface\"\n        \
+             color3f inputs:diffuseColor.connect = </M/G.outputs:rgb>\n        token outputs:surface\n    }}\n}}\n\
+             def Mesh \"Quad\" (prepend apiSchemas = [\"MaterialBindingAPI\"])\n{{\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0)]\n    \
+             int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    rel material:binding = </M>\n}}\n"
+        )
+    };
+    let raw = "(colorSpace = \"raw\")";
+    let srgb = "(colorSpace = \"sRGB\")";
+    let cases = [
+        ("on the Material's input", stage(raw, "", ""), Some("raw")),
+        ("on the NodeGraph's input, nearer", stage(srgb, raw, ""), Some("raw")),
+        ("on the texture's own input", stage(raw, "", srgb), Some("sRGB")),
+        ("nowhere", stage("", "", ""), None),
+    ];
+    for (where_, usda, expected) in cases {
+        let t = tessera_tests::load_text("interface_color_space", &usda);
+        let (_, net) = t.materials.iter().find(|(p, _)| p == "/M").expect("the material");
+        let tex = net.nodes.iter().find(|n| n.path == "/M/G/T").expect("the texture node");
+        let space =
+            tex.parameters.get("sourceColorSpace").cloned().filter(|s| *s != render_core::material::ParamValue::String("auto".into()));
+        assert_eq!(space, expected.map(|e| render_core::material::ParamValue::String(e.into())), "{where_}: {:?}", t.warnings);
+    }
+}
+
 #[test]
 fn light_sampling_reads_textured_emission_where_it_samples() {
     // A ceiling glowing 20x the quadrant texture (red and blue texels on -X, green and white on

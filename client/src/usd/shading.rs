@@ -311,7 +311,10 @@ impl Reader<'_> {
         if matches!(node.parameters.get("sourceColorSpace"), Some(ParamValue::String(s)) if s != "auto") {
             return Ok(());
         }
-        let declared = prim.attribute("inputs:file").get_metadata::<Value>("colorSpace")?;
+        let declared = match prim.attribute("inputs:file").get_metadata::<Value>("colorSpace")? {
+            Some(own) => Some(own),
+            None => self.interface_color_space(prim)?,
+        };
         let Some(name) = declared.as_ref().and_then(values::token) else { return Ok(()) };
         let Some((space, caveat)) = decoding_of(&name) else {
             self.out
@@ -324,6 +327,23 @@ impl Reader<'_> {
         }
         node.parameters.insert("sourceColorSpace".to_string(), ParamValue::String(space.to_string()));
         Ok(())
+    }
+
+    /// The `colorSpace` metadata of the material interface input (on a Material or NodeGraph)
+    /// that a texture's `inputs:file` takes its value from: the first found along the chain of
+    /// connections, as the asset is declared there.
+    fn interface_color_space(&self, prim: &Prim) -> Result<Option<Value>> {
+        let mut next = prim.attribute("inputs:file").connections()?.into_iter().next();
+        for _ in 0..MAX_INTERFACE_HOPS {
+            let Some(target) = next.take().filter(|t| well_formed_path(t.as_str())) else { break };
+            let property = target.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+            let attr = self.stage.prim(target.prim_path()).attribute(property.as_str());
+            if let Some(declared) = attr.get_metadata::<Value>("colorSpace")? {
+                return Ok(Some(declared));
+            }
+            next = attr.connections()?.into_iter().next();
+        }
+        Ok(None)
     }
 
     /// A connection of `node`'s `input` to `src`: to another shader's output, returned; to the

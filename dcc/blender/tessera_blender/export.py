@@ -15,6 +15,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Glass: UsdPreviewSurface has no transmission, so the exporter drops the Principled BSDF's
   Transmission Weight. A material that has one becomes ``tessera:Principled`` with
   ``specTrans`` and the Principled inputs it shares (Disney's names).
+* Specular IOR Level: written as ``inputs:specular``, which UsdPreviewSurface does not have
+  (the reader would warn of an unknown input on every material). At Blender's neutral 0.5 it
+  is dropped; any other level is dropped with a warning naming the material.
 * Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
@@ -101,6 +104,7 @@ def correct(exported: Export, scene) -> None:
         if prim.IsA(UsdShade.Material):
             _correct_glass(exported, prim, Sdf, UsdShade)
             _correct_subsurface(exported, prim, Sdf, UsdShade)
+            _drop_specular_level(exported, prim, UsdShade)
     # After the traversal: a light may link objects exported after it.
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
@@ -267,3 +271,19 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(
         f"{prim.GetPath()}: subsurface (weight {weight.default_value:g}, mean free path {longest:g}) as tessera:SolidDielectric"
     )
+
+
+#: Blender's Specular IOR Level that leaves the IOR's reflectance as it is.
+NEUTRAL_SPECULAR_LEVEL = 0.5
+
+
+def _drop_specular_level(exported: Export, prim, UsdShade) -> None:
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    level = shader.GetInput("specular") if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface" else None
+    if not level:
+        return
+    value = level.Get()
+    if level.HasConnectedSource() or value is None or abs(float(value) - NEUTRAL_SPECULAR_LEVEL) > 1e-6:
+        exported.warnings.append(f"{prim.GetName()}: Specular IOR Level {value} is not carried (the IOR sets the reflectance)")
+    shader.GetPrim().RemoveProperty(level.GetAttr().GetName())

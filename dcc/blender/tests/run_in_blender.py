@@ -68,6 +68,14 @@ def cycles_first_sample_seconds(scene):
     return time.perf_counter() - t0
 
 
+def preview_inputs(path):
+    """Every input name on the export's UsdPreviewSurface shaders."""
+    _, Usd, _, UsdShade = export._pxr()
+    stage = Usd.Stage.Open(path)
+    shaders = (UsdShade.Shader(p) for p in stage.Traverse() if p.IsA(UsdShade.Shader))
+    return sorted({i.GetBaseName() for s in shaders if s.GetIdAttr().Get() == "UsdPreviewSurface" for i in s.GetInputs()})
+
+
 def compare(kind, spp):
     scene = scenes.build(kind, OUT)
     out = {}
@@ -78,6 +86,7 @@ def compare(kind, spp):
     exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
     np.save(os.path.join(OUT, f"{kind}_regions.npy"), regions_of(scene, exported))
     out["corrections"] = exported.corrections
+    out["preview_inputs"] = preview_inputs(exported.path)
     out["first_tile_seconds"] = first_tile_seconds(scene)
     out["cycles_first_sample_seconds"] = cycles_first_sample_seconds(scene)
     out["regions"] = scenes.REGIONS[kind]
