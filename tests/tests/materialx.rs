@@ -338,3 +338,42 @@ async fn a_materialx_subsurface_sphere_keeps_its_colour_in_the_furnace() {
     println!("OpenPBR subsurface, colour 0.5, mfp 0.001: furnace mean {mean:.4}");
     assert!((mean - 0.5).abs() < 0.03, "{mean}");
 }
+
+/// A `tiledimage` places its image as MaterialX's own graph for it does, (texcoord · uvtiling −
+/// uvoffset) / realworldimagesize · realworldtilesize, repeating: a `UsdTransform2d` of that
+/// scale and translation between the coordinates and the texture. Before, any tiling other
+/// than 1 was reported and left out.
+#[test]
+fn a_tiled_image_is_placed_by_its_tiling_offset_and_sizes() {
+    let extra = r#"
+        def Shader "Tiles" {
+            uniform token info:id = "ND_tiledimage_color3"
+            asset inputs:file = @missing.png@
+            float2 inputs:uvtiling = (2, 3)
+            float2 inputs:uvoffset = (0.5, 0.25)
+            float2 inputs:realworldimagesize = (2, 2)
+            float2 inputs:realworldtilesize = (1, 4)
+            color3f outputs:out
+        }"#;
+    let t = load_text(
+        "mtlx_tiled",
+        &stage("ND_standard_surface_surfaceshader", "color3f inputs:base_color.connect = </Looks/M/Tiles.outputs:out>", extra),
+    );
+    let net = network(&t);
+    let node = |path: &str| net.nodes.iter().find(|n| n.path == path).unwrap_or_else(|| panic!("{path}: {:?}", net.nodes));
+    let upstream = |node: &str, input: &str| {
+        net.connections.iter().find(|c| c.downstream_node == node && c.downstream_input == input).map(|c| c.upstream_node.clone())
+    };
+    let texture = upstream(&net.surface_node, "diffuseColor").expect("the base colour is textured");
+    assert_eq!(node(&texture).node_type_id, "UsdUVTexture");
+    assert_eq!(node(&texture).parameters.get("wrapS"), Some(&ParamValue::String("repeat".into())));
+    let placement = upstream(&texture, "st").expect("st is connected");
+    let p = node(&placement);
+    assert_eq!(p.node_type_id, "UsdTransform2d");
+    // k = tile size / image size = (0.5, 2): scale (2, 3)·k, translation −(0.5, 0.25)·k.
+    assert_eq!(p.parameters.get("scale"), Some(&ParamValue::Float2(glam::Vec2::new(1.0, 6.0))));
+    assert_eq!(p.parameters.get("translation"), Some(&ParamValue::Float2(glam::Vec2::new(-0.25, -0.5))));
+    let reader = upstream(&placement, "in").expect("the transform reads the coordinates");
+    assert_eq!(node(&reader).node_type_id, "UsdPrimvarReader_float2");
+    assert!(!t.warnings.iter().any(|w| w.contains("/Looks/M/Tiles") && w.contains("tiledimage")), "{:?}", t.warnings);
+}

@@ -14,7 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use glam::{Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 use render_core::material::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 
 /// The surface shaders this module maps.
@@ -137,8 +137,8 @@ impl Graph<'_> {
         match kind {
             "constant" => input("value", 0.0),
             "image" | "tiledimage" => {
-                if kind == "tiledimage" && node.parameters.get("uvtiling").is_some_and(|t| *t != ParamValue::Float2(glam::Vec2::ONE)) {
-                    self.unsupported(path, id, "uvtiling other than (1, 1)");
+                if kind == "tiledimage" && tiling_of(node).is_err() {
+                    self.unsupported(path, id, "a zero or non-finite realworldimagesize");
                 }
                 Some(Lin { texture: Some(Texture { node: path.to_string(), srgb: false }), scale: Vec4::ONE, bias: Vec4::ZERO })
             }
@@ -468,7 +468,11 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
             upstream_node: tex_path.clone(),
             upstream_output: if color { "rgb" } else { "r" }.to_string(),
         });
-        net.nodes.push(texcoord_reader(&tex_path, image, old, &mut net.connections, warnings));
+        let reader = texcoord_reader(&tex_path, image, old, &mut net.connections, warnings);
+        if let Ok(Some((scale, translation))) = tiling_of(image) {
+            net.nodes.push(placement(&tex_path, &reader.path, scale, translation, &mut net.connections));
+        }
+        net.nodes.push(reader);
     }
     net.nodes.push(MaterialNode { path: surface.to_string(), node_type_id: inputs.id.to_string(), parameters: params });
     net
@@ -543,6 +547,42 @@ fn texcoord_reader(
     });
     let parameters = BTreeMap::from([("varname".to_string(), ParamValue::String(varname))]);
     MaterialNode { path, node_type_id: "UsdPrimvarReader_float2".into(), parameters }
+}
+
+/// A `tiledimage`'s placement as MaterialX's own graph for it computes it, (texcoord · uvtiling
+/// − uvoffset) / realworldimagesize · realworldtilesize: a scale and a translation, None when
+/// they change nothing; `Err` for an image size that cannot divide.
+fn tiling_of(image: &MaterialNode) -> Result<Option<(Vec2, Vec2)>, ()> {
+    if !image.node_type_id.starts_with("ND_tiledimage") {
+        return Ok(None);
+    }
+    let v2 = |name: &str, default: Vec2| match image.parameters.get(name) {
+        Some(ParamValue::Float2(v)) => *v,
+        _ => default,
+    };
+    let k = v2("realworldtilesize", Vec2::ONE) / v2("realworldimagesize", Vec2::ONE);
+    let (scale, translation) = (v2("uvtiling", Vec2::ONE) * k, -v2("uvoffset", Vec2::ZERO) * k);
+    if !(scale.is_finite() && translation.is_finite()) {
+        return Err(());
+    }
+    Ok((scale != Vec2::ONE || translation != Vec2::ZERO).then_some((scale, translation)))
+}
+
+/// A `UsdTransform2d` between the texture `texture` and its coordinate reader `reader`.
+fn placement(texture: &str, reader: &str, scale: Vec2, translation: Vec2, connections: &mut Vec<MaterialConnection>) -> MaterialNode {
+    let path = format!("{texture}_placement");
+    if let Some(st) = connections.iter_mut().find(|c| c.downstream_node == texture && c.downstream_input == "st") {
+        st.upstream_node = path.clone();
+    }
+    connections.push(MaterialConnection {
+        downstream_node: path.clone(),
+        downstream_input: "in".into(),
+        upstream_node: reader.to_string(),
+        upstream_output: "result".into(),
+    });
+    let parameters =
+        BTreeMap::from([("scale".to_string(), ParamValue::Float2(scale)), ("translation".to_string(), ParamValue::Float2(translation))]);
+    MaterialNode { path, node_type_id: "UsdTransform2d".into(), parameters }
 }
 
 pub(super) fn vec4_of(v: &ParamValue) -> Option<Vec4> {
