@@ -197,25 +197,33 @@ async fn a_udim_set_shows_each_tile_and_the_fallback_where_none_is() {
 }
 
 /// A MaterialX `image` whose `filename` names a UDIM set (`&lt;UDIM&gt;` in the XML) reads
-/// the same three tiles, in order, each uploaded once.
+/// the same three tiles, in order, each uploaded once; so does one naming the tiles Mudbox's
+/// way (`&lt;UVTILE&gt;`: `u1_v1`, `u2_v1`, `u1_v2` are tiles 1001, 1002, 1011).
 #[test]
 fn a_materialx_image_reads_a_udim_set() {
-    let dir = std::env::temp_dir().join(format!("tessera-mtlx-udim-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let tiles = tessera_tests::fixture("textures/maps/udim_tile.&lt;UDIM&gt;.png");
-    let doc = std::fs::read_to_string(tessera_tests::fixture("usd/materialx/materials.mtlx")).unwrap();
-    let doc = doc.replace("../../textures/maps/checker.png", &tiles.display().to_string());
-    std::fs::write(dir.join("materials.mtlx"), doc).unwrap();
-    std::fs::copy(tessera_tests::fixture("usd/materialx/materialx.usda"), dir.join("materialx.usda")).unwrap();
-    let t = tessera::usd::load(&dir.join("materialx.usda")).unwrap();
-    std::fs::remove_dir_all(&dir).ok();
-    let (_, checker) = t.materials.iter().find(|(p, _)| p == "/World/Looks/Checker").expect("the checker material");
-    let udim = checker.nodes.iter().find_map(|n| match n.parameters.get("file") {
-        Some(render_core::material::ParamValue::Udim { tiles, .. }) => Some(tiles.iter().map(|(tile, _)| *tile).collect::<Vec<_>>()),
-        _ => None,
-    });
-    assert_eq!(udim, Some(vec![1001, 1002, 1011]), "{:?}", checker.nodes);
-    assert_eq!(t.textures.len(), 3, "one upload per tile");
+    let udim: fn(u16) -> String = |tile| tile.to_string();
+    let uvtile: fn(u16) -> String = |tile| format!("u{}_v{}", (tile - 1001) % 10 + 1, (tile - 1001) / 10 + 1);
+    for (token, name) in [("&lt;UDIM&gt;", udim), ("&lt;UVTILE&gt;", uvtile)] {
+        let dir = std::env::temp_dir().join(format!("tessera-mtlx-udim-{}-{}", name(1002), std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for tile in [1001, 1002, 1011] {
+            let from = tessera_tests::fixture(&format!("textures/maps/udim_tile.{tile}.png"));
+            std::fs::copy(from, dir.join(format!("tile.{}.png", name(tile)))).unwrap();
+        }
+        let doc = std::fs::read_to_string(tessera_tests::fixture("usd/materialx/materials.mtlx")).unwrap();
+        let doc = doc.replace("../../textures/maps/checker.png", &format!("tile.{token}.png"));
+        std::fs::write(dir.join("materials.mtlx"), doc).unwrap();
+        std::fs::copy(tessera_tests::fixture("usd/materialx/materialx.usda"), dir.join("materialx.usda")).unwrap();
+        let t = tessera::usd::load(&dir.join("materialx.usda")).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        let (_, checker) = t.materials.iter().find(|(p, _)| p == "/World/Looks/Checker").expect("the checker material");
+        let udim = checker.nodes.iter().find_map(|n| match n.parameters.get("file") {
+            Some(render_core::material::ParamValue::Udim { tiles, .. }) => Some(tiles.iter().map(|(tile, _)| *tile).collect::<Vec<_>>()),
+            _ => None,
+        });
+        assert_eq!(udim, Some(vec![1001, 1002, 1011]), "{token}: {:?} {:?}", checker.nodes, t.warnings);
+        assert_eq!(t.textures.len(), 3, "{token}: one upload per tile");
+    }
 }
 
 /// Tiles past 1100 are not read (USD's range), and said by number.

@@ -418,7 +418,7 @@ impl Reader<'_> {
     /// An image file a MaterialX document names, read as [`Self::texture_param`] reads assets.
     fn texture_file(&mut self, node: &str, input: &str, file: &std::path::Path) -> ParamValue {
         let source = file.display().to_string();
-        if source.contains(super::udim::UDIM_TOKEN) {
+        if super::udim::names_tiles(&source) {
             return self.udim_tiles(node, input, &source, &source);
         }
         self.keep_texture(node, input, &source, std::fs::read(file))

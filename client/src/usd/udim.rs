@@ -1,5 +1,6 @@
 //! UDIM texture sets (`tex.<UDIM>.png`): one file per unit square of texture space, found
-//! next to the layer that authored the set, as USD's `UsdShadeUdimUtils` finds them.
+//! next to the layer that authored the set, as USD's `UsdShadeUdimUtils` finds them. MaterialX
+//! documents may name the same squares Mudbox's way (`tex.<UVTILE>.png`, `u1_v1` for 1001).
 
 use openusd::ar::Resolver;
 use render_core::material::{ParamValue, UDIM_TILES};
@@ -9,13 +10,29 @@ use super::Reader;
 /// Where a UDIM set's path holds its tile number.
 pub(super) const UDIM_TOKEN: &str = "<UDIM>";
 
-/// The tiles of the set at `resolved` (a path holding [`UDIM_TOKEN`]) that exist, each with
-/// its bytes or the error reading them.
+/// Where a set named Mudbox's way holds its tile's column and row, from 1 (MaterialX's
+/// `filename` token): `u1_v1` is tile 1001, `u2_v1` 1002, `u1_v2` 1011.
+pub(super) const UVTILE_TOKEN: &str = "<UVTILE>";
+
+/// True when `path` names a set of tiles rather than one file.
+pub(super) fn names_tiles(path: &str) -> bool {
+    path.contains(UDIM_TOKEN) || path.contains(UVTILE_TOKEN)
+}
+
+/// The file of tile `tile` (1001-based) of the set at `resolved`.
+fn tile_path(resolved: &str, tile: u16) -> String {
+    let square = tile - 1001;
+    let uvtile = format!("u{}_v{}", square % 10 + 1, square / 10 + 1);
+    resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1).replacen(UVTILE_TOKEN, &uvtile, 1)
+}
+
+/// The tiles of the set at `resolved` (a path holding [`UDIM_TOKEN`] or [`UVTILE_TOKEN`])
+/// that exist, each with its bytes or the error reading them.
 fn read_tiles(resolved: &str) -> Vec<(u16, String, std::io::Result<Vec<u8>>)> {
     let resolver = openusd::ar::DefaultResolver::new();
     UDIM_TILES
         .filter_map(|tile| {
-            let path = resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1);
+            let path = tile_path(resolved, tile);
             let opened = resolver.open_asset(&openusd::ar::ResolvedPath::new(std::path::PathBuf::from(&path)));
             let bytes = match opened {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
@@ -33,6 +50,9 @@ fn read_tiles(resolved: &str) -> Vec<(u16, String, std::io::Result<Vec<u8>>)> {
 /// Tiles 1101 to 1999 of the set at `resolved` that exist: texture space beyond the ten
 /// columns and rows USD reads, which a painting tool may still have written.
 fn tiles_past_the_last(resolved: &str) -> Vec<u16> {
+    if !resolved.contains(UDIM_TOKEN) {
+        return Vec::new();
+    }
     (UDIM_TILES.end() + 1..=1999)
         .filter(|tile| std::path::Path::new(&resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1)).exists())
         .collect()
