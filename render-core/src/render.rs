@@ -189,6 +189,9 @@ pub struct RenderOutcome {
 pub fn render(scene: &CommittedScene, camera: &Camera, settings: &RenderSettings, sink: &dyn RenderSink) -> RenderOutcome {
     let start = Instant::now();
     scene.prepare_bsdfs(settings.integrator.energy_compensation);
+    // Built here, not lazily inside a tile: a rayon worker waiting on its own build could
+    // take another tile that waits on the same cell.
+    scene.prepare_inside_medium_bsdfs(settings.integrator.energy_compensation);
     if settings.integrator.force_all_effects {
         scene.bsdf_with_every_lobe(0, settings.integrator.energy_compensation);
     }

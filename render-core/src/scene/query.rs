@@ -69,21 +69,25 @@ impl CommittedScene {
         })[index as usize]
     }
 
-    /// Material `index`'s BSDF as a path inside its subsurface medium meets it, when only part
-    /// of its base is the medium: the boundary alone (None for any other material). Building
-    /// a compensated boundary costs more than the walk's step, so it is built once.
+    /// Per material whose base is only partly a subsurface medium, its BSDF as a path inside
+    /// the medium meets it: the boundary alone (None for any other material). Building a
+    /// compensated boundary costs more than the walk's step, so it is built once; a render
+    /// builds the set before its tiles start, as for the other sets.
+    pub fn prepare_inside_medium_bsdfs(&self, energy_compensation: bool) -> &[Option<crate::bsdf::Bsdf>] {
+        self.inside_medium_bsdfs[energy_compensation as usize].get_or_init(|| {
+            let inside = |m: &crate::material::Material| {
+                let b = settled(m.surface.inside_medium().bsdf(energy_compensation));
+                b.build_tables();
+                b
+            };
+            self.materials.par_iter().map(|m| m.surface.is_partly_medium().then(|| inside(m))).collect()
+        })
+    }
+
+    /// Material `index`'s BSDF inside its medium ([`Self::prepare_inside_medium_bsdfs`]).
+    #[inline]
     pub fn bsdf_inside_medium(&self, index: u32, energy_compensation: bool) -> Option<&crate::bsdf::Bsdf> {
-        self.inside_medium_bsdfs[energy_compensation as usize]
-            .get_or_init(|| {
-                let inside = |m: &crate::material::Material| {
-                    let b = settled(m.surface.inside_medium().bsdf(energy_compensation));
-                    b.build_tables();
-                    b
-                };
-                self.materials.par_iter().map(|m| m.surface.is_partly_medium().then(|| inside(m))).collect()
-            })
-            .get(index as usize)?
-            .as_ref()
+        self.prepare_inside_medium_bsdfs(energy_compensation).get(index as usize)?.as_ref()
     }
 
     /// The scattering medium behind material `index`'s surface (subsurface scattering).
