@@ -145,8 +145,8 @@ mod tests {
     use super::*;
     use crate::sampling::Pcg32;
 
-    /// The slides' closed form is the root of the forward formula: C → α → C round-trips,
-    /// for several eccentricities.
+    /// Saunderson's series of the medium's reflectance behind the boundary gives back the
+    /// colour asked for, for several indices; non-finite input stays finite.
     #[test]
     fn the_boundary_term_returns_the_colour_asked_for() {
         // Index-matched: nothing to undo.
@@ -168,6 +168,8 @@ mod tests {
         assert!(color_under_boundary(Vec3::new(f32::NAN, 2.0, -1.0), 1.4).is_finite());
     }
 
+    /// The slides' closed form is the root of the forward formula: C → α → C round-trips,
+    /// for several eccentricities.
     #[test]
     fn van_de_hulst_inversion_round_trips() {
         for g in [-0.9f32, -0.3, 0.0, 0.5, 0.9] {

@@ -4,7 +4,8 @@
 //! UsdPreviewSurface — becomes a `UsdPreviewSurface` when that expresses it (diffuse,
 //! metal, dielectric specular, coat, emission, opacity, normal map), else a
 //! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight),
-//! or a `tessera:SolidDielectric` with a scattering medium (subsurface, without those); a plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
+//! or a `tessera:SolidDielectric` with a scattering medium (subsurface, without those); a
+//! plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
@@ -321,7 +322,8 @@ struct Lobes {
 }
 
 impl Lobes {
-    /// UsdPreviewSurface when it can say everything; `tessera:Principled` otherwise.
+    /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
+    /// for subsurface it can say the rest of; `tessera:Principled` otherwise.
     fn inputs(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
         let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
         let beyond_preview =
@@ -382,17 +384,7 @@ impl Lobes {
         }
         Inputs { id: "tessera:Principled", values }
     }
-}
 
-/// The subsurface inputs: the colour the medium shows, its mean free path per channel (the
-/// radius times its scale) and its phase function's eccentricity.
-struct Medium {
-    color: Lin,
-    radius: Option<Lin>,
-    anisotropy: Lin,
-}
-
-impl Lobes {
     /// A dielectric whose base is partly or wholly a scattering medium: `tessera:SolidDielectric`
     /// with its random walk (docs/materials.md, "Subsurface scattering"). The weight becomes
     /// `scatteringWeight`; the medium and the diffuse beside it share one colour, the two
@@ -442,6 +434,14 @@ impl Lobes {
     }
 }
 
+/// The subsurface inputs: the colour the medium shows, its mean free path per channel (the
+/// radius times its scale) and its phase function's eccentricity.
+struct Medium {
+    color: Lin,
+    radius: Option<Lin>,
+    anisotropy: Lin,
+}
+
 /// The rewritten network: the surface node with constant inputs as parameters, and one
 /// `UsdUVTexture` (fed by a `UsdPrimvarReader_float2`) per textured input.
 fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec<String>) -> MaterialNetwork {
@@ -468,10 +468,19 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
             upstream_node: tex_path.clone(),
             upstream_output: if color { "rgb" } else { "r" }.to_string(),
         });
-        let reader = texcoord_reader(&tex_path, image, old, &mut net.connections, warnings);
-        if let Ok(Some((scale, translation))) = tiling_of(image) {
-            net.nodes.push(placement(&tex_path, &reader.path, scale, translation, &mut net.connections));
-        }
+        let reader = texcoord_reader(&tex_path, image, old, warnings);
+        // A tiled image reads its coordinates through its placement.
+        let coordinates = match tiling_of(image) {
+            Ok(Some((scale, translation))) => {
+                let placement = placement(&tex_path, scale, translation);
+                net.connections.push(result_into(&placement.path, "in", &reader.path));
+                let path = placement.path.clone();
+                net.nodes.push(placement);
+                path
+            }
+            _ => reader.path.clone(),
+        };
+        net.connections.push(result_into(&tex_path, "st", &coordinates));
         net.nodes.push(reader);
     }
     net.nodes.push(MaterialNode { path: surface.to_string(), node_type_id: inputs.id.to_string(), parameters: params });
@@ -518,13 +527,7 @@ fn uv_texture(path: &str, image: &MaterialNode, lin: &Lin, srgb: bool, normal: b
 
 /// The primvar reader for an image's `texcoord`: the primvar a `geompropvalue` names, else
 /// `st` (MaterialX's default texture coordinates, UV set 0).
-fn texcoord_reader(
-    texture: &str,
-    image: &MaterialNode,
-    old: &MaterialNetwork,
-    connections: &mut Vec<MaterialConnection>,
-    warnings: &mut Vec<String>,
-) -> MaterialNode {
+fn texcoord_reader(texture: &str, image: &MaterialNode, old: &MaterialNetwork, warnings: &mut Vec<String>) -> MaterialNode {
     let upstream = old.connections.iter().find(|c| c.downstream_node == image.path && c.downstream_input == "texcoord");
     let varname = match upstream.and_then(|c| old.nodes.iter().find(|n| n.path == c.upstream_node)) {
         Some(n) if n.node_type_id.starts_with("ND_geompropvalue") => match n.parameters.get("geomprop") {
@@ -538,15 +541,18 @@ fn texcoord_reader(
         }
         None => "st".into(),
     };
-    let path = format!("{texture}_st");
-    connections.push(MaterialConnection {
-        downstream_node: texture.to_string(),
-        downstream_input: "st".into(),
-        upstream_node: path.clone(),
-        upstream_output: "result".into(),
-    });
     let parameters = BTreeMap::from([("varname".to_string(), ParamValue::String(varname))]);
-    MaterialNode { path, node_type_id: "UsdPrimvarReader_float2".into(), parameters }
+    MaterialNode { path: format!("{texture}_st"), node_type_id: "UsdPrimvarReader_float2".into(), parameters }
+}
+
+/// `downstream`'s `input` fed by `upstream`'s `result` (a reader's or a transform's output).
+fn result_into(downstream: &str, input: &str, upstream: &str) -> MaterialConnection {
+    MaterialConnection {
+        downstream_node: downstream.to_string(),
+        downstream_input: input.to_string(),
+        upstream_node: upstream.to_string(),
+        upstream_output: "result".into(),
+    }
 }
 
 /// A `tiledimage`'s placement as MaterialX's own graph for it computes it, (texcoord · uvtiling
@@ -568,21 +574,11 @@ fn tiling_of(image: &MaterialNode) -> Result<Option<(Vec2, Vec2)>, ()> {
     Ok((scale != Vec2::ONE || translation != Vec2::ZERO).then_some((scale, translation)))
 }
 
-/// A `UsdTransform2d` between the texture `texture` and its coordinate reader `reader`.
-fn placement(texture: &str, reader: &str, scale: Vec2, translation: Vec2, connections: &mut Vec<MaterialConnection>) -> MaterialNode {
-    let path = format!("{texture}_placement");
-    if let Some(st) = connections.iter_mut().find(|c| c.downstream_node == texture && c.downstream_input == "st") {
-        st.upstream_node = path.clone();
-    }
-    connections.push(MaterialConnection {
-        downstream_node: path.clone(),
-        downstream_input: "in".into(),
-        upstream_node: reader.to_string(),
-        upstream_output: "result".into(),
-    });
+/// The `UsdTransform2d` that places texture `texture`'s coordinates.
+fn placement(texture: &str, scale: Vec2, translation: Vec2) -> MaterialNode {
     let parameters =
         BTreeMap::from([("scale".to_string(), ParamValue::Float2(scale)), ("translation".to_string(), ParamValue::Float2(translation))]);
-    MaterialNode { path, node_type_id: "UsdTransform2d".into(), parameters }
+    MaterialNode { path: format!("{texture}_placement"), node_type_id: "UsdTransform2d".into(), parameters }
 }
 
 pub(super) fn vec4_of(v: &ParamValue) -> Option<Vec4> {

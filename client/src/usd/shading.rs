@@ -226,7 +226,7 @@ impl Reader<'_> {
             if !well_formed_path(target.as_str()) {
                 return Ok(None);
             }
-            let property = target.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+            let property = property_name(&target);
             let prim = self.stage.prim(target.prim_path());
             let interface = prim.type_name()?.is_some_and(|t| t.as_str() == "Material" || t.as_str() == "NodeGraph");
             if !interface {
@@ -336,7 +336,7 @@ impl Reader<'_> {
         let mut next = prim.attribute("inputs:file").connections()?.into_iter().next();
         for _ in 0..MAX_INTERFACE_HOPS {
             let Some(target) = next.take().filter(|t| well_formed_path(t.as_str())) else { break };
-            let property = target.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string();
+            let property = property_name(&target);
             let attr = self.stage.prim(target.prim_path()).attribute(property.as_str());
             if let Some(declared) = attr.get_metadata::<Value>("colorSpace")? {
                 return Ok(Some(declared));
@@ -438,6 +438,11 @@ impl Reader<'_> {
             }
         }
     }
+}
+
+/// The property a connection `target` names (`inputs:tex` of `/M.inputs:tex`).
+fn property_name(target: &sdf::Path) -> String {
+    target.as_str().rsplit_once('.').map_or("", |(_, p)| p).to_string()
 }
 
 /// The `sourceColorSpace` a USD colour-space name decodes as (`raw`, `sRGB` or `auto`), and

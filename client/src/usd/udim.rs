@@ -53,9 +53,7 @@ fn tiles_past_the_last(resolved: &str) -> Vec<u16> {
     if !resolved.contains(UDIM_TOKEN) {
         return Vec::new();
     }
-    (UDIM_TILES.end() + 1..=1999)
-        .filter(|tile| std::path::Path::new(&resolved.replacen(UDIM_TOKEN, &tile.to_string(), 1)).exists())
-        .collect()
+    (UDIM_TILES.end() + 1..=1999).filter(|&tile| std::path::Path::new(&tile_path(resolved, tile)).exists()).collect()
 }
 
 impl Reader<'_> {
