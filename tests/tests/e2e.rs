@@ -6,6 +6,7 @@ mod caustics;
 mod conformance;
 mod curves;
 mod denoise;
+mod displacement;
 mod energy;
 mod environment;
 mod errors;

@@ -316,16 +316,16 @@ def Xform "A"
     assert!(glow.light.is_some(), "the payload's mesh light is a light");
 }
 
-/// The commit says each thing once too: a textured material's unsupported input is said
-/// once, though its network is both compiled (texture graph) and resolved (constant part).
+/// The commit says each thing once too: a textured material's mistyped input is said once,
+/// though its network is both compiled (texture graph) and resolved (constant part).
 #[test]
 fn a_commit_says_each_warning_once() {
     let mut t = load("textures/checker_plane.usda");
     let net = &mut t.materials[0].1;
     let surface = net.nodes.iter_mut().find(|n| n.node_type_id == "UsdPreviewSurface").unwrap();
-    surface.parameters.insert("displacement".into(), render_core::material::ParamValue::Float(0.1));
+    surface.parameters.insert("roughness".into(), render_core::material::ParamValue::Float3(glam::Vec3::ONE));
     let scene = render_core::scene::commit(&t.to_scene_desc(), &mut render_core::scene::BlasCache::default()).unwrap();
-    let said = scene.warnings.iter().filter(|w| w.contains("'displacement'")).count();
+    let said = scene.warnings.iter().filter(|w| w.contains("'roughness' has the wrong type")).count();
     assert_eq!(said, 1, "{:?}", scene.warnings);
 }
 

@@ -18,6 +18,8 @@ pub struct DocumentMaterial {
     pub network: MaterialNetwork,
     /// (node path, input, file path resolved against the document's folder).
     pub files: Vec<(String, String, PathBuf)>,
+    /// What the material asks for that is not read (a displacement shader).
+    pub unread: Vec<String>,
 }
 
 /// Reads `material` (a `surfacematerial` name, or usdMtlx's `/MaterialX/Materials/<name>`)
@@ -42,7 +44,12 @@ pub fn read(xml: &str, material: &str, dir: &Path, prim: &str) -> Result<Documen
     let mut reader = Reader { dir, prim, network: MaterialNetwork::default(), files: Vec::new(), seen: Vec::new() };
     let surface = reader.node(root, shader)?;
     reader.network.surface_node = surface;
-    Ok(DocumentMaterial { network: reader.network, files: reader.files })
+    let unread = input_of(*found, "displacementshader")
+        .and_then(|i| i.attribute("nodename"))
+        .map(|d| format!("{prim}: the displacement shader '{d}' of surfacematerial '{name}' is not read; the surface is not displaced"))
+        .into_iter()
+        .collect();
+    Ok(DocumentMaterial { network: reader.network, files: reader.files, unread })
 }
 
 fn names(nodes: &[roxmltree::Node]) -> String {
@@ -253,5 +260,19 @@ mod tests {
 </materialx>"#;
         let m = read(xml, "M", Path::new("."), "/M").unwrap();
         assert_eq!(m.network.nodes.len(), 3);
+    }
+
+    #[test]
+    fn a_displacement_shader_is_reported_not_dropped() {
+        let xml = r#"<materialx>
+  <standard_surface name="S" type="surfaceshader"/>
+  <displacement name="D" type="displacementshader"><input name="displacement" type="float" value="0.5"/></displacement>
+  <surfacematerial name="M"><input name="surfaceshader" nodename="S"/><input name="displacementshader" nodename="D"/></surfacematerial>
+</materialx>"#;
+        let m = read(xml, "M", Path::new("."), "/World/M").unwrap();
+        assert_eq!(m.unread.len(), 1);
+        assert!(m.unread[0].contains("/World/M") && m.unread[0].contains("'D'") && m.unread[0].contains("not displaced"), "{:?}", m.unread);
+        let plain = read(DOC, "Board", Path::new("."), "/World/M").unwrap();
+        assert!(plain.unread.is_empty());
     }
 }

@@ -91,6 +91,7 @@ impl Reader<'_> {
             self.out.materials.push((path.to_string(), network));
             return Ok(());
         };
+        self.report_displacement_shader(path, &material, &surface)?;
         network.surface_node = surface.as_str().to_string();
         let mut stack = vec![surface];
         let mut seen = std::collections::HashSet::new();
@@ -143,6 +144,7 @@ impl Reader<'_> {
         let dir = file.parent().unwrap_or(std::path::Path::new("."));
         match mtlx_document::read(&xml, &target, dir, path) {
             Ok(doc) => {
+                self.out.warnings.extend(doc.unread);
                 let mut network = doc.network;
                 for (node, input, image) in doc.files {
                     let value = self.texture_file(&node, &input, &image);
@@ -193,18 +195,7 @@ impl Reader<'_> {
     /// outputs at any depth.
     fn surface_shader(&mut self, material: &Material) -> Result<Option<sdf::Path>> {
         let prim = self.stage.prim(material.path().clone());
-        let mut terminals: Vec<String> = prim
-            .property_names()?
-            .into_iter()
-            .map(|n| n.as_str().to_string())
-            .filter(|n| {
-                n.strip_prefix("outputs:").and_then(|r| r.strip_suffix("surface")).is_some_and(|ctx| ctx.is_empty() || ctx.ends_with(':'))
-            })
-            .collect();
-        // The universal terminal first, then render contexts in name order (as the openusd crate's
-        // compute_surface_source picks them).
-        terminals.sort_by_key(|n| (n != "outputs:surface", n.clone()));
-        for terminal in terminals {
+        for terminal in terminals(&prim, "surface")? {
             let Some(target) = prim.attribute(&terminal).connections()?.into_iter().next() else {
                 continue;
             };
@@ -214,6 +205,26 @@ impl Reader<'_> {
             });
         }
         Ok(None)
+    }
+
+    /// Reports a displacement terminal that leads to a shader other than the surface's (a
+    /// MaterialX or renderer-specific displacement shader): only UsdPreviewSurface's own
+    /// `displacement` input moves a mesh.
+    fn report_displacement_shader(&mut self, path: &str, material: &Material, surface: &sdf::Path) -> Result<()> {
+        let prim = self.stage.prim(material.path().clone());
+        for terminal in terminals(&prim, "displacement")? {
+            for target in prim.attribute(&terminal).connections()? {
+                if let Some(Source::Output(shader, _)) = self.resolve_source(&target)?
+                    && shader != *surface
+                {
+                    let shader = shader.as_str();
+                    self.out.warnings.push(format!(
+                        "{path}: {terminal} leads to {shader}, a displacement shader Tessera does not read; the surface is not displaced"
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Where a connection target leads once NodeGraph (and Material) outputs and interface
@@ -493,3 +504,18 @@ enum Source {
 
 /// Longest chain of NodeGraph outputs and interface inputs followed from one connection.
 const MAX_INTERFACE_HOPS: usize = 64;
+
+/// The material's terminals of one kind (`surface`, `displacement`): the universal
+/// `outputs:<kind>` first, then render contexts' `outputs:<context>:<kind>` in name order (as
+/// the openusd crate's compute_surface_source picks them).
+fn terminals(prim: &openusd::usd::Prim, kind: &str) -> Result<Vec<String>> {
+    let universal = format!("outputs:{kind}");
+    let mut names: Vec<String> = prim
+        .property_names()?
+        .into_iter()
+        .map(|n| n.as_str().to_string())
+        .filter(|n| n.strip_prefix("outputs:").and_then(|r| r.strip_suffix(kind)).is_some_and(|ctx| ctx.is_empty() || ctx.ends_with(':')))
+        .collect();
+    names.sort_by_key(|n| (*n != universal, n.clone()));
+    Ok(names)
+}

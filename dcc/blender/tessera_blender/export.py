@@ -102,6 +102,8 @@ def correct(exported: Export, scene) -> None:
                     _make_mesh_light(exported, child, obj, UsdLux)
                     lights.append((child, obj))
         if prim.IsA(UsdShade.Material):
+            # Before glass and subsurface, which rewrite the shader without its displacement.
+            _correct_displacement(exported, prim, UsdShade)
             _correct_glass(exported, prim, Sdf, UsdShade)
             _correct_subsurface(exported, prim, Sdf, UsdShade)
             _drop_specular_level(exported, prim, UsdShade)
@@ -194,6 +196,7 @@ def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
     if not surface:
         return
     shader = UsdShade.Shader(surface.GetPrim())
+    _warn_if_displaced(exported, prim.GetName(), shader)
     shader.SetShaderId("tessera:Principled")
     renames = {"diffuseColor": "baseColor"}
     for inp in list(shader.GetInputs()):
@@ -246,6 +249,7 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: subsurface is rendered as diffuse reflection ({why})")
         return
     shader = UsdShade.Shader(surface.GetPrim())
+    _warn_if_displaced(exported, name, shader)
     shader.SetShaderId("tessera:SolidDielectric")
     for inp in list(shader.GetInputs()):
         old = inp.GetBaseName()
@@ -271,6 +275,33 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(
         f"{prim.GetPath()}: subsurface (weight {weight.default_value:g}, mean free path {longest:g}) as tessera:SolidDielectric"
     )
+
+
+def _correct_displacement(exported: Export, prim, UsdShade) -> None:
+    """Blender exports a material's Displacement output whatever its Displacement method; Tessera
+    moves the mesh (as Cycles' *Displacement Only*) and does not bump-map. So *Bump Only*, which
+    Cycles renders as shading alone, is dropped with a warning, and the bump part of
+    *Displacement and Bump* is said to be lost."""
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    displacement = shader.GetInput("displacement") if shader else None
+    if not displacement:
+        return
+    name_attr = prim.GetAttribute("userProperties:blender:data_name")
+    name = name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
+    material = bpy.data.materials.get(name)
+    method = getattr(material, "displacement_method", "BUMP")
+    if method == "BUMP":
+        shader.GetPrim().RemoveProperty(displacement.GetAttr().GetName())
+        exported.warnings.append(f"{name}: displacement is Bump Only, which Tessera does not render (set Displacement Only to move the surface)")
+    elif method == "BOTH":
+        exported.warnings.append(f"{name}: the bump part of Displacement and Bump is not rendered; the surface moves at its vertices")
+
+
+def _warn_if_displaced(exported: Export, name: str, shader) -> None:
+    """Glass and subsurface are rewritten onto Tessera's own shaders, which do not displace."""
+    if shader.GetInput("displacement"):
+        exported.warnings.append(f"{name}: displacement is not carried on glass or subsurface materials")
 
 
 #: Blender's Specular IOR Level that leaves the IOR's reflectance as it is.

@@ -86,6 +86,7 @@ def compare(kind, spp):
     exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
     np.save(os.path.join(OUT, f"{kind}_regions.npy"), regions_of(scene, exported))
     out["corrections"] = exported.corrections
+    out["warnings"] = exported.warnings
     out["preview_inputs"] = preview_inputs(exported.path)
     out["first_tile_seconds"] = first_tile_seconds(scene)
     out["cycles_first_sample_seconds"] = cycles_first_sample_seconds(scene)

@@ -18,6 +18,7 @@ REGIONS = {
     "emitter_linked": {1: "floor", 2: "panel-lit sphere", 3: "unlinked sphere"},
     "udim": {1: "tile 1001 plane", 2: "tile 1002 plane"},
     "subsurface": {1: "floor", 2: "subsurface sphere", 3: "half subsurface sphere"},
+    "displaced": {1: "floor", 2: "displaced grid"},
 }
 
 def udim_image(directory):
@@ -34,8 +35,7 @@ def udim_image(directory):
 
 
 def build(kind, directory):
-    """A fresh scene of `kind` (box, box_matte, glass, textured, linked, emitter_linked, udim); files it
-    needs go in `directory`."""
+    """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
@@ -45,7 +45,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -126,6 +126,29 @@ def build(kind, directory):
         # fireflies in both renderers.
         bpy.ops.object.light_add(type='AREA', location=(0, -2.5, 3.5), rotation=(0.6, 0, 0)); key = bpy.context.object.data; key.energy = 800; key.size = 3
         cam = (0, -6, 2.2); rot = (1.3, 0, 0)
+    elif kind == "displaced":
+        # True displacement (Displacement Only) on a smooth-shaded grid just above the floor: a
+        # height map (raw) whose middle quarter is 1 raises a block 0.6 high, which shades the
+        # floor under a low sun. A plane behind the camera asks for Bump Only, which the export
+        # drops with a warning.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+        path = os.path.join(directory, "height.png")
+        img = bpy.data.images.new("height", 64, 64)
+        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[16:48, 16:48, :3] = 1
+        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+        for name, method, index, location in (("block", 'DISPLACEMENT', 2, (0, 0, 0.002)), ("bumps", 'BUMP', 0, (0, -9, 0))):
+            m = mat(name, (0.8, 0.8, 0.8))
+            m.displacement_method = method
+            t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(path)
+            t.image.colorspace_settings.name = 'Non-Color'
+            d = m.node_tree.nodes.new("ShaderNodeDisplacement")
+            d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.6, 0.0
+            m.node_tree.links.new(t.outputs["Color"], d.inputs["Height"])
+            m.node_tree.links.new(d.outputs["Displacement"], m.node_tree.nodes["Material Output"].inputs["Displacement"])
+            add(bpy.ops.mesh.primitive_grid_add, m, index, x_subdivisions=96, y_subdivisions=96, size=2, location=location)
+            bpy.ops.object.shade_smooth()
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.8, 0.5, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -5, 4); rot = (0.9, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")
         img = bpy.data.images.new("checker", 64, 64)

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use glam::{Mat2, Vec2, Vec3, Vec4};
 
 use super::Material;
-use super::desc::{MaterialNetwork, MaterialNode, ParamValue};
+use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 use super::inputs::{EVALUATED, Overrides, ResolveReport};
 use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod};
 
@@ -213,25 +213,16 @@ impl TexturedMaterial {
         // A node feeding several inputs compiles once.
         let mut cache = std::collections::HashMap::<String, Expr>::new();
         for c in &network.connections {
-            let Some(up) = network.nodes.iter().find(|n| n.path == c.upstream_node) else { continue };
-            if !EVALUATED.contains(&up.node_type_id.as_str()) {
+            // Displacement moves the mesh at commit, once; shading points never read it.
+            if c.downstream_node == network.surface_node && c.downstream_input == DISPLACEMENT {
                 continue;
             }
-            let Some(output) = Output::of(up, &c.upstream_output) else {
-                report.warnings.push(format!(
-                    "{}: {} has no output '{}'; {} keeps its value",
-                    up.path, up.node_type_id, c.upstream_output, c.downstream_input
-                ));
+            let Some((expr, output)) = compile_connection(network, c, textures, report, &mut cache) else { continue };
+            // A texture node's own inputs are compiled into its expression; only the shaders'
+            // inputs are set per shading point.
+            if network.nodes.iter().any(|n| n.path == c.downstream_node && EVALUATED.contains(&n.node_type_id.as_str())) {
                 continue;
-            };
-            let expr = match cache.get(&up.path) {
-                Some(e) => e.clone(),
-                None => {
-                    let e = compile_node(network, up, textures, report, 0);
-                    cache.insert(up.path.clone(), e.clone());
-                    e
-                }
-            };
+            }
             let placeholder = output.value(expr.eval(&ShadingPoint::whole_texture()).0);
             if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
                 node.parameters.insert(c.downstream_input.clone(), placeholder);
@@ -288,6 +279,72 @@ impl TexturedMaterial {
         let (m, _) = self.network.resolve_using(&self.path, Overrides { keys: &self.keys, values: &values }, false, Some(&self.fixed));
         (m, normal)
     }
+}
+
+/// The surface node's input that moves the mesh rather than shading it.
+const DISPLACEMENT: &str = "displacement";
+
+/// A texture network connected to one input, evaluated on its own: the displacement a mesh
+/// is moved by at commit.
+#[derive(Clone, Debug)]
+pub struct VaryingInput {
+    expr: Expr,
+    output: Output,
+}
+
+impl VaryingInput {
+    /// The texture network connected to the surface node's `displacement`, if one is. Its
+    /// problems are reported as the other inputs' are.
+    pub fn displacement(network: &MaterialNetwork, textures: &TextureSource, report: &mut ResolveReport) -> Option<Self> {
+        let c = network.connections.iter().find(|c| c.downstream_node == network.surface_node && c.downstream_input == DISPLACEMENT)?;
+        let (expr, output) = compile_connection(network, c, textures, report, &mut Default::default())?;
+        if !matches!(output, Output::Float(_)) {
+            let problem = format!(
+                "{}: input 'displacement' reads {}.{}, which is not a float; the mesh is not displaced",
+                c.downstream_node, c.upstream_node, c.upstream_output
+            );
+            report.warnings.push(problem);
+            return None;
+        }
+        Some(VaryingInput { expr, output })
+    }
+
+    /// The value at `sp`.
+    pub fn at(&self, sp: &ShadingPoint) -> ParamValue {
+        self.output.value(self.expr.eval(sp).0)
+    }
+}
+
+/// The expression and output of the texture node `c` reads, or None when `c` reads no texture
+/// node (a shader's output) or an output the node lacks (reported). `cache` holds nodes compiled
+/// already, as one node may feed several inputs.
+fn compile_connection(
+    network: &MaterialNetwork,
+    c: &MaterialConnection,
+    textures: &TextureSource,
+    report: &mut ResolveReport,
+    cache: &mut std::collections::HashMap<String, Expr>,
+) -> Option<(Expr, Output)> {
+    let up = network.nodes.iter().find(|n| n.path == c.upstream_node)?;
+    if !EVALUATED.contains(&up.node_type_id.as_str()) {
+        return None;
+    }
+    let Some(output) = Output::of(up, &c.upstream_output) else {
+        report.warnings.push(format!(
+            "{}: {} has no output '{}'; {} keeps its value",
+            up.path, up.node_type_id, c.upstream_output, c.downstream_input
+        ));
+        return None;
+    };
+    let expr = match cache.get(&up.path) {
+        Some(e) => e.clone(),
+        None => {
+            let e = compile_node(network, up, textures, report, 0);
+            cache.insert(up.path.clone(), e.clone());
+            e
+        }
+    };
+    Some((expr, output))
 }
 
 /// The material nodes no varying input reaches (directly or through the nodes they read)

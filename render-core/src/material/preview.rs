@@ -10,8 +10,7 @@ use super::uber::ClearcoatParams;
 use super::{Material, Principled};
 
 /// UsdPreviewSurface inputs that are known but not yet mapped.
-const PREVIEW_SURFACE_KNOWN: &[&str] =
-    &["useSpecularWorkflow", "specularColor", "opacity", "opacityThreshold", "displacement", "occlusion"];
+const PREVIEW_SURFACE_KNOWN: &[&str] = &["useSpecularWorkflow", "specularColor", "opacity", "opacityThreshold", "occlusion"];
 
 /// What a Disney-parameter front-end resolves to.
 #[derive(Clone, Debug, PartialEq)]
@@ -113,11 +112,13 @@ pub(crate) fn principled_of(node: Inputs, report: &mut ResolveReport) -> Resolve
                 p.ior = *x;
                 p.specular = (crate::bsdf::fresnel::f0_from_ior(*x) / 0.08).clamp(0.0, 1.0);
             }
-            (n @ ("diffuseColor" | "emissiveColor" | "metallic" | "roughness" | "clearcoat" | "clearcoatRoughness" | "ior"), v) => {
-                report.warnings.push(format!("{}: input '{n}' has the wrong type {v:?}; using its default", node.path))
-            }
-            // Zero displacement (as exporters write it) asks for nothing.
-            ("displacement", ParamValue::Float(d)) if *d == 0.0 => {}
+            // Moves the mesh's vertices at commit (scene/displace.rs), not its shading.
+            ("displacement", ParamValue::Float(_)) => {}
+            (
+                n @ ("diffuseColor" | "emissiveColor" | "metallic" | "roughness" | "clearcoat" | "clearcoatRoughness" | "ior"
+                | "displacement"),
+                v,
+            ) => report.warnings.push(format!("{}: input '{n}' has the wrong type {v:?}; using its default", node.path)),
             (n, _) if PREVIEW_SURFACE_KNOWN.contains(&n) => {
                 report.warnings.push(format!("{}: input '{n}' is not supported yet and has no effect", node.path))
             }
@@ -244,12 +245,11 @@ pub(crate) mod tests {
         assert_eq!((p.metallic, p.roughness), (1.0, 0.25));
         assert!((p.specular - 0.5).abs() < 1e-5, "IOR 1.5 is Disney's specular 0.5");
         assert_eq!(m.emission, Vec3::splat(3.0));
-        assert!(r.warnings.iter().any(|w| w.contains("'displacement'") && w.contains("/M/S")));
+        assert!(!r.warnings.iter().any(|w| w.contains("'displacement'")), "displacement moves the mesh at commit: {:?}", r.warnings);
         assert!(!r.warnings.iter().any(|w| w.contains("'occlusion'")), "occlusion is meaningless to a path tracer, not unsupported");
         assert!(r.warnings.iter().any(|w| w.contains("unknown UsdPreviewSurface input 'bogus'")));
-        // Exporters write displacement 0 on every material: that asks for nothing.
-        let (_, r) = preview(&[("displacement", ParamValue::Float(0.0))]).resolve("/M");
-        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        let (_, r) = preview(&[("displacement", ParamValue::Float3(Vec3::ONE))]).resolve("/M");
+        assert!(r.warnings.iter().any(|w| w.contains("'displacement' has the wrong type")), "{:?}", r.warnings);
     }
 
     #[test]

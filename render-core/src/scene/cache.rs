@@ -1,4 +1,5 @@
-//! What commits keep for the next: BLASes, mip pyramids and tangents, by geometry identity.
+//! What commits keep for the next: BLASes, mip pyramids, tangents and displaced meshes, by
+//! geometry identity.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -16,4 +17,6 @@ pub struct BlasCache {
     pub last_builds: usize,
     /// MikkTSpace tangents of normal-mapped meshes, by mesh geometry.
     pub(super) tangents: Vec<(Arc<Mesh>, Arc<crate::geometry::Attribute<glam::Vec4>>)>,
+    /// Displaced meshes by mesh path, with the geometry and material they came from.
+    pub(super) displaced: HashMap<String, super::displace::Displaced>,
 }

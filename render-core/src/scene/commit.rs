@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use glam::{Affine3A, Vec3};
 
+use super::displace::displaced_meshes;
 use super::features::plan_of;
 use super::materials::Materials;
 use super::{BlasCache, CommittedScene, InstanceData, LightLinks, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
@@ -23,9 +24,16 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     let _span = tracing::info_span!("commit", meshes = desc.meshes.len(), lights = desc.lights.len()).entered();
     let mut warnings = Vec::new();
     let materials = Materials::resolve(desc, cache, &mut warnings);
-    let geometry = Geometry::build(desc, cache, &mut warnings)?;
-    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
     let mut plan = plan_of(desc, &materials);
+    let displaced = match plan.has(Feature::Displacement) {
+        true => displaced_meshes(desc, &materials, cache, &mut warnings),
+        false => {
+            cache.displaced.clear();
+            HashMap::new()
+        }
+    };
+    let geometry = Geometry::build(desc, &displaced, cache, &mut warnings)?;
+    let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
     let tangents = match plan.has(Feature::NormalMaps) {
         true => tangents_of(&instances, &geometry.meshes, &materials, cache),
         false => vec![None; geometry.meshes.len()],
@@ -121,18 +129,25 @@ pub(super) struct Geometry<'d> {
 }
 
 impl<'d> Geometry<'d> {
-    /// Validates the meshes and builds the BLASes whose geometry changed since the last commit,
+    /// Validates the meshes and builds the BLASes whose geometry (or its displaced form in
+    /// `displaced`) changed since the last commit,
     /// those of meshes below [`BUILT_ALONE`] triangles several at once: a scene of many
     /// distinct meshes built them one after another (the principled grid's 51 subdivided
     /// spheres took 0.8 s of its 2.7 s load on one core).
-    fn build(desc: &'d SceneDesc, cache: &mut BlasCache, warnings: &mut Vec<String>) -> Result<Self, SceneError> {
+    fn build(
+        desc: &'d SceneDesc,
+        displaced: &HashMap<&str, Arc<Mesh>>,
+        cache: &mut BlasCache,
+        warnings: &mut Vec<String>,
+    ) -> Result<Self, SceneError> {
         use rayon::prelude::*;
         let mut out = Geometry { meshes: Vec::new(), blases: Vec::new(), slot: HashMap::new() };
         let prototypes: HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
         // Each mesh that renders: its path, its geometry, and its BLAS when the cache has it.
-        let mut kept: Vec<(&String, &Arc<Mesh>, CachedBlas)> = Vec::new();
+        let mut kept: Vec<(&String, Arc<Mesh>, CachedBlas)> = Vec::new();
         for (path, m) in &desc.meshes {
             validate_mesh(path, &m.mesh)?;
+            let mesh = displaced.get(path.as_str()).unwrap_or(&m.mesh);
             if m.mesh.indices.is_empty() {
                 warnings.push(format!("{path}: mesh has no triangles and is skipped"));
                 continue;
@@ -140,11 +155,11 @@ impl<'d> Geometry<'d> {
             if !(m.visible || prototypes.contains(path.as_str())) {
                 continue;
             }
-            let cached = cache.entries.get(path).filter(|(geom, _)| Arc::ptr_eq(geom, &m.mesh)).map(|(_, blas)| blas.clone());
-            kept.push((path, &m.mesh, cached));
+            let cached = cache.entries.get(path).filter(|(geom, _)| Arc::ptr_eq(geom, mesh)).map(|(_, blas)| blas.clone());
+            kept.push((path, mesh.clone(), cached));
         }
         let builds = kept.iter().filter(|(_, _, cached)| cached.is_none()).count();
-        let build = |(_, mesh, cached): &(&String, &Arc<Mesh>, CachedBlas)| {
+        let build = |(_, mesh, cached): &(&String, Arc<Mesh>, CachedBlas)| {
             cached.clone().unwrap_or_else(|| Arc::new(Blas::build(mesh, BuildQuality::Medium)))
         };
         // Big meshes one after another on this thread (each build is parallel inside), the

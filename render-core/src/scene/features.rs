@@ -51,6 +51,8 @@ pub(super) fn plan_of(desc: &SceneDesc, materials: &Materials) -> RenderPlan {
     for (feature, pred) in LOBE_FEATURES {
         plan.call_for(feature, materials_where(&|m| pred(&m.surface)));
     }
+    let displaced = desc.materials.iter().filter(|(path, network)| super::displace::amount_of(network, path, materials).is_some());
+    plan.call_for(Feature::Displacement, displaced.map(|(path, _)| path.clone()));
     plan.call_for(Feature::PartialPresence, materials_where(&|m| m.pass_through > 0.0));
     plan.call_for(Feature::Subsurface, materials_where(&|m| m.medium().is_some()));
     for (feature, pred) in TEXTURE_FEATURES {

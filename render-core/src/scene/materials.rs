@@ -10,7 +10,7 @@ use glam::Vec3;
 use super::{BlasCache, MeshDesc, SceneDesc};
 use crate::caustics::ShadowGlass;
 use crate::light::MaterialSync;
-use crate::material::{Material, Principled, ResolveReport, TexturedMaterial};
+use crate::material::{Material, Principled, ResolveReport, TexturedMaterial, VaryingInput};
 use crate::texture::{ColorSpace, Texture};
 
 /// The materials resolved: index 0 is the fallback for unbound meshes.
@@ -19,6 +19,8 @@ pub(super) struct Materials<'d> {
     pub list: Vec<Material>,
     /// Per material, its inputs that vary over the surface, if any.
     pub textured: Vec<Option<Arc<TexturedMaterial>>>,
+    /// Per material, the texture network its `displacement` reads, if any.
+    pub displacements: Vec<Option<VaryingInput>>,
     /// Index in [`Self::list`] by material path.
     pub index: HashMap<&'d str, u32>,
     /// Dome light maps by light path.
@@ -51,6 +53,7 @@ impl<'d> Materials<'d> {
         let mut out = Materials {
             list: vec![Material::preview_surface_default()],
             textured: vec![None],
+            displacements: vec![None],
             index: HashMap::new(),
             environments: BTreeMap::new(),
             no_response: None,
@@ -58,6 +61,7 @@ impl<'d> Materials<'d> {
         for (path, network) in &desc.materials {
             let mut report = ResolveReport::default();
             let varying = TexturedMaterial::compile(network, path, &source, &mut report);
+            out.displacements.push(VaryingInput::displacement(network, &source, &mut report));
             let (m, r) = match &varying {
                 Some(t) => t.mean(),
                 None => network.resolve(path),
@@ -85,6 +89,7 @@ impl<'d> Materials<'d> {
             // Black Lambert and no specular (F0 = 0.08 · specular = 0): nothing reflects.
             out.list.push(Material::principled(Principled { lambert: true, base_color: Vec3::ZERO, specular: 0.0, ..Default::default() }));
             out.textured.push(None);
+            out.displacements.push(None);
         }
         out
     }
@@ -127,6 +132,11 @@ impl<'d> Materials<'d> {
     /// Material `path`'s inputs that vary over the surface, if any.
     pub fn textured_at(&self, path: &str) -> Option<&TexturedMaterial> {
         self.textured[self.index[path] as usize].as_deref()
+    }
+
+    /// The texture network material `path`'s `displacement` reads, if any.
+    pub(super) fn displacement_at(&self, path: &str) -> Option<&VaryingInput> {
+        self.displacements[self.index[path] as usize].as_ref()
     }
 
     /// Materials with no effect on light (cut out, index-matched clear glass) remove their

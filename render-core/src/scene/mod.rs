@@ -1,8 +1,8 @@
 //! The scene a session edits and what the renderer traces against.
 //!
 //! * [`desc`]: the description a session edits, keyed by USD path, and its validation;
-//! * [`commit`](commit()): its commit as named steps — materials, geometry, instances,
-//!   features ([`crate::plan`]), tangents, bounds, lights;
+//! * [`commit`](commit()): its commit as named steps — materials, features
+//!   ([`crate::plan`]), displacement, geometry, instances, tangents, bounds, lights;
 //! * [`cache`]: what commits keep for the next — a mesh whose geometry `Arc` is unchanged
 //!   keeps its BLAS, so moving an object or a light costs a TLAS rebuild and nothing more;
 //! * [`committed`] and the queries on it (hits, occlusion, surfaces, BSDFs, transparent
@@ -13,6 +13,7 @@ mod cache;
 mod commit;
 mod committed;
 mod desc;
+mod displace;
 mod features;
 mod links;
 mod materials;

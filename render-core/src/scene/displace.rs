@@ -1,0 +1,260 @@
+//! The displacement step of commit: a mesh whose UsdPreviewSurface has a `displacement` moves
+//! each vertex along its normal by that many object-space units, before its BLAS is built.
+//!
+//! The mesh is displaced at the vertices it has: detail finer than its edges is lost, so a
+//! displaced surface wants a subdivision scheme (refined by the client) or a dense mesh. A
+//! textured amount is looked up with a footprint as wide as the triangle around each corner
+//! (finer texels could not be represented), and averaged over a vertex's corners so that a
+//! texture seam cannot tear the surface apart.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::materials::Materials;
+use super::{BlasCache, SceneDesc, validate_mesh};
+use crate::geometry::{Attribute, Mesh};
+use crate::material::graph::PrimvarSource;
+use crate::material::{MaterialNetwork, ParamValue, ShadingPoint, VaryingInput};
+
+/// What moves a material's surfaces.
+#[derive(Clone, Copy)]
+pub(super) enum Amount<'a> {
+    /// The same distance everywhere.
+    Constant(f32),
+    /// A texture network connected to the surface node's `displacement`.
+    Textured(&'a VaryingInput),
+}
+
+/// The displacement material `path` asks for, or None when it asks for none (no
+/// UsdPreviewSurface, or `displacement` 0 as exporters write it).
+pub(super) fn amount_of<'a>(network: &'a MaterialNetwork, path: &str, materials: &'a Materials) -> Option<Amount<'a>> {
+    let surface = network.nodes.iter().find(|n| n.path == network.surface_node && n.node_type_id == "UsdPreviewSurface")?;
+    if let Some(input) = materials.displacement_at(path) {
+        return Some(Amount::Textured(input));
+    }
+    match surface.parameters.get("displacement") {
+        Some(ParamValue::Float(d)) if *d != 0.0 => Some(Amount::Constant(*d)),
+        _ => None,
+    }
+}
+
+/// A displaced mesh kept between commits with what it was displaced from.
+#[derive(Clone)]
+pub(super) struct Displaced {
+    source: Arc<Mesh>,
+    network: MaterialNetwork,
+    mesh: Arc<Mesh>,
+}
+
+/// The displaced geometry of every mesh whose material displaces it, by mesh path. A mesh
+/// keeps the last commit's displaced `Arc` (and so its BLAS) while its geometry and material
+/// network are unchanged. A displacement that would carry points past what the renderer takes
+/// (or a non-finite amount) is reported, and the mesh renders undisplaced.
+pub(super) fn displaced_meshes<'d>(
+    desc: &'d SceneDesc,
+    materials: &Materials,
+    cache: &mut BlasCache,
+    warnings: &mut Vec<String>,
+) -> HashMap<&'d str, Arc<Mesh>> {
+    let mut jobs = Vec::new();
+    let mut kept = HashMap::new();
+    for (path, m) in &desc.meshes {
+        let Some(network) = desc.materials.get(&m.material) else { continue };
+        let Some(amount) = amount_of(network, &m.material, materials) else { continue };
+        // An invalid mesh is the geometry step's error to report; it cannot be displaced.
+        if validate_mesh(path, &m.mesh).is_err() {
+            continue;
+        }
+        match cache.displaced.get(path).filter(|d| Arc::ptr_eq(&d.source, &m.mesh) && d.network == *network) {
+            Some(d) => {
+                kept.insert(path.as_str(), d.clone());
+            }
+            None => jobs.push((path.as_str(), m, network, amount)),
+        }
+    }
+    let _span = tracing::info_span!("displace", meshes = jobs.len()).entered();
+    let done: Vec<_> = jobs.into_par_iter().map(|(path, m, network, amount)| (path, m, network, displace(&m.mesh, amount))).collect();
+    for (path, m, network, mesh) in done {
+        match validate_mesh(path, &mesh) {
+            Ok(()) => {
+                kept.insert(path, Displaced { source: m.mesh.clone(), network: network.clone(), mesh: Arc::new(mesh) });
+            }
+            Err(e) => warnings.push(format!("{e} after displacement by {}; the mesh renders undisplaced", m.material)),
+        }
+    }
+    let out = kept.iter().map(|(p, d)| (*p, d.mesh.clone())).collect();
+    cache.displaced = kept.into_iter().map(|(p, d)| (p.to_string(), d)).collect();
+    out
+}
+
+/// `mesh` with every vertex (and every deformation sample's) moved along its normal by
+/// `amount`; shading normals recomputed where the mesh had any.
+pub(super) fn displace(mesh: &Mesh, amount: Amount) -> Mesh {
+    let sites = Sites::of(&mesh.positions);
+    let distances = match amount {
+        Amount::Constant(d) => vec![d; sites.count],
+        Amount::Textured(input) => site_distances(mesh, &sites, input),
+    };
+    let mut out = mesh.clone();
+    out.positions = moved(&mesh.positions, &mesh.indices, &sites, &distances);
+    let n = mesh.positions.len();
+    if n > 0 {
+        out.deformation = mesh.deformation.chunks(n).flat_map(|pose| moved(pose, &mesh.indices, &sites, &distances)).collect();
+    }
+    if !mesh.normals.is_empty() {
+        let normals = site_normals(&out.positions, &mesh.indices, &sites);
+        out.normals = Attribute::Vertex(sites.of.iter().map(|&s| normals[s as usize]).collect());
+    }
+    out
+}
+
+/// The vertices of a mesh grouped by where they are in its rest pose: exporters split a
+/// vertex where its texture coordinates or normals do (a UV seam, a hard edge, a sphere's
+/// pole), and the copies must move as one or the surface tears there.
+struct Sites {
+    /// Site of each vertex.
+    of: Vec<u32>,
+    count: usize,
+}
+
+/// Copies of a vertex are those within this share of the mesh's extent: a pole written as
+/// sin(π) is 1e-7 from its copies, not 0.
+const WELD: f32 = 1.0 / (1 << 20) as f32;
+
+impl Sites {
+    fn of(positions: &[Vec3]) -> Sites {
+        let (lo, hi) = positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let cell = ((hi - lo).max_element() * WELD).max(f32::MIN_POSITIVE);
+        // Points on either side of a cell's edge stay apart; copies that close are rare.
+        let key = |p: &Vec3| ((*p - lo) / cell).round().to_array().map(|c| c as i64);
+        let mut index = HashMap::with_capacity(positions.len());
+        let of = positions
+            .iter()
+            .map(|p| {
+                let next = index.len() as u32;
+                *index.entry(key(p)).or_insert(next)
+            })
+            .collect();
+        Sites { of, count: index.len() }
+    }
+}
+
+/// `positions` each moved by its site's distance along the site's area-weighted normal in
+/// this pose.
+fn moved(positions: &[Vec3], indices: &[[u32; 3]], sites: &Sites, distances: &[f32]) -> Vec<Vec3> {
+    let normals = site_normals(positions, indices, sites);
+    positions.iter().zip(&sites.of).map(|(p, &s)| *p + normals[s as usize] * distances[s as usize]).collect()
+}
+
+/// Unit normal of each site, the sum of its triangles' area-weighted normals (zero for a site
+/// no triangle with area uses).
+fn site_normals(positions: &[Vec3], indices: &[[u32; 3]], sites: &Sites) -> Vec<Vec3> {
+    let mut sum = vec![Vec3::ZERO; sites.count];
+    for tri in indices {
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        let area_normal = (b - a).cross(c - a);
+        for &i in tri {
+            sum[sites.of[i as usize] as usize] += area_normal;
+        }
+    }
+    sum.into_iter().map(|n| n.normalize_or_zero()).collect()
+}
+
+/// The textured distance at each site: the mean of the lookups at its corners.
+fn site_distances(mesh: &Mesh, sites: &Sites, input: &VaryingInput) -> Vec<f32> {
+    let corners: Vec<[f32; 3]> = (0..mesh.indices.len()).into_par_iter().map(|t| corner_distances(mesh, t, input)).collect();
+    let mut sum = vec![(0.0f32, 0u32); sites.count];
+    for (tri, d) in mesh.indices.iter().zip(corners) {
+        for (&i, d) in tri.iter().zip(d) {
+            let s = &mut sum[sites.of[i as usize] as usize];
+            *s = (s.0 + d, s.1 + 1);
+        }
+    }
+    sum.into_iter().map(|(s, k)| if k > 0 { s / k as f32 } else { 0.0 }).collect()
+}
+
+/// The displacement looked up at triangle `t`'s three corners, filtered over the triangle's
+/// size in texture space.
+fn corner_distances(mesh: &Mesh, t: usize, input: &VaryingInput) -> [f32; 3] {
+    let idx = mesh.indices[t];
+    let [a, b, c] = mesh.triangle(t);
+    let area = 0.5 * (b - a).cross(c - a).length();
+    let uvs = mesh.uvs.corners(t, idx);
+    let uv_area = uvs.map_or(0.0, |[p, q, r]| 0.5 * (q - p).perp_dot(r - p).abs());
+    let (width, uv_density) = if area > 0.0 && uv_area > 0.0 { ((2.0 * area).sqrt(), (uv_area / area).sqrt()) } else { (0.0, 1.0) };
+    let corner_bary = [Vec2::ZERO, Vec2::X, Vec2::Y];
+    std::array::from_fn(|k| {
+        let sp = ShadingPoint {
+            st: uvs.map(|uv| uv[k]),
+            primvars: Some(PrimvarSource { mesh, triangle: t, bary: corner_bary[k] }),
+            width,
+            cos: 1.0,
+            uv_density,
+        };
+        match input.at(&sp) {
+            ParamValue::Float(d) => d,
+            _ => 0.0,
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_constant_displacement_grows_a_sphere_by_its_amount() {
+        // A closed unit sphere: every vertex moves out along its radius, so it lands at
+        // 1 + d (the area-weighted normal's tilt from the radius is zero by symmetry). Its
+        // poles are 48 copies of one point each, which must move as one.
+        let sphere = Mesh::uv_sphere(24, 48);
+        let out = displace(&sphere, Amount::Constant(0.1));
+        for p in &out.positions {
+            assert!((p.length() - 1.1).abs() < 1e-4, "{p} at radius {}", p.length());
+        }
+        let inward = displace(&sphere, Amount::Constant(-0.25));
+        assert!(inward.positions.iter().all(|p| (p.length() - 0.75).abs() < 1e-4));
+    }
+
+    #[test]
+    fn deformation_samples_are_displaced_each_along_its_own_normals() {
+        let mut sphere = Mesh::uv_sphere(8, 16);
+        let n = sphere.positions.len();
+        // Two poses: the sphere where it is, then moved by 5 along x.
+        sphere.deformation = sphere.positions.iter().copied().chain(sphere.positions.iter().map(|p| *p + Vec3::X * 5.0)).collect();
+        let out = displace(&sphere, Amount::Constant(0.5));
+        assert_eq!(out.deformation.len(), 2 * n);
+        for (i, p) in out.deformation.iter().enumerate() {
+            let centre = if i < n { Vec3::ZERO } else { Vec3::X * 5.0 };
+            assert!(((*p - centre).length() - 1.5).abs() < 1e-3, "sample {} vertex {}: {p}", i / n, i % n);
+        }
+    }
+
+    #[test]
+    fn shading_normals_follow_the_displaced_surface_and_flat_meshes_stay_flat() {
+        let mut sphere = Mesh::uv_sphere(8, 16);
+        let flat = displace(&sphere, Amount::Constant(0.2));
+        assert!(flat.normals.is_empty(), "a flat-shaded mesh stays flat-shaded");
+        sphere.normals = Attribute::Vertex(vec![Vec3::X; sphere.positions.len()]);
+        let smooth = displace(&sphere, Amount::Constant(0.2));
+        let Attribute::Vertex(normals) = &smooth.normals else { panic!("vertex normals expected") };
+        for (p, n) in smooth.positions.iter().zip(normals) {
+            assert!(n.dot(p.normalize()) > 0.99, "normal {n} at {p} should point out of the sphere");
+        }
+    }
+
+    #[test]
+    fn degenerate_triangles_and_unused_vertices_stay_finite() {
+        let mesh = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::new(1e30, 0.0, 0.0)],
+            indices: vec![[0, 1, 2]],
+            ..Default::default()
+        };
+        let out = displace(&mesh, Amount::Constant(3.0));
+        assert!(out.positions.iter().all(|p| p.is_finite()));
+        assert_eq!(out.positions[..3], [Vec3::ZERO; 3], "no direction to move along: the points stay");
+    }
+}
