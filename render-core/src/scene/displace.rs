@@ -163,42 +163,47 @@ fn site_normals(positions: &[Vec3], indices: &[[u32; 3]], sites: &Sites) -> Vec<
     sum.into_iter().map(|n| n.normalize_or_zero()).collect()
 }
 
-/// The textured distance at each site: the mean of the lookups at its corners.
+/// The textured distance at each site: the mean of the lookups at its vertices' corners.
 fn site_distances(mesh: &Mesh, sites: &Sites, input: &VaryingInput) -> Vec<f32> {
-    let corners: Vec<[f32; 3]> = (0..mesh.indices.len()).into_par_iter().map(|t| corner_distances(mesh, t, input)).collect();
+    let corners = 3 * mesh.indices.len();
+    let vertex_of = |c: usize| mesh.indices[c / 3][c % 3];
+    // Where every corner of a vertex reads the same texture coordinates and primvars, one
+    // lookup per vertex (at its first corner) stands for them all: a sixth of the lookups on
+    // a grid.
+    let looked_up: Vec<(u32, f32)> =
+        if matches!(mesh.uvs, Attribute::FaceVarying(_)) || mesh.primvars.iter().any(|p| matches!(p.values, Attribute::FaceVarying(_))) {
+            (0..corners).into_par_iter().map(|c| (vertex_of(c), corner_distance(mesh, c, input))).collect()
+        } else {
+            let mut first = vec![usize::MAX; mesh.positions.len()];
+            for c in (0..corners).rev() {
+                first[vertex_of(c) as usize] = c;
+            }
+            first.into_par_iter().filter(|&c| c != usize::MAX).map(|c| (vertex_of(c), corner_distance(mesh, c, input))).collect()
+        };
     let mut sum = vec![(0.0f32, 0u32); sites.count];
-    for (tri, d) in mesh.indices.iter().zip(corners) {
-        for (&i, d) in tri.iter().zip(d) {
-            let s = &mut sum[sites.of[i as usize] as usize];
-            *s = (s.0 + d, s.1 + 1);
-        }
+    for (v, d) in looked_up {
+        let s = &mut sum[sites.of[v as usize] as usize];
+        *s = (s.0 + d, s.1 + 1);
     }
     sum.into_iter().map(|(s, k)| if k > 0 { s / k as f32 } else { 0.0 }).collect()
 }
 
-/// The displacement looked up at triangle `t`'s three corners, filtered over the triangle's
-/// size in texture space.
-fn corner_distances(mesh: &Mesh, t: usize, input: &VaryingInput) -> [f32; 3] {
-    let idx = mesh.indices[t];
-    let [a, b, c] = mesh.triangle(t);
-    let area = 0.5 * (b - a).cross(c - a).length();
-    let uvs = mesh.uvs.corners(t, idx);
+/// The displacement looked up at corner `c` (corner `c % 3` of triangle `c / 3`), filtered
+/// over its triangle's size in texture space.
+fn corner_distance(mesh: &Mesh, c: usize, input: &VaryingInput) -> f32 {
+    let (t, k) = (c / 3, c % 3);
+    let [a, b, p] = mesh.triangle(t);
+    let area = 0.5 * (b - a).cross(p - a).length();
+    let uvs = mesh.uvs.corners(t, mesh.indices[t]);
     let uv_area = uvs.map_or(0.0, |[p, q, r]| 0.5 * (q - p).perp_dot(r - p).abs());
     let (width, uv_density) = if area > 0.0 && uv_area > 0.0 { ((2.0 * area).sqrt(), (uv_area / area).sqrt()) } else { (0.0, 1.0) };
-    let corner_bary = [Vec2::ZERO, Vec2::X, Vec2::Y];
-    std::array::from_fn(|k| {
-        let sp = ShadingPoint {
-            st: uvs.map(|uv| uv[k]),
-            primvars: Some(PrimvarSource { mesh, triangle: t, bary: corner_bary[k] }),
-            width,
-            cos: 1.0,
-            uv_density,
-        };
-        match input.at(&sp) {
-            ParamValue::Float(d) => d,
-            _ => 0.0,
-        }
-    })
+    let bary = [Vec2::ZERO, Vec2::X, Vec2::Y][k];
+    let sp =
+        ShadingPoint { st: uvs.map(|uv| uv[k]), primvars: Some(PrimvarSource { mesh, triangle: t, bary }), width, cos: 1.0, uv_density };
+    match input.at(&sp) {
+        ParamValue::Float(d) => d,
+        _ => 0.0,
+    }
 }
 
 #[cfg(test)]
@@ -256,5 +261,52 @@ mod tests {
         let out = displace(&mesh, Amount::Constant(3.0));
         assert!(out.positions.iter().all(|p| p.is_finite()));
         assert_eq!(out.positions[..3], [Vec3::ZERO; 3], "no direction to move along: the points stay");
+    }
+
+    /// A displacement read from the mesh's float primvar `height` (no texture needed).
+    fn height_primvar_displacement() -> VaryingInput {
+        use crate::material::{MaterialConnection, MaterialNode};
+        let node = |path: &str, id: &str| MaterialNode { path: path.into(), node_type_id: id.into(), ..Default::default() };
+        let mut reader = node("/M/H", "UsdPrimvarReader_float");
+        reader.parameters.insert("varname".into(), ParamValue::String("height".into()));
+        let network = MaterialNetwork {
+            nodes: vec![node("/M/S", "UsdPreviewSurface"), reader],
+            connections: vec![MaterialConnection {
+                downstream_node: "/M/S".into(),
+                downstream_input: "displacement".into(),
+                upstream_node: "/M/H".into(),
+                upstream_output: "result".into(),
+            }],
+            surface_node: "/M/S".into(),
+        };
+        VaryingInput::displacement(&network, &|_, _| None, &mut Default::default()).expect("a varying displacement")
+    }
+
+    /// Two triangles of a unit square in the z = 0 plane facing +z, sharing the diagonal 0-2.
+    fn square(height: Attribute<Vec3>) -> Mesh {
+        Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            primvars: vec![crate::geometry::Primvar { name: "height".into(), values: height }],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn a_vertex_primvar_moves_each_vertex_by_its_value() {
+        let heights = [0.1, 0.2, 0.3, 0.4].map(|h| Vec3::new(h, 0.0, 0.0)).to_vec();
+        let out = displace(&square(Attribute::Vertex(heights)), Amount::Textured(&height_primvar_displacement()));
+        let z: Vec<f32> = out.positions.iter().map(|p| p.z).collect();
+        assert_eq!(z, [0.1, 0.2, 0.3, 0.4]);
+    }
+
+    #[test]
+    fn face_varying_values_are_averaged_over_a_vertex_s_corners() {
+        // Corners of triangle 0 (vertices 0, 1, 2) read 1; of triangle 1 (0, 2, 3) read 3: the
+        // shared vertices 0 and 2 move by the mean, 2; vertex 1 by 1 and vertex 3 by 3.
+        let corners = [1.0, 1.0, 1.0, 3.0, 3.0, 3.0].map(|h| Vec3::new(h, 0.0, 0.0)).to_vec();
+        let out = displace(&square(Attribute::FaceVarying(corners)), Amount::Textured(&height_primvar_displacement()));
+        let z: Vec<f32> = out.positions.iter().map(|p| p.z).collect();
+        assert_eq!(z, [2.0, 1.0, 2.0, 3.0]);
     }
 }
