@@ -33,6 +33,57 @@ fn a_textured_displacement_lifts_each_quadrant_by_its_texel() {
 }
 
 #[test]
+fn a_coarse_mesh_is_diced_for_its_displacement_texture() {
+    let scene = commit(&load("textures/displaced.usda").to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    // The slab is one quad (z in [2, 4]) under the grid's 64-texel texture: diced into
+    // ceil(√2 · 64) = 91 segments an edge (its diagonal spans 91 texels), 2 · 91² triangles, it
+    // rises as the grid does in each quadrant's middle (st (0.25, 0.75) is x = -0.5, z = 2.5).
+    let slab = scene.prim_paths.iter().position(|p| p == "/World/Slab").expect("the slab");
+    let mesh = scene.instances.iter().find(|i| i.prim as usize == slab).map(|i| &scene.meshes[i.mesh]).expect("its instance");
+    assert_eq!(mesh.indices.len(), 2 * 91 * 91);
+    for ((x, z), byte) in [((-0.5, 2.5), 200.0), ((0.5, 2.5), 40.0), ((-0.5, 3.5), 40.0), ((0.5, 3.5), 230.0)] {
+        let expected = 0.25 * byte / 255.0;
+        let got = height(&scene, x, z);
+        assert!((got - expected).abs() < 1e-5, "slab quadrant at ({x}, {z}): height {got}, expected {expected}");
+    }
+    // The grid (32 × 32 quads over the same texture) is diced 3 an edge: its diagonals span
+    // 2.8 texels.
+    let grid = scene.prim_paths.iter().position(|p| p == "/World/Grid").expect("the grid");
+    let mesh = scene.instances.iter().find(|i| i.prim as usize == grid).map(|i| &scene.meshes[i.mesh]).expect("its instance");
+    assert_eq!(mesh.indices.len(), 2 * 32 * 32 * 9);
+}
+
+/// Hostile input: dicing is bounded for the whole scene. Two quads whose texture repeats 16
+/// times ask for 1024 segments an edge each (the most): 4.2 M triangles. Scaled down together
+/// with the fixture's grid and slab to the scene's 2 M, each is reported by name.
+#[test]
+fn dicing_stays_within_the_scenes_budget_and_says_where_it_was_limited() {
+    let mut t = load("textures/displaced.usda");
+    let (slab_path, slab) = t.meshes.iter().find(|(p, _)| p == "/World/Slab").cloned().expect("the slab");
+    let mut tiled = (*slab.mesh).clone();
+    if let render_core::geometry::Attribute::Vertex(st) = &mut tiled.uvs {
+        st.iter_mut().for_each(|uv| *uv *= 16.0);
+    }
+    for k in 0..2 {
+        let mut copy = slab.clone();
+        copy.mesh = std::sync::Arc::new(tiled.clone());
+        t.meshes.push((format!("{slab_path}Tiled{k}"), copy));
+    }
+    let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    let diced: usize = scene.meshes.iter().map(|m| m.indices.len()).sum();
+    let limit = render_core::scene::MAX_DICED_TRIANGLES as usize;
+    // Past the budget only by the ball's 4 096 triangles, which are not diced.
+    assert!(diced <= limit + 64 * 32 * 2, "{diced} triangles");
+    for path in ["/World/SlabTiled0", "/World/SlabTiled1", "/World/Slab", "/World/Grid"] {
+        let said = scene
+            .warnings
+            .iter()
+            .any(|w| w.starts_with(&format!("{path}: displacement diced ")) && w.contains("more than 2097152 triangles"));
+        assert!(said, "{path}: {:?}", scene.warnings);
+    }
+}
+
+#[test]
 fn a_constant_displacement_grows_the_ball_by_its_amount() {
     let scene = commit(&load("textures/displaced.usda").to_scene_desc(), &mut BlasCache::default()).expect("commits");
     // The unit ball at (3, 0, 0), displaced by 0.1: its pole and its equator's vertex on +x

@@ -99,6 +99,30 @@ fn udim_tile(grid: &UdimGrid, st: Vec2) -> Option<(&Texture, Vec2)> {
 }
 
 impl Expr {
+    /// Texels of the finest texture this reads per unit of the mesh's texture coordinates.
+    fn texels_per_st(&self) -> f32 {
+        let side = |t: &Texture| {
+            let (w, h) = t.size();
+            (w as f32 * h as f32).sqrt()
+        };
+        match self {
+            Expr::Const(_) | Expr::St { .. } | Expr::Primvar { .. } => 0.0,
+            Expr::Texture { texture, st, .. } => (side(texture) * st.st_stretch()).max(st.texels_per_st()),
+            Expr::Udim { tiles, st, .. } => {
+                (tiles.iter().flatten().map(|t| side(t)).fold(0.0, f32::max) * st.st_stretch()).max(st.texels_per_st())
+            }
+            Expr::Transform2d { input, .. } => input.texels_per_st(),
+        }
+    }
+
+    /// How much texture coordinates computed by this are stretched against the mesh's.
+    fn st_stretch(&self) -> f32 {
+        match self {
+            Expr::Transform2d { input, linear, .. } => input.st_stretch() * linear.determinant().abs().sqrt(),
+            _ => 1.0,
+        }
+    }
+
     /// The value and how much the texture coordinates it carries are stretched relative to
     /// the mesh's (for the footprint of lookups downstream).
     fn eval(&self, sp: &ShadingPoint) -> (Vec4, f32) {
@@ -312,6 +336,12 @@ impl VaryingInput {
     /// The value at `sp`.
     pub fn at(&self, sp: &ShadingPoint) -> ParamValue {
         self.output.value(self.expr.eval(sp).0)
+    }
+
+    /// Texels of the finest texture read, per unit of the mesh's texture coordinates (0 when
+    /// no texture is read): how finely the input varies over a surface.
+    pub fn texels_per_st(&self) -> f32 {
+        self.expr.texels_per_st()
     }
 }
 

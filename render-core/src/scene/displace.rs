@@ -1,11 +1,11 @@
 //! The displacement step of commit: a mesh whose UsdPreviewSurface has a `displacement` moves
 //! each vertex along its normal by that many object-space units, before its BLAS is built.
 //!
-//! The mesh is displaced at the vertices it has: detail finer than its edges is lost, so a
-//! displaced surface wants a subdivision scheme (refined by the client) or a dense mesh. A
-//! textured amount is looked up with a footprint as wide as the triangle around each corner
-//! (finer texels could not be represented), and averaged over a vertex's corners so that a
-//! texture seam cannot tear the surface apart.
+//! A mesh too coarse for its displacement texture is diced first, every triangle alike, until
+//! an edge spans a texel ([`dicing_rate`]), within one budget for the scene. A textured amount
+//! is looked up with a footprint as wide as the triangle around each corner (finer texels could
+//! not be represented), and averaged over a vertex's corners so that a texture seam cannot
+//! tear the surface apart.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -14,7 +14,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::materials::Materials;
-use super::{BlasCache, SceneDesc, validate_mesh};
+use super::{BlasCache, MeshDesc, SceneDesc, validate_mesh};
 use crate::geometry::{Attribute, Mesh};
 use crate::material::graph::PrimvarSource;
 use crate::material::{MaterialNetwork, ParamValue, ShadingPoint, VaryingInput};
@@ -46,7 +46,64 @@ pub(super) fn amount_of<'a>(network: &'a MaterialNetwork, path: &str, materials:
 pub(super) struct Displaced {
     source: Arc<Mesh>,
     network: MaterialNetwork,
+    /// Segments each edge was diced into.
+    dice: u32,
     mesh: Arc<Mesh>,
+}
+
+/// Texels of the displacement texture a diced edge spans at most: finer dicing would sample
+/// the same texels again.
+const TEXELS_PER_EDGE: f32 = 1.0;
+
+/// Most segments a triangle's edge is diced into.
+const MAX_DICE: u32 = 1024;
+
+/// Most triangles dicing may make in one scene, over all its displaced meshes: a client's
+/// displacement texture must not grow the scene without bound (about 180 MB at the 92 bytes
+/// a triangle of `docs/benchmarks.md`).
+pub const MAX_DICED_TRIANGLES: u64 = 2 << 20;
+
+/// Segments each edge of `mesh` is diced into so that no diced edge spans more than
+/// [`TEXELS_PER_EDGE`] of the texture `amount` reads (the whole mesh alike: triangles diced
+/// differently would meet at T-junctions and tear apart). 1 for a constant or a texture-free
+/// amount, or a mesh without texture coordinates.
+fn dicing_rate(mesh: &Mesh, amount: Amount) -> u32 {
+    let texels = match amount {
+        Amount::Textured(input) => input.texels_per_st(),
+        Amount::Constant(_) => 0.0,
+    };
+    if texels <= 0.0 {
+        return 1;
+    }
+    let longest = (0..mesh.indices.len())
+        .filter_map(|t| mesh.uvs.corners(t, mesh.indices[t]))
+        .map(|[a, b, c]| (b - a).length().max((c - b).length()).max((a - c).length()))
+        .fold(0.0f32, f32::max);
+    let want = (longest * texels / TEXELS_PER_EDGE).ceil();
+    if want.is_finite() { (want as u32).clamp(1, MAX_DICE) } else { MAX_DICE }
+}
+
+/// The rates `wanted` asks for, scaled down together (and each reported) where they would
+/// make more than [`MAX_DICED_TRIANGLES`].
+fn within_budget(wanted: &[(&str, &MeshDesc, &MaterialNetwork, Amount, u32)], warnings: &mut Vec<String>) -> Vec<u32> {
+    let made = |m: &MeshDesc, n: u32| m.mesh.indices.len() as u64 * (n as u64).pow(2);
+    let total: u64 = wanted.iter().filter(|w| w.4 > 1).map(|w| made(w.1, w.4)).sum();
+    if total <= MAX_DICED_TRIANGLES {
+        return wanted.iter().map(|w| w.4).collect();
+    }
+    let scale = (MAX_DICED_TRIANGLES as f64 / total as f64).sqrt();
+    wanted
+        .iter()
+        .map(|&(path, _, _, _, want)| {
+            let n = ((want as f64 * scale).floor() as u32).max(1);
+            if n < want {
+                warnings.push(format!(
+                    "{path}: displacement diced {n} segments an edge where its texture asks for {want}: the scene's displaced meshes would make more than {MAX_DICED_TRIANGLES} triangles"
+                ));
+            }
+            n
+        })
+        .collect()
 }
 
 /// The displaced geometry of every mesh whose material displaces it, by mesh path. A mesh
@@ -59,8 +116,8 @@ pub(super) fn displaced_meshes<'d>(
     cache: &mut BlasCache,
     warnings: &mut Vec<String>,
 ) -> HashMap<&'d str, Arc<Mesh>> {
-    let mut jobs = Vec::new();
-    let mut kept = HashMap::new();
+    let _span = tracing::info_span!("displace").entered();
+    let mut wanted = Vec::new();
     for (path, m) in &desc.meshes {
         let Some(network) = desc.materials.get(&m.material) else { continue };
         let Some(amount) = amount_of(network, &m.material, materials) else { continue };
@@ -68,19 +125,26 @@ pub(super) fn displaced_meshes<'d>(
         if validate_mesh(path, &m.mesh).is_err() {
             continue;
         }
-        match cache.displaced.get(path).filter(|d| Arc::ptr_eq(&d.source, &m.mesh) && d.network == *network) {
+        wanted.push((path.as_str(), m, network, amount, dicing_rate(&m.mesh, amount)));
+    }
+    let rates = within_budget(&wanted, warnings);
+    let mut jobs = Vec::new();
+    let mut kept = HashMap::new();
+    for ((path, m, network, amount, _), dice) in wanted.into_iter().zip(rates) {
+        let unchanged = |d: &&Displaced| Arc::ptr_eq(&d.source, &m.mesh) && d.network == *network && d.dice == dice;
+        match cache.displaced.get(path).filter(unchanged) {
             Some(d) => {
-                kept.insert(path.as_str(), d.clone());
+                kept.insert(path, d.clone());
             }
-            None => jobs.push((path.as_str(), m, network, amount)),
+            None => jobs.push((path, m, network, amount, dice)),
         }
     }
-    let _span = tracing::info_span!("displace", meshes = jobs.len()).entered();
-    let done: Vec<_> = jobs.into_par_iter().map(|(path, m, network, amount)| (path, m, network, displace(&m.mesh, amount))).collect();
-    for (path, m, network, mesh) in done {
+    let done: Vec<_> =
+        jobs.into_par_iter().map(|(path, m, network, amount, dice)| (path, m, network, dice, displace(&m.mesh, amount, dice))).collect();
+    for (path, m, network, dice, mesh) in done {
         match validate_mesh(path, &mesh) {
             Ok(()) => {
-                kept.insert(path, Displaced { source: m.mesh.clone(), network: network.clone(), mesh: Arc::new(mesh) });
+                kept.insert(path, Displaced { source: m.mesh.clone(), network: network.clone(), dice, mesh: Arc::new(mesh) });
             }
             Err(e) => warnings.push(format!("{e} after displacement by {}; the mesh renders undisplaced", m.material)),
         }
@@ -90,9 +154,17 @@ pub(super) fn displaced_meshes<'d>(
     out
 }
 
-/// `mesh` with every vertex (and every deformation sample's) moved along its normal by
-/// `amount`; shading normals recomputed where the mesh had any.
-pub(super) fn displace(mesh: &Mesh, amount: Amount) -> Mesh {
+/// `mesh`, its edges diced into `dice` segments, with every vertex (and every deformation
+/// sample's) moved along its normal by `amount`; shading normals recomputed where the mesh had
+/// any.
+pub(super) fn displace(mesh: &Mesh, amount: Amount, dice: u32) -> Mesh {
+    let diced;
+    let mesh = if dice > 1 {
+        diced = dice_mesh(mesh, dice);
+        &diced
+    } else {
+        mesh
+    };
     let sites = Sites::of(&mesh.positions);
     let distances = match amount {
         Amount::Constant(d) => vec![d; sites.count],
@@ -139,6 +211,52 @@ impl Sites {
             })
             .collect();
         Sites { of, count: index.len() }
+    }
+}
+
+/// `mesh` with each triangle split into `n`² by the regular grid of barycentric points i/n, j/n.
+/// Every new vertex lies in one triangle, so every attribute (texture coordinates, normals,
+/// primvars, deformation samples) becomes per-vertex, interpolated there; the copies of a point
+/// on a shared edge are welded again by [`Sites`].
+fn dice_mesh(mesh: &Mesh, n: u32) -> Mesh {
+    let points: Vec<Vec2> = (0..=n).flat_map(|j| (0..=n - j).map(move |i| Vec2::new(i as f32, j as f32) / n as f32)).collect();
+    // Point (i, j) of the grid: rows of n + 1, n, … points.
+    let at = |i: u32, j: u32| j * (n + 1) - j * j.saturating_sub(1) / 2 + i;
+    let mut local = Vec::with_capacity((n * n) as usize);
+    for j in 0..n {
+        for i in 0..n - j {
+            local.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
+            if i + j + 1 < n {
+                local.push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+    }
+    let tris = mesh.indices.len();
+    let per = points.len() as u32;
+    let over = |f: &dyn Fn(usize, Vec2) -> Vec3| -> Vec<Vec3> { (0..tris).flat_map(|t| points.iter().map(move |&b| f(t, b))).collect() };
+    let lerp = |[a, b, c]: [Vec3; 3], w: Vec2| a * (1.0 - w.x - w.y) + b * w.x + c * w.y;
+    let vertex_attr = |a: &Attribute<Vec3>| match a {
+        Attribute::None => Attribute::None,
+        _ => Attribute::Vertex(over(&|t, b| a.interpolate(t, mesh.indices[t], b).unwrap_or(Vec3::ZERO))),
+    };
+    let n_points = mesh.positions.len();
+    let deformation = if n_points == 0 {
+        Vec::new()
+    } else {
+        mesh.deformation.chunks(n_points).flat_map(|pose| over(&|t, b| lerp(mesh.indices[t].map(|i| pose[i as usize]), b))).collect()
+    };
+    Mesh {
+        positions: over(&|t, b| lerp(mesh.triangle(t), b)),
+        indices: (0..tris as u32).flat_map(|t| local.iter().map(move |l| l.map(|k| t * per + k))).collect(),
+        normals: vertex_attr(&mesh.normals),
+        uvs: match &mesh.uvs {
+            Attribute::None => Attribute::None,
+            uvs => Attribute::Vertex(
+                (0..tris).flat_map(|t| points.iter().map(move |&b| uvs.interpolate(t, mesh.indices[t], b).unwrap_or(Vec2::ZERO))).collect(),
+            ),
+        },
+        primvars: mesh.primvars.iter().map(|p| crate::geometry::Primvar { name: p.name.clone(), values: vertex_attr(&p.values) }).collect(),
+        deformation,
     }
 }
 
@@ -216,11 +334,11 @@ mod tests {
         // 1 + d (the area-weighted normal's tilt from the radius is zero by symmetry). Its
         // poles are 48 copies of one point each, which must move as one.
         let sphere = Mesh::uv_sphere(24, 48);
-        let out = displace(&sphere, Amount::Constant(0.1));
+        let out = displace(&sphere, Amount::Constant(0.1), 1);
         for p in &out.positions {
             assert!((p.length() - 1.1).abs() < 1e-4, "{p} at radius {}", p.length());
         }
-        let inward = displace(&sphere, Amount::Constant(-0.25));
+        let inward = displace(&sphere, Amount::Constant(-0.25), 1);
         assert!(inward.positions.iter().all(|p| (p.length() - 0.75).abs() < 1e-4));
     }
 
@@ -230,7 +348,7 @@ mod tests {
         let n = sphere.positions.len();
         // Two poses: the sphere where it is, then moved by 5 along x.
         sphere.deformation = sphere.positions.iter().copied().chain(sphere.positions.iter().map(|p| *p + Vec3::X * 5.0)).collect();
-        let out = displace(&sphere, Amount::Constant(0.5));
+        let out = displace(&sphere, Amount::Constant(0.5), 1);
         assert_eq!(out.deformation.len(), 2 * n);
         for (i, p) in out.deformation.iter().enumerate() {
             let centre = if i < n { Vec3::ZERO } else { Vec3::X * 5.0 };
@@ -241,10 +359,10 @@ mod tests {
     #[test]
     fn shading_normals_follow_the_displaced_surface_and_flat_meshes_stay_flat() {
         let mut sphere = Mesh::uv_sphere(8, 16);
-        let flat = displace(&sphere, Amount::Constant(0.2));
+        let flat = displace(&sphere, Amount::Constant(0.2), 1);
         assert!(flat.normals.is_empty(), "a flat-shaded mesh stays flat-shaded");
         sphere.normals = Attribute::Vertex(vec![Vec3::X; sphere.positions.len()]);
-        let smooth = displace(&sphere, Amount::Constant(0.2));
+        let smooth = displace(&sphere, Amount::Constant(0.2), 1);
         let Attribute::Vertex(normals) = &smooth.normals else { panic!("vertex normals expected") };
         for (p, n) in smooth.positions.iter().zip(normals) {
             assert!(n.dot(p.normalize()) > 0.99, "normal {n} at {p} should point out of the sphere");
@@ -258,7 +376,7 @@ mod tests {
             indices: vec![[0, 1, 2]],
             ..Default::default()
         };
-        let out = displace(&mesh, Amount::Constant(3.0));
+        let out = displace(&mesh, Amount::Constant(3.0), 1);
         assert!(out.positions.iter().all(|p| p.is_finite()));
         assert_eq!(out.positions[..3], [Vec3::ZERO; 3], "no direction to move along: the points stay");
     }
@@ -295,7 +413,7 @@ mod tests {
     #[test]
     fn a_vertex_primvar_moves_each_vertex_by_its_value() {
         let heights = [0.1, 0.2, 0.3, 0.4].map(|h| Vec3::new(h, 0.0, 0.0)).to_vec();
-        let out = displace(&square(Attribute::Vertex(heights)), Amount::Textured(&height_primvar_displacement()));
+        let out = displace(&square(Attribute::Vertex(heights)), Amount::Textured(&height_primvar_displacement()), 1);
         let z: Vec<f32> = out.positions.iter().map(|p| p.z).collect();
         assert_eq!(z, [0.1, 0.2, 0.3, 0.4]);
     }
@@ -305,8 +423,57 @@ mod tests {
         // Corners of triangle 0 (vertices 0, 1, 2) read 1; of triangle 1 (0, 2, 3) read 3: the
         // shared vertices 0 and 2 move by the mean, 2; vertex 1 by 1 and vertex 3 by 3.
         let corners = [1.0, 1.0, 1.0, 3.0, 3.0, 3.0].map(|h| Vec3::new(h, 0.0, 0.0)).to_vec();
-        let out = displace(&square(Attribute::FaceVarying(corners)), Amount::Textured(&height_primvar_displacement()));
+        let out = displace(&square(Attribute::FaceVarying(corners)), Amount::Textured(&height_primvar_displacement()), 1);
         let z: Vec<f32> = out.positions.iter().map(|p| p.z).collect();
         assert_eq!(z, [2.0, 1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn dicing_splits_each_triangle_into_n_squared_with_its_attributes_interpolated() {
+        let tri = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X * 3.0, Vec3::Z * -3.0],
+            indices: vec![[0, 1, 2]],
+            uvs: Attribute::FaceVarying(vec![Vec2::ZERO, Vec2::X, Vec2::Y]),
+            deformation: vec![Vec3::ZERO, Vec3::X * 3.0, Vec3::Z * -3.0, Vec3::Y, Vec3::Y + Vec3::X * 3.0, Vec3::Y + Vec3::Z * -3.0],
+            ..Default::default()
+        };
+        let diced = dice_mesh(&tri, 3);
+        assert_eq!((diced.indices.len(), diced.positions.len()), (9, 10));
+        // The same surface, every piece facing the way the triangle does.
+        let area = |m: &Mesh, t: usize| {
+            let [a, b, c] = m.triangle(t);
+            (b - a).cross(c - a) * 0.5
+        };
+        let whole = area(&tri, 0);
+        let sum: Vec3 = (0..9).map(|t| area(&diced, t)).sum();
+        assert!((sum - whole).length() < 1e-5, "{sum} against {whole}");
+        assert!((0..9).all(|t| area(&diced, t).dot(whole) > 0.0));
+        // Texture coordinates follow the positions: st = (x, -z) / 3 on this triangle.
+        let Attribute::Vertex(st) = &diced.uvs else { panic!("per-vertex st expected") };
+        for (p, uv) in diced.positions.iter().zip(st) {
+            assert!((*uv - Vec2::new(p.x, -p.z) / 3.0).length() < 1e-6, "{p}: {uv}");
+        }
+        // Both deformation poses diced alike: the second is the first moved up by 1.
+        assert_eq!(diced.deformation.len(), 20);
+        assert!(diced.deformation[..10].iter().zip(&diced.deformation[10..]).all(|(a, b)| (*b - *a - Vec3::Y).length() < 1e-6));
+    }
+
+    #[test]
+    fn a_diced_closed_mesh_stays_closed_when_displaced() {
+        // Dicing copies the points of shared edges into each triangle. Welded, the copies move
+        // as one: points that were one place before displacement are one place after.
+        let sphere = Mesh::uv_sphere(12, 24);
+        let out = displace(&sphere, Amount::Constant(0.1), 4);
+        assert_eq!(out.indices.len(), sphere.indices.len() * 16);
+        let before = dice_mesh(&sphere, 4);
+        let sites = Sites::of(&before.positions);
+        let mut place = vec![None; sites.count];
+        for (p, &s) in out.positions.iter().zip(&sites.of) {
+            let first = *place[s as usize].get_or_insert(*p);
+            assert!((first - *p).length() < 1e-6, "copies of one point apart: {first} and {p}");
+        }
+        // Every point 0.1 out from the facet it lay on: the facets of this 15° sphere lie at
+        // least cos(15°) = 0.966 from the centre.
+        assert!(out.positions.iter().all(|p| p.length() > 0.966 + 0.1 - 1e-3 && p.length() < 1.1 + 1e-4));
     }
 }

@@ -24,6 +24,7 @@ pub use cache::BlasCache;
 pub use commit::commit;
 pub use committed::{CommittedScene, InstanceData, MAX_CUTOUT_CROSSINGS, SurfaceHit, ray_hash, see_through_coin};
 pub use desc::{InstancerDesc, MAX_COORDINATE, MeshDesc, SceneDesc, SceneError, validate_mesh};
+pub use displace::MAX_DICED_TRIANGLES;
 pub use links::{LightLinks, NO_GROUP};
 pub use shadows::ShadowPass;
 
