@@ -313,9 +313,10 @@ impl Session {
         self.state.lock().unwrap().as_ref().map_or(0, |c| c.memory.bytes())
     }
 
-    /// Triangles in the committed scene's meshes.
+    /// Triangles in the committed scene's meshes, those dicing made included.
     pub fn triangles(&self) -> u64 {
-        self.state.lock().unwrap().as_ref().map_or(0, |c| c.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum())
+        let state = self.state.lock().unwrap();
+        state.as_ref().map_or(0, |c| c.desc.meshes.values().map(|m| m.mesh.indices.len() as u64).sum::<u64>() + c.scene.diced_triangles)
     }
 
     /// The current scene version (0 before the first sync).
@@ -366,6 +367,9 @@ impl Session {
             let mut cache = self.cache.lock().unwrap();
             commit(&desc, &mut cache).map_err(|e| Status::invalid_argument(e.to_string()))?
         };
+        // Dicing for displacement makes triangles the description does not hold.
+        let diced = scene.diced_triangles.saturating_mul(BYTES_PER_TRIANGLE);
+        memory.grow(diced, &format!("displacement dicing in session '{}' ({} triangles)", self.id, scene.diced_triangles))?;
         let warnings = scene.warnings.clone();
         let mut state = self.state.lock().unwrap();
         let version = self.version.load(Ordering::Acquire) + 1;
@@ -373,7 +377,7 @@ impl Session {
         if let Some(previous) = previous {
             memory.absorb(previous);
         }
-        memory.resize(bytes, "").expect("shrinking always succeeds");
+        memory.resize(bytes + diced, "").expect("shrinking always succeeds");
         *state = Some(Committed { desc, scene: Arc::new(scene), version, memory });
         self.version.store(version, Ordering::Release);
         self.counters.syncs.fetch_add(1, Ordering::Relaxed);

@@ -567,6 +567,31 @@ async fn thousands_of_moving_lights_are_held_against_the_memory_budget() {
     bystander_renders(&server).await;
 }
 
+/// Displacement dicing makes triangles the description does not hold, so the commit cannot
+/// reserve them beforehand: they are held against the budget once made, and a scene whose
+/// dicing does not fit is refused naming it. The fixture's 6 k triangles dice into 39 k (10 MB as
+/// estimated, at 256 bytes a triangle): over a 4 MiB budget, within a 32 MiB one, where the
+/// stats count them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn displacement_dicing_is_held_against_the_memory_budget() {
+    for (budget, fits) in [(4u64 << 20, false), (32 << 20, true)] {
+        let server = EmbeddedServer::start_with(budgeted(budget)).await.unwrap();
+        let mut raw = Raw::connect(&server).await;
+        let s = raw.session().await.unwrap();
+        let synced = raw.sync(&s, tessera::sync::full_sync(&load("textures/displaced.usda"))).await;
+        let st = raw.stats(&s).await.unwrap();
+        if fits {
+            synced.expect("the diced scene fits 32 MiB");
+            assert!(st.triangles > 38_000, "diced triangles counted: {st:?}");
+            assert!(st.session_memory_used >= st.triangles * 256, "{st:?}");
+        } else {
+            assert_status(synced, Code::ResourceExhausted, &["displacement dicing", "memory budget"]);
+            assert_eq!(st.session_memory_used, 0, "nothing stays reserved: {st:?}");
+        }
+        bystander_renders(&server).await;
+    }
+}
+
 /// A server with a 2 GiB budget, as the memory test and an operator's small box would run it.
 fn budgeted(bytes: u64) -> ServerConfig {
     ServerConfig { memory_budget: bytes, session_memory_budget: bytes, ..ServerConfig::default() }

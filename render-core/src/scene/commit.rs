@@ -32,6 +32,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
             HashMap::new()
         }
     };
+    let diced_triangles = displaced.iter().map(|(p, m)| m.indices.len().saturating_sub(desc.meshes[*p].mesh.indices.len()) as u64).sum();
     let geometry = Geometry::build(desc, &displaced, cache, &mut warnings)?;
     let (mut instances, prim_paths) = place_instances(desc, &geometry, &materials)?;
     let tangents = match plan.has(Feature::NormalMaps) {
@@ -71,6 +72,7 @@ pub fn commit(desc: &SceneDesc, cache: &mut BlasCache) -> Result<CommittedScene,
     tracing::info!(instances = instances.len(), blas_builds = cache.last_builds, lights = light_set.lights.len(), "scene committed");
     Ok(CommittedScene {
         meshes: geometry.meshes,
+        diced_triangles,
         tangents,
         blases: geometry.blases,
         instances,

@@ -33,6 +33,9 @@ pub struct InstanceData {
 pub struct CommittedScene {
     /// Geometry per distinct mesh.
     pub meshes: Vec<Arc<Mesh>>,
+    /// Triangles displacement dicing added to the description's (the server reserves memory
+    /// for them after the commit, as it cannot know them before).
+    pub diced_triangles: u64,
     /// Per mesh, its MikkTSpace tangents (per corner) when a normal map is drawn on it.
     pub(super) tangents: Vec<Option<Arc<crate::geometry::Attribute<glam::Vec4>>>>,
     pub(super) blases: Vec<Arc<Blas>>,
