@@ -84,6 +84,24 @@ fn dicing_stays_within_the_scenes_budget_and_says_where_it_was_limited() {
 }
 
 #[test]
+fn a_materialx_displacement_shader_moves_the_surface_as_the_preview_surface_does() {
+    let t = load("textures/displaced.usda");
+    assert!(t.warnings.iter().all(|w| !w.contains("displace")), "{:?}", t.warnings);
+    let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    // ND_image_float of an 8-bit PNG decodes as sRGB (UsdUVTexture's `auto`), times the
+    // ND_displacement_float's scale 0.25. The slab lies over z in [5, 7].
+    let srgb = |b: f32| {
+        let c = b / 255.0;
+        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    };
+    for ((x, z), byte) in [((-0.5, 5.5), 200.0), ((0.5, 5.5), 40.0), ((-0.5, 6.5), 40.0), ((0.5, 6.5), 230.0)] {
+        let expected = 0.25 * srgb(byte);
+        let got = height(&scene, x, z);
+        assert!((got - expected).abs() < 1e-4, "MaterialX slab quadrant at ({x}, {z}): height {got}, expected {expected}");
+    }
+}
+
+#[test]
 fn a_constant_displacement_grows_the_ball_by_its_amount() {
     let scene = commit(&load("textures/displaced.usda").to_scene_desc(), &mut BlasCache::default()).expect("commits");
     // The unit ball at (3, 0, 0), displaced by 0.1: its pole and its equator's vertex on +x
@@ -228,5 +246,52 @@ def DomeLight "Dome" {}
     let said = t.warnings.iter().filter(|w| w.contains("/M:") && w.contains("outputs:mtlx:displacement") && w.contains("/M/D")).count();
     assert_eq!(said, 1, "{:?}", t.warnings);
     let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    assert!(height(&scene, 0.2, -0.2).abs() < 1e-5, "not displaced");
+}
+
+/// A MaterialX displacement with a constant amount moves the surface by amount × scale; on a
+/// surface that maps onto one of Tessera's own shaders (subsurface here), which do not
+/// displace, it is reported naming the surface.
+#[test]
+fn a_constant_materialx_displacement_moves_the_surface_or_is_reported() {
+    let usda = |subsurface: f32| {
+        format!(
+            r#"#usda 1.0
+def Material "M"
+{{
+    token outputs:mtlx:surface.connect = </M/S.outputs:out>
+    token outputs:mtlx:displacement.connect = </M/D.outputs:out>
+    def Shader "S"
+    {{
+        uniform token info:id = "ND_standard_surface_surfaceshader"
+        float inputs:subsurface = {subsurface}
+        token outputs:out
+    }}
+    def Shader "D"
+    {{
+        uniform token info:id = "ND_displacement_float"
+        float inputs:displacement = 0.5
+        float inputs:scale = 0.4
+        token outputs:out
+    }}
+}}
+def Mesh "Tri" (prepend apiSchemas = ["MaterialBindingAPI"])
+{{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, -1)]
+    rel material:binding = </M>
+}}
+def DomeLight "Dome" {{}}
+"#
+        )
+    };
+    let plain = load_text("mtlx-displace", &usda(0.0));
+    let scene = commit(&plain.to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    assert!((height(&scene, 0.2, -0.2) - 0.2).abs() < 1e-5, "0.5 × 0.4 up: {:?}", plain.warnings);
+    let skin = load_text("mtlx-displace-sss", &usda(1.0));
+    let said = skin.warnings.iter().any(|w| w.starts_with("/M/S: its displacement has no place on the tessera:SolidDielectric"));
+    assert!(said, "{:?}", skin.warnings);
+    let scene = commit(&skin.to_scene_desc(), &mut BlasCache::default()).expect("commits");
     assert!(height(&scene, 0.2, -0.2).abs() < 1e-5, "not displaced");
 }

@@ -29,6 +29,21 @@ const SURFACE: &str = "ND_surface";
 const MAX_DEPTH: usize = 64;
 
 /// Whether the network's surface is a MaterialX node (and so needs [`translate`]).
+/// MaterialX's scalar displacement shader: the surface moves by `displacement · scale` along
+/// its normal.
+pub const DISPLACEMENT: &str = "ND_displacement_float";
+
+/// The connection that hands a displacement shader to the surface it displaces: the mapping
+/// reads it as the surface's `displacement` input.
+pub fn displaced_by(surface: &str, shader: &str) -> MaterialConnection {
+    MaterialConnection {
+        downstream_node: surface.to_string(),
+        downstream_input: "displacement".into(),
+        upstream_node: shader.to_string(),
+        upstream_output: "out".into(),
+    }
+}
+
 pub fn is_materialx(net: &MaterialNetwork) -> bool {
     net.nodes.iter().any(|n| n.path == net.surface_node && n.node_type_id.starts_with("ND_"))
 }
@@ -39,7 +54,7 @@ pub fn is_materialx(net: &MaterialNetwork) -> bool {
 pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Result<(), String> {
     let surface = net.nodes.iter().find(|n| n.path == net.surface_node).cloned().ok_or("no surface node")?;
     let graph = Graph { net, warned: std::cell::RefCell::new(Vec::new()) };
-    let inputs = match surface.node_type_id.as_str() {
+    let mut inputs = match surface.node_type_id.as_str() {
         STANDARD_SURFACE => standard_surface(&graph, &surface.path),
         OPEN_PBR => open_pbr(&graph, &surface.path),
         PREVIEW => preview(&graph, &surface.path),
@@ -55,6 +70,13 @@ pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Resul
             ));
         }
     };
+    if let Some(amount) = graph.displacement(&surface.path) {
+        match inputs.id {
+            "UsdPreviewSurface" => inputs.values.push(("displacement", amount, false)),
+            id => warnings
+                .push(format!("{}: its displacement has no place on the {id} it maps to; the surface is not displaced", surface.path)),
+        }
+    }
     warnings.extend(graph.warned.take());
     *net = emit(&surface.path, inputs, net, warnings);
     Ok(())
@@ -185,6 +207,16 @@ impl Graph<'_> {
 
     fn get3(&self, surface: &str, name: &str, default: Vec3) -> Lin {
         self.input(surface, name, default.extend(1.0), 0).unwrap_or(Lin::constant(default.extend(1.0)))
+    }
+
+    /// The amount a `displacement` shader handed to the surface (see [`displaced_by`]) moves it:
+    /// `displacement · scale`, folded. None without one, or (reported) when it cannot be folded.
+    fn displacement(&self, surface: &str) -> Option<Lin> {
+        let c = self.net.connections.iter().find(|c| c.downstream_node == surface && c.downstream_input == "displacement")?;
+        let shader = &c.upstream_node;
+        let amount = self.input(shader, "displacement", Vec4::ZERO, 1)?;
+        let scale = self.input(shader, "scale", Vec4::ONE, 1)?;
+        Lin::mul(amount, scale).or_else(|| self.unsupported(shader, DISPLACEMENT, "a textured scale of a textured displacement"))
     }
 
     /// A `normalmap` node's tangent-space normal (its image decoded as 2·t − 1), when the

@@ -44,11 +44,18 @@ pub fn read(xml: &str, material: &str, dir: &Path, prim: &str) -> Result<Documen
     let mut reader = Reader { dir, prim, network: MaterialNetwork::default(), files: Vec::new(), seen: Vec::new() };
     let surface = reader.node(root, shader)?;
     reader.network.surface_node = surface;
-    let unread = input_of(*found, "displacementshader")
-        .and_then(|i| i.attribute("nodename"))
-        .map(|d| format!("{prim}: the displacement shader '{d}' of surfacematerial '{name}' is not read; the surface is not displaced"))
-        .into_iter()
-        .collect();
+    let mut unread = Vec::new();
+    if let Some(d) = input_of(*found, "displacementshader").and_then(|i| i.attribute("nodename")) {
+        let shader = reader.node(root, d)?;
+        if reader.network.nodes.iter().any(|n| n.path == shader && n.node_type_id == super::materialx::DISPLACEMENT) {
+            let surface = reader.network.surface_node.clone();
+            reader.network.connections.push(super::materialx::displaced_by(&surface, &shader));
+        } else {
+            unread.push(format!(
+                "{prim}: the displacement shader '{d}' of surfacematerial '{name}' is not read; the surface is not displaced"
+            ));
+        }
+    }
     Ok(DocumentMaterial { network: reader.network, files: reader.files, unread })
 }
 
@@ -87,7 +94,12 @@ impl Reader<'_> {
         }
         self.seen.push(path.clone());
         let category = element.tag_name().name();
-        let kind = element.attribute("type").unwrap_or("");
+        let kind = match category {
+            // Its node definitions are named by the displacement's type (ND_displacement_float,
+            // ND_displacement_vector3), not by the shader type every one of them outputs.
+            "displacement" => input_of(element, "displacement").and_then(|i| i.attribute("type")).unwrap_or("float"),
+            _ => element.attribute("type").unwrap_or(""),
+        };
         let mut node = MaterialNode { path: path.clone(), node_type_id: format!("ND_{category}_{kind}"), parameters: BTreeMap::new() };
         for input in element.children().filter(|c| c.tag_name().name() == "input") {
             if let Some(name) = input.attribute("name") {
@@ -263,15 +275,25 @@ mod tests {
     }
 
     #[test]
-    fn a_displacement_shader_is_reported_not_dropped() {
-        let xml = r#"<materialx>
+    fn a_float_displacement_shader_is_handed_to_the_surface_and_a_vector_one_reported() {
+        let doc = |kind: &str| {
+            format!(
+                r#"<materialx>
   <standard_surface name="S" type="surfaceshader"/>
-  <displacement name="D" type="displacementshader"><input name="displacement" type="float" value="0.5"/></displacement>
+  <displacement name="D" type="displacementshader"><input name="displacement" type="{kind}" value="0.5"/></displacement>
   <surfacematerial name="M"><input name="surfaceshader" nodename="S"/><input name="displacementshader" nodename="D"/></surfacematerial>
-</materialx>"#;
-        let m = read(xml, "M", Path::new("."), "/World/M").unwrap();
-        assert_eq!(m.unread.len(), 1);
-        assert!(m.unread[0].contains("/World/M") && m.unread[0].contains("'D'") && m.unread[0].contains("not displaced"), "{:?}", m.unread);
+</materialx>"#
+            )
+        };
+        let m = read(&doc("float"), "M", Path::new("."), "/World/M").unwrap();
+        assert!(m.unread.is_empty(), "{:?}", m.unread);
+        let d = m.network.nodes.iter().find(|n| n.path.ends_with("/D")).expect("the displacement node is read");
+        assert_eq!(d.node_type_id, "ND_displacement_float");
+        let c = m.network.connections.iter().find(|c| c.downstream_input == "displacement").expect("handed to the surface");
+        assert_eq!((c.downstream_node.as_str(), c.upstream_node.as_str()), (m.network.surface_node.as_str(), d.path.as_str()));
+        let v = read(&doc("vector3"), "M", Path::new("."), "/World/M").unwrap();
+        assert_eq!(v.unread.len(), 1);
+        assert!(v.unread[0].contains("/World/M") && v.unread[0].contains("'D'") && v.unread[0].contains("not displaced"), "{:?}", v.unread);
         let plain = read(DOC, "Board", Path::new("."), "/World/M").unwrap();
         assert!(plain.unread.is_empty());
     }

@@ -91,9 +91,13 @@ impl Reader<'_> {
             self.out.materials.push((path.to_string(), network));
             return Ok(());
         };
-        self.report_displacement_shader(path, &material, &surface)?;
+        let displacement = self.displacement_shader(path, &material, &surface)?;
         network.surface_node = surface.as_str().to_string();
         let mut stack = vec![surface];
+        if let Some(d) = displacement {
+            network.connections.push(super::materialx::displaced_by(&network.surface_node, d.as_str()));
+            stack.push(d);
+        }
         let mut seen = std::collections::HashSet::new();
         while let Some(node_path) = stack.pop() {
             if seen.insert(node_path.as_str().to_string()) {
@@ -207,24 +211,34 @@ impl Reader<'_> {
         Ok(None)
     }
 
-    /// Reports a displacement terminal that leads to a shader other than the surface's (a
-    /// MaterialX or renderer-specific displacement shader): only UsdPreviewSurface's own
-    /// `displacement` input moves a mesh.
-    fn report_displacement_shader(&mut self, path: &str, material: &Material, surface: &sdf::Path) -> Result<()> {
+    /// The displacement shader a displacement terminal leads to, when it is one Tessera reads:
+    /// MaterialX's `displacement` (float) under a MaterialX surface, which the MaterialX mapping
+    /// folds into the surface's displacement. Any other shader there (a vector displacement, a
+    /// renderer's own) is reported. UsdPreviewSurface's own `displacement` needs none of this:
+    /// its terminal leads back to the surface.
+    fn displacement_shader(&mut self, path: &str, material: &Material, surface: &sdf::Path) -> Result<Option<sdf::Path>> {
         let prim = self.stage.prim(material.path().clone());
+        let materialx_surface = self.shader_id(surface)?.starts_with("ND_");
         for terminal in terminals(&prim, "displacement")? {
             for target in prim.attribute(&terminal).connections()? {
-                if let Some(Source::Output(shader, _)) = self.resolve_source(&target)?
-                    && shader != *surface
-                {
-                    let shader = shader.as_str();
-                    self.out.warnings.push(format!(
-                        "{path}: {terminal} leads to {shader}, a displacement shader Tessera does not read; the surface is not displaced"
-                    ));
+                let Some(Source::Output(shader, _)) = self.resolve_source(&target)? else { continue };
+                if shader == *surface {
+                    continue;
                 }
+                if materialx_surface && self.shader_id(&shader)? == super::materialx::DISPLACEMENT {
+                    return Ok(Some(shader));
+                }
+                let shader = shader.as_str();
+                self.out.warnings.push(format!(
+                    "{path}: {terminal} leads to {shader}, a displacement shader Tessera does not read; the surface is not displaced"
+                ));
             }
         }
-        Ok(())
+        Ok(None)
+    }
+
+    fn shader_id(&self, shader: &sdf::Path) -> Result<String> {
+        Ok(get(&self.stage.prim(shader.clone()), "info:id", self.time)?.as_ref().and_then(values::token).unwrap_or_default())
     }
 
     /// Where a connection target leads once NodeGraph (and Material) outputs and interface
