@@ -7,7 +7,7 @@
 //! not be represented), and averaged over a vertex's corners so that a texture seam cannot
 //! tear the surface apart.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
@@ -83,22 +83,32 @@ fn dicing_rate(mesh: &Mesh, amount: Amount) -> u32 {
     if want.is_finite() { (want as u32).clamp(1, MAX_DICE) } else { MAX_DICE }
 }
 
+/// A mesh to displace: what it is, what displaces it, and how finely it asks to be diced.
+struct Wanted<'d, 'm> {
+    path: &'d str,
+    mesh: &'d MeshDesc,
+    network: &'d MaterialNetwork,
+    amount: Amount<'m>,
+    dice: u32,
+}
+
 /// The rates `wanted` asks for, scaled down together (and each reported) where they would
 /// make more than [`MAX_DICED_TRIANGLES`].
-fn within_budget(wanted: &[(&str, &MeshDesc, &MaterialNetwork, Amount, u32)], warnings: &mut Vec<String>) -> Vec<u32> {
-    let made = |m: &MeshDesc, n: u32| m.mesh.indices.len() as u64 * (n as u64).pow(2);
-    let total: u64 = wanted.iter().filter(|w| w.4 > 1).map(|w| made(w.1, w.4)).sum();
+fn within_budget(wanted: &[Wanted], warnings: &mut Vec<String>) -> Vec<u32> {
+    let made = |w: &Wanted| w.mesh.mesh.indices.len() as u64 * (w.dice as u64).pow(2);
+    let total: u64 = wanted.iter().filter(|w| w.dice > 1).map(made).sum();
     if total <= MAX_DICED_TRIANGLES {
-        return wanted.iter().map(|w| w.4).collect();
+        return wanted.iter().map(|w| w.dice).collect();
     }
     let scale = (MAX_DICED_TRIANGLES as f64 / total as f64).sqrt();
     wanted
         .iter()
-        .map(|&(path, _, _, _, want)| {
-            let n = ((want as f64 * scale).floor() as u32).max(1);
-            if n < want {
+        .map(|w| {
+            let n = ((w.dice as f64 * scale).floor() as u32).max(1);
+            if n < w.dice {
                 warnings.push(format!(
-                    "{path}: displacement diced {n} segments an edge where its texture asks for {want}: the scene's displaced meshes would make more than {MAX_DICED_TRIANGLES} triangles"
+                    "{}: displacement diced {n} segments an edge where its texture asks for {}: the scene's displaced meshes would make more than {MAX_DICED_TRIANGLES} triangles",
+                    w.path, w.dice
                 ));
             }
             n
@@ -117,36 +127,41 @@ pub(super) fn displaced_meshes<'d>(
     warnings: &mut Vec<String>,
 ) -> HashMap<&'d str, Arc<Mesh>> {
     let _span = tracing::info_span!("displace").entered();
+    let prototypes: HashSet<&str> = desc.instancers.values().map(|i| i.prototype.as_str()).collect();
     let mut wanted = Vec::new();
     for (path, m) in &desc.meshes {
+        // Only meshes that render, as the geometry step builds them.
+        if !(m.visible || prototypes.contains(path.as_str())) {
+            continue;
+        }
         let Some(network) = desc.materials.get(&m.material) else { continue };
         let Some(amount) = amount_of(network, &m.material, materials) else { continue };
         // An invalid mesh is the geometry step's error to report; it cannot be displaced.
         if validate_mesh(path, &m.mesh).is_err() {
             continue;
         }
-        wanted.push((path.as_str(), m, network, amount, dicing_rate(&m.mesh, amount)));
+        wanted.push(Wanted { path, mesh: m, network, amount, dice: dicing_rate(&m.mesh, amount) });
     }
     let rates = within_budget(&wanted, warnings);
     let mut jobs = Vec::new();
     let mut kept = HashMap::new();
-    for ((path, m, network, amount, _), dice) in wanted.into_iter().zip(rates) {
-        let unchanged = |d: &&Displaced| Arc::ptr_eq(&d.source, &m.mesh) && d.network == *network && d.dice == dice;
-        match cache.displaced.get(path).filter(unchanged) {
+    for (w, dice) in wanted.into_iter().zip(rates) {
+        let unchanged = |d: &&Displaced| Arc::ptr_eq(&d.source, &w.mesh.mesh) && d.network == *w.network && d.dice == dice;
+        match cache.displaced.get(w.path).filter(unchanged) {
             Some(d) => {
-                kept.insert(path, d.clone());
+                kept.insert(w.path, d.clone());
             }
-            None => jobs.push((path, m, network, amount, dice)),
+            None => jobs.push(Wanted { dice, ..w }),
         }
     }
-    let done: Vec<_> =
-        jobs.into_par_iter().map(|(path, m, network, amount, dice)| (path, m, network, dice, displace(&m.mesh, amount, dice))).collect();
-    for (path, m, network, dice, mesh) in done {
-        match validate_mesh(path, &mesh) {
+    let done: Vec<_> = jobs.into_par_iter().map(|w| (displace(&w.mesh.mesh, w.amount, w.dice), w)).collect();
+    for (mesh, w) in done {
+        match validate_mesh(w.path, &mesh) {
             Ok(()) => {
-                kept.insert(path, Displaced { source: m.mesh.clone(), network: network.clone(), dice, mesh: Arc::new(mesh) });
+                let entry = Displaced { source: w.mesh.mesh.clone(), network: w.network.clone(), dice: w.dice, mesh: Arc::new(mesh) };
+                kept.insert(w.path, entry);
             }
-            Err(e) => warnings.push(format!("{e} after displacement by {}; the mesh renders undisplaced", m.material)),
+            Err(e) => warnings.push(format!("{e} after displacement by {}; the mesh renders undisplaced", w.mesh.material)),
         }
     }
     let out = kept.iter().map(|(p, d)| (*p, d.mesh.clone())).collect();
