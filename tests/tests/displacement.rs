@@ -129,6 +129,23 @@ async fn a_displaced_scene_renders_over_the_server() {
     assert!(report.started.warnings.iter().all(|w| !w.contains("displacement")), "{:?}", report.started.warnings);
 }
 
+/// A layer of `material` (a Material at /M) bound to a one-triangle mesh at y = 0, under a dome.
+fn with_triangle(material: &str) -> String {
+    format!(
+        r#"#usda 1.0
+{material}
+def Mesh "Tri" (prepend apiSchemas = ["MaterialBindingAPI"])
+{{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, -1)]
+    rel material:binding = </M>
+}}
+def DomeLight "Dome" {{}}
+"#
+    )
+}
+
 /// Sets the Swell material's constant displacement in `desc`.
 fn set_swell(desc: &mut SceneDesc, amount: f32) {
     let network = desc.materials.get_mut("/World/Looks/Swell").expect("the Swell material");
@@ -176,8 +193,8 @@ fn a_displacement_out_of_range_is_reported_and_the_mesh_stays_where_it_was() {
 fn a_displacement_reading_a_colour_is_reported() {
     let t = load_text(
         "displace-rgb",
-        r#"#usda 1.0
-def Material "M"
+        &with_triangle(
+            r#"def Material "M"
 {
     token outputs:surface.connect = </M/S.outputs:surface>
     def Shader "S"
@@ -193,15 +210,8 @@ def Material "M"
         float3 outputs:rgb
     }
 }
-def Mesh "Tri" (prepend apiSchemas = ["MaterialBindingAPI"])
-{
-    int[] faceVertexCounts = [3]
-    int[] faceVertexIndices = [0, 1, 2]
-    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, -1)]
-    rel material:binding = </M>
-}
-def DomeLight "Dome" {}
 "#,
+        ),
     );
     let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
     let said = scene.warnings.iter().any(|w| w.contains("/M/S") && w.contains("'displacement'") && w.contains("not a float"));
@@ -210,14 +220,15 @@ def DomeLight "Dome" {}
 }
 
 /// Nothing asked for is dropped silently: a displacement terminal that leads to a shader of its
-/// own (MaterialX's `ND_displacement_float` here) is reported naming the material, terminal and
-/// shader, and the surface renders undisplaced.
+/// own under a surface that is not MaterialX (an `ND_displacement_float` under a
+/// UsdPreviewSurface here) is reported naming the material, terminal and shader, and the
+/// surface renders undisplaced.
 #[test]
 fn a_displacement_shader_tessera_does_not_read_is_reported() {
     let t = load_text(
         "displace-mtlx",
-        r#"#usda 1.0
-def Material "M"
+        &with_triangle(
+            r#"def Material "M"
 {
     token outputs:surface.connect = </M/S.outputs:surface>
     token outputs:mtlx:displacement.connect = </M/D.outputs:out>
@@ -233,15 +244,8 @@ def Material "M"
         token outputs:out
     }
 }
-def Mesh "Tri" (prepend apiSchemas = ["MaterialBindingAPI"])
-{
-    int[] faceVertexCounts = [3]
-    int[] faceVertexIndices = [0, 1, 2]
-    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, -1)]
-    rel material:binding = </M>
-}
-def DomeLight "Dome" {}
 "#,
+        ),
     );
     let said = t.warnings.iter().filter(|w| w.contains("/M:") && w.contains("outputs:mtlx:displacement") && w.contains("/M/D")).count();
     assert_eq!(said, 1, "{:?}", t.warnings);
@@ -255,9 +259,8 @@ def DomeLight "Dome" {}
 #[test]
 fn a_constant_materialx_displacement_moves_the_surface_or_is_reported() {
     let usda = |subsurface: f32| {
-        format!(
-            r#"#usda 1.0
-def Material "M"
+        with_triangle(&format!(
+            r#"def Material "M"
 {{
     token outputs:mtlx:surface.connect = </M/S.outputs:out>
     token outputs:mtlx:displacement.connect = </M/D.outputs:out>
@@ -275,16 +278,8 @@ def Material "M"
         token outputs:out
     }}
 }}
-def Mesh "Tri" (prepend apiSchemas = ["MaterialBindingAPI"])
-{{
-    int[] faceVertexCounts = [3]
-    int[] faceVertexIndices = [0, 1, 2]
-    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 0, -1)]
-    rel material:binding = </M>
-}}
-def DomeLight "Dome" {{}}
 "#
-        )
+        ))
     };
     let plain = load_text("mtlx-displace", &usda(0.0));
     let scene = commit(&plain.to_scene_desc(), &mut BlasCache::default()).expect("commits");
