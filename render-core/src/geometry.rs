@@ -172,6 +172,21 @@ pub type Normals = Attribute<Vec3>;
 /// A mesh's texture coordinates (`st`).
 pub type Uvs = Attribute<Vec2>;
 
+/// Unit normals of `count` groups of vertices, `group(v)` being vertex v's: each the sum of the
+/// area-weighted normals of the triangles its vertices belong to (zero for a group no
+/// triangle with area touches). With one group per vertex, the usual smooth vertex normals.
+pub fn area_weighted_normals(positions: &[Vec3], indices: &[[u32; 3]], group: impl Fn(u32) -> usize, count: usize) -> Vec<Vec3> {
+    let mut sum = vec![Vec3::ZERO; count];
+    for tri in indices {
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        let area_normal = (b - a).cross(c - a);
+        for &i in tri {
+            sum[group(i)] += area_normal;
+        }
+    }
+    sum.into_iter().map(|n| n.normalize_or_zero()).collect()
+}
+
 /// A triangle mesh in object space.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {

@@ -480,10 +480,15 @@ fn texel_linear(texels: &Texels, i: usize, srgb: bool, k: usize, channels: usize
 /// world-space `width` meeting a surface at cosine `cos_theta`, on a triangle whose texture
 /// area per world area is `uv_density`² (in st units), over a texture `size` texels big.
 pub fn ray_cone_lod(width: f32, cos_theta: f32, uv_density: f32, size: (usize, usize)) -> f32 {
-    let texels = (size.0 as f32 * size.1 as f32).sqrt();
+    let texels = texels_a_side(size);
     // Grazing footprints stretch without bound; 1/64 caps the blur at six levels.
     let footprint = width * uv_density * texels / cos_theta.abs().max(1.0 / 64.0);
     if footprint > 0.0 && footprint.is_finite() { footprint.log2().max(0.0) } else { 0.0 }
+}
+
+/// Texels along a side of a texture of `size`, the geometric mean of its width and height.
+pub fn texels_a_side(size: (usize, usize)) -> f32 {
+    (size.0 as f32 * size.1 as f32).sqrt()
 }
 
 #[cfg(test)]

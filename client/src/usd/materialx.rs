@@ -28,7 +28,6 @@ const SURFACE: &str = "ND_surface";
 /// Longest upstream chain followed from one input (deeper is a cycle or a generated graph).
 const MAX_DEPTH: usize = 64;
 
-/// Whether the network's surface is a MaterialX node (and so needs [`translate`]).
 /// MaterialX's scalar displacement shader: the surface moves by `displacement · scale` along
 /// its normal.
 pub const DISPLACEMENT: &str = "ND_displacement_float";
@@ -44,6 +43,7 @@ pub fn displaced_by(surface: &str, shader: &str) -> MaterialConnection {
     }
 }
 
+/// Whether the network's surface is a MaterialX node (and so needs [`translate`]).
 pub fn is_materialx(net: &MaterialNetwork) -> bool {
     net.nodes.iter().any(|n| n.path == net.surface_node && n.node_type_id.starts_with("ND_"))
 }

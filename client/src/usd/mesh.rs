@@ -236,15 +236,7 @@ fn polygon_triangles(polygon: &[Vec3]) -> Vec<[usize; 3]> {
 
 /// Area-weighted vertex normals.
 fn smooth_normals(points: &[Vec3], tris: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut n = vec![Vec3::ZERO; points.len()];
-    for t in tris {
-        let [a, b, c] = t.map(|i| points[i as usize]);
-        let face = (b - a).cross(c - a);
-        for &i in t {
-            n[i as usize] += face;
-        }
-    }
-    n.into_iter().map(|v| v.normalize_or_zero()).collect()
+    render_core::geometry::area_weighted_normals(points, tris, |v| v as usize, points.len())
 }
 
 #[cfg(test)]

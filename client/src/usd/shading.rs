@@ -237,6 +237,7 @@ impl Reader<'_> {
         Ok(None)
     }
 
+    /// A shader prim's `info:id` (empty when it has none).
     fn shader_id(&self, shader: &sdf::Path) -> Result<String> {
         Ok(get(&self.stage.prim(shader.clone()), "info:id", self.time)?.as_ref().and_then(values::token).unwrap_or_default())
     }
@@ -301,8 +302,8 @@ impl Reader<'_> {
         stack: &mut Vec<sdf::Path>,
     ) -> Result<MaterialNode> {
         let prim = self.stage.prim(node_path.clone());
-        let id = get(&prim, "info:id", self.time)?.as_ref().and_then(values::token).unwrap_or_default();
-        let mut node = MaterialNode { path: node_path.as_str().to_string(), node_type_id: id, ..Default::default() };
+        let mut node =
+            MaterialNode { path: node_path.as_str().to_string(), node_type_id: self.shader_id(node_path)?, ..Default::default() };
         for name in prim.property_names()? {
             let Some(input) = name.strip_prefix("inputs:") else {
                 continue;

@@ -184,18 +184,28 @@ def _principled_of(material_name: str):
     return next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
 
 
-def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
+def _material_name(prim) -> str:
+    """The Blender name of the material exported as `prim` (the prim's name is sanitised)."""
     name_attr = prim.GetAttribute("userProperties:blender:data_name")
-    node = _principled_of(name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName())
+    return name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
+
+
+def _surface_shader(prim, UsdShade):
+    """The shader behind the Material `prim`'s surface terminal, or None."""
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    return UsdShade.Shader(surface.GetPrim()) if surface else None
+
+
+def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
+    node = _principled_of(_material_name(prim))
     if node is None:
         return
     transmission = float(node.inputs["Transmission Weight"].default_value)
     if transmission <= 0.0:
         return
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    if not surface:
+    shader = _surface_shader(prim, UsdShade)
+    if not shader:
         return
-    shader = UsdShade.Shader(surface.GetPrim())
     _warn_if_displaced(exported, prim.GetName(), shader)
     shader.SetShaderId("tessera:Principled")
     renames = {"diffuseColor": "baseColor"}
@@ -236,11 +246,10 @@ def _subsurface_of(material_name: str):
 
 
 def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
-    name_attr = prim.GetAttribute("userProperties:blender:data_name")
-    name = name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
+    name = _material_name(prim)
     node = _subsurface_of(name)
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0] if node else None
-    if not surface:
+    shader = _surface_shader(prim, UsdShade) if node else None
+    if not shader:
         return
     weight = node.inputs["Subsurface Weight"]
     others = [n for n in ("Metallic", "Transmission Weight") if node.inputs[n].is_linked or node.inputs[n].default_value > 0.0]
@@ -248,7 +257,6 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
         why = "its weight is textured" if weight.is_linked else f"{' and '.join(others)} above 0"
         exported.warnings.append(f"{name}: subsurface is rendered as diffuse reflection ({why})")
         return
-    shader = UsdShade.Shader(surface.GetPrim())
     _warn_if_displaced(exported, name, shader)
     shader.SetShaderId("tessera:SolidDielectric")
     for inp in list(shader.GetInputs()):
@@ -282,13 +290,11 @@ def _correct_displacement(exported: Export, prim, UsdShade) -> None:
     moves the mesh (as Cycles' *Displacement Only*) and does not bump-map. So *Bump Only*, which
     Cycles renders as shading alone, is dropped with a warning, and the bump part of
     *Displacement and Bump* is said to be lost."""
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    shader = _surface_shader(prim, UsdShade)
     displacement = shader.GetInput("displacement") if shader else None
     if not displacement:
         return
-    name_attr = prim.GetAttribute("userProperties:blender:data_name")
-    name = name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
+    name = _material_name(prim)
     material = bpy.data.materials.get(name)
     method = getattr(material, "displacement_method", "BUMP")
     if method == "BUMP":
@@ -309,8 +315,7 @@ NEUTRAL_SPECULAR_LEVEL = 0.5
 
 
 def _drop_specular_level(exported: Export, prim, UsdShade) -> None:
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    shader = _surface_shader(prim, UsdShade)
     level = shader.GetInput("specular") if shader and shader.GetIdAttr().Get() == "UsdPreviewSurface" else None
     if not level:
         return

@@ -10,7 +10,7 @@ use glam::{Mat2, Vec2, Vec3, Vec4};
 use super::Material;
 use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
 use super::inputs::{EVALUATED, Overrides, ResolveReport};
-use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod};
+use crate::texture::{ColorSpace, Texture, Wrap, ray_cone_lod, texels_a_side};
 
 /// What a texture lookup needs to know about the point it shades.
 #[derive(Clone, Copy, Debug)]
@@ -101,10 +101,7 @@ fn udim_tile(grid: &UdimGrid, st: Vec2) -> Option<(&Texture, Vec2)> {
 impl Expr {
     /// Texels of the finest texture this reads per unit of the mesh's texture coordinates.
     fn texels_per_st(&self) -> f32 {
-        let side = |t: &Texture| {
-            let (w, h) = t.size();
-            (w as f32 * h as f32).sqrt()
-        };
+        let side = |t: &Texture| texels_a_side(t.size());
         match self {
             Expr::Const(_) | Expr::St { .. } | Expr::Primvar { .. } => 0.0,
             Expr::Texture { texture, st, .. } => (side(texture) * st.st_stretch()).max(st.texels_per_st()),

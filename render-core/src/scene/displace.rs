@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::materials::Materials;
 use super::{BlasCache, MeshDesc, SceneDesc, validate_mesh};
-use crate::geometry::{Attribute, Mesh};
+use crate::geometry::{Attribute, Mesh, area_weighted_normals};
 use crate::material::graph::PrimvarSource;
 use crate::material::{MaterialNetwork, ParamValue, ShadingPoint, VaryingInput};
 
@@ -173,25 +173,20 @@ pub(super) fn displaced_meshes<'d>(
 /// sample's) moved along its normal by `amount`; shading normals recomputed where the mesh had
 /// any.
 pub(super) fn displace(mesh: &Mesh, amount: Amount, dice: u32) -> Mesh {
-    let diced;
-    let mesh = if dice > 1 {
-        diced = dice_mesh(mesh, dice);
-        &diced
-    } else {
-        mesh
-    };
-    let sites = Sites::of(&mesh.positions);
+    let mut out = if dice > 1 { dice_mesh(mesh, dice) } else { mesh.clone() };
+    let sites = Sites::of(&out.positions);
     let distances = match amount {
         Amount::Constant(d) => vec![d; sites.count],
-        Amount::Textured(input) => site_distances(mesh, &sites, input),
+        Amount::Textured(input) => site_distances(&out, &sites, input),
     };
-    let mut out = mesh.clone();
-    out.positions = moved(&mesh.positions, &mesh.indices, &sites, &distances);
-    let n = mesh.positions.len();
-    if n > 0 {
-        out.deformation = mesh.deformation.chunks(n).flat_map(|pose| moved(pose, &mesh.indices, &sites, &distances)).collect();
-    }
-    if !mesh.normals.is_empty() {
+    let n = out.positions.len();
+    let deformation = match n {
+        0 => Vec::new(),
+        _ => out.deformation.chunks(n).flat_map(|pose| moved(pose, &out.indices, &sites, &distances)).collect(),
+    };
+    out.positions = moved(&out.positions, &out.indices, &sites, &distances);
+    out.deformation = deformation;
+    if !out.normals.is_empty() {
         let normals = site_normals(&out.positions, &mesh.indices, &sites);
         out.normals = Attribute::Vertex(sites.of.iter().map(|&s| normals[s as usize]).collect());
     }
@@ -285,15 +280,7 @@ fn moved(positions: &[Vec3], indices: &[[u32; 3]], sites: &Sites, distances: &[f
 /// Unit normal of each site, the sum of its triangles' area-weighted normals (zero for a site
 /// no triangle with area uses).
 fn site_normals(positions: &[Vec3], indices: &[[u32; 3]], sites: &Sites) -> Vec<Vec3> {
-    let mut sum = vec![Vec3::ZERO; sites.count];
-    for tri in indices {
-        let [a, b, c] = tri.map(|i| positions[i as usize]);
-        let area_normal = (b - a).cross(c - a);
-        for &i in tri {
-            sum[sites.of[i as usize] as usize] += area_normal;
-        }
-    }
-    sum.into_iter().map(|n| n.normalize_or_zero()).collect()
+    area_weighted_normals(positions, indices, |v| sites.of[v as usize] as usize, sites.count)
 }
 
 /// The textured distance at each site: the mean of the lookups at its vertices' corners.
