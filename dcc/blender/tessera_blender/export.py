@@ -21,6 +21,8 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
+* Node trees: an Emission shader, a Diffuse BSDF and a Bump on the normal are corrected, and
+  whatever else of the tree the export drops or skips is reported (``nodes.py``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ import tempfile
 from dataclasses import dataclass, field
 
 import bpy
+
+from . import nodes
 
 #: What the exporter's sun strength is divided by.
 SUN_EXPORT_DIVISOR = 4.0
@@ -83,7 +87,11 @@ def correct(exported: Export, scene) -> None:
     Sdf, Usd, UsdLux, UsdShade = _pxr()
     stage = Usd.Stage.Open(exported.path)
     lights = []
-    for prim in stage.Traverse():
+    prims = list(stage.Traverse())
+    # Materials first: an Emission shader made emissive here makes its objects emitters below.
+    for prim in (p for p in prims if p.IsA(UsdShade.Material)):
+        _correct_material(exported, prim, Sdf, UsdShade)
+    for prim in prims:
         name_attr = prim.GetAttribute("userProperties:blender:object_name")
         if name_attr and name_attr.HasValue():
             obj = bpy.data.objects.get(name_attr.Get())
@@ -101,16 +109,22 @@ def correct(exported: Export, scene) -> None:
                 for child in (c for c in children if c.GetTypeName() == "Mesh" and _emits(c, UsdShade)):
                     _make_mesh_light(exported, child, obj, UsdLux)
                     lights.append((child, obj))
-        if prim.IsA(UsdShade.Material):
-            # Before glass and subsurface, which rewrite the shader without its displacement.
-            _correct_displacement(exported, prim, UsdShade)
-            _correct_glass(exported, prim, Sdf, UsdShade)
-            _correct_subsurface(exported, prim, Sdf, UsdShade)
-            _drop_specular_level(exported, prim, UsdShade)
     # After the traversal: a light may link objects exported after it.
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
     stage.GetRootLayer().Save()
+
+
+def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
+    material = bpy.data.materials.get(_material_name(prim))
+    if material is not None:
+        # Before the rest: they read the inputs it checks and rewrite the shader's names.
+        nodes.check(exported, prim, material, Sdf, UsdShade)
+    # Before glass and subsurface, which rewrite the shader without its displacement.
+    _correct_displacement(exported, prim, UsdShade)
+    _correct_glass(exported, prim, Sdf, UsdShade)
+    _correct_subsurface(exported, prim, Sdf, UsdShade)
+    _drop_specular_level(exported, prim, UsdShade)
 
 
 def _emits(prim, UsdShade) -> bool:

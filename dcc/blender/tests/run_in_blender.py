@@ -153,6 +153,20 @@ def interactive():
     }
 
 
+def node_reports():
+    """The add-on's check of node trees against the export (scenes.node_trees): its warnings
+    and corrections, and which inputs each corrected material still has connected."""
+    scenes.node_trees(OUT)
+    exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    _, Usd, _, UsdShade = export._pxr()
+    stage = Usd.Stage.Open(exported.path)
+    connected = {}
+    for prim in (p for p in stage.Traverse() if p.IsA(UsdShade.Material)):
+        shader = export._surface_shader(prim, UsdShade)
+        connected[prim.GetName()] = sorted(i.GetBaseName() for i in shader.GetInputs() if i.HasConnectedSource()) if shader else None
+    return {"warnings": exported.warnings, "corrections": exported.corrections, "connected": connected}
+
+
 def errors_reach_the_artist():
     """A render whose export cannot be synced reports the error (the operator fails with it,
     as F12 shows it in the status bar) rather than saving a silent black image."""
@@ -179,5 +193,6 @@ if __name__ == "__main__":
     denoised("box")
     results["interactive"] = interactive()
     results["error_reports"] = errors_reach_the_artist()
+    results["node_reports"] = node_reports()
     with open(os.path.join(OUT, "results.json"), "w") as f:
         json.dump(results, f, indent=1)

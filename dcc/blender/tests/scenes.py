@@ -19,6 +19,7 @@ REGIONS = {
     "udim": {1: "tile 1001 plane", 2: "tile 1002 plane"},
     "subsurface": {1: "floor", 2: "subsurface sphere", 3: "half subsurface sphere"},
     "displaced": {1: "floor", 2: "displaced grid"},
+    "emission_shader": {1: "diffuse floor", 2: "sphere"},
 }
 
 def udim_image(directory):
@@ -45,7 +46,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -149,6 +150,24 @@ def build(kind, directory):
             bpy.ops.object.shade_smooth()
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.8, 0.5, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind == "emission_shader":
+        # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
+        # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
+        floor = bpy.data.materials.new("diffuse floor")
+        tree = floor.node_tree
+        diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse"); diffuse.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+        tree.nodes.remove(tree.nodes["Principled BSDF"])
+        tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        add(bpy.ops.mesh.primitive_plane_add, floor, 1, size=8)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
+        glow = bpy.data.materials.new("glow")
+        tree = glow.node_tree
+        emission = tree.nodes.new("ShaderNodeEmission")
+        emission.inputs["Color"].default_value = (1.0, 0.9, 0.8, 1); emission.inputs["Strength"].default_value = 15.0
+        tree.nodes.remove(tree.nodes["Principled BSDF"])
+        tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1.5, location=(0.8, -0.5, 2.6), rotation=(3.14159, 0, 0))
+        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
     else:
         checker = os.path.join(directory, "checker.png")
         img = bpy.data.images.new("checker", 64, 64)
@@ -187,3 +206,65 @@ def render(scene, engine, path, spp):
         scene.tessera.samples = spp
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
+
+
+def node_trees(directory):
+    """One plane per node set-up Blender's USD export translates, or does not, each material
+    named for its case (docs/blender.md): the add-on must correct or report each."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    image = bpy.data.images.new("plain", 8, 8)
+    image.filepath_raw = os.path.join(directory, "plain.png"); image.file_format = 'PNG'; image.save()
+
+    def texture(tree):
+        t = tree.nodes.new("ShaderNodeTexImage"); t.image = image
+        return t
+
+    def link(tree, a, b):
+        tree.links.new(a, b)
+
+    def ramp(tree, p):
+        r = tree.nodes.new("ShaderNodeValToRGB")
+        link(tree, texture(tree).outputs["Color"], r.inputs["Fac"]); link(tree, r.outputs["Color"], p.inputs["Base Color"])
+
+    def math(tree, p):
+        m = tree.nodes.new("ShaderNodeMath"); m.operation = 'MULTIPLY'
+        link(tree, texture(tree).outputs["Alpha"], m.inputs[0]); link(tree, m.outputs[0], p.inputs["Roughness"])
+
+    def bump(tree, p):
+        b = tree.nodes.new("ShaderNodeBump")
+        link(tree, texture(tree).outputs["Alpha"], b.inputs["Height"]); link(tree, b.outputs[0], p.inputs["Normal"])
+
+    def normal_map(tree, p):
+        n = tree.nodes.new("ShaderNodeNormalMap")
+        link(tree, texture(tree).outputs["Color"], n.inputs["Color"]); link(tree, n.outputs[0], p.inputs["Normal"])
+
+    def mapped(tree, p):
+        m = tree.nodes.new("ShaderNodeMapping"); c = tree.nodes.new("ShaderNodeTexCoord"); t = texture(tree)
+        link(tree, c.outputs["UV"], m.inputs["Vector"]); link(tree, m.outputs[0], t.inputs["Vector"])
+        s = tree.nodes.new("ShaderNodeSeparateColor")
+        link(tree, t.outputs["Color"], s.inputs["Color"]); link(tree, s.outputs["Green"], p.inputs["Roughness"])
+
+    def rgb(tree, p):
+        c = tree.nodes.new("ShaderNodeRGB"); c.outputs[0].default_value = (0, 1, 0, 1)
+        link(tree, c.outputs[0], p.inputs["Base Color"])
+
+    def mix_shader(tree, p):
+        m = tree.nodes.new("ShaderNodeMixShader"); d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        link(tree, p.outputs[0], m.inputs[1]); link(tree, d.outputs[0], m.inputs[2])
+        link(tree, m.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
+    def glossy(tree, p):
+        g = tree.nodes.new("ShaderNodeBsdfGlossy"); tree.nodes.remove(p)
+        link(tree, g.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
+    def sheen(tree, p):
+        p.inputs["Sheen Weight"].default_value = 0.5
+        p.inputs["Coat Weight"].default_value = 0.0
+        p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
+
+    for x, case in enumerate((ramp, math, bump, normal_map, mapped, rgb, mix_shader, glossy, sheen)):
+        m = bpy.data.materials.new(case.__name__)
+        case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
+        bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
+        bpy.context.object.data.materials.append(m)
+    return bpy.context.scene

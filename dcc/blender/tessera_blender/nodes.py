@@ -1,0 +1,195 @@
+"""What Blender's USD exporter makes of a material's node tree, checked against the tree, so
+nothing the artist built is dropped without a word (docs/blender.md has the table).
+
+Measured on bpy 5.0.1 (``generate_preview_surface``):
+
+* Only a Principled BSDF or a Diffuse BSDF becomes a UsdPreviewSurface. A material whose
+  surface is any other shader (Emission, Glossy, Glass...) is exported without a surface; one
+  whose surface is a Mix or Add Shader keeps one of the BSDFs inside it.
+* From a BSDF input the exporter follows links through any node to the first Image Texture
+  and connects that image: a Color Ramp, Math or Mix on the way is skipped. So a Bump node's
+  height image arrives as a tangent-space normal map, which it is not.
+* An input driven by nodes with no image behind them (Noise, RGB...) falls back to the
+  input's own value.
+* Principled inputs UsdPreviewSurface has no place for (sheen, anisotropy, tints, thin film)
+  are not written.
+
+The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
+loses the specular layer UsdPreviewSurface would add, and a normal that went through a node the
+export cannot carry is disconnected. Everything else is reported, once a material.
+"""
+
+from __future__ import annotations
+
+#: Principled BSDF inputs the exporter carries, by their UsdPreviewSurface names.
+PRINCIPLED_CARRIED = {
+    "Base Color": "diffuseColor",
+    "Metallic": "metallic",
+    "Roughness": "roughness",
+    "IOR": "ior",
+    "Alpha": "opacity",
+    "Normal": "normal",
+    "Coat Weight": "clearcoat",
+    "Coat Roughness": "clearcoatRoughness",
+    "Emission Color": "emissiveColor",
+}
+
+#: Diffuse BSDF inputs the exporter carries.
+DIFFUSE_CARRIED = {"Color": "diffuseColor", "Normal": "normal"}
+
+#: Node types the exporter translates on the way from an input to its image: the image, its
+#: UVs (a UV Map, a Texture Coordinate's UV, a 2D Mapping as UsdTransform2d), a channel of it
+#: (Separate Color), a primvar (Attribute), a Normal Map into Normal, and reroutes.
+CARRIED_NODES = {"TEX_IMAGE", "UVMAP", "TEX_COORD", "MAPPING", "SEPARATE_COLOR", "ATTRIBUTE", "NORMAL_MAP", "REROUTE"}
+
+
+def principled_losses(node) -> list[str]:
+    """Principled inputs with no UsdPreviewSurface counterpart that the artist set to something
+    that shows: linked, or away from the value that does nothing. Transmission, subsurface and
+    Specular IOR Level have corrections of their own in export.py."""
+    value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
+    linked = {i.name for i in node.inputs if i.is_linked}
+    coat = "Coat Weight" in linked or float(value["Coat Weight"]) > 0.0
+    white = (1.0, 1.0, 1.0)
+    # (input, whether it matters at all, whether its value shows)
+    rows = (
+        ("Diffuse Roughness", True, float(value["Diffuse Roughness"]) > 0.0),
+        ("Specular Tint", True, tuple(value["Specular Tint"])[:3] != white),
+        ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
+        ("Coat IOR", coat, float(value["Coat IOR"]) != 1.5),
+        ("Coat Tint", coat, tuple(value["Coat Tint"])[:3] != white),
+        ("Coat Normal", coat, False),
+        ("Sheen Weight", True, float(value["Sheen Weight"]) > 0.0),
+        ("Thin Film Thickness", True, float(value["Thin Film Thickness"]) > 0.0),
+        ("Emission Strength", True, False),
+    )
+    return [name for name, matters, shows in rows if matters and (shows or name in linked)]
+
+
+def active_output(tree):
+    """The Material Output that renders (Blender's active one), or None."""
+    outputs = [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]
+    return next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+
+
+def label(node) -> str:
+    """A node as the artist sees it: its name, and its kind when the name does not say it."""
+    return f"'{node.name}'" if node.name.startswith(node.bl_label) else f"'{node.name}' ({node.bl_label})"
+
+
+def upstream(socket, seen=None) -> list:
+    """Every node upstream of `socket`, nearest first, each once."""
+    seen = [] if seen is None else seen
+    for link in socket.links:
+        node = link.from_node
+        if node in seen:
+            continue
+        seen.append(node)
+        for inp in node.inputs:
+            upstream(inp, seen)
+    return seen
+
+
+def skipped(socket, into: str) -> list:
+    """The nodes upstream of `socket` the exporter does not translate. A Texture Coordinate
+    counts only through its UV output, a Normal Map only into Normal."""
+    out = []
+    for node in upstream(socket):
+        if node.type not in CARRIED_NODES:
+            out.append(node)
+        elif node.type == "NORMAL_MAP" and into != "Normal":
+            out.append(node)
+        elif node.type == "TEX_COORD" and any(o.is_linked and o.name != "UV" for o in node.outputs):
+            out.append(node)
+    return out
+
+
+def check(exported, prim, material, Sdf, UsdShade) -> None:
+    """Holds the exported Material `prim` against Blender's `material`: corrects what can be
+    corrected and adds a warning to `exported` for the rest."""
+    tree = getattr(material, "node_tree", None)
+    output = active_output(tree) if tree else None
+    if output is None or not output.inputs["Surface"].is_linked:
+        return
+    node = output.inputs["Surface"].links[0].from_node
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    name = material.name
+    if node.type == "BSDF_PRINCIPLED":
+        _check_inputs(exported, name, node, PRINCIPLED_CARRIED, shader)
+        for lost in principled_losses(node):
+            exported.warnings.append(f"{name}: {lost} is not carried (UsdPreviewSurface has no such input)")
+    elif node.type == "BSDF_DIFFUSE" and shader:
+        _check_inputs(exported, name, node, DIFFUSE_CARRIED, shader)
+        _correct_diffuse(exported, name, prim, node, shader, Sdf)
+    elif node.type == "EMISSION":
+        _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
+    else:
+        kept = f"only its {shader.GetPrim().GetName()} is rendered" if shader else "Tessera renders the default surface"
+        exported.warnings.append(f"{name}: the surface is {label(node)}, which the USD export does not carry: {kept}")
+    if output.inputs["Volume"].is_linked:
+        exported.warnings.append(f"{name}: the Volume output is not carried")
+
+
+def _check_inputs(exported, name, node, carried, shader) -> None:
+    """Each linked BSDF input against what the export connected for it."""
+    for blender_name, usd_name in carried.items():
+        socket = node.inputs[blender_name]
+        if not socket.is_linked:
+            continue
+        lost = skipped(socket, blender_name)
+        usd_input = shader.GetInput(usd_name) if shader else None
+        connected = bool(usd_input) and usd_input.HasConnectedSource()
+        nodes = ", ".join(label(n) for n in lost or upstream(socket))
+        if not connected:
+            value = _shown(usd_input.Get() if usd_input else None)
+            exported.warnings.append(f"{name}: {blender_name} is driven by {nodes}, which the USD export does not carry: rendered with {value}")
+        elif lost and blender_name == "Normal":
+            # The image found behind a Bump is a height map, not a tangent-space normal map.
+            shader.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
+            exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry (Tessera does not bump-map): the mesh's own normals are used")
+        elif lost:
+            behind = "it" if len(lost) == 1 else "them"
+            exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export skips: the image behind {behind} is used unchanged")
+
+
+def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:
+    """A Diffuse BSDF is Lambertian; UsdPreviewSurface's default IOR 1.5 would lay a specular
+    layer over it. IOR 1 has no Fresnel reflection."""
+    shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)
+    exported.corrections.append(f"{prim.GetPath()}: Diffuse BSDF without a specular layer (ior 1)")
+    roughness = node.inputs["Roughness"]
+    if roughness.is_linked or float(roughness.default_value) > 0.0:
+        exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried; the surface is Lambertian")
+
+
+def _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade) -> None:
+    """An Emission shader, which the export drops, as a UsdPreviewSurface that only emits:
+    black diffuse, no specular layer (IOR 1), emissive colour Color × Strength (the export's
+    own product for a Principled BSDF's emission)."""
+    color, strength = node.inputs["Color"], node.inputs["Strength"]
+    for socket in (color, strength):
+        if socket.is_linked:
+            nodes = ", ".join(label(n) for n in upstream(socket))
+            exported.warnings.append(f"{name}: the Emission's {socket.name} is driven by {nodes}, which is not carried: its value is used")
+    if shader is None:
+        shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("Emission"))
+        UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    else:
+        for inp in list(shader.GetInputs()):
+            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    radiance = tuple(float(c) * float(strength.default_value) for c in tuple(color.default_value)[:3])
+    shader.SetShaderId("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set((0.0, 0.0, 0.0))
+    shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).Set(radiance)
+    shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)
+    shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
+    exported.corrections.append(f"{prim.GetPath()}: Emission shader as an emissive UsdPreviewSurface ({_shown(radiance)})")
+
+
+def _shown(value) -> str:
+    if value is None:
+        return "the default"
+    if hasattr(value, "__len__"):
+        return "(" + ", ".join(f"{float(v):g}" for v in value) + ")"
+    return f"{float(value):g}"
