@@ -40,6 +40,7 @@ features! {
     EnvironmentMap = "environment-map": "DomeLight texture, importance-sampled by luminance × sin θ (2D piecewise-constant) with MIS",
     Textures = "textures": "material inputs from textures, resolved per shading point and mip-mapped by ray cones",
     NormalMaps = "normal-maps": "tangent-space normal maps (MikkTSpace tangents built for the meshes that use them)",
+    BumpMaps = "bump-maps": "tessera:Bump heights: the shading normal tilted by the height's slope, read by central differences one texel apart",
     Displacement = "displacement": "UsdPreviewSurface displacement: the meshes it is bound to diced to their texture's texels (2M triangles a scene at most) and moved along their vertex normals before their BVHs are built",
     TexturedCutouts = "textured-cutouts": "opacity textures cut surfaces out per point, for every ray",
     TexturedEmission = "textured-emission": "emission looked up per texel where light sampling lands",

@@ -9,7 +9,7 @@
 //! does; per-triangle tangents (from ∂p/∂s) stand in where a mesh has none.
 
 use bevy_mikktspace::{Geometry, TangentSpace, generate_tangents};
-use glam::{Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
 use crate::geometry::{Attribute, Mesh};
 
@@ -96,6 +96,26 @@ pub fn perturb(ns: Vec3, t: Vec3, handedness: Handedness, n_ts: Vec3) -> Option<
 pub fn normal_mapped(ns: Vec3, mikk: Vec4, dpds: Vec3, dpdt: Vec3, n_ts: Vec3) -> Vec3 {
     let welded = (mikk != Vec4::ZERO).then(|| perturb(ns, mikk.truncate(), Handedness::Sign(mikk.w), n_ts)).flatten();
     welded.or_else(|| perturb(ns, dpds, Handedness::Along(dpdt), n_ts)).unwrap_or(ns)
+}
+
+/// The shading normal of a surface moved along `ns` by a height whose slope is `slope` (height
+/// per unit of s and t): normalize(ns − ∇h), with ∇h = slope.s ∇s + slope.t ∇t, where ∇s and
+/// ∇t are the dual basis of the triangle's ∂p/∂s and ∂p/∂t in the plane normal to `ns`.
+/// Blinn's bump mapping ("Simulation of Wrinkled Surfaces", 1978) to first order in the
+/// height, which drops the term of the normal's own change. `ns` where the derivatives are
+/// degenerate (no texture coordinates) or the slope is not finite.
+pub fn bumped(ns: Vec3, dpds: Vec3, dpdt: Vec3, slope: Vec2) -> Vec3 {
+    let a = dpds - ns * ns.dot(dpds);
+    let b = dpdt - ns * ns.dot(dpdt);
+    let across_t = b.cross(ns);
+    let det = a.dot(across_t);
+    if det.abs() < f32::MIN_POSITIVE || !slope.is_finite() {
+        return ns;
+    }
+    let gradient = (across_t * slope.x + ns.cross(a) * slope.y) / det;
+    let tilted = ns - gradient;
+    // Scaled to its largest component first, so a cliff's slope does not overflow the length.
+    (tilted / tilted.abs().max_element()).try_normalize().unwrap_or(ns)
 }
 
 #[cfg(test)]
@@ -186,6 +206,38 @@ mod tests {
         // It lies between the two faces' own tangents.
         let mid = (Vec3::X + Vec3::new(0.766, 0.0, -0.643)).normalize();
         assert!(shared[0].truncate().dot(mid) > 0.99, "{shared:?}");
+    }
+
+    /// The normal of the height field z = h(s, t) over a plane parameterised by p = s·a + t·b:
+    /// with a sheared parameterisation the answer is still the height field's own normal.
+    #[test]
+    fn a_bump_tilts_the_normal_as_the_height_field_it_describes() {
+        let ns = Vec3::Z;
+        assert_eq!(bumped(ns, Vec3::X, Vec3::Y, Vec2::ZERO), ns, "no slope, no tilt");
+        // h = 0.5·s with s along x (one unit of s a unit of x): z = 0.5·x, normal (−0.5, 0, 1).
+        let n = bumped(ns, Vec3::X, Vec3::Y, Vec2::new(0.5, 0.0));
+        assert!((n - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-6, "{n}");
+        // s stretched over two units of x: the same height change over twice the run.
+        let n = bumped(ns, Vec3::X * 2.0, Vec3::Y, Vec2::new(0.5, 0.0));
+        assert!((n - Vec3::new(-0.25, 0.0, 1.0).normalize()).length() < 1e-6, "{n}");
+        // Sheared: p = s·x + t·(x + y), h = 0.3·t. In x and y, t = y and s = x − y, so
+        // z = 0.3·y and the normal is (0, −0.3, 1), whatever s does.
+        let n = bumped(ns, Vec3::X, Vec3::X + Vec3::Y, Vec2::new(0.0, 0.3));
+        assert!((n - Vec3::new(0.0, -0.3, 1.0).normalize()).length() < 1e-6, "{n}");
+        // Derivatives with a component along the normal are taken in its plane.
+        let n = bumped(ns, Vec3::new(1.0, 0.0, 0.7), Vec3::Y, Vec2::new(0.5, 0.0));
+        assert!((n - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-6, "{n}");
+        // A vertical cliff still gives a unit normal, in the plane.
+        let n = bumped(ns, Vec3::X, Vec3::Y, Vec2::new(1e30, 0.0));
+        assert!((n - -Vec3::X).length() < 1e-6, "{n}");
+        // Degenerate: no texture coordinates, parallel derivatives, tiny scales, bad slopes.
+        assert_eq!(bumped(ns, Vec3::ZERO, Vec3::ZERO, Vec2::ONE), ns);
+        assert_eq!(bumped(ns, Vec3::X, Vec3::X * 2.0, Vec2::ONE), ns);
+        assert_eq!(bumped(ns, Vec3::Z, Vec3::Y, Vec2::ONE), ns, "∂p/∂s along the normal");
+        assert_eq!(bumped(ns, Vec3::X, Vec3::Y, Vec2::new(f32::NAN, 0.0)), ns);
+        assert_eq!(bumped(ns, Vec3::X, Vec3::Y, Vec2::new(f32::INFINITY, 0.0)), ns);
+        let tiny = bumped(ns, Vec3::X * 1e-20, Vec3::Y * 1e-20, Vec2::new(1e-20, 0.0));
+        assert!(tiny.is_finite() && (tiny.length() - 1.0).abs() < 1e-6, "{tiny}");
     }
 
     #[test]

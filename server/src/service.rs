@@ -143,6 +143,7 @@ pub fn capabilities(config: &ServerConfig) -> pb::Capabilities {
             "UsdTransform2d",
             "tessera:Principled",
             "tessera:Layer",
+            render_core::material::BUMP,
         ]
         .into_iter()
         .chain(render_core::material::native::SHADERS.iter().map(|s| s.id))

@@ -2,6 +2,7 @@
 //! One binary (as ripgrep does) so the workspace links it once.
 
 mod aovs;
+mod bump;
 mod caustics;
 mod conformance;
 mod curves;

@@ -7,7 +7,7 @@ use crate::bsdf::Bsdf;
 use crate::bvh::Hit;
 use crate::caustics::RoughnessFloor;
 use crate::geometry::{Ray, offset_ray_origin};
-use crate::material::{Material, Uber};
+use crate::material::{Material, Tilt, Uber};
 use crate::math::Frame;
 use crate::scene::SurfaceHit;
 
@@ -15,7 +15,7 @@ use super::Tracer;
 use super::path::PathState;
 
 /// A textured material resolved at a shading point, and its normal-map normal.
-pub(super) type LocalMaterial = Option<(Material, Option<Vec3>)>;
+pub(super) type LocalMaterial = Option<(Material, Option<Tilt>)>;
 
 /// A surface a path scatters at, set up for shading.
 pub(super) struct Vertex<'l> {
@@ -26,7 +26,7 @@ pub(super) struct Vertex<'l> {
     /// The material resolved here and its normal-map normal, for textured materials: in the
     /// path's own buffer, as a BSDF built here is (a material is 464 bytes; every vertex
     /// moved it).
-    pub local: Option<&'l (Material, Option<Vec3>)>,
+    pub local: Option<&'l (Material, Option<Tilt>)>,
     /// The BSDF, prepared for this view: the material's own or the path's buffer.
     pub bsdf: &'l Bsdf,
     /// Shading and geometric normals, oriented for the BSDF (see [`Tracer::orient`]).
@@ -102,8 +102,10 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
             path.ray.tmax = f32::INFINITY;
             return Landing::PassedThrough;
         }
-        if let Some((_, Some(n))) = local {
-            s.ns = crate::tangents::normal_mapped(s.ns, s.tangent, s.dpds, s.dpdt, *n);
+        match local {
+            Some((_, Some(Tilt::NormalMap(n)))) => s.ns = crate::tangents::normal_mapped(s.ns, s.tangent, s.dpds, s.dpdt, *n),
+            Some((_, Some(Tilt::Bump(slope)))) => s.ns = crate::tangents::bumped(s.ns, s.dpds, s.dpdt, *slope),
+            _ => {}
         }
         let wo = -ray.dir;
         let (shared, glitter) = self.choose_bsdf(path, &s, local, bsdf);

@@ -75,6 +75,15 @@ enum Expr {
         linear: Mat2,
         translation: Vec2,
     },
+    /// The slope of a height along the mesh's s and t (`scale` world units per unit of
+    /// height), by central differences `step` apart in st: one texel of the finest texture
+    /// the height reads.
+    Bump {
+        height: Box<Expr>,
+        channel: usize,
+        scale: f32,
+        step: f32,
+    },
     /// A UDIM set: the tile under `st` (its texel grid clamped at the tile's edges, so
     /// neighbouring tiles never bleed into each other), or the fallback where no tile is.
     Udim {
@@ -108,7 +117,7 @@ impl Expr {
             Expr::Udim { tiles, st, .. } => {
                 (tiles.iter().flatten().map(|t| side(t)).fold(0.0, f32::max) * st.st_stretch()).max(st.texels_per_st())
             }
-            Expr::Transform2d { input, .. } => input.texels_per_st(),
+            Expr::Transform2d { input, .. } | Expr::Bump { height: input, .. } => input.texels_per_st(),
         }
     }
 
@@ -166,6 +175,15 @@ impl Expr {
                 let st = *linear * Vec2::new(v.x, v.y) + *translation;
                 (st.extend(0.0).extend(0.0), stretch * linear.determinant().abs().sqrt())
             }
+            Expr::Bump { height, channel, scale, step } => {
+                // Without texture coordinates (or far enough that lookups return the mean) the
+                // height has no slope to read.
+                let Some(st) = sp.st.filter(|_| sp.width.is_finite()) else { return (Vec4::ZERO, 1.0) };
+                let h = |d: Vec2| height.eval(&ShadingPoint { st: Some(st + d), ..*sp }).0[*channel];
+                let (ds, dt) = (Vec2::new(*step, 0.0), Vec2::new(0.0, *step));
+                let slope = Vec2::new(h(ds) - h(-ds), h(dt) - h(-dt)) * (*scale / (2.0 * *step));
+                (slope.extend(0.0).extend(0.0), 1.0)
+            }
         }
     }
 }
@@ -189,6 +207,7 @@ impl Output {
             ("UsdPrimvarReader_float2" | "UsdTransform2d", "result") => Output::Float2,
             ("UsdPrimvarReader_float" | "UsdPrimvarReader_int", "result") => Output::Float(0),
             ("UsdPrimvarReader_float3", "result") => Output::Float3,
+            (BUMP, "out") => Output::Float3,
             _ => return None,
         })
     }
@@ -216,8 +235,8 @@ pub struct TexturedMaterial {
     exprs: Vec<(Expr, Output)>,
     /// Each varying input's value over the whole texture.
     means: Vec<ParamValue>,
-    /// Index of the surface node's `normal` input (a tangent-space normal map), if varying.
-    normal: Option<usize>,
+    /// Index of the surface node's `normal` input, if varying, and what feeds it.
+    normal: Option<(usize, NormalInput)>,
     /// The material of each node no varying input reaches but a varying node reads (a
     /// layer's constant side, a glitter's constant base), resolved once here: per shading
     /// point only the path from the varying inputs to the surface is resolved again.
@@ -255,9 +274,12 @@ impl TexturedMaterial {
             return None;
         }
         let surface = network.nodes.iter().find(|n| n.path == network.surface_node);
-        let normal = surface
-            .filter(|n| super::native::takes_normal_map(&n.node_type_id))
-            .and_then(|s| keys.iter().position(|(n, i)| *n == s.path && i == "normal"));
+        let normal = surface.filter(|n| super::native::takes_normal_map(&n.node_type_id)).and_then(|s| {
+            let k = keys.iter().position(|(n, i)| *n == s.path && i == "normal")?;
+            let c = network.connections.iter().find(|c| c.downstream_node == s.path && c.downstream_input == "normal")?;
+            let bump = network.nodes.iter().any(|n| n.path == c.upstream_node && n.node_type_id == BUMP);
+            Some((k, if bump { NormalInput::Bump } else { NormalInput::Map }))
+        });
         let means = exprs.iter().map(|(e, o)| o.value(e.eval(&ShadingPoint::whole_texture()).0)).collect();
         let fixed = constant_frontier(&compiled, &keys).into_iter().map(|n| (n.clone(), compiled.resolve_subtree(path, &n))).collect();
         Some(TexturedMaterial { path: path.to_string(), network: compiled, keys, exprs, means, normal, fixed })
@@ -265,7 +287,12 @@ impl TexturedMaterial {
 
     /// True when a tangent-space normal map perturbs the shading normal.
     pub fn has_normal_map(&self) -> bool {
-        self.normal.is_some()
+        matches!(self.normal, Some((_, NormalInput::Map)))
+    }
+
+    /// True when a bump height tilts the shading normal.
+    pub fn has_bump(&self) -> bool {
+        matches!(self.normal, Some((_, NormalInput::Bump)))
     }
 
     /// True when the emission varies over the surface (lights look it up per point).
@@ -292,15 +319,42 @@ impl TexturedMaterial {
         self.network.resolve_with(&self.path, Overrides { keys: &self.keys, values: &self.means }, true)
     }
 
-    /// The material at one shading point, and the tangent-space normal of a normal map
-    /// (+Z up; not normalised) if the surface has one.
-    pub fn at(&self, sp: &ShadingPoint) -> (Material, Option<Vec3>) {
+    /// The material at one shading point, and what tilts its shading normal there if
+    /// anything does.
+    pub fn at(&self, sp: &ShadingPoint) -> (Material, Option<Tilt>) {
         let values: Vec<ParamValue> = self.exprs.iter().map(|(e, o)| o.value(e.eval(sp).0)).collect();
-        let normal = self.normal.and_then(|i| if let ParamValue::Float3(n) = values[i] { Some(n) } else { None });
+        let normal = self.normal.and_then(|(i, kind)| match (&values[i], kind) {
+            (ParamValue::Float3(n), NormalInput::Map) => Some(Tilt::NormalMap(*n)),
+            (ParamValue::Float3(g), NormalInput::Bump) => Some(Tilt::Bump(g.truncate())),
+            _ => None,
+        });
         let (m, _) = self.network.resolve_using(&self.path, Overrides { keys: &self.keys, values: &values }, false, Some(&self.fixed));
         (m, normal)
     }
 }
+
+/// What feeds a surface's varying `normal` input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum NormalInput {
+    /// A tangent-space normal map.
+    Map,
+    /// A [`BUMP`] node.
+    Bump,
+}
+
+/// What tilts the shading normal at a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tilt {
+    /// A normal map's tangent-space normal (+Z up; not normalised).
+    NormalMap(Vec3),
+    /// A bump height's slope: world units of height per unit of the mesh's s and t.
+    Bump(Vec2),
+}
+
+/// Tessera's bump node. Its `height` (a float output: a texture channel) is read around the
+/// shading point, and the shading normal is tilted as if the surface were moved along it by
+/// `scale` × height world units (`scale` defaults to 1). Its `out` feeds a surface's `normal`.
+pub const BUMP: &str = "tessera:Bump";
 
 /// The surface node's input that moves the mesh rather than shading it.
 const DISPLACEMENT: &str = "displacement";
@@ -464,6 +518,13 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
         }
     };
     match node.node_type_id.as_str() {
+        // Each bump reads its height four times: one inside another's height would multiply
+        // the lookups a shading point makes by four a level.
+        BUMP if depth > 0 => {
+            report.warnings.push(format!("{}: a tessera:Bump feeds only a surface's normal, not another node; it is ignored", node.path));
+            Expr::Const(Vec4::ZERO)
+        }
+        BUMP => bump(net, node, upstream("height", report), report),
         "UsdPrimvarReader_float2" => {
             // The client sends the float2 primvar the readers name as the mesh's st, or (on
             // curves) as a primvar of that name.
@@ -531,6 +592,36 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
                 }
                 None => Expr::Const(fallback),
             }
+        }
+    }
+}
+
+/// A [`BUMP`] node over its compiled `height`. A height that is not a float, or a scale that
+/// is not finite, is reported and the surface stays unbumped.
+fn bump(net: &MaterialNetwork, node: &MaterialNode, height: Option<Expr>, report: &mut ResolveReport) -> Expr {
+    let scale = match node.parameters.get("scale") {
+        Some(ParamValue::Float(s)) => *s,
+        _ => 1.0,
+    };
+    let c = net.connections.iter().find(|c| c.downstream_node == node.path && c.downstream_input == "height");
+    let output = c.and_then(|c| net.nodes.iter().find(|n| n.path == c.upstream_node).and_then(|up| Output::of(up, &c.upstream_output)));
+    let flat = Expr::Const(Vec4::ZERO);
+    match (height, output) {
+        (None, _) => flat,
+        (Some(_), _) if !scale.is_finite() => {
+            report.warnings.push(format!("{}: scale {scale} is not finite; the surface is not bumped", node.path));
+            flat
+        }
+        (Some(height), Some(Output::Float(channel))) => {
+            let texels = height.texels_per_st();
+            // One texel (the geometric mean of a non-square texture's two); without a texture
+            // the height is smooth at any scale: a thousandth of st.
+            let step = if texels > 0.0 { 1.0 / texels } else { 1e-3 };
+            Expr::Bump { height: Box::new(height), channel, scale, step }
+        }
+        (Some(_), _) => {
+            report.warnings.push(format!("{}: input 'height' does not read a float output; the surface is not bumped", node.path));
+            flat
         }
     }
 }
@@ -699,6 +790,93 @@ mod tests {
         let m = TexturedMaterial::compile(&net, "/M", &|_: &str, _| None, &mut report).unwrap();
         assert!(report.warnings.iter().any(|w| w.contains("/M/T") && w.contains("rb.png")), "{:?}", report.warnings);
         assert_eq!(diffuse_at(&m, Vec2::new(0.25, 0.5)), Vec3::Y);
+    }
+
+    /// A surface whose `normal` reads a [`BUMP`] over the red channel of a 4 × 4 raw ramp along
+    /// s (texel centres 0, 1/3, 2/3, 1 at s = 1/8, 3/8, 5/8, 7/8), `scale` 0.5.
+    fn bumped(scale: ParamValue, output: &str) -> (Option<TexturedMaterial>, ResolveReport) {
+        let tex = ParamValue::Texture { hash: "sha256:ramp".into(), source: "ramp.png".into() };
+        let net = MaterialNetwork {
+            nodes: vec![
+                node("/M/S", "UsdPreviewSurface", &[]),
+                node("/M/B", BUMP, &[("scale", scale)]),
+                node("/M/T", "UsdUVTexture", &[("file", tex), ("sourceColorSpace", ParamValue::String("raw".into()))]),
+                node("/M/P", "UsdPrimvarReader_float2", &[("varname", ParamValue::String("st".into()))]),
+            ],
+            connections: vec![
+                connect("/M/S", "normal", "/M/B", "out"),
+                connect("/M/B", "height", "/M/T", output),
+                connect("/M/T", "st", "/M/P", "result"),
+            ],
+            surface_node: "/M/S".into(),
+        };
+        let ramp: Vec<f32> = (0..16).flat_map(|i| [(i % 4) as f32 / 3.0, 0.0, 0.0]).collect();
+        let t = Arc::new(Texture::new(&Image::from_f32(4, 4, 3, &ramp), ColorSpace::Raw));
+        let mut report = ResolveReport::default();
+        let m = TexturedMaterial::compile(&net, "/M", &move |h: &str, _| (h == "sha256:ramp").then(|| t.clone()), &mut report);
+        (m, report)
+    }
+
+    /// Between texel centres the ramp rises 1/3 a quarter of s: a slope of 4/3 along s, 0
+    /// along t (every row is the same), times `scale`.
+    #[test]
+    fn a_bump_node_reads_its_heights_slope_along_s_and_t() {
+        let (m, report) = bumped(ParamValue::Float(0.5), "r");
+        let m = m.expect("varying");
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        assert!(m.has_bump() && !m.has_normal_map());
+        let sp = |s: f32, width: f32| ShadingPoint { st: Some(Vec2::new(s, 0.5)), primvars: None, width, cos: 1.0, uv_density: 1.0 };
+        for s in [0.375, 0.5, 0.625] {
+            match m.at(&sp(s, 0.0)).1 {
+                // 1e-3: the texels are kept as half floats (1/3 is 0.33325).
+                Some(Tilt::Bump(slope)) => assert!((slope - Vec2::new(0.5 * 4.0 / 3.0, 0.0)).abs().max_element() < 1e-3, "{s}: {slope}"),
+                other => panic!("{other:?}"),
+            }
+        }
+        // Seen from afar (the whole texture in the footprint) the surface has no slope.
+        assert_eq!(m.at(&sp(0.5, f32::INFINITY)).1, Some(Tilt::Bump(Vec2::ZERO)));
+        assert_eq!(m.at(&ShadingPoint { st: None, ..sp(0.5, 0.0) }).1, Some(Tilt::Bump(Vec2::ZERO)), "no st, no slope");
+    }
+
+    #[test]
+    fn a_bump_over_a_colour_or_with_a_bad_scale_is_reported_and_flat() {
+        for (scale, output, says) in
+            [(ParamValue::Float(1.0), "rgb", "does not read a float"), (ParamValue::Float(f32::INFINITY), "r", "is not finite")]
+        {
+            let (m, report) = bumped(scale, output);
+            assert!(report.warnings.iter().any(|w| w.contains("/M/B") && w.contains(says)), "{:?}", report.warnings);
+            let sp = ShadingPoint { st: Some(Vec2::new(0.5, 0.5)), primvars: None, width: 0.0, cos: 1.0, uv_density: 1.0 };
+            assert_eq!(m.expect("still varying").at(&sp).1, Some(Tilt::Bump(Vec2::ZERO)));
+        }
+    }
+
+    /// Hostile input: bumps chained through texture coordinates (each bump's height a texture
+    /// whose `st` is the next bump) would cost 4ⁿ lookups a point; a bump below the first is
+    /// reported and reads nothing.
+    #[test]
+    fn a_bump_inside_a_bumps_height_is_refused() {
+        let tex = ParamValue::Texture { hash: "sha256:x".into(), source: "rb.png".into() };
+        let mut net =
+            MaterialNetwork { nodes: vec![node("/M/S", "UsdPreviewSurface", &[])], connections: vec![], surface_node: "/M/S".into() };
+        let mut below = ("/M/S".to_string(), "normal");
+        for k in 0..8 {
+            let (b, t) = (format!("/M/B{k}"), format!("/M/T{k}"));
+            net.nodes.push(node(&b, BUMP, &[]));
+            net.nodes.push(node(&t, "UsdUVTexture", &[("file", tex.clone())]));
+            net.connections.push(connect(&below.0, below.1, &b, "out"));
+            net.connections.push(connect(&b, "height", &t, "r"));
+            below = (t, "st");
+        }
+        let mut report = ResolveReport::default();
+        let m = TexturedMaterial::compile(&net, "/M", &source(), &mut report).expect("varying");
+        assert!(
+            report.warnings.iter().any(|w| w.contains("/M/B1") && w.contains("feeds only a surface's normal")),
+            "{:?}",
+            report.warnings
+        );
+        let Some((Expr::Bump { height, .. }, _)) = m.exprs.first() else { panic!("{:?}", m.exprs) };
+        let Expr::Texture { st, .. } = height.as_ref() else { panic!("{height:?}") };
+        assert!(matches!(st.as_ref(), Expr::Const(_)), "the second bump reads nothing: {st:?}");
     }
 
     #[test]

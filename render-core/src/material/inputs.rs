@@ -11,6 +11,7 @@ pub(super) const EVALUATED: &[&str] = &[
     "UsdPrimvarReader_float3",
     "UsdPrimvarReader_int",
     "UsdTransform2d",
+    super::graph::BUMP,
 ];
 
 /// True when the upstream node of `c` is one evaluated per shading point.

@@ -18,7 +18,7 @@ mod preview;
 mod principled;
 pub mod uber;
 
-pub use graph::{ShadingPoint, TexturedMaterial, VaryingInput};
+pub use graph::{BUMP, ShadingPoint, TexturedMaterial, Tilt, VaryingInput};
 pub use network::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue, ResolveReport, UDIM_TILES};
 pub use principled::Principled;
 pub use uber::Uber;

@@ -35,9 +35,10 @@ const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
 ];
 
 /// What each texture feature asks of a textured material.
-const TEXTURE_FEATURES: [(Feature, Asks<TexturedMaterial>); 4] = [
+const TEXTURE_FEATURES: [(Feature, Asks<TexturedMaterial>); 5] = [
     (Feature::Textures, |_| true),
     (Feature::NormalMaps, |t| t.has_normal_map()),
+    (Feature::BumpMaps, |t| t.has_bump()),
     (Feature::TexturedCutouts, |t| t.may_see_through()),
     (Feature::TexturedEmission, |t| t.emission_varies()),
 ];
