@@ -1,12 +1,13 @@
 //! `tessera:Bump`: a height read around each shading point tilts the shading normal as the
 //! surface it describes would. Fixture: `fixtures/textures/bumped.usda` (`bumped_surfaces()` in
-//! make_fixtures.py): a ramp-bumped quad, the plane it describes as geometry, and a flat quad,
-//! Lambertian (albedo 0.5) under a sun of irradiance π from 30° towards +x, so radiance is
-//! 0.5 cos θ with θ between the sun and the shading normal, with no noise: one bounce, a delta
-//! light and nothing else to reach.
+//! make_fixtures.py): a ramp-bumped quad, the plane it describes as geometry, a flat quad and
+//! the ramp's bump written in MaterialX (`ND_bump_vector3`), Lambertian (albedo 0.5) under a sun of irradiance π from 30° towards +x, so radiance is
+//! 0.5 cos θ with θ between the sun and the shading normal, with no noise: direct light alone
+//! from a delta light.
 
 use render_core::camera::Camera;
 use render_core::film::Aov;
+use render_core::integrator::IntegratorSettings;
 use render_core::material::ParamValue;
 use render_core::render::{Framebuffer, RenderSettings, render_to_framebuffer};
 use render_core::scene::{BlasCache, CommittedScene, commit};
@@ -16,7 +17,11 @@ use tessera_tests::load;
 fn render(t: &Translation) -> (Framebuffer, CommittedScene) {
     let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
     let camera = Camera::new(&scene.camera("/World/Camera").expect("camera"), 96, 96);
-    let (fb, _) = render_to_framebuffer(&scene, &camera, &RenderSettings { width: 96, height: 96, spp: 4, ..Default::default() });
+    // Direct light alone: the tilted quad's raised half sees the others' lit tops at grazing
+    // angles, light a bump cannot be compared with.
+    let integrator = IntegratorSettings { max_depth: 1, ..Default::default() };
+    let settings = RenderSettings { width: 96, height: 96, spp: 4, integrator, ..Default::default() };
+    let (fb, _) = render_to_framebuffer(&scene, &camera, &settings);
     assert!(fb.layers.values().flatten().all(|v| v.is_finite()), "every AOV finite");
     (fb, scene)
 }
@@ -46,9 +51,11 @@ fn a_bumped_plane_shades_as_the_plane_its_height_describes() {
     let (fb, scene) = render(&load("textures/bumped.usda"));
     // The ramp rises 1/255 a texel: 128/255 a unit of x. 1e-3: the texel's half-float storage.
     let expected = lambert(128.0 / 255.0);
-    for (path, want) in [("/World/Ramp", expected), ("/World/Tilted", expected), ("/World/Flat", lambert(0.0))] {
+    let quads = [("/World/Ramp", expected), ("/World/Tilted", expected), ("/World/Flat", lambert(0.0)), ("/World/MtlxRamp", expected)];
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    for (path, want) in quads {
         let px = inside(&fb, &scene, path);
-        assert!(px.len() > 150, "{path}: {} pixels", px.len());
+        assert!(px.len() > 100, "{path}: {} pixels", px.len());
         for v in &px {
             assert!((v / want - 1.0).abs() < 1e-3, "{path}: {v}, expected {want}");
         }

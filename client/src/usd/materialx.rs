@@ -53,7 +53,7 @@ pub fn is_materialx(net: &MaterialNetwork) -> bool {
 /// warnings naming each node once.
 pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Result<(), String> {
     let surface = net.nodes.iter().find(|n| n.path == net.surface_node).cloned().ok_or("no surface node")?;
-    let graph = Graph { net, warned: std::cell::RefCell::new(Vec::new()) };
+    let graph = Graph { net, warned: std::cell::RefCell::new(Vec::new()), bumped: std::cell::Cell::new(false) };
     let mut inputs = match surface.node_type_id.as_str() {
         STANDARD_SURFACE => standard_surface(&graph, &surface.path),
         OPEN_PBR => open_pbr(&graph, &surface.path),
@@ -75,6 +75,15 @@ pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Resul
             "UsdPreviewSurface" => inputs.values.push(("displacement", amount, false)),
             id => warnings
                 .push(format!("{}: its displacement has no place on the {id} it maps to; the surface is not displaced", surface.path)),
+        }
+    }
+    // A bump's height goes through a tessera:Bump; a constant one has no slope to bump with.
+    if graph.bumped.get()
+        && let Some(k) = inputs.values.iter().position(|(name, ..)| *name == "normal")
+    {
+        match inputs.values[k].1.texture {
+            Some(_) => (inputs.values[k].0, inputs.values[k].2) = (BUMP_HEIGHT, false),
+            None => drop(inputs.values.remove(k)),
         }
     }
     warnings.extend(graph.warned.take());
@@ -129,6 +138,8 @@ impl Lin {
 struct Graph<'n> {
     net: &'n MaterialNetwork,
     warned: std::cell::RefCell<Vec<String>>,
+    /// Whether the surface's normal came from a `bump` node.
+    bumped: std::cell::Cell<bool>,
 }
 
 impl Graph<'_> {
@@ -219,11 +230,15 @@ impl Graph<'_> {
         Lin::mul(amount, scale).or_else(|| self.unsupported(shader, DISPLACEMENT, "a textured scale of a textured displacement"))
     }
 
-    /// A `normalmap` node's tangent-space normal (its image decoded as 2·t − 1), when the
-    /// surface's `input` is connected to one.
+    /// A `normalmap` node's tangent-space normal (its image decoded as 2·t − 1), or a `bump`
+    /// node's height × scale (noted in `bumped`, so the surface's normal is emitted through a
+    /// `tessera:Bump`), when the surface's `input` is connected to one.
     fn normal_map(&self, surface: &str, input: &str) -> Option<Lin> {
         let c = self.net.connections.iter().find(|c| c.downstream_node == surface && c.downstream_input == input)?;
         let node = self.node(&c.upstream_node)?;
+        if node.node_type_id.starts_with("ND_bump") {
+            return self.bump(node);
+        }
         if !node.node_type_id.starts_with("ND_normalmap") {
             return self.output(&c.upstream_node, 1).filter(|l| l.texture.is_some());
         }
@@ -236,6 +251,28 @@ impl Graph<'_> {
         Some(n)
     }
 }
+
+impl Graph<'_> {
+    /// A `bump` node: its `height` × `scale` (a constant scale), a world-space height as
+    /// `displacement`'s; reported when it bends a normal of its own (its `normal` input
+    /// connected) or its scale is textured.
+    fn bump(&self, node: &MaterialNode) -> Option<Lin> {
+        let (path, id) = (node.path.as_str(), node.node_type_id.as_str());
+        if self.net.connections.iter().any(|c| c.downstream_node == path && c.downstream_input == "normal") {
+            return self.unsupported(path, id, "a bump of a normal of its own (its `normal` input connected)");
+        }
+        let height = self.input(path, "height", Vec4::ZERO, 1)?;
+        let Some(scale) = self.input(path, "scale", Vec4::ONE, 1)?.value() else {
+            return self.unsupported(path, id, "a textured scale");
+        };
+        self.bumped.set(true);
+        Some(height.times(Vec4::splat(scale.x)))
+    }
+}
+
+/// The name a bump's height takes among a surface's inputs until [`emit`] puts a `tessera:Bump`
+/// between it and the surface's `normal`.
+const BUMP_HEIGHT: &str = "normal:bumpHeight";
 
 /// What a surface asks of the target shader: its id and inputs, each a folded value and
 /// whether it is a colour.
@@ -492,14 +529,21 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
             continue;
         };
         let Some(image) = old.nodes.iter().find(|n| n.path == texture.node) else { continue };
-        let tex_path = format!("{}_{name}", texture.node);
+        let tex_path = format!("{}_{}", texture.node, name.replace(':', "_"));
         net.nodes.push(uv_texture(&tex_path, image, &lin, texture.srgb, name == "normal"));
-        net.connections.push(MaterialConnection {
-            downstream_node: surface.to_string(),
-            downstream_input: name.to_string(),
-            upstream_node: tex_path.clone(),
-            upstream_output: if color { "rgb" } else { "r" }.to_string(),
-        });
+        let output = if color { "rgb" } else { "r" };
+        if name == BUMP_HEIGHT {
+            let bump = format!("{surface}_bump");
+            net.nodes.push(MaterialNode {
+                path: bump.clone(),
+                node_type_id: render_core::material::BUMP.into(),
+                parameters: BTreeMap::new(),
+            });
+            net.connections.push(connection(&bump, "height", &tex_path, output));
+            net.connections.push(connection(surface, "normal", &bump, "out"));
+        } else {
+            net.connections.push(connection(surface, name, &tex_path, output));
+        }
         let reader = texcoord_reader(&tex_path, image, old, warnings);
         // A tiled image reads its coordinates through its placement.
         let coordinates = match tiling_of(image) {
@@ -517,6 +561,15 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
     }
     net.nodes.push(MaterialNode { path: surface.to_string(), node_type_id: inputs.id.to_string(), parameters: params });
     net
+}
+
+fn connection(downstream: &str, input: &str, upstream: &str, output: &str) -> MaterialConnection {
+    MaterialConnection {
+        downstream_node: downstream.to_string(),
+        downstream_input: input.to_string(),
+        upstream_node: upstream.to_string(),
+        upstream_output: output.to_string(),
+    }
 }
 
 /// A `UsdUVTexture` for `image`, with the folded scale and bias.
@@ -539,9 +592,11 @@ fn uv_texture(path: &str, image: &MaterialNode, lin: &Lin, srgb: bool, normal: b
     }
     // Normal maps are raw; otherwise the file's MaterialX colour space decides (sRGB-encoded
     // or linear), else an sRGB-decoding node, else UsdUVTexture's rule by bit depth.
+    // MaterialX's names (`srgb_texture`, `lin_rec709`...) or USD's (`sRGB`, `raw`...): the
+    // sRGB-encoded ones decode, the rest read as they are.
     let declared = match image.parameters.get("colorspace") {
-        Some(ParamValue::String(s)) if s == "srgb_texture" || s == "srgb_displayp3" => Some("sRGB"),
-        Some(ParamValue::String(s)) if !s.is_empty() => Some("raw"),
+        Some(ParamValue::String(s)) if s.to_ascii_lowercase().contains("srgb") => Some("sRGB"),
+        Some(ParamValue::String(s)) if !s.is_empty() && s != "auto" => Some("raw"),
         _ => None,
     };
     let space = if normal {

@@ -324,6 +324,11 @@ impl Reader<'_> {
         }
         if node.node_type_id == "UsdUVTexture" {
             self.file_color_space(&prim, &mut node)?;
+        } else if node.node_type_id.starts_with("ND_image") || node.node_type_id.starts_with("ND_tiledimage") {
+            // MaterialX's own `colorspace` attribute, as the USD form carries it.
+            if let Some(name) = prim.attribute("inputs:file").get_metadata::<Value>("colorSpace")?.as_ref().and_then(values::token) {
+                node.parameters.insert("colorspace".to_string(), ParamValue::String(name));
+            }
         }
         Ok(node)
     }

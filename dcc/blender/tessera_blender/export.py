@@ -121,7 +121,7 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
         # Before the rest: they read the inputs it checks and rewrite the shader's names.
         nodes.check(exported, prim, material, Sdf, UsdShade)
     # Before glass and subsurface, which rewrite the shader without its displacement.
-    _correct_displacement(exported, prim, UsdShade)
+    _correct_displacement(exported, prim, Sdf, UsdShade)
     _correct_glass(exported, prim, Sdf, UsdShade)
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
@@ -231,7 +231,7 @@ def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
                 new.ConnectToSource(inp.GetConnectedSources()[0][0])
             else:
                 new.Set(inp.Get())
-        if name not in ("baseColor", "metallic", "roughness", "ior", "clearcoat"):
+        if name not in ("baseColor", "metallic", "roughness", "ior", "clearcoat", "normal"):
             shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
     shader.CreateInput("specTrans", Sdf.ValueTypeNames.Float).Set(transmission)
     exported.corrections.append(f"{prim.GetPath()}: glass (Transmission Weight {transmission:g}) as tessera:Principled specTrans")
@@ -299,11 +299,13 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
     )
 
 
-def _correct_displacement(exported: Export, prim, UsdShade) -> None:
-    """Blender exports a material's Displacement output whatever its Displacement method; Tessera
-    moves the mesh (as Cycles' *Displacement Only*) and does not bump-map. So *Bump Only*, which
-    Cycles renders as shading alone, is dropped with a warning, and the bump part of
-    *Displacement and Bump* is said to be lost."""
+def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:
+    """Blender exports a material's Displacement output whatever its Displacement method, and
+    UsdPreviewSurface's displacement moves the mesh (Cycles' *Displacement Only*). *Bump Only*,
+    which Cycles renders as shading alone, becomes a tessera:Bump over the same texture (the
+    exporter folded the Displacement node's Scale and Midlevel into its scale and bias, so the
+    bump's own scale is 1) and the displacement is dropped; the bump part of *Displacement and
+    Bump* is said to be lost."""
     shader = _surface_shader(prim, UsdShade)
     displacement = shader.GetInput("displacement") if shader else None
     if not displacement:
@@ -312,8 +314,18 @@ def _correct_displacement(exported: Export, prim, UsdShade) -> None:
     material = bpy.data.materials.get(name)
     method = getattr(material, "displacement_method", "BUMP")
     if method == "BUMP":
+        sources = displacement.GetConnectedSources()[0] if displacement.HasConnectedSource() else []
+        normal = shader.GetInput("normal")
         shader.GetPrim().RemoveProperty(displacement.GetAttr().GetName())
-        exported.warnings.append(f"{name}: displacement is Bump Only, which Tessera does not render (set Displacement Only to move the surface)")
+        if not sources:
+            return  # a constant height has no slope: nothing to bump
+        if normal and normal.HasConnectedSource():
+            exported.warnings.append(f"{name}: Bump Only displacement is not rendered on a material whose normal is already mapped")
+            return
+        source = sources[0]
+        texture = UsdShade.Shader(source.source.GetPrim())
+        path = nodes.add_bump(shader, texture, source.sourceName, 1.0, Sdf, UsdShade)
+        exported.corrections.append(f"{path}: Bump Only displacement as tessera:Bump")
     elif method == "BOTH":
         exported.warnings.append(f"{name}: the bump part of Displacement and Bump is not rendered; the surface moves at its vertices")
 

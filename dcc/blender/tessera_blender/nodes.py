@@ -15,8 +15,9 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
   are not written.
 
 The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
-loses the specular layer UsdPreviewSurface would add, and a normal that went through a node the
-export cannot carry is disconnected. Everything else is reported, once a material.
+loses the specular layer UsdPreviewSurface would add, a Bump over an image becomes a
+tessera:Bump over it, and any other normal that went through a node the export cannot carry is
+disconnected. Everything else is reported, once a material.
 """
 
 from __future__ import annotations
@@ -116,11 +117,11 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
     shader = UsdShade.Shader(surface.GetPrim()) if surface else None
     name = material.name
     if node.type == "BSDF_PRINCIPLED":
-        _check_inputs(exported, name, node, PRINCIPLED_CARRIED, shader)
+        _check_inputs(exported, name, node, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
         for lost in principled_losses(node):
             exported.warnings.append(f"{name}: {lost} is not carried (UsdPreviewSurface has no such input)")
     elif node.type == "BSDF_DIFFUSE" and shader:
-        _check_inputs(exported, name, node, DIFFUSE_CARRIED, shader)
+        _check_inputs(exported, name, node, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
         _correct_diffuse(exported, name, prim, node, shader, Sdf)
     elif node.type == "EMISSION":
         _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
@@ -131,7 +132,7 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: the Volume output is not carried")
 
 
-def _check_inputs(exported, name, node, carried, shader) -> None:
+def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
     """Each linked BSDF input against what the export connected for it."""
     for blender_name, usd_name in carried.items():
         socket = node.inputs[blender_name]
@@ -146,11 +147,51 @@ def _check_inputs(exported, name, node, carried, shader) -> None:
             exported.warnings.append(f"{name}: {blender_name} is driven by {nodes}, which the USD export does not carry: rendered with {value}")
         elif lost and blender_name == "Normal":
             # The image found behind a Bump is a height map, not a tangent-space normal map.
+            if _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade):
+                continue
             shader.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
-            exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry (Tessera does not bump-map): the mesh's own normals are used")
+            exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry: the mesh's own normals are used")
         elif lost:
             behind = "it" if len(lost) == 1 else "them"
             exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export skips: the image behind {behind} is used unchanged")
+
+
+#: The scale and bias Blender's exporter puts on a texture it connects to a normal.
+NORMAL_MAP_SCALE, NORMAL_MAP_BIAS = (2.0,) * 4, (-1.0,) * 4
+
+
+def _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade) -> bool:
+    """A Bump node whose Height is an Image Texture (its Normal unlinked) as a tessera:Bump
+    over the texture the export connected to the normal: scale Distance × Strength, negated
+    when inverted. Strength blends the bumped normal with the plain one in Cycles; a scaled
+    height is the same to first order in the slope. False when the chain is anything else."""
+    bump = lost[0] if len(lost) == 1 and lost[0].type == "BUMP" else None
+    height = bump.inputs["Height"] if bump else None
+    if height is None or not height.is_linked or bump.inputs["Normal"].is_linked or height.links[0].from_node.type != "TEX_IMAGE":
+        return False
+    source = usd_input.GetConnectedSources()[0][0].source
+    texture = UsdShade.Shader(source.GetPrim())
+    for attr, normal_map in (("scale", NORMAL_MAP_SCALE), ("bias", NORMAL_MAP_BIAS)):
+        authored = texture.GetInput(attr)
+        if authored and tuple(authored.Get()) == normal_map:
+            texture.GetPrim().RemoveProperty(authored.GetAttr().GetName())
+    channel = "a" if height.links[0].from_socket.name == "Alpha" else "r"
+    scale = float(bump.inputs["Distance"].default_value) * float(bump.inputs["Strength"].default_value) * (-1.0 if bump.invert else 1.0)
+    path = add_bump(shader, texture, channel, scale, Sdf, UsdShade)
+    exported.corrections.append(f"{path}: Bump '{bump.name}' as tessera:Bump (scale {scale:g}, the image's {channel} channel)")
+    return True
+
+
+def add_bump(shader, texture, channel, scale, Sdf, UsdShade):
+    """A tessera:Bump beside `shader` reading `texture`'s `channel`, connected to the shader's
+    normal; its path."""
+    material = shader.GetPrim().GetParent()
+    bump = UsdShade.Shader.Define(material.GetStage(), material.GetPath().AppendChild("TesseraBump"))
+    bump.SetShaderId("tessera:Bump")
+    bump.CreateInput("height", Sdf.ValueTypeNames.Float).ConnectToSource(texture.ConnectableAPI(), channel)
+    bump.CreateInput("scale", Sdf.ValueTypeNames.Float).Set(scale)
+    shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(bump.ConnectableAPI(), "out")
+    return bump.GetPath()
 
 
 def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:

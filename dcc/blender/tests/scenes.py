@@ -20,6 +20,7 @@ REGIONS = {
     "subsurface": {1: "floor", 2: "subsurface sphere", 3: "half subsurface sphere"},
     "displaced": {1: "floor", 2: "displaced grid"},
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
+    "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
 }
 
 def udim_image(directory):
@@ -46,7 +47,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -150,6 +151,33 @@ def build(kind, directory):
             bpy.ops.object.shade_smooth()
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.8, 0.5, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind == "bumped":
+        # A height ramp along u (256 columns, code x at column x, Non-Color) bumps one plane
+        # through a Bump node (Distance 0.5) and another through Bump Only displacement (Scale
+        # 0.5): both lean 14° away from +x, towards which the sun (30° off the zenith) does not
+        # lie, so they read about 17% darker than the flat plane between them.
+        path = os.path.join(directory, "ramp.png")
+        img = bpy.data.images.new("ramp", 256, 256)
+        px = np.zeros((256, 256, 4), np.float32); px[..., 3] = 1; px[..., :3] = (np.arange(256, dtype=np.float32) / 255.0)[None, :, None]
+        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+        ramp = bpy.data.images.load(path); ramp.colorspace_settings.name = 'Non-Color'
+        node_bump = mat("bump node", (0.8, 0.8, 0.8))
+        tree = node_bump.node_tree
+        t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
+        b = tree.nodes.new("ShaderNodeBump"); b.inputs["Distance"].default_value = 0.5
+        tree.links.new(t.outputs["Color"], b.inputs["Height"]); tree.links.new(b.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
+        add(bpy.ops.mesh.primitive_plane_add, node_bump, 1, size=2, location=(-2.2, 0, 0))
+        bump_only = mat("bump only", (0.8, 0.8, 0.8))
+        bump_only.displacement_method = 'BUMP'
+        tree = bump_only.node_tree
+        t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
+        d = tree.nodes.new("ShaderNodeDisplacement")
+        d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.5, 0.0
+        tree.links.new(t.outputs["Color"], d.inputs["Height"]); tree.links.new(d.outputs["Displacement"], tree.nodes["Material Output"].inputs["Displacement"])
+        add(bpy.ops.mesh.primitive_plane_add, bump_only, 2, size=2, location=(2.2, 0, 0))
+        add(bpy.ops.mesh.primitive_plane_add, mat("flat", (0.8, 0.8, 0.8)), 3, size=2, location=(0, 0, 0))
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0, 0.5236, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -6, 5); rot = (0.9, 0, 0)
     elif kind == "emission_shader":
         # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
         # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
@@ -234,6 +262,11 @@ def node_trees(directory):
         b = tree.nodes.new("ShaderNodeBump")
         link(tree, texture(tree).outputs["Alpha"], b.inputs["Height"]); link(tree, b.outputs[0], p.inputs["Normal"])
 
+    def ramp_bump(tree, p):
+        r = tree.nodes.new("ShaderNodeValToRGB"); b = tree.nodes.new("ShaderNodeBump")
+        link(tree, texture(tree).outputs["Alpha"], r.inputs["Fac"]); link(tree, r.outputs["Alpha"], b.inputs["Height"])
+        link(tree, b.outputs[0], p.inputs["Normal"])
+
     def normal_map(tree, p):
         n = tree.nodes.new("ShaderNodeNormalMap")
         link(tree, texture(tree).outputs["Color"], n.inputs["Color"]); link(tree, n.outputs[0], p.inputs["Normal"])
@@ -262,7 +295,7 @@ def node_trees(directory):
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, normal_map, mapped, rgb, mix_shader, glossy, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
