@@ -236,6 +236,9 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert "Normal goes through 'Bump', 'Color Ramp'" in said["ramp_bump"][0], said["ramp_bump"]
     connected = n["connected"]
     assert connected["bump"] == ["normal"] and connected["ramp_bump"] == [] and connected["normal_map"] == ["normal"], connected
+    # A Normal Map's Strength 0.5, dropped by the export, as the texture's scale and bias:
+    # Cycles' N + s·(N_map − N) in tangent space.
+    assert n["normal_map"] == {"scale": [1.0, 1.0, 1.0, 2.0], "bias": [-0.5, -0.5, 0.0, -1.0]}, n["normal_map"]
     # A Mapping, a UV, a Separate Color: carried, not reported.
     assert connected["mapped"] == ["roughness"], connected
 

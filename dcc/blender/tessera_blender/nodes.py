@@ -12,12 +12,13 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
 * An input driven by nodes with no image behind them (Noise, RGB...) falls back to the
   input's own value.
 * Principled inputs UsdPreviewSurface has no place for (sheen, anisotropy, tints, thin film)
-  are not written.
+  are not written, nor is a Normal Map's Strength.
 
 The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
 loses the specular layer UsdPreviewSurface would add, a Bump over an image becomes a
-tessera:Bump over it, and any other normal that went through a node the export cannot carry is
-disconnected. Everything else is reported, once a material.
+tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, and any
+other normal that went through a node the export cannot carry is disconnected. Everything else
+is reported, once a material.
 """
 
 from __future__ import annotations
@@ -151,6 +152,8 @@ def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
                 continue
             shader.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
             exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry: the mesh's own normals are used")
+        elif blender_name == "Normal":
+            _correct_normal_map(exported, name, socket, usd_input, UsdShade)
         elif lost:
             behind = "it" if len(lost) == 1 else "them"
             exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export skips: the image behind {behind} is used unchanged")
@@ -180,6 +183,32 @@ def _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade) -> bool:
     path = add_bump(shader, texture, channel, scale, Sdf, UsdShade)
     exported.corrections.append(f"{path}: Bump '{bump.name}' as tessera:Bump (scale {scale:g}, the image's {channel} channel)")
     return True
+
+
+def _correct_normal_map(exported, name, socket, usd_input, UsdShade) -> None:
+    """A Normal Map node's Strength, which the export drops. Cycles bends the normal by
+    N + s·(N_map − N) in tangent space, which is linear in the texel: scale (2s, 2s, 2s) and
+    bias (−s, −s, 1 − 2s) on the texture give it exactly. Spaces other than tangent are
+    reported."""
+    node = next((n for n in upstream(socket) if n.type == "NORMAL_MAP"), None)
+    if node is None:
+        return
+    if node.space != "TANGENT":
+        exported.warnings.append(f"{name}: the Normal Map's {node.space.lower()} space is not carried; it is read as a tangent-space map")
+    strength = node.inputs["Strength"]
+    s = float(strength.default_value)
+    if strength.is_linked:
+        exported.warnings.append(f"{name}: the Normal Map's Strength is linked, which is not carried: strength {s:g} is used")
+    if s == 1.0:
+        return
+    texture = UsdShade.Shader(usd_input.GetConnectedSources()[0][0].source.GetPrim())
+    scale, bias = texture.GetInput("scale"), texture.GetInput("bias")
+    if not (scale and bias and tuple(scale.Get()) == NORMAL_MAP_SCALE and tuple(bias.Get()) == NORMAL_MAP_BIAS):
+        exported.warnings.append(f"{name}: the Normal Map's Strength {s:g} is not carried (its image is not read as the export reads a normal map)")
+        return
+    scale.Set((2 * s, 2 * s, 2 * s, 2.0))
+    bias.Set((-s, -s, 1 - 2 * s, -1.0))
+    exported.corrections.append(f"{texture.GetPath()}: Normal Map Strength {s:g} in the texture's scale and bias")
 
 
 def add_bump(shader, texture, channel, scale, Sdf, UsdShade):

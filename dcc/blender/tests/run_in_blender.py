@@ -164,7 +164,9 @@ def node_reports():
     for prim in (p for p in stage.Traverse() if p.IsA(UsdShade.Material)):
         shader = export._surface_shader(prim, UsdShade)
         connected[prim.GetName()] = sorted(i.GetBaseName() for i in shader.GetInputs() if i.HasConnectedSource()) if shader else None
-    return {"warnings": exported.warnings, "corrections": exported.corrections, "connected": connected}
+    texture = UsdShade.Shader(stage.GetPrimAtPath(export._surface_shader(stage.GetPrimAtPath("/root/_materials/normal_map"), UsdShade).GetInput("normal").GetConnectedSources()[0][0].source.GetPath()))
+    normal_map = {k: list(texture.GetInput(k).Get()) for k in ("scale", "bias")}
+    return {"warnings": exported.warnings, "corrections": exported.corrections, "connected": connected, "normal_map": normal_map}
 
 
 def errors_reach_the_artist():

@@ -268,8 +268,10 @@ def node_trees(directory):
         link(tree, b.outputs[0], p.inputs["Normal"])
 
     def normal_map(tree, p):
-        n = tree.nodes.new("ShaderNodeNormalMap")
-        link(tree, texture(tree).outputs["Color"], n.inputs["Color"]); link(tree, n.outputs[0], p.inputs["Normal"])
+        n = tree.nodes.new("ShaderNodeNormalMap"); n.inputs["Strength"].default_value = 0.5
+        t = tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(image.filepath_raw, check_existing=False)
+        t.image.colorspace_settings.name = 'Non-Color'  # as a normal map's image is
+        link(tree, t.outputs["Color"], n.inputs["Color"]); link(tree, n.outputs[0], p.inputs["Normal"])
 
     def mapped(tree, p):
         m = tree.nodes.new("ShaderNodeMapping"); c = tree.nodes.new("ShaderNodeTexCoord"); t = texture(tree)
