@@ -377,3 +377,54 @@ fn a_tiled_image_is_placed_by_its_tiling_offset_and_sizes() {
     assert_eq!(node(&reader).node_type_id, "UsdPrimvarReader_float2");
     assert!(!t.warnings.iter().any(|w| w.contains("/Looks/M/Tiles") && w.contains("tiledimage")), "{:?}", t.warnings);
 }
+
+/// A packed map (occlusion, roughness, metalness in r, g, b, as glTF and Substance write
+/// them): `separate3`'s `outg` feeds roughness and `extract` index 2 (after a multiply) feeds
+/// metalness, each read from its own channel of the one image with its own scale.
+#[test]
+fn channels_of_a_packed_map_feed_their_inputs() {
+    let extra = r#"
+        def Shader "Packed" {
+            uniform token info:id = "ND_image_color3"
+            asset inputs:file = @missing.png@
+            color3f outputs:out
+        }
+        def Shader "Split" {
+            uniform token info:id = "ND_separate3_color3"
+            color3f inputs:in.connect = </Looks/M/Packed.outputs:out>
+            float outputs:outr
+            float outputs:outg
+            float outputs:outb
+        }
+        def Shader "Dim" {
+            uniform token info:id = "ND_multiply_color3FA"
+            color3f inputs:in1.connect = </Looks/M/Packed.outputs:out>
+            float inputs:in2 = 0.5
+            color3f outputs:out
+        }
+        def Shader "Metal" {
+            uniform token info:id = "ND_extract_color3"
+            color3f inputs:in.connect = </Looks/M/Dim.outputs:out>
+            int inputs:index = 2
+            float outputs:out
+        }
+        def Shader "Beyond" {
+            uniform token info:id = "ND_extract_color3"
+            color3f inputs:in.connect = </Looks/M/Packed.outputs:out>
+            int inputs:index = 7
+            float outputs:out
+        }"#;
+    let inputs = "float inputs:specular_roughness.connect = </Looks/M/Split.outputs:outg>\n float inputs:base_metalness.connect = </Looks/M/Metal.outputs:out>\n float inputs:coat_weight.connect = </Looks/M/Beyond.outputs:out>";
+    let t = load_text("mtlx_packed", &stage("ND_open_pbr_surface_surfaceshader", inputs, extra));
+    let net = network(&t);
+    let read = |input: &str| {
+        let c = net.connections.iter().find(|c| c.downstream_node == net.surface_node && c.downstream_input == input).expect(input);
+        let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
+        (c.upstream_output.clone(), tex.parameters.get("scale").cloned())
+    };
+    assert_eq!(read("roughness"), ("g".to_string(), Some(ParamValue::Float4(glam::Vec4::ONE))));
+    assert_eq!(read("metallic"), ("b".to_string(), Some(ParamValue::Float4(glam::Vec4::splat(0.5)))));
+    // Index 7 names no channel: reported by path, and the coat keeps its default.
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Beyond") && w.contains("index")).count(), 1, "{:?}", t.warnings);
+    assert!(net.connections.iter().all(|c| c.downstream_input != "clearcoat"), "{:?}", net.connections);
+}

@@ -9,8 +9,9 @@
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
-//! texture among the operands, sRGB decoding, `dot` and `convert` pass-throughs, and
-//! `normalmap`. Anything else is reported by node path and id, and the input keeps its default.
+//! texture among the operands, sRGB decoding, `dot` and `convert` pass-throughs, one channel
+//! (`extract`, `separate`), `normalmap`, and `bump` (through a `tessera:Bump`). Anything else is
+//! reported by node path and id, and the input keeps its default.
 //! The parameter table is in `docs/materials.md` ("MaterialX").
 
 use std::collections::BTreeMap;
@@ -99,11 +100,13 @@ struct Lin {
     bias: Vec4,
 }
 
-/// An image node read through, and whether its texels are sRGB-encoded.
+/// An image node read through, whether its texels are sRGB-encoded, and the one channel read
+/// (an `extract` or `separate`), if one is.
 #[derive(Clone, Debug, PartialEq)]
 struct Texture {
     node: String,
     srgb: bool,
+    channel: Option<usize>,
 }
 
 impl Lin {
@@ -112,6 +115,18 @@ impl Lin {
     }
     fn value(&self) -> Option<Vec4> {
         self.texture.is_none().then_some(self.bias)
+    }
+    /// Channel `k` alone, as a float; None for a channel of a texture's channel other than
+    /// its first (the float itself).
+    fn channel(self, k: usize) -> Option<Lin> {
+        let pick = |v: Vec4| Vec4::splat(v[k]);
+        match &self.texture {
+            None => Some(Lin::constant(pick(self.bias))),
+            Some(t) if t.channel.is_none() => {
+                Some(Lin { texture: Some(Texture { channel: Some(k), ..t.clone() }), scale: pick(self.scale), bias: pick(self.bias) })
+            }
+            Some(_) => (k == 0).then_some(self),
+        }
     }
     fn times(self, k: Vec4) -> Self {
         Lin { scale: self.scale * k, bias: self.bias * k, ..self }
@@ -150,7 +165,7 @@ impl Graph<'_> {
     /// `node.input`: its connection followed, else its authored value, else `default`.
     fn input(&self, node: &str, input: &str, default: Vec4, depth: usize) -> Option<Lin> {
         if let Some(c) = self.net.connections.iter().find(|c| c.downstream_node == node && c.downstream_input == input) {
-            return self.output(&c.upstream_node, depth + 1);
+            return self.output(&c.upstream_node, &c.upstream_output, depth + 1);
         }
         Some(match self.node(node).and_then(|n| n.parameters.get(input)) {
             Some(v) => Lin::constant(vec4_of(v).unwrap_or(default)),
@@ -158,8 +173,8 @@ impl Graph<'_> {
         })
     }
 
-    /// The output of `path`, folded; `None` (reported) where it cannot be.
-    fn output(&self, path: &str, depth: usize) -> Option<Lin> {
+    /// The output `out` of `path`, folded; `None` (reported) where it cannot be.
+    fn output(&self, path: &str, out: &str, depth: usize) -> Option<Lin> {
         let node = self.node(path)?;
         let id = node.node_type_id.as_str();
         if depth > MAX_DEPTH {
@@ -174,7 +189,11 @@ impl Graph<'_> {
                 if kind == "tiledimage" && tiling_of(node).is_err() {
                     self.unsupported(path, id, "a zero or non-finite realworldimagesize");
                 }
-                Some(Lin { texture: Some(Texture { node: path.to_string(), srgb: false }), scale: Vec4::ONE, bias: Vec4::ZERO })
+                Some(Lin {
+                    texture: Some(Texture { node: path.to_string(), srgb: false, channel: None }),
+                    scale: Vec4::ONE,
+                    bias: Vec4::ZERO,
+                })
             }
             "multiply" => Lin::mul(input("in1", 1.0)?, input("in2", 1.0)?).or_else(|| self.unsupported(path, id, "two textures")),
             "add" => Lin::add(input("in1", 0.0)?, input("in2", 0.0)?).or_else(|| self.unsupported(path, id, "two textures")),
@@ -188,6 +207,29 @@ impl Graph<'_> {
                     .or_else(|| self.unsupported(path, id, "two textures"))
             }
             "dot" | "convert" => input("in", 0.0),
+            // One channel of a colour or vector: a packed map's roughness or metalness.
+            "extract" => {
+                let index = match node.parameters.get("index") {
+                    Some(ParamValue::Int(i)) => *i,
+                    _ => 0,
+                };
+                let x = input("in", 0.0)?;
+                (0..4)
+                    .contains(&index)
+                    .then(|| x.channel(index as usize))
+                    .flatten()
+                    .or_else(|| self.unsupported(path, id, "an index past the fourth channel, or a channel of a channel"))
+            }
+            "separate2" | "separate3" | "separate4" => {
+                let index = ["r", "g", "b", "a"]
+                    .iter()
+                    .zip(["x", "y", "z", "w"])
+                    .position(|(c, v)| out == format!("out{c}") || out == format!("out{v}"));
+                let x = input("in", 0.0)?;
+                index
+                    .and_then(|k| x.channel(k))
+                    .or_else(|| self.unsupported(path, id, &format!("its output '{out}', or a channel of a channel")))
+            }
             "srgb" if family.starts_with("srgb_texture_to_lin_rec709") => {
                 let x = input("in", 0.0)?;
                 match (&x.texture, x.value()) {
@@ -240,7 +282,7 @@ impl Graph<'_> {
             return self.bump(node);
         }
         if !node.node_type_id.starts_with("ND_normalmap") {
-            return self.output(&c.upstream_node, 1).filter(|l| l.texture.is_some());
+            return self.output(&c.upstream_node, &c.upstream_output, 1).filter(|l| l.texture.is_some());
         }
         let image = self.input(&node.path, "in", Vec4::new(0.5, 0.5, 1.0, 1.0), 1)?;
         let scale = self.input(&node.path, "scale", Vec4::ONE, 1)?.value().unwrap_or(Vec4::ONE).x;
@@ -529,9 +571,20 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
             continue;
         };
         let Some(image) = old.nodes.iter().find(|n| n.path == texture.node) else { continue };
+        let output = match texture.channel {
+            Some(k) if !color => ["r", "g", "b", "a"][k],
+            Some(_) => {
+                warnings.push(format!(
+                    "{surface}: input '{name}' reads one channel of {} as a colour, which is not carried; it keeps its default",
+                    texture.node
+                ));
+                continue;
+            }
+            None if color => "rgb",
+            None => "r",
+        };
         let tex_path = format!("{}_{}", texture.node, name.replace(':', "_"));
         net.nodes.push(uv_texture(&tex_path, image, &lin, texture.srgb, name == "normal"));
-        let output = if color { "rgb" } else { "r" };
         if name == BUMP_HEIGHT {
             let bump = format!("{surface}_bump");
             net.nodes.push(MaterialNode {
