@@ -428,3 +428,71 @@ fn channels_of_a_packed_map_feed_their_inputs() {
     assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Beyond") && w.contains("index")).count(), 1, "{:?}", t.warnings);
     assert!(net.connections.iter().all(|c| c.downstream_input != "clearcoat"), "{:?}", net.connections);
 }
+
+/// MaterialX's NG_place2d_vector2, as its GLSL computes it (SRT for order 0, TRS for 1).
+fn place2d(st: glam::Vec2, pivot: glam::Vec2, scale: glam::Vec2, rotate: f32, offset: glam::Vec2, trs: bool) -> glam::Vec2 {
+    let turn = |v: glam::Vec2| {
+        let (s, c) = rotate.to_radians().sin_cos();
+        glam::Vec2::new(c * v.x + s * v.y, -s * v.x + c * v.y)
+    };
+    let p = st - pivot;
+    (if trs { turn(p - offset) / scale } else { turn(p / scale) - offset }) + pivot
+}
+
+/// A `place2d` between an image and its texture coordinates becomes the texture's
+/// `UsdTransform2d`, which must place every point where MaterialX's own graph does; a TRS
+/// shear it cannot say is reported.
+#[test]
+fn a_place2d_places_the_texture_as_materialx_computes_it() {
+    let (pivot, scale, offset) = (glam::Vec2::new(0.5, 0.25), glam::Vec2::new(2.0, 4.0), glam::Vec2::new(0.25, -0.5));
+    for (order, scale) in [(0, scale), (1, glam::Vec2::splat(3.0)), (1, scale)] {
+        let extra = format!(
+            r#"
+        def Shader "Image" {{
+            uniform token info:id = "ND_image_color3"
+            asset inputs:file = @missing.png@
+            float2 inputs:texcoord.connect = </Looks/M/Place.outputs:out>
+            color3f outputs:out
+        }}
+        def Shader "Place" {{
+            uniform token info:id = "ND_place2d_vector2"
+            float2 inputs:texcoord.connect = </Looks/M/Uv.outputs:out>
+            float2 inputs:pivot = ({}, {})
+            float2 inputs:scale = ({}, {})
+            float inputs:rotate = 30
+            float2 inputs:offset = ({}, {})
+            int inputs:operationorder = {order}
+            float2 outputs:out
+        }}
+        def Shader "Uv" {{
+            uniform token info:id = "ND_texcoord_vector2"
+            float2 outputs:out
+        }}"#,
+            pivot.x, pivot.y, scale.x, scale.y, offset.x, offset.y
+        );
+        let t = load_text(
+            "mtlx_place2d",
+            &stage("ND_open_pbr_surface_surfaceshader", "color3f inputs:base_color.connect = </Looks/M/Image.outputs:out>", &extra),
+        );
+        let net = network(&t);
+        let transform = net.nodes.iter().find(|n| n.node_type_id == "UsdTransform2d");
+        if order == 1 && scale.x != scale.y {
+            assert!(transform.is_none(), "a shear cannot be placed");
+            assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Place") && w.contains("shear")).count(), 1, "{:?}", t.warnings);
+            continue;
+        }
+        assert!(t.warnings.iter().all(|w| !w.contains("/Looks/M/Place")), "{:?}", t.warnings);
+        let p = |name: &str| transform.expect("placed").parameters.get(name).cloned();
+        let (Some(ParamValue::Float2(s)), Some(ParamValue::Float(r)), Some(ParamValue::Float2(tr))) =
+            (p("scale"), p("rotation"), p("translation"))
+        else {
+            panic!("{transform:?}")
+        };
+        // UsdTransform2d: st · scale, turned `rotation` degrees counter-clockwise, + translation.
+        let usd = |st: glam::Vec2| glam::Mat2::from_angle(r.to_radians()) * (st * s) + tr;
+        for st in [glam::Vec2::ZERO, glam::Vec2::new(1.0, 0.0), glam::Vec2::new(0.3, 0.9), glam::Vec2::new(-2.0, 5.0)] {
+            let (want, got) = (place2d(st, pivot, scale, 30.0, offset, order == 1), usd(st));
+            assert!((want - got).length() < 1e-5, "order {order}, st {st}: MaterialX {want}, UsdTransform2d {got}");
+        }
+    }
+}

@@ -10,7 +10,8 @@
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
 //! texture among the operands, sRGB decoding, `dot` and `convert` pass-throughs, one channel
-//! (`extract`, `separate`), `normalmap`, and `bump` (through a `tessera:Bump`). Anything else is
+//! (`extract`, `separate`), `place2d` (as a `UsdTransform2d`), `normalmap`, and `bump` (through
+//! a `tessera:Bump`). Anything else is
 //! reported by node path and id, and the input keeps its default.
 //! The parameter table is in `docs/materials.md` ("MaterialX").
 
@@ -597,17 +598,27 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
         } else {
             net.connections.push(connection(surface, name, &tex_path, output));
         }
-        let reader = texcoord_reader(&tex_path, image, old, warnings);
-        // A tiled image reads its coordinates through its placement.
-        let coordinates = match tiling_of(image) {
-            Ok(Some((scale, translation))) => {
-                let placement = placement(&tex_path, scale, translation);
+        let (reader, placed) = texcoord_reader(&tex_path, image, old, warnings);
+        // A tiled image reads its coordinates through its placement, as does one behind a
+        // place2d (both at once are reported, and the tiling kept).
+        let tiling = tiling_of(image).ok().flatten().map(|(scale, translation)| Place {
+            rotation: 0.0,
+            scale,
+            translation,
+            node: image.path.clone(),
+        });
+        if let (Some(_), Some(p)) = (&tiling, &placed) {
+            warnings.push(format!("{}: a place2d into a tiledimage is not supported; the tiling alone places it", p.node));
+        }
+        let coordinates = match tiling.or(placed) {
+            Some(place) => {
+                let placement = placement(&tex_path, &place);
                 net.connections.push(result_into(&placement.path, "in", &reader.path));
                 let path = placement.path.clone();
                 net.nodes.push(placement);
                 path
             }
-            _ => reader.path.clone(),
+            None => reader.path.clone(),
         };
         net.connections.push(result_into(&tex_path, "st", &coordinates));
         net.nodes.push(reader);
@@ -667,9 +678,30 @@ fn uv_texture(path: &str, image: &MaterialNode, lin: &Lin, srgb: bool, normal: b
 
 /// The primvar reader for an image's `texcoord`: the primvar a `geompropvalue` names, else
 /// `st` (MaterialX's default texture coordinates, UV set 0).
-fn texcoord_reader(texture: &str, image: &MaterialNode, old: &MaterialNetwork, warnings: &mut Vec<String>) -> MaterialNode {
-    let upstream = old.connections.iter().find(|c| c.downstream_node == image.path && c.downstream_input == "texcoord");
-    let varname = match upstream.and_then(|c| old.nodes.iter().find(|n| n.path == c.upstream_node)) {
+fn texcoord_reader(
+    texture: &str,
+    image: &MaterialNode,
+    old: &MaterialNetwork,
+    warnings: &mut Vec<String>,
+) -> (MaterialNode, Option<Place>) {
+    let feeding = |node: &str| {
+        let c = old.connections.iter().find(|c| c.downstream_node == node && c.downstream_input == "texcoord")?;
+        old.nodes.iter().find(|n| n.path == c.upstream_node)
+    };
+    let mut upstream = feeding(&image.path);
+    // A place2d between: its transform, and the coordinates it reads.
+    let mut placed = None;
+    if let Some(place2d) = upstream.filter(|n| n.node_type_id.starts_with("ND_place2d")) {
+        match place_of(place2d, old) {
+            Ok(place) => placed = Some(place),
+            Err(why) => warnings.push(format!(
+                "{}: MaterialX node '{}' is not supported ({why}); its coordinates are used unplaced",
+                place2d.path, place2d.node_type_id
+            )),
+        }
+        upstream = feeding(&place2d.path);
+    }
+    let varname = match upstream {
         Some(n) if n.node_type_id.starts_with("ND_geompropvalue") => match n.parameters.get("geomprop") {
             Some(ParamValue::String(name)) => name.clone(),
             _ => "st".into(),
@@ -682,7 +714,50 @@ fn texcoord_reader(texture: &str, image: &MaterialNode, old: &MaterialNetwork, w
         None => "st".into(),
     };
     let parameters = BTreeMap::from([("varname".to_string(), ParamValue::String(varname))]);
-    MaterialNode { path: format!("{texture}_st"), node_type_id: "UsdPrimvarReader_float2".into(), parameters }
+    (MaterialNode { path: format!("{texture}_st"), node_type_id: "UsdPrimvarReader_float2".into(), parameters }, placed)
+}
+
+/// A texture placement as `UsdTransform2d` says one: st · scale, turned `rotation` degrees
+/// counter-clockwise, plus `translation`; `node` is the place2d it came from, if one.
+#[derive(Clone, Debug, PartialEq)]
+struct Place {
+    rotation: f32,
+    scale: Vec2,
+    translation: Vec2,
+    node: String,
+}
+
+/// A `place2d` with constant inputs as a [`Place`]. MaterialX's graph for it (NG_place2d_vector2):
+/// SRT moves by −pivot, divides by `scale`, turns by `rotate` degrees clockwise, moves by
+/// −`offset` and +pivot; TRS takes the offset before the turn and the scale after it, which
+/// UsdTransform2d's scale-then-rotate holds only for a uniform scale or no turn (else `Err`).
+fn place_of(node: &MaterialNode, net: &MaterialNetwork) -> Result<Place, String> {
+    let connected = ["pivot", "scale", "rotate", "offset", "operationorder"]
+        .into_iter()
+        .find(|i| net.connections.iter().any(|c| c.downstream_node == node.path && c.downstream_input == *i));
+    if let Some(input) = connected {
+        return Err(format!("its {input} is connected"));
+    }
+    let v2 = |name: &str, default: Vec2| match node.parameters.get(name) {
+        Some(ParamValue::Float2(v)) => *v,
+        _ => default,
+    };
+    let (pivot, scale, offset) = (v2("pivot", Vec2::ZERO), v2("scale", Vec2::ONE), v2("offset", Vec2::ZERO));
+    let rotate = match node.parameters.get("rotate") {
+        Some(ParamValue::Float(r)) => *r,
+        _ => 0.0,
+    };
+    let trs = matches!(node.parameters.get("operationorder"), Some(ParamValue::Int(1)));
+    let inverse = Vec2::ONE / scale;
+    if !(inverse.is_finite() && rotate.is_finite() && pivot.is_finite() && offset.is_finite()) {
+        return Err("a zero or non-finite scale, or a non-finite input".into());
+    }
+    if trs && rotate != 0.0 && inverse.x != inverse.y {
+        return Err("TRS order with a turn and a non-uniform scale, a shear".into());
+    }
+    let linear = glam::Mat2::from_angle(-rotate.to_radians()) * glam::Mat2::from_diagonal(inverse);
+    let translation = if trs { pivot - linear * (pivot + offset) } else { pivot - offset - linear * pivot };
+    Ok(Place { rotation: -rotate, scale: inverse, translation, node: node.path.clone() })
 }
 
 /// `downstream`'s `input` fed by `upstream`'s `result` (a reader's or a transform's output).
@@ -715,9 +790,12 @@ fn tiling_of(image: &MaterialNode) -> Result<Option<(Vec2, Vec2)>, ()> {
 }
 
 /// The `UsdTransform2d` that places texture `texture`'s coordinates.
-fn placement(texture: &str, scale: Vec2, translation: Vec2) -> MaterialNode {
-    let parameters =
-        BTreeMap::from([("scale".to_string(), ParamValue::Float2(scale)), ("translation".to_string(), ParamValue::Float2(translation))]);
+fn placement(texture: &str, place: &Place) -> MaterialNode {
+    let parameters = BTreeMap::from([
+        ("scale".to_string(), ParamValue::Float2(place.scale)),
+        ("rotation".to_string(), ParamValue::Float(place.rotation)),
+        ("translation".to_string(), ParamValue::Float2(place.translation)),
+    ]);
     MaterialNode { path: format!("{texture}_placement"), node_type_id: "UsdTransform2d".into(), parameters }
 }
 
