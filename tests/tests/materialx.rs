@@ -496,3 +496,57 @@ fn a_place2d_places_the_texture_as_materialx_computes_it() {
         }
     }
 }
+
+/// Linear nodes with constant operands fold into the texture's scale and bias: `remap` of a
+/// channel to [0.2, 0.8], `invert` (1 − x), `divide` by 4; a divide by a texture or by 0, and
+/// a remap of an empty range, are reported.
+#[test]
+fn remap_invert_and_divide_fold_into_scale_and_bias() {
+    let extra = r#"
+        def Shader "Gloss" {
+            uniform token info:id = "ND_image_float"
+            asset inputs:file = @missing.png@
+            float outputs:out
+        }
+        def Shader "Rough" {
+            uniform token info:id = "ND_remap_float"
+            float inputs:in.connect = </Looks/M/Gloss.outputs:out>
+            float inputs:outlow = 0.2
+            float inputs:outhigh = 0.8
+            float outputs:out
+        }
+        def Shader "Flip" {
+            uniform token info:id = "ND_invert_float"
+            float inputs:in.connect = </Looks/M/Gloss.outputs:out>
+            float outputs:out
+        }
+        def Shader "Quarter" {
+            uniform token info:id = "ND_divide_float"
+            float inputs:in1.connect = </Looks/M/Gloss.outputs:out>
+            float inputs:in2 = 4
+            float outputs:out
+        }
+        def Shader "ByZero" {
+            uniform token info:id = "ND_divide_float"
+            float inputs:in1.connect = </Looks/M/Gloss.outputs:out>
+            float inputs:in2 = 0
+            float outputs:out
+        }"#;
+    let inputs = "float inputs:specular_roughness.connect = </Looks/M/Rough.outputs:out>\n float inputs:base_metalness.connect = </Looks/M/Flip.outputs:out>\n float inputs:coat_weight.connect = </Looks/M/Quarter.outputs:out>\n float inputs:coat_roughness.connect = </Looks/M/ByZero.outputs:out>";
+    let t = load_text("mtlx_linear", &stage("ND_open_pbr_surface_surfaceshader", inputs, extra));
+    let net = network(&t);
+    let folded = |input: &str| {
+        let c = net.connections.iter().find(|c| c.downstream_node == net.surface_node && c.downstream_input == input).expect(input);
+        let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
+        let get = |k: &str| match tex.parameters.get(k) {
+            Some(ParamValue::Float4(v)) => v.x,
+            other => panic!("{other:?}"),
+        };
+        (get("scale"), get("bias"))
+    };
+    let close = |(s, b): (f32, f32), (ws, wb): (f32, f32)| (s - ws).abs() < 1e-6 && (b - wb).abs() < 1e-6;
+    assert!(close(folded("roughness"), (0.6, 0.2)), "{:?}", folded("roughness"));
+    assert!(close(folded("metallic"), (-1.0, 1.0)), "{:?}", folded("metallic"));
+    assert!(close(folded("clearcoat"), (0.25, 0.0)), "{:?}", folded("clearcoat"));
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/ByZero") && w.contains("divisor")).count(), 1, "{:?}", t.warnings);
+}

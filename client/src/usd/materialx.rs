@@ -9,7 +9,8 @@
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
-//! texture among the operands, sRGB decoding, `dot` and `convert` pass-throughs, one channel
+//! texture among the operands, `divide` by a constant, `invert` and `remap` with constant
+//! bounds, sRGB decoding, `dot` and `convert` pass-throughs, one channel
 //! (`extract`, `separate`), `place2d` (as a `UsdTransform2d`), `normalmap`, and `bump` (through
 //! a `tessera:Bump`). Anything else is
 //! reported by node path and id, and the input keeps its default.
@@ -208,6 +209,27 @@ impl Graph<'_> {
                     .or_else(|| self.unsupported(path, id, "two textures"))
             }
             "dot" | "convert" => input("in", 0.0),
+            "divide" => match input("in2", 1.0)?.value() {
+                Some(d) if (Vec4::ONE / d).is_finite() => Some(input("in1", 0.0)?.times(Vec4::ONE / d)),
+                _ => self.unsupported(path, id, "a textured or zero divisor"),
+            },
+            // amount − in.
+            "invert" => Lin::add(input("amount", 1.0)?, input("in", 0.0)?.times(Vec4::splat(-1.0)))
+                .or_else(|| self.unsupported(path, id, "a textured amount")),
+            // outlow + (in − inlow)·(outhigh − outlow)/(inhigh − inlow), with constant bounds.
+            "remap" => {
+                let bound = |name: &str, default: f32| input(name, default).and_then(|l| l.value());
+                let (Some(il), Some(ih), Some(ol), Some(oh)) =
+                    (bound("inlow", 0.0), bound("inhigh", 1.0), bound("outlow", 0.0), bound("outhigh", 1.0))
+                else {
+                    return self.unsupported(path, id, "textured bounds");
+                };
+                let k = (oh - ol) / (ih - il);
+                if !k.is_finite() {
+                    return self.unsupported(path, id, "an empty input range");
+                }
+                Lin::add(input("in", 0.0)?.times(k), Lin::constant(ol - il * k))
+            }
             // One channel of a colour or vector: a packed map's roughness or metalness.
             "extract" => {
                 let index = match node.parameters.get("index") {
