@@ -410,6 +410,12 @@ fn compile_connection(
     if !EVALUATED.contains(&up.node_type_id.as_str()) {
         return None;
     }
+    if up.node_type_id == BUMP && c.downstream_input != "normal" {
+        report
+            .warnings
+            .push(format!("{}: a tessera:Bump feeds only a surface's normal, not '{}'; it is ignored", up.path, c.downstream_input));
+        return None;
+    }
     let Some(output) = Output::of(up, &c.upstream_output) else {
         report.warnings.push(format!(
             "{}: {} has no output '{}'; {} keeps its value",
@@ -795,8 +801,12 @@ mod tests {
     /// A surface whose `normal` reads a [`BUMP`] over the red channel of a 4 × 4 raw ramp along
     /// s (texel centres 0, 1/3, 2/3, 1 at s = 1/8, 3/8, 5/8, 7/8), `scale` 0.5.
     fn bumped(scale: ParamValue, output: &str) -> (Option<TexturedMaterial>, ResolveReport) {
+        compile_ramp(&bump_network(scale, output))
+    }
+
+    fn bump_network(scale: ParamValue, output: &str) -> MaterialNetwork {
         let tex = ParamValue::Texture { hash: "sha256:ramp".into(), source: "ramp.png".into() };
-        let net = MaterialNetwork {
+        MaterialNetwork {
             nodes: vec![
                 node("/M/S", "UsdPreviewSurface", &[]),
                 node("/M/B", BUMP, &[("scale", scale)]),
@@ -809,11 +819,14 @@ mod tests {
                 connect("/M/T", "st", "/M/P", "result"),
             ],
             surface_node: "/M/S".into(),
-        };
+        }
+    }
+
+    fn compile_ramp(net: &MaterialNetwork) -> (Option<TexturedMaterial>, ResolveReport) {
         let ramp: Vec<f32> = (0..16).flat_map(|i| [(i % 4) as f32 / 3.0, 0.0, 0.0]).collect();
         let t = Arc::new(Texture::new(&Image::from_f32(4, 4, 3, &ramp), ColorSpace::Raw));
         let mut report = ResolveReport::default();
-        let m = TexturedMaterial::compile(&net, "/M", &move |h: &str, _| (h == "sha256:ramp").then(|| t.clone()), &mut report);
+        let m = TexturedMaterial::compile(net, "/M", &move |h: &str, _| (h == "sha256:ramp").then(|| t.clone()), &mut report);
         (m, report)
     }
 
@@ -877,6 +890,17 @@ mod tests {
         let Some((Expr::Bump { height, .. }, _)) = m.exprs.first() else { panic!("{:?}", m.exprs) };
         let Expr::Texture { st, .. } = height.as_ref() else { panic!("{height:?}") };
         assert!(matches!(st.as_ref(), Expr::Const(_)), "the second bump reads nothing: {st:?}");
+    }
+
+    /// Nor may a bump feed anything but a normal (a colour here): reported, and the input
+    /// keeps its value.
+    #[test]
+    fn a_bump_feeding_a_colour_is_refused() {
+        let mut net = bump_network(ParamValue::Float(1.0), "r");
+        net.connections[0].downstream_input = "diffuseColor".into();
+        let (m, report) = compile_ramp(&net);
+        assert!(report.warnings.iter().any(|w| w.contains("/M/B") && w.contains("not 'diffuseColor'")), "{:?}", report.warnings);
+        assert!(m.is_none(), "nothing else varies");
     }
 
     #[test]
