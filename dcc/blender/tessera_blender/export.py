@@ -125,6 +125,9 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_glass(exported, prim, Sdf, UsdShade)
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
+    if material is not None:
+        # Last: the corrections above act on the BSDF the export kept, which the layer holds.
+        nodes.mix_as_layer(exported, prim, material, Sdf, UsdShade)
 
 
 def _emits(prim, UsdShade) -> bool:

@@ -16,12 +16,16 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
 
 The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
 loses the specular layer UsdPreviewSurface would add, a Bump over an image becomes a
-tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, and any
-other normal that went through a node the export cannot carry is disconnected. Everything else
-is reported, once a material.
+tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, a Mix
+Shader of two BSDFs becomes a tessera:Layer, and any other normal that went through a node the
+export cannot carry is disconnected. Everything else is reported, once a material.
 """
 
 from __future__ import annotations
+
+import re
+
+import bpy
 
 #: Principled BSDF inputs the exporter carries, by their UsdPreviewSurface names.
 PRINCIPLED_CARRIED = {
@@ -126,6 +130,8 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         _correct_diffuse(exported, name, prim, node, shader, Sdf)
     elif node.type == "EMISSION":
         _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
+    elif node.type == "MIX_SHADER" and mixable(node) and shader:
+        pass  # export.py rewrites it as a tessera:Layer once the other corrections are made
     else:
         kept = f"only its {shader.GetPrim().GetName()} is rendered" if shader else "Tessera renders the default surface"
         exported.warnings.append(f"{name}: the surface is {label(node)}, which the USD export does not carry: {kept}")
@@ -221,6 +227,120 @@ def add_bump(shader, texture, channel, scale, Sdf, UsdShade):
     bump.CreateInput("scale", Sdf.ValueTypeNames.Float).Set(scale)
     shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(bump.ConnectableAPI(), "out")
     return bump.GetPath()
+
+
+#: BSDFs a Mix Shader may mix for the add-on to carry it.
+MIXED_BSDFS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE")
+
+
+def _mix_sides(node):
+    """The two shaders a Mix Shader mixes, None where a side is not linked."""
+    return tuple(node.inputs[k].links[0].from_node if node.inputs[k].is_linked else None for k in (1, 2))
+
+
+def mixable(node) -> bool:
+    """A Mix Shader of two Principled or Diffuse BSDFs whose Fac is a constant or an Image
+    Texture, which a tessera:Layer can carry."""
+    fac = node.inputs["Fac"]
+    textured = fac.is_linked and fac.links[0].from_node.type == "TEX_IMAGE"
+    return all(side is not None and side.type in MIXED_BSDFS for side in _mix_sides(node)) and (not fac.is_linked or textured)
+
+
+def clean(name: str) -> str:
+    """A Blender node name as the USD exporter names its prim."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", name)
+
+
+def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
+    """A Mix Shader of two BSDFs as a tessera:Layer: Blender's export keeps one of them (with
+    its textures and the corrections above); the other is written as a UsdPreviewSurface of its
+    constant inputs, and the layer blends them by Fac (Cycles' mix is (1 − Fac)·first +
+    Fac·second; the layer's `a` is the second, `mask` Fac). tessera:Layer blends parameters,
+    which is Cycles' mix for the colours of Lambertian sides and an approximation for differing
+    roughness (docs/blender.md)."""
+    output = active_output(material.node_tree)
+    node = output.inputs["Surface"].links[0].from_node if output and output.inputs["Surface"].is_linked else None
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    if node is None or node.type != "MIX_SHADER" or not mixable(node) or not surface:
+        return
+    kept = UsdShade.Shader(surface.GetPrim())
+    first, second = _mix_sides(node)
+    exported_side = next((side for side in (first, second) if clean(side.name) == kept.GetPrim().GetName()), None)
+    if exported_side is None or first == second:
+        exported.warnings.append(f"{material.name}: the Mix Shader's BSDFs could not be told apart in the export; only {kept.GetPrim().GetName()} is rendered")
+        return
+    other = second if exported_side is first else first
+    built = _constant_surface(exported, material.name, prim, other, Sdf, UsdShade)
+    a, b = (built, kept) if other is second else (kept, built)
+    layer = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("TesseraMix"))
+    layer.SetShaderId("tessera:Layer")
+    layer.CreateInput("a", Sdf.ValueTypeNames.Token).ConnectToSource(a.ConnectableAPI(), "surface")
+    layer.CreateInput("b", Sdf.ValueTypeNames.Token).ConnectToSource(b.ConnectableAPI(), "surface")
+    mask = layer.CreateInput("mask", Sdf.ValueTypeNames.Float)
+    fac = node.inputs["Fac"]
+    if fac.is_linked:
+        texture, channel = _image_texture(prim, fac.links[0], Sdf, UsdShade)
+        mask.ConnectToSource(texture.ConnectableAPI(), channel)
+    else:
+        mask.Set(float(fac.default_value))
+    UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(layer.ConnectableAPI(), "surface")
+    exported.corrections.append(f"{layer.GetPath()}: Mix Shader of '{first.name}' and '{second.name}' as tessera:Layer")
+
+
+#: Principled inputs written for the side of a mix the export did not keep, by
+#: UsdPreviewSurface name (Emission Color is multiplied by Emission Strength).
+CONSTANT_PRINCIPLED = {
+    "diffuseColor": "Base Color",
+    "metallic": "Metallic",
+    "roughness": "Roughness",
+    "ior": "IOR",
+    "opacity": "Alpha",
+    "clearcoat": "Coat Weight",
+    "clearcoatRoughness": "Coat Roughness",
+    "emissiveColor": "Emission Color",
+}
+
+
+def _constant_surface(exported, name, prim, node, Sdf, UsdShade):
+    """`node` (a Principled or Diffuse BSDF) as a UsdPreviewSurface of its constant inputs; a
+    linked input is reported and its value used."""
+    shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(node.name) + "_Mixed"))
+    shader.SetShaderId("UsdPreviewSurface")
+    inputs = CONSTANT_PRINCIPLED if node.type == "BSDF_PRINCIPLED" else {"diffuseColor": "Color"}
+    for usd_name, blender_name in inputs.items():
+        socket = node.inputs[blender_name]
+        if socket.is_linked:
+            exported.warnings.append(f"{name}: the Mix Shader's '{node.name}' has {blender_name} linked, which is not carried: its value is used")
+        value = socket.default_value
+        if usd_name == "emissiveColor":
+            strength = float(node.inputs["Emission Strength"].default_value)
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) * strength for c in tuple(value)[:3]))
+        elif usd_name == "diffuseColor":
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
+        else:
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+    if node.type == "BSDF_DIFFUSE":
+        shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)  # Lambertian, as _correct_diffuse
+    shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
+    return shader
+
+
+def _image_texture(prim, link, Sdf, UsdShade):
+    """A UsdUVTexture of the Image Texture `link` comes from, read through the mesh's `st`,
+    and the output its socket names (Alpha, else red)."""
+    image = link.from_node.image
+    texture = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(link.from_node.name) + "_Mask"))
+    texture.SetShaderId("UsdUVTexture")
+    texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(bpy.path.abspath(image.filepath_from_user()) if image else "")
+    space = "raw" if image is not None and image.colorspace_settings.name == "Non-Color" else "sRGB"
+    texture.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set(space)
+    reader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(link.from_node.name) + "_MaskSt"))
+    reader.SetShaderId("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+    texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    channel = "a" if link.from_socket.name == "Alpha" else "r"
+    texture.CreateOutput(channel, Sdf.ValueTypeNames.Float)
+    return texture, channel
 
 
 def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:

@@ -21,6 +21,7 @@ REGIONS = {
     "displaced": {1: "floor", 2: "displaced grid"},
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
+    "mixed": {1: "constant mix plane", 2: "masked mix plane"},
 }
 
 def udim_image(directory):
@@ -47,7 +48,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -178,6 +179,39 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_plane_add, mat("flat", (0.8, 0.8, 0.8)), 3, size=2, location=(0, 0, 0))
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0, 0.5236, 0)); bpy.context.object.data.energy = 3
         cam = (0, -6, 5); rot = (0.9, 0, 0)
+    elif kind == "mixed":
+        # Mix Shaders (Lambertian sides, IOR 1): red Principled and blue Diffuse BSDF at Fac 0.3;
+        # green and white Principled BSDFs by an image mask, black on its left half and white
+        # on its right (Non-Color).
+        def principled(tree, color):
+            p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+            p.inputs["Base Color"].default_value = (*color, 1); p.inputs["IOR"].default_value = 1.0
+            return p
+        m = bpy.data.materials.new("constant mix")
+        tree = m.node_tree
+        red = tree.nodes["Principled BSDF"]; red.inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1); red.inputs["IOR"].default_value = 1.0
+        blue = tree.nodes.new("ShaderNodeBsdfDiffuse"); blue.inputs["Color"].default_value = (0.1, 0.1, 0.8, 1)
+        node = tree.nodes.new("ShaderNodeMixShader"); node.inputs["Fac"].default_value = 0.3
+        tree.links.new(red.outputs[0], node.inputs[1]); tree.links.new(blue.outputs[0], node.inputs[2])
+        tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        add(bpy.ops.mesh.primitive_plane_add, m, 1, size=2, location=(-1.1, 0, 0))
+        path = os.path.join(directory, "half.png")
+        img = bpy.data.images.new("half", 64, 64)
+        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[:, 32:, :3] = 1
+        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+        mask = bpy.data.images.load(path); mask.colorspace_settings.name = 'Non-Color'
+        m = bpy.data.materials.new("masked mix")
+        tree = m.node_tree
+        green = tree.nodes["Principled BSDF"]; green.inputs["Base Color"].default_value = (0.1, 0.7, 0.1, 1); green.inputs["IOR"].default_value = 1.0
+        white = principled(tree, (0.8, 0.8, 0.8))
+        node = tree.nodes.new("ShaderNodeMixShader")
+        t = tree.nodes.new("ShaderNodeTexImage"); t.image = mask
+        tree.links.new(t.outputs["Color"], node.inputs["Fac"])
+        tree.links.new(green.outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
+        tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -5, 4); rot = (0.9, 0, 0)
     elif kind == "emission_shader":
         # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
         # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
@@ -284,7 +318,8 @@ def node_trees(directory):
         link(tree, c.outputs[0], p.inputs["Base Color"])
 
     def mix_shader(tree, p):
-        m = tree.nodes.new("ShaderNodeMixShader"); d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        # A Glossy side: not one the add-on's tessera:Layer carries (the `mixed` scene has those).
+        m = tree.nodes.new("ShaderNodeMixShader"); d = tree.nodes.new("ShaderNodeBsdfGlossy")
         link(tree, p.outputs[0], m.inputs[1]); link(tree, d.outputs[0], m.inputs[2])
         link(tree, m.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
