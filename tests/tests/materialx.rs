@@ -378,6 +378,18 @@ fn a_tiled_image_is_placed_by_its_tiling_offset_and_sizes() {
     assert!(!t.warnings.iter().any(|w| w.contains("/Looks/M/Tiles") && w.contains("tiledimage")), "{:?}", t.warnings);
 }
 
+/// The texture output the surface's `input` reads, and that texture's scale and bias (their
+/// first components).
+fn texture_read(net: &MaterialNetwork, input: &str) -> (String, f32, f32) {
+    let c = net.connections.iter().find(|c| c.downstream_node == net.surface_node && c.downstream_input == input).expect(input);
+    let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).expect("its texture");
+    let first = |k: &str| match tex.parameters.get(k) {
+        Some(ParamValue::Float4(v)) => v.x,
+        other => panic!("{k}: {other:?}"),
+    };
+    (c.upstream_output.clone(), first("scale"), first("bias"))
+}
+
 /// A packed map (occlusion, roughness, metalness in r, g, b, as glTF and Substance write
 /// them): `separate3`'s `outg` feeds roughness and `extract` index 2 (after a multiply) feeds
 /// metalness, each read from its own channel of the one image with its own scale.
@@ -417,13 +429,8 @@ fn channels_of_a_packed_map_feed_their_inputs() {
     let inputs = "float inputs:specular_roughness.connect = </Looks/M/Split.outputs:outg>\n float inputs:base_metalness.connect = </Looks/M/Metal.outputs:out>\n float inputs:coat_weight.connect = </Looks/M/Beyond.outputs:out>";
     let t = load_text("mtlx_packed", &stage("ND_open_pbr_surface_surfaceshader", inputs, extra));
     let net = network(&t);
-    let read = |input: &str| {
-        let c = net.connections.iter().find(|c| c.downstream_node == net.surface_node && c.downstream_input == input).expect(input);
-        let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
-        (c.upstream_output.clone(), tex.parameters.get("scale").cloned())
-    };
-    assert_eq!(read("roughness"), ("g".to_string(), Some(ParamValue::Float4(glam::Vec4::ONE))));
-    assert_eq!(read("metallic"), ("b".to_string(), Some(ParamValue::Float4(glam::Vec4::splat(0.5)))));
+    assert_eq!(texture_read(net, "roughness"), ("g".to_string(), 1.0, 0.0));
+    assert_eq!(texture_read(net, "metallic"), ("b".to_string(), 0.5, 0.0));
     // Index 7 names no channel: reported by path, and the coat keeps its default.
     assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Beyond") && w.contains("index")).count(), 1, "{:?}", t.warnings);
     assert!(net.connections.iter().all(|c| c.downstream_input != "clearcoat"), "{:?}", net.connections);
@@ -536,13 +543,8 @@ fn remap_invert_and_divide_fold_into_scale_and_bias() {
     let t = load_text("mtlx_linear", &stage("ND_open_pbr_surface_surfaceshader", inputs, extra));
     let net = network(&t);
     let folded = |input: &str| {
-        let c = net.connections.iter().find(|c| c.downstream_node == net.surface_node && c.downstream_input == input).expect(input);
-        let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
-        let get = |k: &str| match tex.parameters.get(k) {
-            Some(ParamValue::Float4(v)) => v.x,
-            other => panic!("{other:?}"),
-        };
-        (get("scale"), get("bias"))
+        let (_, scale, bias) = texture_read(net, input);
+        (scale, bias)
     };
     let close = |(s, b): (f32, f32), (ws, wb): (f32, f32)| (s - ws).abs() < 1e-6 && (b - wb).abs() < 1e-6;
     assert!(close(folded("roughness"), (0.6, 0.2)), "{:?}", folded("roughness"));
