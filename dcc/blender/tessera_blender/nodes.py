@@ -154,7 +154,7 @@ def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
             exported.warnings.append(f"{name}: {blender_name} is driven by {nodes}, which the USD export does not carry: rendered with {value}")
         elif lost and blender_name == "Normal":
             # The image found behind a Bump is a height map, not a tangent-space normal map.
-            if _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade):
+            if _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade):
                 continue
             shader.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
             exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry: the mesh's own normals are used")
@@ -169,7 +169,7 @@ def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
 NORMAL_MAP_SCALE, NORMAL_MAP_BIAS = (2.0,) * 4, (-1.0,) * 4
 
 
-def _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade) -> bool:
+def _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade) -> bool:
     """A Bump node whose Height is an Image Texture (its Normal unlinked) as a tessera:Bump
     over the texture the export connected to the normal: scale Distance × Strength, negated
     when inverted. Strength blends the bumped normal with the plain one in Cycles; a scaled
@@ -184,6 +184,8 @@ def _carry_bump(exported, lost, usd_input, shader, Sdf, UsdShade) -> bool:
         authored = texture.GetInput(attr)
         if authored and tuple(authored.Get()) == normal_map:
             texture.GetPrim().RemoveProperty(authored.GetAttr().GetName())
+    for linked in (n for n in ("Strength", "Distance") if bump.inputs[n].is_linked):
+        exported.warnings.append(f"{name}: the Bump's {linked} is linked, which is not carried: its value is used")
     channel = "a" if height.links[0].from_socket.name == "Alpha" else "r"
     scale = float(bump.inputs["Distance"].default_value) * float(bump.inputs["Strength"].default_value) * (-1.0 if bump.invert else 1.0)
     path = add_bump(shader, texture, channel, scale, Sdf, UsdShade)
