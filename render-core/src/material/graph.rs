@@ -496,19 +496,31 @@ fn primvar_reader(node: &MaterialNode, id: &str, report: &mut ResolveReport) -> 
     }
 }
 
-fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSource, report: &mut ResolveReport, depth: usize) -> Expr {
-    let p = |name: &str| node.parameters.get(name);
-    let float2 = |name: &str, default: Vec2| match p(name) {
+/// A node's float2 parameter (a float3's first two components), else `default`.
+fn float2_param(node: &MaterialNode, name: &str, default: Vec2) -> Vec2 {
+    match node.parameters.get(name) {
         Some(ParamValue::Float2(v)) => *v,
         Some(ParamValue::Float3(v)) => v.truncate(),
         _ => default,
-    };
-    let float4 = |name: &str, default: Vec4| match p(name) {
+    }
+}
+
+/// A node's float4 parameter (a float3 with `default`'s w, a float splatted), else `default`.
+fn float4_param(node: &MaterialNode, name: &str, default: Vec4) -> Vec4 {
+    match node.parameters.get(name) {
         Some(ParamValue::Float4(v)) => *v,
         Some(ParamValue::Float3(v)) => v.extend(default.w),
         Some(ParamValue::Float(x)) => Vec4::splat(*x),
         _ => default,
-    };
+    }
+}
+
+/// A float2 input as a constant expression: its authored value, else zero.
+fn const_float2(node: &MaterialNode, name: &str) -> Expr {
+    Expr::Const(float2_param(node, name, Vec2::ZERO).extend(0.0).extend(0.0))
+}
+
+fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSource, report: &mut ResolveReport, depth: usize) -> Expr {
     // An input fed by another evaluated node, else its authored value.
     let upstream = |input: &str, report: &mut ResolveReport| -> Option<Expr> {
         let c = net.connections.iter().find(|c| c.downstream_node == node.path && c.downstream_input == input)?;
@@ -534,71 +546,77 @@ fn compile_node(net: &MaterialNetwork, node: &MaterialNode, textures: &TextureSo
         "UsdPrimvarReader_float2" => {
             // The client sends the float2 primvar the readers name as the mesh's st, or (on
             // curves) as a primvar of that name.
-            Expr::St { name: varname(node), fallback: float2("fallback", Vec2::ZERO) }
+            Expr::St { name: varname(node), fallback: float2_param(node, "fallback", Vec2::ZERO) }
         }
         id @ ("UsdPrimvarReader_float" | "UsdPrimvarReader_float3" | "UsdPrimvarReader_int") => primvar_reader(node, id, report),
-        "UsdTransform2d" => {
-            let input = upstream("in", report).unwrap_or(Expr::Const(float2("in", Vec2::ZERO).extend(0.0).extend(0.0)));
-            let rotation = match p("rotation") {
-                Some(ParamValue::Float(r)) => r.to_radians(),
-                _ => 0.0,
-            };
-            // UsdTransform2d: result = in · scale · rotate + translation (rotation in degrees,
-            // counter-clockwise).
-            let linear = Mat2::from_angle(rotation) * Mat2::from_diagonal(float2("scale", Vec2::ONE));
-            Expr::Transform2d { input: Box::new(input), linear, translation: float2("translation", Vec2::ZERO) }
+        "UsdTransform2d" => transform2d(node, upstream("in", report).unwrap_or_else(|| const_float2(node, "in"))),
+        _ => {
+            let st = upstream("st", report).unwrap_or_else(|| const_float2(node, "st"));
+            uv_texture(node, st, textures, report)
+        }
+    }
+}
+
+/// A `UsdTransform2d` over its compiled `input`: result = in · scale · rotate + translation
+/// (rotation in degrees, counter-clockwise).
+fn transform2d(node: &MaterialNode, input: Expr) -> Expr {
+    let rotation = match node.parameters.get("rotation") {
+        Some(ParamValue::Float(r)) => r.to_radians(),
+        _ => 0.0,
+    };
+    let linear = Mat2::from_angle(rotation) * Mat2::from_diagonal(float2_param(node, "scale", Vec2::ONE));
+    Expr::Transform2d { input: Box::new(input), linear, translation: float2_param(node, "translation", Vec2::ZERO) }
+}
+
+/// A `UsdUVTexture` (a single file or a UDIM set) read at its compiled `st`; its fallback where
+/// the file is not on the server, each case reported.
+fn uv_texture(node: &MaterialNode, st: Expr, textures: &TextureSource, report: &mut ResolveReport) -> Expr {
+    let p = |name: &str| node.parameters.get(name);
+    let fallback = float4_param(node, "fallback", Vec4::new(0.0, 0.0, 0.0, 1.0));
+    let (scale, bias) = (float4_param(node, "scale", Vec4::ONE), float4_param(node, "bias", Vec4::ZERO));
+    let wrap = |name: &str, report: &mut ResolveReport| match p(name) {
+        Some(ParamValue::String(t)) => Wrap::from_token(t).unwrap_or_else(|| {
+            report.warnings.push(format!("{}: {name} '{t}' is not a wrap mode; using repeat", node.path));
+            Wrap::Repeat
+        }),
+        _ => Wrap::Repeat,
+    };
+    let wrap = [wrap("wrapS", report), wrap("wrapT", report)];
+    let space = match p("sourceColorSpace") {
+        Some(ParamValue::String(t)) => ColorSpace::from_token(t).unwrap_or_else(|| {
+            report.warnings.push(format!("{}: sourceColorSpace '{t}' is unknown; using auto", node.path));
+            ColorSpace::Auto
+        }),
+        _ => ColorSpace::Auto,
+    };
+    if let Some(ParamValue::Udim { tiles, source }) = p("file") {
+        let grid = udim_grid(tiles, space, textures);
+        if grid.iter().all(Option::is_none) {
+            report.warnings.push(format!("{}: no tile of UDIM texture '{source}' is on the server; using the fallback", node.path));
+            return Expr::Const(fallback);
+        }
+        return Expr::Udim { tiles: grid, st: Box::new(st), scale, bias, fallback };
+    }
+    let texture = match p("file") {
+        Some(ParamValue::Texture { hash, source }) => {
+            let t = textures(hash, space);
+            if t.is_none() {
+                report.warnings.push(format!("{}: texture '{source}' is not on the server; using the fallback", node.path));
+            }
+            t
+        }
+        Some(ParamValue::Asset(a)) => {
+            report.warnings.push(format!("{}: texture '{a}' could not be read by the client; using the fallback", node.path));
+            None
         }
         _ => {
-            let fallback = float4("fallback", Vec4::new(0.0, 0.0, 0.0, 1.0));
-            let wrap = |name: &str, report: &mut ResolveReport| match p(name) {
-                Some(ParamValue::String(t)) => Wrap::from_token(t).unwrap_or_else(|| {
-                    report.warnings.push(format!("{}: {name} '{t}' is not a wrap mode; using repeat", node.path));
-                    Wrap::Repeat
-                }),
-                _ => Wrap::Repeat,
-            };
-            let wrap = [wrap("wrapS", report), wrap("wrapT", report)];
-            let space = match p("sourceColorSpace") {
-                Some(ParamValue::String(t)) => ColorSpace::from_token(t).unwrap_or_else(|| {
-                    report.warnings.push(format!("{}: sourceColorSpace '{t}' is unknown; using auto", node.path));
-                    ColorSpace::Auto
-                }),
-                _ => ColorSpace::Auto,
-            };
-            let st = upstream("st", report).unwrap_or(Expr::Const(float2("st", Vec2::ZERO).extend(0.0).extend(0.0)));
-            if let Some(ParamValue::Udim { tiles, source }) = p("file") {
-                let grid = udim_grid(tiles, space, textures);
-                if grid.iter().all(Option::is_none) {
-                    report.warnings.push(format!("{}: no tile of UDIM texture '{source}' is on the server; using the fallback", node.path));
-                    return Expr::Const(fallback);
-                }
-                let (scale, bias) = (float4("scale", Vec4::ONE), float4("bias", Vec4::ZERO));
-                return Expr::Udim { tiles: grid, st: Box::new(st), scale, bias, fallback };
-            }
-            let texture = match p("file") {
-                Some(ParamValue::Texture { hash, source }) => {
-                    let t = textures(hash, space);
-                    if t.is_none() {
-                        report.warnings.push(format!("{}: texture '{source}' is not on the server; using the fallback", node.path));
-                    }
-                    t
-                }
-                Some(ParamValue::Asset(a)) => {
-                    report.warnings.push(format!("{}: texture '{a}' could not be read by the client; using the fallback", node.path));
-                    None
-                }
-                _ => {
-                    report.warnings.push(format!("{}: no file; using the fallback", node.path));
-                    None
-                }
-            };
-            match texture {
-                Some(texture) => {
-                    Expr::Texture { texture, st: Box::new(st), wrap, scale: float4("scale", Vec4::ONE), bias: float4("bias", Vec4::ZERO) }
-                }
-                None => Expr::Const(fallback),
-            }
+            report.warnings.push(format!("{}: no file; using the fallback", node.path));
+            None
         }
+    };
+    match texture {
+        Some(texture) => Expr::Texture { texture, st: Box::new(st), wrap, scale, bias },
+        None => Expr::Const(fallback),
     }
 }
 
