@@ -10,10 +10,10 @@
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
 //! (`UsdUVTexture`), texture coordinates and primvars, multiply/add/subtract/mix with at most one
 //! texture among the operands, `divide` by a constant, `invert` and `remap` with constant
-//! bounds, sRGB decoding, `dot` and `convert` pass-throughs, one channel
-//! (`extract`, `separate`), `place2d` (as a `UsdTransform2d`), `normalmap`, and `bump` (through
-//! a `tessera:Bump`). Anything else is
-//! reported by node path and id, and the input keeps its default.
+//! bounds, sRGB decoding, `dot` and `convert` pass-throughs, one channel (`extract`,
+//! `separate`), `place2d` (as a `UsdTransform2d`), `normalmap`, and `bump` (through a
+//! `tessera:Bump`). Anything else is reported by node path and id, and the input keeps its
+//! default.
 //! The parameter table is in `docs/materials.md` ("MaterialX").
 
 use std::collections::BTreeMap;
@@ -315,9 +315,7 @@ impl Graph<'_> {
         n.bias -= Vec4::new(scale, scale, 1.0, 0.0);
         Some(n)
     }
-}
 
-impl Graph<'_> {
     /// A `bump` node: its `height` × `scale` (a constant scale), a world-space height as
     /// `displacement`'s; reported when it bends a normal of its own (its `normal` input
     /// connected) or its scale is textured.
@@ -760,10 +758,7 @@ fn place_of(node: &MaterialNode, net: &MaterialNetwork) -> Result<Place, String>
     if let Some(input) = connected {
         return Err(format!("its {input} is connected"));
     }
-    let v2 = |name: &str, default: Vec2| match node.parameters.get(name) {
-        Some(ParamValue::Float2(v)) => *v,
-        _ => default,
-    };
+    let v2 = |name: &str, default: Vec2| float2_of(node, name, default);
     let (pivot, scale, offset) = (v2("pivot", Vec2::ZERO), v2("scale", Vec2::ONE), v2("offset", Vec2::ZERO));
     let rotate = match node.parameters.get("rotate") {
         Some(ParamValue::Float(r)) => *r,
@@ -784,12 +779,7 @@ fn place_of(node: &MaterialNode, net: &MaterialNetwork) -> Result<Place, String>
 
 /// `downstream`'s `input` fed by `upstream`'s `result` (a reader's or a transform's output).
 fn result_into(downstream: &str, input: &str, upstream: &str) -> MaterialConnection {
-    MaterialConnection {
-        downstream_node: downstream.to_string(),
-        downstream_input: input.to_string(),
-        upstream_node: upstream.to_string(),
-        upstream_output: "result".into(),
-    }
+    connection(downstream, input, upstream, "result")
 }
 
 /// A `tiledimage`'s placement as MaterialX's own graph for it computes it, (texcoord · uvtiling
@@ -799,10 +789,7 @@ fn tiling_of(image: &MaterialNode) -> Result<Option<(Vec2, Vec2)>, ()> {
     if !image.node_type_id.starts_with("ND_tiledimage") {
         return Ok(None);
     }
-    let v2 = |name: &str, default: Vec2| match image.parameters.get(name) {
-        Some(ParamValue::Float2(v)) => *v,
-        _ => default,
-    };
+    let v2 = |name: &str, default: Vec2| float2_of(image, name, default);
     let k = v2("realworldtilesize", Vec2::ONE) / v2("realworldimagesize", Vec2::ONE);
     let (scale, translation) = (v2("uvtiling", Vec2::ONE) * k, -v2("uvoffset", Vec2::ZERO) * k);
     if !(scale.is_finite() && translation.is_finite()) {
@@ -819,6 +806,14 @@ fn placement(texture: &str, place: &Place) -> MaterialNode {
         ("translation".to_string(), ParamValue::Float2(place.translation)),
     ]);
     MaterialNode { path: format!("{texture}_placement"), node_type_id: "UsdTransform2d".into(), parameters }
+}
+
+/// A node's float2 parameter, else `default`.
+fn float2_of(node: &MaterialNode, name: &str, default: Vec2) -> Vec2 {
+    match node.parameters.get(name) {
+        Some(ParamValue::Float2(v)) => *v,
+        _ => default,
+    }
 }
 
 pub(super) fn vec4_of(v: &ParamValue) -> Option<Vec4> {

@@ -21,8 +21,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
-* Node trees: an Emission shader, a Diffuse BSDF and a Bump on the normal are corrected, and
-  whatever else of the tree the export drops or skips is reported (``nodes.py``).
+* Node trees: an Emission shader, a Diffuse BSDF, a Bump on the normal, a Normal Map's
+  Strength and a Mix Shader of two BSDFs are corrected, and whatever else of the tree the
+  export drops or skips is reported (``nodes.py``).
 """
 
 from __future__ import annotations
@@ -207,10 +208,7 @@ def _material_name(prim) -> str:
     return name_attr.Get() if name_attr and name_attr.HasValue() else prim.GetName()
 
 
-def _surface_shader(prim, UsdShade):
-    """The shader behind the Material `prim`'s surface terminal, or None."""
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    return UsdShade.Shader(surface.GetPrim()) if surface else None
+_surface_shader = nodes.surface_shader
 
 
 def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:

@@ -78,6 +78,20 @@ def active_output(tree):
     return next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
 
 
+def surface_node(material):
+    """The node linked to `material`'s active output's Surface, or None."""
+    tree = getattr(material, "node_tree", None)
+    output = active_output(tree) if tree else None
+    surface = output.inputs["Surface"] if output else None
+    return surface.links[0].from_node if surface and surface.is_linked else None
+
+
+def surface_shader(prim, UsdShade):
+    """The shader behind the Material `prim`'s surface terminal, or None."""
+    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
+    return UsdShade.Shader(surface.GetPrim()) if surface else None
+
+
 def label(node) -> str:
     """A node as the artist sees it: its name, and its kind when the name does not say it."""
     return f"'{node.name}'" if node.name.startswith(node.bl_label) else f"'{node.name}' ({node.bl_label})"
@@ -113,13 +127,10 @@ def skipped(socket, into: str) -> list:
 def check(exported, prim, material, Sdf, UsdShade) -> None:
     """Holds the exported Material `prim` against Blender's `material`: corrects what can be
     corrected and adds a warning to `exported` for the rest."""
-    tree = getattr(material, "node_tree", None)
-    output = active_output(tree) if tree else None
-    if output is None or not output.inputs["Surface"].is_linked:
+    node = surface_node(material)
+    if node is None:
         return
-    node = output.inputs["Surface"].links[0].from_node
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    shader = UsdShade.Shader(surface.GetPrim()) if surface else None
+    shader = surface_shader(prim, UsdShade)
     name = material.name
     if node.type == "BSDF_PRINCIPLED":
         _check_inputs(exported, name, node, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
@@ -135,7 +146,7 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
     else:
         kept = f"only its {shader.GetPrim().GetName()} is rendered" if shader else "Tessera renders the default surface"
         exported.warnings.append(f"{name}: the surface is {label(node)}, which the USD export does not carry: {kept}")
-    if output.inputs["Volume"].is_linked:
+    if active_output(material.node_tree).inputs["Volume"].is_linked:
         exported.warnings.append(f"{name}: the Volume output is not carried")
 
 
@@ -260,12 +271,10 @@ def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
     Fac·second; the layer's `a` is the second, `mask` Fac). tessera:Layer blends parameters,
     which is Cycles' mix for the colours of Lambertian sides and an approximation for differing
     roughness (docs/blender.md)."""
-    output = active_output(material.node_tree)
-    node = output.inputs["Surface"].links[0].from_node if output and output.inputs["Surface"].is_linked else None
-    surface = UsdShade.Material(prim).ComputeSurfaceSource()[0]
-    if node is None or node.type != "MIX_SHADER" or not mixable(node) or not surface:
+    node = surface_node(material)
+    kept = surface_shader(prim, UsdShade)
+    if node is None or node.type != "MIX_SHADER" or not mixable(node) or not kept:
         return
-    kept = UsdShade.Shader(surface.GetPrim())
     first, second = _mix_sides(node)
     exported_side = next((side for side in (first, second) if clean(side.name) == kept.GetPrim().GetName()), None)
     if exported_side is None or first == second:

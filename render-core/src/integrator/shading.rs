@@ -14,7 +14,7 @@ use crate::scene::SurfaceHit;
 use super::Tracer;
 use super::path::PathState;
 
-/// A textured material resolved at a shading point, and its normal-map normal.
+/// A textured material resolved at a shading point, and what tilts its normal there.
 pub(super) type LocalMaterial = Option<(Material, Option<Tilt>)>;
 
 /// A surface a path scatters at, set up for shading.
@@ -23,7 +23,7 @@ pub(super) struct Vertex<'l> {
     pub s: SurfaceHit,
     /// Towards the previous vertex.
     pub wo: Vec3,
-    /// The material resolved here and its normal-map normal, for textured materials: in the
+    /// The material resolved here and what tilts its normal, for textured materials: in the
     /// path's own buffer, as a BSDF built here is (a material is 464 bytes; every vertex
     /// moved it).
     pub local: Option<&'l (Material, Option<Tilt>)>,
