@@ -71,6 +71,15 @@ AGREE = [
     # Measured at 64 spp: 1.001 and 1.001; with only the BSDF the export keeps, 1.136 and 0.797.
     ("mixed", "constant mix plane"),
     ("mixed", "masked mix plane"),
+    # Inputs baked into images (tessera_blender/bake.py): a Noise through a Color Ramp, one
+    # Object-coordinate Gradient material on a small and a large plane (each gets its own bake
+    # and Material copy), and an image's Emission Color at Strength 4. Measured at 32 spp:
+    # 1.000, 1.014, 1.002 and 1.001; without the bakes and the strength, 3.47, 6.93, 3.23 and
+    # 0.250.
+    ("procedural", "noise ramp plane"),
+    ("procedural", "small gradient plane"),
+    ("procedural", "large gradient plane"),
+    ("procedural", "glowing plane"),
 ]
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
@@ -160,7 +169,7 @@ def region_ratios(out: Path, kind: str, names: dict) -> dict:
 
 def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
     out, r = results
-    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed")
+    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural")
     ratios = {(k, n): v for k in r if k in kinds for n, v in region_ratios(out, k, r[k]["regions"]).items()}
     for key in AGREE:
         # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of
@@ -229,11 +238,14 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     said = {}
     for w in n["warnings"]:
         said.setdefault(w.split(":")[0], []).append(w)
-    assert said.keys() == {"ramp", "math", "ramp_bump", "rgb", "mix_shader", "glossy", "sheen"}, n["warnings"]
+    assert said.keys() == {"ramp_bump", "mix_shader", "glossy", "sheen"}, n["warnings"]
     assert all(len(v) == 1 for v in said.values()), said
-    assert "Base Color goes through 'Color Ramp'" in said["ramp"][0]
-    assert "Roughness goes through 'Math'" in said["math"][0]
-    assert "rendered with (0.8, 0.8, 0.8)" in said["rgb"][0]
+    # Baked (tessera_blender/bake.py), each to one value: a Color Ramp over the black image is
+    # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green.
+    corrections = n["corrections"]
+    assert "ramp: Base Color baked: one value everywhere, (0, 0, 0)" in corrections, corrections
+    assert "math: Roughness baked: one value everywhere, 0.5" in corrections, corrections
+    assert "rgb: Base Color baked: one value everywhere, (0, 1, 0)" in corrections, corrections
     assert "Mix Shader" in said["mix_shader"][0] and "Principled_BSDF is rendered" in said["mix_shader"][0]
     assert "'Glossy BSDF'" in said["glossy"][0] and "default surface" in said["glossy"][0]
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
@@ -249,6 +261,19 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert n["normal_map"] == {"scale": [1.0, 1.0, 1.0, 2.0], "bias": [-0.5, -0.5, 0.0, -1.0]}, n["normal_map"]
     # A Mapping, a UV, a Separate Color: carried, not reported.
     assert connected["mapped"] == ["roughness"], connected
+    assert connected["ramp"] == connected["math"] == connected["rgb"] == [], "constants, not images"
+
+
+def test_baked_inputs_get_a_material_per_object_and_their_strength(results):
+    """One procedural material on two planes: each plane is baked and bound to its own copy
+    (the comparison with Cycles above checks what each reads); an image's Emission Strength,
+    which the export drops, becomes the texture's scale."""
+    _, r = results
+    corrections = r["procedural"]["corrections"]
+    assert "gradient: Base Color baked into a 1024² image for each of its objects" in corrections, corrections
+    assert sum(c.startswith("gradient: a copy for ") for c in corrections) == 1, corrections
+    assert "glowing: Emission Strength 4 as the emission texture's scale" in corrections, corrections
+    assert r["procedural"]["warnings"] == [], r["procedural"]["warnings"]
 
 
 def test_an_emissive_objects_light_linking_is_exported_as_a_mesh_light(results):

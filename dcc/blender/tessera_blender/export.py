@@ -22,8 +22,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 * Node trees: an Emission shader, a Diffuse BSDF, a Bump on the normal, a Normal Map's
-  Strength and a Mix Shader of two BSDFs are corrected, and whatever else of the tree the
-  export drops or skips is reported (``nodes.py``).
+  Strength, an Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an
+  input driven by nodes the export drops or skips (procedural textures, Color Ramps, Math) is
+  baked into an image (``bake.py``); whatever else is reported (``nodes.py``).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import nodes
+from . import bake, nodes
 
 #: What the exporter's sun strength is divided by.
 SUN_EXPORT_DIVISOR = 4.0
@@ -53,6 +54,8 @@ class Export:
     xforms: dict[str, str] = field(default_factory=dict)
     #: What the export cannot carry, for the artist.
     warnings: list[str] = field(default_factory=list)
+    #: Material path -> (texture path, {object name: its baked file}) for each baked input.
+    baked: dict[str, list] = field(default_factory=dict)
 
 
 def _pxr():
@@ -113,6 +116,7 @@ def correct(exported: Export, scene) -> None:
     # After the traversal: a light may link objects exported after it.
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
+    bake.split_per_object(exported, stage, Sdf, UsdShade)
     stage.GetRootLayer().Save()
 
 

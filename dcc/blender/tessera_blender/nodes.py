@@ -16,9 +16,11 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
 
 The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
 loses the specular layer UsdPreviewSurface would add, a Bump over an image becomes a
-tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, a Mix
-Shader of two BSDFs becomes a tessera:Layer, and any other normal that went through a node the
-export cannot carry is disconnected. Everything else is reported, once a material.
+tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, as does
+an image's Emission Strength, a Mix Shader of two BSDFs becomes a tessera:Layer, any other
+input driven by nodes the export drops or skips is baked into an image (``bake.py``), and any
+other normal that went through a node the export cannot carry is disconnected. Everything
+else is reported, once a material.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from __future__ import annotations
 import re
 
 import bpy
+
+from . import bake
 
 #: Principled BSDF inputs the exporter carries, by their UsdPreviewSurface names.
 PRINCIPLED_CARRIED = {
@@ -42,6 +46,9 @@ PRINCIPLED_CARRIED = {
 
 #: Diffuse BSDF inputs the exporter carries.
 DIFFUSE_CARRIED = {"Color": "diffuseColor", "Normal": "normal"}
+
+#: UsdPreviewSurface inputs that are colours (the rest the exporter writes are floats).
+COLOR_INPUTS = {"diffuseColor", "emissiveColor"}
 
 #: Node types the exporter translates on the way from an input to its image: the image, its
 #: UVs (a UV Map, a Texture Coordinate's UV, a 2D Mapping as UsdTransform2d), a channel of it
@@ -133,11 +140,11 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
     shader = surface_shader(prim, UsdShade)
     name = material.name
     if node.type == "BSDF_PRINCIPLED":
-        _check_inputs(exported, name, node, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
+        _check_inputs(exported, material, node, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
         for lost in principled_losses(node):
             exported.warnings.append(f"{name}: {lost} is not carried (UsdPreviewSurface has no such input)")
     elif node.type == "BSDF_DIFFUSE" and shader:
-        _check_inputs(exported, name, node, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
+        _check_inputs(exported, material, node, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
         _correct_diffuse(exported, name, prim, node, shader, Sdf)
     elif node.type == "EMISSION":
         _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
@@ -150,8 +157,10 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: the Volume output is not carried")
 
 
-def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
-    """Each linked BSDF input against what the export connected for it."""
+def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade) -> None:
+    """Each linked BSDF input against what the export connected for it: a normal corrected or
+    disconnected, any other input the export could not carry baked (``bake.py``)."""
+    name = material.name
     for blender_name, usd_name in carried.items():
         socket = node.inputs[blender_name]
         if not socket.is_linked:
@@ -160,7 +169,15 @@ def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
         usd_input = shader.GetInput(usd_name) if shader else None
         connected = bool(usd_input) and usd_input.HasConnectedSource()
         nodes = ", ".join(label(n) for n in lost or upstream(socket))
-        if not connected:
+        strength = _emission_strength(node) if usd_name == "emissiveColor" else 1.0
+        if (lost or not connected) and blender_name != "Normal" and shader:
+            usd_input = usd_input or shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f if usd_name in COLOR_INPUTS else Sdf.ValueTypeNames.Float)
+            why = bake.carry(exported, material, blender_name, socket, usd_input, strength, Sdf, UsdShade)
+            if why is None:
+                continue
+            kept = "the image behind them is used unchanged" if connected else f"rendered with {_shown(usd_input.Get())}"
+            exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export does not carry and Tessera cannot bake ({why}): {kept}")
+        elif not connected:
             value = _shown(usd_input.Get() if usd_input else None)
             exported.warnings.append(f"{name}: {blender_name} is driven by {nodes}, which the USD export does not carry: rendered with {value}")
         elif lost and blender_name == "Normal":
@@ -171,13 +188,35 @@ def _check_inputs(exported, name, node, carried, shader, Sdf, UsdShade) -> None:
             exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry: the mesh's own normals are used")
         elif blender_name == "Normal":
             _correct_normal_map(exported, name, socket, usd_input, UsdShade)
-        elif lost:
-            behind = "it" if len(lost) == 1 else "them"
-            exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export skips: the image behind {behind} is used unchanged")
+        elif strength != 1.0:
+            _scale_emission(exported, name, usd_input, strength, Sdf, UsdShade)
 
 
 #: The scale and bias Blender's exporter puts on a texture it connects to a normal.
 NORMAL_MAP_SCALE, NORMAL_MAP_BIAS = (2.0,) * 4, (-1.0,) * 4
+
+
+def _emission_strength(node) -> float:
+    """A Principled BSDF's Emission Strength (1 when linked: that is reported instead)."""
+    socket = node.inputs["Emission Strength"]
+    return 1.0 if socket.is_linked else float(socket.default_value)
+
+
+def _scale_emission(exported, name, usd_input, strength, Sdf, UsdShade) -> None:
+    """The export connects an Emission Color's image without its Strength: the strength goes
+    into the texture's scale (a texture feeding other inputs too is copied first)."""
+    source = usd_input.GetConnectedSources()[0][0]
+    texture = UsdShade.Shader(source.source.GetPrim())
+    stage = texture.GetPrim().GetStage()
+    feeds = [i for p in stage.Traverse() if p.IsA(UsdShade.Shader) for i in UsdShade.Shader(p).GetInputs() if any(s.source.GetPrim() == texture.GetPrim() for s in i.GetConnectedSources()[0])]
+    if len(feeds) > 1:
+        own = texture.GetPath().GetParentPath().AppendChild(texture.GetPath().name + "_emission")
+        Sdf.CopySpec(stage.GetRootLayer(), texture.GetPath(), stage.GetRootLayer(), own)
+        texture = UsdShade.Shader(stage.GetPrimAtPath(own))
+        usd_input.ConnectToSource(texture.GetOutput(source.sourceName))
+    scale = tuple(texture.GetInput("scale").Get() or (1.0, 1.0, 1.0, 1.0)) if texture.GetInput("scale") else (1.0, 1.0, 1.0, 1.0)
+    texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((scale[0] * strength, scale[1] * strength, scale[2] * strength, scale[3]))
+    exported.corrections.append(f"{name}: Emission Strength {strength:g} as the emission texture's scale")
 
 
 def _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade) -> bool:

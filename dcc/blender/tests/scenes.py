@@ -22,6 +22,7 @@ REGIONS = {
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
+    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane"},
 }
 
 def udim_image(directory):
@@ -37,6 +38,39 @@ def udim_image(directory):
     return tiled
 
 
+def procedural_planes(mat, add, directory):
+    """Inputs Blender's USD export cannot carry, which the add-on bakes: a Noise through a Color
+    Ramp into Base Color; one material on two planes of different sizes whose Base Color is a
+    Gradient over Object coordinates through a Color Ramp (so each plane needs its own bake:
+    the small one reads 0.125 on average, the large one 0.5); an image's Emission Color at
+    Strength 4, which the export drops."""
+    noisy = mat("noise ramp", (0.8, 0.8, 0.8))
+    tree = noisy.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.8, 0.1, 0.05, 1); ramp.color_ramp.elements[1].color = (0.05, 0.2, 0.8, 1)
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"]); tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    add(bpy.ops.mesh.primitive_plane_add, noisy, 1, size=2, location=(-2.4, 0, 0))
+    graded = mat("gradient", (0.8, 0.8, 0.8))
+    tree = graded.node_tree
+    coords = tree.nodes.new("ShaderNodeTexCoord"); gradient = tree.nodes.new("ShaderNodeTexGradient")
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    tree.links.new(coords.outputs["Object"], gradient.inputs["Vector"]); tree.links.new(gradient.outputs["Fac"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    add(bpy.ops.mesh.primitive_plane_add, graded, 2, size=1, location=(-0.6, 0, 0))
+    add(bpy.ops.mesh.primitive_plane_add, graded, 3, size=3, location=(1.6, 0, 0))
+    path = os.path.join(directory, "warm.png")
+    img = bpy.data.images.new("warm", 8, 8)
+    px = np.zeros((8, 8, 4), np.float32); px[..., :3] = (0.5, 0.35, 0.2); px[..., 3] = 1
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+    glowing = mat("glowing", (0.0, 0.0, 0.0))
+    tree = glowing.node_tree
+    t = tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(path)
+    principled = tree.nodes["Principled BSDF"]
+    tree.links.new(t.outputs["Color"], principled.inputs["Emission Color"]); principled.inputs["Emission Strength"].default_value = 4.0
+    add(bpy.ops.mesh.primitive_plane_add, glowing, 4, size=2, location=(0, 2.6, 0))
+
+
 def build(kind, directory):
     """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -48,7 +82,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -212,6 +246,10 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind == "procedural":
+        procedural_planes(mat, add, directory)
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -6, 5); rot = (0.9, 0, 0)
     elif kind == "emission_shader":
         # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
         # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).

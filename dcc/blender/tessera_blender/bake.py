@@ -1,0 +1,311 @@
+"""BSDF inputs Blender's USD export cannot carry, baked into images with Cycles.
+
+The export follows an input's links to the first Image Texture and drops everything else
+(``nodes.py``): a Noise or Voronoi texture, a Color Ramp, a Math or Mix node, an RGB node.
+Here such an input's own subgraph is rendered into an image over each object's UVs (Cycles'
+Emit bake, one sample: the emission shader returns the subgraph's value at the texel's centre,
+so nothing is noisy) and the input reads that image, linear and unclamped (OpenEXR, ``raw``).
+An image that comes out one value everywhere becomes that value instead.
+
+A procedural texture depends on the object (Generated and Object coordinates, an object's
+own UVs), so each object using the material gets its own bake: the first keeps the exported
+Material, each other one a copy of it bound in its place (``split_per_object``).
+
+Baking runs in a scratch scene holding only the object: inside Blender's render pipeline
+(where a final render exports) a bake in the rendering scene writes black, measured on bpy
+5.0.1. Bakes are cached by what they depend on (the node tree, the object's mesh and
+placement, the size), so a viewport re-export after an unrelated edit bakes nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+
+import bpy
+import numpy as np
+
+#: Texels along each side of a baked image.
+BAKE_SIZE = 1024
+#: Texels a bake bleeds past its UV islands, so filtering at a seam reads the island's value.
+BAKE_MARGIN = 8
+#: Node settings of the editor's layout, which no bake depends on.
+LAYOUT = {"select", "location", "location_absolute", "width", "height", "hide", "label", "color", "use_custom_color", "parent"}
+#: Bakes by fingerprint -> the image file, kept for the session.
+_CACHE: dict[str, str] = {}
+
+
+def users(stage, material_path: str, UsdShade) -> dict[str, list]:
+    """Blender object name -> the prims (Mesh or GeomSubset) bound directly to the Material at
+    `material_path`, in the exported stage."""
+    out = {}
+    for prim in stage.Traverse():
+        if prim.GetTypeName() not in ("Mesh", "GeomSubset"):
+            continue
+        rel = UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel()
+        if rel and [str(t) for t in rel.GetTargets()] == [material_path]:
+            owner = _object_name(prim)
+            if owner:
+                out.setdefault(owner, []).append(prim)
+    return out
+
+
+def _mesh_of(prim):
+    return prim if prim.GetTypeName() == "Mesh" else prim.GetParent()
+
+
+def _object_name(prim) -> str | None:
+    while prim and not prim.IsPseudoRoot():
+        attr = prim.GetAttribute("userProperties:blender:object_name")
+        if attr and attr.HasValue():
+            return attr.Get()
+        prim = prim.GetParent()
+    return None
+
+
+def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdShade) -> str | None:
+    """Bakes the subgraph linked into `socket` for every object using `material` and connects
+    `usd_input` to the result times `scale`. Returns None when carried, else why not (for the
+    warning)."""
+    prim = usd_input.GetPrim().GetParent()
+    by_object = users(prim.GetStage(), str(prim.GetPath()), UsdShade)
+    objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
+    if not objects or None in objects:
+        return "no mesh in the export uses the material"
+    no_uvs = [o.name for o in objects if o.type != "MESH" or not o.data.uv_layers]
+    no_uvs += [n for n, prims in sorted(by_object.items()) if not all(_mesh_of(p).GetAttribute("primvars:st") for p in prims)]
+    if no_uvs:
+        return f"{', '.join(sorted(set(no_uvs)))} has no UV map to bake it over"
+    source = socket.links[0].from_socket
+    directory = os.path.join(os.path.dirname(exported.path), "baked")
+    os.makedirs(directory, exist_ok=True)
+    files, values = {}, []
+    for obj in objects:
+        try:
+            files[obj.name], value = _baked(material, source, obj, directory, blender_name)
+        except RuntimeError as e:  # bpy.ops reports a failed bake this way
+            return f"baking it over {obj.name} failed: {str(e).strip()}"
+        values.append(value)
+    if values[0] is not None and all(v is not None and np.allclose(v, values[0], rtol=0, atol=1e-6) for v in values):
+        _set_constant(usd_input, values[0] * scale)
+        exported.corrections.append(f"{material.name}: {blender_name} baked: one value everywhere, {_shown(values[0] * scale, usd_input)}")
+        return None
+    texture = _connect(prim, usd_input, blender_name, files[objects[0].name], Sdf, UsdShade)
+    if scale != 1.0:
+        texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((scale, scale, scale, 1.0))
+    exported.baked.setdefault(str(prim.GetPath()), []).append((str(texture.GetPath()), files))
+    each = " for each of its objects" if len(objects) > 1 else ""
+    exported.corrections.append(f"{material.name}: {blender_name} baked into a {BAKE_SIZE}² image{each}")
+    return None
+
+
+def _baked(material, source, obj, directory, blender_name):
+    """The image file of `source` baked over `obj`'s UVs (from the cache when nothing it
+    depends on changed), and its value when it is one value everywhere."""
+    key = _fingerprint(material, source, obj)
+    path = os.path.join(directory, f"{_clean(material.name)}_{_clean(blender_name)}_{_clean(obj.name)}.exr")
+    cached = _CACHE.get(key)
+    if cached and os.path.exists(cached[0]):
+        if os.path.abspath(cached[0]) != os.path.abspath(path):
+            shutil.copyfile(cached[0], path)
+        return path, cached[1]
+    pixels = _bake(material, source, obj, path)
+    rgb = pixels.reshape(-1, 4)[:, :3]
+    constant = rgb[0] if np.ptp(rgb, axis=0).max() <= 1e-6 else None
+    _CACHE[key] = (path, constant)
+    return path, constant
+
+
+def _bake(material, source, obj, path) -> np.ndarray:
+    """Renders `source` into a float image over `obj`'s UVs, saves it to `path` as OpenEXR and
+    returns its RGBA pixels. The material is restored whatever happens."""
+    tree = material.node_tree
+    from . import nodes
+
+    output = nodes.active_output(tree)
+    surface = output.inputs["Surface"]
+    was = surface.links[0].from_socket if surface.is_linked else None
+    active = tree.nodes.active
+    emission = tree.nodes.new("ShaderNodeEmission")
+    target = tree.nodes.new("ShaderNodeTexImage")
+    image = bpy.data.images.new("tessera-bake", BAKE_SIZE, BAKE_SIZE, alpha=True, float_buffer=True, is_data=True)
+    scratch = bpy.data.scenes.new("tessera-bake")
+    others = _park_other_slots(obj, material)
+    try:
+        target.image = image
+        tree.links.new(source, emission.inputs["Color"])
+        tree.links.new(emission.outputs["Emission"], surface)
+        tree.nodes.active = target
+        _bake_in(scratch, obj)
+        image.filepath_raw = path
+        image.file_format = "OPEN_EXR"
+        image.save()
+        pixels = np.empty(BAKE_SIZE * BAKE_SIZE * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels
+    finally:
+        if was is not None:
+            tree.links.new(was, surface)
+        tree.nodes.remove(emission)
+        tree.nodes.remove(target)
+        tree.nodes.active = active
+        _unpark(others)
+        bpy.data.images.remove(image)
+        bpy.data.scenes.remove(scratch)
+
+
+def _bake_in(scratch, obj) -> None:
+    """Cycles' Emit bake of `obj` alone, in the scratch scene (see the module comment)."""
+    scratch.render.engine = "CYCLES"
+    scratch.cycles.samples = 1
+    scratch.cycles.device = "CPU"
+    scratch.collection.objects.link(obj)
+    layer = scratch.view_layers[0]
+    # An object disabled in viewports still renders, but the bake operator refuses it.
+    disabled, obj.hide_viewport = obj.hide_viewport, False
+    try:
+        with bpy.context.temp_override(scene=scratch, view_layer=layer, active_object=obj, object=obj, selected_objects=[obj]):
+            obj.select_set(True, view_layer=layer)
+            layer.objects.active = obj
+            bpy.ops.object.bake(type="EMIT", margin=BAKE_MARGIN, use_clear=True, target="IMAGE_TEXTURES")
+    finally:
+        obj.hide_viewport = disabled
+
+
+def _park_other_slots(obj, material) -> list:
+    """Cycles bakes every material of the object into its active image node: the object's
+    other materials get a scratch image, so their faces do not write into this bake."""
+    parked = []
+    others = {s.material for s in obj.material_slots if s.material and s.material != material and s.material.node_tree}
+    if not others:
+        return parked
+    image = bpy.data.images.new("tessera-bake-scratch", 8, 8, float_buffer=True, is_data=True)
+    for m in others:
+        node = m.node_tree.nodes.new("ShaderNodeTexImage")
+        node.image = image
+        parked.append((m.node_tree, node, m.node_tree.nodes.active))
+        m.node_tree.nodes.active = node
+    parked.append(image)
+    return parked
+
+
+def _unpark(parked) -> None:
+    for entry in parked:
+        if isinstance(entry, tuple):
+            tree, node, active = entry
+            tree.nodes.remove(node)
+            tree.nodes.active = active
+        else:
+            bpy.data.images.remove(entry)
+
+
+def _connect(material_prim, usd_input, blender_name, file, Sdf, UsdShade):
+    """A UsdUVTexture reading `file` over the mesh's `st`, connected to `usd_input`: its rgb
+    to a colour, its r to a float (a float socket bakes as grey)."""
+    base = f"Baked_{_clean(blender_name)}"
+    texture = UsdShade.Shader.Define(material_prim.GetStage(), material_prim.GetPath().AppendChild(base))
+    texture.CreateIdAttr("UsdUVTexture")
+    texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(os.path.relpath(file, os.path.dirname(material_prim.GetStage().GetRootLayer().realPath)))
+    texture.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+    for wrap in ("wrapS", "wrapT"):
+        texture.CreateInput(wrap, Sdf.ValueTypeNames.Token).Set("clamp")
+    reader = UsdShade.Shader.Define(material_prim.GetStage(), material_prim.GetPath().AppendChild("Baked_st"))
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+    st = reader.CreateOutput("result", Sdf.ValueTypeNames.Float2)
+    texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(st)
+    color = usd_input.GetTypeName() == Sdf.ValueTypeNames.Color3f
+    out = texture.CreateOutput("rgb" if color else "r", Sdf.ValueTypeNames.Float3 if color else Sdf.ValueTypeNames.Float)
+    usd_input.ConnectToSource(out)
+    return texture
+
+
+def _set_constant(usd_input, value) -> None:
+    """`usd_input` unconnected, at the bake's one value (grey for a float input)."""
+    usd_input.GetAttr().ClearConnections()
+    color = str(usd_input.GetTypeName()) == "color3f"
+    usd_input.Set(tuple(float(v) for v in value) if color else float(value[0]))
+
+
+def split_per_object(exported, stage, Sdf, UsdShade) -> None:
+    """Each object after the first of a Material with per-object bakes gets a copy of the
+    Material reading its own bakes, bound in place of the original."""
+    layer = stage.GetRootLayer()
+    for material_path, textures in exported.baked.items():
+        objects = sorted(textures[0][1])
+        for obj_name in objects[1:]:
+            copy = Sdf.Path(material_path).GetParentPath().AppendChild(f"{Sdf.Path(material_path).name}_{_clean(obj_name)}")
+            Sdf.CopySpec(layer, material_path, layer, copy)
+            for texture_path, files in textures:
+                own = Sdf.Path(texture_path).ReplacePrefix(material_path, copy)
+                rel = os.path.relpath(files[obj_name], os.path.dirname(layer.realPath))
+                UsdShade.Shader(stage.GetPrimAtPath(own)).GetInput("file").Set(rel)
+            for prim in users(stage, material_path, UsdShade).get(obj_name, []):
+                UsdShade.MaterialBindingAPI(prim).GetDirectBindingRel().SetTargets([copy])
+            exported.corrections.append(f"{Sdf.Path(material_path).name}: a copy for {obj_name}, with its own bakes")
+
+
+def _fingerprint(material, source, obj) -> str:
+    """What a bake depends on: the node tree's nodes, values and links, which socket, the
+    object's mesh and placement, and the bake's size."""
+    h = hashlib.sha256()
+    tree = material.node_tree
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(repr((node.bl_idname, node.name, _node_state(node))).encode())
+    # Sorted: a bake relinks the output, which moves that link to the end of the list.
+    links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
+    h.update(repr(links).encode())
+    h.update(repr((source.node.name, source.identifier, obj.name, BAKE_SIZE, BAKE_MARGIN)).encode())
+    h.update(np.array(obj.matrix_world, np.float32).tobytes())
+    mesh = obj.data
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    h.update(co.tobytes())
+    layer = mesh.uv_layers.active
+    if layer is not None:
+        uv = np.empty(len(layer.uv) * 2, np.float32)
+        layer.uv.foreach_get("vector", uv)
+        h.update(uv.tobytes())
+    return h.hexdigest()
+
+
+def _node_state(node) -> list:
+    """A node's settings and unlinked input values, as plain values."""
+    state = []
+    for p in node.bl_rna.properties:
+        if p.type in ("ENUM", "BOOLEAN", "INT", "FLOAT", "STRING") and not p.is_readonly and not _layout(p.identifier):
+            state.append((p.identifier, _plain(getattr(node, p.identifier))))
+    for socket in node.inputs:
+        if hasattr(socket, "default_value"):
+            state.append((socket.identifier, _plain(socket.default_value)))
+    ramp = getattr(node, "color_ramp", None)
+    if ramp is not None:
+        state.append(("ramp", ramp.interpolation, [(e.position, tuple(e.color)) for e in ramp.elements]))
+    image = getattr(node, "image", None)
+    if image is not None:
+        state.append(("image", image.name, image.filepath))
+    return state
+
+
+def _layout(identifier: str) -> bool:
+    """Node settings that only place or show it in the editor (selecting a node changes them)."""
+    return identifier in LAYOUT or identifier.startswith("show_")
+
+
+def _plain(value):
+    try:
+        return tuple(value)
+    except TypeError:
+        return value
+
+
+def _clean(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name)
+
+
+def _shown(value, usd_input) -> str:
+    """A baked value as the input holds it: a colour, or one number."""
+    if str(usd_input.GetTypeName()) == "color3f":
+        return "(" + ", ".join(f"{float(v):.3g}" for v in value) + ")"
+    return f"{float(value[0]):.3g}"
