@@ -73,13 +73,14 @@ AGREE = [
     ("mixed", "masked mix plane"),
     # Inputs baked into images (tessera_blender/bake.py): a Noise through a Color Ramp, one
     # Object-coordinate Gradient material on a small and a large plane (each gets its own bake
-    # and Material copy), and an image's Emission Color at Strength 4. Measured at 32 spp:
-    # 1.000, 1.014, 1.002 and 1.001; without the bakes and the strength, 3.47, 6.93, 3.23 and
-    # 0.250.
+    # and Material copy), an image's Emission Color at Strength 4, and a saw Wave texture's
+    # bump baked as a tangent-space normal map. Measured at 32 spp: 1.000, 1.014, 1.002, 1.001
+    # and 1.011; without the bakes and the strength, 3.47, 6.93, 3.23, 0.250 and 1.058.
     ("procedural", "noise ramp plane"),
     ("procedural", "small gradient plane"),
     ("procedural", "large gradient plane"),
     ("procedural", "glowing plane"),
+    ("procedural", "wave bump plane"),
 ]
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
@@ -238,22 +239,23 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     said = {}
     for w in n["warnings"]:
         said.setdefault(w.split(":")[0], []).append(w)
-    assert said.keys() == {"ramp_bump", "mix_shader", "glossy", "sheen"}, n["warnings"]
+    assert said.keys() == {"mix_shader", "glossy", "sheen"}, n["warnings"]
     assert all(len(v) == 1 for v in said.values()), said
     # Baked (tessera_blender/bake.py), each to one value: a Color Ramp over the black image is
-    # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green.
+    # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green; a
+    # Bump over a Color Ramp over that image, flat.
     corrections = n["corrections"]
     assert "ramp: Base Color baked: one value everywhere, (0, 0, 0)" in corrections, corrections
     assert "math: Roughness baked: one value everywhere, 0.5" in corrections, corrections
     assert "rgb: Base Color baked: one value everywhere, (0, 1, 0)" in corrections, corrections
+    assert "ramp_bump: Normal baked: flat everywhere, so the mesh's own normals" in corrections, corrections
     assert "Mix Shader" in said["mix_shader"][0] and "Principled_BSDF is rendered" in said["mix_shader"][0]
     assert "'Glossy BSDF'" in said["glossy"][0] and "default surface" in said["glossy"][0]
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
     # A Bump over an image becomes a tessera:Bump over it (scale: Blender's default Distance,
-    # 0.001); over anything else the height image would arrive as a normal map, so it is
-    # disconnected.
+    # 0.001); over anything else the height image would arrive as a normal map, so the normal
+    # is baked instead (flat here, so disconnected).
     assert any(c.endswith("bump/TesseraBump: Bump 'Bump' as tessera:Bump (scale 0.001, the image's a channel)") for c in n["corrections"]), n["corrections"]
-    assert "Normal goes through 'Bump', 'Color Ramp'" in said["ramp_bump"][0], said["ramp_bump"]
     connected = n["connected"]
     assert connected["bump"] == ["normal"] and connected["ramp_bump"] == [] and connected["normal_map"] == ["normal"], connected
     # A Normal Map's Strength 0.5, dropped by the export, as the texture's scale and bias:
@@ -264,13 +266,15 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert connected["ramp"] == connected["math"] == connected["rgb"] == [], "constants, not images"
 
 
-def test_baked_inputs_get_a_material_per_object_and_their_strength(results):
+def test_baked_inputs_get_a_material_per_object_normals_and_their_strength(results):
     """One procedural material on two planes: each plane is baked and bound to its own copy
-    (the comparison with Cycles above checks what each reads); an image's Emission Strength,
-    which the export drops, becomes the texture's scale."""
+    (the comparison with Cycles above checks what each reads); a procedural bump is baked as a
+    normal map; an image's Emission Strength, which the export drops, becomes the texture's
+    scale."""
     _, r = results
     corrections = r["procedural"]["corrections"]
-    assert "gradient: Base Color baked into a 1024² image for each of its objects" in corrections, corrections
+    assert "gradient: Base Color baked into an image of 1024² for each of its objects" in corrections, corrections
+    assert "wave bump: Normal baked into a tangent-space normal map of 1024²" in corrections, corrections
     assert sum(c.startswith("gradient: a copy for ") for c in corrections) == 1, corrections
     assert "glowing: Emission Strength 4 as the emission texture's scale" in corrections, corrections
     assert r["procedural"]["warnings"] == [], r["procedural"]["warnings"]

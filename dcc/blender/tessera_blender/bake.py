@@ -32,6 +32,8 @@ BAKE_SIZE = 1024
 BAKE_MARGIN = 8
 #: Node settings of the editor's layout, which no bake depends on.
 LAYOUT = {"select", "location", "location_absolute", "width", "height", "hide", "label", "color", "use_custom_color", "parent"}
+#: A flat tangent-space normal as Cycles' Normal bake writes it.
+FLAT = (0.5, 0.5, 1.0)
 #: Bakes by fingerprint -> the image file, kept for the session.
 _CACHE: dict[str, str] = {}
 
@@ -77,7 +79,10 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     no_uvs += [n for n, prims in sorted(by_object.items()) if not all(_mesh_of(p).GetAttribute("primvars:st") for p in prims)]
     if no_uvs:
         return f"{', '.join(sorted(set(no_uvs)))} has no UV map to bake it over"
-    source = socket.links[0].from_socket
+    # A normal is baked as Cycles shades it (Bake type Normal, tangent space); any other input
+    # through an emission shader reading its subgraph.
+    normal = blender_name == "Normal"
+    source = None if normal else socket.links[0].from_socket
     directory = os.path.join(os.path.dirname(exported.path), "baked")
     os.makedirs(directory, exist_ok=True)
     files, values = {}, []
@@ -87,16 +92,26 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
         except RuntimeError as e:  # bpy.ops reports a failed bake this way
             return f"baking it over {obj.name} failed: {str(e).strip()}"
         values.append(value)
-    if values[0] is not None and all(v is not None and np.allclose(v, values[0], rtol=0, atol=1e-6) for v in values):
+    constant = values[0] is not None and all(v is not None and np.allclose(v, values[0], rtol=0, atol=1e-6) for v in values)
+    if constant and normal and np.allclose(values[0], FLAT, rtol=0, atol=1e-3):
+        usd_input.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
+        exported.corrections.append(f"{material.name}: Normal baked: flat everywhere, so the mesh's own normals")
+        return None
+    if constant and not normal:
         _set_constant(usd_input, values[0] * scale)
         exported.corrections.append(f"{material.name}: {blender_name} baked: one value everywhere, {_shown(values[0] * scale, usd_input)}")
         return None
     texture = _connect(prim, usd_input, blender_name, files[objects[0].name], Sdf, UsdShade)
-    if scale != 1.0:
+    if normal:
+        # Cycles writes (n + 1) / 2 in the tangent frame (MikkTSpace, as Tessera's).
+        texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((2.0, 2.0, 2.0, 1.0))
+        texture.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set((-1.0, -1.0, -1.0, 0.0))
+    elif scale != 1.0:
         texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((scale, scale, scale, 1.0))
     exported.baked.setdefault(str(prim.GetPath()), []).append((str(texture.GetPath()), files))
     each = " for each of its objects" if len(objects) > 1 else ""
-    exported.corrections.append(f"{material.name}: {blender_name} baked into a {BAKE_SIZE}² image{each}")
+    what = "a tangent-space normal map" if normal else "an image"
+    exported.corrections.append(f"{material.name}: {blender_name} baked into {what} of {BAKE_SIZE}²{each}")
     return None
 
 
@@ -118,8 +133,9 @@ def _baked(material, source, obj, directory, blender_name):
 
 
 def _bake(material, source, obj, path) -> np.ndarray:
-    """Renders `source` into a float image over `obj`'s UVs, saves it to `path` as OpenEXR and
-    returns its RGBA pixels. The material is restored whatever happens."""
+    """Renders `source` (None: the surface's shading normal) into a float image over `obj`'s
+    UVs, saves it to `path` as OpenEXR and returns its RGBA pixels. The material is restored
+    whatever happens."""
     tree = material.node_tree
     from . import nodes
 
@@ -127,17 +143,18 @@ def _bake(material, source, obj, path) -> np.ndarray:
     surface = output.inputs["Surface"]
     was = surface.links[0].from_socket if surface.is_linked else None
     active = tree.nodes.active
-    emission = tree.nodes.new("ShaderNodeEmission")
+    emission = tree.nodes.new("ShaderNodeEmission") if source is not None else None
     target = tree.nodes.new("ShaderNodeTexImage")
     image = bpy.data.images.new("tessera-bake", BAKE_SIZE, BAKE_SIZE, alpha=True, float_buffer=True, is_data=True)
     scratch = bpy.data.scenes.new("tessera-bake")
     others = _park_other_slots(obj, material)
     try:
         target.image = image
-        tree.links.new(source, emission.inputs["Color"])
-        tree.links.new(emission.outputs["Emission"], surface)
+        if emission is not None:
+            tree.links.new(source, emission.inputs["Color"])
+            tree.links.new(emission.outputs["Emission"], surface)
         tree.nodes.active = target
-        _bake_in(scratch, obj)
+        _bake_in(scratch, obj, "EMIT" if emission is not None else "NORMAL")
         image.filepath_raw = path
         image.file_format = "OPEN_EXR"
         image.save()
@@ -145,9 +162,10 @@ def _bake(material, source, obj, path) -> np.ndarray:
         image.pixels.foreach_get(pixels)
         return pixels
     finally:
-        if was is not None:
+        if was is not None and emission is not None:
             tree.links.new(was, surface)
-        tree.nodes.remove(emission)
+        if emission is not None:
+            tree.nodes.remove(emission)
         tree.nodes.remove(target)
         tree.nodes.active = active
         _unpark(others)
@@ -155,8 +173,9 @@ def _bake(material, source, obj, path) -> np.ndarray:
         bpy.data.scenes.remove(scratch)
 
 
-def _bake_in(scratch, obj) -> None:
-    """Cycles' Emit bake of `obj` alone, in the scratch scene (see the module comment)."""
+def _bake_in(scratch, obj, kind) -> None:
+    """Cycles' bake of `kind` (Emit or Normal) of `obj` alone, in the scratch scene (see the
+    module comment)."""
     scratch.render.engine = "CYCLES"
     scratch.cycles.samples = 1
     scratch.cycles.device = "CPU"
@@ -168,7 +187,7 @@ def _bake_in(scratch, obj) -> None:
         with bpy.context.temp_override(scene=scratch, view_layer=layer, active_object=obj, object=obj, selected_objects=[obj]):
             obj.select_set(True, view_layer=layer)
             layer.objects.active = obj
-            bpy.ops.object.bake(type="EMIT", margin=BAKE_MARGIN, use_clear=True, target="IMAGE_TEXTURES")
+            bpy.ops.object.bake(type=kind, normal_space="TANGENT", margin=BAKE_MARGIN, use_clear=True, target="IMAGE_TEXTURES")
     finally:
         obj.hide_viewport = disabled
 
@@ -201,8 +220,8 @@ def _unpark(parked) -> None:
 
 
 def _connect(material_prim, usd_input, blender_name, file, Sdf, UsdShade):
-    """A UsdUVTexture reading `file` over the mesh's `st`, connected to `usd_input`: its rgb
-    to a colour, its r to a float (a float socket bakes as grey)."""
+    """A UsdUVTexture reading `file` over the mesh's `st`, connected to `usd_input`: its r to
+    a float (a float socket bakes as grey), its rgb to a colour or a normal."""
     base = f"Baked_{_clean(blender_name)}"
     texture = UsdShade.Shader.Define(material_prim.GetStage(), material_prim.GetPath().AppendChild(base))
     texture.CreateIdAttr("UsdUVTexture")
@@ -215,8 +234,8 @@ def _connect(material_prim, usd_input, blender_name, file, Sdf, UsdShade):
     reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
     st = reader.CreateOutput("result", Sdf.ValueTypeNames.Float2)
     texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(st)
-    color = usd_input.GetTypeName() == Sdf.ValueTypeNames.Color3f
-    out = texture.CreateOutput("rgb" if color else "r", Sdf.ValueTypeNames.Float3 if color else Sdf.ValueTypeNames.Float)
+    single = usd_input.GetTypeName() == Sdf.ValueTypeNames.Float
+    out = texture.CreateOutput("r" if single else "rgb", Sdf.ValueTypeNames.Float if single else Sdf.ValueTypeNames.Float3)
     usd_input.ConnectToSource(out)
     return texture
 
@@ -256,7 +275,8 @@ def _fingerprint(material, source, obj) -> str:
     # Sorted: a bake relinks the output, which moves that link to the end of the list.
     links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
     h.update(repr(links).encode())
-    h.update(repr((source.node.name, source.identifier, obj.name, BAKE_SIZE, BAKE_MARGIN)).encode())
+    what = (source.node.name, source.identifier) if source is not None else "normal"
+    h.update(repr((what, obj.name, BAKE_SIZE, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
     mesh = obj.data
     co = np.empty(len(mesh.vertices) * 3, np.float32)

@@ -47,8 +47,8 @@ PRINCIPLED_CARRIED = {
 #: Diffuse BSDF inputs the exporter carries.
 DIFFUSE_CARRIED = {"Color": "diffuseColor", "Normal": "normal"}
 
-#: UsdPreviewSurface inputs that are colours (the rest the exporter writes are floats).
-COLOR_INPUTS = {"diffuseColor", "emissiveColor"}
+#: UsdPreviewSurface inputs that are not floats, by their types' names in Sdf.ValueTypeNames.
+INPUT_TYPES = {"diffuseColor": "Color3f", "emissiveColor": "Color3f", "normal": "Normal3f"}
 
 #: Node types the exporter translates on the way from an input to its image: the image, its
 #: UVs (a UV Map, a Texture Coordinate's UV, a 2D Mapping as UsdTransform2d), a channel of it
@@ -170,26 +170,31 @@ def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade) -> N
         connected = bool(usd_input) and usd_input.HasConnectedSource()
         nodes = ", ".join(label(n) for n in lost or upstream(socket))
         strength = _emission_strength(node) if usd_name == "emissiveColor" else 1.0
-        if (lost or not connected) and blender_name != "Normal" and shader:
-            usd_input = usd_input or shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f if usd_name in COLOR_INPUTS else Sdf.ValueTypeNames.Float)
-            why = bake.carry(exported, material, blender_name, socket, usd_input, strength, Sdf, UsdShade)
-            if why is None:
-                continue
-            kept = "the image behind them is used unchanged" if connected else f"rendered with {_shown(usd_input.Get())}"
-            exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export does not carry and Tessera cannot bake ({why}): {kept}")
-        elif not connected:
-            value = _shown(usd_input.Get() if usd_input else None)
-            exported.warnings.append(f"{name}: {blender_name} is driven by {nodes}, which the USD export does not carry: rendered with {value}")
-        elif lost and blender_name == "Normal":
+        if (lost or not connected) and shader:
             # The image found behind a Bump is a height map, not a tangent-space normal map.
-            if _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade):
+            if blender_name == "Normal" and lost and connected and _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade):
                 continue
-            shader.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
-            exported.warnings.append(f"{name}: Normal goes through {nodes}, which the USD export does not carry: the mesh's own normals are used")
+            usd_input = usd_input or shader.CreateInput(usd_name, getattr(Sdf.ValueTypeNames, INPUT_TYPES.get(usd_name, "Float")))
+            why = bake.carry(exported, material, blender_name, socket, usd_input, strength, Sdf, UsdShade)
+            if why is not None:
+                _report_unbaked(exported, name, blender_name, nodes, usd_input, connected, why)
         elif blender_name == "Normal":
             _correct_normal_map(exported, name, socket, usd_input, UsdShade)
         elif strength != 1.0:
             _scale_emission(exported, name, usd_input, strength, Sdf, UsdShade)
+
+
+def _report_unbaked(exported, name, blender_name, nodes, usd_input, connected, why) -> None:
+    """An input that could not be baked: what is rendered instead (a normal's image, which is
+    not a normal map, is disconnected)."""
+    if blender_name == "Normal":
+        usd_input.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
+        kept = "the mesh's own normals are used"
+    elif connected:
+        kept = "the image behind them is used unchanged"
+    else:
+        kept = f"rendered with {_shown(usd_input.Get())}"
+    exported.warnings.append(f"{name}: {blender_name} goes through {nodes}, which the USD export does not carry and Tessera cannot bake ({why}): {kept}")
 
 
 #: The scale and bias Blender's exporter puts on a texture it connects to a normal.

@@ -22,7 +22,7 @@ REGIONS = {
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
-    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane"},
+    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane"},
 }
 
 def udim_image(directory):
@@ -43,7 +43,8 @@ def procedural_planes(mat, add, directory):
     Ramp into Base Color; one material on two planes of different sizes whose Base Color is a
     Gradient over Object coordinates through a Color Ramp (so each plane needs its own bake:
     the small one reads 0.125 on average, the large one 0.5); an image's Emission Color at
-    Strength 4, which the export drops."""
+    Strength 4, which the export drops; a saw-profile Wave texture bumping a plane into ramps
+    (a procedural normal, baked as a tangent-space normal map)."""
     noisy = mat("noise ramp", (0.8, 0.8, 0.8))
     tree = noisy.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
@@ -69,6 +70,13 @@ def procedural_planes(mat, add, directory):
     principled = tree.nodes["Principled BSDF"]
     tree.links.new(t.outputs["Color"], principled.inputs["Emission Color"]); principled.inputs["Emission Strength"].default_value = 4.0
     add(bpy.ops.mesh.primitive_plane_add, glowing, 4, size=2, location=(0, 2.6, 0))
+    waves = mat("wave bump", (0.8, 0.8, 0.8))
+    tree = waves.node_tree
+    wave = tree.nodes.new("ShaderNodeTexWave"); wave.wave_profile = 'SAW'
+    wave.inputs["Scale"].default_value = 2.0; wave.inputs["Distortion"].default_value = 0.0; wave.inputs["Detail"].default_value = 0.0
+    bump = tree.nodes.new("ShaderNodeBump"); bump.inputs["Distance"].default_value = 0.05
+    tree.links.new(wave.outputs["Fac"], bump.inputs["Height"]); tree.links.new(bump.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
+    add(bpy.ops.mesh.primitive_plane_add, waves, 5, size=2, location=(-2.4, 2.6, 0))
 
 
 def build(kind, directory):
