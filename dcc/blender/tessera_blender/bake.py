@@ -68,8 +68,8 @@ def _object_name(prim) -> str | None:
 
 def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdShade) -> str | None:
     """Bakes the subgraph linked into `socket` for every object using `material` and connects
-    `usd_input` to the result times `scale`. Returns None when carried, else why not (for the
-    warning)."""
+    `usd_input` to the result times `scale`; with no socket, what the surface emits. Returns
+    None when carried, else why not (for the warning)."""
     prim = usd_input.GetPrim().GetParent()
     by_object = users(prim.GetStage(), str(prim.GetPath()), UsdShade)
     objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
@@ -82,13 +82,14 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     # A normal is baked as Cycles shades it (Bake type Normal, tangent space); any other input
     # through an emission shader reading its subgraph.
     normal = blender_name == "Normal"
-    source = None if normal else socket.links[0].from_socket
+    source = None if normal or socket is None else socket.links[0].from_socket
+    kind = "NORMAL" if normal else "EMIT"
     directory = os.path.join(os.path.dirname(exported.path), "baked")
     os.makedirs(directory, exist_ok=True)
     files, values = {}, []
     for obj in objects:
         try:
-            files[obj.name], value = _baked(material, source, obj, directory, blender_name)
+            files[obj.name], value = _baked(material, source, kind, obj, directory, blender_name)
         except RuntimeError as e:  # bpy.ops reports a failed bake this way
             return f"baking it over {obj.name} failed: {str(e).strip()}"
         values.append(value)
@@ -115,27 +116,27 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     return None
 
 
-def _baked(material, source, obj, directory, blender_name):
+def _baked(material, source, kind, obj, directory, blender_name):
     """The image file of `source` baked over `obj`'s UVs (from the cache when nothing it
     depends on changed), and its value when it is one value everywhere."""
-    key = _fingerprint(material, source, obj)
+    key = _fingerprint(material, source, kind, obj)
     path = os.path.join(directory, f"{_clean(material.name)}_{_clean(blender_name)}_{_clean(obj.name)}.exr")
     cached = _CACHE.get(key)
     if cached and os.path.exists(cached[0]):
         if os.path.abspath(cached[0]) != os.path.abspath(path):
             shutil.copyfile(cached[0], path)
         return path, cached[1]
-    pixels = _bake(material, source, obj, path)
+    pixels = _bake(material, source, kind, obj, path)
     rgb = pixels.reshape(-1, 4)[:, :3]
     constant = rgb[0] if np.ptp(rgb, axis=0).max() <= 1e-6 else None
     _CACHE[key] = (path, constant)
     return path, constant
 
 
-def _bake(material, source, obj, path) -> np.ndarray:
-    """Renders `source` (None: the surface's shading normal) into a float image over `obj`'s
-    UVs, saves it to `path` as OpenEXR and returns its RGBA pixels. The material is restored
-    whatever happens."""
+def _bake(material, source, kind, obj, path) -> np.ndarray:
+    """Renders `source` into a float image over `obj`'s UVs (with no source, Cycles' `kind` bake
+    of the surface as it is: its shading normal or what it emits), saves it to `path` as
+    OpenEXR and returns its RGBA pixels. The material is restored whatever happens."""
     tree = material.node_tree
     from . import nodes
 
@@ -154,7 +155,7 @@ def _bake(material, source, obj, path) -> np.ndarray:
             tree.links.new(source, emission.inputs["Color"])
             tree.links.new(emission.outputs["Emission"], surface)
         tree.nodes.active = target
-        _bake_in(scratch, obj, "EMIT" if emission is not None else "NORMAL")
+        _bake_in(scratch, obj, kind)
         image.filepath_raw = path
         image.file_format = "OPEN_EXR"
         image.save()
@@ -265,7 +266,7 @@ def split_per_object(exported, stage, Sdf, UsdShade) -> None:
             exported.corrections.append(f"{Sdf.Path(material_path).name}: a copy for {obj_name}, with its own bakes")
 
 
-def _fingerprint(material, source, obj) -> str:
+def _fingerprint(material, source, kind, obj) -> str:
     """What a bake depends on: the node tree's nodes, values and links, which socket, the
     object's mesh and placement, and the bake's size."""
     h = hashlib.sha256()
@@ -275,7 +276,7 @@ def _fingerprint(material, source, obj) -> str:
     # Sorted: a bake relinks the output, which moves that link to the end of the list.
     links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
     h.update(repr(links).encode())
-    what = (source.node.name, source.identifier) if source is not None else "normal"
+    what = (source.node.name, source.identifier) if source is not None else kind
     h.update(repr((what, obj.name, BAKE_SIZE, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
     mesh = obj.data

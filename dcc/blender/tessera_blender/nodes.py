@@ -296,11 +296,9 @@ def _mix_sides(node):
 
 
 def mixable(node) -> bool:
-    """A Mix Shader of two Principled or Diffuse BSDFs whose Fac is a constant or an Image
-    Texture, which a tessera:Layer can carry."""
-    fac = node.inputs["Fac"]
-    textured = fac.is_linked and fac.links[0].from_node.type == "TEX_IMAGE"
-    return all(side is not None and side.type in MIXED_BSDFS for side in _mix_sides(node)) and (not fac.is_linked or textured)
+    """A Mix Shader of two Principled or Diffuse BSDFs, which a tessera:Layer can carry (its
+    Fac a constant, an Image Texture, or anything ``bake.py`` bakes)."""
+    return all(side is not None and side.type in MIXED_BSDFS for side in _mix_sides(node))
 
 
 def clean(name: str) -> str:
@@ -331,13 +329,7 @@ def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
     layer.SetShaderId("tessera:Layer")
     layer.CreateInput("a", Sdf.ValueTypeNames.Token).ConnectToSource(a.ConnectableAPI(), "surface")
     layer.CreateInput("b", Sdf.ValueTypeNames.Token).ConnectToSource(b.ConnectableAPI(), "surface")
-    mask = layer.CreateInput("mask", Sdf.ValueTypeNames.Float)
-    fac = node.inputs["Fac"]
-    if fac.is_linked:
-        texture, channel = _image_texture(prim, fac.links[0], Sdf, UsdShade)
-        mask.ConnectToSource(texture.ConnectableAPI(), channel)
-    else:
-        mask.Set(float(fac.default_value))
+    _mask(exported, material, node.inputs["Fac"], layer.CreateInput("mask", Sdf.ValueTypeNames.Float), Sdf, UsdShade)
     UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(layer.ConnectableAPI(), "surface")
     exported.corrections.append(f"{layer.GetPath()}: Mix Shader of '{first.name}' and '{second.name}' as tessera:Layer")
 
@@ -380,6 +372,24 @@ def _constant_surface(exported, name, prim, node, Sdf, UsdShade):
     return shader
 
 
+def _mask(exported, material, fac, mask, Sdf, UsdShade) -> None:
+    """The layer's `mask` from the Mix Shader's Fac: its value, its Image Texture read from the
+    image's file, or else (other nodes, or a packed image) baked."""
+    if not fac.is_linked:
+        mask.Set(float(fac.default_value))
+        return
+    image = fac.links[0].from_node.image if fac.links[0].from_node.type == "TEX_IMAGE" else None
+    if image is not None and not image.packed_file and image.source == "FILE":
+        texture, channel = _image_texture(mask.GetPrim().GetParent(), fac.links[0], Sdf, UsdShade)
+        mask.ConnectToSource(texture.ConnectableAPI(), channel)
+        return
+    why = bake.carry(exported, material, "Fac", fac, mask, 1.0, Sdf, UsdShade)
+    if why is not None:
+        mask.Set(float(fac.default_value))
+        nodes = ", ".join(label(n) for n in upstream(fac))
+        exported.warnings.append(f"{material.name}: the Mix Shader's Fac is driven by {nodes}, which Tessera cannot bake ({why}): Fac {float(fac.default_value):g} is used")
+
+
 def _image_texture(prim, link, Sdf, UsdShade):
     """A UsdUVTexture of the Image Texture `link` comes from, read through the mesh's `st`,
     and the output its socket names (Alpha, else red)."""
@@ -413,10 +423,6 @@ def _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade) -> None
     black diffuse, no specular layer (IOR 1), emissive colour Color × Strength (the export's
     own product for a Principled BSDF's emission)."""
     color, strength = node.inputs["Color"], node.inputs["Strength"]
-    for socket in (color, strength):
-        if socket.is_linked:
-            nodes = ", ".join(label(n) for n in upstream(socket))
-            exported.warnings.append(f"{name}: the Emission's {socket.name} is driven by {nodes}, which is not carried: its value is used")
     if shader is None:
         shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("Emission"))
         UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
@@ -430,6 +436,14 @@ def _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade) -> None
     shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)
     shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
     exported.corrections.append(f"{prim.GetPath()}: Emission shader as an emissive UsdPreviewSurface ({_shown(radiance)})")
+    linked = [s for s in (color, strength) if s.is_linked]
+    if linked:
+        # What the shader emits, baked whole: Color × Strength wherever either is textured.
+        material = bpy.data.materials[name]
+        why = bake.carry(exported, material, "Emission", None, shader.GetInput("emissiveColor"), 1.0, Sdf, UsdShade)
+        if why is not None:
+            nodes = ", ".join(label(n) for s in linked for n in upstream(s))
+            exported.warnings.append(f"{name}: the Emission is driven by {nodes}, which is not carried and Tessera cannot bake ({why}): {_shown(radiance)} is used")
 
 
 def _shown(value) -> str:

@@ -22,7 +22,7 @@ REGIONS = {
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
-    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane"},
+    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane"},
 }
 
 def udim_image(directory):
@@ -44,7 +44,9 @@ def procedural_planes(mat, add, directory):
     Gradient over Object coordinates through a Color Ramp (so each plane needs its own bake:
     the small one reads 0.125 on average, the large one 0.5); an image's Emission Color at
     Strength 4, which the export drops; a saw-profile Wave texture bumping a plane into ramps
-    (a procedural normal, baked as a tangent-space normal map)."""
+    (a procedural normal, baked as a tangent-space normal map); an Emission shader whose Color
+    is a Checker texture (baked whole, Color × Strength); a Mix Shader of a red Principled and a
+    white Diffuse BSDF by a Checker's Fac (baked into the tessera:Layer's mask)."""
     noisy = mat("noise ramp", (0.8, 0.8, 0.8))
     tree = noisy.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
@@ -77,6 +79,23 @@ def procedural_planes(mat, add, directory):
     bump = tree.nodes.new("ShaderNodeBump"); bump.inputs["Distance"].default_value = 0.05
     tree.links.new(wave.outputs["Fac"], bump.inputs["Height"]); tree.links.new(bump.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
     add(bpy.ops.mesh.primitive_plane_add, waves, 5, size=2, location=(-2.4, 2.6, 0))
+    checkered = bpy.data.materials.new("checker emission")
+    tree = checkered.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    checker = tree.nodes.new("ShaderNodeTexChecker"); checker.inputs["Scale"].default_value = 4.0
+    checker.inputs["Color1"].default_value = (1.0, 0.5, 0.2, 1); checker.inputs["Color2"].default_value = (0.1, 0.3, 0.9, 1)
+    emission = tree.nodes.new("ShaderNodeEmission"); emission.inputs["Strength"].default_value = 2.0
+    tree.links.new(checker.outputs["Color"], emission.inputs["Color"]); tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, checkered, 6, size=2, location=(2.4, 2.6, 0))
+    mixed = mat("checker mix", (0.8, 0.1, 0.1))
+    tree = mixed.node_tree
+    white = tree.nodes.new("ShaderNodeBsdfDiffuse"); white.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+    checker = tree.nodes.new("ShaderNodeTexChecker"); checker.inputs["Scale"].default_value = 3.0
+    node = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(checker.outputs["Fac"], node.inputs["Fac"])
+    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, mixed, 7, size=2, location=(0, -2.4, 0))
 
 
 def build(kind, directory):
