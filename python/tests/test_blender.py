@@ -277,6 +277,15 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert connected["ramp"] == connected["math"] == connected["rgb"] == [], "constants, not images"
 
 
+def test_bakes_follow_the_bake_size_and_are_reused_until_their_tree_changes(results):
+    """The `procedural` scene's six bakes (noise, two gradients, the wave's normal, the checker
+    emission, the mix's Fac) at Bake Size 64; a second export of the unchanged scene bakes
+    nothing (a viewport re-export after an unrelated edit); a changed Color Ramp stop rebakes
+    its one material."""
+    _, r = results
+    assert r["bake_reuse"] == {"bakes": [6, 0, 1], "sizes": [[64, 64]]}, r["bake_reuse"]
+
+
 def test_a_baked_mix_mask_keeps_its_pattern(results):
     """A checker-masked Mix Shader keeps its checker: the region's spread of luminance matches
     Cycles' (measured 0.956 at 32 spp; with Fac's constant as the mask, 0.138)."""

@@ -65,6 +65,13 @@ class TesseraSceneSettings(bpy.types.PropertyGroup):
         description="Open Image Denoise on the final render (pip install pyoidn); the raw image goes to the Noisy Image pass",
         default=False,
     )
+    bake_size: bpy.props.IntProperty(
+        name="Bake Size",
+        description="Texels along each side of the images procedural inputs are baked into",
+        default=1024,
+        min=16,
+        max=8192,
+    )
 
 
 class TESSERA_PT_sampling(bpy.types.Panel):
@@ -82,7 +89,7 @@ class TESSERA_PT_sampling(bpy.types.Panel):
         settings = context.scene.tessera
         layout = self.layout
         layout.use_property_split = True
-        for prop in ("samples", "max_depth", "noise_threshold", "caustics", "clamp", "energy_compensation", "animate_seed", "denoise"):
+        for prop in ("samples", "max_depth", "noise_threshold", "caustics", "clamp", "energy_compensation", "animate_seed", "denoise", "bake_size"):
             layout.prop(settings, prop)
 
 

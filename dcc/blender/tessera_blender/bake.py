@@ -1,11 +1,13 @@
-"""BSDF inputs Blender's USD export cannot carry, baked into images with Cycles.
+"""Inputs Blender's USD export cannot carry, baked into images with Cycles.
 
 The export follows an input's links to the first Image Texture and drops everything else
 (``nodes.py``): a Noise or Voronoi texture, a Color Ramp, a Math or Mix node, an RGB node.
 Here such an input's own subgraph is rendered into an image over each object's UVs (Cycles'
-Emit bake, one sample: the emission shader returns the subgraph's value at the texel's centre,
+Emit bake, one sample: an emission shader returns the subgraph's value at the texel's centre,
 so nothing is noisy) and the input reads that image, linear and unclamped (OpenEXR, ``raw``).
-An image that comes out one value everywhere becomes that value instead.
+An image that comes out one value everywhere becomes that value instead. A normal is baked as
+Cycles shades it (its Normal bake, tangent space), an Emission shader's surface as it emits,
+a Mix Shader's Fac as the tessera:Layer's mask.
 
 A procedural texture depends on the object (Generated and Object coordinates, an object's
 own UVs), so each object using the material gets its own bake: the first keeps the exported
@@ -26,7 +28,7 @@ import shutil
 import bpy
 import numpy as np
 
-#: Texels along each side of a baked image.
+#: Texels along each side of a baked image by default (the scene's Bake Size setting).
 BAKE_SIZE = 1024
 #: Texels a bake bleeds past its UV islands, so filtering at a seam reads the island's value.
 BAKE_MARGIN = 8
@@ -89,7 +91,7 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     files, values = {}, []
     for obj in objects:
         try:
-            files[obj.name], value = _baked(material, source, kind, obj, directory, blender_name)
+            files[obj.name], value = _baked(material, source, kind, obj, directory, blender_name, exported.bake_size)
         except RuntimeError as e:  # bpy.ops reports a failed bake this way
             return f"baking it over {obj.name} failed: {str(e).strip()}"
         values.append(value)
@@ -112,28 +114,28 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     exported.baked.setdefault(str(prim.GetPath()), []).append((str(texture.GetPath()), files))
     each = " for each of its objects" if len(objects) > 1 else ""
     what = "a tangent-space normal map" if normal else "an image"
-    exported.corrections.append(f"{material.name}: {blender_name} baked into {what} of {BAKE_SIZE}²{each}")
+    exported.corrections.append(f"{material.name}: {blender_name} baked into {what} of {exported.bake_size}²{each}")
     return None
 
 
-def _baked(material, source, kind, obj, directory, blender_name):
+def _baked(material, source, kind, obj, directory, blender_name, size):
     """The image file of `source` baked over `obj`'s UVs (from the cache when nothing it
     depends on changed), and its value when it is one value everywhere."""
-    key = _fingerprint(material, source, kind, obj)
+    key = _fingerprint(material, source, kind, obj, size)
     path = os.path.join(directory, f"{_clean(material.name)}_{_clean(blender_name)}_{_clean(obj.name)}.exr")
     cached = _CACHE.get(key)
     if cached and os.path.exists(cached[0]):
         if os.path.abspath(cached[0]) != os.path.abspath(path):
             shutil.copyfile(cached[0], path)
         return path, cached[1]
-    pixels = _bake(material, source, kind, obj, path)
+    pixels = _bake(material, source, kind, obj, path, size)
     rgb = pixels.reshape(-1, 4)[:, :3]
     constant = rgb[0] if np.ptp(rgb, axis=0).max() <= 1e-6 else None
     _CACHE[key] = (path, constant)
     return path, constant
 
 
-def _bake(material, source, kind, obj, path) -> np.ndarray:
+def _bake(material, source, kind, obj, path, size) -> np.ndarray:
     """Renders `source` into a float image over `obj`'s UVs (with no source, Cycles' `kind` bake
     of the surface as it is: its shading normal or what it emits), saves it to `path` as
     OpenEXR and returns its RGBA pixels. The material is restored whatever happens."""
@@ -146,7 +148,7 @@ def _bake(material, source, kind, obj, path) -> np.ndarray:
     active = tree.nodes.active
     emission = tree.nodes.new("ShaderNodeEmission") if source is not None else None
     target = tree.nodes.new("ShaderNodeTexImage")
-    image = bpy.data.images.new("tessera-bake", BAKE_SIZE, BAKE_SIZE, alpha=True, float_buffer=True, is_data=True)
+    image = bpy.data.images.new("tessera-bake", size, size, alpha=True, float_buffer=True, is_data=True)
     scratch = bpy.data.scenes.new("tessera-bake")
     others = _park_other_slots(obj, material)
     try:
@@ -159,7 +161,7 @@ def _bake(material, source, kind, obj, path) -> np.ndarray:
         image.filepath_raw = path
         image.file_format = "OPEN_EXR"
         image.save()
-        pixels = np.empty(BAKE_SIZE * BAKE_SIZE * 4, np.float32)
+        pixels = np.empty(size * size * 4, np.float32)
         image.pixels.foreach_get(pixels)
         return pixels
     finally:
@@ -266,7 +268,7 @@ def split_per_object(exported, stage, Sdf, UsdShade) -> None:
             exported.corrections.append(f"{Sdf.Path(material_path).name}: a copy for {obj_name}, with its own bakes")
 
 
-def _fingerprint(material, source, kind, obj) -> str:
+def _fingerprint(material, source, kind, obj, size) -> str:
     """What a bake depends on: the node tree's nodes, values and links, which socket, the
     object's mesh and placement, and the bake's size."""
     h = hashlib.sha256()
@@ -277,7 +279,7 @@ def _fingerprint(material, source, kind, obj) -> str:
     links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
     h.update(repr(links).encode())
     what = (source.node.name, source.identifier) if source is not None else kind
-    h.update(repr((what, obj.name, BAKE_SIZE, BAKE_MARGIN)).encode())
+    h.update(repr((what, obj.name, size, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
     mesh = obj.data
     co = np.empty(len(mesh.vertices) * 3, np.float32)

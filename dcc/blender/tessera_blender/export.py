@@ -56,6 +56,8 @@ class Export:
     warnings: list[str] = field(default_factory=list)
     #: Material path -> (texture path, {object name: its baked file}) for each baked input.
     baked: dict[str, list] = field(default_factory=dict)
+    #: Texels along each side of a baked image (the scene's Bake Size).
+    bake_size: int = bake.BAKE_SIZE
 
 
 def _pxr():
@@ -81,7 +83,7 @@ def export_scene(depsgraph, directory: str | None = None) -> Export:
             convert_world_material=True,
             export_animation=False,
         )
-    exported = Export(path=path)
+    exported = Export(path=path, bake_size=depsgraph.scene.tessera.bake_size)
     correct(exported, depsgraph.scene)
     return exported
 

@@ -169,6 +169,37 @@ def node_reports():
     return {"warnings": exported.warnings, "corrections": exported.corrections, "connected": connected, "normal_map": normal_map}
 
 
+def bake_reuse():
+    """The `procedural` scene exported three times at Bake Size 64: the bakes' size, how many
+    bakes each export ran (the cache serves an unchanged scene), and after a Color Ramp's stop
+    changes colour."""
+    from tessera_blender import bake
+
+    scene = scenes.build("procedural", OUT)
+    scene.tessera.bake_size = 64
+    ran = []
+    original = bake._bake
+
+    def counted(*args):
+        ran[-1] += 1
+        return original(*args)
+
+    bake._bake = counted
+    try:
+        sizes = []
+        for edit in (None, None, "ramp"):
+            if edit:
+                ramp = next(n for n in bpy.data.materials["noise ramp"].node_tree.nodes if n.type == "VALTORGB")
+                ramp.color_ramp.elements[0].color = (0.1, 0.8, 0.1, 1)
+            ran.append(0)
+            exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+            baked = os.path.join(os.path.dirname(exported.path), "baked")
+            sizes += [tuple(bpy.data.images.load(os.path.join(baked, f), check_existing=False).size) for f in sorted(os.listdir(baked))]
+    finally:
+        bake._bake = original
+    return {"bakes": ran, "sizes": sorted(set(sizes))}
+
+
 def errors_reach_the_artist():
     """A render whose export cannot be synced reports the error (the operator fails with it,
     as F12 shows it in the status bar) rather than saving a silent black image."""
@@ -196,5 +227,6 @@ if __name__ == "__main__":
     results["interactive"] = interactive()
     results["error_reports"] = errors_reach_the_artist()
     results["node_reports"] = node_reports()
+    results["bake_reuse"] = bake_reuse()
     with open(os.path.join(OUT, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
