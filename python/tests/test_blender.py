@@ -86,6 +86,9 @@ AGREE = [
     # A Mix Shader by a Checker's Fac, the mask baked: 0.999 (0.955 with Fac's value, 0.5, as
     # the mask; the pattern is checked below).
     ("procedural", "checker mix plane"),
+    # An Add Shader of a grey Principled BSDF and an Emission of a Brick texture: 1.003 (0.690
+    # with the BSDF alone, which is what the export keeps).
+    ("procedural", "added glow plane"),
 ]
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
@@ -260,6 +263,8 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert "math: Roughness baked: one value everywhere, 0.5" in corrections, corrections
     assert "rgb: Base Color baked: one value everywhere, (0, 1, 0)" in corrections, corrections
     assert "ramp_bump: Normal baked: flat everywhere, so the mesh's own normals" in corrections, corrections
+    # An Add Shader of a Principled BSDF (no emission) and an Emission of (1, 0.5, 0) at 2.
+    assert "add_glow: Add Shader of 'Principled BSDF' and 'Emission': emission (2, 1, 0) added to the surface" in corrections, corrections
     assert "Mix Shader" in said["mix_shader"][0] and "Principled_BSDF is rendered" in said["mix_shader"][0]
     assert "'Glossy BSDF'" in said["glossy"][0] and "default surface" in said["glossy"][0]
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
@@ -278,12 +283,12 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
 
 
 def test_bakes_follow_the_bake_size_and_are_reused_until_their_tree_changes(results):
-    """The `procedural` scene's six bakes (noise, two gradients, the wave's normal, the checker
-    emission, the mix's Fac) at Bake Size 64; a second export of the unchanged scene bakes
+    """The `procedural` scene's seven bakes (noise, two gradients, the wave's normal, the checker
+    emission, the mix's Fac, the added glow) at Bake Size 64; a second export of the unchanged scene bakes
     nothing (a viewport re-export after an unrelated edit); a changed Color Ramp stop rebakes
     its one material."""
     _, r = results
-    assert r["bake_reuse"] == {"bakes": [6, 0, 1], "sizes": [[64, 64]]}, r["bake_reuse"]
+    assert r["bake_reuse"] == {"bakes": [7, 0, 1], "sizes": [[64, 64]]}, r["bake_reuse"]
 
 
 def test_a_baked_mix_mask_keeps_its_pattern(results):
@@ -305,6 +310,7 @@ def test_baked_inputs_get_a_material_per_object_normals_and_their_strength(resul
     assert "gradient: Base Color baked into an image of 1024² for each of its objects" in corrections, corrections
     assert "wave bump: Normal baked into a tangent-space normal map of 1024²" in corrections, corrections
     assert "checker emission: Emission baked into an image of 1024²" in corrections, corrections
+    assert "added glow: Emission baked into an image of 1024²" in corrections, corrections
     assert sum(c.startswith("gradient: a copy for ") for c in corrections) == 1, corrections
     assert "glowing: Emission Strength 4 as the emission texture's scale" in corrections, corrections
     assert r["procedural"]["warnings"] == [], r["procedural"]["warnings"]

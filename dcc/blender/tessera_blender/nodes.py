@@ -150,11 +150,45 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and mixable(node) and shader:
         pass  # export.py rewrites it as a tessera:Layer once the other corrections are made
+    elif node.type == "ADD_SHADER" and _glowing_bsdf(node) and shader:
+        _correct_added_emission(exported, material, node, shader, Sdf, UsdShade)
     else:
         kept = f"only its {shader.GetPrim().GetName()} is rendered" if shader else "Tessera renders the default surface"
         exported.warnings.append(f"{name}: the surface is {label(node)}, which the USD export does not carry: {kept}")
     if active_output(material.node_tree).inputs["Volume"].is_linked:
         exported.warnings.append(f"{name}: the Volume output is not carried")
+
+
+def _glowing_bsdf(node):
+    """An Add Shader's (BSDF, Emission) when it adds an Emission shader to a Principled or
+    Diffuse BSDF (a glowing surface), else None."""
+    sides = [link.from_node for socket in list(node.inputs)[:2] for link in socket.links]
+    bsdfs = [n for n in sides if n.type in MIXED_BSDFS]
+    glows = [n for n in sides if n.type == "EMISSION"]
+    return (bsdfs[0], glows[0]) if len(sides) == 2 and len(bsdfs) == 1 and len(glows) == 1 else None
+
+
+def _correct_added_emission(exported, material, node, shader, Sdf, UsdShade) -> None:
+    """An Add Shader of a BSDF and an Emission shader: the export keeps the BSDF, which is
+    checked as any BSDF is; the Emission is added to its emissive colour (the surface's whole
+    emission baked when any part of it is textured)."""
+    bsdf, glow = _glowing_bsdf(node)
+    principled = bsdf.type == "BSDF_PRINCIPLED"
+    _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED if principled else DIFFUSE_CARRIED, shader, Sdf, UsdShade)
+    if not principled:
+        _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)
+    parts = [glow.inputs["Color"], glow.inputs["Strength"]] + ([bsdf.inputs["Emission Color"], bsdf.inputs["Emission Strength"]] if principled else [])
+    emissive = shader.GetInput("emissiveColor") or shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f)
+    if any(p.is_linked for p in parts):
+        why = bake.carry(exported, material, "Emission", None, emissive, 1.0, Sdf, UsdShade)
+        if why is not None:
+            exported.warnings.append(f"{material.name}: the emission added by {label(glow)} is textured and Tessera cannot bake it ({why}): the BSDF's own is used")
+        return
+    own = [float(c) * float(parts[3].default_value) for c in tuple(parts[2].default_value)[:3]] if principled else [0.0] * 3
+    added = [o + float(c) * float(parts[1].default_value) for o, c in zip(own, tuple(parts[0].default_value)[:3])]
+    emissive.GetAttr().ClearConnections()
+    emissive.Set(tuple(added))
+    exported.corrections.append(f"{material.name}: Add Shader of {label(bsdf)} and {label(glow)}: emission {_shown(added)} added to the surface")
 
 
 def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade) -> None:

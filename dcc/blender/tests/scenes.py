@@ -22,7 +22,7 @@ REGIONS = {
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
-    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane"},
+    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane"},
 }
 
 def udim_image(directory):
@@ -46,7 +46,8 @@ def procedural_planes(mat, add, directory):
     Strength 4, which the export drops; a saw-profile Wave texture bumping a plane into ramps
     (a procedural normal, baked as a tangent-space normal map); an Emission shader whose Color
     is a Checker texture (baked whole, Color × Strength); a Mix Shader of a red Principled and a
-    white Diffuse BSDF by a Checker's Fac (baked into the tessera:Layer's mask)."""
+    white Diffuse BSDF by a Checker's Fac (baked into the tessera:Layer's mask); an Add Shader of
+    a grey Principled BSDF and an Emission shader of a Brick texture (the glow baked)."""
     noisy = mat("noise ramp", (0.8, 0.8, 0.8))
     tree = noisy.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
@@ -96,6 +97,15 @@ def procedural_planes(mat, add, directory):
     tree.links.new(tree.nodes["Principled BSDF"].outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
     tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     add(bpy.ops.mesh.primitive_plane_add, mixed, 7, size=2, location=(0, -2.4, 0))
+    glowing = mat("added glow", (0.5, 0.5, 0.5))
+    tree = glowing.node_tree
+    bricks = tree.nodes.new("ShaderNodeTexBrick"); bricks.inputs["Scale"].default_value = 3.0
+    emission = tree.nodes.new("ShaderNodeEmission"); emission.inputs["Strength"].default_value = 0.5
+    node = tree.nodes.new("ShaderNodeAddShader")
+    tree.links.new(bricks.outputs["Color"], emission.inputs["Color"])
+    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], node.inputs[0]); tree.links.new(emission.outputs[0], node.inputs[1])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, glowing, 8, size=2, location=(2.4, -2.4, 0))
 
 
 def build(kind, directory):
@@ -392,12 +402,18 @@ def node_trees(directory):
         g = tree.nodes.new("ShaderNodeBsdfGlossy"); tree.nodes.remove(p)
         link(tree, g.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
+    def add_glow(tree, p):
+        e = tree.nodes.new("ShaderNodeEmission"); e.inputs["Color"].default_value = (1, 0.5, 0, 1); e.inputs["Strength"].default_value = 2.0
+        a = tree.nodes.new("ShaderNodeAddShader")
+        link(tree, p.outputs[0], a.inputs[0]); link(tree, e.outputs[0], a.inputs[1])
+        link(tree, a.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
     def sheen(tree, p):
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
