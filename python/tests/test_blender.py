@@ -83,8 +83,9 @@ AGREE = [
     ("procedural", "glowing plane"),
     ("procedural", "wave bump plane"),
     ("procedural", "checker emission plane"),
-    # A Mix Shader by a Checker's Fac, the mask baked: 0.999 (0.955 with Fac's value, 0.5, as
-    # the mask; the pattern is checked below).
+    # A Mix Shader by a Checker's Fac of a red Principled BSDF and a Diffuse BSDF coloured by a
+    # Noise, the mask and the colour baked: 1.000 (0.955 with Fac's value, 0.5, as the mask and
+    # the Diffuse BSDF's grey default; the pattern is checked below).
     ("procedural", "checker mix plane"),
     # An Add Shader of a grey Principled BSDF and an Emission of a Brick texture: 1.003 (0.690
     # with the BSDF alone, which is what the export keeps).
@@ -283,12 +284,12 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
 
 
 def test_bakes_follow_the_bake_size_and_are_reused_until_their_tree_changes(results):
-    """The `procedural` scene's seven bakes (noise, two gradients, the wave's normal, the checker
-    emission, the mix's Fac, the added glow) at Bake Size 64; a second export of the unchanged scene bakes
+    """The `procedural` scene's eight bakes (noise, two gradients, the wave's normal, the checker
+    emission, the mix's Fac and its Diffuse BSDF's colour, the added glow) at Bake Size 64; a second export of the unchanged scene bakes
     nothing (a viewport re-export after an unrelated edit); a changed Color Ramp stop rebakes
     its one material."""
     _, r = results
-    assert r["bake_reuse"] == {"bakes": [7, 0, 1], "sizes": [[64, 64]]}, r["bake_reuse"]
+    assert r["bake_reuse"] == {"bakes": [8, 0, 1], "sizes": [[64, 64]]}, r["bake_reuse"]
 
 
 def test_a_baked_mix_mask_keeps_its_pattern(results):
@@ -311,6 +312,7 @@ def test_baked_inputs_get_a_material_per_object_normals_and_their_strength(resul
     assert "wave bump: Normal baked into a tangent-space normal map of 1024²" in corrections, corrections
     assert "checker emission: Emission baked into an image of 1024²" in corrections, corrections
     assert "added glow: Emission baked into an image of 1024²" in corrections, corrections
+    assert "checker mix: Diffuse BSDF's Color baked into an image of 1024²" in corrections, corrections
     assert sum(c.startswith("gradient: a copy for ") for c in corrections) == 1, corrections
     assert "glowing: Emission Strength 4 as the emission texture's scale" in corrections, corrections
     assert r["procedural"]["warnings"] == [], r["procedural"]["warnings"]

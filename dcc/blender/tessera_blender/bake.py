@@ -68,10 +68,11 @@ def _object_name(prim) -> str | None:
     return None
 
 
-def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdShade) -> str | None:
+def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdShade, owner=None) -> str | None:
     """Bakes the subgraph linked into `socket` for every object using `material` and connects
-    `usd_input` to the result times `scale`; with no socket, what the surface emits. Returns
-    None when carried, else why not (for the warning)."""
+    `usd_input` to the result times `scale`; with no socket, what the surface emits. `owner`
+    names the node the input belongs to when the material has several of it (a Mix Shader's
+    sides). Returns None when carried, else why not (for the warning)."""
     prim = usd_input.GetPrim().GetParent()
     by_object = users(prim.GetStage(), str(prim.GetPath()), UsdShade)
     objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
@@ -84,6 +85,7 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     # A normal is baked as Cycles shades it (Bake type Normal, tangent space); any other input
     # through an emission shader reading its subgraph.
     normal = blender_name == "Normal"
+    blender_name = f"{owner}'s {blender_name}" if owner else blender_name
     source = None if normal or socket is None else socket.links[0].from_socket
     kind = "NORMAL" if normal else "EMIT"
     directory = os.path.join(os.path.dirname(exported.path), "baked")

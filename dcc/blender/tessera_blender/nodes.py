@@ -357,7 +357,7 @@ def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{material.name}: the Mix Shader's BSDFs could not be told apart in the export; only {kept.GetPrim().GetName()} is rendered")
         return
     other = second if exported_side is first else first
-    built = _constant_surface(exported, material.name, prim, other, Sdf, UsdShade)
+    built = _mixed_side(exported, material, prim, other, Sdf, UsdShade)
     a, b = (built, kept) if other is second else (kept, built)
     layer = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("TesseraMix"))
     layer.SetShaderId("tessera:Layer")
@@ -370,7 +370,7 @@ def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
 
 #: Principled inputs written for the side of a mix the export did not keep, by
 #: UsdPreviewSurface name (Emission Color is multiplied by Emission Strength).
-CONSTANT_PRINCIPLED = {
+SIDE_PRINCIPLED = {
     "diffuseColor": "Base Color",
     "metallic": "Metallic",
     "roughness": "Roughness",
@@ -382,16 +382,19 @@ CONSTANT_PRINCIPLED = {
 }
 
 
-def _constant_surface(exported, name, prim, node, Sdf, UsdShade):
-    """`node` (a Principled or Diffuse BSDF) as a UsdPreviewSurface of its constant inputs; a
-    linked input is reported and its value used."""
+def _mixed_side(exported, material, prim, node, Sdf, UsdShade):
+    """`node` (a Principled or Diffuse BSDF) as a UsdPreviewSurface of its inputs: constants as
+    they are, linked inputs baked (``bake.py``; one that cannot be is reported and its value
+    used)."""
     shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(node.name) + "_Mixed"))
     shader.SetShaderId("UsdPreviewSurface")
-    inputs = CONSTANT_PRINCIPLED if node.type == "BSDF_PRINCIPLED" else {"diffuseColor": "Color"}
+    inputs = SIDE_PRINCIPLED if node.type == "BSDF_PRINCIPLED" else {"diffuseColor": "Color"}
+    name = material.name
+    linked = []
     for usd_name, blender_name in inputs.items():
         socket = node.inputs[blender_name]
         if socket.is_linked:
-            exported.warnings.append(f"{name}: the Mix Shader's '{node.name}' has {blender_name} linked, which is not carried: its value is used")
+            linked.append((usd_name, socket))
         value = socket.default_value
         if usd_name == "emissiveColor":
             strength = float(node.inputs["Emission Strength"].default_value)
@@ -402,6 +405,11 @@ def _constant_surface(exported, name, prim, node, Sdf, UsdShade):
             shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
     if node.type == "BSDF_DIFFUSE":
         shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)  # Lambertian, as _correct_diffuse
+    for usd_name, socket in linked:
+        strength = _emission_strength(node) if usd_name == "emissiveColor" else 1.0
+        why = bake.carry(exported, material, socket.name, socket, shader.GetInput(usd_name), strength, Sdf, UsdShade, owner=node.name)
+        if why is not None:
+            exported.warnings.append(f"{name}: the Mix Shader's '{node.name}' has {socket.name} linked, which Tessera cannot bake ({why}): its value is used")
     shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
     return shader
 

@@ -45,9 +45,10 @@ def procedural_planes(mat, add, directory):
     the small one reads 0.125 on average, the large one 0.5); an image's Emission Color at
     Strength 4, which the export drops; a saw-profile Wave texture bumping a plane into ramps
     (a procedural normal, baked as a tangent-space normal map); an Emission shader whose Color
-    is a Checker texture (baked whole, Color × Strength); a Mix Shader of a red Principled and a
-    white Diffuse BSDF by a Checker's Fac (baked into the tessera:Layer's mask); an Add Shader of
-    a grey Principled BSDF and an Emission shader of a Brick texture (the glow baked)."""
+    is a Checker texture (baked whole, Color × Strength); a Mix Shader, by a Checker's Fac, of
+    a red Principled BSDF and a Diffuse BSDF coloured by a Noise (the mask baked, and the
+    Diffuse BSDF's colour, which the export drops with that BSDF); an Add Shader of a grey
+    Principled BSDF and an Emission shader of a Brick texture (the glow baked)."""
     noisy = mat("noise ramp", (0.8, 0.8, 0.8))
     tree = noisy.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
@@ -90,7 +91,9 @@ def procedural_planes(mat, add, directory):
     add(bpy.ops.mesh.primitive_plane_add, checkered, 6, size=2, location=(2.4, 2.6, 0))
     mixed = mat("checker mix", (0.8, 0.1, 0.1))
     tree = mixed.node_tree
-    white = tree.nodes.new("ShaderNodeBsdfDiffuse"); white.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+    white = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 5.0
+    tree.links.new(noise.outputs["Color"], white.inputs["Color"])
     checker = tree.nodes.new("ShaderNodeTexChecker"); checker.inputs["Scale"].default_value = 3.0
     node = tree.nodes.new("ShaderNodeMixShader")
     tree.links.new(checker.outputs["Fac"], node.inputs["Fac"])
