@@ -169,14 +169,14 @@ def node_reports():
     return {"warnings": exported.warnings, "corrections": exported.corrections, "connected": connected, "normal_map": normal_map}
 
 
-def bake_reuse():
+def bake_reuse(size=64):
     """The `procedural` scene exported three times at Bake Size 64: the bakes' size, how many
     bakes each export ran (the cache serves an unchanged scene), and after a Color Ramp's stop
-    changes colour."""
+    changes colour; and each export's seconds (for docs/blender.md, not asserted)."""
     from tessera_blender import bake
 
     scene = scenes.build("procedural", OUT)
-    scene.tessera.bake_size = 64
+    scene.tessera.bake_size = size
     ran = []
     original = bake._bake
 
@@ -186,18 +186,20 @@ def bake_reuse():
 
     bake._bake = counted
     try:
-        sizes = []
+        sizes, seconds = [], []
         for edit in (None, None, "ramp"):
             if edit:
                 ramp = next(n for n in bpy.data.materials["noise ramp"].node_tree.nodes if n.type == "VALTORGB")
                 ramp.color_ramp.elements[0].color = (0.1, 0.8, 0.1, 1)
             ran.append(0)
+            t0 = time.perf_counter()
             exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+            seconds.append(round(time.perf_counter() - t0, 3))
             baked = os.path.join(os.path.dirname(exported.path), "baked")
             sizes += [tuple(bpy.data.images.load(os.path.join(baked, f), check_existing=False).size) for f in sorted(os.listdir(baked))]
     finally:
         bake._bake = original
-    return {"bakes": ran, "sizes": sorted(set(sizes))}
+    return {"bakes": ran, "sizes": sorted(set(sizes)), "seconds": seconds}
 
 
 def errors_reach_the_artist():
