@@ -90,6 +90,19 @@ AGREE = [
     # An Add Shader of a grey Principled BSDF and an Emission of a Brick texture: 1.003 (0.690
     # with the BSDF alone, which is what the export keeps).
     ("procedural", "added glow plane"),
+    # Blender's world as the dome (tessera_blender/world.py, render-core's OpenEXR colour
+    # interop): an HDRI (1024 × 512, a sky, a ground, a sun 10° across) at Strength 2, and a
+    # procedural world coloured by direction. Measured: 0.999, 1.009 and 1.007 at 128 spp,
+    # 1.000, 1.000 and 1.001 at 64; without the corrections 3.11, 0.365 and 0.212 (the map on
+    # its side at strength 1) and 0.116, 0.070 and 0.077 (the export's dark grey constant). A
+    # 256 × 128 HDRI read 1.036 on the floor: Cycles' linear interpolation rounds the sun's
+    # few texels differently (with Closest, 1.000).
+    ("world", "background"),
+    ("world", "floor"),
+    ("world", "sphere"),
+    ("procedural_world", "background"),
+    ("procedural_world", "floor"),
+    ("procedural_world", "sphere"),
 ]
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
@@ -185,7 +198,7 @@ def inner_pixels(regions, index):
 
 def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
     out, r = results
-    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural")
+    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world")
     ratios = {(k, n): v for k in r if k in kinds for n, v in region_ratios(out, k, r[k]["regions"]).items()}
     for key in AGREE:
         # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of
@@ -284,13 +297,23 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
 
 
 def test_bakes_follow_the_bake_size_and_are_reused_until_their_tree_changes(results):
-    """The `procedural` scene's eight bakes (noise, two gradients, the wave's normal, the checker
-    emission, the mix's Fac and its Diffuse BSDF's colour, the added glow) at Bake Size 64; a second export of the unchanged scene bakes
-    nothing (a viewport re-export after an unrelated edit); a changed Color Ramp stop rebakes
-    its one material."""
+    """The `procedural` scene's eight bakes (noise, two gradients, the wave's normal, the
+    checker emission, the mix's Fac and its Diffuse BSDF's colour, the added glow) at Bake
+    Size 64; a second export of the unchanged scene bakes nothing (a viewport re-export after
+    an unrelated edit); a changed Color Ramp stop, a node group put in, and a value changed
+    inside that group each rebake their one material."""
     _, r = results
     reuse = r["bake_reuse"]
-    assert (reuse["bakes"], reuse["sizes"]) == ([8, 0, 1], [[64, 64]]), reuse
+    assert (reuse["bakes"], reuse["sizes"]) == ([8, 0, 1, 1, 1], [[64, 64]]), reuse
+
+
+def test_the_world_becomes_a_dome_turned_and_scaled_as_blender_shows_it(results):
+    """An HDRI world keeps its image at the Background Strength the export drops; a procedural
+    one is rendered into a map (the comparisons above check what each lights)."""
+    _, r = results
+    assert "/root/env_light: the world's Strength 2 as the dome's intensity" in r["world"]["corrections"], r["world"]
+    assert "/root/env_light: the world 'directions' rendered into a 1024×512 latitude-longitude image" in r["procedural_world"]["corrections"], r["procedural_world"]
+    assert r["world"]["warnings"] == r["procedural_world"]["warnings"] == []
 
 
 def test_a_baked_mix_mask_keeps_its_pattern(results):

@@ -151,6 +151,8 @@ pub struct Image {
     texels: Texels,
     /// The file stored integer codes (8 or 16 bits), which may be sRGB-encoded.
     integer_coded: bool,
+    /// The file says its values are sRGB-encoded (an OpenEXR `colorInteropID` of `srgb_*`).
+    declared_srgb: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -237,8 +239,9 @@ impl Image {
             return Err(err("the image is empty".into()));
         }
         let integer_coded = !matches!(img, D::ImageRgb32F(_) | D::ImageRgba32F(_));
+        let declared_srgb = open()?.format() == Some(image::ImageFormat::OpenExr) && exr_declares_srgb(bytes);
         let (channels, texels) = texels_of(img);
-        Ok(Image { width, height, channels, texels, integer_coded })
+        Ok(Image { width, height, channels, texels, integer_coded, declared_srgb })
     }
 
     /// An image from linear float texels, row-major from the top row, `channels` per texel.
@@ -246,13 +249,13 @@ impl Image {
     pub fn from_f32(width: u32, height: u32, channels: usize, texels: &[f32]) -> Image {
         assert!((1..=4).contains(&channels) && texels.len() == width as usize * height as usize * channels);
         let texels = texels.iter().map(|&x| f16::from_f32(if x.is_finite() { x } else { 0.0 })).collect();
-        Image { width, height, channels, texels: Texels::F16(texels), integer_coded: false }
+        Image { width, height, channels, texels: Texels::F16(texels), integer_coded: false, declared_srgb: false }
     }
 
     /// An image from 8-bit texels, row-major from the top row.
     pub fn from_u8(width: u32, height: u32, channels: usize, texels: Vec<u8>) -> Image {
         assert!((1..=4).contains(&channels) && texels.len() == width as usize * height as usize * channels);
-        Image { width, height, channels, texels: Texels::U8(texels), integer_coded: true }
+        Image { width, height, channels, texels: Texels::U8(texels), integer_coded: true, declared_srgb: false }
     }
 
     /// Width and height in texels.
@@ -275,9 +278,25 @@ impl Image {
         match space {
             ColorSpace::Raw => false,
             ColorSpace::Srgb => true,
-            ColorSpace::Auto => self.integer_coded && self.channels >= 3,
+            ColorSpace::Auto => (self.integer_coded || self.declared_srgb) && self.channels >= 3,
         }
     }
+}
+
+/// True when an OpenEXR file's header says its values are sRGB-encoded: a `colorInteropID`
+/// (the ASWF Color Interop Forum's identifiers, OpenEXR 3.3) beginning `srgb_`. Blender 5
+/// saves float images it holds in sRGB this way (`srgb_rec709_display`), values above 1
+/// included (the curve extended), and reads them back through the curve; read as linear, such
+/// a map is several times too bright in its shadows. Unreadable headers say nothing.
+fn exr_declares_srgb(bytes: &[u8]) -> bool {
+    let Ok(meta) = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false) else { return false };
+    let key = exr::meta::attribute::Text::from("colorInteropID");
+    meta.headers.first().is_some_and(|h| {
+        [h.own_attributes.other.get(&key), h.shared_attributes.other.get(&key)]
+            .into_iter()
+            .flatten()
+            .any(|v| matches!(v, exr::meta::attribute::AttributeValue::Text(t) if t.to_string().starts_with("srgb_")))
+    })
 }
 
 /// sRGB electro-optical transfer function (IEC 61966-2-1).
@@ -549,6 +568,43 @@ mod tests {
         assert!((v(&float, ColorSpace::Auto) - 0.5).abs() < 1e-3);
         assert!((v(&float, ColorSpace::Srgb) - srgb_to_linear(0.5)).abs() < 1e-3, "explicit sRGB applies to floats too");
         assert!((v(&grey, ColorSpace::Srgb) - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+    }
+
+    /// A 2 × 1 RGB OpenEXR of `values` (32-bit float), with a `colorInteropID` when given.
+    fn exr_of(values: [f32; 2], interop: Option<&str>) -> Vec<u8> {
+        use exr::prelude::*;
+        let mut layer = Layer::new(
+            (2, 1),
+            LayerAttributes::named("rgb"),
+            Encoding::UNCOMPRESSED,
+            SpecificChannels::rgb(|p: Vec2<usize>| (values[p.0], values[p.0], values[p.0])),
+        );
+        if let Some(id) = interop {
+            layer.attributes.other.insert(Text::from("colorInteropID"), AttributeValue::Text(Text::from(id)));
+        }
+        let mut bytes = Vec::new();
+        Image::from_layer(layer).write().to_buffered(std::io::Cursor::new(&mut bytes)).unwrap();
+        bytes
+    }
+
+    /// Blender 5 saves a float image it holds in sRGB as an OpenEXR of sRGB-coded values marked
+    /// `srgb_rec709_display` (linear 0.06 written as 0.2717, 40 as 4.65 on the extended
+    /// curve). Read with `auto`, such a file decodes through the curve; an unmarked or linear
+    /// one does not; an explicit `raw` wins.
+    #[test]
+    fn exr_files_marked_srgb_decode_through_the_curve() {
+        let coded = [linear_to_srgb(0.06), 1.055 * 40f32.powf(1.0 / 2.4) - 0.055];
+        let read = |interop, space| {
+            let t = Texture::new(&Image::decode(&exr_of(coded, interop), "t.exr").unwrap(), space);
+            [t.texel(0, 0).x, t.texel(1, 0).x]
+        };
+        let [dark, bright] = read(Some("srgb_rec709_display"), ColorSpace::Auto);
+        // Half-float texels: about three significant digits.
+        assert!((dark - 0.06).abs() < 2e-4 && (bright - 40.0).abs() < 0.05, "{dark} {bright}");
+        for (interop, space) in [(None, ColorSpace::Auto), (Some("lin_rec709_scene"), ColorSpace::Auto), (Some("srgb_rec709_display"), ColorSpace::Raw)] {
+            let [dark, _] = read(interop, space);
+            assert!((dark - coded[0]).abs() < 2e-4, "{interop:?} {space:?}: {dark}");
+        }
     }
 
     #[test]

@@ -274,12 +274,7 @@ def _fingerprint(material, source, kind, obj, size) -> str:
     """What a bake depends on: the node tree's nodes, values and links, which socket, the
     object's mesh and placement, and the bake's size."""
     h = hashlib.sha256()
-    tree = material.node_tree
-    for node in sorted(tree.nodes, key=lambda n: n.name):
-        h.update(repr((node.bl_idname, node.name, _node_state(node))).encode())
-    # Sorted: a bake relinks the output, which moves that link to the end of the list.
-    links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
-    h.update(repr(links).encode())
+    _hash_tree(h, material.node_tree, set())
     what = (source.node.name, source.identifier) if source is not None else kind
     h.update(repr((what, obj.name, size, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
@@ -293,6 +288,21 @@ def _fingerprint(material, source, kind, obj, size) -> str:
         layer.uv.foreach_get("vector", uv)
         h.update(uv.tobytes())
     return h.hexdigest()
+
+
+def _hash_tree(h, tree, seen) -> None:
+    """A node tree's nodes, settings and links into `h`, and those of the node groups it uses
+    (each group once)."""
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(repr((node.bl_idname, node.name, _node_state(node))).encode())
+        group = getattr(node, "node_tree", None)
+        if group is not None and group.name not in seen:
+            seen.add(group.name)
+            h.update(repr(("group", group.name)).encode())
+            _hash_tree(h, group, seen)
+    # Sorted: a bake relinks the output, which moves that link to the end of the list.
+    links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
+    h.update(repr(links).encode())
 
 
 def _node_state(node) -> list:
@@ -309,8 +319,19 @@ def _node_state(node) -> list:
         state.append(("ramp", ramp.interpolation, [(e.position, tuple(e.color)) for e in ramp.elements]))
     image = getattr(node, "image", None)
     if image is not None:
-        state.append(("image", image.name, image.filepath))
+        state.append(("image", image.name, image.filepath, _image_version(image)))
     return state
+
+
+def _image_version(image):
+    """What tells an image's content apart without reading it: its file's modification time,
+    or, for an image held in memory (painted, packed or generated), its pixels' hash."""
+    if image.source == "FILE" and not image.packed_file and not image.is_dirty:
+        path = bpy.path.abspath(image.filepath)
+        return os.path.getmtime(path) if os.path.exists(path) else None
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    return hashlib.sha256(pixels.tobytes()).hexdigest()
 
 
 def _layout(identifier: str) -> bool:

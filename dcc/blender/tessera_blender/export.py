@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bake, nodes
+from . import bake, nodes, world
 
 #: What the exporter's sun strength is divided by.
 SUN_EXPORT_DIVISOR = 4.0
@@ -119,6 +119,7 @@ def correct(exported: Export, scene) -> None:
     for prim, obj in lights:
         _link_light(exported, prim, obj, UsdLux)
     bake.split_per_object(exported, stage, Sdf, UsdShade)
+    world.correct(exported, stage, scene, Sdf, UsdLux)
     stage.GetRootLayer().Save()
 
 

@@ -170,9 +170,11 @@ def node_reports():
 
 
 def bake_reuse(size=64):
-    """The `procedural` scene exported three times at Bake Size 64: the bakes' size, how many
-    bakes each export ran (the cache serves an unchanged scene), and after a Color Ramp's stop
-    changes colour; and each export's seconds (for docs/blender.md, not asserted)."""
+    """The `procedural` scene exported at Bake Size 64, five times: the bakes' size and how many
+    bakes each export ran: first all, then none (the cache serves an unchanged scene), then
+    after a Color Ramp's stop changes colour, after a node group is put between the Noise and
+    the Color Ramp, and after a value inside that group changes; and each export's seconds
+    (for docs/blender.md, not asserted)."""
     from tessera_blender import bake
 
     scene = scenes.build("procedural", OUT)
@@ -187,10 +189,8 @@ def bake_reuse(size=64):
     bake._bake = counted
     try:
         sizes, seconds = [], []
-        for edit in (None, None, "ramp"):
-            if edit:
-                ramp = next(n for n in bpy.data.materials["noise ramp"].node_tree.nodes if n.type == "VALTORGB")
-                ramp.color_ramp.elements[0].color = (0.1, 0.8, 0.1, 1)
+        for edit in (None, None, "ramp", "group", "inside"):
+            _edit_noise_ramp(edit)
             ran.append(0)
             t0 = time.perf_counter()
             exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
@@ -200,6 +200,27 @@ def bake_reuse(size=64):
     finally:
         bake._bake = original
     return {"bakes": ran, "sizes": sorted(set(sizes)), "seconds": seconds}
+
+
+def _edit_noise_ramp(edit):
+    """One of bake_reuse's edits of the `noise ramp` material."""
+    tree = bpy.data.materials["noise ramp"].node_tree
+    ramp = next(n for n in tree.nodes if n.type == "VALTORGB")
+    if edit == "ramp":
+        ramp.color_ramp.elements[0].color = (0.1, 0.8, 0.1, 1)
+    elif edit == "group":
+        group = bpy.data.node_groups.new("squash", "ShaderNodeTree")
+        group.interface.new_socket("Fac", in_out="INPUT", socket_type="NodeSocketFloat")
+        group.interface.new_socket("Fac", in_out="OUTPUT", socket_type="NodeSocketFloat")
+        inside, outside = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+        power = group.nodes.new("ShaderNodeMath"); power.operation = "POWER"; power.inputs[1].default_value = 2.0
+        group.links.new(inside.outputs[0], power.inputs[0]); group.links.new(power.outputs[0], outside.inputs[0])
+        node = tree.nodes.new("ShaderNodeGroup"); node.node_tree = group
+        noise = next(n for n in tree.nodes if n.type == "TEX_NOISE")
+        tree.links.new(noise.outputs["Fac"], node.inputs[0]); tree.links.new(node.outputs[0], ramp.inputs["Fac"])
+    elif edit == "inside":
+        power = next(n for n in bpy.data.node_groups["squash"].nodes if n.type == "MATH")
+        power.inputs[1].default_value = 3.0
 
 
 def errors_reach_the_artist():

@@ -22,6 +22,8 @@ REGIONS = {
     "emission_shader": {1: "diffuse floor", 2: "sphere"},
     "bumped": {1: "bump node plane", 2: "bump-only plane", 3: "flat plane"},
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
+    "world": {0: "background", 1: "floor", 2: "sphere"},
+    "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane"},
 }
 
@@ -38,83 +40,161 @@ def udim_image(directory):
     return tiled
 
 
+def hdri_world(directory, strength=2.0):
+    """A world of an equirectangular image (Environment Texture) at Background Strength
+    `strength`: a blue sky over a brown ground and a bright sun 10° across, up and to the left
+    of the camera, so a dome turned the wrong way lights the floor and sphere differently."""
+    w, h = 1024, 512
+    u = (np.arange(w) + 0.5) / w
+    v = (np.arange(h) + 0.5) / h
+    # Blender's equirectangular mapping: u = atan2(y, -x) / 2π + 0.5, v = atan2(z, hypot(x, y)) / π + 0.5.
+    longitude, latitude = (u[None, :] - 0.5) * 2 * np.pi, (v[:, None] - 0.5) * np.pi
+    d = np.stack(np.broadcast_arrays(-np.cos(latitude) * np.cos(longitude), np.cos(latitude) * np.sin(longitude), np.sin(latitude) + 0 * longitude), -1)
+    px = np.zeros((h, w, 4), np.float32); px[..., 3] = 1
+    px[..., :3] = np.where(d[..., 2:3] > 0, (0.2, 0.3, 0.5), (0.06, 0.045, 0.03))
+    sun = np.array([-1.0, -0.5, 1.0]) / np.linalg.norm([-1.0, -0.5, 1.0])
+    px[(d @ sun) > np.cos(np.radians(5.0)), :3] = (40.0, 36.0, 30.0)
+    img = bpy.data.images.new("sky", w, h, float_buffer=True)
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = os.path.join(directory, "sky.exr"); img.file_format = 'OPEN_EXR'; img.save()
+    world = bpy.data.worlds.new("sky")
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment"); env.image = bpy.data.images.load(img.filepath_raw)
+    background = tree.nodes["Background"]; background.inputs["Strength"].default_value = strength
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    return world
+
+
+def direction_world():
+    """A procedural world the export cannot carry: red growing towards +x, green towards the
+    zenith, a little blue everywhere (Texture Coordinate's Generated, the ray's direction, at
+    Strength 1.5), so a dome turned or mirrored lights the sphere's sides differently."""
+    world = bpy.data.worlds.new("directions")
+    tree = world.node_tree
+    coords, split, join = (tree.nodes.new(k) for k in ("ShaderNodeTexCoord", "ShaderNodeSeparateXYZ", "ShaderNodeCombineColor"))
+    tree.links.new(coords.outputs["Generated"], split.inputs[0])
+    for axis, channel in (("X", "Red"), ("Z", "Green")):
+        ramp = _node(tree, "ShaderNodeMapRange", From_Min=-1.0, From_Max=1.0, To_Min=0.0, To_Max=1.0)
+        tree.links.new(split.outputs[axis], ramp.inputs[0]); tree.links.new(ramp.outputs[0], join.inputs[channel])
+    join.inputs["Blue"].default_value = 0.2
+    background = tree.nodes["Background"]; background.inputs["Strength"].default_value = 1.5
+    tree.links.new(join.outputs[0], background.inputs["Color"])
+    return world
+
+
 def procedural_planes(mat, add, directory):
-    """Inputs Blender's USD export cannot carry, which the add-on bakes: a Noise through a Color
-    Ramp into Base Color; one material on two planes of different sizes whose Base Color is a
-    Gradient over Object coordinates through a Color Ramp (so each plane needs its own bake:
-    the small one reads 0.125 on average, the large one 0.5); an image's Emission Color at
-    Strength 4, which the export drops; a saw-profile Wave texture bumping a plane into ramps
-    (a procedural normal, baked as a tangent-space normal map); an Emission shader whose Color
-    is a Checker texture (baked whole, Color × Strength); a Mix Shader, by a Checker's Fac, of
-    a red Principled BSDF and a Diffuse BSDF coloured by a Noise (the mask baked, and the
-    Diffuse BSDF's colour, which the export drops with that BSDF); an Add Shader of a grey
-    Principled BSDF and an Emission shader of a Brick texture (the glow baked)."""
-    noisy = mat("noise ramp", (0.8, 0.8, 0.8))
-    tree = noisy.node_tree
-    noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 3.0
-    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    """Inputs Blender's USD export cannot carry, which the add-on bakes, one plane (region) each
+    but for the gradient's two: see each builder below."""
+    def plane(material, index, size, at):
+        add(bpy.ops.mesh.primitive_plane_add, material, index, size=size, location=at)
+
+    plane(_noise_ramp(mat), 1, 2, (-2.4, 0, 0))
+    gradient = _object_gradient(mat)
+    plane(gradient, 2, 1, (-0.6, 0, 0))
+    plane(gradient, 3, 3, (1.6, 0, 0))
+    plane(_image_glow(mat, directory), 4, 2, (0, 2.6, 0))
+    plane(_wave_bump(mat), 5, 2, (-2.4, 2.6, 0))
+    plane(_checker_emission(), 6, 2, (2.4, 2.6, 0))
+    plane(_checker_mix(mat), 7, 2, (0, -2.4, 0))
+    plane(_added_glow(mat), 8, 2, (2.4, -2.4, 0))
+
+
+def _node(tree, kind, **inputs):
+    """A new node of `kind` in `tree`, with the given input values (names with spaces as _)."""
+    node = tree.nodes.new(kind)
+    for name, value in inputs.items():
+        node.inputs[name.replace("_", " ")].default_value = value
+    return node
+
+
+def _shader_pair(tree, kind, first, second):
+    """A Mix or Add Shader of `first` and `second` as the material's surface."""
+    node = tree.nodes.new(kind)
+    offset = 1 if kind == "ShaderNodeMixShader" else 0
+    tree.links.new(first.outputs[0], node.inputs[offset]); tree.links.new(second.outputs[0], node.inputs[offset + 1])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return node
+
+
+def _noise_ramp(mat):
+    """A Noise through a red-to-blue Color Ramp into Base Color."""
+    m = mat("noise ramp", (0.8, 0.8, 0.8)); tree = m.node_tree
+    noise, ramp = _node(tree, "ShaderNodeTexNoise", Scale=3.0), tree.nodes.new("ShaderNodeValToRGB")
     ramp.color_ramp.elements[0].color = (0.8, 0.1, 0.05, 1); ramp.color_ramp.elements[1].color = (0.05, 0.2, 0.8, 1)
     tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"]); tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
-    add(bpy.ops.mesh.primitive_plane_add, noisy, 1, size=2, location=(-2.4, 0, 0))
-    graded = mat("gradient", (0.8, 0.8, 0.8))
-    tree = graded.node_tree
-    coords = tree.nodes.new("ShaderNodeTexCoord"); gradient = tree.nodes.new("ShaderNodeTexGradient")
-    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    return m
+
+
+def _object_gradient(mat):
+    """A Gradient over Object coordinates through a Color Ramp into Base Color: on planes of
+    different sizes it differs (the 1 m plane reads 0.125 on average, the 3 m one 0.5), so each
+    needs its own bake."""
+    m = mat("gradient", (0.8, 0.8, 0.8)); tree = m.node_tree
+    coords, gradient, ramp = (tree.nodes.new(k) for k in ("ShaderNodeTexCoord", "ShaderNodeTexGradient", "ShaderNodeValToRGB"))
     tree.links.new(coords.outputs["Object"], gradient.inputs["Vector"]); tree.links.new(gradient.outputs["Fac"], ramp.inputs["Fac"])
     tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
-    add(bpy.ops.mesh.primitive_plane_add, graded, 2, size=1, location=(-0.6, 0, 0))
-    add(bpy.ops.mesh.primitive_plane_add, graded, 3, size=3, location=(1.6, 0, 0))
+    return m
+
+
+def _image_glow(mat, directory):
+    """An image's Emission Color at Strength 4, which the export drops."""
     path = os.path.join(directory, "warm.png")
     img = bpy.data.images.new("warm", 8, 8)
     px = np.zeros((8, 8, 4), np.float32); px[..., :3] = (0.5, 0.35, 0.2); px[..., 3] = 1
     img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
-    glowing = mat("glowing", (0.0, 0.0, 0.0))
-    tree = glowing.node_tree
+    m = mat("glowing", (0.0, 0.0, 0.0)); tree = m.node_tree
     t = tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(path)
     principled = tree.nodes["Principled BSDF"]
     tree.links.new(t.outputs["Color"], principled.inputs["Emission Color"]); principled.inputs["Emission Strength"].default_value = 4.0
-    add(bpy.ops.mesh.primitive_plane_add, glowing, 4, size=2, location=(0, 2.6, 0))
-    waves = mat("wave bump", (0.8, 0.8, 0.8))
-    tree = waves.node_tree
-    wave = tree.nodes.new("ShaderNodeTexWave"); wave.wave_profile = 'SAW'
-    wave.inputs["Scale"].default_value = 2.0; wave.inputs["Distortion"].default_value = 0.0; wave.inputs["Detail"].default_value = 0.0
-    bump = tree.nodes.new("ShaderNodeBump"); bump.inputs["Distance"].default_value = 0.05
+    return m
+
+
+def _wave_bump(mat):
+    """A saw-profile Wave texture bumping the plane into ramps: a procedural normal, baked as a
+    tangent-space normal map."""
+    m = mat("wave bump", (0.8, 0.8, 0.8)); tree = m.node_tree
+    wave = _node(tree, "ShaderNodeTexWave", Scale=2.0, Distortion=0.0, Detail=0.0); wave.wave_profile = 'SAW'
+    bump = _node(tree, "ShaderNodeBump", Distance=0.05)
     tree.links.new(wave.outputs["Fac"], bump.inputs["Height"]); tree.links.new(bump.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
-    add(bpy.ops.mesh.primitive_plane_add, waves, 5, size=2, location=(-2.4, 2.6, 0))
-    checkered = bpy.data.materials.new("checker emission")
-    tree = checkered.node_tree
+    return m
+
+
+def _checker_emission():
+    """An Emission shader whose Color is a Checker texture: baked whole, Color × Strength."""
+    m = bpy.data.materials.new("checker emission"); tree = m.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
-    checker = tree.nodes.new("ShaderNodeTexChecker"); checker.inputs["Scale"].default_value = 4.0
-    checker.inputs["Color1"].default_value = (1.0, 0.5, 0.2, 1); checker.inputs["Color2"].default_value = (0.1, 0.3, 0.9, 1)
-    emission = tree.nodes.new("ShaderNodeEmission"); emission.inputs["Strength"].default_value = 2.0
+    checker = _node(tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.5, 0.2, 1), Color2=(0.1, 0.3, 0.9, 1))
+    emission = _node(tree, "ShaderNodeEmission", Strength=2.0)
     tree.links.new(checker.outputs["Color"], emission.inputs["Color"]); tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    add(bpy.ops.mesh.primitive_plane_add, checkered, 6, size=2, location=(2.4, 2.6, 0))
-    mixed = mat("checker mix", (0.8, 0.1, 0.1))
-    tree = mixed.node_tree
-    white = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    noise = tree.nodes.new("ShaderNodeTexNoise"); noise.inputs["Scale"].default_value = 5.0
-    tree.links.new(noise.outputs["Color"], white.inputs["Color"])
-    checker = tree.nodes.new("ShaderNodeTexChecker"); checker.inputs["Scale"].default_value = 3.0
-    node = tree.nodes.new("ShaderNodeMixShader")
+    return m
+
+
+def _checker_mix(mat):
+    """A Mix Shader, by a Checker's Fac, of a red Principled BSDF and a Diffuse BSDF coloured by
+    a Noise: the mask baked, and the Diffuse BSDF's colour, which the export drops with it."""
+    m = mat("checker mix", (0.8, 0.1, 0.1)); tree = m.node_tree
+    diffuse, noise = tree.nodes.new("ShaderNodeBsdfDiffuse"), _node(tree, "ShaderNodeTexNoise", Scale=5.0)
+    tree.links.new(noise.outputs["Color"], diffuse.inputs["Color"])
+    checker = _node(tree, "ShaderNodeTexChecker", Scale=3.0)
+    node = _shader_pair(tree, "ShaderNodeMixShader", tree.nodes["Principled BSDF"], diffuse)
     tree.links.new(checker.outputs["Fac"], node.inputs["Fac"])
-    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    add(bpy.ops.mesh.primitive_plane_add, mixed, 7, size=2, location=(0, -2.4, 0))
-    glowing = mat("added glow", (0.5, 0.5, 0.5))
-    tree = glowing.node_tree
-    bricks = tree.nodes.new("ShaderNodeTexBrick"); bricks.inputs["Scale"].default_value = 3.0
-    emission = tree.nodes.new("ShaderNodeEmission"); emission.inputs["Strength"].default_value = 0.5
-    node = tree.nodes.new("ShaderNodeAddShader")
+    return m
+
+
+def _added_glow(mat):
+    """An Add Shader of a grey Principled BSDF and an Emission shader of a Brick texture: the
+    glow baked onto the BSDF."""
+    m = mat("added glow", (0.5, 0.5, 0.5)); tree = m.node_tree
+    bricks, emission = _node(tree, "ShaderNodeTexBrick", Scale=3.0), _node(tree, "ShaderNodeEmission", Strength=0.5)
     tree.links.new(bricks.outputs["Color"], emission.inputs["Color"])
-    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], node.inputs[0]); tree.links.new(emission.outputs[0], node.inputs[1])
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    add(bpy.ops.mesh.primitive_plane_add, glowing, 8, size=2, location=(2.4, -2.4, 0))
+    _shader_pair(tree, "ShaderNodeAddShader", tree.nodes["Principled BSDF"], emission)
+    return m
 
 
 def build(kind, directory):
     """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
+    world = None
     def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
         m = bpy.data.materials.new(name)
         p = m.node_tree.nodes["Principled BSDF"]
@@ -122,7 +202,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -286,6 +366,11 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind in ("world", "procedural_world"):
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
+        world = hdri_world(directory) if kind == "world" else direction_world()
+        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
     elif kind == "procedural":
         procedural_planes(mat, add, directory)
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
@@ -328,7 +413,7 @@ def build(kind, directory):
     scene.render.image_settings.media_type = 'MULTI_LAYER_IMAGE'
     scene.render.image_settings.file_format = 'OPEN_EXR_MULTILAYER'
     scene.render.image_settings.color_depth = '32'
-    scene.world = None
+    scene.world = world
     scene.render.use_compositing = False
     scene.render.use_sequencer = False
     return scene
