@@ -601,7 +601,9 @@ mod tests {
         let [dark, bright] = read(Some("srgb_rec709_display"), ColorSpace::Auto);
         // Half-float texels: about three significant digits.
         assert!((dark - 0.06).abs() < 2e-4 && (bright - 40.0).abs() < 0.05, "{dark} {bright}");
-        for (interop, space) in [(None, ColorSpace::Auto), (Some("lin_rec709_scene"), ColorSpace::Auto), (Some("srgb_rec709_display"), ColorSpace::Raw)] {
+        for (interop, space) in
+            [(None, ColorSpace::Auto), (Some("lin_rec709_scene"), ColorSpace::Auto), (Some("srgb_rec709_display"), ColorSpace::Raw)]
+        {
             let [dark, _] = read(interop, space);
             assert!((dark - coded[0]).abs() < 2e-4, "{interop:?} {space:?}: {dark}");
         }
