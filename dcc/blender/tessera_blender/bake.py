@@ -74,37 +74,26 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     names the node the input belongs to when the material has several of it (a Mix Shader's
     sides). Returns None when carried, else why not (for the warning)."""
     prim = usd_input.GetPrim().GetParent()
-    by_object = users(prim.GetStage(), str(prim.GetPath()), UsdShade)
-    objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
-    if not objects or None in objects:
-        return "no mesh in the export uses the material"
-    no_uvs = [o.name for o in objects if o.type != "MESH" or not o.data.uv_layers]
-    no_uvs += [n for n, prims in sorted(by_object.items()) if not all(_mesh_of(p).GetAttribute("primvars:st") for p in prims)]
-    if no_uvs:
-        return f"{', '.join(sorted(set(no_uvs)))} has no UV map to bake it over"
+    objects, why = _bakeable(users(prim.GetStage(), str(prim.GetPath()), UsdShade))
+    if why:
+        return why
     # A normal is baked as Cycles shades it (Bake type Normal, tangent space); any other input
     # through an emission shader reading its subgraph.
     normal = blender_name == "Normal"
     blender_name = f"{owner}'s {blender_name}" if owner else blender_name
     source = None if normal or socket is None else socket.links[0].from_socket
-    kind = "NORMAL" if normal else "EMIT"
     directory = os.path.join(os.path.dirname(exported.path), "baked")
     os.makedirs(directory, exist_ok=True)
     files, values = {}, []
     for obj in objects:
         try:
-            files[obj.name], value = _baked(material, source, kind, obj, directory, blender_name, exported.bake_size)
+            files[obj.name], value = _baked(material, source, "NORMAL" if normal else "EMIT", obj, directory, blender_name, exported.bake_size)
         except RuntimeError as e:  # bpy.ops reports a failed bake this way
             return f"baking it over {obj.name} failed: {str(e).strip()}"
         values.append(value)
-    constant = values[0] is not None and all(v is not None and np.allclose(v, values[0], rtol=0, atol=1e-6) for v in values)
-    if constant and normal and np.allclose(values[0], FLAT, rtol=0, atol=1e-3):
-        usd_input.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
-        exported.corrections.append(f"{material.name}: Normal baked: flat everywhere, so the mesh's own normals")
-        return None
-    if constant and not normal:
-        _set_constant(usd_input, values[0] * scale)
-        exported.corrections.append(f"{material.name}: {blender_name} baked: one value everywhere, {_shown(values[0] * scale, usd_input)}")
+    one = values[0] if all(v is not None and np.allclose(v, values[0], rtol=0, atol=1e-6) for v in values) else None
+    if one is not None and (not normal or np.allclose(one, FLAT, rtol=0, atol=1e-3)):
+        _set_one_value(exported, material, blender_name, usd_input, one * scale, normal)
         return None
     texture = _connect(prim, usd_input, blender_name, files[objects[0].name], Sdf, UsdShade)
     if normal:
@@ -118,6 +107,29 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     what = "a tangent-space normal map" if normal else "an image"
     exported.corrections.append(f"{material.name}: {blender_name} baked into {what} of {exported.bake_size}²{each}")
     return None
+
+
+def _bakeable(by_object):
+    """The Blender objects to bake over, by name, or why they cannot be (an object the export
+    names that Blender does not have, or one without a UV map in either)."""
+    objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
+    if not objects or None in objects:
+        return [], "no mesh in the export uses the material"
+    no_uvs = [o.name for o in objects if o.type != "MESH" or not o.data.uv_layers]
+    no_uvs += [n for n, prims in sorted(by_object.items()) if not all(_mesh_of(p).GetAttribute("primvars:st") for p in prims)]
+    if no_uvs:
+        return [], f"{', '.join(sorted(set(no_uvs)))} has no UV map to bake it over"
+    return objects, None
+
+
+def _set_one_value(exported, material, blender_name, usd_input, value, normal) -> None:
+    """A bake of one value everywhere: that value on the input, or for a flat normal no normal."""
+    if normal:
+        usd_input.GetPrim().RemoveProperty(usd_input.GetAttr().GetName())
+        exported.corrections.append(f"{material.name}: Normal baked: flat everywhere, so the mesh's own normals")
+        return
+    _set_constant(usd_input, value)
+    exported.corrections.append(f"{material.name}: {blender_name} baked: one value everywhere, {_shown(value, usd_input)}")
 
 
 def _baked(material, source, kind, obj, directory, blender_name, size):
