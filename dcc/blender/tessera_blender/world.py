@@ -18,7 +18,10 @@ on bpy 5.0.1, three things in it differ from what Cycles shows:
   constant dark grey. Here the world is rendered by Cycles into a latitude-longitude image,
   Blender's way round, through a panoramic camera in a scratch scene holding only the world,
   and the dome reads that image (``PANORAMA_SAMPLES`` a pixel, cached by the world's nodes and
-  the Bake Size, its width, as ``bake.py`` caches bakes).
+  the Bake Size, its width, as ``bake.py`` caches bakes). A Sky Texture's sun disc, half a
+  degree across and most of the light, would fall between a few samples of a pixel or two:
+  it is rendered out of the map and becomes a ``DistantLight``, measured in Cycles' own
+  renderings (``_measure_sun``).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import os
 import shutil
 
 import bpy
+import numpy as np
 
 from . import bake
 
@@ -107,22 +111,22 @@ def _carried(world) -> str | None:
 
 def _render_into(exported, prim, world, Sdf) -> None:
     """The world rendered into a latitude-longitude image the dome reads (its own turns
-    dropped: the rendering holds any Mapping the world applied)."""
+    dropped: the rendering holds any Mapping the world applied), and a Sky Texture's sun disc
+    as a distant light beside it."""
     width = exported.bake_size
     path = os.path.join(os.path.dirname(exported.path), "baked", f"world_{bake._clean(world.name)}.exr")
     os.makedirs(os.path.dirname(path), exist_ok=True)
     key = _fingerprint(world, width)
     cached = _CACHE.get(key)
-    if cached and os.path.exists(cached):
-        if os.path.abspath(cached) != os.path.abspath(path):
-            shutil.copyfile(cached, path)
+    if cached and os.path.exists(cached[0]):
+        if os.path.abspath(cached[0]) != os.path.abspath(path):
+            shutil.copyfile(cached[0], path)
     else:
         try:
-            _render_panorama(world, width, path)
+            cached = _CACHE[key] = (path, _render_world(world, width, path))
         except RuntimeError as e:
             exported.warnings.append(f"{world.name}: the world could not be rendered for the dome ({str(e).strip()}): the export's constant is used")
             return
-        _CACHE[key] = path
     prim.GetAttribute("inputs:texture:file").Set(Sdf.AssetPath(os.path.relpath(path, os.path.dirname(exported.path))))
     for name in ("inputs:intensity", "inputs:color"):
         if prim.HasAttribute(name):
@@ -130,21 +134,101 @@ def _render_into(exported, prim, world, Sdf) -> None:
     ops = [op for op in (prim.GetAttribute("xformOpOrder").Get() or []) if op == POLE_OP]
     prim.GetAttribute("xformOpOrder").Set(ops)
     exported.corrections.append(f"{prim.GetPath()}: the world '{world.name}' rendered into a {width}×{width // 2} latitude-longitude image")
+    if cached[1] is not None:
+        _add_sun(exported, prim, *cached[1], Sdf)
 
 
-def _render_panorama(world, width, path) -> None:
-    """Cycles' equirectangular rendering of `world` alone, saved to `path` as float OpenEXR."""
+def _render_world(world, width, path):
+    """Renders `world` into the map at `path`, with any Sky Texture's sun disc left out; returns
+    that sun as (direction, irradiance RGB, angular diameter in degrees), or None."""
+    skies = [n for n in world.node_tree.nodes if n.type == "TEX_SKY" and getattr(n, "sun_disc", False)]
+    for sky in skies:
+        sky.sun_disc = False
+    try:
+        _render(world, PANORAMA_TURN, None, (width, width // 2), PANORAMA_SAMPLES, path)
+    finally:
+        for sky in skies:
+            sky.sun_disc = True
+    return _measure_sun(world, skies, path) if skies else None
+
+
+def _measure_sun(world, skies, without):
+    """A sky's sun disc, measured from Cycles' own renderings of the world with the disc and
+    without: found against the map rendered without it (`without`), then integrated through a
+    narrow camera aimed at it (irradiance = Σ radiance × each pixel's solid angle)."""
+    import mathutils
+
+    def rendered(turn, lens, size, samples, on):
+        for sky in skies:
+            sky.sun_disc = on
+        out = os.path.join(bpy.app.tempdir or "/tmp", f"tessera-sun-{on}.exr")
+        _render(world, turn, lens, size, samples, out)
+        return _pixels(out)
+
+    try:
+        dark = _pixels(without)
+        height, width = dark.shape[:2]
+        found = (rendered(PANORAMA_TURN, None, (width, height), PANORAMA_SAMPLES, True) - dark).sum(-1)
+        row, col = np.unravel_index(np.argmax(found), found.shape)
+        phi, theta = (0.5 - (col + 0.5) / width) * 2 * math.pi, (1 - (row + 0.5) / height) * math.pi
+        direction = mathutils.Vector((math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)))
+        angle = math.degrees(max(sky.sun_size for sky in skies))
+        fov = math.radians(max(4 * angle, 2.0))
+        turn = direction.to_track_quat("-Z", "Y")
+        n = 96
+        disc = rendered(turn, fov, (n, n), 16, True) - rendered(turn, fov, (n, n), 16, False)
+    finally:
+        for sky in skies:
+            sky.sun_disc = True
+    # A pinhole pixel's solid angle: its area on the plane at distance 1, times cos³ off axis.
+    x = (np.arange(n) + 0.5) / n * 2 - 1
+    r2 = (x[None, :] ** 2 + x[:, None] ** 2) * math.tan(fov / 2) ** 2
+    solid = (2 * math.tan(fov / 2) / n) ** 2 / (1 + r2) ** 1.5
+    irradiance = (np.clip(disc, 0, None) * solid[..., None]).sum((0, 1))
+    return tuple(direction), tuple(float(v) for v in irradiance), angle
+
+
+def _add_sun(exported, dome, direction, irradiance, angle, Sdf) -> None:
+    """The sun as a UsdLux DistantLight beside the dome: shining along −direction, `angle`
+    across, its illuminance the measured irradiance (normalize on)."""
+    from pxr import UsdLux
+
+    light = UsdLux.DistantLight.Define(dome.GetStage(), dome.GetPath().GetParentPath().AppendChild(dome.GetName() + "_sun"))
+    strength = max(irradiance)
+    light.CreateIntensityAttr(strength)
+    light.CreateColorAttr(tuple(v / strength for v in irradiance) if strength > 0 else (1.0, 1.0, 1.0))
+    light.CreateAngleAttr(angle)
+    light.CreateNormalizeAttr(True)
+    z = np.array(direction, np.float64)
+    x = np.cross((0.0, 0.0, 1.0) if abs(z[2]) < 0.99 else (1.0, 0.0, 0.0), z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    from pxr import Gf, UsdGeom
+
+    rows = [list(x) + [0.0], list(y) + [0.0], list(z) + [0.0], [0.0, 0.0, 0.0, 1.0]]
+    UsdGeom.Xformable(light.GetPrim()).AddTransformOp().Set(Gf.Matrix4d(rows))
+    exported.corrections.append(f"{light.GetPath()}: the Sky Texture's sun disc as a distant light ({angle:.3g}° across, {strength:.4g} W/m²)")
+
+
+def _render(world, turn, lens, size, samples, path) -> None:
+    """Cycles' rendering of `world` alone, saved to `path` as float OpenEXR: through an
+    equirectangular camera turned by `turn` (XYZ degrees) when `lens` is None, else through a
+    pinhole of field of view `lens` (radians) turned by the quaternion `turn`."""
     scratch = bpy.data.scenes.new("tessera-world")
     camera = bpy.data.cameras.new("tessera-world")
     holder = bpy.data.objects.new("tessera-world", camera)
     try:
-        camera.type, camera.panorama_type = "PANO", "EQUIRECTANGULAR"
-        holder.rotation_euler = tuple(math.radians(a) for a in PANORAMA_TURN)
+        if lens is None:
+            camera.type, camera.panorama_type = "PANO", "EQUIRECTANGULAR"
+            holder.rotation_euler = tuple(math.radians(a) for a in turn)
+        else:
+            camera.sensor_fit, camera.angle = "HORIZONTAL", lens
+            holder.rotation_mode, holder.rotation_quaternion = "QUATERNION", turn
         scratch.collection.objects.link(holder)
         scratch.camera, scratch.world = holder, world
         scratch.render.engine = "CYCLES"
-        scratch.cycles.samples, scratch.cycles.device, scratch.cycles.use_denoising = PANORAMA_SAMPLES, "CPU", False
-        scratch.render.resolution_x, scratch.render.resolution_y, scratch.render.resolution_percentage = width, width // 2, 100
+        scratch.cycles.samples, scratch.cycles.device, scratch.cycles.use_denoising = samples, "CPU", False
+        scratch.render.resolution_x, scratch.render.resolution_y, scratch.render.resolution_percentage = size[0], size[1], 100
         scratch.render.film_transparent = False
         scratch.render.use_compositing = scratch.render.use_sequencer = False
         scratch.view_settings.view_transform = "Standard"
@@ -156,6 +240,18 @@ def _render_panorama(world, width, path) -> None:
         bpy.data.scenes.remove(scratch)
         bpy.data.objects.remove(holder)
         bpy.data.cameras.remove(camera)
+
+
+def _pixels(path) -> np.ndarray:
+    """An OpenEXR's RGB as rows from the bottom, as Blender holds images."""
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        width, height = image.size
+        pixels = np.empty(width * height * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels.reshape(height, width, 4)[..., :3]
+    finally:
+        bpy.data.images.remove(image)
 
 
 def _fingerprint(world, width) -> str:

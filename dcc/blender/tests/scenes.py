@@ -24,6 +24,7 @@ REGIONS = {
     "mixed": {1: "constant mix plane", 2: "masked mix plane"},
     "world": {0: "background", 1: "floor", 2: "sphere"},
     "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
+    "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane"},
 }
 
@@ -78,6 +79,18 @@ def direction_world():
     join.inputs["Blue"].default_value = 0.2
     background = tree.nodes["Background"]; background.inputs["Strength"].default_value = 1.5
     tree.links.new(join.outputs[0], background.inputs["Color"])
+    return world
+
+
+def sky_world():
+    """Blender's default Sky Texture (its sun disc on) with the sun 35° up, turned 60°, at
+    Strength 0.05: the sun, half a degree across, gives most of the light."""
+    world = bpy.data.worlds.new("sky")
+    tree = world.node_tree
+    sky = tree.nodes.new("ShaderNodeTexSky")
+    sky.sun_elevation, sky.sun_rotation = np.radians(35.0), np.radians(60.0)
+    background = tree.nodes["Background"]; background.inputs["Strength"].default_value = 0.05
+    tree.links.new(sky.outputs["Color"], background.inputs["Color"])
     return world
 
 
@@ -202,7 +215,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -366,10 +379,10 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
-    elif kind in ("world", "procedural_world"):
+    elif kind in ("world", "procedural_world", "sky_world"):
         add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
-        world = hdri_world(directory) if kind == "world" else direction_world()
+        world = {"world": lambda: hdri_world(directory), "procedural_world": direction_world, "sky_world": sky_world}[kind]()
         cam = (0, -7, 2.5); rot = (1.25, 0, 0)
     elif kind == "procedural":
         procedural_planes(mat, add, directory)
