@@ -1,7 +1,7 @@
 """Blender's world as the dome Tessera renders.
 
 Blender's USD export (``convert_world_material``) writes the world as a ``DomeLight``. Measured
-on bpy 5.0.1, three things in it differ from what Cycles shows:
+on bpy 5.0.1, it differs from what Cycles shows in these ways:
 
 * **Orientation.** The dome is written unturned in a Z-up stage. UsdLux's latitude-longitude
   map has its pole along the dome's +Y and longitude 0 along +Z; Blender's Environment Texture
@@ -48,8 +48,9 @@ PANORAMA_SAMPLES = 4
 #: Blender's Environment Texture convention (found by rendering a world that shows its own
 #: direction as colour and matching every pixel).
 PANORAMA_TURN = (90.0, 0.0, 270.0)
-#: Rendered worlds by fingerprint -> the image file, kept for the session.
-_CACHE: dict[str, str] = {}
+#: Rendered worlds by fingerprint -> (the image file, the sun measured or None), kept for the
+#: session.
+_CACHE: dict[str, tuple] = {}
 
 
 def correct(exported, stage, scene, Sdf, UsdLux) -> None:
