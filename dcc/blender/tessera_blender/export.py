@@ -9,6 +9,8 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Camera visibility: Blender's lights are not seen by camera rays unless the object's
   ray visibility says so (``visible_camera``, off by default); UsdLux lights are seen. We
   write ``tessera:visibleToCamera`` from it.
+* Spot Blend: written as ``shaping:cone:softness``, whose falloff UsdLux leaves to the renderer;
+  we write the softness that gives Cycles' falloff (``_correct_spot_blend``).
 * Light linking: the exporter drops a light's receiver and blocker collections; we write
   them as the light's ``collection:lightLink`` and ``collection:shadowLink``, with Blender's
   rule: included objects only when any is included, all but the excluded ones otherwise.
@@ -29,6 +31,7 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -199,6 +202,24 @@ def _correct_light(exported: Export, prim, obj, UsdLux, Sdf) -> None:
     api.CreateEnableColorTemperatureAttr().Set(uses)
     if uses:
         api.CreateColorTemperatureAttr().Set(float(light.temperature))
+    if light.type == "SPOT":
+        _correct_spot_blend(exported, prim, light)
+
+
+def _correct_spot_blend(exported: Export, prim, light) -> None:
+    """Spot Blend b, which the export writes as `shaping:cone:softness`. Cycles' falloff is a
+    smoothstep in cos θ from the cone's edge, cos θo, to cos θo + (1 − cos θo)·b; Tessera's
+    softness s puts the inner edge at the angle θo·(1 − s) (``render-core/src/light/mod.rs``).
+    The softness whose inner edge is Cycles' makes the two the same smoothstep."""
+    softness = prim.GetAttribute("inputs:shaping:cone:softness")
+    if not softness or not softness.HasValue():
+        return
+    outer = 0.5 * float(light.spot_size)
+    blend = min(max(float(light.spot_blend), 0.0), 1.0)
+    cos_inner = math.cos(outer) + (1.0 - math.cos(outer)) * blend
+    equivalent = 1.0 - math.acos(min(cos_inner, 1.0)) / outer if outer > 0.0 else 0.0
+    softness.Set(equivalent)
+    exported.corrections.append(f"{prim.GetPath()}: Spot Blend {blend:g} as cone softness {equivalent:.4g} (Cycles' smoothstep in cos θ)")
 
 
 def _principled_of(material_name: str):

@@ -25,6 +25,7 @@ REGIONS = {
     "world": {0: "background", 1: "floor", 2: "sphere"},
     "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
+    "spot": {1: "floor"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane"},
 }
 
@@ -215,7 +216,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -379,6 +380,12 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
         cam = (0, -5, 4); rot = (0.9, 0, 0)
+    elif kind == "spot":
+        # One spot light straight down, a wide blend: its falloff decides how much light lands.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=10)
+        bpy.ops.object.light_add(type='SPOT', location=(0, 0, 3)); s = bpy.context.object.data
+        s.energy, s.spot_size, s.spot_blend, s.shadow_soft_size = 300, 1.2, 0.6, 0.05
+        cam = (0, -6, 5); rot = (0.9, 0, 0)
     elif kind in ("world", "procedural_world", "sky_world"):
         add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
