@@ -281,7 +281,7 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     said = {}
     for w in n["warnings"]:
         said.setdefault(w.split(":")[0], []).append(w)
-    assert said.keys() == {"mix_shader", "glossy", "sheen"}, n["warnings"]
+    assert said.keys() == {"mix_shader", "glossy", "sheen", "no_uvs"}, n["warnings"]
     assert all(len(v) == 1 for v in said.values()), said
     # Baked (tessera_blender/bake.py), each to one value: a Color Ramp over the black image is
     # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green; a
@@ -293,6 +293,8 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert "ramp_bump: Normal baked: flat everywhere, so the mesh's own normals" in corrections, corrections
     # An Add Shader of a Principled BSDF (no emission) and an Emission of (1, 0.5, 0) at 2.
     assert "add_glow: Add Shader of 'Principled BSDF' and 'Emission': emission (2, 1, 0) added to the surface" in corrections, corrections
+    # A plane without a UV map cannot be baked over: said, with the value rendered instead.
+    assert "no UV map to bake it over" in said["no_uvs"][0] and "rendered with (0.8, 0.8, 0.8)" in said["no_uvs"][0], said["no_uvs"]
     assert "Mix Shader" in said["mix_shader"][0] and "Principled_BSDF is rendered" in said["mix_shader"][0]
     assert "'Glossy BSDF'" in said["glossy"][0] and "default surface" in said["glossy"][0]
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"

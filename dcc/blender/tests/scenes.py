@@ -516,14 +516,21 @@ def node_trees(directory):
         link(tree, p.outputs[0], a.inputs[0]); link(tree, e.outputs[0], a.inputs[1])
         link(tree, a.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
+    def no_uvs(tree, p):
+        # A Noise on a plane whose UV map is removed below: nothing to bake it over.
+        n = tree.nodes.new("ShaderNodeTexNoise")
+        link(tree, n.outputs["Color"], p.inputs["Base Color"])
+
     def sheen(tree, p):
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, no_uvs, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
         bpy.context.object.data.materials.append(m)
+        if case is no_uvs:
+            bpy.context.object.data.uv_layers.remove(bpy.context.object.data.uv_layers[0])
     return bpy.context.scene
