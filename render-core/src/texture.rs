@@ -231,6 +231,7 @@ impl Image {
         }
         drop(decoder);
         let reader = open()?;
+        let exr = reader.format() == Some(image::ImageFormat::OpenExr);
         let img = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
             .map_err(|_| err("the decoder failed (panicked)".into()))?
             .map_err(|e| err(e.to_string()))?;
@@ -239,7 +240,7 @@ impl Image {
             return Err(err("the image is empty".into()));
         }
         let integer_coded = !matches!(img, D::ImageRgb32F(_) | D::ImageRgba32F(_));
-        let declared_srgb = open()?.format() == Some(image::ImageFormat::OpenExr) && exr_declares_srgb(bytes);
+        let declared_srgb = exr && exr_declares_srgb(bytes);
         let (channels, texels) = texels_of(img);
         Ok(Image { width, height, channels, texels, integer_coded, declared_srgb })
     }

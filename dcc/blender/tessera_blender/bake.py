@@ -28,6 +28,8 @@ import shutil
 import bpy
 import numpy as np
 
+from . import nodes
+
 #: Texels along each side of a baked image by default (the scene's Bake Size setting).
 BAKE_SIZE = 1024
 #: Texels a bake bleeds past its UV islands, so filtering at a seam reads the island's value.
@@ -36,8 +38,8 @@ BAKE_MARGIN = 8
 LAYOUT = {"select", "location", "location_absolute", "width", "height", "hide", "label", "color", "use_custom_color", "parent"}
 #: A flat tangent-space normal as Cycles' Normal bake writes it.
 FLAT = (0.5, 0.5, 1.0)
-#: Bakes by fingerprint -> the image file, kept for the session.
-_CACHE: dict[str, str] = {}
+#: Bakes by fingerprint -> (the image file, its one value or None), kept for the session.
+_CACHE: dict[str, tuple] = {}
 
 
 def users(stage, material_path: str, UsdShade) -> dict[str, list]:
@@ -136,11 +138,9 @@ def _baked(material, source, kind, obj, directory, blender_name, size):
     """The image file of `source` baked over `obj`'s UVs (from the cache when nothing it
     depends on changed), and its value when it is one value everywhere."""
     key = _fingerprint(material, source, kind, obj, size)
-    path = os.path.join(directory, f"{_clean(material.name)}_{_clean(blender_name)}_{_clean(obj.name)}.exr")
+    path = os.path.join(directory, f"{nodes.clean(material.name)}_{nodes.clean(blender_name)}_{nodes.clean(obj.name)}.exr")
     cached = _CACHE.get(key)
-    if cached and os.path.exists(cached[0]):
-        if os.path.abspath(cached[0]) != os.path.abspath(path):
-            shutil.copyfile(cached[0], path)
+    if cached and reuse(cached[0], path):
         return path, cached[1]
     pixels = _bake(material, source, kind, obj, path, size)
     rgb = pixels.reshape(-1, 4)[:, :3]
@@ -149,13 +149,21 @@ def _baked(material, source, kind, obj, directory, blender_name, size):
     return path, constant
 
 
+def reuse(cached: str, path: str) -> bool:
+    """True when the file `cached` still exists, copied to `path` (this export's directory)
+    when it lies elsewhere."""
+    if not os.path.exists(cached):
+        return False
+    if os.path.abspath(cached) != os.path.abspath(path):
+        shutil.copyfile(cached, path)
+    return True
+
+
 def _bake(material, source, kind, obj, path, size) -> np.ndarray:
     """Renders `source` into a float image over `obj`'s UVs (with no source, Cycles' `kind` bake
     of the surface as it is: its shading normal or what it emits), saves it to `path` as
     OpenEXR and returns its RGBA pixels. The material is restored whatever happens."""
     tree = material.node_tree
-    from . import nodes
-
     output = nodes.active_output(tree)
     surface = output.inputs["Surface"]
     was = surface.links[0].from_socket if surface.is_linked else None
@@ -179,9 +187,9 @@ def _bake(material, source, kind, obj, path, size) -> np.ndarray:
         image.pixels.foreach_get(pixels)
         return pixels
     finally:
-        if was is not None and emission is not None:
-            tree.links.new(was, surface)
         if emission is not None:
+            if was is not None:
+                tree.links.new(was, surface)
             tree.nodes.remove(emission)
         tree.nodes.remove(target)
         tree.nodes.active = active
@@ -239,7 +247,7 @@ def _unpark(parked) -> None:
 def _connect(material_prim, usd_input, blender_name, file, Sdf, UsdShade):
     """A UsdUVTexture reading `file` over the mesh's `st`, connected to `usd_input`: its r to
     a float (a float socket bakes as grey), its rgb to a colour or a normal."""
-    base = f"Baked_{_clean(blender_name)}"
+    base = f"Baked_{nodes.clean(blender_name)}"
     texture = UsdShade.Shader.Define(material_prim.GetStage(), material_prim.GetPath().AppendChild(base))
     texture.CreateIdAttr("UsdUVTexture")
     texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(os.path.relpath(file, os.path.dirname(material_prim.GetStage().GetRootLayer().realPath)))
@@ -271,7 +279,7 @@ def split_per_object(exported, stage, Sdf, UsdShade) -> None:
     for material_path, textures in exported.baked.items():
         objects = sorted(textures[0][1])
         for obj_name in objects[1:]:
-            copy = Sdf.Path(material_path).GetParentPath().AppendChild(f"{Sdf.Path(material_path).name}_{_clean(obj_name)}")
+            copy = Sdf.Path(material_path).GetParentPath().AppendChild(f"{Sdf.Path(material_path).name}_{nodes.clean(obj_name)}")
             Sdf.CopySpec(layer, material_path, layer, copy)
             for texture_path, files in textures:
                 own = Sdf.Path(texture_path).ReplacePrefix(material_path, copy)
@@ -286,7 +294,7 @@ def _fingerprint(material, source, kind, obj, size) -> str:
     """What a bake depends on: the node tree's nodes, values and links, which socket, the
     object's mesh and placement, and the bake's size."""
     h = hashlib.sha256()
-    _hash_tree(h, material.node_tree, set())
+    hash_tree(h, material.node_tree, set())
     what = (source.node.name, source.identifier) if source is not None else kind
     h.update(repr((what, obj.name, size, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
@@ -302,7 +310,7 @@ def _fingerprint(material, source, kind, obj, size) -> str:
     return h.hexdigest()
 
 
-def _hash_tree(h, tree, seen) -> None:
+def hash_tree(h, tree, seen) -> None:
     """A node tree's nodes, settings and links into `h`, and those of the node groups it uses
     (each group once)."""
     for node in sorted(tree.nodes, key=lambda n: n.name):
@@ -311,7 +319,7 @@ def _hash_tree(h, tree, seen) -> None:
         if group is not None and group.name not in seen:
             seen.add(group.name)
             h.update(repr(("group", group.name)).encode())
-            _hash_tree(h, group, seen)
+            hash_tree(h, group, seen)
     # Sorted: a bake relinks the output, which moves that link to the end of the list.
     links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier, link.is_muted) for link in tree.links)
     h.update(repr(links).encode())
@@ -356,10 +364,6 @@ def _plain(value):
         return tuple(value)
     except TypeError:
         return value
-
-
-def _clean(name: str) -> str:
-    return "".join(c if c.isalnum() else "_" for c in name)
 
 
 def _shown(value, usd_input) -> str:

@@ -147,7 +147,7 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         _check_inputs(exported, material, node, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
         _correct_diffuse(exported, name, prim, node, shader, Sdf)
     elif node.type == "EMISSION":
-        _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade)
+        _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and mixable(node) and shader:
         pass  # export.py rewrites it as a tessera:Layer once the other corrections are made
     elif node.type == "ADD_SHADER" and _glowing_bsdf(node) and shader:
@@ -460,7 +460,7 @@ def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:
         exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried; the surface is Lambertian")
 
 
-def _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade) -> None:
+def _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
     """An Emission shader, which the export drops, as a UsdPreviewSurface that only emits:
     black diffuse, no specular layer (IOR 1), emissive colour Color × Strength (the export's
     own product for a Principled BSDF's emission)."""
@@ -481,11 +481,10 @@ def _correct_emission(exported, name, prim, node, shader, Sdf, UsdShade) -> None
     linked = [s for s in (color, strength) if s.is_linked]
     if linked:
         # What the shader emits, baked whole: Color × Strength wherever either is textured.
-        material = bpy.data.materials[name]
         why = bake.carry(exported, material, "Emission", None, shader.GetInput("emissiveColor"), 1.0, Sdf, UsdShade)
         if why is not None:
             nodes = ", ".join(label(n) for s in linked for n in upstream(s))
-            exported.warnings.append(f"{name}: the Emission is driven by {nodes}, which is not carried and Tessera cannot bake ({why}): {_shown(radiance)} is used")
+            exported.warnings.append(f"{material.name}: the Emission is driven by {nodes}, which is not carried and Tessera cannot bake ({why}): {_shown(radiance)} is used")
 
 
 def _shown(value) -> str:

@@ -29,12 +29,12 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import shutil
 
 import bpy
+import mathutils
 import numpy as np
 
-from . import bake
+from . import bake, nodes
 
 #: The turn from UsdLux's dome space to Blender's environment space, as rotateXYZ degrees.
 POLE = (90.0, 0.0, 90.0)
@@ -115,14 +115,11 @@ def _render_into(exported, prim, world, Sdf) -> None:
     dropped: the rendering holds any Mapping the world applied), and a Sky Texture's sun disc
     as a distant light beside it."""
     width = exported.bake_size
-    path = os.path.join(os.path.dirname(exported.path), "baked", f"world_{bake._clean(world.name)}.exr")
+    path = os.path.join(os.path.dirname(exported.path), "baked", f"world_{nodes.clean(world.name)}.exr")
     os.makedirs(os.path.dirname(path), exist_ok=True)
     key = _fingerprint(world, width)
     cached = _CACHE.get(key)
-    if cached and os.path.exists(cached[0]):
-        if os.path.abspath(cached[0]) != os.path.abspath(path):
-            shutil.copyfile(cached[0], path)
-    else:
+    if not (cached and bake.reuse(cached[0], path)):
         try:
             cached = _CACHE[key] = (path, _render_world(world, width, path))
         except RuntimeError as e:
@@ -143,44 +140,42 @@ def _render_world(world, width, path):
     """Renders `world` into the map at `path`, with any Sky Texture's sun disc left out; returns
     that sun as (direction, irradiance RGB, angular diameter in degrees), or None."""
     skies = [n for n in world.node_tree.nodes if n.type == "TEX_SKY" and getattr(n, "sun_disc", False)]
+    _with_discs(skies, False, lambda: _render(world, PANORAMA_TURN, None, (width, width // 2), PANORAMA_SAMPLES, path))
+    return _measure_sun(world, skies, path) if skies else None
+
+
+def _with_discs(skies, on, work):
+    """`work()` with the Sky Textures' sun discs `on`, and the discs on again after."""
     for sky in skies:
-        sky.sun_disc = False
+        sky.sun_disc = on
     try:
-        _render(world, PANORAMA_TURN, None, (width, width // 2), PANORAMA_SAMPLES, path)
+        return work()
     finally:
         for sky in skies:
             sky.sun_disc = True
-    return _measure_sun(world, skies, path) if skies else None
 
 
 def _measure_sun(world, skies, without):
     """A sky's sun disc, measured from Cycles' own renderings of the world with the disc and
     without: found against the map rendered without it (`without`), then integrated through a
     narrow camera aimed at it (irradiance = Σ radiance × each pixel's solid angle)."""
-    import mathutils
 
     def rendered(turn, lens, size, samples, on):
-        for sky in skies:
-            sky.sun_disc = on
         out = os.path.join(bpy.app.tempdir or "/tmp", f"tessera-sun-{on}.exr")
-        _render(world, turn, lens, size, samples, out)
+        _with_discs(skies, on, lambda: _render(world, turn, lens, size, samples, out))
         return _pixels(out)
 
-    try:
-        dark = _pixels(without)
-        height, width = dark.shape[:2]
-        found = (rendered(PANORAMA_TURN, None, (width, height), PANORAMA_SAMPLES, True) - dark).sum(-1)
-        row, col = np.unravel_index(np.argmax(found), found.shape)
-        phi, theta = (0.5 - (col + 0.5) / width) * 2 * math.pi, (1 - (row + 0.5) / height) * math.pi
-        direction = mathutils.Vector((math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)))
-        angle = math.degrees(max(sky.sun_size for sky in skies))
-        fov = math.radians(max(4 * angle, 2.0))
-        turn = direction.to_track_quat("-Z", "Y")
-        n = 96
-        disc = rendered(turn, fov, (n, n), 16, True) - rendered(turn, fov, (n, n), 16, False)
-    finally:
-        for sky in skies:
-            sky.sun_disc = True
+    dark = _pixels(without)
+    height, width = dark.shape[:2]
+    found = (rendered(PANORAMA_TURN, None, (width, height), PANORAMA_SAMPLES, True) - dark).sum(-1)
+    row, col = np.unravel_index(np.argmax(found), found.shape)
+    phi, theta = (0.5 - (col + 0.5) / width) * 2 * math.pi, (1 - (row + 0.5) / height) * math.pi
+    direction = mathutils.Vector((math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)))
+    angle = math.degrees(max(sky.sun_size for sky in skies))
+    fov = math.radians(max(4 * angle, 2.0))
+    turn = direction.to_track_quat("-Z", "Y")
+    n = 96
+    disc = rendered(turn, fov, (n, n), 16, True) - rendered(turn, fov, (n, n), 16, False)
     # A pinhole pixel's solid angle: its area on the plane at distance 1, times cos³ off axis.
     x = (np.arange(n) + 0.5) / n * 2 - 1
     r2 = (x[None, :] ** 2 + x[:, None] ** 2) * math.tan(fov / 2) ** 2
@@ -192,7 +187,7 @@ def _measure_sun(world, skies, without):
 def _add_sun(exported, dome, direction, irradiance, angle, Sdf) -> None:
     """The sun as a UsdLux DistantLight beside the dome: shining along −direction, `angle`
     across, its illuminance the measured irradiance (normalize on)."""
-    from pxr import UsdLux
+    from pxr import Gf, UsdGeom, UsdLux  # bundled with bpy, importable once export._pxr ran
 
     light = UsdLux.DistantLight.Define(dome.GetStage(), dome.GetPath().GetParentPath().AppendChild(dome.GetName() + "_sun"))
     strength = max(irradiance)
@@ -204,8 +199,6 @@ def _add_sun(exported, dome, direction, irradiance, angle, Sdf) -> None:
     x = np.cross((0.0, 0.0, 1.0) if abs(z[2]) < 0.99 else (1.0, 0.0, 0.0), z)
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
-    from pxr import Gf, UsdGeom
-
     rows = [list(x) + [0.0], list(y) + [0.0], list(z) + [0.0], [0.0, 0.0, 0.0, 1.0]]
     UsdGeom.Xformable(light.GetPrim()).AddTransformOp().Set(Gf.Matrix4d(rows))
     exported.corrections.append(f"{light.GetPath()}: the Sky Texture's sun disc as a distant light ({angle:.3g}° across, {strength:.4g} W/m²)")
@@ -257,6 +250,6 @@ def _pixels(path) -> np.ndarray:
 
 def _fingerprint(world, width) -> str:
     h = hashlib.sha256()
-    bake._hash_tree(h, world.node_tree, set())
+    bake.hash_tree(h, world.node_tree, set())
     h.update(repr((world.name, width, PANORAMA_SAMPLES)).encode())
     return h.hexdigest()
