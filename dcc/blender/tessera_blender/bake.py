@@ -28,7 +28,7 @@ import shutil
 import bpy
 import numpy as np
 
-from . import nodes
+from . import nodes, unwrap
 
 #: Texels along each side of a baked image by default (the scene's Bake Size setting).
 BAKE_SIZE = 1024
@@ -76,7 +76,7 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     names the node the input belongs to when the material has several of it (a Mix Shader's
     sides). Returns None when carried, else why not (for the warning)."""
     prim = usd_input.GetPrim().GetParent()
-    objects, why = _bakeable(users(prim.GetStage(), str(prim.GetPath()), UsdShade))
+    objects, why = _bakeable(exported, users(prim.GetStage(), str(prim.GetPath()), UsdShade), Sdf)
     if why:
         return why
     # A normal is baked as Cycles shades it (Bake type Normal, tangent space); any other input
@@ -87,9 +87,9 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     directory = os.path.join(os.path.dirname(exported.path), "baked")
     os.makedirs(directory, exist_ok=True)
     files, values = {}, []
-    for obj in objects:
+    for obj, over in objects:
         try:
-            files[obj.name], value = _baked(material, source, "NORMAL" if normal else "EMIT", obj, directory, blender_name, exported.bake_size)
+            files[obj.name], value = _baked(material, source, "NORMAL" if normal else "EMIT", (obj, over), directory, blender_name, exported.bake_size)
         except RuntimeError as e:  # bpy.ops reports a failed bake this way
             return f"baking it over {obj.name} failed: {str(e).strip()}"
         values.append(value)
@@ -97,7 +97,7 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     if one is not None and (not normal or np.allclose(one, FLAT, rtol=0, atol=1e-3)):
         _set_one_value(exported, material, blender_name, usd_input, one * scale, normal)
         return None
-    texture = _connect(prim, usd_input, blender_name, files[objects[0].name], Sdf, UsdShade)
+    texture = _connect(prim, usd_input, blender_name, files[objects[0][0].name], Sdf, UsdShade)
     if normal:
         # Cycles writes (n + 1) / 2 in the tangent frame (MikkTSpace, as Tessera's).
         texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((2.0, 2.0, 2.0, 1.0))
@@ -111,17 +111,26 @@ def carry(exported, material, blender_name, socket, usd_input, scale, Sdf, UsdSh
     return None
 
 
-def _bakeable(by_object):
-    """The Blender objects to bake over, by name, or why they cannot be (an object the export
-    names that Blender does not have, or one without a UV map in either)."""
+def _bakeable(exported, by_object, Sdf):
+    """The Blender objects to bake for, by name, each with the object to bake over (itself, or
+    an unwrapped copy when it has no UV map: ``unwrap.py``), or why they cannot be (an object
+    the export names that Blender does not have, or one that has UVs the export did not write
+    as ``st``)."""
+    from pxr import UsdGeom
+
     objects = [bpy.data.objects.get(n) for n in sorted(by_object)]
     if not objects or None in objects:
         return [], "no mesh in the export uses the material"
-    no_uvs = [o.name for o in objects if o.type != "MESH" or not o.data.uv_layers]
-    no_uvs += [n for n, prims in sorted(by_object.items()) if not all(_mesh_of(p).GetAttribute("primvars:st") for p in prims)]
-    if no_uvs:
-        return [], f"{', '.join(sorted(set(no_uvs)))} has no UV map to bake it over"
-    return objects, None
+    pairs = []
+    for obj in objects:
+        meshes = list({str(_mesh_of(p).GetPath()): _mesh_of(p) for p in by_object[obj.name]}.values())
+        over, why = unwrap.stand_in(exported, obj, meshes, BAKE_MARGIN, Sdf, UsdGeom)
+        if why:
+            return [], why
+        if not all(m.GetAttribute("primvars:st") for m in meshes):
+            return [], f"{obj.name} has UV maps, but none exported as st to bake over"
+        pairs.append((obj, over))
+    return pairs, None
 
 
 def _set_one_value(exported, material, blender_name, usd_input, value, normal) -> None:
@@ -134,15 +143,17 @@ def _set_one_value(exported, material, blender_name, usd_input, value, normal) -
     exported.corrections.append(f"{material.name}: {blender_name} baked: one value everywhere, {_shown(value, usd_input)}")
 
 
-def _baked(material, source, kind, obj, directory, blender_name, size):
-    """The image file of `source` baked over `obj`'s UVs (from the cache when nothing it
-    depends on changed), and its value when it is one value everywhere."""
-    key = _fingerprint(material, source, kind, obj, size)
+def _baked(material, source, kind, objects, directory, blender_name, size):
+    """The image file of `source` baked for `obj` over the UVs of `over` (`objects`; ``obj`` or
+    its unwrapped copy), from the cache when nothing it depends on changed, and its value when
+    it is one value everywhere."""
+    obj, over = objects
+    key = _fingerprint(material, source, kind, obj, over, size)
     path = os.path.join(directory, f"{nodes.clean(material.name)}_{nodes.clean(blender_name)}_{nodes.clean(obj.name)}.exr")
     cached = _CACHE.get(key)
     if cached and reuse(cached[0], path):
         return path, cached[1]
-    pixels = _bake(material, source, kind, obj, path, size)
+    pixels = _bake(material, source, kind, over, path, size)
     rgb = pixels.reshape(-1, 4)[:, :3]
     constant = rgb[0] if np.ptp(rgb, axis=0).max() <= 1e-6 else None
     _CACHE[key] = (path, constant)
@@ -290,15 +301,15 @@ def split_per_object(exported, stage, Sdf, UsdShade) -> None:
             exported.corrections.append(f"{Sdf.Path(material_path).name}: a copy for {obj_name}, with its own bakes")
 
 
-def _fingerprint(material, source, kind, obj, size) -> str:
+def _fingerprint(material, source, kind, obj, over, size) -> str:
     """What a bake depends on: the node tree's nodes, values and links, which socket, the
-    object's mesh and placement, and the bake's size."""
+    object's placement, the mesh and UVs it is baked over (`over`'s), and the bake's size."""
     h = hashlib.sha256()
     hash_tree(h, material.node_tree, set())
     what = (source.node.name, source.identifier) if source is not None else kind
     h.update(repr((what, obj.name, size, BAKE_MARGIN)).encode())
     h.update(np.array(obj.matrix_world, np.float32).tobytes())
-    mesh = obj.data
+    mesh = over.data
     co = np.empty(len(mesh.vertices) * 3, np.float32)
     mesh.vertices.foreach_get("co", co)
     h.update(co.tobytes())

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bake, nodes, world
+from . import bake, nodes, unwrap, world
 
 #: What the exporter's sun strength is divided by.
 SUN_EXPORT_DIVISOR = 4.0
@@ -61,6 +61,9 @@ class Export:
     baked: dict[str, list] = field(default_factory=dict)
     #: Texels along each side of a baked image (the scene's Bake Size).
     bake_size: int = bake.BAKE_SIZE
+    #: Blender object name -> (its unwrapped copy or None, why not), for objects without UVs
+    #: whose inputs are baked (``unwrap.py``); emptied when the corrections are done.
+    unwrapped: dict[str, tuple] = field(default_factory=dict)
 
 
 def _pxr():
@@ -93,6 +96,13 @@ def export_scene(depsgraph, directory: str | None = None) -> Export:
 
 def correct(exported: Export, scene) -> None:
     """Applies the corrections above to the exported file and maps objects to prims."""
+    try:
+        _correct_stage(exported, scene)
+    finally:
+        unwrap.clean_up(exported)
+
+
+def _correct_stage(exported: Export, scene) -> None:
     Sdf, Usd, UsdLux, UsdShade = _pxr()
     stage = Usd.Stage.Open(exported.path)
     lights = []

@@ -199,7 +199,11 @@ def bake_reuse(size=64):
             sizes += [tuple(bpy.data.images.load(os.path.join(baked, f), check_existing=False).size) for f in sorted(os.listdir(baked))]
     finally:
         bake._bake = original
-    return {"bakes": ran, "sizes": sorted(set(sizes)), "seconds": seconds}
+    # What the unwrap (tessera_blender/unwrap.py) leaves behind: nothing, and the sphere still
+    # without a UV map.
+    left = [d.name for d in (*bpy.data.objects, *bpy.data.meshes, *bpy.data.scenes) if "Tessera UVs" in d.name or d.name == "tessera-unwrap"]
+    sphere_uvs = len(bpy.data.objects["Sphere"].data.uv_layers)
+    return {"bakes": ran, "sizes": sorted(set(sizes)), "seconds": seconds, "left": left, "sphere_uvs": sphere_uvs}
 
 
 def _edit_noise_ramp(edit):

@@ -26,7 +26,7 @@ REGIONS = {
     "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "spot": {1: "floor"},
-    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane"},
+    "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
 
 def udim_image(directory):
@@ -97,7 +97,7 @@ def sky_world():
 
 def procedural_planes(mat, add, directory):
     """Inputs Blender's USD export cannot carry, which the add-on bakes, one plane (region) each
-    but for the gradient's two: see each builder below."""
+    but for the gradient's two, and a sphere without a UV map: see each builder below."""
     def plane(material, index, size, at):
         add(bpy.ops.mesh.primitive_plane_add, material, index, size=size, location=at)
 
@@ -110,6 +110,10 @@ def procedural_planes(mat, add, directory):
     plane(_checker_emission(), 6, 2, (2.4, 2.6, 0))
     plane(_checker_mix(mat), 7, 2, (0, -2.4, 0))
     plane(_added_glow(mat), 8, 2, (2.4, -2.4, 0))
+    sphere = add(bpy.ops.mesh.primitive_uv_sphere_add, _unwrapped_noise(mat), 9, radius=0.55, location=(-1.7, -1.9, 0.55), segments=16, ring_count=8)
+    sphere.data.uv_layers.remove(sphere.data.uv_layers[0])
+    subdivision = sphere.modifiers.new("Subdivision", "SUBSURF"); subdivision.levels = subdivision.render_levels = 2
+    bpy.ops.object.shade_smooth()
 
 
 def _node(tree, kind, **inputs):
@@ -134,6 +138,16 @@ def _noise_ramp(mat):
     m = mat("noise ramp", (0.8, 0.8, 0.8)); tree = m.node_tree
     noise, ramp = _node(tree, "ShaderNodeTexNoise", Scale=3.0), tree.nodes.new("ShaderNodeValToRGB")
     ramp.color_ramp.elements[0].color = (0.8, 0.1, 0.05, 1); ramp.color_ramp.elements[1].color = (0.05, 0.2, 0.8, 1)
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"]); tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    return m
+
+
+def _unwrapped_noise(mat):
+    """A Noise over Generated coordinates through a green-to-orange Color Ramp, for a sphere
+    whose UV map is removed: baked over the add-on's own unwrap (tessera_blender/unwrap.py)."""
+    m = mat("unwrapped noise", (0.8, 0.8, 0.8)); tree = m.node_tree
+    noise, ramp = _node(tree, "ShaderNodeTexNoise", Scale=4.0), tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.1, 0.7, 0.1, 1); ramp.color_ramp.elements[1].color = (0.9, 0.4, 0.05, 1)
     tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"]); tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
     return m
 
@@ -517,20 +531,30 @@ def node_trees(directory):
         link(tree, a.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
     def no_uvs(tree, p):
-        # A Noise on a plane whose UV map is removed below: nothing to bake it over.
+        # A Noise on a plane whose UV map is removed below: baked over the add-on's own unwrap.
         n = tree.nodes.new("ShaderNodeTexNoise")
         link(tree, n.outputs["Color"], p.inputs["Base Color"])
+
+    def render_levels(tree, p):
+        # The same, on a plane subdivided once at render time only (below): the export writes
+        # the render's mesh, which an unwrap in the viewport's cannot match, so it is said.
+        no_uvs(tree, p)
 
     def sheen(tree, p):
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, no_uvs, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, no_uvs, render_levels, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
         bpy.context.object.data.materials.append(m)
-        if case is no_uvs:
+        if case in (no_uvs, render_levels):
             bpy.context.object.data.uv_layers.remove(bpy.context.object.data.uv_layers[0])
+        if case is render_levels:
+            # Not the last modifier, so the export applies it rather than writing a scheme.
+            subdivision = bpy.context.object.modifiers.new("Subdivision", "SUBSURF")
+            subdivision.levels, subdivision.render_levels = 0, 1
+            bpy.context.object.modifiers.new("Weld", "WELD")
     return bpy.context.scene
