@@ -14,8 +14,10 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
 * Principled inputs UsdPreviewSurface has no place for (sheen, anisotropy, tints, thin film)
   are not written, nor is a Normal Map's Strength.
 
-The corrections here: an Emission shader becomes the emissive surface it is, a Diffuse BSDF
-loses the specular layer UsdPreviewSurface would add, a Bump over an image becomes a
+The corrections here: an Emission shader becomes the emissive surface it is, a Glossy or
+Glass BSDF the metal or glass it is, a Transparent BSDF mixed into a BSDF that BSDF's opacity
+(present or absent, not clear glass), a Diffuse BSDF loses the specular layer
+UsdPreviewSurface would add, a Bump over an image becomes a
 tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, as does
 an image's Emission Strength, a Mix Shader of two BSDFs becomes a tessera:Layer, any other
 input driven by nodes the export drops or skips is baked into an image (``bake.py``), and any
@@ -47,8 +49,23 @@ PRINCIPLED_CARRIED = {
 #: Diffuse BSDF inputs the exporter carries.
 DIFFUSE_CARRIED = {"Color": "diffuseColor", "Normal": "normal"}
 
-#: UsdPreviewSurface inputs that are not floats, by their types' names in Sdf.ValueTypeNames.
-INPUT_TYPES = {"diffuseColor": "Color3f", "emissiveColor": "Color3f", "normal": "Normal3f"}
+#: Surface inputs that are not floats, by their types' names in Sdf.ValueTypeNames.
+INPUT_TYPES = {"diffuseColor": "Color3f", "emissiveColor": "Color3f", "baseColor": "Color3f", "normal": "Normal3f"}
+
+#: Shaders the export drops that are written here as the surface they are: the shader id, its
+#: fixed inputs, and its inputs by the Blender input they come from. Cycles' Glossy BSDF is
+#: microfacet reflection tinted by Color with no Fresnel falloff (its OSL source: Color ×
+#: microfacet), a metal whose reflectivity is Color; UsdPreviewSurface's metal rises from
+#: diffuseColor to white at grazing angles (Schlick), which adds (1 − Color)/21 to its mean
+#: reflectance. Its Glass BSDF is a rough dielectric tinted by Color.
+STANDALONE = {
+    "BSDF_GLOSSY": ("UsdPreviewSurface", {"metallic": 1.0}, {"diffuseColor": "Color", "roughness": "Roughness"}),
+    "BSDF_GLASS": ("tessera:Principled", {"specTrans": 1.0}, {"baseColor": "Color", "roughness": "Roughness", "ior": "IOR"}),
+}
+
+#: Microfacet distributions Tessera renders as they are (GGX, its energy compensated like
+#: Cycles' multiscatter GGX); any other is reported.
+GGX_DISTRIBUTIONS = {"GGX", "MULTI_GGX"}
 
 #: Node types the exporter translates on the way from an input to its image: the image, its
 #: UVs (a UV Map, a Texture Coordinate's UV, a 2D Mapping as UsdTransform2d), a channel of it
@@ -148,6 +165,10 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         _correct_diffuse(exported, name, prim, node, shader, Sdf)
     elif node.type == "EMISSION":
         _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade)
+    elif node.type in STANDALONE:
+        _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade)
+    elif node.type == "MIX_SHADER" and _cutout_sides(node) and shader:
+        _correct_cutout(exported, material, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and mixable(node) and shader:
         pass  # export.py rewrites it as a tessera:Layer once the other corrections are made
     elif node.type == "ADD_SHADER" and _glowing_bsdf(node) and shader:
@@ -157,6 +178,98 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: the surface is {label(node)}, which the USD export does not carry: {kept}")
     if active_output(material.node_tree).inputs["Volume"].is_linked:
         exported.warnings.append(f"{name}: the Volume output is not carried")
+
+
+def _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
+    """A Glossy or Glass BSDF (``STANDALONE``), which the export drops, as the surface it is: its
+    constant inputs written, its linked ones (a normal included) baked as any BSDF's are."""
+    shader_id, fixed, inputs = STANDALONE[node.type]
+    shader = _emptied(prim, shader, clean(node.name), UsdShade)
+    shader.SetShaderId(shader_id)
+    for usd_name, value in fixed.items():
+        shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(value)
+    for usd_name, blender_name in inputs.items():
+        value = node.inputs[blender_name].default_value
+        if usd_name in INPUT_TYPES:
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
+        else:
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+    shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
+    exported.corrections.append(f"{prim.GetPath()}: {node.bl_label} as {shader_id} ({', '.join(f'{k} {v:g}' for k, v in fixed.items())})")
+    carried = {blender_name: usd_name for usd_name, blender_name in inputs.items()} | {"Normal": "normal"}
+    _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade)
+    for lost in _standalone_losses(node):
+        exported.warnings.append(f"{material.name}: {lost}")
+
+
+def _emptied(prim, shader, name, UsdShade):
+    """The Material `prim`'s surface shader with no inputs: the one exported, or a new one
+    named `name` connected to the surface output."""
+    if shader is None:
+        shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(name))
+        UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+        return shader
+    for inp in list(shader.GetInputs()):
+        shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    return shader
+
+
+def _standalone_losses(node) -> list[str]:
+    """What a Glossy or Glass BSDF has that its surface does not carry."""
+    lost = []
+    if node.distribution not in GGX_DISTRIBUTIONS:
+        lost.append(f"the {node.distribution.replace('_', ' ').title()} distribution of {label(node)} is rendered as GGX")
+    for name in ("Anisotropy", "Thin Film Thickness"):
+        socket = node.inputs.get(name)
+        if socket is not None and (socket.is_linked or float(socket.default_value) != 0.0):
+            lost.append(f"the {name} of {label(node)} is not carried")
+    return lost
+
+
+def _cutout_sides(node):
+    """A Mix Shader's (Transparent BSDF's side, 1 or 2; the other side) when it mixes a
+    Transparent BSDF with a Principled or Diffuse BSDF (a cut-out, such as a leaf's alpha),
+    else None."""
+    sides = _mix_sides(node)
+    for k, (this, other) in enumerate((sides, sides[::-1]), start=1):
+        if this is not None and other is not None and this.type == "BSDF_TRANSPARENT" and other.type in MIXED_BSDFS:
+            return k, other
+    return None
+
+
+def _correct_cutout(exported, material, node, shader, Sdf, UsdShade) -> None:
+    """A Mix Shader of a Transparent BSDF and a BSDF: the export keeps the BSDF (checked as any
+    BSDF is); how much of the surface is there becomes its opacity. Cycles' mix is (1 − Fac)·first
+    + Fac·second, so the opacity is Fac when the Transparent BSDF is first, 1 − Fac when second.
+    Shadows pass through the same share, in both renderers."""
+    side, bsdf = _cutout_sides(node)
+    principled = bsdf.type == "BSDF_PRINCIPLED"
+    _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED if principled else DIFFUSE_CARRIED, shader, Sdf, UsdShade)
+    if not principled:
+        _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)
+    opacity = shader.GetInput("opacity") or shader.CreateInput("opacity", Sdf.ValueTypeNames.Float)
+    alpha = opacity.Get() if not opacity.HasConnectedSource() else None
+    if alpha is None or float(alpha) != 1.0:
+        exported.warnings.append(f"{material.name}: {label(bsdf)}'s own Alpha is replaced by the Transparent BSDF's mix")
+    opacity.GetAttr().ClearConnections()
+    # Present or absent, as a Transparent BSDF is: UsdPreviewSurface's own reading of opacity
+    # is clear glass, which bends and reflects (docs/materials.md).
+    shader.CreateInput("opacityMode", Sdf.ValueTypeNames.Token).Set("presence")
+    _mask(exported, material, node.inputs["Fac"], opacity, Sdf, UsdShade)
+    if side == 2:
+        _complement(opacity, Sdf, UsdShade)
+    share = "Fac" if side == 1 else "1 − Fac"
+    exported.corrections.append(f"{material.name}: Mix Shader of {label(_mix_sides(node)[side - 1])} and {label(bsdf)} as {bsdf.name}'s opacity ({share})")
+
+
+def _complement(usd_input, Sdf, UsdShade) -> None:
+    """`usd_input` as 1 minus what it held: its value, or its texture by scale −1 and bias 1."""
+    if not usd_input.HasConnectedSource():
+        usd_input.Set(1.0 - float(usd_input.Get()))
+        return
+    texture = UsdShade.Shader(usd_input.GetConnectedSources()[0][0].source.GetPrim())
+    texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set((-1.0, -1.0, -1.0, -1.0))
+    texture.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set((1.0, 1.0, 1.0, 1.0))
 
 
 def _glowing_bsdf(node):
@@ -465,12 +578,7 @@ def _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade) -> 
     black diffuse, no specular layer (IOR 1), emissive colour Color × Strength (the export's
     own product for a Principled BSDF's emission)."""
     color, strength = node.inputs["Color"], node.inputs["Strength"]
-    if shader is None:
-        shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("Emission"))
-        UsdShade.Material(prim).CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
-    else:
-        for inp in list(shader.GetInputs()):
-            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    shader = _emptied(prim, shader, "Emission", UsdShade)
     radiance = tuple(float(c) * float(strength.default_value) for c in tuple(color.default_value)[:3])
     shader.SetShaderId("UsdPreviewSurface")
     shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set((0.0, 0.0, 0.0))

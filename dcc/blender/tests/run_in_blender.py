@@ -25,9 +25,11 @@ from tessera_blender import engine, export  # noqa: E402
 
 def regions_of(scene, exported):
     """Each pixel's region (its object's pass_index, 0 for none), from Tessera's primId AOV
-    on the same export: the geometry is the same in both renderers, ids are exact labels."""
+    on the same export made opaque: the geometry is the same in both renderers, ids are exact
+    labels, and a partly present surface (a Transparent BSDF's mix) covers its whole shape
+    rather than the share of pixels whose one sample found it."""
     session = engine.client_for(None).session("regions")
-    session.sync_usd(exported.path)
+    session.sync_usd(_opaque_copy(exported.path))
     fb, table = None, []
     for e in session.render(scene.render.resolution_x, scene.render.resolution_y, spp=1, aovs=["primId"]):
         if isinstance(e, tessera.Started):
@@ -41,6 +43,19 @@ def regions_of(scene, exported):
         obj = bpy.data.objects.get(owner.get(path, ""))
         index[ids == k] = obj.pass_index if obj else 0
     return index
+
+
+def _opaque_copy(path):
+    """The exported file beside itself with every partly present surface made whole."""
+    _, Usd, _, UsdShade = export._pxr()
+    stage = Usd.Stage.Open(path)
+    for prim in stage.Traverse():
+        shader = UsdShade.Shader(prim)
+        if prim.IsA(UsdShade.Shader) and shader.GetInput("opacityMode"):
+            prim.RemoveProperty("inputs:opacity")
+    opaque = os.path.join(os.path.dirname(path), "opaque.usdc")
+    stage.Export(opaque)
+    return opaque
 
 
 def first_tile_seconds(scene):

@@ -26,6 +26,7 @@ REGIONS = {
     "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "spot": {1: "floor"},
+    "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
 
@@ -114,6 +115,55 @@ def procedural_planes(mat, add, directory):
     sphere.data.uv_layers.remove(sphere.data.uv_layers[0])
     subdivision = sphere.modifiers.new("Subdivision", "SUBSURF"); subdivision.levels = subdivision.render_levels = 2
     bpy.ops.object.shade_smooth()
+
+
+def shader_spheres_and_cutouts(mat, add, directory):
+    """Shaders Blender's USD export drops, each a region: a Glossy BSDF sphere, a Glass BSDF
+    sphere, and two planes tilted towards the camera, each a Mix Shader of a Transparent BSDF and a red
+    Principled BSDF: by Fac 0.6 (Transparent first), and by an image's alpha, 1 on its left half
+    and 0.25 on its right (Transparent second), over a Lambertian floor."""
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+    glossy = _standalone_material("glossy", "ShaderNodeBsdfGlossy", Color=(0.9, 0.6, 0.3, 1), Roughness=0.35)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, glossy, 2, radius=0.8, location=(-2.6, 0, 0.8), segments=64, ring_count=32)
+    glass = _standalone_material("glass", "ShaderNodeBsdfGlass", Roughness=0.0, IOR=1.5)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, glass, 3, radius=0.8, location=(-0.6, 0, 0.8), segments=64, ring_count=32)
+    for index, fac, size, at in ((4, 0.6, 1.6, (1.4, -1.6, 0.6)), (5, _alpha_halves(directory), 2.4, (2.2, 1.2, 1.4))):
+        add(bpy.ops.mesh.primitive_plane_add, _cutout(mat, fac, index), index, size=size, location=at, rotation=(0.6, 0, 0))
+
+
+def _standalone_material(name, kind, **inputs):
+    """A material whose surface is one shader node of `kind`."""
+    m = bpy.data.materials.new(name); tree = m.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    tree.links.new(_node(tree, kind, **inputs).outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return m
+
+
+def _alpha_halves(directory):
+    """An 8 × 8 grey image whose alpha is 1 on the left half and 0.25 on the right."""
+    path = os.path.join(directory, "halves.png")
+    img = bpy.data.images.new("halves", 8, 8, alpha=True)
+    px = np.full((8, 8, 4), 0.5, np.float32); px[:, :4, 3] = 1.0; px[:, 4:, 3] = 0.25
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+    return bpy.data.images.load(path)
+
+
+def _cutout(mat, fac, index):
+    """A Mix Shader of a Transparent BSDF and a red Principled BSDF: Transparent first by a
+    constant Fac, or second by an image's alpha."""
+    m = mat(f"cutout {index}", (0.8, 0.1, 0.1)); tree = m.node_tree
+    mix, clear = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeBsdfTransparent")
+    red = tree.nodes["Principled BSDF"]
+    if isinstance(fac, float):
+        mix.inputs["Fac"].default_value = fac
+        sides = (clear, red)
+    else:
+        image = tree.nodes.new("ShaderNodeTexImage"); image.image = fac
+        tree.links.new(image.outputs["Alpha"], mix.inputs["Fac"])
+        sides = (red, clear)
+    tree.links.new(sides[0].outputs[0], mix.inputs[1]); tree.links.new(sides[1].outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return m
 
 
 def _node(tree, kind, **inputs):
@@ -230,7 +280,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -246,6 +296,12 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
         cam = (0, -7, 2); rot = (1.5708, 0, 0)
+    elif kind == "shaders":
+        shader_spheres_and_cutouts(mat, add, directory)
+        # The `glass` scene's sun: lower, the glass sphere's shadow holds a caustic, which
+        # neither renderer converges on at these samples.
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -8, 3); rot = (1.2, 0, 0)
     elif kind == "glass":
         add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.7, 0.7, 0.7)), 1, size=20)
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
@@ -524,6 +580,11 @@ def node_trees(directory):
         g = tree.nodes.new("ShaderNodeBsdfGlossy"); tree.nodes.remove(p)
         link(tree, g.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
+    def beckmann_glass(tree, p):
+        # A Glass BSDF (written as tessera:Principled glass) whose Beckmann lobe is rendered as GGX.
+        g = tree.nodes.new("ShaderNodeBsdfGlass"); g.distribution = "BECKMANN"; tree.nodes.remove(p)
+        link(tree, g.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
     def add_glow(tree, p):
         e = tree.nodes.new("ShaderNodeEmission"); e.inputs["Color"].default_value = (1, 0.5, 0, 1); e.inputs["Strength"].default_value = 2.0
         a = tree.nodes.new("ShaderNodeAddShader")
@@ -545,7 +606,7 @@ def node_trees(directory):
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, add_glow, no_uvs, render_levels, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, beckmann_glass, add_glow, no_uvs, render_levels, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
