@@ -156,21 +156,20 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         return
     shader = surface_shader(prim, UsdShade)
     name = material.name
-    if node.type == "BSDF_PRINCIPLED":
-        _check_inputs(exported, material, node, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
-        for lost in principled_losses(node):
-            exported.warnings.append(f"{name}: {lost} is not carried (UsdPreviewSurface has no such input)")
-    elif node.type == "BSDF_DIFFUSE" and shader:
-        _check_inputs(exported, material, node, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
-        _correct_diffuse(exported, name, prim, node, shader, Sdf)
+    if node.type == "BSDF_PRINCIPLED" or (node.type == "BSDF_DIFFUSE" and shader):
+        _correct_bsdf(exported, material, node, shader, Sdf, UsdShade)
     elif node.type == "EMISSION":
         _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade)
     elif node.type in STANDALONE:
         _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and _cutout_sides(node) and shader:
         _correct_cutout(exported, material, node, shader, Sdf, UsdShade)
-    elif node.type == "MIX_SHADER" and mixable(node) and shader:
-        pass  # export.py rewrites it as a tessera:Layer once the other corrections are made
+    elif node.type == "MIX_SHADER" and mixable(node):
+        # The side the export kept is corrected here, as any BSDF; export.py rewrites the mix
+        # as a tessera:Layer once the other corrections are made.
+        kept = _kept_side(node, shader)
+        if kept is not None:
+            _correct_bsdf(exported, material, kept, shader, Sdf, UsdShade)
     elif node.type == "ADD_SHADER" and _glowing_bsdf(node) and shader:
         _correct_added_emission(exported, material, node, shader, Sdf, UsdShade)
     else:
@@ -180,11 +179,39 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: the Volume output is not carried")
 
 
+def _correct_bsdf(exported, material, bsdf, shader, Sdf, UsdShade) -> None:
+    """A Principled or Diffuse BSDF the export wrote as `shader`: its linked inputs checked (and
+    baked where the export lost them), a Diffuse BSDF made Lambertian, and what a Principled
+    BSDF has that UsdPreviewSurface cannot hold said."""
+    if bsdf.type == "BSDF_PRINCIPLED":
+        _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
+        for lost in principled_losses(bsdf):
+            exported.warnings.append(f"{material.name}: {lost} is not carried (UsdPreviewSurface has no such input)")
+    else:
+        _check_inputs(exported, material, bsdf, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
+        _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)
+
+
+def _kept_side(node, shader):
+    """The side of the Mix Shader `node` the export wrote as `shader` (by its name), or None."""
+    if not shader:
+        return None
+    return next((side for side in _mix_sides(node) if side is not None and clean(side.name) == shader.GetPrim().GetName()), None)
+
+
 def _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
     """A Glossy or Glass BSDF (``STANDALONE``), which the export drops, as the surface it is: its
     constant inputs written, its linked ones (a normal included) baked as any BSDF's are."""
-    shader_id, fixed, inputs = STANDALONE[node.type]
     shader = _emptied(prim, shader, clean(node.name), UsdShade)
+    _fill_standalone(exported, material, node, shader, Sdf, UsdShade)
+    fixed = STANDALONE[node.type][1]
+    exported.corrections.append(f"{prim.GetPath()}: {node.bl_label} as {shader.GetIdAttr().Get()} ({', '.join(f'{k} {v:g}' for k, v in fixed.items())})")
+
+
+def _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=None) -> None:
+    """Writes the Glossy or Glass BSDF `node` into the empty `shader` (``STANDALONE``); `owner`
+    tells its baked inputs apart from another side's in a mix."""
+    shader_id, fixed, inputs = STANDALONE[node.type]
     shader.SetShaderId(shader_id)
     for usd_name, value in fixed.items():
         shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(value)
@@ -195,9 +222,8 @@ def _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade) -> 
         else:
             shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
     shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
-    exported.corrections.append(f"{prim.GetPath()}: {node.bl_label} as {shader_id} ({', '.join(f'{k} {v:g}' for k, v in fixed.items())})")
     carried = {blender_name: usd_name for usd_name, blender_name in inputs.items()} | {"Normal": "normal"}
-    _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade)
+    _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade, owner)
     for lost in _standalone_losses(node):
         exported.warnings.append(f"{material.name}: {lost}")
 
@@ -243,10 +269,7 @@ def _correct_cutout(exported, material, node, shader, Sdf, UsdShade) -> None:
     + Fac·second, so the opacity is Fac when the Transparent BSDF is first, 1 − Fac when second.
     Shadows pass through the same share, in both renderers."""
     side, bsdf = _cutout_sides(node)
-    principled = bsdf.type == "BSDF_PRINCIPLED"
-    _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED if principled else DIFFUSE_CARRIED, shader, Sdf, UsdShade)
-    if not principled:
-        _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)
+    _correct_bsdf(exported, material, bsdf, shader, Sdf, UsdShade)
     opacity = shader.GetInput("opacity") or shader.CreateInput("opacity", Sdf.ValueTypeNames.Float)
     alpha = opacity.Get() if not opacity.HasConnectedSource() else None
     if alpha is None or float(alpha) != 1.0:
@@ -287,9 +310,7 @@ def _correct_added_emission(exported, material, node, shader, Sdf, UsdShade) -> 
     emission baked when any part of it is textured)."""
     bsdf, glow = _glowing_bsdf(node)
     principled = bsdf.type == "BSDF_PRINCIPLED"
-    _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED if principled else DIFFUSE_CARRIED, shader, Sdf, UsdShade)
-    if not principled:
-        _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)
+    _correct_bsdf(exported, material, bsdf, shader, Sdf, UsdShade)
     parts = [glow.inputs["Color"], glow.inputs["Strength"]] + ([bsdf.inputs["Emission Color"], bsdf.inputs["Emission Strength"]] if principled else [])
     emissive = shader.GetInput("emissiveColor") or shader.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f)
     if any(p.is_linked for p in parts):
@@ -304,9 +325,10 @@ def _correct_added_emission(exported, material, node, shader, Sdf, UsdShade) -> 
     exported.corrections.append(f"{material.name}: Add Shader of {label(bsdf)} and {label(glow)}: emission {_shown(added)} added to the surface")
 
 
-def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade) -> None:
+def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade, owner=None) -> None:
     """Each linked BSDF input against what the export connected for it: a normal corrected or
-    disconnected, any other input the export could not carry baked (``bake.py``)."""
+    disconnected, any other input the export could not carry baked (``bake.py``; `owner`
+    names the node when the material has several BSDFs)."""
     name = material.name
     for blender_name, usd_name in carried.items():
         socket = node.inputs[blender_name]
@@ -322,7 +344,7 @@ def _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade) -> N
             if blender_name == "Normal" and lost and connected and _carry_bump(exported, name, lost, usd_input, shader, Sdf, UsdShade):
                 continue
             usd_input = usd_input or shader.CreateInput(usd_name, getattr(Sdf.ValueTypeNames, INPUT_TYPES.get(usd_name, "Float")))
-            why = bake.carry(exported, material, blender_name, socket, usd_input, strength, Sdf, UsdShade)
+            why = bake.carry(exported, material, blender_name, socket, usd_input, strength, Sdf, UsdShade, owner=owner)
             if why is not None:
                 _report_unbaked(exported, name, blender_name, nodes, usd_input, connected, why)
         elif blender_name == "Normal":
@@ -434,7 +456,13 @@ def add_bump(shader, texture, channel, scale, Sdf, UsdShade):
 
 
 #: BSDFs a Mix Shader may mix for the add-on to carry it.
+#: BSDFs the export writes (one of them, when a Mix Shader mixes two).
 MIXED_BSDFS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE")
+#: BSDFs a tessera:Layer's side can be: the exported ones, and those written as ``STANDALONE``.
+LAYERED_BSDFS = MIXED_BSDFS + tuple(STANDALONE)
+#: Nodes whose output depends on the direction the surface is seen from, which a bake (seen
+#: head-on) cannot hold.
+VIEW_DEPENDENT = {"FRESNEL", "LAYER_WEIGHT", "LIGHT_PATH", "CAMERA"}
 
 
 def _mix_sides(node):
@@ -443,9 +471,9 @@ def _mix_sides(node):
 
 
 def mixable(node) -> bool:
-    """A Mix Shader of two Principled or Diffuse BSDFs, which a tessera:Layer can carry (its
-    Fac a constant, an Image Texture, or anything ``bake.py`` bakes)."""
-    return all(side is not None and side.type in MIXED_BSDFS for side in _mix_sides(node))
+    """A Mix Shader of two Principled, Diffuse, Glossy or Glass BSDFs, which a tessera:Layer
+    can carry (its Fac a constant, an Image Texture, or anything ``bake.py`` bakes)."""
+    return all(side is not None and side.type in LAYERED_BSDFS for side in _mix_sides(node))
 
 
 def clean(name: str) -> str:
@@ -454,24 +482,23 @@ def clean(name: str) -> str:
 
 
 def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
-    """A Mix Shader of two BSDFs as a tessera:Layer: Blender's export keeps one of them (with
-    its textures and the corrections above); the other is written as a UsdPreviewSurface of its
-    constant inputs, and the layer blends them by Fac (Cycles' mix is (1 − Fac)·first +
+    """A Mix Shader of two BSDFs as a tessera:Layer: Blender's export keeps one of them when it
+    is a Principled or Diffuse BSDF (with its textures and the corrections above); the other
+    is written here (a UsdPreviewSurface of its inputs, or a Glossy or Glass BSDF as its
+    ``STANDALONE`` surface), and the layer blends them by Fac (Cycles' mix is (1 − Fac)·first +
     Fac·second; the layer's `a` is the second, `mask` Fac). tessera:Layer blends parameters,
     which is Cycles' mix for the colours of Lambertian sides and an approximation for differing
     roughness (docs/blender.md)."""
     node = surface_node(material)
-    kept = surface_shader(prim, UsdShade)
-    if node is None or node.type != "MIX_SHADER" or not mixable(node) or not kept:
+    if node is None or node.type != "MIX_SHADER" or not mixable(node):
         return
+    kept = surface_shader(prim, UsdShade)
     first, second = _mix_sides(node)
-    exported_side = next((side for side in (first, second) if clean(side.name) == kept.GetPrim().GetName()), None)
-    if exported_side is None or first == second:
+    exported_side = _kept_side(node, kept)
+    if kept and (exported_side is None or first == second):
         exported.warnings.append(f"{material.name}: the Mix Shader's BSDFs could not be told apart in the export; only {kept.GetPrim().GetName()} is rendered")
         return
-    other = second if exported_side is first else first
-    built = _mixed_side(exported, material, prim, other, Sdf, UsdShade)
-    a, b = (built, kept) if other is second else (kept, built)
+    a, b = (kept if side is exported_side else _mixed_side(exported, material, prim, side, Sdf, UsdShade) for side in (second, first))
     layer = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild("TesseraMix"))
     layer.SetShaderId("tessera:Layer")
     layer.CreateInput("a", Sdf.ValueTypeNames.Token).ConnectToSource(a.ConnectableAPI(), "surface")
@@ -498,8 +525,11 @@ SIDE_PRINCIPLED = {
 def _mixed_side(exported, material, prim, node, Sdf, UsdShade):
     """`node` (a Principled or Diffuse BSDF) as a UsdPreviewSurface of its inputs: constants as
     they are, linked inputs baked (``bake.py``; one that cannot be is reported and its value
-    used)."""
+    used); a Glossy or Glass BSDF as its ``STANDALONE`` surface."""
     shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(node.name) + "_Mixed"))
+    if node.type in STANDALONE:
+        _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=node.name)
+        return shader
     shader.SetShaderId("UsdPreviewSurface")
     inputs = SIDE_PRINCIPLED if node.type == "BSDF_PRINCIPLED" else {"diffuseColor": "Color"}
     name = material.name
@@ -533,6 +563,11 @@ def _mask(exported, material, fac, mask, Sdf, UsdShade) -> None:
     if not fac.is_linked:
         mask.Set(float(fac.default_value))
         return
+    seen = [n for n in upstream(fac) if n.type in VIEW_DEPENDENT]
+    if seen:
+        exported.warnings.append(
+            f"{material.name}: the Mix Shader's Fac depends on the view through {', '.join(label(n) for n in seen)}, which an image cannot hold: it is baked as seen head-on"
+        )
     image = fac.links[0].from_node.image if fac.links[0].from_node.type == "TEX_IMAGE" else None
     if image is not None and not image.packed_file and image.source == "FILE":
         texture, channel = _image_texture(mask.GetPrim().GetParent(), fac.links[0], Sdf, UsdShade)
