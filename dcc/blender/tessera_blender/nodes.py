@@ -57,10 +57,13 @@ INPUT_TYPES = {"diffuseColor": "Color3f", "emissiveColor": "Color3f", "baseColor
 #: microfacet reflection tinted by Color with no Fresnel falloff (its OSL source: Color ×
 #: microfacet), a metal whose reflectivity is Color; UsdPreviewSurface's metal rises from
 #: diffuseColor to white at grazing angles (Schlick), which adds (1 − Color)/21 to its mean
-#: reflectance. Its Glass BSDF is a rough dielectric tinted by Color.
+#: reflectance. Its Glass BSDF is a rough dielectric tinted by Color; its Translucent BSDF
+#: Lambertian transmission of Color with no reflection (Principled's diffuse all transmitted,
+#: with no specular layer).
 STANDALONE = {
     "BSDF_GLOSSY": ("UsdPreviewSurface", {"metallic": 1.0}, {"diffuseColor": "Color", "roughness": "Roughness"}),
     "BSDF_GLASS": ("tessera:Principled", {"specTrans": 1.0}, {"baseColor": "Color", "roughness": "Roughness", "ior": "IOR"}),
+    "BSDF_TRANSLUCENT": ("tessera:Principled", {"diffTrans": 1.0, "specular": 0.0}, {"baseColor": "Color"}),
 }
 
 #: Microfacet distributions Tessera renders as they are (GGX, its energy compensated like
@@ -243,7 +246,7 @@ def _emptied(prim, shader, name, UsdShade):
 def _standalone_losses(node) -> list[str]:
     """What a Glossy or Glass BSDF has that its surface does not carry."""
     lost = []
-    if node.distribution not in GGX_DISTRIBUTIONS:
+    if getattr(node, "distribution", "GGX") not in GGX_DISTRIBUTIONS:
         lost.append(f"the {node.distribution.replace('_', ' ').title()} distribution of {label(node)} is rendered as GGX")
     for name in ("Anisotropy", "Thin Film Thickness"):
         socket = node.inputs.get(name)

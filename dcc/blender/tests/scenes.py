@@ -26,7 +26,7 @@ REGIONS = {
     "procedural_world": {0: "background", 1: "floor", 2: "sphere"},
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "spot": {1: "floor"},
-    "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere"},
+    "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
 
@@ -119,7 +119,8 @@ def procedural_planes(mat, add, directory):
 
 def shader_spheres_and_cutouts(mat, add, directory):
     """Shaders Blender's USD export drops, each a region: a Glossy BSDF sphere, a Glass BSDF
-    sphere, a Mix Shader of a blue Diffuse and a gold Glossy BSDF by Fac 0.4 on a third, and
+    sphere, a Mix Shader of a blue Diffuse and a gold Glossy BSDF by Fac 0.4 on a third, a green
+    Translucent BSDF plane standing between the camera and a point light, and
     two planes tilted towards the camera, each a Mix Shader of a Transparent BSDF and a red
     Principled BSDF: by Fac 0.6 (Transparent first), and by an image's alpha, 1 on its left half
     and 0.25 on its right (Transparent second), over a Lambertian floor."""
@@ -128,6 +129,10 @@ def shader_spheres_and_cutouts(mat, add, directory):
     add(bpy.ops.mesh.primitive_uv_sphere_add, glossy, 2, radius=0.8, location=(-2.6, 0, 0.8), segments=64, ring_count=32)
     glass = _standalone_material("glass", "ShaderNodeBsdfGlass", Roughness=0.0, IOR=1.5)
     add(bpy.ops.mesh.primitive_uv_sphere_add, glass, 3, radius=0.8, location=(-0.6, 0, 0.8), segments=64, ring_count=32)
+    translucent = _standalone_material("translucent", "ShaderNodeBsdfTranslucent", Color=(0.3, 0.8, 0.2, 1))
+    add(bpy.ops.mesh.primitive_plane_add, translucent, 7, size=1.6, location=(-1.4, 2.6, 1.2), rotation=(1.5708, 0, 0))
+    # Behind the translucent plane: what the camera sees of it is this light, transmitted.
+    bpy.ops.object.light_add(type='POINT', location=(-1.4, 3.6, 1.2)); bpy.context.object.data.energy = 100
     mix = _standalone_material("glossy mix", "ShaderNodeMixShader", Fac=0.4)
     tree = mix.node_tree
     blue, gold = _node(tree, "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.7, 1)), _node(tree, "ShaderNodeBsdfGlossy", Color=(0.9, 0.6, 0.3, 1), Roughness=0.2)
@@ -594,9 +599,9 @@ def node_trees(directory):
         link(tree, f.outputs[0], m.inputs["Fac"]); link(tree, d.outputs[0], m.inputs[1]); link(tree, g.outputs[0], m.inputs[2])
         link(tree, m.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
-    def translucent(tree, p):
-        # A Translucent BSDF: not carried, said, the default surface rendered.
-        t = tree.nodes.new("ShaderNodeBsdfTranslucent"); tree.nodes.remove(p)
+    def toon(tree, p):
+        # A Toon BSDF: not carried, said, the default surface rendered.
+        t = tree.nodes.new("ShaderNodeBsdfToon"); tree.nodes.remove(p)
         link(tree, t.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
 
     def beckmann_glass(tree, p):
@@ -625,7 +630,7 @@ def node_trees(directory):
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, translucent, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen)):
+    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen)):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
         bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))

@@ -97,6 +97,14 @@ pub enum Shape {
         /// Radiance.
         l: Vec3,
     },
+    /// A zero-radius `SphereLight`: the limit of a normalized sphere as its radius goes to 0,
+    /// which UsdLux's `treatAsPoint` names. A delta light no ray meets.
+    Point {
+        /// Position.
+        center: Vec3,
+        /// Radiant intensity, the same in every direction.
+        intensity: Vec3,
+    },
     /// Directional light from a cone of directions around `dir` (towards the light).
     Distant {
         /// Unit direction towards the light.
@@ -146,6 +154,12 @@ impl Shape {
             LightKind::Sphere { radius } => {
                 // A non-uniform scale makes an ellipsoid; we keep a sphere of equal volume.
                 let r = radius.abs() * xf.matrix3.determinant().abs().cbrt();
+                if r == 0.0 && normalize {
+                    // A normalized sphere emits π·l whatever its radius (radiance l/4πr² over
+                    // 4πr², a Lambertian π each): a point of intensity π·l/4π = l/4. Without
+                    // normalize its power, l·4πr²·π, is 0: it emits nothing (below).
+                    return Some(Shape::Point { center, intensity: l / 4.0 });
+                }
                 if !(r > 0.0) {
                     return None;
                 }
@@ -226,6 +240,7 @@ impl Shape {
         let disk = PI * scene_radius * scene_radius;
         match self {
             Shape::Sphere { radius, l, .. } => *l * (4.0 * PI * radius * radius * PI),
+            Shape::Point { intensity, .. } => *intensity * (4.0 * PI),
             Shape::Rect { area, l, .. } | Shape::Disk { area, l, .. } | Shape::Cylinder { area, l, .. } => *l * (area * PI),
             Shape::Triangle { area, l, .. } => *l * (2.0 * area * PI),
             Shape::Distant { one_minus_cos_half, l, .. } => {
@@ -246,6 +261,12 @@ impl Shape {
     pub fn sample(&self, ctx: &ShadingContext, u: Vec2) -> Option<LightSample> {
         match self {
             Shape::Sphere { center, radius, l } => sample_sphere(ctx.p, *center, *radius, *l, u),
+            Shape::Point { center, intensity } => {
+                let to = *center - ctx.p;
+                let d2 = to.length_squared();
+                let dist = d2.sqrt();
+                (dist > 0.0 && d2.is_finite()).then(|| LightSample { wi: to / dist, dist, li: *intensity / d2, pdf: 1.0, delta: true })
+            }
             Shape::Rect { center, u: a, v: b, n, area, l } => {
                 if n.dot(ctx.p - *center) <= 0.0 {
                     return None;
@@ -380,6 +401,8 @@ impl Shape {
             Shape::Dome { .. } if ctx.both_sides => 0.5 * wi.dot(ctx.n).abs() / PI,
             Shape::Dome { .. } => wi.dot(ctx.n).max(0.0) / PI,
             Shape::Environment { map, turn, .. } => map.pdf(turn.transpose() * wi),
+            // No direction finds a point: BSDF sampling never meets it.
+            Shape::Point { .. } => 0.0,
         }
     }
 
@@ -471,6 +494,8 @@ impl Shape {
             | Shape::Dome { l }
             | Shape::Environment { l, .. }
             | Shape::Triangle { l, .. } => *l,
+            // A point has no surface to see.
+            Shape::Point { .. } => Vec3::ZERO,
         }
     }
 }
@@ -606,6 +631,27 @@ mod tests {
         let e = irradiance(&s, ctx(Vec3::ZERO, Vec3::Z), 20_000);
         let expected = PI as f64 * 1e-4 / 4.0;
         assert!((e / expected - 1.0).abs() < 0.01, "{e} vs {expected}");
+    }
+
+    /// A normalized `SphereLight` of radius 0 (Blender 5's default point light, UsdLux's
+    /// `treatAsPoint`) is the limit of shrinking normalized spheres: each emits π·l, so the
+    /// point's irradiance at distance d, tilted by θ, is π·l/4π · cos θ/d² exactly, which a
+    /// 1e-3-radius sphere matches to its far-field error; with no normalize it emits nothing.
+    #[test]
+    fn a_zero_radius_sphere_is_the_point_its_normalized_spheres_tend_to() {
+        let at = Affine3A::from_translation(Vec3::new(0.0, 0.0, 2.0));
+        let point = Shape::new(LightKind::Sphere { radius: 0.0 }, &at, Vec3::splat(8.0), true).expect("a normalized point emits");
+        let tilted = ctx(Vec3::ZERO, Vec3::new(0.0, 0.6, 0.8));
+        let exact = 8.0 / 4.0 * 0.8 / 4.0;
+        let e = irradiance(&point, tilted, 4);
+        assert!((e - exact).abs() < 1e-6, "{e} vs {exact}");
+        let sphere = Shape::new(LightKind::Sphere { radius: 1e-3 }, &at, Vec3::splat(8.0), true).unwrap();
+        assert!((irradiance(&sphere, tilted, 20_000) / exact - 1.0).abs() < 1e-3);
+        assert!((point.power(1.0).x - 8.0 * PI).abs() < 1e-4 && (sphere.power(1.0).x - 8.0 * PI).abs() < 1e-3);
+        // Delta: no direction BSDF sampling finds meets it.
+        let s = point.sample(&tilted, Vec2::new(0.3, 0.7)).unwrap();
+        assert!(s.delta && point.pdf(&tilted, s.wi, s.dist) == 0.0 && point.intersect(tilted.p, s.wi, f32::INFINITY).is_none());
+        assert!(Shape::new(LightKind::Sphere { radius: 0.0 }, &at, Vec3::splat(8.0), false).is_none());
     }
 
     #[test]

@@ -87,6 +87,7 @@ impl LightBounds {
         let facing = |lo: Vec3, hi: Vec3, n: Vec3, two_sided: bool| LightBounds::new(lo, hi, phi, n, 1.0, 0.0, two_sided);
         Some(match *shape {
             Shape::Sphere { center, radius, .. } => all(center - Vec3::splat(radius), center + Vec3::splat(radius)),
+            Shape::Point { center, .. } => all(center, center),
             Shape::Rect { center, u, v, n, .. } | Shape::Disk { center, u, v, n, .. } => {
                 let e = u.abs() + v.abs();
                 facing(center - e, center + e, n, false)
