@@ -146,6 +146,7 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_displacement(exported, prim, Sdf, UsdShade)
     _correct_glass(exported, prim, Sdf, UsdShade)
     _correct_subsurface(exported, prim, Sdf, UsdShade)
+    _correct_coats(exported, prim, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
         # Last: the corrections above act on the BSDF the export kept, which the layer holds.
@@ -312,18 +313,7 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: subsurface is rendered as diffuse reflection ({why})")
         return
     _warn_if_displaced(exported, name, shader)
-    shader.SetShaderId("tessera:SolidDielectric")
-    for inp in list(shader.GetInputs()):
-        old = inp.GetBaseName()
-        new, kind = SOLID_DIELECTRIC_NAMES.get(old, (None, None))
-        if new and new != old:
-            moved = shader.CreateInput(new, getattr(Sdf.ValueTypeNames, kind))
-            if inp.HasConnectedSource():
-                moved.ConnectToSource(inp.GetConnectedSources()[0][0])
-            else:
-                moved.Set(inp.Get())
-        if new != old:
-            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+    _as_solid_dielectric(shader, Sdf)
     if node.subsurface_method == "RANDOM_WALK_SKIN":
         # Skin's own boundary index (Cycles' "Random Walk (Skin)" reads Subsurface IOR).
         shader.CreateInput("refractiveIndex", Sdf.ValueTypeNames.Float).Set(float(node.inputs["Subsurface IOR"].default_value))
@@ -337,6 +327,48 @@ def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(
         f"{prim.GetPath()}: subsurface (weight {weight.default_value:g}, mean free path {longest:g}) as tessera:SolidDielectric"
     )
+
+
+def _as_solid_dielectric(shader, Sdf) -> None:
+    """The UsdPreviewSurface `shader` rewritten as tessera:SolidDielectric, its inputs renamed
+    (``SOLID_DIELECTRIC_NAMES``), connections kept, the rest dropped; one already rewritten
+    is left as it is."""
+    if shader.GetIdAttr().Get() == "tessera:SolidDielectric":
+        return
+    shader.SetShaderId("tessera:SolidDielectric")
+    for inp in list(shader.GetInputs()):
+        old = inp.GetBaseName()
+        new, kind = SOLID_DIELECTRIC_NAMES.get(old, (None, None))
+        if new and new != old:
+            moved = shader.CreateInput(new, getattr(Sdf.ValueTypeNames, kind))
+            if inp.HasConnectedSource():
+                moved.ConnectToSource(inp.GetConnectedSources()[0][0])
+            else:
+                moved.Set(inp.Get())
+        if new != old:
+            shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
+
+
+def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
+    """A dielectric Principled BSDF's tinted coat, which UsdPreviewSurface cannot hold, on
+    tessera:SolidDielectric's (``nodes.coats_carried`` says when): Coat IOR as the coat's
+    index, Coat Tint as the colour a head-on pass through a coat of thickness 1 absorbs
+    towards (Cycles tints by Coat Tint to the power of the path length through the coat, 1
+    head-on)."""
+    name = _material_name(prim)
+    node = _principled_of(name)
+    shader = _surface_shader(prim, UsdShade) if node is not None else None
+    if not shader or not nodes.coats_carried(node):
+        return
+    _warn_if_displaced(exported, name, shader)
+    _as_solid_dielectric(shader, Sdf)
+    ior = float(node.inputs["Coat IOR"].default_value)
+    tint = tuple(float(c) for c in tuple(node.inputs["Coat Tint"].default_value)[:3])
+    shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
+    if tint != (1.0, 1.0, 1.0):
+        shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
+        shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
+    exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
 def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:

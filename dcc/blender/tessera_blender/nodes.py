@@ -83,20 +83,44 @@ def principled_losses(node) -> list[str]:
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
     linked = {i.name for i in node.inputs if i.is_linked}
     coat = "Coat Weight" in linked or float(value["Coat Weight"]) > 0.0
+    # A dielectric's tinted coat goes onto tessera:SolidDielectric's, its IOR too (export.py).
+    carried = coats_carried(node)
     white = (1.0, 1.0, 1.0)
     # (input, whether it matters at all, whether its value shows)
     rows = (
         ("Diffuse Roughness", True, float(value["Diffuse Roughness"]) > 0.0),
         ("Specular Tint", True, tuple(value["Specular Tint"])[:3] != white),
         ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
-        ("Coat IOR", coat, float(value["Coat IOR"]) != 1.5),
-        ("Coat Tint", coat, tuple(value["Coat Tint"])[:3] != white),
+        ("Coat IOR", coat and not carried, float(value["Coat IOR"]) != 1.5),
+        ("Coat Tint", coat and not carried, tuple(value["Coat Tint"])[:3] != white),
         ("Coat Normal", coat, False),
         ("Sheen Weight", True, float(value["Sheen Weight"]) > 0.0),
         ("Thin Film Thickness", True, float(value["Thin Film Thickness"]) > 0.0),
         ("Emission Strength", True, False),
     )
     return [name for name, matters, shows in rows if matters and (shows or name in linked)]
+
+
+#: Principled inputs whose links keep its coat off tessera:SolidDielectric's (constants only),
+#: and those that make it no dielectric.
+COAT_INPUTS = ("Coat Weight", "Coat Tint", "Coat IOR")
+NOT_DIELECTRIC = ("Metallic", "Transmission Weight")
+
+
+def coats_carried(node) -> bool:
+    """True when a Principled BSDF's tinted coat can be carried on tessera:SolidDielectric's
+    clearcoat: constants, on an opaque dielectric (no metal, no transmission, Alpha 1: the
+    shader has no opacity). Measured on the `coats` comparison scene: a tinted coat reads 0.967
+    of Cycles there (1.866 as UsdPreviewSurface's untinted coat). An untinted coat stays
+    UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 its Disney coat read 1.039,
+    SolidDielectric's 0.960, no nearer. The sheen is not carried either: SolidDielectric's
+    Charlie sheen read 1.63 of Cycles' microfiber sheen on a dark red sphere, 0.67 without it."""
+    value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
+    if any(node.inputs[n].is_linked for n in COAT_INPUTS + NOT_DIELECTRIC + ("Alpha",)) or float(value["Alpha"]) < 1.0:
+        return False
+    if any(float(value[n]) > 0.0 for n in NOT_DIELECTRIC):
+        return False
+    return float(value["Coat Weight"]) > 0.0 and tuple(value["Coat Tint"])[:3] != (1.0, 1.0, 1.0)
 
 
 def active_output(tree):

@@ -27,6 +27,7 @@ REGIONS = {
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "spot": {1: "floor"},
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
+    "coats": {1: "floor", 2: "tinted coat sphere"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
 
@@ -291,7 +292,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -307,6 +308,16 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
         cam = (0, -7, 2); rot = (1.5708, 0, 0)
+    elif kind == "coats":
+        # A Principled BSDF's orange-tinted coat, which UsdPreviewSurface cannot hold, over a
+        # grey Lambertian base (IOR 1): written as tessera:SolidDielectric's clearcoat.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+        m = mat("tinted coat", (0.6, 0.6, 0.6))
+        for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat Tint": (0.9, 0.5, 0.2, 1)}.items():
+            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(0, 0, 1.0), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
         # The `glass` scene's sun: lower, the glass sphere's shadow holds a caustic, which
