@@ -23,11 +23,13 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
-* Node trees: an Emission shader, a Glossy or Glass BSDF, a Transparent BSDF mixed into a BSDF,
-  a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an Emission Strength on an
-  image and a Mix Shader of two BSDFs are corrected; an
-  input driven by nodes the export drops or skips (procedural textures, Color Ramps, Math) is
-  baked into an image (``bake.py``); whatever else is reported (``nodes.py``).
+* Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
+  ``tessera:SolidDielectric``'s absorbing clearcoat (``_correct_coats``).
+* Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
+  mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
+  Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
+  by nodes the export drops or skips (procedural textures, Color Ramps, Math) is baked into an
+  image (``bake.py``); whatever else is reported (``nodes.py``).
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
 * Principled inputs UsdPreviewSurface has no place for (sheen, anisotropy, tints, thin film)
   are not written, nor is a Normal Map's Strength.
 
-The corrections here: an Emission shader becomes the emissive surface it is, a Glossy or
-Glass BSDF the metal or glass it is, a Transparent BSDF mixed into a BSDF that BSDF's opacity
+The corrections here: an Emission shader becomes the emissive surface it is, a Glossy, Glass
+or Translucent BSDF the metal, glass or translucent sheet it is, a Transparent BSDF mixed into a BSDF that BSDF's opacity
 (present or absent, not clear glass), a Diffuse BSDF loses the specular layer
 UsdPreviewSurface would add, a Bump over an image becomes a
 tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, as does
@@ -110,8 +110,8 @@ NOT_DIELECTRIC = ("Metallic", "Transmission Weight")
 def coats_carried(node) -> bool:
     """True when a Principled BSDF's tinted coat can be carried on tessera:SolidDielectric's
     clearcoat: constants, on an opaque dielectric (no metal, no transmission, Alpha 1: the
-    shader has no opacity). Measured on the `coats` comparison scene: a tinted coat reads 0.967
-    of Cycles there (1.866 as UsdPreviewSurface's untinted coat). An untinted coat stays
+    shader has no opacity). Measured on the `coats` comparison scene: a tinted coat reads 0.958
+    of Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat stays
     UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 its Disney coat read 1.039,
     SolidDielectric's 0.960, no nearer. The sheen is not carried either: SolidDielectric's
     Charlie sheen read 1.63 of Cycles' microfiber sheen on a dark red sphere, 0.67 without it."""
@@ -227,7 +227,8 @@ def _kept_side(node, shader):
 
 
 def _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
-    """A Glossy or Glass BSDF (``STANDALONE``), which the export drops, as the surface it is: its
+    """A Glossy, Glass or Translucent BSDF (``STANDALONE``), which the export drops, as the
+    surface it is: its
     constant inputs written, its linked ones (a normal included) baked as any BSDF's are."""
     shader = _emptied(prim, shader, clean(node.name), UsdShade)
     _fill_standalone(exported, material, node, shader, Sdf, UsdShade)
@@ -236,8 +237,8 @@ def _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade) -> 
 
 
 def _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=None) -> None:
-    """Writes the Glossy or Glass BSDF `node` into the empty `shader` (``STANDALONE``); `owner`
-    tells its baked inputs apart from another side's in a mix."""
+    """Writes the Glossy, Glass or Translucent BSDF `node` into the empty `shader`
+    (``STANDALONE``); `owner` tells its baked inputs apart from another side's in a mix."""
     shader_id, fixed, inputs = STANDALONE[node.type]
     shader.SetShaderId(shader_id)
     for usd_name, value in fixed.items():
@@ -268,7 +269,7 @@ def _emptied(prim, shader, name, UsdShade):
 
 
 def _standalone_losses(node) -> list[str]:
-    """What a Glossy or Glass BSDF has that its surface does not carry."""
+    """What a Glossy, Glass or Translucent BSDF has that its surface does not carry."""
     lost = []
     if getattr(node, "distribution", "GGX") not in GGX_DISTRIBUTIONS:
         lost.append(f"the {node.distribution.replace('_', ' ').title()} distribution of {label(node)} is rendered as GGX")
@@ -482,7 +483,6 @@ def add_bump(shader, texture, channel, scale, Sdf, UsdShade):
     return bump.GetPath()
 
 
-#: BSDFs a Mix Shader may mix for the add-on to carry it.
 #: BSDFs the export writes (one of them, when a Mix Shader mixes two).
 MIXED_BSDFS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE")
 #: BSDFs a tessera:Layer's side can be: the exported ones, and those written as ``STANDALONE``.
@@ -498,8 +498,8 @@ def _mix_sides(node):
 
 
 def mixable(node) -> bool:
-    """A Mix Shader of two Principled, Diffuse, Glossy or Glass BSDFs, which a tessera:Layer
-    can carry (its Fac a constant, an Image Texture, or anything ``bake.py`` bakes)."""
+    """A Mix Shader of two Principled, Diffuse, Glossy, Glass or Translucent BSDFs, which a
+    tessera:Layer can carry (its Fac a constant, an Image Texture, or anything ``bake.py`` bakes)."""
     return all(side is not None and side.type in LAYERED_BSDFS for side in _mix_sides(node))
 
 
@@ -511,8 +511,8 @@ def clean(name: str) -> str:
 def mix_as_layer(exported, prim, material, Sdf, UsdShade) -> None:
     """A Mix Shader of two BSDFs as a tessera:Layer: Blender's export keeps one of them when it
     is a Principled or Diffuse BSDF (with its textures and the corrections above); the other
-    is written here (a UsdPreviewSurface of its inputs, or a Glossy or Glass BSDF as its
-    ``STANDALONE`` surface), and the layer blends them by Fac (Cycles' mix is (1 − Fac)·first +
+    is written here (a UsdPreviewSurface of its inputs, or a Glossy, Glass or Translucent BSDF as
+    its ``STANDALONE`` surface), and the layer blends them by Fac (Cycles' mix is (1 − Fac)·first +
     Fac·second; the layer's `a` is the second, `mask` Fac). tessera:Layer blends parameters,
     which is Cycles' mix for the colours of Lambertian sides and an approximation for differing
     roughness (docs/blender.md)."""
@@ -552,7 +552,7 @@ SIDE_PRINCIPLED = {
 def _mixed_side(exported, material, prim, node, Sdf, UsdShade):
     """`node` (a Principled or Diffuse BSDF) as a UsdPreviewSurface of its inputs: constants as
     they are, linked inputs baked (``bake.py``; one that cannot be is reported and its value
-    used); a Glossy or Glass BSDF as its ``STANDALONE`` surface."""
+    used); a Glossy, Glass or Translucent BSDF as its ``STANDALONE`` surface."""
     shader = UsdShade.Shader.Define(prim.GetStage(), prim.GetPath().AppendChild(clean(node.name) + "_Mixed"))
     if node.type in STANDALONE:
         _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=node.name)
