@@ -141,7 +141,8 @@ AGREE = [
     ("sky_world", "sphere"),
     # A spot light straight down onto a Lambertian floor, Spot Blend 0.6, written as the cone
     # softness that gives Cycles' smoothstep (0.3733). Measured at 128 spp: 1.000; with the
-    # blend written as the softness (the export's), 0.827.
+    # blend written as the softness (the export's), 0.827. Its Radius is 0 (Blender 5's
+    # default), a point light since 2026-12-07 (1.000; before, skipped as emitting nothing).
     ("spot", "floor"),
 ]
 

@@ -474,9 +474,11 @@ def build(kind, directory):
         cam = (0, -5, 4); rot = (0.9, 0, 0)
     elif kind == "spot":
         # One spot light straight down, a wide blend: its falloff decides how much light lands.
+        # Radius 0, Blender 5's default: a point light in Tessera (the `linked` scene's spot
+        # has a radius).
         add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=10)
         bpy.ops.object.light_add(type='SPOT', location=(0, 0, 3)); s = bpy.context.object.data
-        s.energy, s.spot_size, s.spot_blend, s.shadow_soft_size = 300, 1.2, 0.6, 0.05
+        s.energy, s.spot_size, s.spot_blend, s.shadow_soft_size = 300, 1.2, 0.6, 0.0
         cam = (0, -6, 5); rot = (0.9, 0, 0)
     elif kind in ("world", "procedural_world", "sky_world"):
         add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
