@@ -144,7 +144,7 @@ impl LightBounds {
         }
         let v = p - self.center;
         let dist2 = v.length_squared();
-        let d2 = dist2.max(self.radius);
+        let d2 = dist2.max(self.radius).max(MIN_DIST2);
         if self.cos_o <= -1.0 && self.cos_e <= 0.0 {
             // Emitters facing every way (spheres, cylinders): the emitter's cosine bound is 1
             // and only the receiver's remains. The hot case of many point-like lights.
@@ -180,6 +180,11 @@ fn receiver_cos(wi: Vec3, n: Vec3, sin_b: f32, cos_b: f32) -> f32 {
     let cos_i = wi.dot(n).abs();
     cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b).max(0.0)
 }
+
+/// The least squared distance a cluster's importance divides by: a point light's bounds have
+/// no size, and a shading point exactly on one (or on a cluster of them) would weigh it
+/// infinitely, so that every other light's probability came out 0 or NaN.
+pub(super) const MIN_DIST2: f32 = 1e-12;
 
 /// [`receiver_cos`] for a bounding sphere of squared radius `r2` whose centre lies at
 /// `p − v`, `t = |v|²` away, without normalising: with a = |v·n| (|v| cos θi), the normal is
@@ -755,6 +760,28 @@ mod tests {
             }
         }
         assert!(compared > 50_000, "{compared} nonzero probabilities compared");
+    }
+
+    /// Point lights (zero-radius spheres) have bounds of no size: a shading point exactly on
+    /// one, or a hair away, must still get finite probabilities that sum to one.
+    #[test]
+    fn a_point_on_a_point_light_gets_finite_probabilities() {
+        let lights: Vec<_> =
+            (0..9).map(|i| (Shape::Point { center: Vec3::new(i as f32, 1.0, 0.0), intensity: Vec3::ONE }, 1.0 + i as f32)).collect();
+        let t = tree_of(&lights);
+        for p in [Vec3::new(3.0, 1.0, 0.0), Vec3::new(3.0, 1.0 + 1e-20, 0.0), Vec3::new(3.0, 1.0 + 1e-6, 0.0)] {
+            // A normal off the lights' line, so that none lies on the receiver's horizon (where
+            // a walk may end with no light, which is right there).
+            let tilted = Vec3::ONE.normalize();
+            for (n, budget) in [(tilted, 1), (Vec3::ZERO, 1), (tilted, 4)] {
+                let pmfs: Vec<f32> = (0..lights.len()).map(|i| t.pmf(p, n, i, budget)).collect();
+                assert!(pmfs.iter().all(|q| q.is_finite() && *q >= 0.0), "{pmfs:?} at {p}");
+                if budget == 1 {
+                    let total: f32 = pmfs.iter().sum();
+                    assert!((total - 1.0).abs() < 1e-4 || total == 0.0, "Σ pmf = {total} at {p}, n {n}");
+                }
+            }
+        }
     }
 
     /// The probabilities of all lights sum to one, and sampling picks each light as often as

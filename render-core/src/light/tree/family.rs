@@ -186,7 +186,7 @@ mod avx {
         phi: __m256,
         r2: __m256,
         dist2: __m256,
-        /// `dist2.max(radius)`.
+        /// `dist2.max(radius).max(MIN_DIST2)`.
         d2: __m256,
     }
 
@@ -203,8 +203,9 @@ mod avx {
             ];
             let (phi, radius) = (load(&b.phi), load(&b.radius));
             let dist2 = dot(v, v);
-            // `dist2.max(radius)`: maxps returns `radius` when `dist2` is NaN, as Rust does.
-            let d2 = _mm256_max_ps(dist2, radius);
+            // `dist2.max(radius).max(MIN_DIST2)`: maxps returns its second operand when the
+            // first is NaN, as Rust's max does.
+            let d2 = _mm256_max_ps(_mm256_max_ps(dist2, radius), splat(super::super::MIN_DIST2));
             let at = Receiver {
                 v,
                 n: [splat(n.x), splat(n.y), splat(n.z)],
