@@ -102,6 +102,8 @@ AGREE = [
     ("shaders", "translucent plane"),
     # The floor beside the coated sphere (its Lambertian base and the sun): 1.003.
     ("coats", "floor"),
+    # The floor under the hair patches, their shadows on it: 0.991.
+    ("hair", "floor"),
     ("procedural", "noise ramp plane"),
     ("procedural", "small gradient plane"),
     ("procedural", "large gradient plane"),
@@ -169,6 +171,15 @@ DIFFER = {
     # min(1 − E(μo), 1 − E(μi)) from the base beneath (docs/materials.md, Coats), darker than
     # Cycles' coat.
     ("coats", "tinted coat sphere"): (0.93, 0.99, "coat layering: Kulla & Conty's coat takes more from the base than Cycles'"),
+    # Hair curves (BasisCurves) whose Principled Hair BSDFs are written as tessera:Hair, both
+    # Chiang et al.'s fibre: melanin 0.3 read 0.954 and a direct colour (0.6, 0.3, 0.1) 0.836
+    # at 64 spp, 288 × 216 (0.958 and 0.836 at the test's size); as the default grey tubes the
+    # export leaves, 0.825 and 0.270. Light hair scatters many times between fibres, and the
+    # bounce budgets differ (Tessera's 8 events against Cycles' 8 of each kind): at 32 in both,
+    # 0.961 and 0.914, no nearer at 128. The rest is not pinned down (Tessera's fibres are
+    # 12-sided tubes; Cycles' are round).
+    ("hair", "melanin hair"): (0.92, 1.0, "Chiang's fibre in both; tube facets and the rest unexplained (docs/blender.md)"),
+    ("hair", "coloured hair"): (0.78, 0.90, "bounce budgets between fibres, and the melanin hair's gap (docs/blender.md)"),
 }
 
 
@@ -248,7 +259,7 @@ def inner_pixels(regions, index):
 
 def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
     out, r = results
-    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats")
+    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "hair")
     ratios = {(k, n): v for k in r if k in kinds for n, v in region_ratios(out, k, r[k]["regions"]).items()}
     for key in AGREE:
         # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of

@@ -15,7 +15,8 @@ Measured on bpy 5.0.1 (``generate_preview_surface``):
   are not written, nor is a Normal Map's Strength.
 
 The corrections here: an Emission shader becomes the emissive surface it is, a Glossy, Glass
-or Translucent BSDF the metal, glass or translucent sheet it is, a Transparent BSDF mixed into a BSDF that BSDF's opacity
+or Translucent BSDF the metal, glass or translucent sheet it is, a Principled Hair BSDF
+tessera:Hair, a Transparent BSDF mixed into a BSDF that BSDF's opacity
 (present or absent, not clear glass), a Diffuse BSDF loses the specular layer
 UsdPreviewSurface would add, a Bump over an image becomes a
 tessera:Bump over it, a Normal Map's Strength goes into its texture's scale and bias, as does
@@ -27,6 +28,7 @@ else is reported, once a material.
 
 from __future__ import annotations
 
+import math
 import re
 
 import bpy
@@ -189,6 +191,8 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade)
     elif node.type in STANDALONE:
         _write_standalone(exported, material, prim, node, shader, Sdf, UsdShade)
+    elif node.type == "BSDF_HAIR_PRINCIPLED":
+        _write_hair(exported, material, prim, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and _cutout_sides(node) and shader:
         _correct_cutout(exported, material, node, shader, Sdf, UsdShade)
     elif node.type == "MIX_SHADER" and mixable(node):
@@ -278,6 +282,57 @@ def _standalone_losses(node) -> list[str]:
         if socket is not None and (socket.is_linked or float(socket.default_value) != 0.0):
             lost.append(f"the {name} of {label(node)} is not carried")
     return lost
+
+
+#: tessera:Hair's inputs from a Principled Hair BSDF's, for each colour parametrization (both
+#: are Chiang et al. 2016's fibre with Cycles' inputs, docs/materials.md): melanin, its
+#: redness and a tint; an absorption coefficient; or a colour, which tessera:Hair's `tint`
+#: turns into absorption by Chiang's fit as Cycles' direct colouring does.
+HAIR_COLOUR = {
+    "MELANIN": {"melanin": "Melanin", "melaninRedness": "Melanin Redness", "tint": "Tint"},
+    "ABSORPTION": {"absorptionCoefficient": "Absorption Coefficient"},
+    "COLOR": {"tint": "Color"},
+}
+#: Inputs every parametrization shares; the Huang model's lobe weights as tessera:Hair's tints
+#: (Chiang's model shows none).
+HAIR_SHARED = {"roughness": "Roughness", "radialRoughness": "Radial Roughness", "ior": "IOR"}
+HAIR_LOBES = {"tintR": "Reflection", "tintTT": "Transmission", "tintTRT": "Secondary Reflection"}
+
+
+def _write_hair(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
+    """A Principled Hair BSDF, which the export drops, as tessera:Hair: its colour by its
+    parametrization (no melanin unless it is Melanin's), roughnesses, IOR, the Offset in
+    degrees, the lobes' weights as their tints. Linked inputs, a Coat, random colour and
+    roughness and the Huang model are reported."""
+    shader = _emptied(prim, shader, clean(node.name), UsdShade)
+    shader.SetShaderId("tessera:Hair")
+    inputs = HAIR_COLOUR[node.parametrization] | HAIR_SHARED
+    if node.parametrization != "MELANIN":
+        shader.CreateInput("melanin", Sdf.ValueTypeNames.Float).Set(0.0)
+    for usd_name, blender_name in inputs.items():
+        value = node.inputs[blender_name].default_value
+        if hasattr(value, "__len__"):
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
+        else:
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+    # Blender finds only the inputs its model shows by name (Chiang's has no lobe weights,
+    # Huang's no Coat).
+    lobes = {usd_name: node.inputs.get(blender_name) for usd_name, blender_name in HAIR_LOBES.items()}
+    for usd_name, socket in lobes.items():
+        if socket is not None:
+            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set((float(socket.default_value),) * 3)
+    offset = math.degrees(float(node.inputs["Offset"].default_value))
+    shader.CreateInput("offset", Sdf.ValueTypeNames.Float).Set(offset)
+    shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
+    exported.corrections.append(f"{prim.GetPath()}: Principled Hair BSDF ({node.parametrization.title()}) as tessera:Hair")
+    used = [node.inputs[name] for name in list(inputs.values()) + ["Offset"]] + [s for s in lobes.values() if s is not None]
+    lost = [f"{s.name} is linked" for s in used if s.is_linked]
+    extras = [node.inputs.get(name) for name in ("Coat", "Random Color", "Random Roughness")]
+    lost += [f"{s.name} {float(s.default_value):g}" for s in extras if s is not None and (s.is_linked or float(s.default_value) > 0.0)]
+    if node.model != "CHIANG":
+        lost.append(f"the {node.model.title()} model (rendered as Chiang's)")
+    if lost:
+        exported.warnings.append(f"{material.name}: the Principled Hair BSDF's {', '.join(lost)}: not carried")
 
 
 def _cutout_sides(node):

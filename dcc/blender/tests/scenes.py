@@ -28,6 +28,7 @@ REGIONS = {
     "spot": {1: "floor"},
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere"},
+    "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
 
@@ -116,6 +117,35 @@ def procedural_planes(mat, add, directory):
     sphere.data.uv_layers.remove(sphere.data.uv_layers[0])
     subdivision = sphere.modifiers.new("Subdivision", "SUBSURF"); subdivision.levels = subdivision.render_levels = 2
     bpy.ops.object.shade_smooth()
+
+
+def hair_patch(index, x, parametrization, **inputs):
+    """A patch of 600 hair curves (six points each, 1.5 cm wide, leaning along +x) centred at
+    `x`, with a Principled Hair BSDF of `parametrization` and `inputs`."""
+    rng = np.random.default_rng(index)
+    n, k = 600, 6
+    curves = bpy.data.hair_curves.new(f"hair {index}")
+    curves.add_curves([k] * n)
+    roots = rng.uniform(-0.6, 0.6, (n, 2))
+    along = np.arange(k) / (k - 1)
+    pos = np.zeros((n, k, 3), np.float32)
+    pos[..., 0] = x + roots[:, :1] + 0.3 * along ** 2
+    pos[..., 1] = roots[:, 1:]
+    pos[..., 2] = 1.0 * along
+    curves.attributes["position"].data.foreach_set("vector", pos.ravel())
+    radius = curves.attributes.get("radius") or curves.attributes.new("radius", "FLOAT", "POINT")
+    radius.data.foreach_set("value", np.full(n * k, 0.0075, np.float32))
+    obj = bpy.data.objects.new(f"hair {index}", curves)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.pass_index = index
+    m = bpy.data.materials.new(f"hair {index}"); tree = m.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    # The parametrization first: Blender does not find the inputs of another one by name.
+    hair = tree.nodes.new("ShaderNodeBsdfHairPrincipled"); hair.parametrization = parametrization
+    for name, value in inputs.items():
+        hair.inputs[name].default_value = value
+    tree.links.new(hair.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    curves.materials.append(m)
 
 
 def shader_spheres_and_cutouts(mat, add, directory):
@@ -292,7 +322,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -308,6 +338,14 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
         cam = (0, -7, 2); rot = (1.5708, 0, 0)
+    elif kind == "hair":
+        # Two patches of hair curves (exported as BasisCurves) whose Principled Hair BSDFs the
+        # add-on writes as tessera:Hair: by melanin, and by colour (direct colouring).
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+        hair_patch(2, -0.9, parametrization="MELANIN", Melanin=0.3)
+        hair_patch(3, 0.9, parametrization="COLOR", Color=(0.6, 0.3, 0.1, 1))
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -5, 1.6); rot = (1.35, 0, 0)
     elif kind == "coats":
         # A Principled BSDF's orange-tinted coat, which UsdPreviewSurface cannot hold, over a
         # grey Lambertian base (IOR 1): written as tessera:SolidDielectric's clearcoat.
