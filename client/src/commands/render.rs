@@ -197,25 +197,29 @@ impl FrameSession {
                 if items.is_empty() { None } else { Some(self.conn.sync(items).await) }
             }
         };
+        let mut said = Vec::new();
         if let Some(sync) = synced {
             let sync = sync.with_context(|| format!("{}: the server rejected the scene", job.scene.display()))?;
             for w in &sync.warnings {
                 eprintln!("warning: {w}");
             }
+            said = sync.warnings;
         }
         self.held = Some(translation);
         let translation = self.held.as_ref().expect("just set");
-        render_synced(job, &mut self.conn, translation, t0.elapsed().as_secs_f64()).await
+        render_synced(job, &mut self.conn, translation, t0.elapsed().as_secs_f64(), &said).await
     }
 }
 
-/// Renders the scene the session holds and writes the outputs; prints the plan, warnings,
+/// Renders the scene the session holds and writes the outputs; prints the plan, warnings
+/// (but those the scene's sync already printed, `said`: the render repeats the commit's),
 /// progress and one summary line.
 async fn render_synced(
     job: &RenderJob,
     conn: &mut Connection,
     translation: &crate::usd::Translation,
     load_secs: f64,
+    said: &[String],
 ) -> Result<RenderReport> {
     let options = &with_denoise_guides(resolve_options(&job.options, translation));
     // Before rendering: a missing library should not cost the render. The same device then
@@ -244,7 +248,7 @@ async fn render_synced(
                     say(line.to_string());
                 }
             }
-            for w in &s.warnings {
+            for w in s.warnings.iter().filter(|w| !said.contains(w)) {
                 say(format!("warning: {w}"));
             }
         }

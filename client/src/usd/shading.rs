@@ -87,7 +87,7 @@ impl Reader<'_> {
             if self.material_from_document(path)? {
                 return Ok(());
             }
-            self.out.warnings.push(format!("{path}: material has no surface shader; the default material is used"));
+            // The empty network goes on: resolving it reports the missing surface, once.
             self.out.materials.push((path.to_string(), network));
             return Ok(());
         };
