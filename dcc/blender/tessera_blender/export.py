@@ -118,7 +118,9 @@ def _correct_stage(exported: Export, scene) -> None:
         if name_attr and name_attr.HasValue():
             obj = bpy.data.objects.get(name_attr.Get())
             exported.xforms[name_attr.Get()] = str(prim.GetPath())
-            children = [c for c in prim.GetChildren() if c.GetTypeName() in ("Mesh", "Camera") or c.HasAPI(UsdLux.LightAPI)]
+            # Hair curves and points too: the server holds them as meshes under their prims'
+            # paths, so a move is a transform delta.
+            children = [c for c in prim.GetChildren() if c.GetTypeName() in ("Mesh", "BasisCurves", "Points", "Camera") or c.HasAPI(UsdLux.LightAPI)]
             exported.prims.setdefault(name_attr.Get(), []).extend(str(c.GetPath()) for c in children)
             for child in children:
                 if obj is not None and obj.type == "LIGHT" and child.HasAPI(UsdLux.LightAPI):

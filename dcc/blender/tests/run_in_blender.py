@@ -37,10 +37,6 @@ def regions_of(scene, exported):
         elif isinstance(e, tessera.Tile):
             fb.add(e)
     owner = {p: name for name, prims in exported.prims.items() for p in prims}
-    # Prims the add-on does not list for edits (hair curves) belong to the object whose Xform
-    # holds them.
-    for path in table:
-        owner.setdefault(path, next((name for name, xform in exported.xforms.items() if path.startswith(xform + "/")), ""))
     ids = fb.layers["primId"][..., 0].astype(int)
     index = np.zeros_like(ids)
     for k, path in enumerate(table, start=1):
