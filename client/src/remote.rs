@@ -363,6 +363,12 @@ impl Connection {
 
     /// Closes the session.
     pub async fn close(mut self) -> Result<()> {
+        self.close_session().await
+    }
+
+    /// Closes the session, keeping the connection (a holder that cannot give it up, such as a
+    /// Python session object, closes through this).
+    pub async fn close_session(&mut self) -> Result<()> {
         self.client.close_session(pb::CloseSessionRequest { session_id: self.session.clone() }).await.map_err(status_error)?;
         Ok(())
     }

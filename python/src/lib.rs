@@ -13,7 +13,7 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use tessera::live::{LiveSession, SentPrim};
-use tessera::remote::{Connection, Credentials};
+use tessera::remote::{Connection, Credentials, ServerError};
 use tokio::runtime::Runtime;
 
 create_exception!(_native, TesseraError, PyException, "A render server or scene error, with the server's message.");
@@ -68,6 +68,7 @@ impl Client {
             creds: self.creds.clone(),
             id,
             live: Arc::new(tokio::sync::Mutex::new(LiveSession::new(conn))),
+            closed: std::sync::atomic::AtomicBool::new(false),
         })
     }
 
@@ -88,6 +89,8 @@ struct Session {
     creds: Credentials,
     id: String,
     live: Arc<tokio::sync::Mutex<LiveSession>>,
+    /// Set once `close` has run.
+    closed: std::sync::atomic::AtomicBool,
 }
 
 impl Session {
@@ -109,6 +112,20 @@ impl Session {
     #[getter]
     fn id(&self) -> String {
         self.id.clone()
+    }
+
+    /// Closes the session on the server, freeing its scene and its place among the server's
+    /// sessions (an unclosed one lingers until the server's idle timeout). Closing twice, or
+    /// after the server reaped it, does nothing.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        if self.closed.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            return Ok(());
+        }
+        let live = self.live.clone();
+        match py.detach(|| self.rt.block_on(async move { live.lock().await.conn.close_session().await })) {
+            Err(e) if e.downcast_ref::<ServerError>().is_some_and(|s| s.code == tonic::Code::NotFound) => Ok(()),
+            other => other.map_err(py_err),
+        }
     }
 
     /// Translates a USD file at `frame` and syncs it: everything the first time, afterwards

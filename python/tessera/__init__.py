@@ -207,6 +207,18 @@ class Session:
         """Stop this session's render; True when one was running."""
         return self._native.cancel()
 
+    def close(self) -> None:
+        """Close the session on the server, freeing its scene and its place among the server's
+        sessions (one left open lingers until the server's idle timeout). Closing twice does
+        nothing. ``with client.session() as s:`` closes it on leaving the block."""
+        self._native.close()
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
 
 class Client:
     """A connection to a render server; without a URL, an embedded server in this process."""

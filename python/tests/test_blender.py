@@ -438,6 +438,10 @@ def test_moving_an_object_sends_one_transform_delta(results):
     assert i["sent"] == [{"path": "/root/Sphere/Sphere", "kind": "mesh", "dirty": ["transform"], "chunks": 0}], i
     assert not i["reexport"] and i["image_changed"], i
     assert i["first_tile_pixel_size"] == 8, "the first image after an edit is a coarse one"
+    # Hair curves move the same way: the server holds them as a mesh under their prim's path.
+    m = r["hair_move"]
+    assert m["sent"] == [{"path": "/root/hair_2/hair_2", "kind": "mesh", "dirty": ["transform"], "chunks": 0}], m
+    assert not m["reexport"], m
 
 
 def test_errors_reach_the_artist(results):

@@ -181,3 +181,18 @@ def test_denoise_lowers_the_error_of_a_16_spp_render(client):
     assert rel(denoised) < 0.5 * rel(raw[..., :3]), (rel(denoised), rel(raw[..., :3]))
     with pytest.raises(tessera.TesseraError, match="albedo holds"):
         tessera.denoise(raw, noisy.layers["albedo"][:10], noisy.layers["normal"])
+
+
+def test_closing_sessions_frees_their_places_on_the_server():
+    """The server holds at most 64 sessions (its registry's limit); one never closed lingers
+    until the idle timeout (ten minutes). A client that closes each session, as the Blender
+    add-on does after every render, opens as many as it likes; closing twice does nothing."""
+    with tessera.Client() as c:
+        for _ in range(70):
+            with c.session() as s:
+                s.close()
+        held = [c.session() for _ in range(64)]
+        with pytest.raises(tessera.TesseraError, match="64 sessions are open"):
+            c.session()
+        held[0].close()
+        c.session().close()

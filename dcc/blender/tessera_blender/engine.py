@@ -94,7 +94,6 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.exported = None
-        self.session = None
         self.viewport = None
 
     # --- final renders -------------------------------------------------------------------
@@ -120,9 +119,14 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
     def _render(self, depsgraph):
         if isinstance(self.exported, Exception) or self.exported is None:
             raise RuntimeError(f"exporting the scene failed: {self.exported}")
+        # One session a render, closed when it ends: the server holds at most 64 sessions,
+        # and an unclosed one lingers there until its idle timeout (ten minutes).
+        with client_for(preferences()).session("blender") as session:
+            self._render_in(session, depsgraph)
+
+    def _render_in(self, session, depsgraph):
         scene = depsgraph.scene
         width, height = resolution(scene)
-        session = client_for(preferences()).session("blender")
         session.sync_usd(self.exported.path)
         for w in self.exported.warnings:
             self.report({"WARNING"}, f"Tessera: {w}")
@@ -151,7 +155,6 @@ class TesseraRenderEngine(bpy.types.RenderEngine):
                 break
         if denoise and not cancelled:
             self._write_denoised(image, depsgraph.view_layer)
-        self.session = session
 
     def _write_denoised(self, image, view_layer) -> None:
         """The denoised beauty as Combined, the raw one as Noisy Image (Cycles' convention)."""

@@ -122,3 +122,4 @@ class Viewport:
             self.session.cancel()
             self.thread.join(timeout=5)
             self.thread = None
+        self.session.close()

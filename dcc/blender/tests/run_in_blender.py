@@ -28,14 +28,14 @@ def regions_of(scene, exported):
     on the same export made opaque: the geometry is the same in both renderers, ids are exact
     labels, and a partly present surface (a Transparent BSDF's mix) covers its whole shape
     rather than the share of pixels whose one sample found it."""
-    session = engine.client_for(None).session("regions")
-    session.sync_usd(_opaque_copy(exported.path))
-    fb, table = None, []
-    for e in session.render(scene.render.resolution_x, scene.render.resolution_y, spp=1, aovs=["primId"]):
-        if isinstance(e, tessera.Started):
-            fb, table = tessera.Framebuffer(e.width, e.height), e.prim_paths
-        elif isinstance(e, tessera.Tile):
-            fb.add(e)
+    with engine.client_for(None).session("regions") as session:
+        session.sync_usd(_opaque_copy(exported.path))
+        fb, table = None, []
+        for e in session.render(scene.render.resolution_x, scene.render.resolution_y, spp=1, aovs=["primId"]):
+            if isinstance(e, tessera.Started):
+                fb, table = tessera.Framebuffer(e.width, e.height), e.prim_paths
+            elif isinstance(e, tessera.Tile):
+                fb.add(e)
     owner = {p: name for name, prims in exported.prims.items() for p in prims}
     ids = fb.layers["primId"][..., 0].astype(int)
     index = np.zeros_like(ids)
@@ -139,26 +139,14 @@ def interactive():
         return fb.layers["beauty"]
 
     before = image()
-    # Blender hands a depsgraph with its updates to view_update (and to this handler, which
-    # headless Blender does call); the add-on's function turns them into deltas.
-    edits = {}
-
-    def handler(_scene, depsgraph):
-        edits["t0"] = time.perf_counter()
-        edits["sent"], edits["reexport"] = engine.object_edits(session, exported, depsgraph)
-
-    bpy.app.handlers.depsgraph_update_post.append(handler)
-    sphere = next(o for o in scene.objects if o.pass_index == 5)
-    sphere.location.x += 0.6
-    bpy.context.view_layer.update()
-    bpy.app.handlers.depsgraph_update_post.remove(handler)
-    sent, reexport, t0 = edits["sent"], edits["reexport"], edits["t0"]
+    sent, reexport, t0 = _moved(session, exported, next(o for o in scene.objects if o.pass_index == 5), 0.6)
     # Edit to the first tile of the new image, with a render already running.
     stream = session.render(w, h, spp=64, coarse_start=8)
     first = next(e for e in stream if isinstance(e, tessera.Tile))
     edit_to_tile = time.perf_counter() - t0
     del stream
     after = image()
+    session.close()
     return {
         "sent": sent,
         "reexport": reexport,
@@ -166,6 +154,37 @@ def interactive():
         "edit_to_first_tile_seconds": edit_to_tile,
         "first_tile_pixel_size": first.pixel_size,
     }
+
+
+def _moved(session, exported, obj, dx):
+    """Moves `obj` by `dx` along x while the add-on's function listens: what it sent, whether
+    it asked for a re-export, and when it ran. Blender hands a depsgraph with its updates to
+    view_update, and to this handler, which headless Blender does call."""
+    edits = {}
+
+    def handler(_scene, depsgraph):
+        edits["t0"] = time.perf_counter()
+        edits["sent"], edits["reexport"] = engine.object_edits(session, exported, depsgraph)
+
+    bpy.app.handlers.depsgraph_update_post.append(handler)
+    try:
+        obj.location.x += dx
+        bpy.context.view_layer.update()
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(handler)
+    return edits["sent"], edits["reexport"], edits["t0"]
+
+
+def hair_move():
+    """A hair object of the `hair` scene moved in a session holding it: one transform delta
+    for its curves, no re-export."""
+    scenes.build("hair", OUT)
+    exported = export.export_scene(bpy.context.evaluated_depsgraph_get())
+    session = engine.client_for(None).session("hair move")
+    session.sync_usd(exported.path)
+    sent, reexport, _ = _moved(session, exported, bpy.data.objects["hair 2"], 0.3)
+    session.close()
+    return {"sent": sent, "reexport": reexport}
 
 
 def node_reports():
@@ -267,6 +286,7 @@ if __name__ == "__main__":
     results = {kind: compare(kind, SPP) for kind in scenes.REGIONS}
     denoised("box")
     results["interactive"] = interactive()
+    results["hair_move"] = hair_move()
     results["error_reports"] = errors_reach_the_artist()
     results["node_reports"] = node_reports()
     results["bake_reuse"] = bake_reuse()
