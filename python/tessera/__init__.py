@@ -216,8 +216,13 @@ class Session:
     def __enter__(self) -> "Session":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *_) -> None:
+        try:
+            self.close()
+        except TesseraError:
+            # The block's own error says more than a failed close (a server gone, say).
+            if exc_type is None:
+                raise
 
 
 class Client:
