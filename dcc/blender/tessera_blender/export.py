@@ -238,12 +238,17 @@ def _correct_spot_blend(exported: Export, prim, light) -> None:
     exported.corrections.append(f"{prim.GetPath()}: Spot Blend {blend:g} as cone softness {equivalent:.4g} (Cycles' smoothstep in cos θ)")
 
 
-def _principled_of(material_name: str):
-    material = bpy.data.materials.get(material_name)
+def _principled_of(prim, UsdShade):
+    """The Principled BSDF the export wrote as the Material `prim`'s surface shader (the
+    exporter names the shader after the node), or None: the glass, subsurface and coat
+    corrections rewrite that shader, so they must read that node and no other one the tree
+    holds (a Diffuse side of a mix beside an unused Principled, say)."""
+    material = bpy.data.materials.get(_material_name(prim))
     tree = getattr(material, "node_tree", None)
-    if tree is None:
+    shader = _surface_shader(prim, UsdShade)
+    if tree is None or not shader:
         return None
-    return next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
+    return next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED" and nodes.clean(n.name) == shader.GetPrim().GetName()), None)
 
 
 def _material_name(prim) -> str:
@@ -256,7 +261,7 @@ _surface_shader = nodes.surface_shader
 
 
 def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
-    node = _principled_of(_material_name(prim))
+    node = _principled_of(prim, UsdShade)
     if node is None:
         return
     transmission = float(node.inputs["Transmission Weight"].default_value)
@@ -294,10 +299,10 @@ SOLID_DIELECTRIC_NAMES = {
 }
 
 
-def _subsurface_of(material_name: str):
-    """The Principled BSDF of `material_name` when its surface scatters below (Subsurface
+def _subsurface_of(prim, UsdShade):
+    """The Principled BSDF of the Material `prim` when its surface scatters below (Subsurface
     Weight above 0), else None."""
-    node = _principled_of(material_name)
+    node = _principled_of(prim, UsdShade)
     weight = node.inputs["Subsurface Weight"] if node else None
     if weight is None or (not weight.is_linked and float(weight.default_value) <= 0.0):
         return None
@@ -306,7 +311,7 @@ def _subsurface_of(material_name: str):
 
 def _correct_subsurface(exported: Export, prim, Sdf, UsdShade) -> None:
     name = _material_name(prim)
-    node = _subsurface_of(name)
+    node = _subsurface_of(prim, UsdShade)
     shader = _surface_shader(prim, UsdShade) if node else None
     if not shader:
         return
@@ -360,7 +365,7 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     towards (Cycles tints by Coat Tint to the power of the path length through the coat, 1
     head-on)."""
     name = _material_name(prim)
-    node = _principled_of(name)
+    node = _principled_of(prim, UsdShade)
     shader = _surface_shader(prim, UsdShade) if node is not None else None
     if not shader or not nodes.coats_carried(node):
         return
@@ -368,10 +373,10 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
     tint = tuple(float(c) for c in tuple(node.inputs["Coat Tint"].default_value)[:3])
+    # coats_carried holds only tinted coats.
     shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
-    if tint != (1.0, 1.0, 1.0):
-        shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
-        shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
+    shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
+    shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
