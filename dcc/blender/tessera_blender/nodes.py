@@ -248,16 +248,21 @@ def _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=None
     for usd_name, value in fixed.items():
         shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(value)
     for usd_name, blender_name in inputs.items():
-        value = node.inputs[blender_name].default_value
-        if usd_name in INPUT_TYPES:
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
-        else:
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+        _write_constant(shader, usd_name, node.inputs[blender_name].default_value, Sdf)
     shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
     carried = {blender_name: usd_name for usd_name, blender_name in inputs.items()} | {"Normal": "normal"}
     _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade, owner)
     for lost in _standalone_losses(node):
         exported.warnings.append(f"{material.name}: {lost}")
+
+
+def _write_constant(shader, usd_name, value, Sdf, scale=1.0) -> None:
+    """A Blender socket's constant `value` (times `scale`) as the input `usd_name`: a colour's
+    RGB as color3f, a number as a float."""
+    if hasattr(value, "__len__"):
+        shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) * scale for c in tuple(value)[:3]))
+    else:
+        shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value) * scale)
 
 
 def _emptied(prim, shader, name, UsdShade):
@@ -310,11 +315,7 @@ def _write_hair(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
     if node.parametrization != "MELANIN":
         shader.CreateInput("melanin", Sdf.ValueTypeNames.Float).Set(0.0)
     for usd_name, blender_name in inputs.items():
-        value = node.inputs[blender_name].default_value
-        if hasattr(value, "__len__"):
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
-        else:
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+        _write_constant(shader, usd_name, node.inputs[blender_name].default_value, Sdf)
     # Blender finds only the inputs its model shows by name (Chiang's has no lobe weights,
     # Huang's no Coat).
     lobes = {usd_name: node.inputs.get(blender_name) for usd_name, blender_name in HAIR_LOBES.items()}
@@ -620,14 +621,8 @@ def _mixed_side(exported, material, prim, node, Sdf, UsdShade):
         socket = node.inputs[blender_name]
         if socket.is_linked:
             linked.append((usd_name, socket))
-        value = socket.default_value
-        if usd_name == "emissiveColor":
-            strength = float(node.inputs["Emission Strength"].default_value)
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) * strength for c in tuple(value)[:3]))
-        elif usd_name == "diffuseColor":
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Color3f).Set(tuple(float(c) for c in tuple(value)[:3]))
-        else:
-            shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(float(value))
+        strength = float(node.inputs["Emission Strength"].default_value) if usd_name == "emissiveColor" else 1.0
+        _write_constant(shader, usd_name, socket.default_value, Sdf, strength)
     if node.type == "BSDF_DIFFUSE":
         shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)  # Lambertian, as _correct_diffuse
     for usd_name, socket in linked:
