@@ -15,7 +15,7 @@ use render_core::bvh::{Blas, BuildQuality, FLAT_TRIANGLES, Tlas, TlasInstance};
 use render_core::geometry::{Mesh, Ray, Transform};
 use render_core::sampling::{Pcg32, uniform_sphere};
 
-/// A UV sphere of `rings`×`segments`×2 triangles.
+/// A bench ray: origin, direction, and the length an occlusion query tests.
 struct TestRay {
     o: Vec3,
     d: Vec3,
@@ -110,6 +110,7 @@ fn main() {
     }
     flat_at_the_cap(&rays[..n_rays / 4]);
     small_and_medium_meshes();
+    terrain();
 }
 
 /// Rounds of Embree then ours alternating, one thread each ([`main`]).
@@ -211,6 +212,89 @@ fn small_and_medium_meshes() {
         let name = format!("{} triangles", mesh.indices.len());
         println!("{name:<22} {c:>16.2} {:>16} {o:>20.2} {:>14}  {agree}", ratio(c, "closest_mrays"), ratio(o, "occluded_mrays"));
     }
+}
+
+/// The `production` bench's terrain (`bench/production_scene.py`: 707 × 707 quads over 40 × 40
+/// units, heights within ±1.05) seen from its camera: rays that graze a heightfield, where the
+/// sphere's rays start anywhere. Each builder's time and tree, and Embree's one thread, on
+/// three sets: camera rays (closest hit), bounce rays leaving the surface the camera rays hit
+/// (closest hit) and rays from there towards a dome (occlusion).
+fn terrain() {
+    let mesh = terrain_mesh();
+    let sets = terrain_rays(&mesh, 1_000_000);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    println!("\nterrain: {} triangles, rays of its scene's camera, 1 thread", mesh.indices.len());
+    let mut built = Vec::new();
+    for (name, quality) in [("binned SAH (the default)", BuildQuality::Medium), ("PLOC (BuildQuality::Fast)", BuildQuality::Fast)] {
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let t = Instant::now();
+            drop(Blas::build(&mesh, quality));
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        println!("{name:<26} build {best:.3} s (best of 3, all threads)");
+        built.push((name, Blas::build(&mesh, quality)));
+    }
+    println!("{:<8} {:>9} {:>32} {:>32} {:>10}", "rays", "count", built[0].0, built[1].0, "embree");
+    for (set, rays) in &sets {
+        let occlusion = *set == "shadow";
+        let rate = |blas: &Blas| {
+            let ((c, _), (o, _)) = best_of_three(
+                &pool,
+                || rays.iter().filter(|r| blas.intersect(r.o.into(), r.d.into(), f32::INFINITY, 0.0).is_some()).count(),
+                || rays.iter().filter(|r| blas.occluded(r.o.into(), r.d.into(), r.tmax, 0.0)).count(),
+            );
+            rays.len() as f64 / if occlusion { o } else { c } / 1e6
+        };
+        let ours: Vec<f64> = built.iter().map(|(_, b)| rate(b)).collect();
+        let key = if occlusion { "occluded_mrays" } else { "closest_mrays" };
+        let embree = run_embree(&write_embree_inputs(&mesh, rays), 1).and_then(|m| m.get(key).copied());
+        let cell = |r: f64| embree.map_or(format!("{r:.2} Mrays/s"), |e| format!("{r:.2} Mrays/s ({:.2}x)", r / e));
+        let theirs = embree.map_or("-".into(), |e| format!("{e:.2}"));
+        println!("{set:<8} {:>9} {:>32} {:>32} {theirs:>10}", rays.len(), cell(ours[0]), cell(ours[1]));
+    }
+}
+
+/// The terrain of `bench/production_scene.py`, triangulated as the USD reader splits its quads.
+fn terrain_mesh() -> Mesh {
+    const QUADS: u32 = 707;
+    const SIZE: f32 = 40.0;
+    let height = |x: f32, z: f32| 0.8 * (0.35 * x).sin() * (0.27 * z).cos() + 0.25 * (1.3 * x + 0.7 * z).sin();
+    let at = |k: u32| -SIZE / 2.0 + SIZE * k as f32 / QUADS as f32;
+    let positions =
+        (0..=QUADS).flat_map(|j| (0..=QUADS).map(move |i| (at(i), at(j)))).map(|(x, z)| Vec3::new(x, height(x, z), z)).collect();
+    let indices = (0..QUADS)
+        .flat_map(|j| (0..QUADS).map(move |i| j * (QUADS + 1) + i))
+        .flat_map(|a| [[a, a + QUADS + 1, a + QUADS + 2], [a, a + QUADS + 2, a + 1]])
+        .collect();
+    Mesh { positions, indices, ..Default::default() }
+}
+
+/// `n` camera rays of the scene's camera (at (0, 7, 24), tilted down by atan(6/24), 30 mm lens
+/// on a 36 × 20.25 mm film), and from each point they hit a bounce ray (uniform over the
+/// hemisphere the camera sees) and a shadow ray towards a dome (uniform over the upper
+/// hemisphere, unbounded).
+fn terrain_rays(mesh: &Mesh, n: usize) -> [(&'static str, Vec<TestRay>); 3] {
+    let blas = Blas::build(mesh, BuildQuality::Medium);
+    let mut rng = Pcg32::new(1, 2);
+    let eye = Vec3::new(0.0, 7.0, 24.0);
+    let tilt = glam::Quat::from_rotation_x(-(6.0f32).atan2(24.0));
+    let (mut camera, mut bounce, mut shadow) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..n {
+        let film = Vec2::new(rng.next_f32() * 2.0 - 1.0, rng.next_f32() * 2.0 - 1.0) * Vec2::new(18.0, 10.125) / 30.0;
+        let d = tilt * Vec3::new(film.x, film.y, -1.0).normalize();
+        camera.push(TestRay { o: eye, d, tmax: f32::INFINITY });
+        let Some((t, tri, _)) = blas.intersect(eye.into(), d.into(), f32::INFINITY, 0.0) else { continue };
+        let [a, b, c] = mesh.triangle(tri as usize);
+        let facing = (b - a).cross(c - a).normalize();
+        let n = if facing.dot(d) > 0.0 { -facing } else { facing };
+        let p = eye + d * t + n * 1e-3;
+        let w = uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+        bounce.push(TestRay { o: p, d: if w.dot(n) < 0.0 { -w } else { w }, tmax: f32::INFINITY });
+        let l = uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+        shadow.push(TestRay { o: p, d: l.with_y(l.y.abs()), tmax: f32::MAX });
+    }
+    [("camera", camera), ("bounce", bounce), ("shadow", shadow)]
 }
 
 /// The process's anonymous memory in huge pages (Linux), in KiB.

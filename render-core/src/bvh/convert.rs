@@ -412,9 +412,9 @@ mod tests {
 
     /// The same nodes, byte for byte, and the same primitive order as obvhs's one-thread
     /// conversion, on trees from one box to big enough for the pricing and layout to split
-    /// into tasks, at each leaf size: PLOC trees before and after reinsertion (as commits build
-    /// them) and our SAH and median trees, all with their children in pairs, so that the fast
-    /// path is the one compared.
+    /// into tasks, at each leaf size: PLOC trees before and after reinsertion (as
+    /// `BuildQuality::Fast` builds them) and our SAH and median trees (as commits build them),
+    /// all with their children in pairs, so that the fast path is the one compared.
     #[test]
     fn the_collapse_on_every_core_is_obvhs_to_the_bit() {
         for (seed, n) in [(1, 1), (2, 2), (3, 9), (4, 1000), (5, 60_000)] {

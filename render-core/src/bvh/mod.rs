@@ -240,9 +240,15 @@ const LEAVES_AHEAD_BYTES: usize = 16 << 20;
 /// How much effort a BVH build spends on quality.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuildQuality {
-    /// Fast PLOC build, little reinsertion: for interactive edits.
+    /// obvhs's PLOC build with its fast preset (little reinsertion): quicker on many cores,
+    /// somewhat worse trees.
     Fast,
-    /// obvhs' medium preset: the default.
+    /// Binned SAH splits (as pbrt's and Embree's builders choose them): the default. On two
+    /// cores it builds a million triangles as fast as obvhs's PLOC with its medium preset
+    /// (0.47-0.48 s for the `production` bench's terrain), and its trees are better: that
+    /// terrain's path-tracing rays took 11% fewer instructions, and PLOC's Morton order is
+    /// scaled per axis, which flattens a terrain's clusters (see `docs/benchmarks.md`,
+    /// 2026-12-07 10:00 UTC).
     #[default]
     Medium,
 }
@@ -317,7 +323,7 @@ impl Blas {
 
     /// Builds over `aabbs`, one per triangle of `tris`.
     fn of_bounds(tris: &(impl Triangles + ?Sized), aabbs: &[Aabb], quality: BuildQuality) -> Self {
-        Self::of_tree(tris, build_bounded(aabbs, quality.params()))
+        Self::of_tree(tris, build_bounded(aabbs, quality))
     }
 
     /// A BLAS of `tris` walked through `bvh`, a tree built over them.
@@ -601,46 +607,58 @@ fn gathered<T: Send>(len: usize, item: impl Fn(usize) -> T + Sync + Send) -> Vec
 
 /// Deepest binary BVH [`build_bounded`] keeps. obvhs's CWBVH traversal stack holds 32 node
 /// groups (`cwbvh/mod.rs`, `TRAVERSAL_STACK_SIZE`; a deeper tree silently drops nodes) and
-/// its BVH2-to-CWBVH conversion recurses once per level. PLOC trees of real meshes mostly
-/// stay well under this (the `production` bench's 1M-triangle terrain: 30), but a UV sphere's
-/// pole fans of thin triangles take it deeper (the `rays` bench's 1M-triangle sphere: 65).
+/// its BVH2-to-CWBVH conversion recurses once per level. Trees of real meshes mostly stay
+/// well under this (the `production` bench's 1M-triangle terrain: 28 by PLOC, 23 by SAH), but
+/// PLOC takes a UV sphere's pole fans of thin triangles deeper (the `rays` bench's
+/// 1M-triangle sphere: 65); SAH splits stop at [`SAH_MAX_DEPTH`].
 const MAX_BVH2_DEPTH: usize = 64;
 
-/// A CWBVH over `aabbs` (at least one) whose depth is bounded whatever the input. PLOC merges
-/// nearest clusters; when thousands of boxes coincide (copies of one triangle, identical
-/// instances), every merge ties and the tree degenerates into a chain as deep as the input,
-/// which overflowed the thread's stack in the CWBVH conversion: such input is split at
-/// medians, at most ⌈log2 n⌉ + 1 deep. A PLOC tree deeper than [`MAX_BVH2_DEPTH`] otherwise
-/// is rebuilt by binned SAH splits (the `rays` bench's sphere: closest hits 2-7% faster and
-/// occlusion 8-10% faster than through its median tree, the fallback before; the build takes
-/// 0.5 s more), and by median splits if that is too deep as well.
-fn build_bounded(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
+/// A CWBVH over `aabbs` (at least one), by `quality`'s builder, whose depth is bounded
+/// whatever the input. When thousands of boxes coincide (copies of one triangle, identical
+/// instances), PLOC's merges all tie and its tree degenerates into a chain as deep as the
+/// input (which overflowed the thread's stack in the CWBVH conversion), and SAH finds no
+/// plane to bin them by: such input is split at medians, at most ⌈log2 n⌉ + 1 deep. A tree
+/// deeper than [`MAX_BVH2_DEPTH`] otherwise is rebuilt by binned SAH splits if it was PLOC's
+/// (the `rays` bench's sphere, 65 levels), and by median splits if that is too deep as well.
+fn build_bounded(aabbs: &[Aabb], quality: BuildQuality) -> CwBvh {
+    convert::to_cwbvh(&binary_tree(aabbs, quality), quality.params().max_prims_per_leaf.clamp(1, 3))
+}
+
+/// The binary tree [`build_bounded`] collapses.
+fn binary_tree(aabbs: &[Aabb], quality: BuildQuality) -> Bvh2 {
     if has_coincident_cluster(aabbs) {
         tracing::debug!(primitives = aabbs.len(), "coincident primitives: BVH built by median splits");
-        return convert::to_cwbvh(&split_bvh2(aabbs, median_split), params.max_prims_per_leaf.clamp(1, 3));
+        return split_bvh2(aabbs, median_split);
     }
-    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
-        params.ploc_search_distance,
-        aabbs,
-        (0..aabbs.len() as u32).collect(),
-        params.sort_precision,
-        params.search_depth_threshold,
-    );
-    let mut depth = bvh2_depth(&bvh2);
-    if depth <= MAX_BVH2_DEPTH {
-        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        depth = bvh2_depth(&bvh2);
-    }
-    if depth > MAX_BVH2_DEPTH {
+    let mut bvh2 = match quality {
+        BuildQuality::Fast => ploc(aabbs, quality.params()),
+        BuildQuality::Medium => split_bvh2(aabbs, sah_split),
+    };
+    if quality == BuildQuality::Fast && bvh2_depth(&bvh2) > MAX_BVH2_DEPTH {
         tracing::debug!(primitives = aabbs.len(), "deep PLOC tree: rebuilt by binned SAH splits");
         bvh2 = split_bvh2(aabbs, sah_split);
-        depth = bvh2_depth(&bvh2);
     }
-    if depth > MAX_BVH2_DEPTH {
+    if bvh2_depth(&bvh2) > MAX_BVH2_DEPTH {
         tracing::debug!(primitives = aabbs.len(), "deep SAH tree: rebuilt by median splits");
         bvh2 = split_bvh2(aabbs, median_split);
     }
-    convert::to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3))
+    bvh2
+}
+
+/// obvhs's PLOC tree over `aabbs` with `params`, reinserted unless it is too deep to keep.
+fn ploc(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
+    let indices = (0..aabbs.len() as u32).collect();
+    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+        params.ploc_search_distance,
+        aabbs,
+        indices,
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    if bvh2_depth(&bvh2) <= MAX_BVH2_DEPTH {
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    }
+    bvh2
 }
 
 /// Most primitives sharing one cell of a 2²¹-per-axis grid over the centroids before the
@@ -1039,7 +1057,7 @@ impl Tlas {
                 aabb
             })
             .collect();
-        let bvh = build_bounded(&bounds, BuildQuality::Medium.params());
+        let bvh = build_bounded(&bounds, BuildQuality::Medium);
         let ordered = bvh
             .primitive_indices
             .iter()
@@ -1300,7 +1318,31 @@ mod tests {
         assert!(blas.intersect(Vec3A::new(0.8, 0.8, 1.0), Vec3A::NEG_Z, f32::INFINITY, 0.0).is_none(), "outside the triangle");
     }
 
-    /// The binned-SAH tree, the fallback for deep PLOC trees, costs less than the median tree
+    /// The default build gives a flat mesh (a heightfield, as terrains are) a better tree than
+    /// obvhs's PLOC with its medium preset, the default before 2026-12-07: PLOC sorts by
+    /// Morton codes scaled per axis, which stretches the thin axis as far as the long ones.
+    #[test]
+    fn a_flat_mesh_gets_a_better_tree_than_plocs() {
+        let n = 120u32;
+        let at = |k: u32| -20.0 + 40.0 * k as f32 / n as f32;
+        let positions = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| (at(i), at(j))))
+            .map(|(x, z)| Vec3::new(x, 0.8 * (0.35 * x).sin() * (0.27 * z).cos(), z))
+            .collect();
+        let indices = (0..n)
+            .flat_map(|j| (0..n).map(move |i| j * (n + 1) + i))
+            .flat_map(|a| [[a, a + n + 1, a + n + 2], [a, a + n + 2, a + 1]])
+            .collect();
+        let aabbs: Vec<Aabb> = obvhs_triangles(&Mesh { positions, indices, ..Default::default() }).iter().map(Boundable::aabb).collect();
+        let ours = sah_cost(&binary_tree(&aabbs, BuildQuality::default()));
+        let mut medium = BvhBuildParams::medium_build();
+        medium.pre_split = false;
+        let plocs = sah_cost(&ploc(&aabbs, medium));
+        // Measured 20.6 against 24.6 (0.84x); PLOC again as the default would give 1.
+        assert!(ours < 0.9 * plocs, "SAH cost {ours} against PLOC's {plocs}");
+    }
+
+    /// The binned-SAH tree (the default build) costs less than the median tree
     /// by the heuristic it minimises, and finds what the PLOC tree finds: the same distances
     /// and occlusion (tied triangles may differ, their distances may not).
     #[test]

@@ -735,7 +735,7 @@ mod tests {
                 a
             })
             .collect();
-        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium.params());
+        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium);
         let mut compared = 0;
         for ray in rays(&mut rng, 400) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
@@ -755,7 +755,7 @@ mod tests {
         let mut rng = Pcg32::new(5, 3);
         let tris = soup(&mut rng, 2000);
         let aabbs: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(&[t.v0, t.v0 + t.e1, t.v0 + t.e2])).collect();
-        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium.params());
+        let bvh = super::super::build_bounded(&aabbs, super::super::BuildQuality::Medium);
         let mut entered = 0;
         for ray in rays(&mut rng, 600) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
