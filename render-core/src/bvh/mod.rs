@@ -121,7 +121,18 @@ pub struct Blas {
     /// The walk asks for each inner node it enters ahead of its visit: false for BVHs up to
     /// [`NODES_AHEAD_BYTES`].
     fetch_inner: bool,
+    /// The mesh's distinct vertices, which bound its instances exactly wherever they are placed
+    /// ([`Tlas::build`]); empty above [`HULL_TRIANGLES`] triangles and for deforming meshes.
+    hull: Vec<Vec3>,
 }
+
+/// Most triangles a BLAS keeps its distinct vertices for ([`Blas::hull`]): up to 12 bytes a
+/// triangle, for meshes small enough to be scattered by the hundred.
+const HULL_TRIANGLES: usize = 65_536;
+
+/// Most vertices [`Tlas::build`] places to bound its instances exactly; beyond, each is bounded
+/// by its BLAS's box, placed (a TLAS is rebuilt at every commit that moves an instance).
+const HULL_PLACEMENTS: usize = 1 << 24;
 
 struct Deforming {
     keys: usize,
@@ -308,6 +319,9 @@ impl Blas {
     fn of_triangles(tris: &(impl Triangles + ?Sized), quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = gathered(tris.count(), |i| tris.triangle(i).aabb());
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
+        if tris.count() <= HULL_TRIANGLES {
+            blas.hull = distinct_vertices(tris);
+        }
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = pages::huge_vec(blas.bvh.nodes.len());
             blas.leaf_chunks.extend(blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))));
@@ -335,7 +349,7 @@ impl Blas {
             let t = tris.triangle(order[i] as usize);
             (RtTriangle { v0: t.v0, e1: t.v1 - t.v0, e2: t.v2 - t.v0 }, order[i])
         });
-        let mut blas = Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new(), fetch_inner: false };
+        let mut blas = Blas { bvh, tris, bounds, deforming: None, leaf_chunks: Vec::new(), fetch_inner: false, hull: Vec::new() };
         blas.fetch_inner = blas.walked_bytes() > NODES_AHEAD_BYTES;
         blas
     }
@@ -556,6 +570,20 @@ impl Blas {
 
 /// Triangles a BLAS is built over, by index, in obvhs's form: a mesh's own, read where they
 /// are (a copy of a 3.1M-triangle mesh's took 150 MB for the whole build), or a list.
+/// The distinct corners of `tris`.
+fn distinct_vertices(tris: &(impl Triangles + ?Sized)) -> Vec<Vec3> {
+    let mut keys: Vec<[u32; 3]> = (0..tris.count())
+        .flat_map(|i| {
+            let t = tris.triangle(i);
+            [t.v0, t.v1, t.v2]
+        })
+        .map(|v| v.to_array().map(f32::to_bits))
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    keys.into_iter().map(|k| Vec3::from_array(k.map(f32::from_bits))).collect()
+}
+
 trait Triangles: Sync {
     /// How many.
     fn count(&self) -> usize;
@@ -1012,6 +1040,32 @@ enum Accel {
     Flat { world: Blas, ids: Vec<(u32, u32)> },
 }
 
+/// World bounds of `inst`, a placement of `blas`: with `exact`, those of its BLAS's distinct
+/// vertices placed where it has them (the `production` bench's closest-hit rays entered 2.4
+/// rock BLASes each instead of 4.6), else its BLAS's box placed. Placed vertices are rounded, so the box is padded by a few units in the last place.
+fn instance_bounds(blas: &Blas, inst: &TlasInstance, exact: bool) -> Aabb {
+    let (lo, hi) = blas.bounds();
+    if let Some(m) = &inst.motion {
+        let (lo, hi) = crate::motion::bounds_over(m, lo, hi);
+        return Aabb::new(lo.into(), hi.into());
+    }
+    let corners = (0..8).map(|i| {
+        Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z })
+    });
+    let place = |v: Vec3| Vec3A::from(inst.transform.to_world.transform_point3(v));
+    let mut aabb = Aabb::empty();
+    match exact && !blas.hull.is_empty() {
+        true => blas.hull.iter().for_each(|&v| {
+            aabb.extend(place(v));
+        }),
+        false => corners.for_each(|v| {
+            aabb.extend(place(v));
+        }),
+    }
+    let pad = (aabb.min.abs().max(aabb.max.abs()).max_element() * 4.0 * f32::EPSILON).max(f32::MIN_POSITIVE);
+    Aabb::new(aabb.min - Vec3A::splat(pad), aabb.max + Vec3A::splat(pad))
+}
+
 /// Scenes with at most this many triangles over all instances are traced through one
 /// world-space BVH ([`Accel::Flat`]), as Embree-based renderers merge non-instanced meshes
 /// into one scene. Small scenes are where the hop from the instance BVH to each BLAS weighs
@@ -1037,26 +1091,9 @@ impl Tlas {
         if total <= flat_limit && instances.iter().all(|i| i.motion.is_none() && !blases[i.blas].deforms()) {
             return Self::build_flat(blases, instances);
         }
-        let bounds: Vec<Aabb> = instances
-            .iter()
-            .map(|inst| {
-                let (lo, hi) = blases[inst.blas].bounds();
-                if let Some(m) = &inst.motion {
-                    let (lo, hi) = crate::motion::bounds_over(m, lo, hi);
-                    return Aabb::new(lo.into(), hi.into());
-                }
-                let mut aabb = Aabb::empty();
-                for i in 0..8 {
-                    let corner = Vec3::new(
-                        if i & 1 == 0 { lo.x } else { hi.x },
-                        if i & 2 == 0 { lo.y } else { hi.y },
-                        if i & 4 == 0 { lo.z } else { hi.z },
-                    );
-                    aabb.extend(inst.transform.to_world.transform_point3(corner).into());
-                }
-                aabb
-            })
-            .collect();
+        let placements: usize = instances.iter().map(|i| blases[i.blas].hull.len()).sum();
+        let bounds: Vec<Aabb> =
+            instances.par_iter().map(|inst| instance_bounds(&blases[inst.blas], inst, placements <= HULL_PLACEMENTS)).collect();
         let bvh = build_bounded(&bounds, BuildQuality::Medium);
         let ordered = bvh
             .primitive_indices
@@ -1502,6 +1539,34 @@ mod tests {
         assert!(tlas.occluded(blas, &ray, f32::INFINITY), "an unbounded shadow ray is blocked too");
         let miss = Ray::new(Vec3::new(5.0, 5.0, 0.0), Vec3::new(0.0, 0.0, -1.0));
         assert!(tlas.intersect(blas, &miss).is_none());
+    }
+
+    /// A turned instance is bounded by its placed vertices, not by its placed box, and rays
+    /// that graze its outermost corners still find it through the instance BVH.
+    #[test]
+    fn turned_instances_are_bounded_by_their_placed_vertices() {
+        let tips = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
+        let faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+        let octahedron = Mesh { positions: tips.to_vec(), indices: faces.to_vec(), ..Default::default() };
+        let blas = vec![Arc::new(Blas::build(&octahedron, BuildQuality::Medium))];
+        let turn = Affine3A::from_rotation_y(std::f32::consts::FRAC_PI_4);
+        let inst = TlasInstance { blas: 0, transform: Transform::new(turn).unwrap(), motion: None };
+        // The turned tips reach x = ±cos 45°; the turned unit cube's corners reach ±√2.
+        let exact = instance_bounds(&blas[0], &inst, true);
+        let boxed = instance_bounds(&blas[0], &inst, false);
+        assert!((exact.max.x - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-5 && (exact.max.y - 1.0).abs() < 1e-5, "{exact:?}");
+        assert!((boxed.max.x - std::f32::consts::SQRT_2).abs() < 1e-5, "{boxed:?}");
+        assert!(exact.max.x > std::f32::consts::FRAC_1_SQRT_2, "padded outwards");
+        // Rays towards points a hair inside each turned tip, from six directions around it.
+        let tlas = Tlas::build_with_flat_limit(&blas, &[inst], 0);
+        for tip in tips.map(|t| turn.transform_point3(t)) {
+            for dir in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z] {
+                let target = tip * (1.0 - 1e-4);
+                let ray = Ray::new(target - 3.0 * dir, dir);
+                let hit = tlas.intersect(&blas, &ray).unwrap_or_else(|| panic!("missed the tip at {tip} from {dir}"));
+                assert!(hit.t <= 3.0 + 1e-3, "{}", hit.t);
+            }
+        }
     }
 
     /// The flat BVH finds what the two-level walk finds: the same instance, triangle,
