@@ -121,8 +121,9 @@ pub struct Blas {
     /// The walk asks for each inner node it enters ahead of its visit: false for BVHs up to
     /// [`NODES_AHEAD_BYTES`].
     fetch_inner: bool,
-    /// The mesh's distinct vertices, which bound its instances exactly wherever they are placed
-    /// ([`Tlas::build`]); empty above [`HULL_TRIANGLES`] triangles and for deforming meshes.
+    /// A mesh BLAS's distinct vertices, which bound its instances exactly wherever they are
+    /// placed ([`Tlas::build`]); empty above [`HULL_TRIANGLES`] triangles, for deforming meshes
+    /// and for the flat world BVH (never instanced).
     hull: Vec<Vec3>,
 }
 
@@ -260,8 +261,8 @@ pub enum BuildQuality {
     /// cores it builds a million triangles as fast as obvhs's PLOC with its medium preset
     /// (0.47-0.48 s for the `production` bench's terrain), and its trees are better: that
     /// terrain's path-tracing rays took 11% fewer instructions, and PLOC's Morton order is
-    /// scaled per axis, which flattens a terrain's clusters (see `docs/benchmarks.md`,
-    /// 2026-12-07 10:00 UTC).
+    /// scaled per axis, which scatters a terrain's neighbours (see `docs/benchmarks.md`,
+    /// 2026-12-07 09:20 UTC).
     #[default]
     Medium,
 }
@@ -283,7 +284,11 @@ impl Blas {
     pub fn build(mesh: &Mesh, quality: BuildQuality) -> Self {
         let keys = mesh.deformation_samples();
         if keys < 2 {
-            return Self::of_triangles(mesh, quality);
+            let mut blas = Self::of_triangles(mesh, quality);
+            if mesh.triangle_count() <= HULL_TRIANGLES {
+                blas.hull = distinct_vertices(mesh);
+            }
+            return blas;
         }
         let n = mesh.positions.len();
         let key = |i: usize, k: usize| -> RtTriangle {
@@ -321,9 +326,6 @@ impl Blas {
     fn of_triangles(tris: &(impl Triangles + ?Sized), quality: BuildQuality) -> Self {
         let aabbs: Vec<Aabb> = gathered(tris.count(), |i| tris.triangle(i).aabb());
         let mut blas = Self::of_bounds(tris, &aabbs, quality);
-        if tris.count() <= HULL_TRIANGLES {
-            blas.hull = distinct_vertices(tris);
-        }
         if blas.walked_bytes() > LEAVES_AHEAD_BYTES {
             blas.leaf_chunks = pages::huge_vec(blas.bvh.nodes.len());
             blas.leaf_chunks.extend(blas.bvh.nodes.iter().map(|n| pack_chunks(TriangleLanes::chunks_of(n))));
@@ -570,8 +572,6 @@ impl Blas {
     }
 }
 
-/// Triangles a BLAS is built over, by index, in obvhs's form: a mesh's own, read where they
-/// are (a copy of a 3.1M-triangle mesh's took 150 MB for the whole build), or a list.
 /// The distinct corners of `tris`.
 fn distinct_vertices(tris: &(impl Triangles + ?Sized)) -> Vec<Vec3> {
     let mut keys: Vec<[u32; 3]> = (0..tris.count())
@@ -586,6 +586,8 @@ fn distinct_vertices(tris: &(impl Triangles + ?Sized)) -> Vec<Vec3> {
     keys.into_iter().map(|k| Vec3::from_array(k.map(f32::from_bits))).collect()
 }
 
+/// Triangles a BLAS is built over, by index, in obvhs's form: a mesh's own, read where they
+/// are (a copy of a 3.1M-triangle mesh's took 150 MB for the whole build), or a list.
 trait Triangles: Sync {
     /// How many.
     fn count(&self) -> usize;
@@ -1044,7 +1046,8 @@ enum Accel {
 
 /// World bounds of `inst`, a placement of `blas`: with `exact`, those of its BLAS's distinct
 /// vertices placed where it has them (the `production` bench's closest-hit rays entered 2.4
-/// rock BLASes each instead of 4.6), else its BLAS's box placed. Placed vertices are rounded, so the box is padded by a few units in the last place.
+/// rock BLASes each instead of 4.6), else its BLAS's box placed. Placed vertices are rounded,
+/// so the box is padded by a few units in the last place.
 fn instance_bounds(blas: &Blas, inst: &TlasInstance, exact: bool) -> Aabb {
     let (lo, hi) = blas.bounds();
     if let Some(m) = &inst.motion {
