@@ -68,9 +68,8 @@ impl<const FULL: bool> Tracer<'_, FULL> {
             if path.prev.is_none() && !light.visible_to_camera {
                 continue;
             }
-            let le = light.shape.escaped(dir);
+            let (le, pdf) = light.shape.escaped_with_pdf(dir, path.prev.as_ref().map(|p| &p.ctx));
             if le != Vec3::ZERO {
-                let pdf = path.prev.map_or(0.0, |p| light.shape.pdf(&p.ctx, dir, f32::INFINITY));
                 self.add_emission(path, le, Vec3::ONE, i, pdf, share);
             }
         }

@@ -334,11 +334,11 @@ impl Shape {
                 (pdf > 0.0).then_some(LightSample { wi, dist: f32::INFINITY, li: *l, pdf, delta: false })
             }
             Shape::Environment { l, map, turn } => {
-                let (framed, pdf) = map.sample(u)?;
+                let (framed, pdf, radiance) = map.sample_with_radiance(u)?;
                 // Directions behind an opaque surface carry nothing; keep them (pdf > 0) so
                 // that the estimator stays the one pdf() describes. A turn keeps solid angles.
                 let wi = *turn * framed;
-                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: *l * map.lookup(framed), pdf, delta: false })
+                (pdf > 0.0).then(|| LightSample { wi, dist: f32::INFINITY, li: *l * radiance, pdf, delta: false })
             }
         }
     }
@@ -466,6 +466,19 @@ impl Shape {
             }
             _ => None,
         }
+    }
+
+    /// [`Shape::escaped`] along `d`, and when it is not zero and the ray left a shading point
+    /// `from`, the density of sampling `d` from there ([`Shape::pdf`]; 0 without one): an
+    /// environment map finds the direction's texture coordinates once for both.
+    pub fn escaped_with_pdf(&self, d: Vec3, from: Option<&ShadingContext>) -> (Vec3, f32) {
+        if let (Shape::Environment { l, map, turn }, Some(_)) = (self, from) {
+            let (radiance, pdf) = map.lookup_with_pdf(turn.transpose() * d);
+            return (*l * radiance, pdf);
+        }
+        let le = self.escaped(d);
+        let pdf = from.filter(|_| le != Vec3::ZERO).map_or(0.0, |ctx| self.pdf(ctx, d, f32::INFINITY));
+        (le, pdf)
     }
 
     /// Radiance arriving along a ray that escapes to infinity in direction `d`.
