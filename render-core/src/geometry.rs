@@ -241,6 +241,18 @@ impl Mesh {
         Mesh { positions, indices, ..Default::default() }
     }
 
+    /// A grid of `n`×`n` quads, two triangles each, whose vertex (`i`, `j`) (each in 0..=n)
+    /// is `at(i, j)` (for benchmarks and tests that need a mesh of a given size).
+    pub fn grid(n: u32, at: impl Fn(u32, u32) -> Vec3) -> Mesh {
+        let positions = (0..=n).flat_map(|j| (0..=n).map(move |i| (i, j))).map(|(i, j)| at(i, j)).collect();
+        let v = |i: u32, j: u32| j * (n + 1) + i;
+        let indices = (0..n)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .flat_map(|(i, j)| [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]])
+            .collect();
+        Mesh { positions, indices, ..Default::default() }
+    }
+
     /// Object-space vertices of triangle `tri`.
     #[inline]
     pub fn triangle(&self, tri: usize) -> [Vec3; 3] {

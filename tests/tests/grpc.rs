@@ -28,22 +28,8 @@ async fn health_and_capabilities_answer() {
 
 /// A flat grid of `n`×`n` quads facing +Z (towards the default camera).
 fn grid(n: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push(Vec3::new(i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5, 0.0));
-        }
-    }
-    let mut indices = Vec::new();
-    let v = |i: u32, j: u32| j * (n + 1) + i;
-    for j in 0..n {
-        for i in 0..n {
-            indices.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            indices.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-        }
-    }
-    let normals = Normals::Vertex(vec![Vec3::Z; positions.len()]);
-    Mesh { positions, indices, normals, ..Default::default() }
+    let mesh = Mesh::grid(n, |i, j| Vec3::new(i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5, 0.0));
+    Mesh { normals: Normals::Vertex(vec![Vec3::Z; mesh.positions.len()]), ..mesh }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

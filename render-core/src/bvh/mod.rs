@@ -1367,15 +1367,11 @@ mod tests {
     fn a_flat_mesh_gets_a_better_tree_than_plocs() {
         let n = 120u32;
         let at = |k: u32| -20.0 + 40.0 * k as f32 / n as f32;
-        let positions = (0..=n)
-            .flat_map(|j| (0..=n).map(move |i| (at(i), at(j))))
-            .map(|(x, z)| Vec3::new(x, 0.8 * (0.35 * x).sin() * (0.27 * z).cos(), z))
-            .collect();
-        let indices = (0..n)
-            .flat_map(|j| (0..n).map(move |i| j * (n + 1) + i))
-            .flat_map(|a| [[a, a + n + 1, a + n + 2], [a, a + n + 2, a + 1]])
-            .collect();
-        let aabbs: Vec<Aabb> = obvhs_triangles(&Mesh { positions, indices, ..Default::default() }).iter().map(Boundable::aabb).collect();
+        let terrain = Mesh::grid(n, |i, j| {
+            let (x, z) = (at(i), at(j));
+            Vec3::new(x, 0.8 * (0.35 * x).sin() * (0.27 * z).cos(), z)
+        });
+        let aabbs: Vec<Aabb> = obvhs_triangles(&terrain).iter().map(Boundable::aabb).collect();
         let ours = sah_cost(&binary_tree(&aabbs, BuildQuality::default()));
         let mut medium = BvhBuildParams::medium_build();
         medium.pre_split = false;

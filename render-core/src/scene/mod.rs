@@ -112,14 +112,7 @@ mod tests {
         // One mesh big enough to be built alone (a 256 × 256 grid of quads at x = -100).
         let big = {
             let n = 256u32;
-            let at = |i: u32, j: u32| Vec3::new(-100.0 + i as f32 / n as f32, j as f32 / n as f32, 0.0);
-            let positions = (0..=n).flat_map(|j| (0..=n).map(move |i| at(i, j))).collect();
-            let v = |i: u32, j: u32| j * (n + 1) + i;
-            let indices = (0..n * n).flat_map(|q| {
-                let (i, j) = (q % n, q / n);
-                [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]]
-            });
-            Arc::new(Mesh { positions, indices: indices.collect(), normals: Normals::None, ..Default::default() })
+            Arc::new(Mesh::grid(n, |i, j| Vec3::new(-100.0 + i as f32 / n as f32, j as f32 / n as f32, 0.0)))
         };
         assert!(big.indices.len() >= commit::BUILT_ALONE);
         let m = MeshDesc {
