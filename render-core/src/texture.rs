@@ -44,6 +44,10 @@ impl Wrap {
     /// lookup is black.
     #[inline]
     fn index(self, i: i64, n: usize) -> Option<usize> {
+        if (0..n as i64).contains(&i) {
+            // Inside the image every mode reads the texel itself; the modes below divide.
+            return Some(i as usize);
+        }
         let n = n as i64;
         Some(match self {
             Wrap::Repeat => i.rem_euclid(n),
@@ -446,10 +450,20 @@ impl Texture {
 
     fn fetch(&self, level: usize, x: usize, y: usize) -> Vec4 {
         let l = &self.levels[level];
-        let base = (y * l.width + x) * self.channels;
+        let (c, base) = (self.channels, (y * l.width + x) * self.channels);
         let mut v = Vec4::ZERO;
-        for k in 0..self.channels {
-            v[k] = texel_linear(&l.texels, base + k, self.srgb, k, self.channels);
+        // The storage is matched once a texel, not once a channel.
+        match &l.texels {
+            Texels::U8(t) => {
+                for (k, &byte) in t[base..base + c].iter().enumerate() {
+                    v[k] = byte_linear(byte, self.srgb && is_colour_channel(k, c));
+                }
+            }
+            Texels::F16(t) => {
+                for (k, half) in t[base..base + c].iter().enumerate() {
+                    v[k] = half.to_f32();
+                }
+            }
         }
         v
     }
@@ -462,12 +476,15 @@ impl Texture {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
         let (x0, y0) = (x0 as i64, y0 as i64);
+        // Each axis's two texel indices, wrapped once rather than once per corner.
+        let xs = [wrap[0].index(x0, l.width), wrap[0].index(x0 + 1, l.width)];
+        let ys = [wrap[1].index(y0, l.height), wrap[1].index(y0 + 1, l.height)];
         let mut v = Vec4::ZERO;
         for (dx, dy, w) in [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)] {
             if w == 0.0 {
                 continue;
             }
-            if let (Some(ix), Some(iy)) = (wrap[0].index(x0 + dx, l.width), wrap[1].index(y0 + dy, l.height)) {
+            if let (Some(ix), Some(iy)) = (xs[dx], ys[dy]) {
                 v += w * self.fetch(level, ix, iy);
             }
         }
@@ -484,15 +501,15 @@ fn is_colour_channel(k: usize, channels: usize) -> bool {
 #[inline]
 fn texel_linear(texels: &Texels, i: usize, srgb: bool, k: usize, channels: usize) -> f32 {
     match texels {
-        Texels::U8(v) => {
-            if srgb && is_colour_channel(k, channels) {
-                srgb_table()[v[i] as usize]
-            } else {
-                v[i] as f32 / 255.0
-            }
-        }
+        Texels::U8(v) => byte_linear(v[i], srgb && is_colour_channel(k, channels)),
         Texels::F16(v) => v[i].to_f32(),
     }
+}
+
+/// An 8-bit channel's linear value, decoded from sRGB when `srgb`.
+#[inline]
+fn byte_linear(byte: u8, srgb: bool) -> f32 {
+    if srgb { srgb_table()[byte as usize] } else { byte as f32 / 255.0 }
 }
 
 /// The mip level for a lookup by ray cones (Akenine-Möller et al., "Texture Level of Detail
