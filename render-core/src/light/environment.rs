@@ -1,7 +1,8 @@
-//! A `DomeLight` with a latitude-longitude texture, importance-sampled by a piecewise-constant
-//! 2D distribution over the map (luminance × the solid angle of each texel row), as pbrt's
-//! infinite area light does (Pharr, Jakob & Humphreys, *Physically Based Rendering*, 3rd ed.,
-//! section 14.2.4).
+//! A `DomeLight` with a latitude-longitude texture, importance-sampled in proportion to the
+//! bilinear interpolation of luminance × sin θ at the texel centres ([`super::bilinear`]): the
+//! radiance its lookups return, times the solid angle a unit of image area covers. The map's
+//! coordinates and the sin θ change of density are pbrt's infinite area light's (Pharr, Jakob &
+//! Humphreys, *Physically Based Rendering*, 3rd ed., section 14.2.4).
 //!
 //! Orientation is UsdLux's, which follows OpenEXR's latitude-longitude convention: the image's
 //! top row is latitude +π/2 (the dome's +Y), its left column longitude +π; latitude 0 and
@@ -12,24 +13,20 @@ use std::sync::Arc;
 
 use glam::{Mat3, Vec2, Vec3};
 
-use crate::sampling::Distribution1D;
+use super::bilinear::Bilinear2D;
 use crate::texture::{Texture, Wrap};
 
 /// Largest distribution grid side along longitude: a coarser mip is used for bigger maps.
 const MAX_GRID_WIDTH: usize = 1024;
 
-/// Every cell keeps this share of the mean cell weight, so that no direction the bilinear
-/// lookup can light has zero density.
+/// Every node keeps this share of the mean node weight, so that no direction has zero density.
 const FLOOR: f32 = 1e-2;
 
 /// The map, its sampling distribution and its orientation.
 #[derive(Debug)]
 pub struct EnvironmentMap {
     texture: Arc<Texture>,
-    width: usize,
-    height: usize,
-    rows: Distribution1D,
-    columns: Vec<Distribution1D>,
+    distribution: Bilinear2D,
     to_world: Mat3,
     to_local: Mat3,
     mean: Vec3,
@@ -66,34 +63,11 @@ impl EnvironmentMap {
                 solid += sin_theta;
             }
         }
-        // Radiance is looked up bilinearly, so a bright texel lights half a texel around it:
-        // each cell takes the largest weight of its neighbourhood (rows scaled by their own
-        // sin θ), or directions next to a small sun would be sampled rarely yet bright.
-        let lum: Vec<f32> = weights.clone();
-        for y in 0..height {
-            let sin_theta = (PI * (y as f32 + 0.5) / height as f32).sin();
-            for x in 0..width {
-                let mut m = 0.0f32;
-                for dy in [-1i64, 0, 1] {
-                    let yy = y as i64 + dy;
-                    if !(0..height as i64).contains(&yy) {
-                        continue;
-                    }
-                    let row_sin = (PI * (yy as f32 + 0.5) / height as f32).sin().max(1e-6);
-                    for dx in [-1i64, 0, 1] {
-                        let xx = (x as i64 + dx).rem_euclid(width as i64) as usize;
-                        m = m.max(lum[yy as usize * width + xx] / row_sin);
-                    }
-                }
-                weights[y * width + x] = m * sin_theta;
-            }
-        }
         let mean_weight = weights.iter().sum::<f32>() / weights.len() as f32;
         weights.iter_mut().for_each(|w| *w += FLOOR * mean_weight.max(1e-20));
-        let columns: Vec<Distribution1D> = weights.chunks(width).map(Distribution1D::new).collect();
-        let rows = Distribution1D::new(&weights.chunks(width).map(|r| r.iter().sum::<f32>()).collect::<Vec<_>>());
         let mean = if solid > 0.0 { sum / solid } else { Vec3::ZERO };
-        EnvironmentMap { texture, width, height, rows, columns, to_world, to_local: to_world.transpose(), mean }
+        let distribution = Bilinear2D::new(width, height, weights);
+        EnvironmentMap { texture, distribution, to_world, to_local: to_world.transpose(), mean }
     }
 
     /// The map's value seen along world direction `d` (unit).
@@ -137,15 +111,13 @@ impl EnvironmentMap {
 
     /// A direction drawn with `u`: its texture coordinates, the direction and its density.
     fn sample_st(&self, u: Vec2) -> Option<(Vec2, Vec3, f32)> {
-        let (row, row_frac, row_pmf) = self.rows.sample_continuous(u.y);
-        let (col, col_frac, col_pmf) = self.columns[row].sample_continuous(u.x);
-        let (s, v) = ((col as f32 + col_frac) / self.width as f32, (row as f32 + row_frac) / self.height as f32);
+        let (sv, pdf_uv) = self.distribution.sample(u);
+        let (s, v) = (sv.x, sv.y);
         let local = Self::direction(s, v);
         let sin_theta = (PI * v).sin();
-        if sin_theta <= 0.0 {
+        if sin_theta <= 0.0 || !(pdf_uv > 0.0) {
             return None;
         }
-        let pdf_uv = row_pmf * self.height as f32 * col_pmf * self.width as f32;
         Some((Vec2::new(s, 1.0 - v), (self.to_world * local).normalize(), pdf_uv / (2.0 * PI * PI * sin_theta)))
     }
 
@@ -158,14 +130,11 @@ impl EnvironmentMap {
     /// [`EnvironmentMap::pdf`] of the dome-space direction `local`, whose texture coordinates
     /// are `st`.
     fn pdf_at(&self, st: Vec2, local: Vec3) -> f32 {
-        let v = 1.0 - st.y;
         let sin_theta = (1.0 - local.y * local.y).max(0.0).sqrt();
         if sin_theta <= 0.0 {
             return 0.0;
         }
-        let row = ((v * self.height as f32) as usize).min(self.height - 1);
-        let col = ((st.x * self.width as f32) as usize).min(self.width - 1);
-        let pdf_uv = self.rows.pmf(row) * self.height as f32 * self.columns[row].pmf(col) * self.width as f32;
+        let pdf_uv = self.distribution.density(Vec2::new(st.x, 1.0 - st.y));
         pdf_uv / (2.0 * PI * PI * sin_theta)
     }
 

@@ -8,6 +8,7 @@
 //! `DomeLight` ignores `normalize`. Area lights emit from their local −Z face (sphere
 //! lights outward); they are emitters only and do not cast shadows on each other.
 
+mod bilinear;
 pub mod blackbody;
 pub mod environment;
 mod mesh_light;
