@@ -284,14 +284,30 @@ def production_scene_dict(usd_path, width, height, max_depth, spp, ply_dir):
     return scene
 
 
+def relative_variance(a, b):
+    """The mean over pixels and channels of half the squared difference of two independent
+    renders, relative to their mean squared (floored at 0.1): the benches' Rust side computes
+    the same (`anchors::relative_variance`)."""
+    a, b = a.astype(np.float64), b.astype(np.float64)
+    m = 0.5 * (a + b)
+    return float(np.mean(0.5 * (a - b) ** 2 / (m * m + 0.01)))
+
+
 def production(usd_path, width, height, spp, max_depth, out_dir, variant):
     import mitsuba as mi
 
     mi.set_variant(variant)
     scene = mi.load_dict(production_scene_dict(usd_path, width, height, max_depth, spp, out_dir))
     best = best_of_three(scene, spp)
-    mean = np.array(mi.render(scene, spp=spp, seed=7))[:, :, :3].reshape(-1, 3).mean(axis=0)
-    return {"variant": variant, "mean": [float(c) for c in mean], "seconds": best, "paths_per_s": width * height * spp / best}
+    a, b = (np.array(mi.render(scene, spp=spp, seed=s))[:, :, :3] for s in (7, 8))
+    mean = a.reshape(-1, 3).mean(axis=0)
+    return {
+        "variant": variant,
+        "mean": [float(c) for c in mean],
+        "seconds": best,
+        "paths_per_s": width * height * spp / best,
+        "noise": relative_variance(a, b),
+    }
 
 
 if __name__ == "__main__":

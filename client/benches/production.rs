@@ -25,8 +25,9 @@ const SPP: u32 = 16;
 /// Mitsuba's max_depth counts vertices including the emitter: its 8 is our 7 bounces.
 const MITSUBA_MAX_DEPTH: u32 = 8;
 
-/// Seconds of the fastest of three renders on `threads` threads, and the last one's mean RGB.
-fn best_of_three(scene: &CommittedScene, threads: usize) -> (f64, Vec3) {
+/// Seconds of the fastest of three renders on `threads` threads (seeds 0, 1, 2), the last one's
+/// mean RGB, and the per-sample noise of the first two ([`anchors::relative_variance`]).
+fn best_of_three(scene: &CommittedScene, threads: usize) -> (f64, Vec3, f64) {
     let settings = RenderSettings {
         width: W,
         height: H,
@@ -38,15 +39,16 @@ fn best_of_three(scene: &CommittedScene, threads: usize) -> (f64, Vec3) {
     };
     let camera = Camera::new(&scene.camera("").unwrap(), W, H);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let (mut best, mut mean) = (f64::INFINITY, Vec3::ZERO);
+    let (mut best, mut mean, mut images) = (f64::INFINITY, Vec3::ZERO, Vec::new());
     for seed in 0..3 {
         let t = Instant::now();
         let (fb, _) = pool.install(|| render_to_framebuffer(scene, &camera, &RenderSettings { seed, ..settings.clone() }));
         best = best.min(t.elapsed().as_secs_f64());
-        let px = &fb.layers[&render_core::film::Aov::Beauty];
-        mean = px.chunks(4).fold(Vec3::ZERO, |s, p| s + Vec3::new(p[0], p[1], p[2])) / (W * H) as f32;
+        let rgb: Vec<[f32; 3]> = fb.layers[&render_core::film::Aov::Beauty].chunks(4).map(|p| [p[0], p[1], p[2]]).collect();
+        mean = rgb.iter().fold(Vec3::ZERO, |s, p| s + Vec3::from(*p)) / (W * H) as f32;
+        images.push(rgb);
     }
-    (best, mean)
+    (best, mean, anchors::relative_variance(&images[0], &images[1]))
 }
 
 /// [`resident_bytes`] after handing the allocator's free memory back to the system (glibc's
@@ -117,13 +119,13 @@ fn main() {
         (arrays + grown) as f64 / triangles as f64
     );
     best_of_three(&scene, 2); // warm caches
-    let ours: Vec<(usize, (f64, Vec3))> = [1, 2].into_iter().map(|threads| (threads, best_of_three(&scene, threads))).collect();
+    let ours: Vec<(usize, (f64, Vec3, f64))> = [1, 2].into_iter().map(|threads| (threads, best_of_three(&scene, threads))).collect();
     let args = [W.to_string(), H.to_string(), SPP.to_string(), MITSUBA_MAX_DEPTH.to_string(), out.display().to_string()];
     let anchor = |variant: &str| anchors::run("production", &[&[usd.display().to_string()][..], &args, &[variant.to_string()]].concat());
     let (llvm, scalar) = (anchor("llvm_ad_rgb"), anchor("scalar_rgb"));
     println!("{:<30} {:>9} {:>10} {:>16} {:>18}", "renderer", "seconds", "Mpaths/s", "vs mitsuba llvm", "vs mitsuba scalar");
     let ratio = |s: f64, m: &Option<anchors::Timing>| m.as_ref().map_or("-".to_string(), |m| format!("{:.2}x", m.seconds / s));
-    for (threads, (s, _)) in &ours {
+    for (threads, (s, _, _)) in &ours {
         let name = format!("tessera, {threads} thread(s)");
         println!("{name:<30} {s:>9.3} {:>10.3} {:>16} {:>18}", paths / s / 1e6, ratio(*s, &llvm), ratio(*s, &scalar));
     }
@@ -138,6 +140,15 @@ fn main() {
     for (name, m) in [("mitsuba llvm", &llvm), ("mitsuba scalar", &scalar)] {
         if let Some(mean) = m.as_ref().and_then(|m| m.mean.as_ref()) {
             println!("mean RGB: {name} {mean:.4?}");
+        }
+    }
+    // Paths per second say nothing of what a path is worth: the noise each renderer leaves per
+    // sample does, and noise × time is the time to equal noise.
+    let (seconds, _, noise) = ours[1].1;
+    println!("noise per sample (relative variance per pixel at {SPP} spp, two seeds): tessera {noise:.4}");
+    for (name, m) in [("mitsuba llvm", &llvm), ("mitsuba scalar", &scalar)] {
+        if let Some((m, theirs)) = m.as_ref().and_then(|m| Some((m, m.noise?))) {
+            println!("  {name} {theirs:.4}: noise x time, tessera {:.2}x {name}'s", noise * seconds / (theirs * m.seconds));
         }
     }
 }
