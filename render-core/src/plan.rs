@@ -37,7 +37,7 @@ macro_rules! features {
 
 features! {
     Lights = "lights": "UsdLux lights, chosen through a light tree with adaptive splitting, MIS (power heuristic)",
-    EnvironmentMap = "environment-map": "DomeLight texture, importance-sampled by luminance × sin θ (2D piecewise-constant) with MIS",
+    EnvironmentMap = "environment-map": "DomeLight texture, importance-sampled by luminance × sin θ (bilinear, as looked up) with MIS",
     Textures = "textures": "material inputs from textures, resolved per shading point and mip-mapped by ray cones",
     NormalMaps = "normal-maps": "tangent-space normal maps (MikkTSpace tangents built for the meshes that use them)",
     BumpMaps = "bump-maps": "tessera:Bump heights: the shading normal tilted by the height's slope, read by central differences one texel apart",

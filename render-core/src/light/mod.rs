@@ -269,16 +269,17 @@ impl LightDesc {
         self.commit_with(None)
     }
 
-    /// [`Self::commit`], a `DomeLight` reading `environment` (its `texture:file`) if given.
-    pub fn commit_with(&self, environment: Option<std::sync::Arc<crate::texture::Texture>>) -> Option<Light> {
+    /// [`Self::commit`], a `DomeLight` reading `environment` (its `texture:file` and that
+    /// map's distribution) if given.
+    pub fn commit_with(&self, environment: Option<std::sync::Arc<environment::DomeMap>>) -> Option<Light> {
         let l = self.base_radiance();
         if !crate::math::is_finite(l) || !self.transform.is_finite() {
             return None;
         }
         let shape = match (self.kind, environment) {
-            (LightKind::Dome, Some(texture)) => {
+            (LightKind::Dome, Some(dome)) => {
                 let rotation = glam::Mat3::from(self.transform.matrix3);
-                let map = std::sync::Arc::new(environment::EnvironmentMap::new(texture, rotation));
+                let map = std::sync::Arc::new(environment::EnvironmentMap::placed(dome, rotation));
                 shapes::Shape::Environment { l, map, turn: glam::Mat3::IDENTITY }
             }
             _ => shapes::Shape::new(self.kind, &self.transform, l, self.normalize)?,

@@ -1,5 +1,5 @@
-//! What commits keep for the next: BLASes, mip pyramids, tangents and displaced meshes, by
-//! geometry identity.
+//! What commits keep for the next: BLASes, mip pyramids, dome maps' distributions, tangents and
+//! displaced meshes, by geometry identity.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -13,6 +13,9 @@ pub struct BlasCache {
     pub(super) entries: HashMap<String, (Arc<Mesh>, Arc<Blas>)>,
     /// Mip pyramids by (content hash, colour space), kept while a material reads them.
     pub(super) textures: HashMap<(String, crate::texture::ColorSpace), Arc<crate::texture::Texture>>,
+    /// Dome maps' sampling distributions by their texture's (content hash, colour space), kept
+    /// while a dome reads them.
+    pub(super) domes: HashMap<(String, crate::texture::ColorSpace), Arc<crate::light::environment::DomeMap>>,
     /// BLAS builds done by the last commit (for tests and logs).
     pub last_builds: usize,
     /// MikkTSpace tangents of normal-mapped meshes, by mesh geometry.
