@@ -81,6 +81,12 @@ impl Bilinear2D {
         (st, self.density(st))
     }
 
+    /// Nodes along `s`.
+    #[cfg(test)]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
     /// The density at (`s`, `v`) over the unit square: the interpolant over its integral.
     pub fn density(&self, st: Vec2) -> f32 {
         if !(self.total > 0.0) {
