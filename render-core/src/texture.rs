@@ -43,7 +43,7 @@ impl Wrap {
     /// The texel index for integer coordinate `i` in an axis of `n` texels, or `None` when the
     /// lookup is black.
     #[inline]
-    fn index(self, i: i64, n: usize) -> Option<usize> {
+    pub(crate) fn index(self, i: i64, n: usize) -> Option<usize> {
         if (0..n as i64).contains(&i) {
             // Inside the image every mode reads the texel itself; the modes below divide.
             return Some(i as usize);

@@ -14,11 +14,12 @@
 use glam::Vec2;
 
 use crate::sampling::Distribution1D;
+use crate::texture::Wrap;
 
 /// The grid's nodes sit at cell centres, as a texture's texels do: wrapped around in `s`
 /// (repeat), held constant beyond the first and last row centres in `v` (clamp), so the
 /// interpolant is the one a `[Repeat, Clamp]` bilinear lookup reads.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub(super) struct Bilinear2D {
     width: usize,
     height: usize,
@@ -97,24 +98,15 @@ impl Bilinear2D {
 
     /// The bilinear interpolant at (`s`, `v`), as a `[Repeat, Clamp]` texture lookup reads it.
     fn interpolate(&self, st: Vec2) -> f32 {
-        let (w, h) = (self.width as i64, self.height as i64);
+        let (w, h) = (self.width, self.height);
         let x = st.x as f64 * w as f64 - 0.5;
         let y = st.y as f64 * h as f64 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        // Inside the square x0 is -1 to w - 1: wrapped by a compare, not a division.
-        let wrap = |i: i64| {
-            let wrapped = match i {
-                -1 => w - 1,
-                i if i == w => 0,
-                i if (0..w).contains(&i) => i,
-                i => i.rem_euclid(w),
-            };
-            wrapped as usize
-        };
-        let xs = [wrap(x0), wrap(x0 + 1)];
-        let ys = [y0.clamp(0, h - 1), (y0 + 1).clamp(0, h - 1)].map(|j| j as usize);
+        // The texture's own wrapping (neither mode is black, so every index exists).
+        let xs = [x0, x0 + 1].map(|i| Wrap::Repeat.index(i, w).unwrap_or(0));
+        let ys = [y0, y0 + 1].map(|j| Wrap::Clamp.index(j, h).unwrap_or(0));
         let node = |i: usize, j: usize| self.nodes[ys[j] * self.width + xs[i]];
         let top = node(0, 0) + (node(1, 0) - node(0, 0)) * fx;
         let bottom = node(0, 1) + (node(1, 1) - node(0, 1)) * fx;
