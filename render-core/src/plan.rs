@@ -45,7 +45,7 @@ features! {
     TexturedCutouts = "textured-cutouts": "opacity textures cut surfaces out per point, for every ray",
     TexturedEmission = "textured-emission": "emission looked up per texel where light sampling lands",
     EmissiveMeshes = "emissive-meshes": "emissive triangles sampled by solid angle (by area when small or far) with MIS",
-    Diffuse = "diffuse": "diffuse reflection (Lambertian; Disney's for tessera:Principled)",
+    Diffuse = "diffuse": "diffuse reflection (Lambertian, energy-preserving Oren-Nayar where rough; Disney's for tessera:Principled)",
     Metal = "metal": "GGX conductor reflection",
     Transmission = "transmission": "rough dielectric refraction (glass)",
     ThinTransmission = "thin-transmission": "thin dielectric sheets (Imageworks' double-refraction series)",

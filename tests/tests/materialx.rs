@@ -67,6 +67,35 @@ fn standard_surface_maps_onto_usd_preview_surface_by_meaning() {
     assert!(t.warnings.is_empty(), "{:?}", t.warnings);
 }
 
+/// OpenPBR's `base_diffuse_roughness` (and Standard Surface's `diffuse_roughness`) on an
+/// opaque dielectric becomes tessera:SolidDielectric's `diffuseRoughness`, the rest as the
+/// UsdPreviewSurface mapping says it; with metal beside it the roughness is reported, not
+/// dropped in silence.
+#[test]
+fn diffuse_roughness_makes_a_rough_solid_dielectric() {
+    let t = load_text(
+        "mtlx_rough",
+        &stage(
+            "ND_open_pbr_surface_surfaceshader",
+            "float inputs:base_diffuse_roughness = 0.6\n color3f inputs:base_color = (0.2, 0.4, 0.6)\n float inputs:specular_roughness = 0.25\n float inputs:coat_weight = 0.5",
+            "",
+        ),
+    );
+    let net = network(&t);
+    let surface = net.nodes.iter().find(|n| n.path == net.surface_node).unwrap();
+    assert_eq!(surface.node_type_id, "tessera:SolidDielectric");
+    assert_eq!(surface_param(net, "diffuseRoughness"), Some(&ParamValue::Float(0.6)));
+    assert_eq!(surface_param(net, "albedo"), Some(&ParamValue::Float3(glam::Vec3::new(0.2, 0.4, 0.6))));
+    assert_eq!(surface_param(net, "roughness"), Some(&ParamValue::Float(0.25)));
+    assert_eq!(surface_param(net, "clearcoat"), Some(&ParamValue::Float(0.5)));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+
+    let inputs = "float inputs:diffuse_roughness = 0.6\n float inputs:metalness = 0.5";
+    let t = load_text("mtlx_rough_metal", &stage("ND_standard_surface_surfaceshader", inputs, ""));
+    let said: Vec<_> = t.warnings.iter().filter(|w| w.contains("/Looks/M/Surface") && w.contains("diffuse roughness")).collect();
+    assert_eq!(said.len(), 1, "{:?}", t.warnings);
+}
+
 #[test]
 fn open_pbr_textures_fold_constants_into_scale_and_bias() {
     // base_color = mix(image · 0.5, constant 0.2, mix 0.25) = 0.125 · image + 0.15, read
@@ -195,6 +224,16 @@ async fn each_lobe_family_keeps_its_energy_in_the_furnace() {
             1.01,
         ),
         ("standard plastic", STANDARD, "float inputs:base = 1", 0.97, 1.005),
+        // EON keeps a white rough diffuse whole (exactly, bsdf::oren_nayar); under a specular
+        // it couples as the Lambertian base does.
+        (
+            "open_pbr rough diffuse",
+            OPEN_PBR,
+            "color3f inputs:base_color = (1, 1, 1)\n float inputs:base_diffuse_roughness = 1\n float inputs:specular_ior = 1",
+            0.99,
+            1.01,
+        ),
+        ("standard rough plastic", STANDARD, "float inputs:base = 1\n float inputs:diffuse_roughness = 1", 0.97, 1.005),
     ];
     for (name, id, inputs, lo, hi) in cases {
         let mean = furnace(id, inputs).await;

@@ -353,6 +353,7 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
     let lobes = Lobes {
         base,
         metalness: g.get(s, "metalness", 0.0),
+        diffuse_roughness: g.get(s, "diffuse_roughness", 0.0),
         specular_weight: g.get(s, "specular", 1.0),
         roughness: g.get(s, "specular_roughness", 0.2),
         ior: g.get(s, "specular_IOR", 1.5),
@@ -386,6 +387,7 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
     let lobes = Lobes {
         base,
         metalness: g.get(s, "base_metalness", 0.0),
+        diffuse_roughness: g.get(s, "base_diffuse_roughness", 0.0),
         specular_weight: g.get(s, "specular_weight", 1.0),
         roughness: g.get(s, "specular_roughness", 0.3),
         ior: g.get(s, "specular_ior", 1.5),
@@ -435,6 +437,8 @@ fn preview(g: &Graph, s: &str) -> Inputs {
 struct Lobes {
     base: Lin,
     metalness: Lin,
+    /// Oren-Nayar roughness of the diffuse base.
+    diffuse_roughness: Lin,
     specular_weight: Lin,
     roughness: Lin,
     ior: Lin,
@@ -466,6 +470,15 @@ impl Lobes {
             }
             warnings.push(format!(
                 "{surface}: subsurface is rendered as diffuse reflection (a scattering medium needs no metalness, transmission, sheen, thin walls or specular weight other than 1)"
+            ));
+        }
+        let rough_diffuse = !zero(&self.diffuse_roughness, 0.0);
+        if rough_diffuse && !beyond_preview && zero(&self.metalness, 0.0) && zero(&self.opacity, 1.0) {
+            return self.rough_dielectric();
+        }
+        if rough_diffuse {
+            warnings.push(format!(
+                "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, sheen, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
             ));
         }
         let principled = beyond_preview || !zero(&self.anisotropy, 0.0);
@@ -517,6 +530,26 @@ impl Lobes {
         Inputs { id: "tessera:Principled", values }
     }
 
+    /// An opaque dielectric with a rough (Oren-Nayar) diffuse: `tessera:SolidDielectric`, the
+    /// same Lambertian-under-specular model UsdPreviewSurface resolves to, plus the roughness.
+    fn rough_dielectric(self) -> Inputs {
+        let mut values = vec![
+            ("albedo", self.base, true),
+            ("diffuseRoughness", self.diffuse_roughness, false),
+            ("refractiveIndex", self.ior, false),
+            ("roughness", self.roughness, false),
+            ("anisotropy", self.anisotropy, false),
+            ("clearcoat", self.coat, false),
+            ("clearcoatRoughness", self.coat_roughness, false),
+            ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("emission", self.emission, true),
+        ];
+        if let Some(n) = self.normal {
+            values.push(("normal", n, true));
+        }
+        Inputs { id: "tessera:SolidDielectric", values }
+    }
+
     /// A dielectric whose base is partly or wholly a scattering medium: `tessera:SolidDielectric`
     /// with its random walk (docs/materials.md, "Subsurface scattering"). The weight becomes
     /// `scatteringWeight`; the medium and the diffuse beside it share one colour, the two
@@ -547,6 +580,7 @@ impl Lobes {
         }
         let mut values = vec![
             ("albedo", albedo, true),
+            ("diffuseRoughness", self.diffuse_roughness, false),
             ("refractiveIndex", self.ior, false),
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),

@@ -22,6 +22,7 @@ pub mod hair;
 mod lambert;
 mod lazy_rows;
 pub mod microfacet;
+pub mod oren_nayar;
 mod reflection;
 mod thin;
 pub mod thin_film;
@@ -35,6 +36,7 @@ pub use fabric::Fabric;
 pub use flake::Flake;
 pub use hair::Hair;
 pub use lambert::Lambert;
+pub use oren_nayar::OrenNayar;
 pub use reflection::{GgxReflection, SpecularFresnel};
 pub use thin::{ThinDielectric, sheet_series};
 pub use thin_film::ThinFilmCoat;
@@ -82,6 +84,8 @@ pub enum Lobe {
     Dielectric(Dielectric),
     /// Disney diffuse with retro-reflection (and the thin-surface blend).
     DisneyDiffuse(DisneyDiffuse),
+    /// Rough diffuse: energy-preserving Oren-Nayar (OpenPBR's, Cycles').
+    OrenNayar(OrenNayar),
     /// Lambertian transmission.
     DiffuseTransmission(DiffuseTransmission),
     /// Disney sheen.
@@ -109,6 +113,7 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.eval(wo, wi),
             Lobe::Dielectric(l) => l.eval(wo, wi),
             Lobe::DisneyDiffuse(l) => l.eval(wo, wi),
+            Lobe::OrenNayar(l) => l.eval(wo, wi),
             Lobe::DiffuseTransmission(l) => l.eval(wo, wi),
             Lobe::Sheen(l) => l.eval(wo, wi),
             Lobe::Clearcoat(l) => l.eval(wo, wi),
@@ -128,6 +133,7 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.sample(wo, uc, u),
             Lobe::Dielectric(l) => l.sample(wo, uc, u),
             Lobe::DisneyDiffuse(l) => l.sample(wo, uc, u),
+            Lobe::OrenNayar(l) => l.sample(wo, uc, u),
             Lobe::DiffuseTransmission(l) => l.sample(wo, uc, u),
             Lobe::Sheen(l) => l.sample(wo, uc, u),
             Lobe::Clearcoat(l) => l.sample(wo, uc, u),
@@ -147,6 +153,7 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.pdf(wo, wi),
             Lobe::Dielectric(l) => l.pdf(wo, wi),
             Lobe::DisneyDiffuse(l) => l.pdf(wo, wi),
+            Lobe::OrenNayar(l) => l.pdf(wo, wi),
             Lobe::DiffuseTransmission(l) => l.pdf(wo, wi),
             Lobe::Sheen(l) => l.pdf(wo, wi),
             Lobe::Clearcoat(l) => l.pdf(wo, wi),
@@ -169,6 +176,7 @@ impl Lobe {
             // The diffuse lobes directly: through `self.eval` and `self.pdf` they were two
             // more dispatches, each a call, at every light sample of a diffuse surface.
             Lobe::DisneyDiffuse(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
+            Lobe::OrenNayar(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
             Lobe::Lambert(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }
@@ -182,6 +190,7 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.prepare(wo),
             Lobe::Dielectric(l) => l.prepare(wo),
             Lobe::DisneyDiffuse(l) => l.prepare(wo),
+            Lobe::OrenNayar(l) => l.prepare(wo),
             _ => {}
         }
     }
@@ -191,7 +200,7 @@ impl Lobe {
     #[inline]
     fn reads_view(&self) -> bool {
         match self {
-            Lobe::GgxReflection(_) | Lobe::Dielectric(_) => true,
+            Lobe::GgxReflection(_) | Lobe::Dielectric(_) | Lobe::OrenNayar(_) => true,
             Lobe::DisneyDiffuse(l) => l.reads_tables(),
             _ => false,
         }
@@ -205,6 +214,7 @@ impl Lobe {
             Lobe::GgxReflection(l) => l.albedo(wo),
             Lobe::Dielectric(l) => l.albedo(wo),
             Lobe::DisneyDiffuse(l) => l.albedo(wo),
+            Lobe::OrenNayar(l) => l.albedo(wo),
             Lobe::DiffuseTransmission(l) => l.albedo(wo),
             Lobe::Sheen(l) => l.albedo(wo),
             Lobe::Clearcoat(l) => l.albedo(wo),
@@ -221,7 +231,7 @@ impl Lobe {
     /// sample as it is, to the bit, rather than evaluate it a second time (`Bsdf::sample`).
     #[inline]
     fn sample_is_own_estimate(&self) -> bool {
-        matches!(self, Lobe::DisneyDiffuse(_) | Lobe::Sheen(_))
+        matches!(self, Lobe::DisneyDiffuse(_) | Lobe::OrenNayar(_) | Lobe::Sheen(_))
     }
 
     /// The lobe's flags.
@@ -232,6 +242,7 @@ impl Lobe {
             Lobe::GgxReflection(c) => c.flags(),
             Lobe::Dielectric(d) => d.flags(),
             Lobe::DisneyDiffuse(_) => DisneyDiffuse::FLAGS,
+            Lobe::OrenNayar(_) => OrenNayar::FLAGS,
             Lobe::DiffuseTransmission(_) => DiffuseTransmission::FLAGS,
             Lobe::Sheen(_) => Sheen::FLAGS,
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
@@ -250,6 +261,7 @@ impl Lobe {
         match self {
             Lobe::Lambert(_)
             | Lobe::DisneyDiffuse(_)
+            | Lobe::OrenNayar(_)
             | Lobe::DiffuseTransmission(_)
             | Lobe::Sheen(_)
             | Lobe::CharlieSheen(_)
@@ -266,7 +278,7 @@ impl Lobe {
     /// What the lobe does to light going from `wi` to `wo`, for the light-path AOVs.
     pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
         match self {
-            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
+            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::OrenNayar(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
             Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) | Lobe::Flake(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) | Lobe::Hair(_) if wo.z * wi.z > 0.0 => PathKind::Specular,

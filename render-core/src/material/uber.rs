@@ -16,7 +16,7 @@ use super::glitter::GlitterParams;
 pub use super::mix::Mix;
 use crate::bsdf::{
     Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Hair, Lobe,
-    Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
+    OrenNayar, Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
 };
 
 /// Share of `wb` in `wa + wb` (0 when both are 0).
@@ -122,6 +122,9 @@ pub struct Plastic {
     pub diffuse_roughness: f32,
     /// Lambertian diffuse instead of Disney's.
     pub lambert: bool,
+    /// Oren-Nayar roughness σ of the Lambertian base (energy-preserving, OpenPBR's
+    /// `base_diffuse_roughness`); 0 keeps it Lambertian. Thin surfaces keep Disney's flatness.
+    pub oren_nayar: f32,
     /// Disney thin-surface flatness.
     pub flatness: f32,
     /// Share of the diffuse that transmits, and its colour.
@@ -155,6 +158,7 @@ impl Default for Plastic {
             diffuse: Vec3::splat(0.18),
             diffuse_roughness: 0.5,
             lambert: true,
+            oren_nayar: 0.0,
             flatness: 0.0,
             diffuse_transmission: 0.0,
             transmission_color: Vec3::ONE,
@@ -170,6 +174,16 @@ impl Default for Plastic {
     }
 }
 
+impl Plastic {
+    /// The diffuse base: Oren-Nayar where a Lambertian base is rough, Disney's otherwise.
+    fn diffuse_lobe(&self, coupling: Option<(f32, f32)>) -> Lobe {
+        if self.lambert && self.oren_nayar > 0.0 && self.flatness == 0.0 {
+            return Lobe::OrenNayar(OrenNayar::new(self.diffuse, self.oren_nayar, coupling));
+        }
+        Lobe::DisneyDiffuse(DisneyDiffuse::new(self.diffuse, self.diffuse_roughness, self.flatness, coupling, self.lambert))
+    }
+}
+
 impl Mix for Plastic {
     fn mix(&self, wa: f32, o: &Self, wb: f32) -> Self {
         let specular = match (self.specular, o.specular) {
@@ -180,6 +194,7 @@ impl Mix for Plastic {
             diffuse: self.diffuse.mix(wa, &o.diffuse, wb),
             diffuse_roughness: self.diffuse_roughness.mix(wa, &o.diffuse_roughness, wb),
             lambert: self.lambert.mix(wa, &o.lambert, wb),
+            oren_nayar: self.oren_nayar.mix(wa, &o.oren_nayar, wb),
             flatness: self.flatness.mix(wa, &o.flatness, wb),
             diffuse_transmission: self.diffuse_transmission.mix(wa, &o.diffuse_transmission, wb),
             transmission_color: self.transmission_color.mix(wa, &o.transmission_color, wb),
@@ -610,10 +625,7 @@ impl Uber {
             // transmission would enter it as if through the boundary.
             let dt = if medium_share > 0.0 { 0.0 } else { finite(p.diffuse_transmission) };
             let scale = if compensate { p.diffuse_scale } else { 1.0 };
-            bsdf.push_weighted(
-                Lobe::DisneyDiffuse(DisneyDiffuse::new(p.diffuse, p.diffuse_roughness, p.flatness, coupling, p.lambert)),
-                plastic_w * (1.0 - dt) * scale,
-            );
+            bsdf.push_weighted(p.diffuse_lobe(coupling), plastic_w * (1.0 - dt) * scale);
             bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
             match p.specular {
                 Some(s) => s.push(&mut bsdf, plastic_w * spec_scale, compensate),
