@@ -25,6 +25,10 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 * Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
   ``tessera:SolidDielectric``'s absorbing clearcoat (``_correct_coats``).
+* Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness):
+  dropped too. On an opaque dielectric it becomes ``tessera:SolidDielectric``'s
+  ``diffuseRoughness``, the energy-preserving Oren-Nayar Cycles renders
+  (``_correct_diffuse_roughness``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -151,6 +155,8 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_glass(exported, prim, Sdf, UsdShade)
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _correct_coats(exported, prim, Sdf, UsdShade)
+    if material is not None:
+        _correct_diffuse_roughness(exported, prim, material, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
         # Last: the corrections above act on the BSDF the export kept, which the layer holds.
@@ -380,6 +386,22 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
+def _correct_diffuse_roughness(exported: Export, prim, material, Sdf, UsdShade) -> None:
+    """A Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness, which
+    UsdPreviewSurface cannot hold, as tessera:SolidDielectric's `diffuseRoughness`: the same
+    energy-preserving Oren-Nayar Cycles renders (``nodes.carried_diffuse_roughness`` says
+    when)."""
+    node = nodes.surface_node(material)
+    sigma = nodes.carried_diffuse_roughness(node) if node is not None else None
+    shader = _surface_shader(prim, UsdShade) if sigma is not None else None
+    if not shader:
+        return
+    _warn_if_displaced(exported, material.name, shader)
+    _as_solid_dielectric(shader, Sdf)
+    shader.CreateInput("diffuseRoughness", Sdf.ValueTypeNames.Float).Set(sigma)
+    exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {sigma:g} as tessera:SolidDielectric diffuseRoughness")
+
+
 def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:
     """Blender exports a material's Displacement output whatever its Displacement method, and
     UsdPreviewSurface's displacement moves the mesh (Cycles' *Displacement Only*). *Bump Only*,
@@ -412,9 +434,10 @@ def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:
 
 
 def _warn_if_displaced(exported: Export, name: str, shader) -> None:
-    """Glass and subsurface are rewritten onto Tessera's own shaders, which do not displace."""
+    """Glass, subsurface, tinted coats and rough diffuse are rewritten onto Tessera's own
+    shaders, which do not displace."""
     if shader.GetInput("displacement"):
-        exported.warnings.append(f"{name}: displacement is not carried on glass or subsurface materials")
+        exported.warnings.append(f"{name}: displacement is not carried on glass, subsurface, tinted-coat or rough-diffuse materials")
 
 
 #: Blender's Specular IOR Level that leaves the IOR's reflectance as it is.

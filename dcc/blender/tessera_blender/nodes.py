@@ -90,7 +90,7 @@ def principled_losses(node) -> list[str]:
     white = (1.0, 1.0, 1.0)
     # (input, whether it matters at all, whether its value shows)
     rows = (
-        ("Diffuse Roughness", True, float(value["Diffuse Roughness"]) > 0.0),
+        ("Diffuse Roughness", carried_diffuse_roughness(node) is None, float(value["Diffuse Roughness"]) > 0.0),
         ("Specular Tint", True, tuple(value["Specular Tint"])[:3] != white),
         ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
         ("Coat IOR", coat and not carried, float(value["Coat IOR"]) != 1.5),
@@ -101,6 +101,30 @@ def principled_losses(node) -> list[str]:
         ("Emission Strength", True, False),
     )
     return [name for name, matters, shows in rows if matters and (shows or name in linked)]
+
+
+#: The input that holds a BSDF's Oren-Nayar roughness, by node type.
+DIFFUSE_ROUGHNESS = {"BSDF_PRINCIPLED": "Diffuse Roughness", "BSDF_DIFFUSE": "Roughness"}
+
+
+def carried_diffuse_roughness(node):
+    """The Oren-Nayar roughness of a Principled or Diffuse BSDF that tessera:SolidDielectric's
+    `diffuseRoughness` carries, or None. Cycles' Oren-Nayar (since 4.3) is the energy-preserving
+    one OpenPBR specifies, as ours is (docs/materials.md, "Rough diffuse"). Carried when it is a
+    constant above 0 on the material's surface itself (not a side of a mix), and for a
+    Principled BSDF on an opaque dielectric (no metal, no transmission, Alpha 1): the shader
+    has no opacity, and its diffuse is the dielectric's."""
+    name = DIFFUSE_ROUGHNESS.get(node.type)
+    if name is None or node.inputs[name].is_linked or float(node.inputs[name].default_value) <= 0.0:
+        return None
+    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+        return None
+    if node.type == "BSDF_PRINCIPLED":
+        if any(node.inputs[n].is_linked or float(node.inputs[n].default_value) > 0.0 for n in NOT_DIELECTRIC):
+            return None
+        if node.inputs["Alpha"].is_linked or float(node.inputs["Alpha"].default_value) < 1.0:
+            return None
+    return min(float(node.inputs[name].default_value), 1.0)
 
 
 #: Principled inputs whose links keep its coat off tessera:SolidDielectric's (constants only),
@@ -681,8 +705,9 @@ def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:
     shader.CreateInput("ior", Sdf.ValueTypeNames.Float).Set(1.0)
     exported.corrections.append(f"{prim.GetPath()}: Diffuse BSDF without a specular layer (ior 1)")
     roughness = node.inputs["Roughness"]
-    if roughness.is_linked or float(roughness.default_value) > 0.0:
-        exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried; the surface is Lambertian")
+    lost = roughness.is_linked or float(roughness.default_value) > 0.0
+    if lost and carried_diffuse_roughness(node) is None:
+        exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried here (textured, or in a mix); the surface is Lambertian")
 
 
 def _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade) -> None:

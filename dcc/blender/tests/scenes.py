@@ -28,6 +28,7 @@ REGIONS = {
     "spot": {1: "floor"},
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere"},
+    "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -322,7 +323,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "hair") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -355,6 +356,18 @@ def build(kind, directory):
             m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(0, 0, 1.0), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    elif kind == "rough_diffuse":
+        # Oren-Nayar at roughness 1 (energy-preserving in both): a Principled BSDF's Diffuse
+        # Roughness and a Diffuse BSDF's Roughness, lit by a sun from behind the camera, where
+        # rough facets send light back and a Lambertian sphere would read darker.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+        m = mat("rough principled", (0.8, 0.8, 0.8))
+        m.node_tree.nodes["Principled BSDF"].inputs["Diffuse Roughness"].default_value = 1.0
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(-1.2, 0, 1.0), segments=64, ring_count=32)
+        d = _standalone_material("rough diffuse", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1), Roughness=1.0)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, d, 3, radius=1.0, location=(1.2, 0, 1.0), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(1.1, 0, 0)); bpy.context.object.data.energy = 3
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
