@@ -51,7 +51,7 @@ features! {
     ThinTransmission = "thin-transmission": "thin dielectric sheets (Imageworks' double-refraction series)",
     DiffuseTransmission = "diffuse-transmission": "Lambertian transmission",
     Clearcoat = "clearcoat": "a clearcoat layered over the base",
-    Sheen = "sheen": "sheen (Charlie coat, or Disney's for tessera:Principled)",
+    Sheen = "sheen": "sheen (Charlie coat, Zeltner's fuzz coat, or Disney's for tessera:Principled)",
     Fabric = "fabric": "the DreamWorks fabric cone",
     Hair = "hair": "hair fibres (Chiang et al. 2016): the shading frame along each curve, tube insides skipped by rays leaving a fibre",
     Glitter = "glitter": "DreamWorks glitter: object-space Worley flakes found per shading point, GGX lobe per flake",

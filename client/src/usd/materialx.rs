@@ -56,7 +56,12 @@ pub fn is_materialx(net: &MaterialNetwork) -> bool {
 /// warnings naming each node once.
 pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Result<(), String> {
     let surface = net.nodes.iter().find(|n| n.path == net.surface_node).cloned().ok_or("no surface node")?;
-    let graph = Graph { net, warned: std::cell::RefCell::new(Vec::new()), bumped: std::cell::Cell::new(false) };
+    let graph = Graph {
+        net,
+        warned: std::cell::RefCell::new(Vec::new()),
+        bumped: std::cell::Cell::new(false),
+        read: std::cell::RefCell::new(Vec::new()),
+    };
     let mut inputs = match surface.node_type_id.as_str() {
         STANDARD_SURFACE => standard_surface(&graph, &surface.path),
         OPEN_PBR => open_pbr(&graph, &surface.path),
@@ -90,6 +95,11 @@ pub fn translate(net: &mut MaterialNetwork, warnings: &mut Vec<String>) -> Resul
         }
     }
     warnings.extend(graph.warned.take());
+    if surface.node_type_id != SURFACE {
+        for name in graph.unread(&surface.path) {
+            warnings.push(format!("{}: input '{name}' is not carried (Tessera's shaders have no place for it)", surface.path));
+        }
+    }
     *net = emit(&surface.path, inputs, net, warnings);
     Ok(())
 }
@@ -157,6 +167,8 @@ struct Graph<'n> {
     warned: std::cell::RefCell<Vec<String>>,
     /// Whether the surface's normal came from a `bump` node.
     bumped: std::cell::Cell<bool>,
+    /// The surface inputs its mapping read: the authored rest are reported.
+    read: std::cell::RefCell<Vec<String>>,
 }
 
 impl Graph<'_> {
@@ -276,18 +288,42 @@ impl Graph<'_> {
         None
     }
 
+    /// Marks the surface input `name` as read by the mapping.
+    fn mark(&self, name: &str) {
+        self.read.borrow_mut().push(name.to_string());
+    }
+
+    /// The inputs authored on `surface` (values and connections) that its mapping never read,
+    /// each once, in the order authored.
+    fn unread(&self, surface: &str) -> Vec<String> {
+        let read = self.read.borrow();
+        let node = self.node(surface);
+        let values = node.into_iter().flat_map(|n| n.parameters.keys().cloned());
+        let connected = self.net.connections.iter().filter(|c| c.downstream_node == surface).map(|c| c.downstream_input.clone());
+        let mut out: Vec<String> = Vec::new();
+        for name in values.chain(connected) {
+            if !read.contains(&name) && !out.contains(&name) {
+                out.push(name);
+            }
+        }
+        out
+    }
+
     /// A surface input: its folded value, or `default` when it cannot be folded.
     fn get(&self, surface: &str, name: &str, default: f32) -> Lin {
+        self.mark(name);
         self.input(surface, name, Vec4::splat(default), 0).unwrap_or(Lin::constant(Vec4::splat(default)))
     }
 
     fn get3(&self, surface: &str, name: &str, default: Vec3) -> Lin {
+        self.mark(name);
         self.input(surface, name, default.extend(1.0), 0).unwrap_or(Lin::constant(default.extend(1.0)))
     }
 
     /// The amount a `displacement` shader handed to the surface (see [`displaced_by`]) moves it:
     /// `displacement · scale`, folded. None without one, or (reported) when it cannot be folded.
     fn displacement(&self, surface: &str) -> Option<Lin> {
+        self.mark("displacement");
         let c = self.net.connections.iter().find(|c| c.downstream_node == surface && c.downstream_input == "displacement")?;
         let shader = &c.upstream_node;
         let amount = self.input(shader, "displacement", Vec4::ZERO, 1)?;
@@ -299,6 +335,7 @@ impl Graph<'_> {
     /// node's height × scale (noted in `bumped`, so the surface's normal is emitted through a
     /// `tessera:Bump`), when the surface's `input` is connected to one.
     fn normal_map(&self, surface: &str, input: &str) -> Option<Lin> {
+        self.mark(input);
         let c = self.net.connections.iter().find(|c| c.downstream_node == surface && c.downstream_input == input)?;
         let node = self.node(&c.upstream_node)?;
         if node.node_type_id.starts_with("ND_bump") {
@@ -363,6 +400,10 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         coat: g.get(s, "coat", 0.0),
         coat_roughness: g.get(s, "coat_roughness", 0.1),
         sheen: g.get(s, "sheen", 0.0),
+        sheen_color: g.get3(s, "sheen_color", Vec3::ONE),
+        sheen_roughness: g.get(s, "sheen_roughness", 0.3),
+        // Standard Surface's sheen is Estevez & Kulla's microfibre (Charlie) sheen.
+        sheen_names: ["sheen", "sheenColor", "sheenRoughness"],
         subsurface: g.get(s, "subsurface", 0.0),
         medium: Medium {
             color: g.get3(s, "subsurface_color", Vec3::ONE),
@@ -397,6 +438,10 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         coat: g.get(s, "coat_weight", 0.0),
         coat_roughness: g.get(s, "coat_roughness", 0.0),
         sheen: g.get(s, "fuzz_weight", 0.0),
+        sheen_color: g.get3(s, "fuzz_color", Vec3::ONE),
+        sheen_roughness: g.get(s, "fuzz_roughness", 0.5),
+        // OpenPBR's fuzz is Zeltner et al.'s LTC sheen.
+        sheen_names: ["fuzz", "fuzzColor", "fuzzRoughness"],
         subsurface: g.get(s, "subsurface_weight", 0.0),
         medium: Medium {
             color: g.get3(s, "subsurface_color", Vec3::splat(0.8)),
@@ -448,6 +493,10 @@ struct Lobes {
     coat: Lin,
     coat_roughness: Lin,
     sheen: Lin,
+    sheen_color: Lin,
+    sheen_roughness: Lin,
+    /// `tessera:SolidDielectric`'s inputs for this sheen's model: weight, colour, roughness.
+    sheen_names: [&'static str; 3],
     subsurface: Lin,
     medium: Medium,
     coat_ior: Lin,
@@ -473,15 +522,27 @@ impl Lobes {
             ));
         }
         let rough_diffuse = !zero(&self.diffuse_roughness, 0.0);
-        if rough_diffuse && !beyond_preview && zero(&self.metalness, 0.0) && zero(&self.opacity, 1.0) {
-            return self.rough_dielectric();
+        let sheen = !zero(&self.sheen, 0.0);
+        let opaque_dielectric = zero(&self.transmission, 0.0)
+            && zero(&self.thin, 0.0)
+            && zero(&self.specular_weight, 1.0)
+            && zero(&self.metalness, 0.0)
+            && zero(&self.opacity, 1.0);
+        if (rough_diffuse || sheen) && opaque_dielectric {
+            return self.opaque_dielectric();
         }
         if rough_diffuse {
             warnings.push(format!(
-                "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, sheen, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
+                "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
             ));
         }
         let principled = beyond_preview || !zero(&self.anisotropy, 0.0);
+        if sheen {
+            warnings.push(format!(
+                "{surface}: {} on a surface that is not an opaque dielectric is Disney's sheen here; its colour and roughness are not carried",
+                self.sheen_names[0]
+            ));
+        }
         if !principled {
             let mut values = vec![
                 ("diffuseColor", self.base, true),
@@ -530,12 +591,17 @@ impl Lobes {
         Inputs { id: "tessera:Principled", values }
     }
 
-    /// An opaque dielectric with a rough (Oren-Nayar) diffuse: `tessera:SolidDielectric`, the
-    /// same Lambertian-under-specular model UsdPreviewSurface resolves to, plus the roughness.
-    fn rough_dielectric(self) -> Inputs {
+    /// An opaque dielectric with a rough (Oren-Nayar) diffuse or a sheen:
+    /// `tessera:SolidDielectric`, the same Lambertian-under-specular model UsdPreviewSurface
+    /// resolves to, plus the roughness and the sheen in its own model (Charlie or fuzz).
+    fn opaque_dielectric(self) -> Inputs {
+        let [sheen, sheen_color, sheen_roughness] = self.sheen_names;
         let mut values = vec![
             ("albedo", self.base, true),
             ("diffuseRoughness", self.diffuse_roughness, false),
+            (sheen, self.sheen, false),
+            (sheen_color, self.sheen_color, true),
+            (sheen_roughness, self.sheen_roughness, false),
             ("refractiveIndex", self.ior, false),
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),

@@ -18,6 +18,7 @@ pub mod energy;
 pub mod fabric;
 pub mod flake;
 pub mod fresnel;
+pub mod fuzz;
 pub mod hair;
 mod lambert;
 mod lazy_rows;
@@ -34,6 +35,7 @@ pub use dielectric::Dielectric;
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
 pub use flake::Flake;
+pub use fuzz::Fuzz;
 pub use hair::Hair;
 pub use lambert::Lambert;
 pub use oren_nayar::OrenNayar;
@@ -94,6 +96,8 @@ pub enum Lobe {
     Clearcoat(Clearcoat),
     /// Imageworks' "Charlie" sheen.
     CharlieSheen(CharlieSheen),
+    /// Zeltner et al.'s multiple-scattering sheen (OpenPBR fuzz, Cycles' sheen).
+    Fuzz(Fuzz),
     /// A thin dielectric sheet: reflection and undeflected transmission.
     ThinDielectric(ThinDielectric),
     /// The DreamWorks fabric cone.
@@ -118,6 +122,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.eval(wo, wi),
             Lobe::Clearcoat(l) => l.eval(wo, wi),
             Lobe::CharlieSheen(l) => l.eval(wo, wi),
+            Lobe::Fuzz(l) => l.eval(wo, wi),
             Lobe::ThinDielectric(l) => l.eval(wo, wi),
             Lobe::Fabric(l) => l.eval(wo, wi),
             Lobe::Flake(l) => l.eval(wo, wi),
@@ -138,6 +143,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.sample(wo, uc, u),
             Lobe::Clearcoat(l) => l.sample(wo, uc, u),
             Lobe::CharlieSheen(l) => l.sample(wo, uc, u),
+            Lobe::Fuzz(l) => l.sample(wo, uc, u),
             Lobe::ThinDielectric(l) => l.sample(wo, uc, u),
             Lobe::Fabric(l) => l.sample(wo, uc, u),
             Lobe::Flake(l) => l.sample(wo, uc, u),
@@ -158,6 +164,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.pdf(wo, wi),
             Lobe::Clearcoat(l) => l.pdf(wo, wi),
             Lobe::CharlieSheen(l) => l.pdf(wo, wi),
+            Lobe::Fuzz(l) => l.pdf(wo, wi),
             Lobe::ThinDielectric(l) => l.pdf(wo, wi),
             Lobe::Fabric(l) => l.pdf(wo, wi),
             Lobe::Flake(l) => l.pdf(wo, wi),
@@ -219,6 +226,7 @@ impl Lobe {
             Lobe::Sheen(l) => l.albedo(wo),
             Lobe::Clearcoat(l) => l.albedo(wo),
             Lobe::CharlieSheen(l) => l.albedo(wo),
+            Lobe::Fuzz(l) => l.albedo(wo),
             Lobe::ThinDielectric(l) => l.albedo(wo),
             Lobe::Fabric(l) => l.albedo(wo),
             Lobe::Flake(l) => l.albedo(wo),
@@ -247,6 +255,7 @@ impl Lobe {
             Lobe::Sheen(_) => Sheen::FLAGS,
             Lobe::Clearcoat(_) => Clearcoat::FLAGS,
             Lobe::CharlieSheen(_) => CharlieSheen::FLAGS,
+            Lobe::Fuzz(_) => Fuzz::FLAGS,
             Lobe::ThinDielectric(t) => t.flags(),
             Lobe::Fabric(_) => Fabric::FLAGS,
             Lobe::Flake(_) => Flake::FLAGS,
@@ -265,6 +274,7 @@ impl Lobe {
             | Lobe::DiffuseTransmission(_)
             | Lobe::Sheen(_)
             | Lobe::CharlieSheen(_)
+            | Lobe::Fuzz(_)
             | Lobe::Fabric(_) => 1.0,
             Lobe::GgxReflection(g) => r(g.ggx.ax.max(g.ggx.ay)),
             Lobe::Dielectric(d) => r(d.ggx.ax.max(d.ggx.ay)),
@@ -278,7 +288,9 @@ impl Lobe {
     /// What the lobe does to light going from `wi` to `wo`, for the light-path AOVs.
     pub fn kind(&self, wo: Vec3, wi: Vec3) -> PathKind {
         match self {
-            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::OrenNayar(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) => PathKind::Diffuse,
+            Lobe::Lambert(_) | Lobe::DisneyDiffuse(_) | Lobe::OrenNayar(_) | Lobe::Sheen(_) | Lobe::CharlieSheen(_) | Lobe::Fuzz(_) => {
+                PathKind::Diffuse
+            }
             Lobe::GgxReflection(_) | Lobe::Clearcoat(_) | Lobe::Fabric(_) | Lobe::Flake(_) => PathKind::Specular,
             Lobe::DiffuseTransmission(_) => PathKind::Transmission,
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) | Lobe::Hair(_) if wo.z * wi.z > 0.0 => PathKind::Specular,
@@ -654,6 +666,8 @@ mod finite_everywhere {
             (r.clone(), a.clone(), prop_oneof![Just(1.0f32), Just(1.0001f32), Just(3.0f32), 0.3f32..3.0], c.clone(), any::<bool>())
                 .prop_map(|(r, a, eta, c, comp)| Lobe::ThinDielectric(ThinDielectric::new(r, a, eta, c, comp))),
             (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::CharlieSheen(CharlieSheen::new(c, r))),
+            (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::Fuzz(Fuzz::new(c, r))),
+            (c.clone(), r.clone()).prop_map(|(c, r)| Lobe::OrenNayar(OrenNayar::new(c, r, None))),
             (c.clone(), r.clone(), a).prop_map(|(c, r, a)| Lobe::Fabric(Fabric::new(c, r, a * 3.0))),
             (dir(), r.clone(), c.clone()).prop_map(|(n, r, c)| Lobe::Flake(Flake::new(n, r, c))),
             (c, r.clone(), r, prop_oneof![Just(1.0f32), 1.0f32..3.0], -10.0f32..10.0)
@@ -672,8 +686,9 @@ mod finite_everywhere {
             )),
             (r.clone(), prop_oneof![Just(1.0f32), 0.3f32..3.0], c.clone(), any::<bool>())
                 .prop_map(|(r, eta, t, comp)| Lobe::Dielectric(Dielectric::new(r, 0.0, eta, t).compensated(comp))),
-            (c, r.clone(), r, coupling, any::<bool>())
+            (c.clone(), r.clone(), r.clone(), coupling.clone(), any::<bool>())
                 .prop_map(|(c, r, fl, cp, lambert)| Lobe::DisneyDiffuse(DisneyDiffuse::new(c, r, fl, cp, lambert))),
+            (c, r, coupling).prop_map(|(c, r, cp)| Lobe::OrenNayar(OrenNayar::new(c, r, cp))),
         ]
     }
 
@@ -702,6 +717,7 @@ mod finite_everywhere {
             (0.0f32..1.0, 1.0f32..3.0, 0.0f32..1.0, 0.0f32..1.0, 0.0f32..2.0)
                 .prop_map(|(w, eta, r, c, t)| Coat::Dielectric(DielectricCoat::new(w, eta, r, Vec3::new(c, 0.5, 1.0), t))),
             (0.0f32..1.0, 0.0f32..1.0).prop_map(|(c, r)| Coat::Sheen(CharlieSheen::new(Vec3::splat(c), r))),
+            (0.0f32..1.0, 0.0f32..1.0).prop_map(|(c, r)| Coat::Fuzz(Fuzz::new(Vec3::splat(c), r))),
         ];
         (preparing_lobe(), preparing_lobe(), proptest::collection::vec((coat, any::<bool>()), 0..=2)).prop_map(|(a, b, coats)| {
             let mut bsdf = Bsdf::default();

@@ -92,7 +92,12 @@ impl Material {
         let clear_glass = u.glass.weight >= 1.0 && g.ior == 1.0 && (g.bend_ior == 1.0 || g.thin) && g.color == Vec3::ONE;
         self.cut_out
             || self.pass_through >= 1.0
-            || (clear_glass && u.clearcoat.weight == 0.0 && u.sheen.weight == 0.0 && !u.has_glitter() && !self.is_emissive())
+            || (clear_glass
+                && u.clearcoat.weight == 0.0
+                && u.sheen.weight == 0.0
+                && u.fuzz.weight == 0.0
+                && !u.has_glitter()
+                && !self.is_emissive())
     }
 
     /// The subsurface medium behind the surface, if any.

@@ -87,6 +87,14 @@ pub const SHARED: &[Input] = &[
     float("sheen", 0.0, (0.0, 1.0), "coverage of a Charlie sheen coat (microfibres) over everything"),
     color("sheenColor", 1.0, "sheen colour"),
     float("sheenRoughness", 0.3, (0.07, 1.0), "sheen roughness (clamped at 0.07, where the slides' Λ fit stops conserving energy)"),
+    float(
+        "fuzz",
+        0.0,
+        (0.0, 1.0),
+        "coverage of a fuzz coat over everything, the sheen included: Zeltner et al.'s multiple-scattering sheen (OpenPBR's fuzz, Cycles' sheen)",
+    ),
+    color("fuzzColor", 1.0, "fuzz colour"),
+    float("fuzzRoughness", 0.5, (0.01, 1.0), "fuzz roughness α (clamped at 0.01, where the fits stop)"),
     float("iridescence", 0.0, (0.0, 1.0), "coverage of a thin film (soap, oil, anodized) over the material and its clearcoat"),
     float("iridescenceThickness", 400.0, (0.0, 1000.0), "film thickness in nanometres: its colours"),
     float("iridescenceRefractiveIndex", 1.33, (1.0, 3.0), "the film's refractive index"),
@@ -419,6 +427,7 @@ fn shared_layers(v: &Values, u: &mut Uber) -> Vec3 {
         },
     };
     u.sheen = Weighted { weight: v.f("sheen"), params: SheenParams { color: v.c("sheenColor"), roughness: v.f("sheenRoughness") } };
+    u.fuzz = Weighted { weight: v.f("fuzz"), params: SheenParams { color: v.c("fuzzColor"), roughness: v.f("fuzzRoughness") } };
     u.specular_control = v.f("specularControl");
     v.c("emission")
 }
@@ -489,7 +498,7 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 10] = [
+        let cases: [(&str, Vec<(&str, ParamValue)>); 11] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -499,6 +508,10 @@ mod tests {
             ),
             ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseTransmission", ParamValue::Float3(Vec3::splat(0.4)))]),
             ("tessera:SolidDielectric", vec![("albedo", white.clone()), ("diffuseRoughness", ParamValue::Float(1.0))]),
+            (
+                "tessera:SolidDielectric",
+                vec![("albedo", white.clone()), ("fuzz", ParamValue::Float(1.0)), ("fuzzRoughness", ParamValue::Float(0.3))],
+            ),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
             ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
             ("tessera:Hair", vec![("melanin", ParamValue::Float(0.0)), ("roughness", ParamValue::Float(0.5))]),
@@ -522,8 +535,8 @@ mod tests {
             let sides = if bsdf.transmits() { testing::Sides::Both } else { testing::Sides::Above };
             testing::assert_eval_pdf_is_both(&bsdf, sides);
             // Refraction scales radiance by 1/η'², so only its energy form is reciprocal; Chiang's
-            // hair model is not reciprocal at all (crate::bsdf::hair).
-            if !m.surface.has_refraction() && m.surface.hair.weight == 0.0 {
+            // hair model is not reciprocal at all (crate::bsdf::hair), nor is the fuzz's LTC.
+            if !m.surface.has_refraction() && m.surface.hair.weight == 0.0 && m.surface.fuzz.weight == 0.0 {
                 testing::assert_reciprocal(&bsdf);
             }
         }

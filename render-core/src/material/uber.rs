@@ -15,8 +15,8 @@ use glam::Vec3;
 use super::glitter::GlitterParams;
 pub use super::mix::Mix;
 use crate::bsdf::{
-    Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, GgxReflection, Hair, Lobe,
-    OrenNayar, Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
+    Bsdf, CharlieSheen, Clearcoat, Coat, Dielectric, DielectricCoat, DiffuseTransmission, DisneyDiffuse, Fabric, Fuzz, GgxReflection, Hair,
+    Lobe, OrenNayar, Sheen, SpecularFresnel, ThinDielectric, ThinFilmCoat,
 };
 
 /// Share of `wb` in `wa + wb` (0 when both are 0).
@@ -399,7 +399,7 @@ impl Mix for ThinFilmParams {
     }
 }
 
-/// A Charlie sheen coat.
+/// A sheen coat (Charlie's or the fuzz's).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SheenParams {
     /// Colour.
@@ -450,6 +450,9 @@ pub struct Uber {
     pub thin_film: Weighted<ThinFilmParams>,
     /// Charlie sheen over everything (and over the clearcoat).
     pub sheen: Weighted<SheenParams>,
+    /// Zeltner et al.'s fuzz over everything, the Charlie sheen included (OpenPBR's `fuzz`,
+    /// Cycles' Principled sheen): the topmost layer, as both specify it.
+    pub fuzz: Weighted<SheenParams>,
     /// Glitter flakes over everything, sheen included; the weight scales their coverage.
     pub glitter: Weighted<GlitterParams>,
     /// DreamWorks `specularControl` in [0, 1]: scales every specular lobe (1: untouched).
@@ -468,6 +471,7 @@ impl Default for Uber {
             clearcoat: Weighted { weight: 0.0, params: ClearcoatParams::Disney { gloss: 1.0 } },
             thin_film: Weighted { weight: 0.0, params: ThinFilmParams { ior: 1.33, thickness: 400.0, roughness: 0.1 } },
             sheen: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.3 } },
+            fuzz: Weighted { weight: 0.0, params: SheenParams { color: Vec3::ONE, roughness: 0.5 } },
             glitter: Weighted { weight: 0.0, params: GlitterParams::default() },
             specular_control: 1.0,
         }
@@ -487,6 +491,7 @@ impl Uber {
             clearcoat: self.clearcoat.over(&a.clearcoat, m),
             thin_film: self.thin_film.over(&a.thin_film, m),
             sheen: self.sheen.over(&a.sheen, m),
+            fuzz: self.fuzz.over(&a.fuzz, m),
             glitter: self.glitter.over(&a.glitter, m),
             specular_control: self.specular_control.mix(1.0 - m, &a.specular_control, m),
         }
@@ -679,6 +684,11 @@ impl Uber {
         if sheen_w > 0.0 || every {
             let s = &self.sheen.params;
             bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
+        }
+        let fuzz_w = finite(self.fuzz.weight);
+        if fuzz_w > 0.0 || every {
+            let f = &self.fuzz.params;
+            bsdf.coat_with(Coat::Fuzz(Fuzz::new(fuzz_w * f.color.clamp(Vec3::ZERO, Vec3::ONE), f.roughness)), compensate);
         }
         bsdf
     }

@@ -18,7 +18,9 @@ const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
     (Feature::ThinTransmission, |u| u.glass.weight > 0.0 && u.glass.params.thin),
     (Feature::DiffuseTransmission, |u| u.plastic.weight > 0.0 && u.plastic.params.diffuse_transmission > 0.0),
     (Feature::Clearcoat, |u| u.clearcoat.weight > 0.0 && u.specular_control > 0.0),
-    (Feature::Sheen, |u| u.sheen.weight > 0.0 || (u.plastic.weight > 0.0 && u.plastic.params.disney_sheen.max_element() > 0.0)),
+    (Feature::Sheen, |u| {
+        u.sheen.weight > 0.0 || u.fuzz.weight > 0.0 || (u.plastic.weight > 0.0 && u.plastic.params.disney_sheen.max_element() > 0.0)
+    }),
     (Feature::Fabric, |u| u.fabric.weight > 0.0 && u.fabric.params.specular > 0.0),
     (Feature::Hair, |u| u.hair.weight > 0.0),
     (Feature::Glitter, |u| u.has_glitter()),
