@@ -25,10 +25,10 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 * Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
   ``tessera:SolidDielectric``'s absorbing clearcoat (``_correct_coats``).
-* Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness):
-  dropped too. On an opaque dielectric it becomes ``tessera:SolidDielectric``'s
-  ``diffuseRoughness``, the energy-preserving Oren-Nayar Cycles renders
-  (``_correct_diffuse_roughness``).
+* Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness) and
+  a Principled BSDF's Sheen: dropped too. On an opaque dielectric they become
+  ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar Cycles
+  renders) and fuzz coat (Zeltner et al.'s sheen, Cycles' too) (``_correct_rough_and_sheen``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -156,7 +156,7 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _correct_coats(exported, prim, Sdf, UsdShade)
     if material is not None:
-        _correct_diffuse_roughness(exported, prim, material, Sdf, UsdShade)
+        _correct_rough_and_sheen(exported, prim, material, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
         # Last: the corrections above act on the BSDF the export kept, which the layer holds.
@@ -386,20 +386,30 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
-def _correct_diffuse_roughness(exported: Export, prim, material, Sdf, UsdShade) -> None:
-    """A Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness, which
-    UsdPreviewSurface cannot hold, as tessera:SolidDielectric's `diffuseRoughness`: the same
-    energy-preserving Oren-Nayar Cycles renders (``nodes.carried_diffuse_roughness`` says
-    when)."""
+def _correct_rough_and_sheen(exported: Export, prim, material, Sdf, UsdShade) -> None:
+    """What UsdPreviewSurface cannot hold of an opaque dielectric's diffuse and sheen, on
+    tessera:SolidDielectric: a Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness
+    as `diffuseRoughness` (the energy-preserving Oren-Nayar Cycles renders), a Principled
+    BSDF's Sheen as the fuzz coat (Zeltner et al.'s sheen, Cycles' too).
+    ``nodes.carried_diffuse_roughness`` and ``nodes.carried_sheen`` say when."""
     node = nodes.surface_node(material)
     sigma = nodes.carried_diffuse_roughness(node) if node is not None else None
-    shader = _surface_shader(prim, UsdShade) if sigma is not None else None
+    sheen = nodes.carried_sheen(node) if node is not None else None
+    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen else None
     if not shader:
         return
     _warn_if_displaced(exported, material.name, shader)
     _as_solid_dielectric(shader, Sdf)
-    shader.CreateInput("diffuseRoughness", Sdf.ValueTypeNames.Float).Set(sigma)
-    exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {sigma:g} as tessera:SolidDielectric diffuseRoughness")
+    if sigma is not None:
+        shader.CreateInput("diffuseRoughness", Sdf.ValueTypeNames.Float).Set(sigma)
+        exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {sigma:g} as tessera:SolidDielectric diffuseRoughness")
+    if sheen:
+        shader.CreateInput("fuzz", Sdf.ValueTypeNames.Float).Set(sheen["fuzz"])
+        shader.CreateInput("fuzzColor", Sdf.ValueTypeNames.Color3f).Set(sheen["fuzzColor"])
+        shader.CreateInput("fuzzRoughness", Sdf.ValueTypeNames.Float).Set(sheen["fuzzRoughness"])
+        exported.corrections.append(
+            f"{prim.GetPath()}: sheen (weight {sheen['fuzz']:g}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as tessera:SolidDielectric fuzz"
+        )
 
 
 def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:
@@ -434,10 +444,10 @@ def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:
 
 
 def _warn_if_displaced(exported: Export, name: str, shader) -> None:
-    """Glass, subsurface, tinted coats and rough diffuse are rewritten onto Tessera's own
-    shaders, which do not displace."""
+    """Glass, subsurface, tinted coats, rough diffuse and sheen are rewritten onto Tessera's
+    own shaders, which do not displace."""
     if shader.GetInput("displacement"):
-        exported.warnings.append(f"{name}: displacement is not carried on glass, subsurface, tinted-coat or rough-diffuse materials")
+        exported.warnings.append(f"{name}: displacement is not carried on glass, subsurface, tinted-coat, rough-diffuse or sheen materials")
 
 
 #: Blender's Specular IOR Level that leaves the IOR's reflectance as it is.

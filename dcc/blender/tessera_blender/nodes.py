@@ -96,7 +96,7 @@ def principled_losses(node) -> list[str]:
         ("Coat IOR", coat and not carried, float(value["Coat IOR"]) != 1.5),
         ("Coat Tint", coat and not carried, tuple(value["Coat Tint"])[:3] != white),
         ("Coat Normal", coat, False),
-        ("Sheen Weight", True, float(value["Sheen Weight"]) > 0.0),
+        ("Sheen Weight", carried_sheen(node) is None, float(value["Sheen Weight"]) > 0.0),
         ("Thin Film Thickness", True, float(value["Thin Film Thickness"]) > 0.0),
         ("Emission Strength", True, False),
     )
@@ -111,20 +111,48 @@ def carried_diffuse_roughness(node):
     """The Oren-Nayar roughness of a Principled or Diffuse BSDF that tessera:SolidDielectric's
     `diffuseRoughness` carries, or None. Cycles' Oren-Nayar (since 4.3) is the energy-preserving
     one OpenPBR specifies, as ours is (docs/materials.md, "Rough diffuse"). Carried when it is a
-    constant above 0 on the material's surface itself (not a side of a mix), and for a
-    Principled BSDF on an opaque dielectric (no metal, no transmission, Alpha 1): the shader
-    has no opacity, and its diffuse is the dielectric's."""
+    constant above 0 on an opaque dielectric that is the material's surface itself
+    (``_solid_dielectric_surface``)."""
     name = DIFFUSE_ROUGHNESS.get(node.type)
     if name is None or node.inputs[name].is_linked or float(node.inputs[name].default_value) <= 0.0:
         return None
-    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+    if not _solid_dielectric_surface(node):
         return None
+    return min(float(node.inputs[name].default_value), 1.0)
+
+
+#: A Principled BSDF's sheen inputs, by tessera:SolidDielectric's fuzz inputs.
+SHEEN_INPUTS = {"fuzz": "Sheen Weight", "fuzzColor": "Sheen Tint", "fuzzRoughness": "Sheen Roughness"}
+
+
+def carried_sheen(node):
+    """A Principled BSDF's sheen as tessera:SolidDielectric's fuzz inputs (name -> value), or
+    None. Cycles' sheen is Zeltner et al.'s, as the fuzz is (docs/materials.md, Coats). Carried
+    when its inputs are constants, its weight above 0, on an opaque dielectric that is the
+    material's surface itself."""
+    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in SHEEN_INPUTS.values()):
+        return None
+    if float(node.inputs["Sheen Weight"].default_value) <= 0.0 or not _solid_dielectric_surface(node):
+        return None
+    return {
+        "fuzz": min(float(node.inputs["Sheen Weight"].default_value), 1.0),
+        "fuzzColor": tuple(float(c) for c in tuple(node.inputs["Sheen Tint"].default_value)[:3]),
+        "fuzzRoughness": float(node.inputs["Sheen Roughness"].default_value),
+    }
+
+
+def _solid_dielectric_surface(node) -> bool:
+    """True when `node` (a Principled or Diffuse BSDF) can become tessera:SolidDielectric: it is
+    the material's surface itself (not a side of a mix), and a Principled BSDF has no metal,
+    no transmission and Alpha 1 (the shader has no opacity; its diffuse is the dielectric's)."""
+    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+        return False
     if node.type == "BSDF_PRINCIPLED":
         if any(node.inputs[n].is_linked or float(node.inputs[n].default_value) > 0.0 for n in NOT_DIELECTRIC):
-            return None
+            return False
         if node.inputs["Alpha"].is_linked or float(node.inputs["Alpha"].default_value) < 1.0:
-            return None
-    return min(float(node.inputs[name].default_value), 1.0)
+            return False
+    return True
 
 
 #: Principled inputs whose links keep its coat off tessera:SolidDielectric's (constants only),
@@ -139,8 +167,8 @@ def coats_carried(node) -> bool:
     shader has no opacity). Measured on the `coats` comparison scene: a tinted coat reads 0.958
     of Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat stays
     UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 its Disney coat read 1.039,
-    SolidDielectric's 0.960, no nearer. The sheen is not carried either: SolidDielectric's
-    Charlie sheen read 1.63 of Cycles' microfiber sheen on a dark red sphere, 0.67 without it."""
+    SolidDielectric's 0.960, no nearer. The sheen is not the Charlie sheen (1.63 of Cycles'
+    microfibre sheen on a dark red sphere) but the fuzz, Cycles' own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
     if any(node.inputs[n].is_linked for n in COAT_INPUTS + NOT_DIELECTRIC + ("Alpha",)) or float(value["Alpha"]) < 1.0:
         return False

@@ -29,6 +29,7 @@ REGIONS = {
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
+    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -323,7 +324,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "hair") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -368,6 +369,22 @@ def build(kind, directory):
         d = _standalone_material("rough diffuse", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1), Roughness=1.0)
         add(bpy.ops.mesh.primitive_uv_sphere_add, d, 3, radius=1.0, location=(1.2, 0, 1.0), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(1.1, 0, 0)); bpy.context.object.data.energy = 3
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    elif kind == "sheen":
+        # A Principled BSDF's sheen (Zeltner et al.'s in Cycles, the fuzz coat in Tessera) over
+        # dark bases, in a uniform white world, where sheen shows as a bright rim: white at the
+        # default roughness 0.5, and orange at roughness 0.2.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+        for index, x, base, inputs in (
+            (2, -1.2, (0.05, 0.05, 0.05), {"Sheen Weight": 1.0}),
+            (3, 1.2, (0.1, 0.02, 0.02), {"Sheen Weight": 1.0, "Sheen Roughness": 0.2, "Sheen Tint": (1.0, 0.6, 0.2, 1)}),
+        ):
+            m = mat(f"sheen {index}", base)
+            for name, value in inputs.items():
+                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+        world = bpy.data.worlds.new("white")
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
@@ -690,6 +707,8 @@ def node_trees(directory):
         no_uvs(tree, p)
 
     def sheen(tree, p):
+        # On a metal: the fuzz is carried on opaque dielectrics only (the `sheen` scene's).
+        p.inputs["Metallic"].default_value = 1.0
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
