@@ -120,6 +120,20 @@ fn fuzz_and_sheen_keep_their_models() {
     assert_eq!(said.len(), 1, "{:?}", t.warnings);
 }
 
+/// `specular_color` tints an opaque dielectric's specular (tessera:SolidDielectric's
+/// `specularColor`); on a metal it is reported.
+#[test]
+fn a_specular_colour_tints_the_dielectric_specular() {
+    let t = load_text("mtlx_tint", &stage("ND_open_pbr_surface_surfaceshader", "color3f inputs:specular_color = (1, 0.5, 0.2)", ""));
+    let net = network(&t);
+    assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:SolidDielectric");
+    assert_eq!(surface_param(net, "specularColor"), Some(&ParamValue::Float3(glam::Vec3::new(1.0, 0.5, 0.2))));
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    let inputs = "float inputs:metalness = 1\n color3f inputs:specular_color = (1, 0.5, 0.2)";
+    let t = load_text("mtlx_tint_metal", &stage("ND_standard_surface_surfaceshader", inputs, ""));
+    assert_eq!(t.warnings.iter().filter(|w| w.contains("specular_color is carried only")).count(), 1, "{:?}", t.warnings);
+}
+
 #[test]
 fn open_pbr_textures_fold_constants_into_scale_and_bias() {
     // base_color = mix(image · 0.5, constant 0.2, mix 0.25) = 0.125 · image + 0.15, read

@@ -391,6 +391,7 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         base,
         metalness: g.get(s, "metalness", 0.0),
         diffuse_roughness: g.get(s, "diffuse_roughness", 0.0),
+        specular_color: g.get3(s, "specular_color", Vec3::ONE),
         specular_weight: g.get(s, "specular", 1.0),
         roughness: g.get(s, "specular_roughness", 0.2),
         ior: g.get(s, "specular_IOR", 1.5),
@@ -429,6 +430,7 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         base,
         metalness: g.get(s, "base_metalness", 0.0),
         diffuse_roughness: g.get(s, "base_diffuse_roughness", 0.0),
+        specular_color: g.get3(s, "specular_color", Vec3::ONE),
         specular_weight: g.get(s, "specular_weight", 1.0),
         roughness: g.get(s, "specular_roughness", 0.3),
         ior: g.get(s, "specular_ior", 1.5),
@@ -484,6 +486,8 @@ struct Lobes {
     metalness: Lin,
     /// Oren-Nayar roughness of the diffuse base.
     diffuse_roughness: Lin,
+    /// Tint of the dielectric specular's head-on reflectance.
+    specular_color: Lin,
     specular_weight: Lin,
     roughness: Lin,
     ior: Lin,
@@ -523,13 +527,19 @@ impl Lobes {
         }
         let rough_diffuse = !zero(&self.diffuse_roughness, 0.0);
         let sheen = !zero(&self.sheen, 0.0);
+        let tinted = !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE);
         let opaque_dielectric = zero(&self.transmission, 0.0)
             && zero(&self.thin, 0.0)
             && zero(&self.specular_weight, 1.0)
             && zero(&self.metalness, 0.0)
             && zero(&self.opacity, 1.0);
-        if (rough_diffuse || sheen) && opaque_dielectric {
+        if (rough_diffuse || sheen || tinted) && opaque_dielectric {
             return self.opaque_dielectric();
+        }
+        if tinted {
+            warnings.push(format!(
+                "{surface}: specular_color is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); the specular is untinted"
+            ));
         }
         if rough_diffuse {
             warnings.push(format!(
@@ -591,9 +601,10 @@ impl Lobes {
         Inputs { id: "tessera:Principled", values }
     }
 
-    /// An opaque dielectric with a rough (Oren-Nayar) diffuse or a sheen:
+    /// An opaque dielectric with a rough (Oren-Nayar) diffuse, a sheen or a tinted specular:
     /// `tessera:SolidDielectric`, the same Lambertian-under-specular model UsdPreviewSurface
-    /// resolves to, plus the roughness and the sheen in its own model (Charlie or fuzz).
+    /// resolves to, plus the roughness, the sheen in its own model (Charlie or fuzz) and the
+    /// specular's tint.
     fn opaque_dielectric(self) -> Inputs {
         let [sheen, sheen_color, sheen_roughness] = self.sheen_names;
         let mut values = vec![
@@ -602,6 +613,7 @@ impl Lobes {
             (sheen, self.sheen, false),
             (sheen_color, self.sheen_color, true),
             (sheen_roughness, self.sheen_roughness, false),
+            ("specularColor", self.specular_color, true),
             ("refractiveIndex", self.ior, false),
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),

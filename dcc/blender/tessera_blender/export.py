@@ -25,10 +25,11 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 * Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
   ``tessera:SolidDielectric``'s absorbing clearcoat (``_correct_coats``).
-* Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness) and
-  a Principled BSDF's Sheen: dropped too. On an opaque dielectric they become
-  ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar Cycles
-  renders) and fuzz coat (Zeltner et al.'s sheen, Cycles' too) (``_correct_rough_and_sheen``).
+* Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness), a
+  Principled BSDF's Sheen and its Specular Tint: dropped too. On an opaque dielectric they
+  become ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar
+  Cycles renders), fuzz coat (Zeltner et al.'s sheen, Cycles' too) and ``specularColor``
+  (``_correct_dielectric_extras``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -156,7 +157,7 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _correct_coats(exported, prim, Sdf, UsdShade)
     if material is not None:
-        _correct_rough_and_sheen(exported, prim, material, Sdf, UsdShade)
+        _correct_dielectric_extras(exported, prim, material, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
         # Last: the corrections above act on the BSDF the export kept, which the layer holds.
@@ -386,16 +387,18 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
-def _correct_rough_and_sheen(exported: Export, prim, material, Sdf, UsdShade) -> None:
-    """What UsdPreviewSurface cannot hold of an opaque dielectric's diffuse and sheen, on
-    tessera:SolidDielectric: a Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness
-    as `diffuseRoughness` (the energy-preserving Oren-Nayar Cycles renders), a Principled
-    BSDF's Sheen as the fuzz coat (Zeltner et al.'s sheen, Cycles' too).
-    ``nodes.carried_diffuse_roughness`` and ``nodes.carried_sheen`` say when."""
+def _correct_dielectric_extras(exported: Export, prim, material, Sdf, UsdShade) -> None:
+    """What UsdPreviewSurface cannot hold of an opaque dielectric, on tessera:SolidDielectric:
+    a Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness as `diffuseRoughness`
+    (the energy-preserving Oren-Nayar Cycles renders), a Principled BSDF's Sheen as the fuzz
+    coat (Zeltner et al.'s sheen, Cycles' too) and its Specular Tint as `specularColor`.
+    ``nodes.carried_diffuse_roughness``, ``carried_sheen`` and ``carried_specular_tint`` say
+    when."""
     node = nodes.surface_node(material)
     sigma = nodes.carried_diffuse_roughness(node) if node is not None else None
     sheen = nodes.carried_sheen(node) if node is not None else None
-    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen else None
+    tint = nodes.carried_specular_tint(node) if node is not None else None
+    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint else None
     if not shader:
         return
     _warn_if_displaced(exported, material.name, shader)
@@ -410,6 +413,9 @@ def _correct_rough_and_sheen(exported: Export, prim, material, Sdf, UsdShade) ->
         exported.corrections.append(
             f"{prim.GetPath()}: sheen (weight {sheen['fuzz']:g}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as tessera:SolidDielectric fuzz"
         )
+    if tint:
+        shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)
+        exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
 
 
 def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:

@@ -91,7 +91,7 @@ def principled_losses(node) -> list[str]:
     # (input, whether it matters at all, whether its value shows)
     rows = (
         ("Diffuse Roughness", carried_diffuse_roughness(node) is None, float(value["Diffuse Roughness"]) > 0.0),
-        ("Specular Tint", True, tuple(value["Specular Tint"])[:3] != white),
+        ("Specular Tint", carried_specular_tint(node) is None, tuple(value["Specular Tint"])[:3] != white),
         ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
         ("Coat IOR", coat and not carried, float(value["Coat IOR"]) != 1.5),
         ("Coat Tint", coat and not carried, tuple(value["Coat Tint"])[:3] != white),
@@ -139,6 +139,19 @@ def carried_sheen(node):
         "fuzzColor": tuple(float(c) for c in tuple(node.inputs["Sheen Tint"].default_value)[:3]),
         "fuzzRoughness": float(node.inputs["Sheen Roughness"].default_value),
     }
+
+
+def carried_specular_tint(node):
+    """A Principled BSDF's Specular Tint as tessera:SolidDielectric's `specularColor`, or
+    None: Cycles tints F0 and keeps grazing white, as the tinted dielectric Fresnel does
+    (docs/materials.md). Carried when it is a constant other than white on an opaque
+    dielectric that is the material's surface itself."""
+    if node.type != "BSDF_PRINCIPLED" or node.inputs["Specular Tint"].is_linked:
+        return None
+    tint = tuple(float(c) for c in tuple(node.inputs["Specular Tint"].default_value)[:3])
+    if tint == (1.0, 1.0, 1.0) or not _solid_dielectric_surface(node):
+        return None
+    return tint
 
 
 def _solid_dielectric_surface(node) -> bool:

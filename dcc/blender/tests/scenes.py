@@ -29,7 +29,7 @@ REGIONS = {
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
-    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere"},
+    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -383,6 +383,13 @@ def build(kind, directory):
             for name, value in inputs.items():
                 m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
             add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+        # Behind them, a near-black sphere whose specular (IOR 1.5, roughness 0.3) is tinted
+        # orange head-on and stays white at grazing angles.
+        m = mat("specular tint", (0.02, 0.02, 0.02), rough=0.3)
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["IOR"].default_value = 1.5
+        p.inputs["Specular Tint"].default_value = (1.0, 0.4, 0.1, 1)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)

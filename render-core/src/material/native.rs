@@ -162,6 +162,11 @@ pub const SHADERS: &[Shader] = &[
                 "Oren-Nayar roughness σ of the diffuse, energy-preserving (EON, as OpenPBR's base_diffuse_roughness and Cycles'); 0 is Lambertian",
             ),
             float("refractiveIndex", 1.5, (1.0, 3.0), "index of refraction of the specular"),
+            color(
+                "specularColor",
+                1.0,
+                "tint of the specular's head-on reflectance, grazing staying white (Cycles' Specular Tint, OpenPBR's specular_color)",
+            ),
             float("roughness", 0.3, (0.0, 1.0), "specular roughness"),
             float("anisotropy", 0.0, (-1.0, 1.0), "specular anisotropy"),
             color("diffuseTransmission", 0.0, "colour of light diffusely transmitted (taken from the diffuse reflection)"),
@@ -346,7 +351,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 oren_nayar: v.f("diffuseRoughness"),
                 diffuse_transmission: share,
                 transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
-                specular: (eta > 1.0).then(|| specular(SpecularFresnel::Dielectric { eta }, v.f("roughness"), v.f("anisotropy"))),
+                specular: (eta > 1.0).then(|| specular(tinted_dielectric(eta, v.c("specularColor")), v.f("roughness"), v.f("anisotropy"))),
                 coupling_eta: eta,
                 scattering_radius: v.f("scatteringRadius"),
                 scattering_color: v.c("scatteringColor"),
@@ -404,6 +409,11 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
     }
     let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0 })
+}
+
+/// A dielectric's Fresnel, tinted when `tint` is not white (untinted, the exact dielectric's).
+fn tinted_dielectric(eta: f32, tint: Vec3) -> SpecularFresnel {
+    if tint == Vec3::ONE { SpecularFresnel::Dielectric { eta } } else { SpecularFresnel::TintedDielectric { eta, tint } }
 }
 
 /// The coats, film, sheen, specular control and emission every shared-input shader takes,
@@ -498,7 +508,7 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 11] = [
+        let cases: [(&str, Vec<(&str, ParamValue)>); 12] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -511,6 +521,14 @@ mod tests {
             (
                 "tessera:SolidDielectric",
                 vec![("albedo", white.clone()), ("fuzz", ParamValue::Float(1.0)), ("fuzzRoughness", ParamValue::Float(0.3))],
+            ),
+            (
+                "tessera:SolidDielectric",
+                vec![
+                    ("albedo", white.clone()),
+                    ("specularColor", ParamValue::Float3(Vec3::new(1.0, 0.3, 0.0))),
+                    ("roughness", ParamValue::Float(0.4)),
+                ],
             ),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
             ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
@@ -565,6 +583,23 @@ mod tests {
         let lambert = rough(0.0).eval(wo, wo).x;
         assert_eq!(lambert, std::f32::consts::FRAC_1_PI);
         assert!(back > 1.5 * lambert, "retro-reflection {back} against Lambert's {lambert}");
+    }
+
+    /// `specularColor` tints the specular's head-on reflectance: a smooth one over black
+    /// reflects F0·tint head-on (0.04 at index 1.5), white at grazing.
+    #[test]
+    fn a_specular_colour_tints_the_head_on_reflection() {
+        let tint = Vec3::new(1.0, 0.5, 0.25);
+        let params = [
+            ("albedo", ParamValue::Float3(Vec3::ZERO)),
+            ("roughness", ParamValue::Float(0.0)),
+            ("specularColor", ParamValue::Float3(tint)),
+        ];
+        let bsdf = resolved("tessera:SolidDielectric", &params).0.bsdf(true);
+        let a = testing::albedo_estimate(&bsdf, Vec3::Z, 256);
+        assert!((a - 0.04 * tint).abs().max_element() < 1e-4, "{a:?}");
+        let grazing = testing::albedo_estimate(&bsdf, Vec3::new(1.0, 0.0, 1e-3).normalize(), 256);
+        assert!(grazing.min_element() > 0.98, "{grazing:?}");
     }
 
     #[test]

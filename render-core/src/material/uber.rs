@@ -58,6 +58,11 @@ impl Mix for SpecularFresnel {
             (F::Gulbrandsen { r, g }, F::Gulbrandsen { r: r2, g: g2 }) => F::Gulbrandsen { r: r.mix(wa, &r2, wb), g: g.mix(wa, &g2, wb) },
             (F::Schlick { f0 }, F::Schlick { f0: f2 }) => F::Schlick { f0: f0.mix(wa, &f2, wb) },
             (F::Dielectric { eta }, F::Dielectric { eta: e2 }) => F::Dielectric { eta: eta.mix(wa, &e2, wb) },
+            // A plain dielectric is a tinted one of white tint.
+            (F::Dielectric { eta } | F::TintedDielectric { eta, .. }, F::Dielectric { eta: e2 } | F::TintedDielectric { eta: e2, .. }) => {
+                let tint = |f: SpecularFresnel| if let F::TintedDielectric { tint, .. } = f { tint } else { Vec3::ONE };
+                F::TintedDielectric { eta: eta.mix(wa, &e2, wb), tint: tint(*self).mix(wa, &tint(*other), wb) }
+            }
             (a, b) => pick(a, wa, b, wb),
         }
     }
