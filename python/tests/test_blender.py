@@ -71,6 +71,10 @@ AGREE = [
     # tessera:SolidDielectric's specularColor: measured 0.980 at 256 spp; untinted, as the
     # export left it, 1.318.
     ("sheen", "specular tint sphere"),
+    # A gold metal whose Specular Tint (1, 0.5, 0.2) is its F82 edge tint, written as
+    # tessera:Metal with f82: measured 0.999 at 256 spp; untinted (Schlick, as exported) 1.063,
+    # and read as Gulbrandsen's edge tint instead 1.028.
+    ("sheen", "edge-tinted metal sphere"),
     ("emission_shader", "sphere"),
     # Bumps (tessera:Bump): a height ramp through a Bump node (Distance 0.5) and through Bump
     # Only displacement (Scale 0.5) tilts each plane 14° away from the sun; a flat plane between
@@ -313,6 +317,7 @@ def test_the_exporter_is_corrected(results):
     assert any(c.endswith("sheen_2: sheen (weight 1, tint (1, 1, 1), roughness 0.5) as tessera:SolidDielectric fuzz") for c in sheen), sheen
     assert any(c.endswith("sheen_3: sheen (weight 1, tint (1, 0.6, 0.2), roughness 0.2) as tessera:SolidDielectric fuzz") for c in sheen), sheen
     assert any(c.endswith("specular_tint: Specular Tint (1, 0.4, 0.1) as tessera:SolidDielectric specularColor") for c in sheen), sheen
+    assert any(c.endswith("edge_tint: metal of edge tint (1, 0.5, 0.2) as tessera:Metal (F82)") for c in sheen), sheen
     linked = r["linked"]["corrections"]
     assert any("light linking from the receiver collection 'key receivers'" in c for c in linked), linked
     assert any("light linking from the blocker collection 'fill blockers'" in c for c in linked), linked
@@ -388,7 +393,8 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     assert "/root/_materials/glossy: Glossy BSDF as UsdPreviewSurface (metallic 1)" in corrections, corrections
     assert "/root/_materials/beckmann_glass: Glass BSDF as tessera:Principled (specTrans 1)" in corrections, corrections
     assert said["beckmann_glass"] == ["beckmann_glass: the Beckmann distribution of 'Glass BSDF' is rendered as GGX"], said
-    # On a metal the sheen is not carried (the fuzz goes on opaque dielectrics: `sheen` scene).
+    # On a half metal the sheen is not carried (the fuzz goes on opaque dielectrics and full
+    # metals: the `sheen` scene).
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
     # A Bump over an image becomes a tessera:Bump over it (scale: Blender's default Distance,
     # 0.001); over anything else the height image would arrive as a normal map, so the normal

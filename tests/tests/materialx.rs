@@ -129,9 +129,28 @@ fn a_specular_colour_tints_the_dielectric_specular() {
     assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:SolidDielectric");
     assert_eq!(surface_param(net, "specularColor"), Some(&ParamValue::Float3(glam::Vec3::new(1.0, 0.5, 0.2))));
     assert!(t.warnings.is_empty(), "{:?}", t.warnings);
-    let inputs = "float inputs:metalness = 1\n color3f inputs:specular_color = (1, 0.5, 0.2)";
-    let t = load_text("mtlx_tint_metal", &stage("ND_standard_surface_surfaceshader", inputs, ""));
+    let inputs = "float inputs:metalness = 0.5\n color3f inputs:specular_color = (1, 0.5, 0.2)";
+    let t = load_text("mtlx_tint_half_metal", &stage("ND_standard_surface_surfaceshader", inputs, ""));
     assert_eq!(t.warnings.iter().filter(|w| w.contains("specular_color is carried only")).count(), 1, "{:?}", t.warnings);
+}
+
+/// On a full metal `specular_color` is the edge colour: tessera:Metal's `edgeTint`, read as
+/// the F82 tint for OpenPBR and as Gulbrandsen's edge tint for Standard Surface.
+#[test]
+fn a_metals_specular_colour_is_its_edge_tint() {
+    for (id, metalness, f82) in
+        [("ND_open_pbr_surface_surfaceshader", "base_metalness", true), ("ND_standard_surface_surfaceshader", "metalness", false)]
+    {
+        let inputs = format!(
+            "float inputs:{metalness} = 1\n color3f inputs:base_color = (0.9, 0.6, 0.3)\n color3f inputs:specular_color = (1, 0.5, 0.2)"
+        );
+        let t = load_text("mtlx_edge", &stage(id, &inputs, ""));
+        let net = network(&t);
+        assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:Metal", "{id}");
+        assert_eq!(surface_param(net, "edgeTint"), Some(&ParamValue::Float3(glam::Vec3::new(1.0, 0.5, 0.2))));
+        assert_eq!(surface_param(net, "f82"), Some(&ParamValue::Bool(f82)), "{id}");
+        assert!(t.warnings.is_empty(), "{id}: {:?}", t.warnings);
+    }
 }
 
 #[test]

@@ -405,6 +405,8 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         sheen_roughness: g.get(s, "sheen_roughness", 0.3),
         // Standard Surface's sheen is Estevez & Kulla's microfibre (Charlie) sheen.
         sheen_names: ["sheen", "sheenColor", "sheenRoughness"],
+        // Its metals take specular_color as Gulbrandsen's edge tint.
+        edge_f82: false,
         subsurface: g.get(s, "subsurface", 0.0),
         medium: Medium {
             color: g.get3(s, "subsurface_color", Vec3::ONE),
@@ -444,6 +446,8 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         sheen_roughness: g.get(s, "fuzz_roughness", 0.5),
         // OpenPBR's fuzz is Zeltner et al.'s LTC sheen.
         sheen_names: ["fuzz", "fuzzColor", "fuzzRoughness"],
+        // Its metals take specular_color as the F82 tint.
+        edge_f82: true,
         subsurface: g.get(s, "subsurface_weight", 0.0),
         medium: Medium {
             color: g.get3(s, "subsurface_color", Vec3::splat(0.8)),
@@ -501,6 +505,8 @@ struct Lobes {
     sheen_roughness: Lin,
     /// `tessera:SolidDielectric`'s inputs for this sheen's model: weight, colour, roughness.
     sheen_names: [&'static str; 3],
+    /// A metal's `specular_color` is an F82 tint (OpenPBR), not Gulbrandsen's edge tint.
+    edge_f82: bool,
     subsurface: Lin,
     medium: Medium,
     coat_ior: Lin,
@@ -536,9 +542,13 @@ impl Lobes {
         if (rough_diffuse || sheen || tinted) && opaque_dielectric {
             return self.opaque_dielectric();
         }
+        let metal = zero(&self.metalness, 1.0) && zero(&self.transmission, 0.0) && zero(&self.thin, 0.0) && zero(&self.opacity, 1.0);
+        if (sheen || tinted) && metal {
+            return self.metal();
+        }
         if tinted {
             warnings.push(format!(
-                "{surface}: specular_color is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); the specular is untinted"
+                "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
             ));
         }
         if rough_diffuse {
@@ -628,6 +638,32 @@ impl Lobes {
         Inputs { id: "tessera:SolidDielectric", values }
     }
 
+    /// A full metal with a tinted edge or a sheen: `tessera:Metal`, the base colour its
+    /// reflectivity and `specular_color` its edge tint (Gulbrandsen's for Standard Surface, the
+    /// F82 tint for OpenPBR).
+    fn metal(self) -> Inputs {
+        let [sheen, sheen_color, sheen_roughness] = self.sheen_names;
+        let f82 = Lin::constant(Vec4::splat(if self.edge_f82 { 1.0 } else { 0.0 }));
+        let mut values = vec![
+            ("reflectivity", self.base, true),
+            ("edgeTint", self.specular_color, true),
+            ("f82", f82, false),
+            ("roughness", self.roughness, false),
+            ("anisotropy", self.anisotropy, false),
+            (sheen, self.sheen, false),
+            (sheen_color, self.sheen_color, true),
+            (sheen_roughness, self.sheen_roughness, false),
+            ("clearcoat", self.coat, false),
+            ("clearcoatRoughness", self.coat_roughness, false),
+            ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("emission", self.emission, true),
+        ];
+        if let Some(n) = self.normal {
+            values.push(("normal", n, true));
+        }
+        Inputs { id: "tessera:Metal", values }
+    }
+
     /// A dielectric whose base is partly or wholly a scattering medium: `tessera:SolidDielectric`
     /// with its random walk (docs/materials.md, "Subsurface scattering"). The weight becomes
     /// `scatteringWeight`; the medium and the diffuse beside it share one colour, the two
@@ -695,7 +731,7 @@ fn emit(surface: &str, inputs: Inputs, old: &MaterialNetwork, warnings: &mut Vec
         let Some(texture) = &lin.texture else {
             let v = lin.bias;
             let p = match (name, color) {
-                ("thin", _) => ParamValue::Bool(v.x > 0.5),
+                ("thin" | "f82", _) => ParamValue::Bool(v.x > 0.5),
                 ("useSpecularWorkflow", _) => ParamValue::Int(v.x as i32),
                 (_, true) => ParamValue::Float3(v.truncate()),
                 (_, false) => ParamValue::Float(v.x),

@@ -28,8 +28,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness), a
   Principled BSDF's Sheen and its Specular Tint: dropped too. On an opaque dielectric they
   become ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar
-  Cycles renders), fuzz coat (Zeltner et al.'s sheen, Cycles' too) and ``specularColor``
-  (``_correct_dielectric_extras``).
+  Cycles renders), fuzz coat (Zeltner et al.'s sheen, Cycles' too) and ``specularColor``; on a
+  full metal, ``tessera:Metal`` with the tint as its F82 edge tint, and the fuzz
+  (``_correct_native_surface``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -157,7 +158,7 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_subsurface(exported, prim, Sdf, UsdShade)
     _correct_coats(exported, prim, Sdf, UsdShade)
     if material is not None:
-        _correct_dielectric_extras(exported, prim, material, Sdf, UsdShade)
+        _correct_native_surface(exported, prim, material, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
         # Last: the corrections above act on the BSDF the export kept, which the layer holds.
@@ -349,12 +350,18 @@ def _as_solid_dielectric(shader, Sdf) -> None:
     """The UsdPreviewSurface `shader` rewritten as tessera:SolidDielectric, its inputs renamed
     (``SOLID_DIELECTRIC_NAMES``), connections kept, the rest dropped; one already rewritten
     is left as it is."""
-    if shader.GetIdAttr().Get() == "tessera:SolidDielectric":
+    _renamed(shader, "tessera:SolidDielectric", SOLID_DIELECTRIC_NAMES, Sdf)
+
+
+def _renamed(shader, shader_id, names, Sdf) -> None:
+    """`shader` made `shader_id`, its inputs renamed by `names` (name -> (new name, type)),
+    connections kept, the rest dropped; one already `shader_id` is left as it is."""
+    if shader.GetIdAttr().Get() == shader_id:
         return
-    shader.SetShaderId("tessera:SolidDielectric")
+    shader.SetShaderId(shader_id)
     for inp in list(shader.GetInputs()):
         old = inp.GetBaseName()
-        new, kind = SOLID_DIELECTRIC_NAMES.get(old, (None, None))
+        new, kind = names.get(old, (None, None))
         if new and new != old:
             moved = shader.CreateInput(new, getattr(Sdf.ValueTypeNames, kind))
             if inp.HasConnectedSource():
@@ -387,22 +394,27 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
 
 
-def _correct_dielectric_extras(exported: Export, prim, material, Sdf, UsdShade) -> None:
-    """What UsdPreviewSurface cannot hold of an opaque dielectric, on tessera:SolidDielectric:
-    a Principled BSDF's Diffuse Roughness or a Diffuse BSDF's Roughness as `diffuseRoughness`
-    (the energy-preserving Oren-Nayar Cycles renders), a Principled BSDF's Sheen as the fuzz
-    coat (Zeltner et al.'s sheen, Cycles' too) and its Specular Tint as `specularColor`.
-    ``nodes.carried_diffuse_roughness``, ``carried_sheen`` and ``carried_specular_tint`` say
-    when."""
+def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> None:
+    """What UsdPreviewSurface cannot hold of an opaque dielectric or a full metal, on Tessera's
+    own shader for it (``nodes.native_surface``): a Principled BSDF's Diffuse Roughness or a
+    Diffuse BSDF's Roughness as tessera:SolidDielectric's `diffuseRoughness` (the
+    energy-preserving Oren-Nayar Cycles renders), a Principled BSDF's Sheen as the fuzz coat
+    (Zeltner et al.'s sheen, Cycles' too), its Specular Tint as a dielectric's `specularColor`
+    or a metal's F82 `edgeTint` (tessera:Metal, reflectivity the base colour)."""
     node = nodes.surface_node(material)
-    sigma = nodes.carried_diffuse_roughness(node) if node is not None else None
-    sheen = nodes.carried_sheen(node) if node is not None else None
-    tint = nodes.carried_specular_tint(node) if node is not None else None
+    kind = nodes.native_surface(node) if node is not None else None
+    if kind is None:
+        return
+    sigma, sheen, tint = nodes.carried_diffuse_roughness(node), nodes.carried_sheen(node), nodes.carried_specular_tint(node)
     shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint else None
     if not shader:
         return
     _warn_if_displaced(exported, material.name, shader)
-    _as_solid_dielectric(shader, Sdf)
+    if kind == "metal":
+        _as_metal(shader, tint or (1.0, 1.0, 1.0), Sdf)
+        exported.corrections.append(f"{prim.GetPath()}: metal of edge tint {nodes._shown(tint or (1.0, 1.0, 1.0))} as tessera:Metal (F82)")
+    else:
+        _as_solid_dielectric(shader, Sdf)
     if sigma is not None:
         shader.CreateInput("diffuseRoughness", Sdf.ValueTypeNames.Float).Set(sigma)
         exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {sigma:g} as tessera:SolidDielectric diffuseRoughness")
@@ -411,11 +423,31 @@ def _correct_dielectric_extras(exported: Export, prim, material, Sdf, UsdShade) 
         shader.CreateInput("fuzzColor", Sdf.ValueTypeNames.Color3f).Set(sheen["fuzzColor"])
         shader.CreateInput("fuzzRoughness", Sdf.ValueTypeNames.Float).Set(sheen["fuzzRoughness"])
         exported.corrections.append(
-            f"{prim.GetPath()}: sheen (weight {sheen['fuzz']:g}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as tessera:SolidDielectric fuzz"
+            f"{prim.GetPath()}: sheen (weight {sheen['fuzz']:g}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as {shader.GetIdAttr().Get()} fuzz"
         )
-    if tint:
+    if tint and kind == "dielectric":
         shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)
         exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
+
+
+#: UsdPreviewSurface inputs that keep their meaning on ``tessera:Metal``, by its names.
+METAL_NAMES = {
+    "diffuseColor": ("reflectivity", "Color3f"),
+    "roughness": ("roughness", "Float"),
+    "clearcoat": ("clearcoat", "Float"),
+    "clearcoatRoughness": ("clearcoatRoughness", "Float"),
+    "emissiveColor": ("emission", "Color3f"),
+    "normal": ("normal", "Normal3f"),
+}
+
+
+def _as_metal(shader, edge_tint, Sdf) -> None:
+    """The UsdPreviewSurface `shader` of a full metal rewritten as tessera:Metal: its inputs
+    renamed (``METAL_NAMES``), connections kept, the rest dropped, and `edge_tint` read as the
+    F82 tint, Cycles' metal Fresnel (white is Schlick's, UsdPreviewSurface's)."""
+    _renamed(shader, "tessera:Metal", METAL_NAMES, Sdf)
+    shader.CreateInput("edgeTint", Sdf.ValueTypeNames.Color3f).Set(tuple(edge_tint))
+    shader.CreateInput("f82", Sdf.ValueTypeNames.Bool).Set(True)
 
 
 def _correct_displacement(exported: Export, prim, Sdf, UsdShade) -> None:

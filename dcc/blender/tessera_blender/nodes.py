@@ -111,28 +111,27 @@ def carried_diffuse_roughness(node):
     """The Oren-Nayar roughness of a Principled or Diffuse BSDF that tessera:SolidDielectric's
     `diffuseRoughness` carries, or None. Cycles' Oren-Nayar (since 4.3) is the energy-preserving
     one OpenPBR specifies, as ours is (docs/materials.md, "Rough diffuse"). Carried when it is a
-    constant above 0 on an opaque dielectric that is the material's surface itself
-    (``_solid_dielectric_surface``)."""
+    constant above 0 on an opaque dielectric (``native_surface``)."""
     name = DIFFUSE_ROUGHNESS.get(node.type)
     if name is None or node.inputs[name].is_linked or float(node.inputs[name].default_value) <= 0.0:
         return None
-    if not _solid_dielectric_surface(node):
+    if native_surface(node) != "dielectric":
         return None
     return min(float(node.inputs[name].default_value), 1.0)
 
 
-#: A Principled BSDF's sheen inputs, by tessera:SolidDielectric's fuzz inputs.
+#: A Principled BSDF's sheen inputs, by Tessera's fuzz inputs.
 SHEEN_INPUTS = {"fuzz": "Sheen Weight", "fuzzColor": "Sheen Tint", "fuzzRoughness": "Sheen Roughness"}
 
 
 def carried_sheen(node):
-    """A Principled BSDF's sheen as tessera:SolidDielectric's fuzz inputs (name -> value), or
+    """A Principled BSDF's sheen as the fuzz inputs of Tessera's shaders (name -> value), or
     None. Cycles' sheen is Zeltner et al.'s, as the fuzz is (docs/materials.md, Coats). Carried
-    when its inputs are constants, its weight above 0, on an opaque dielectric that is the
-    material's surface itself."""
+    when its inputs are constants and its weight above 0, on an opaque dielectric or a full
+    metal (``native_surface``)."""
     if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in SHEEN_INPUTS.values()):
         return None
-    if float(node.inputs["Sheen Weight"].default_value) <= 0.0 or not _solid_dielectric_surface(node):
+    if float(node.inputs["Sheen Weight"].default_value) <= 0.0 or native_surface(node) is None:
         return None
     return {
         "fuzz": min(float(node.inputs["Sheen Weight"].default_value), 1.0),
@@ -142,30 +141,35 @@ def carried_sheen(node):
 
 
 def carried_specular_tint(node):
-    """A Principled BSDF's Specular Tint as tessera:SolidDielectric's `specularColor`, or
-    None: Cycles tints F0 and keeps grazing white, as the tinted dielectric Fresnel does
-    (docs/materials.md). Carried when it is a constant other than white on an opaque
-    dielectric that is the material's surface itself."""
+    """A Principled BSDF's Specular Tint, or None. On a dielectric Cycles tints F0 and keeps
+    grazing white (tessera:SolidDielectric's `specularColor`); on a metal it is the F82 tint
+    (tessera:Metal's `edgeTint` with `f82`). Carried when it is a constant other than white on
+    an opaque dielectric or a full metal (``native_surface``)."""
     if node.type != "BSDF_PRINCIPLED" or node.inputs["Specular Tint"].is_linked:
         return None
     tint = tuple(float(c) for c in tuple(node.inputs["Specular Tint"].default_value)[:3])
-    if tint == (1.0, 1.0, 1.0) or not _solid_dielectric_surface(node):
+    if tint == (1.0, 1.0, 1.0) or native_surface(node) is None:
         return None
     return tint
 
 
-def _solid_dielectric_surface(node) -> bool:
-    """True when `node` (a Principled or Diffuse BSDF) can become tessera:SolidDielectric: it is
-    the material's surface itself (not a side of a mix), and a Principled BSDF has no metal,
-    no transmission and Alpha 1 (the shader has no opacity; its diffuse is the dielectric's)."""
+def native_surface(node):
+    """Which of Tessera's shaders a Principled or Diffuse BSDF can become: "dielectric"
+    (tessera:SolidDielectric), "metal" (tessera:Metal) or None. Only the material's surface
+    itself (not a side of a mix), without transmission and with Alpha 1 (neither shader has
+    opacity), with a constant Metallic of 0 or 1."""
     if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
-        return False
-    if node.type == "BSDF_PRINCIPLED":
-        if any(node.inputs[n].is_linked or float(node.inputs[n].default_value) > 0.0 for n in NOT_DIELECTRIC):
-            return False
-        if node.inputs["Alpha"].is_linked or float(node.inputs["Alpha"].default_value) < 1.0:
-            return False
-    return True
+        return None
+    if node.type == "BSDF_DIFFUSE":
+        return "dielectric"
+    if node.type != "BSDF_PRINCIPLED":
+        return None
+    transmission, alpha, metallic = (node.inputs[n] for n in ("Transmission Weight", "Alpha", "Metallic"))
+    if transmission.is_linked or float(transmission.default_value) > 0.0:
+        return None
+    if alpha.is_linked or float(alpha.default_value) < 1.0 or metallic.is_linked:
+        return None
+    return {0.0: "dielectric", 1.0: "metal"}.get(float(metallic.default_value))
 
 
 #: Principled inputs whose links keep its coat off tessera:SolidDielectric's (constants only),

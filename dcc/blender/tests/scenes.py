@@ -29,7 +29,7 @@ REGIONS = {
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
-    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere"},
+    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -390,6 +390,10 @@ def build(kind, directory):
         p.inputs["IOR"].default_value = 1.5
         p.inputs["Specular Tint"].default_value = (1.0, 0.4, 0.1, 1)
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
+        # And a gold metal whose Specular Tint is its F82 edge tint.
+        m = mat("edge tint", (0.9, 0.6, 0.3), rough=0.3, metal=1.0)
+        m.node_tree.nodes["Principled BSDF"].inputs["Specular Tint"].default_value = (1.0, 0.5, 0.2, 1)
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
@@ -714,8 +718,9 @@ def node_trees(directory):
         no_uvs(tree, p)
 
     def sheen(tree, p):
-        # On a metal: the fuzz is carried on opaque dielectrics only (the `sheen` scene's).
-        p.inputs["Metallic"].default_value = 1.0
+        # On a half metal: the fuzz is carried on opaque dielectrics and full metals only (the
+        # `sheen` scene's).
+        p.inputs["Metallic"].default_value = 0.5
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint

@@ -57,6 +57,15 @@ pub enum SpecularFresnel {
         /// Tint of F0 in [0, 1].
         tint: Vec3,
     },
+    /// A conductor's F82-tint Fresnel (OpenPBR's metal, Cycles' Principled metal): Schlick's
+    /// curve from F0 less b·μ(1 − μ)⁶, b chosen so that F at μ = 1/7 (about 82°) is the tint
+    /// times Schlick's there; a white tint is Schlick. Build with [`SpecularFresnel::f82_tint`].
+    F82Tint {
+        /// F0.
+        f0: Vec3,
+        /// The dip's coefficient b.
+        b: Vec3,
+    },
     /// F = 1: an ideal reflector, for furnace tests.
     White,
     /// A thin film's interference over a dielectric substrate ([`super::thin_film::airy`]);
@@ -83,9 +92,22 @@ impl SpecularFresnel {
             SpecularFresnel::Schlick { f0 } => fresnel::schlick(f0, mu),
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric(mu, eta)),
             SpecularFresnel::TintedDielectric { eta, tint } => tinted(eta, tint, fresnel::dielectric(mu, eta)),
+            SpecularFresnel::F82Tint { f0, b } => {
+                let m = (1.0 - mu).clamp(0.0, 1.0);
+                (fresnel::schlick(f0, mu) - b * (mu * m.powi(6))).clamp(Vec3::ZERO, Vec3::ONE)
+            }
             SpecularFresnel::White => Vec3::ONE,
             SpecularFresnel::ThinFilm { film, thickness, substrate, .. } => super::thin_film::airy(mu, film, thickness, substrate),
         }
+    }
+
+    /// The F82-tint Fresnel of normal-incidence colour `f0` and tint `tint` (both in [0, 1]):
+    /// b = F_Schlick(1/7)·(1 − tint) / ((1/7)(6/7)⁶).
+    pub fn f82_tint(f0: Vec3, tint: Vec3) -> Self {
+        let f0 = f0.clamp(Vec3::ZERO, Vec3::ONE);
+        let (mu, m) = (1.0 / 7.0f32, 6.0 / 7.0f32);
+        let b = fresnel::schlick(f0, mu) * (Vec3::ONE - tint.clamp(Vec3::ZERO, Vec3::ONE)) / (mu * m.powi(6));
+        SpecularFresnel::F82Tint { f0, b }
     }
 
     /// A thin film's Fresnel, its average integrated by the midpoint rule on 64 cosines.
@@ -109,6 +131,8 @@ impl SpecularFresnel {
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
             // F is affine in F_d, so its average is the same map of F_d's.
             SpecularFresnel::TintedDielectric { eta, tint } => tinted(eta, tint, fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
+            // Schlick's average less b·2∫μ²(1 − μ)⁶dμ = b·2·B(3, 7) = b/126.
+            SpecularFresnel::F82Tint { f0, b } => (f0 + (Vec3::ONE - f0) / 21.0 - b / 126.0).clamp(Vec3::ZERO, Vec3::ONE),
             SpecularFresnel::White => Vec3::ONE,
             SpecularFresnel::ThinFilm { avg, .. } => avg,
         }
@@ -411,7 +435,31 @@ mod tests {
             [0.1, 0.5, 1.0].into_iter().flat_map(|r| [white(r, 0.0, true), gold(r, 0.7), white(r, -1.0, true)]).collect();
         v.extend([white(0.3, 0.0, true), gold(0.05, 0.5), gold(1.0, 0.0)]);
         v.extend([tinted_dielectric(0.3, Vec3::new(1.0, 0.4, 0.1)), tinted_dielectric(0.8, Vec3::ZERO)]);
+        v.push(f82(0.5, Vec3::new(0.5, 0.1, 0.0)));
         v
+    }
+
+    fn f82(r: f32, tint: Vec3) -> Lobe {
+        Lobe::GgxReflection(GgxReflection::new(r, 0.0, SpecularFresnel::f82_tint(Vec3::new(0.95, 0.64, 0.54), tint), true))
+    }
+
+    /// F82-tint: white tint is Schlick; at μ = 1/7 it is the tint times Schlick; head-on and
+    /// grazing it is F0 and 1 whatever the tint; its average is its curve's (to 1e-4).
+    #[test]
+    fn f82_tint_scales_schlick_at_82_degrees() {
+        let f0 = Vec3::new(0.95, 0.64, 0.54);
+        let tint = Vec3::new(1.0, 0.6, 0.2);
+        let white = SpecularFresnel::f82_tint(f0, Vec3::ONE);
+        let f = SpecularFresnel::f82_tint(f0, tint);
+        for k in 0..=20 {
+            let mu = k as f32 / 20.0;
+            assert_eq!(white.eval(mu), fresnel::schlick(f0, mu), "μ {mu}");
+        }
+        assert!((f.eval(1.0 / 7.0) - tint * fresnel::schlick(f0, 1.0 / 7.0)).abs().max_element() < 1e-5);
+        assert!((f.eval(1.0) - f0).abs().max_element() < 1e-6 && (f.eval(0.0) - Vec3::ONE).abs().max_element() < 1e-6);
+        let n = 4000;
+        let avg: Vec3 = (0..n).map(|k| (k as f32 + 0.5) / n as f32).map(|mu| f.eval(mu) * (2.0 * mu / n as f32)).sum();
+        assert!((avg - f.average()).abs().max_element() < 1e-4, "{avg:?} against {:?}", f.average());
     }
 
     /// The tinted dielectric: untinted it is the dielectric's exact Fresnel (to rounding); head-on
@@ -450,7 +498,8 @@ mod tests {
             white(0.6, 0.0, true),
             gold(0.3, 0.8),
             gold(1.0, -1.0),
-            tinted_dielectric(0.4, Vec3::new(0.2, 0.9, 0.5))
+            tinted_dielectric(0.4, Vec3::new(0.2, 0.9, 0.5)),
+            f82(0.3, Vec3::new(0.3, 0.8, 1.0))
         ],
         seed: 100,
     );

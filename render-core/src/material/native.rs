@@ -121,10 +121,14 @@ pub fn takes_normal_map(id: &str) -> bool {
 pub const SHADERS: &[Shader] = &[
     Shader {
         id: "tessera:Metal",
-        doc: "A conductor: anisotropic GGX with Gulbrandsen's reflectivity and edge tint (DreamWorks use Beckmann; GGX carries our energy tables).",
+        doc: "A conductor: anisotropic GGX with Gulbrandsen's reflectivity and edge tint, or the F82 tint (DreamWorks use Beckmann; GGX carries our energy tables).",
         inputs: &[
             color("reflectivity", 0.9, "normal-incidence colour (Gulbrandsen r)"),
             color("edgeTint", 1.0, "colour towards grazing angles (Gulbrandsen g)"),
+            flag(
+                "f82",
+                "read edgeTint as an F82 tint (OpenPBR's specular_color, Cycles' Specular Tint): Schlick's curve from reflectivity, its dip near 82° scaled by edgeTint; white is Schlick",
+            ),
             float("roughness", 0.3, (0.0, 1.0), "roughness (α = roughness²)"),
             float("anisotropy", 0.0, (-1.0, 1.0), "stretch along the tangent (−1) or bitangent (1)"),
         ],
@@ -326,7 +330,8 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
     };
     match shader.id {
         "tessera:Metal" => {
-            let fresnel = SpecularFresnel::Gulbrandsen { r: v.c("reflectivity"), g: v.c("edgeTint") };
+            let (r, g) = (v.c("reflectivity"), v.c("edgeTint"));
+            let fresnel = if v.b("f82") { SpecularFresnel::f82_tint(r, g) } else { SpecularFresnel::Gulbrandsen { r, g } };
             u.metal = Weighted { weight: 1.0, params: specular(fresnel, v.f("roughness"), v.f("anisotropy")) };
         }
         "tessera:Refractive" => {
@@ -583,6 +588,29 @@ mod tests {
         let lambert = rough(0.0).eval(wo, wo).x;
         assert_eq!(lambert, std::f32::consts::FRAC_1_PI);
         assert!(back > 1.5 * lambert, "retro-reflection {back} against Lambert's {lambert}");
+    }
+
+    /// `f82` reads the edge tint as an F82 tint: head-on the reflectivity, near 82° the tint
+    /// times Schlick's there (the same metal with a white tint, which is Schlick's curve).
+    #[test]
+    fn an_f82_metal_dips_near_82_degrees() {
+        let gold = ParamValue::Float3(Vec3::new(0.944, 0.776, 0.373));
+        let metal = |tint: Vec3| {
+            let params = [
+                ("reflectivity", gold.clone()),
+                ("edgeTint", ParamValue::Float3(tint)),
+                ("f82", ParamValue::Bool(true)),
+                ("roughness", ParamValue::Float(0.0)),
+            ];
+            resolved("tessera:Metal", &params).0.bsdf(true)
+        };
+        let (tinted, plain) = (metal(Vec3::new(1.0, 0.5, 0.2)), metal(Vec3::ONE));
+        let head_on = testing::albedo_estimate(&tinted, Vec3::Z, 64);
+        assert!((head_on - Vec3::new(0.944, 0.776, 0.373)).abs().max_element() < 1e-4, "{head_on:?}");
+        let mu = 1.0f32 / 7.0;
+        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let ratio = testing::albedo_estimate(&tinted, wo, 64) / testing::albedo_estimate(&plain, wo, 64);
+        assert!((ratio - Vec3::new(1.0, 0.5, 0.2)).abs().max_element() < 1e-3, "{ratio:?}");
     }
 
     /// `specularColor` tints the specular's head-on reflectance: a smooth one over black

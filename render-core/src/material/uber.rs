@@ -63,6 +63,7 @@ impl Mix for SpecularFresnel {
                 let tint = |f: SpecularFresnel| if let F::TintedDielectric { tint, .. } = f { tint } else { Vec3::ONE };
                 F::TintedDielectric { eta: eta.mix(wa, &e2, wb), tint: tint(*self).mix(wa, &tint(*other), wb) }
             }
+            (F::F82Tint { f0, b }, F::F82Tint { f0: f2, b: b2 }) => F::F82Tint { f0: f0.mix(wa, &f2, wb), b: b.mix(wa, &b2, wb) },
             (a, b) => pick(a, wa, b, wb),
         }
     }
