@@ -484,6 +484,14 @@ fn preview(g: &Graph, s: &str) -> Inputs {
     Inputs { id: "UsdPreviewSurface", values }
 }
 
+/// Tessera's own shaders a MaterialX surface may map onto whole.
+enum Native {
+    /// `tessera:SolidDielectric`.
+    Dielectric,
+    /// `tessera:Metal`.
+    Metal,
+}
+
 /// The lobes Standard Surface and OpenPBR share, by their meaning.
 struct Lobes {
     base: Lin,
@@ -531,38 +539,12 @@ impl Lobes {
                 "{surface}: subsurface is rendered as diffuse reflection (a scattering medium needs no metalness, transmission, sheen, thin walls or specular weight other than 1)"
             ));
         }
-        let rough_diffuse = !zero(&self.diffuse_roughness, 0.0);
-        let sheen = !zero(&self.sheen, 0.0);
-        let tinted = !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE);
-        let opaque_dielectric = zero(&self.transmission, 0.0)
-            && zero(&self.thin, 0.0)
-            && zero(&self.specular_weight, 1.0)
-            && zero(&self.metalness, 0.0)
-            && zero(&self.opacity, 1.0);
-        if (rough_diffuse || sheen || tinted) && opaque_dielectric {
-            return self.opaque_dielectric();
-        }
-        let metal = zero(&self.metalness, 1.0) && zero(&self.transmission, 0.0) && zero(&self.thin, 0.0) && zero(&self.opacity, 1.0);
-        if (sheen || tinted) && metal {
-            return self.metal();
-        }
-        if tinted {
-            warnings.push(format!(
-                "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
-            ));
-        }
-        if rough_diffuse {
-            warnings.push(format!(
-                "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
-            ));
+        match self.native_shader() {
+            Some(Native::Dielectric) => return self.opaque_dielectric(),
+            Some(Native::Metal) => return self.metal(),
+            None => warnings.extend(self.uncarried(surface)),
         }
         let principled = beyond_preview || !zero(&self.anisotropy, 0.0);
-        if sheen {
-            warnings.push(format!(
-                "{surface}: {} on a surface that is not an opaque dielectric is Disney's sheen here; its colour and roughness are not carried",
-                self.sheen_names[0]
-            ));
-        }
         if !principled {
             let mut values = vec![
                 ("diffuseColor", self.base, true),
@@ -609,6 +591,47 @@ impl Lobes {
             values.push(("normal", n, true));
         }
         Inputs { id: "tessera:Principled", values }
+    }
+
+    /// Which of Tessera's own shaders carries what UsdPreviewSurface cannot say of this surface
+    /// (a rough diffuse, a sheen in its own model, a specular colour): an opaque dielectric
+    /// or a full metal; None when it has none of these or is neither.
+    fn native_shader(&self) -> Option<Native> {
+        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
+        let (sheen, tinted) = (!zero(&self.sheen, 0.0), !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE));
+        let plain = zero(&self.transmission, 0.0) && zero(&self.thin, 0.0) && zero(&self.opacity, 1.0);
+        if plain
+            && zero(&self.metalness, 0.0)
+            && zero(&self.specular_weight, 1.0)
+            && (sheen || tinted || !zero(&self.diffuse_roughness, 0.0))
+        {
+            return Some(Native::Dielectric);
+        }
+        (plain && zero(&self.metalness, 1.0) && (sheen || tinted)).then_some(Native::Metal)
+    }
+
+    /// What a surface that maps onto neither of Tessera's own shaders loses of them, said.
+    fn uncarried(&self, surface: &str) -> Vec<String> {
+        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
+        let mut said = Vec::new();
+        if !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE) {
+            said.push(format!(
+                "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
+            ));
+        }
+        // A full metal has no diffuse to be rough.
+        if !zero(&self.diffuse_roughness, 0.0) && !zero(&self.metalness, 1.0) {
+            said.push(format!(
+                "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
+            ));
+        }
+        if !zero(&self.sheen, 0.0) {
+            said.push(format!(
+                "{surface}: {} on a surface that is neither an opaque dielectric nor a full metal is Disney's sheen here; its colour and roughness are not carried",
+                self.sheen_names[0]
+            ));
+        }
+        said
     }
 
     /// An opaque dielectric with a rough (Oren-Nayar) diffuse, a sheen or a tinted specular:
