@@ -134,6 +134,26 @@ fn a_specular_colour_tints_the_dielectric_specular() {
     assert_eq!(t.warnings.iter().filter(|w| w.contains("specular_color is carried only")).count(), 1, "{:?}", t.warnings);
 }
 
+/// A coloured coat becomes Tessera's absorbing clearcoat at thickness 1 (a head-on round trip
+/// tinted by the colour), on a dielectric or a metal; a clear coat stays UsdPreviewSurface's.
+#[test]
+fn a_coat_colour_is_the_clearcoats_absorption() {
+    for (inputs, id) in [
+        ("float inputs:coat_weight = 1\n color3f inputs:coat_color = (0.9, 0.5, 0.2)", "tessera:SolidDielectric"),
+        ("float inputs:base_metalness = 1\n float inputs:coat_weight = 1\n color3f inputs:coat_color = (0.9, 0.5, 0.2)", "tessera:Metal"),
+        ("float inputs:coat_weight = 1", "UsdPreviewSurface"),
+    ] {
+        let t = load_text("mtlx_coat", &stage("ND_open_pbr_surface_surfaceshader", inputs, ""));
+        let net = network(&t);
+        assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, id, "{inputs}");
+        if id != "UsdPreviewSurface" {
+            assert_eq!(surface_param(net, "clearcoatAttenuationColor"), Some(&ParamValue::Float3(glam::Vec3::new(0.9, 0.5, 0.2))));
+            assert_eq!(surface_param(net, "clearcoatThickness"), Some(&ParamValue::Float(1.0)));
+        }
+        assert!(t.warnings.is_empty(), "{inputs}: {:?}", t.warnings);
+    }
+}
+
 /// On a full metal `specular_color` is the edge colour: tessera:Metal's `edgeTint`, read as
 /// the F82 tint for OpenPBR and as Gulbrandsen's edge tint for Standard Surface.
 #[test]

@@ -399,6 +399,7 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         transmission: g.get(s, "transmission", 0.0),
         transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
         coat: g.get(s, "coat", 0.0),
+        coat_color: g.get3(s, "coat_color", Vec3::ONE),
         coat_roughness: g.get(s, "coat_roughness", 0.1),
         sheen: g.get(s, "sheen", 0.0),
         sheen_color: g.get3(s, "sheen_color", Vec3::ONE),
@@ -440,6 +441,7 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         transmission: g.get(s, "transmission_weight", 0.0),
         transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
         coat: g.get(s, "coat_weight", 0.0),
+        coat_color: g.get3(s, "coat_color", Vec3::ONE),
         coat_roughness: g.get(s, "coat_roughness", 0.0),
         sheen: g.get(s, "fuzz_weight", 0.0),
         sheen_color: g.get3(s, "fuzz_color", Vec3::ONE),
@@ -484,6 +486,16 @@ fn preview(g: &Graph, s: &str) -> Inputs {
     Inputs { id: "UsdPreviewSurface", values }
 }
 
+/// The coat thickness at which a head-on round trip through Tessera's absorbing clearcoat is
+/// tinted exactly by its attenuation colour: the meaning both specifications give the coat's
+/// colour (the tint seen head-on, deeper at grazing angles).
+const COAT_THICKNESS: f32 = 1.0;
+
+/// True when `l` is the constant white.
+fn white(l: &Lin) -> bool {
+    l.value().is_some_and(|c| c.truncate() == Vec3::ONE)
+}
+
 /// Tessera's own shaders a MaterialX surface may map onto whole.
 enum Native {
     /// `tessera:SolidDielectric`.
@@ -507,6 +519,8 @@ struct Lobes {
     transmission: Lin,
     transmission_color: Lin,
     coat: Lin,
+    /// The coat's colour: what a head-on round trip through it lets through.
+    coat_color: Lin,
     coat_roughness: Lin,
     sheen: Lin,
     sheen_color: Lin,
@@ -598,7 +612,8 @@ impl Lobes {
     /// or a full metal; None when it has none of these or is neither.
     fn native_shader(&self) -> Option<Native> {
         let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
-        let (sheen, tinted) = (!zero(&self.sheen, 0.0), !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE));
+        let sheen = !zero(&self.sheen, 0.0);
+        let tinted = !white(&self.specular_color) || (!zero(&self.coat, 0.0) && !white(&self.coat_color));
         let plain = zero(&self.transmission, 0.0) && zero(&self.thin, 0.0) && zero(&self.opacity, 1.0);
         if plain
             && zero(&self.metalness, 0.0)
@@ -614,7 +629,12 @@ impl Lobes {
     fn uncarried(&self, surface: &str) -> Vec<String> {
         let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
         let mut said = Vec::new();
-        if !self.specular_color.value().is_some_and(|c| c.truncate() == Vec3::ONE) {
+        if !zero(&self.coat, 0.0) && !white(&self.coat_color) {
+            said.push(format!(
+                "{surface}: coat_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the coat is clear"
+            ));
+        }
+        if !white(&self.specular_color) {
             said.push(format!(
                 "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
             ));
@@ -653,6 +673,8 @@ impl Lobes {
             ("clearcoat", self.coat, false),
             ("clearcoatRoughness", self.coat_roughness, false),
             ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
+            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
             ("emission", self.emission, true),
         ];
         if let Some(n) = self.normal {
@@ -679,6 +701,8 @@ impl Lobes {
             ("clearcoat", self.coat, false),
             ("clearcoatRoughness", self.coat_roughness, false),
             ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
+            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
             ("emission", self.emission, true),
         ];
         if let Some(n) = self.normal {
@@ -728,6 +752,8 @@ impl Lobes {
             ("clearcoat", self.coat, false),
             ("clearcoatRoughness", self.coat_roughness, false),
             ("clearcoatRefractiveIndex", self.coat_ior, false),
+            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
+            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
             ("emission", self.emission, true),
         ];
         if let Some(n) = self.normal {
