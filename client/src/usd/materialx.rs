@@ -654,32 +654,44 @@ impl Lobes {
         said
     }
 
+    /// What Tessera's own shaders share: the coat (its colour as the absorption of a coat of
+    /// thickness 1), emission, the normal map, and with `sheen` the sheen in its model's inputs.
+    fn shared_inputs(&self, sheen: bool) -> Vec<(&'static str, Lin, bool)> {
+        let mut values = vec![
+            ("clearcoat", self.coat.clone(), false),
+            ("clearcoatRoughness", self.coat_roughness.clone(), false),
+            ("clearcoatRefractiveIndex", self.coat_ior.clone(), false),
+            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
+            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
+            ("emission", self.emission.clone(), true),
+        ];
+        if sheen {
+            let [weight, color, roughness] = self.sheen_names;
+            values.extend([
+                (weight, self.sheen.clone(), false),
+                (color, self.sheen_color.clone(), true),
+                (roughness, self.sheen_roughness.clone(), false),
+            ]);
+        }
+        values.extend(self.normal.clone().map(|n| ("normal", n, true)));
+        values
+    }
+
     /// An opaque dielectric with a rough (Oren-Nayar) diffuse, a sheen or a tinted specular:
     /// `tessera:SolidDielectric`, the same Lambertian-under-specular model UsdPreviewSurface
     /// resolves to, plus the roughness, the sheen in its own model (Charlie or fuzz) and the
     /// specular's tint.
     fn opaque_dielectric(self) -> Inputs {
-        let [sheen, sheen_color, sheen_roughness] = self.sheen_names;
+        let shared = self.shared_inputs(true);
         let mut values = vec![
             ("albedo", self.base, true),
             ("diffuseRoughness", self.diffuse_roughness, false),
-            (sheen, self.sheen, false),
-            (sheen_color, self.sheen_color, true),
-            (sheen_roughness, self.sheen_roughness, false),
             ("specularColor", self.specular_color, true),
             ("refractiveIndex", self.ior, false),
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),
-            ("clearcoat", self.coat, false),
-            ("clearcoatRoughness", self.coat_roughness, false),
-            ("clearcoatRefractiveIndex", self.coat_ior, false),
-            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
-            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
-            ("emission", self.emission, true),
         ];
-        if let Some(n) = self.normal {
-            values.push(("normal", n, true));
-        }
+        values.extend(shared);
         Inputs { id: "tessera:SolidDielectric", values }
     }
 
@@ -687,7 +699,7 @@ impl Lobes {
     /// reflectivity and `specular_color` its edge tint (Gulbrandsen's for Standard Surface, the
     /// F82 tint for OpenPBR).
     fn metal(self) -> Inputs {
-        let [sheen, sheen_color, sheen_roughness] = self.sheen_names;
+        let shared = self.shared_inputs(true);
         let f82 = Lin::constant(Vec4::splat(if self.edge_f82 { 1.0 } else { 0.0 }));
         let mut values = vec![
             ("reflectivity", self.base, true),
@@ -695,19 +707,8 @@ impl Lobes {
             ("f82", f82, false),
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),
-            (sheen, self.sheen, false),
-            (sheen_color, self.sheen_color, true),
-            (sheen_roughness, self.sheen_roughness, false),
-            ("clearcoat", self.coat, false),
-            ("clearcoatRoughness", self.coat_roughness, false),
-            ("clearcoatRefractiveIndex", self.coat_ior, false),
-            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
-            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
-            ("emission", self.emission, true),
         ];
-        if let Some(n) = self.normal {
-            values.push(("normal", n, true));
-        }
+        values.extend(shared);
         Inputs { id: "tessera:Metal", values }
     }
 
@@ -717,6 +718,7 @@ impl Lobes {
     /// colours mixed by the weight (exact at weights 0 and 1, and for their mean under even
     /// light).
     fn solid_dielectric(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
+        let shared = self.shared_inputs(false);
         let m = self.medium;
         let albedo = match self.subsurface.value() {
             Some(w) if w.x >= 1.0 => Some(m.color.clone()),
@@ -749,16 +751,8 @@ impl Lobes {
             ("scatteringColor", Lin::constant(spread.extend(1.0)), true),
             ("scatteringWeight", self.subsurface, false),
             ("scatteringAnisotropy", m.anisotropy, false),
-            ("clearcoat", self.coat, false),
-            ("clearcoatRoughness", self.coat_roughness, false),
-            ("clearcoatRefractiveIndex", self.coat_ior, false),
-            ("clearcoatAttenuationColor", self.coat_color.clone(), true),
-            ("clearcoatThickness", Lin::constant(Vec4::splat(COAT_THICKNESS)), false),
-            ("emission", self.emission, true),
         ];
-        if let Some(n) = self.normal {
-            values.push(("normal", n, true));
-        }
+        values.extend(shared);
         Inputs { id: "tessera:SolidDielectric", values }
     }
 }

@@ -170,17 +170,7 @@ mod tests {
         for alpha in [0.2f32, 0.5, 1.0] {
             for mu in [1.0f32, 0.6, 0.2, 0.02] {
                 let ltc = Ltc::at(Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu), alpha);
-                let n = 1000;
-                let mut acc = 0.0f64;
-                for i in 0..n {
-                    let z = (i as f32 + 0.5) / n as f32;
-                    let s = (1.0 - z * z).sqrt();
-                    for j in 0..n {
-                        let phi = 2.0 * PI * (j as f32 + 0.5) / n as f32;
-                        acc += ltc.density(Vec3::new(s * phi.cos(), s * phi.sin(), z)) as f64;
-                    }
-                }
-                let total = acc * 2.0 * std::f64::consts::PI / (n * n) as f64;
+                let total = testing::hemisphere_integral(1000, |w| ltc.density(w));
                 assert!((total - 1.0).abs() < 1e-3, "α {alpha} μ {mu}: ∫D = {total}");
             }
         }

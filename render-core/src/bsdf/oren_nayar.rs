@@ -208,18 +208,7 @@ mod tests {
             let lobe = OrenNayar::new(Vec3::ONE, sigma, None);
             for mu in [1.0f32, 0.7, 0.3, 0.05, 1e-3] {
                 let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-                let q = 800usize;
-                let mut acc = 0.0f64;
-                for i in 0..q {
-                    let mi = (i as f32 + 0.5) / q as f32;
-                    let si = (1.0 - mi * mi).sqrt();
-                    for j in 0..q {
-                        let phi = 2.0 * PI * (j as f32 + 0.5) / q as f32;
-                        let wi = Vec3::new(si * phi.cos(), si * phi.sin(), mi);
-                        acc += (lobe.single_scattering(wo, wi) * mi) as f64;
-                    }
-                }
-                let numeric = acc * 2.0 * std::f64::consts::PI / (q * q) as f64;
+                let numeric = testing::hemisphere_integral(800, |wi| lobe.single_scattering(wo, wi) * wi.z);
                 let closed = fon_albedo(sigma, mu) as f64;
                 assert!((numeric - closed).abs() < 2e-5, "σ {sigma} μ {mu}: quadrature {numeric} closed form {closed}");
             }

@@ -101,6 +101,21 @@ pub fn probe_directions() -> Vec<Vec3> {
         .collect()
 }
 
+/// ∫ f(ω) dω over the upper hemisphere by n × n midpoints in (cos θ, φ) (equal solid angles),
+/// summed in f64: for closed forms that need a reference with no sampling noise.
+pub fn hemisphere_integral(n: usize, f: impl Fn(Vec3) -> f32) -> f64 {
+    let mut acc = 0.0f64;
+    for i in 0..n {
+        let z = (i as f32 + 0.5) / n as f32;
+        let s = (1.0 - z * z).sqrt();
+        for j in 0..n {
+            let phi = 2.0 * std::f32::consts::PI * (j as f32 + 0.5) / n as f32;
+            acc += f(Vec3::new(s * phi.cos(), s * phi.sin(), z)) as f64;
+        }
+    }
+    acc * 2.0 * PI / (n * n) as f64
+}
+
 /// Monte Carlo estimate of the directional albedo ∫ f·|cos| dωi via the lobe's own sampling,
 /// in energy: transmitted samples have their radiance scaling 1/η'² undone.
 pub fn albedo_estimate(lobe: &impl Scatter, wo: Vec3, n: u32) -> Vec3 {
