@@ -75,6 +75,11 @@ AGREE = [
     # tessera:Metal with f82: measured 0.999 at 256 spp; untinted (Schlick, as exported) 1.063,
     # and read as Gulbrandsen's edge tint instead 1.028.
     ("sheen", "edge-tinted metal sphere"),
+    # The `coats` scene's orange coat over a silver metal, written as tessera:Metal's absorbing
+    # clearcoat: measured 0.996 at 256 spp (the coat over a metal takes from a specular lobe,
+    # where over grey it takes from a diffuse one and reads 0.958); as exported (untinted
+    # Disney coat) 1.834.
+    ("coats", "tinted coat metal sphere"),
     ("emission_shader", "sphere"),
     # Bumps (tessera:Bump): a height ramp through a Bump node (Distance 0.5) and through Bump
     # Only displacement (Scale 0.5) tilts each plane 14° away from the sun; a flat plane between

@@ -373,25 +373,29 @@ def _renamed(shader, shader_id, names, Sdf) -> None:
 
 
 def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
-    """A dielectric Principled BSDF's tinted coat, which UsdPreviewSurface cannot hold, on
-    tessera:SolidDielectric's (``nodes.coats_carried`` says when): Coat IOR as the coat's
-    index, Coat Tint as the colour a head-on pass through a coat of thickness 1 absorbs
-    towards (Cycles tints by Coat Tint to the power of the path length through the coat, 1
-    head-on)."""
+    """A Principled BSDF's tinted coat, which UsdPreviewSurface cannot hold, on
+    tessera:SolidDielectric's or, on a full metal, tessera:Metal's clearcoat
+    (``nodes.coats_carried`` says when): Coat IOR as the coat's index, Coat Tint as the colour a
+    head-on pass through a coat of thickness 1 absorbs towards (Cycles tints by Coat Tint to
+    the power of the path length through the coat, 1 head-on)."""
     name = _material_name(prim)
     node = _principled_of(prim, UsdShade)
     shader = _surface_shader(prim, UsdShade) if node is not None else None
-    if not shader or not nodes.coats_carried(node):
+    kind = nodes.coats_carried(node) if shader else None
+    if kind is None:
         return
     _warn_if_displaced(exported, name, shader)
-    _as_solid_dielectric(shader, Sdf)
+    if kind == "metal":
+        _as_metal(shader, nodes.carried_specular_tint(node) or (1.0, 1.0, 1.0), Sdf)
+    else:
+        _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
     tint = tuple(float(c) for c in tuple(node.inputs["Coat Tint"].default_value)[:3])
     # coats_carried holds only tinted coats.
     shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
     shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
     shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
-    exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as tessera:SolidDielectric's clearcoat")
+    exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as {shader.GetIdAttr().Get()}'s clearcoat")
 
 
 def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> None:

@@ -93,8 +93,8 @@ def principled_losses(node) -> list[str]:
         ("Diffuse Roughness", carried_diffuse_roughness(node) is None, float(value["Diffuse Roughness"]) > 0.0),
         ("Specular Tint", carried_specular_tint(node) is None, tuple(value["Specular Tint"])[:3] != white),
         ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
-        ("Coat IOR", coat and not carried, float(value["Coat IOR"]) != 1.5),
-        ("Coat Tint", coat and not carried, tuple(value["Coat Tint"])[:3] != white),
+        ("Coat IOR", coat and carried is None, float(value["Coat IOR"]) != 1.5),
+        ("Coat Tint", coat and carried is None, tuple(value["Coat Tint"])[:3] != white),
         ("Coat Normal", coat, False),
         ("Sheen Weight", carried_sheen(node) is None, float(value["Sheen Weight"]) > 0.0),
         ("Thin Film Thickness", True, float(value["Thin Film Thickness"]) > 0.0),
@@ -178,20 +178,24 @@ COAT_INPUTS = ("Coat Weight", "Coat Tint", "Coat IOR")
 NOT_DIELECTRIC = ("Metallic", "Transmission Weight")
 
 
-def coats_carried(node) -> bool:
-    """True when a Principled BSDF's tinted coat can be carried on tessera:SolidDielectric's
-    clearcoat: constants, on an opaque dielectric (no metal, no transmission, Alpha 1: the
-    shader has no opacity). Measured on the `coats` comparison scene: a tinted coat reads 0.958
-    of Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat stays
-    UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 its Disney coat read 1.039,
-    SolidDielectric's 0.960, no nearer. The sheen is not the Charlie sheen (1.63 of Cycles'
-    microfibre sheen on a dark red sphere) but the fuzz, Cycles' own model (``carried_sheen``)."""
+def coats_carried(node):
+    """Which of Tessera's shaders carries a Principled BSDF's tinted coat, which
+    UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
+    (tessera:Metal's, since 2026-12-07) or None. Constants, on an opaque dielectric or a full
+    metal (no transmission, Alpha 1: the shaders have no opacity). Measured on the `coats`
+    comparison scene: a tinted coat reads 0.958 of Cycles there (1.862 as UsdPreviewSurface's
+    untinted coat). An untinted coat stays UsdPreviewSurface's, its Coat IOR reported: at Coat
+    IOR 1.8 its Disney coat read 1.039, SolidDielectric's 0.960, no nearer. The sheen is not the
+    Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'
+    own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
     if any(node.inputs[n].is_linked for n in COAT_INPUTS + NOT_DIELECTRIC + ("Alpha",)) or float(value["Alpha"]) < 1.0:
-        return False
-    if any(float(value[n]) > 0.0 for n in NOT_DIELECTRIC):
-        return False
-    return float(value["Coat Weight"]) > 0.0 and tuple(value["Coat Tint"])[:3] != (1.0, 1.0, 1.0)
+        return None
+    if float(value["Transmission Weight"]) > 0.0 or float(value["Coat Weight"]) <= 0.0:
+        return None
+    if tuple(value["Coat Tint"])[:3] == (1.0, 1.0, 1.0):
+        return None
+    return {0.0: "dielectric", 1.0: "metal"}.get(float(value["Metallic"]))
 
 
 def active_output(tree):
