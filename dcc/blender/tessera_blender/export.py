@@ -24,7 +24,8 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
 * Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
-  ``tessera:SolidDielectric``'s absorbing clearcoat (``_correct_coats``).
+  ``tessera:SolidDielectric``'s absorbing clearcoat, a full metal's ``tessera:Metal``'s
+  (``_correct_coats``).
 * Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness), a
   Principled BSDF's Sheen and its Specular Tint: dropped too. On an opaque dielectric they
   become ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar
