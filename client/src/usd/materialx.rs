@@ -491,6 +491,11 @@ fn preview(g: &Graph, s: &str) -> Inputs {
 /// colour (the tint seen head-on, deeper at grazing angles).
 const COAT_THICKNESS: f32 = 1.0;
 
+/// True when `l` is a constant whose first channel is `v`.
+fn is_constant(l: &Lin, v: f32) -> bool {
+    l.value().is_some_and(|x| x.x == v)
+}
+
 /// True when `l` is the constant white.
 fn white(l: &Lin) -> bool {
     l.value().is_some_and(|c| c.truncate() == Vec3::ONE)
@@ -542,11 +547,12 @@ impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
     /// for subsurface it can say the rest of; `tessera:Principled` otherwise.
     fn inputs(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
-        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
-        let beyond_preview =
-            !zero(&self.transmission, 0.0) || !zero(&self.sheen, 0.0) || !zero(&self.thin, 0.0) || !zero(&self.specular_weight, 1.0);
-        if !zero(&self.subsurface, 0.0) {
-            if !beyond_preview && zero(&self.metalness, 0.0) {
+        let beyond_preview = !is_constant(&self.transmission, 0.0)
+            || !is_constant(&self.sheen, 0.0)
+            || !is_constant(&self.thin, 0.0)
+            || !is_constant(&self.specular_weight, 1.0);
+        if !is_constant(&self.subsurface, 0.0) {
+            if !beyond_preview && is_constant(&self.metalness, 0.0) {
                 return self.solid_dielectric(surface, warnings);
             }
             warnings.push(format!(
@@ -558,7 +564,7 @@ impl Lobes {
             Some(Native::Metal) => return self.metal(),
             None => warnings.extend(self.uncarried(surface)),
         }
-        let principled = beyond_preview || !zero(&self.anisotropy, 0.0);
+        let principled = beyond_preview || !is_constant(&self.anisotropy, 0.0);
         if !principled {
             let mut values = vec![
                 ("diffuseColor", self.base, true),
@@ -611,25 +617,23 @@ impl Lobes {
     /// (a rough diffuse, a sheen in its own model, a specular colour): an opaque dielectric
     /// or a full metal; None when it has none of these or is neither.
     fn native_shader(&self) -> Option<Native> {
-        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
-        let sheen = !zero(&self.sheen, 0.0);
-        let tinted = !white(&self.specular_color) || (!zero(&self.coat, 0.0) && !white(&self.coat_color));
-        let plain = zero(&self.transmission, 0.0) && zero(&self.thin, 0.0) && zero(&self.opacity, 1.0);
+        let sheen = !is_constant(&self.sheen, 0.0);
+        let tinted = !white(&self.specular_color) || (!is_constant(&self.coat, 0.0) && !white(&self.coat_color));
+        let plain = is_constant(&self.transmission, 0.0) && is_constant(&self.thin, 0.0) && is_constant(&self.opacity, 1.0);
         if plain
-            && zero(&self.metalness, 0.0)
-            && zero(&self.specular_weight, 1.0)
-            && (sheen || tinted || !zero(&self.diffuse_roughness, 0.0))
+            && is_constant(&self.metalness, 0.0)
+            && is_constant(&self.specular_weight, 1.0)
+            && (sheen || tinted || !is_constant(&self.diffuse_roughness, 0.0))
         {
             return Some(Native::Dielectric);
         }
-        (plain && zero(&self.metalness, 1.0) && (sheen || tinted)).then_some(Native::Metal)
+        (plain && is_constant(&self.metalness, 1.0) && (sheen || tinted)).then_some(Native::Metal)
     }
 
     /// What a surface that maps onto neither of Tessera's own shaders loses of them, said.
     fn uncarried(&self, surface: &str) -> Vec<String> {
-        let zero = |l: &Lin, v: f32| l.value().is_some_and(|x| x.x == v);
         let mut said = Vec::new();
-        if !zero(&self.coat, 0.0) && !white(&self.coat_color) {
+        if !is_constant(&self.coat, 0.0) && !white(&self.coat_color) {
             said.push(format!(
                 "{surface}: coat_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the coat is clear"
             ));
@@ -640,12 +644,12 @@ impl Lobes {
             ));
         }
         // A full metal has no diffuse to be rough.
-        if !zero(&self.diffuse_roughness, 0.0) && !zero(&self.metalness, 1.0) {
+        if !is_constant(&self.diffuse_roughness, 0.0) && !is_constant(&self.metalness, 1.0) {
             said.push(format!(
                 "{surface}: diffuse roughness is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1); this diffuse is smooth"
             ));
         }
-        if !zero(&self.sheen, 0.0) {
+        if !is_constant(&self.sheen, 0.0) {
             said.push(format!(
                 "{surface}: {} on a surface that is neither an opaque dielectric nor a full metal is Disney's sheen here; its colour and roughness are not carried",
                 self.sheen_names[0]

@@ -162,9 +162,13 @@ def native_surface(node):
         return None
     if node.type == "BSDF_DIFFUSE":
         return "dielectric"
-    if node.type != "BSDF_PRINCIPLED":
-        return None
-    transmission, alpha, metallic = (node.inputs[n] for n in ("Transmission Weight", "Alpha", "Metallic"))
+    return _opaque_kind(node) if node.type == "BSDF_PRINCIPLED" else None
+
+
+def _opaque_kind(principled):
+    """A Principled BSDF without transmission and with Alpha 1 (constants: neither of Tessera's
+    shaders has opacity) as "dielectric" (Metallic 0) or "metal" (Metallic 1); None otherwise."""
+    transmission, alpha, metallic = (principled.inputs[n] for n in ("Transmission Weight", "Alpha", "Metallic"))
     if transmission.is_linked or float(transmission.default_value) > 0.0:
         return None
     if alpha.is_linked or float(alpha.default_value) < 1.0 or metallic.is_linked:
@@ -172,10 +176,8 @@ def native_surface(node):
     return {0.0: "dielectric", 1.0: "metal"}.get(float(metallic.default_value))
 
 
-#: Principled inputs whose links keep its coat off tessera:SolidDielectric's (constants only),
-#: and those that make it no dielectric.
+#: Principled inputs whose links keep its coat off Tessera's absorbing clearcoat (constants only).
 COAT_INPUTS = ("Coat Weight", "Coat Tint", "Coat IOR")
-NOT_DIELECTRIC = ("Metallic", "Transmission Weight")
 
 
 def coats_carried(node):
@@ -189,13 +191,11 @@ def coats_carried(node):
     Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'
     own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
-    if any(node.inputs[n].is_linked for n in COAT_INPUTS + NOT_DIELECTRIC + ("Alpha",)) or float(value["Alpha"]) < 1.0:
-        return None
-    if float(value["Transmission Weight"]) > 0.0 or float(value["Coat Weight"]) <= 0.0:
+    if any(node.inputs[n].is_linked for n in COAT_INPUTS) or float(value["Coat Weight"]) <= 0.0:
         return None
     if tuple(value["Coat Tint"])[:3] == (1.0, 1.0, 1.0):
         return None
-    return {0.0: "dielectric", 1.0: "metal"}.get(float(value["Metallic"]))
+    return _opaque_kind(node)
 
 
 def active_output(tree):

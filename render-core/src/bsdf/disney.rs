@@ -104,11 +104,7 @@ impl DisneyDiffuse {
     /// [`DiffuseTerms`] at `wo` from the tables.
     fn find_terms(&self, wo: Vec3) -> DiffuseTerms {
         let scales = if self.lambert { (1.0, 1.0) } else { diffuse_energy_scales(self.roughness, self.flatness) };
-        let coupling = self.coupling.map_or((0.0, 0.0), |(eta, r)| {
-            let t = super::energy::dielectric_specular();
-            (t.e_avg(eta, r), t.e(eta, r, wo.z.abs()))
-        });
-        DiffuseTerms { scales, coupling }
+        DiffuseTerms { scales, coupling: super::energy::coupling_at_view(self.coupling, wo.z.abs()) }
     }
 
     /// f without the cosine.
@@ -130,14 +126,7 @@ impl DisneyDiffuse {
         let (base, retro) = if self.lambert { (FRAC_1_PI, 0.0) } else { Self::parts(self.roughness, self.flatness, wo, wi) };
         let terms = self.at_view.get(wo, || self.find_terms(wo));
         let (s, k) = terms.scales;
-        let couple = match self.coupling {
-            Some((eta, r)) => {
-                let (avg, e_o) = terms.coupling;
-                let t = super::energy::dielectric_specular();
-                if avg < 1.0 { (1.0 - e_o) * (1.0 - t.e(eta, r, wi.z.abs())) / (1.0 - avg) } else { 0.0 }
-            }
-            None => 1.0,
-        };
+        let couple = super::energy::coupled_share(self.coupling, terms.coupling, wi.z.abs());
         self.color * ((s * base + k * retro) * couple).max(0.0)
     }
 

@@ -606,6 +606,29 @@ impl DielectricSpecularEnergy {
     }
 }
 
+/// A diffuse lobe under a dielectric specular of `coupling` = (η, roughness) reflects only
+/// what the specular leaves (Kulla & Conty 2017, "Revisiting Physically Based Shading at
+/// Imageworks", "Microfacet dielectrics - diffuse term"): the specular's (Ē, E(μo)) at the
+/// view, which [`coupled_share`] reads at every light direction; (0, 0) uncoupled.
+pub(super) fn coupling_at_view(coupling: Option<(f32, f32)>, mu_o: f32) -> (f32, f32) {
+    coupling.map_or((0.0, 0.0), |(eta, r)| {
+        let t = dielectric_specular();
+        (t.e_avg(eta, r), t.e(eta, r, mu_o))
+    })
+}
+
+/// The share (1 − E(μo))(1 − E(μi))/(1 − Ē) of a coupled diffuse for light from cosine `mu_i`,
+/// `at_view` being [`coupling_at_view`]'s; 1 uncoupled.
+pub(super) fn coupled_share(coupling: Option<(f32, f32)>, at_view: (f32, f32), mu_i: f32) -> f32 {
+    match coupling {
+        Some((eta, r)) => {
+            let (avg, e_o) = at_view;
+            if avg < 1.0 { (1.0 - e_o) * (1.0 - dielectric_specular().e(eta, r, mu_i)) / (1.0 - avg) } else { 0.0 }
+        }
+        None => 1.0,
+    }
+}
+
 /// The dielectric specular tables, each row computed on first use.
 pub fn dielectric_specular() -> &'static DielectricSpecularEnergy {
     static TABLES: OnceLock<DielectricSpecularEnergy> = OnceLock::new();

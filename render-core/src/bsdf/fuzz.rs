@@ -49,24 +49,31 @@ impl Fuzz {
 
     /// f without the cosine.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z * wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
-        let ltc = Ltc::at(wo, self.alpha);
-        let f = albedo(wo.z, self.alpha) * ltc.density(wi) / wi.z;
-        if f.is_finite() { self.color * f } else { Vec3::ZERO }
+        self.eval_pdf(wo, wi).0
     }
 
-    /// A clamped-cosine sample mapped by M: the density is the LTC's.
+    /// `(eval, pdf)` from one fit of the LTC at the view.
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z * wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
+        let d = Ltc::at(wo, self.alpha).density(wi);
+        let f = albedo(wo.z, self.alpha) * d / wi.z;
+        (if f.is_finite() { self.color * f } else { Vec3::ZERO }, d)
+    }
+
+    /// A clamped-cosine sample mapped by M. The density is the LTC's, so the weight
+    /// f·cos/pdf is colour · R(μo, α) exactly.
     pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2) -> Option<LobeSample> {
         if wo.z == 0.0 {
             return None;
         }
         let flip = if wo.z < 0.0 { -1.0 } else { 1.0 };
-        let wi = Ltc::at(wo * flip, self.alpha).sample(u)? * flip;
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0).then(|| LobeSample { wi, weight: self.eval(wo, wi) * wi.z.abs() / pdf, pdf, flags: Self::FLAGS, eta: 1.0 })
+        let ltc = Ltc::at(wo * flip, self.alpha);
+        let wi = ltc.sample(u)?;
+        let pdf = ltc.density(wi);
+        (pdf > 0.0).then(|| LobeSample { wi: wi * flip, weight: self.albedo(wo), pdf, flags: Self::FLAGS, eta: 1.0 })
     }
 
     /// The LTC density on `wo`'s side.
@@ -176,8 +183,8 @@ mod tests {
         }
     }
 
-    /// A sample's weight is R(μo, α) exactly (pdf is the LTC density), so the sampled albedo
-    /// estimate is R to rounding.
+    /// A sample's weight is R(μo, α) (pdf is the LTC density), and so is f·cos/pdf at the
+    /// sampled direction: eval and pdf agree with the sampling.
     #[test]
     fn samples_weigh_the_fitted_albedo() {
         let lobe = Fuzz::new(Vec3::ONE, 0.5);
@@ -186,6 +193,8 @@ mod tests {
         for _ in 0..1000 {
             let s = lobe.sample(wo, 0.5, rng.next_2d()).expect("a sample above the surface");
             assert!((s.weight.x - albedo(0.6, 0.5)).abs() < 1e-4 * albedo(0.6, 0.5).max(1.0), "{:?}", s.weight);
+            let estimate = lobe.eval(wo, s.wi).x * s.wi.z / lobe.pdf(wo, s.wi);
+            assert!((estimate - albedo(0.6, 0.5)).abs() < 1e-4, "f·cos/pdf {estimate}");
         }
     }
 

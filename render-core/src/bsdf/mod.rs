@@ -184,6 +184,7 @@ impl Lobe {
             // more dispatches, each a call, at every light sample of a diffuse surface.
             Lobe::DisneyDiffuse(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
             Lobe::OrenNayar(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
+            Lobe::Fuzz(l) => l.eval_pdf(wo, wi),
             Lobe::Lambert(l) => (l.eval(wo, wi), l.pdf(wo, wi)),
             _ => (self.eval(wo, wi), self.pdf(wo, wi)),
         }

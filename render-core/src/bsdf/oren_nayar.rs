@@ -68,11 +68,7 @@ impl OrenNayar {
 
     fn view_terms(&self, wo: Vec3) -> ViewTerms {
         let mu = wo.z.abs().min(1.0);
-        let coupling = self.coupling.map_or((0.0, 0.0), |(eta, r)| {
-            let t = super::energy::dielectric_specular();
-            (t.e_avg(eta, r), t.e(eta, r, mu))
-        });
-        ViewTerms { e_o: fon_albedo(self.sigma, mu), coupling }
+        ViewTerms { e_o: fon_albedo(self.sigma, mu), coupling: super::energy::coupling_at_view(self.coupling, mu) }
     }
 
     /// f without the cosine.
@@ -81,12 +77,8 @@ impl OrenNayar {
             return Vec3::ZERO;
         }
         let terms = self.at_view.get(wo, || self.view_terms(wo));
-        let (mo, mi) = (wo.z.abs().min(1.0), wi.z.abs().min(1.0));
-        let a = fon_a(self.sigma);
-        // s = cos of the angle between the directions' projections, times both sines.
-        let s = wo.dot(wi) - mo * mi;
-        let s_over_t = if s > 0.0 { s / mo.max(mi) } else { s };
-        let single = self.color * (a * (1.0 + self.sigma * s_over_t) * FRAC_1_PI);
+        let mi = wi.z.abs().min(1.0);
+        let single = self.color * self.single_scattering(wo, wi);
         let e_avg = fon_average_albedo(self.sigma);
         let multi = if e_avg < 1.0 {
             multiple_scattering_albedo(self.color, e_avg)
@@ -94,20 +86,16 @@ impl OrenNayar {
         } else {
             Vec3::ZERO
         };
-        (single + multi).max(Vec3::ZERO) * self.couple(terms, mi)
+        (single + multi).max(Vec3::ZERO) * super::energy::coupled_share(self.coupling, terms.coupling, mi)
     }
 
-    /// The share of light the coupled specular leaves to the diffuse, for this pair of
-    /// directions (1 uncoupled).
-    fn couple(&self, terms: ViewTerms, mi: f32) -> f32 {
-        match self.coupling {
-            Some((eta, r)) => {
-                let (avg, e_o) = terms.coupling;
-                let t = super::energy::dielectric_specular();
-                if avg < 1.0 { (1.0 - e_o) * (1.0 - t.e(eta, r, mi)) / (1.0 - avg) } else { 0.0 }
-            }
-            None => 1.0,
-        }
+    /// FON's single scattering for a white surface, A/π·(1 + σ·s/t).
+    fn single_scattering(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let (mo, mi) = (wo.z.abs().min(1.0), wi.z.abs().min(1.0));
+        // s = cos of the angle between the directions' projections, times both sines.
+        let s = wo.dot(wi) - mo * mi;
+        let s_over_t = if s > 0.0 { s / mo.max(mi) } else { s };
+        fon_a(self.sigma) * (1.0 + self.sigma * s_over_t) * FRAC_1_PI
     }
 
     /// Cosine-weighted on `wo`'s side.
@@ -294,16 +282,6 @@ mod tests {
                 }
                 assert!(lobe.albedo(wo).is_finite());
             }
-        }
-    }
-
-    impl OrenNayar {
-        /// FON alone for a white surface.
-        fn single_scattering(&self, wo: Vec3, wi: Vec3) -> f32 {
-            let (mo, mi) = (wo.z.abs(), wi.z.abs());
-            let s = wo.dot(wi) - mo * mi;
-            let s_over_t = if s > 0.0 { s / mo.max(mi) } else { s };
-            fon_a(self.sigma) * (1.0 + self.sigma * s_over_t) * FRAC_1_PI
         }
     }
 }

@@ -50,12 +50,15 @@ pub enum SpecularFresnel {
     /// A dielectric whose normal-incidence reflectance is tinted: F = F0·t + (1 − F0·t)·s(μ),
     /// s = (F_d(μ) − F0)/(1 − F0) the exact dielectric curve rescaled to run from 0 to 1, so
     /// grazing stays white (Cycles' Principled Specular Tint: its generalised Schlick with a
-    /// negative exponent; OpenPBR's and Standard Surface's `specular_color`).
+    /// negative exponent; OpenPBR's and Standard Surface's `specular_color`). Build with
+    /// [`SpecularFresnel::tinted_dielectric`].
     TintedDielectric {
         /// IOR below over above.
         eta: f32,
         /// Tint of F0 in [0, 1].
         tint: Vec3,
+        /// The untinted F0, kept from construction: every evaluation needs it.
+        f0: f32,
     },
     /// A conductor's F82-tint Fresnel (OpenPBR's metal, Cycles' Principled metal): Schlick's
     /// curve from F0 less b·μ(1 − μ)⁶, b chosen so that F at μ = 1/7 (about 82°) is the tint
@@ -91,7 +94,7 @@ impl SpecularFresnel {
             SpecularFresnel::Artistic { r, g, p } => fresnel::artistic(r, g, p, mu),
             SpecularFresnel::Schlick { f0 } => fresnel::schlick(f0, mu),
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric(mu, eta)),
-            SpecularFresnel::TintedDielectric { eta, tint } => tinted(eta, tint, fresnel::dielectric(mu, eta)),
+            SpecularFresnel::TintedDielectric { eta, tint, f0 } => tinted(f0, tint, fresnel::dielectric(mu, eta)),
             SpecularFresnel::F82Tint { f0, b } => {
                 let m = (1.0 - mu).clamp(0.0, 1.0);
                 (fresnel::schlick(f0, mu) - b * (mu * m.powi(6))).clamp(Vec3::ZERO, Vec3::ONE)
@@ -99,6 +102,15 @@ impl SpecularFresnel {
             SpecularFresnel::White => Vec3::ONE,
             SpecularFresnel::ThinFilm { film, thickness, substrate, .. } => super::thin_film::airy(mu, film, thickness, substrate),
         }
+    }
+
+    /// A dielectric of relative index `eta` whose F0 is tinted `tint` (clamped to [0, 1]); a
+    /// white tint is the plain dielectric.
+    pub fn tinted_dielectric(eta: f32, tint: Vec3) -> Self {
+        if tint == Vec3::ONE {
+            return SpecularFresnel::Dielectric { eta };
+        }
+        SpecularFresnel::TintedDielectric { eta, tint: tint.clamp(Vec3::ZERO, Vec3::ONE), f0: fresnel::dielectric(1.0, eta) }
     }
 
     /// The F82-tint Fresnel of normal-incidence colour `f0` and tint `tint` (both in [0, 1]):
@@ -130,7 +142,7 @@ impl SpecularFresnel {
             SpecularFresnel::Schlick { f0 } => f0 + (Vec3::ONE - f0) / 21.0,
             SpecularFresnel::Dielectric { eta } => Vec3::splat(fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
             // F is affine in F_d, so its average is the same map of F_d's.
-            SpecularFresnel::TintedDielectric { eta, tint } => tinted(eta, tint, fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
+            SpecularFresnel::TintedDielectric { eta, tint, f0 } => tinted(f0, tint, fresnel::dielectric_avg_fit(eta).clamp(0.0, 1.0)),
             // Schlick's average less b·2∫μ²(1 − μ)⁶dμ = b·2·B(3, 7) = b/126.
             SpecularFresnel::F82Tint { f0, b } => (f0 + (Vec3::ONE - f0) / 21.0 - b / 126.0).clamp(Vec3::ZERO, Vec3::ONE),
             SpecularFresnel::White => Vec3::ONE,
@@ -140,12 +152,11 @@ impl SpecularFresnel {
 }
 
 /// The tinted dielectric's F for the untinted dielectric's value `f_d` (at a cosine, or on
-/// average): F0·t + (1 − F0·t)·(f_d − F0)/(1 − F0).
+/// average), `f0` being its value head-on: F0·t + (1 − F0·t)·(f_d − F0)/(1 − F0).
 #[inline]
-fn tinted(eta: f32, tint: Vec3, f_d: f32) -> Vec3 {
-    let f0 = fresnel::dielectric(1.0, eta);
+fn tinted(f0: f32, tint: Vec3, f_d: f32) -> Vec3 {
     let s = if f0 < 1.0 { ((f_d - f0) / (1.0 - f0)).clamp(0.0, 1.0) } else { 1.0 };
-    let f0t = f0 * tint.clamp(Vec3::ZERO, Vec3::ONE);
+    let f0t = f0 * tint;
     f0t + (Vec3::ONE - f0t) * s
 }
 
@@ -425,7 +436,7 @@ mod tests {
     }
 
     fn tinted_dielectric(r: f32, tint: Vec3) -> Lobe {
-        Lobe::GgxReflection(GgxReflection::new(r, 0.0, SpecularFresnel::TintedDielectric { eta: 1.5, tint }, true))
+        Lobe::GgxReflection(GgxReflection::new(r, 0.0, SpecularFresnel::tinted_dielectric(1.5, tint), true))
     }
 
     /// White and gold conductors, isotropic and anisotropic, rough to nearly smooth, and a
@@ -470,8 +481,9 @@ mod tests {
         let tint = Vec3::new(1.0, 0.5, 0.0);
         for eta in [1.2f32, 1.5, 2.4, 0.7] {
             let plain = SpecularFresnel::Dielectric { eta };
-            let white = SpecularFresnel::TintedDielectric { eta, tint: Vec3::ONE };
-            let tinted = SpecularFresnel::TintedDielectric { eta, tint };
+            // The formula itself at a white tint (the constructor would return the plain one).
+            let white = SpecularFresnel::TintedDielectric { eta, tint: Vec3::ONE, f0: fresnel::dielectric(1.0, eta) };
+            let tinted = SpecularFresnel::tinted_dielectric(eta, tint);
             for k in 0..=20 {
                 let mu = k as f32 / 20.0;
                 assert!((white.eval(mu) - plain.eval(mu)).abs().max_element() < 1e-6, "η {eta} μ {mu}");

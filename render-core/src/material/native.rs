@@ -356,7 +356,8 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 oren_nayar: v.f("diffuseRoughness"),
                 diffuse_transmission: share,
                 transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
-                specular: (eta > 1.0).then(|| specular(tinted_dielectric(eta, v.c("specularColor")), v.f("roughness"), v.f("anisotropy"))),
+                specular: (eta > 1.0)
+                    .then(|| specular(SpecularFresnel::tinted_dielectric(eta, v.c("specularColor")), v.f("roughness"), v.f("anisotropy"))),
                 coupling_eta: eta,
                 scattering_radius: v.f("scatteringRadius"),
                 scattering_color: v.c("scatteringColor"),
@@ -414,11 +415,6 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
     }
     let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0 })
-}
-
-/// A dielectric's Fresnel, tinted when `tint` is not white (untinted, the exact dielectric's).
-fn tinted_dielectric(eta: f32, tint: Vec3) -> SpecularFresnel {
-    if tint == Vec3::ONE { SpecularFresnel::Dielectric { eta } } else { SpecularFresnel::TintedDielectric { eta, tint } }
 }
 
 /// The coats, film, sheen, specular control and emission every shared-input shader takes,

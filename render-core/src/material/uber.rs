@@ -61,7 +61,7 @@ impl Mix for SpecularFresnel {
             // A plain dielectric is a tinted one of white tint.
             (F::Dielectric { eta } | F::TintedDielectric { eta, .. }, F::Dielectric { eta: e2 } | F::TintedDielectric { eta: e2, .. }) => {
                 let tint = |f: SpecularFresnel| if let F::TintedDielectric { tint, .. } = f { tint } else { Vec3::ONE };
-                F::TintedDielectric { eta: eta.mix(wa, &e2, wb), tint: tint(*self).mix(wa, &tint(*other), wb) }
+                F::tinted_dielectric(eta.mix(wa, &e2, wb), tint(*self).mix(wa, &tint(*other), wb))
             }
             (F::F82Tint { f0, b }, F::F82Tint { f0: f2, b: b2 }) => F::F82Tint { f0: f0.mix(wa, &f2, wb), b: b.mix(wa, &b2, wb) },
             (a, b) => pick(a, wa, b, wb),
