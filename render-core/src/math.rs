@@ -51,6 +51,17 @@ impl Frame {
         Frame { t, b: n.cross(t), n }
     }
 
+    /// The frame turned about its normal by `turns` of a full turn, counter-clockwise seen
+    /// from the normal's side (t towards b).
+    pub fn turned(self, turns: f32) -> Self {
+        if turns == 0.0 {
+            return self;
+        }
+        let (sin, cos) = (turns * std::f32::consts::TAU).sin_cos();
+        let t = (self.t * cos + self.b * sin).normalize_or(self.t);
+        Frame { t, b: self.n.cross(t), n: self.n }
+    }
+
     /// World direction to local coordinates.
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {

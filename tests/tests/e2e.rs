@@ -1,6 +1,7 @@
 //! End-to-end tests: the real server on loopback, the real client, committed fixtures.
 //! One binary (as ripgrep does) so the workspace links it once.
 
+mod anisotropy;
 mod aovs;
 mod bump;
 mod caustics;

@@ -117,7 +117,7 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
             // A fibre's frame runs along the curve (the tube's texture t), root to tip.
             Frame::from_normal_along(ns, s.dpdt, s.up)
         } else if self.force() || chosen.is_anisotropic() {
-            Frame::from_normal_around(ns, s.up)
+            self.anisotropic_frame(&s, ns, local)
         } else {
             Frame::from_normal(ns)
         };
@@ -137,6 +137,24 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
 
     /// True when the ray passes `s` untouched: cut out here, not present for this ray where
     /// the surface is partially present, or the inside of a hair tube.
+    /// The frame anisotropic lobes turn with: along the material's `tangent` where it gives
+    /// one (a direction in object space), else around the object's up axis; then turned by
+    /// its rotation.
+    fn anisotropic_frame(&self, s: &SurfaceHit, ns: Vec3, local: &LocalMaterial) -> Frame {
+        let tangent = match local {
+            Some((m, _)) => m.tangent,
+            None => self.scene.materials[s.material as usize].tangent,
+        };
+        let frame = match tangent.direction == Vec3::ZERO {
+            true => Frame::from_normal_around(ns, s.up),
+            false => {
+                let along = self.scene.placement(s.instance, s.time).to_world.transform_vector3(tangent.direction);
+                Frame::from_normal_along(ns, along, s.up)
+            }
+        };
+        frame.turned(tangent.rotation)
+    }
+
     fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &LocalMaterial) -> bool {
         let pass_through = local.as_ref().map_or(self.scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
         let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, dir) < pass_through;

@@ -43,6 +43,21 @@ pub struct Material {
     /// Share of rays that pass the surface unbent, as if it were not there: UsdPreviewSurface
     /// `opacityMode` `presence` with `opacity` below 1 (partial coverage, like a sparse veil).
     pub pass_through: f32,
+    /// Which way anisotropic lobes' first axis runs on the surface.
+    pub tangent: Tangent,
+}
+
+/// Which way anisotropic lobes' first axis (GGX's αx, a fabric's threads) runs on a surface:
+/// the shared `tangent` and `anisotropyRotation` inputs of Tessera's own shaders.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Tangent {
+    /// Object-space direction, made perpendicular to the shading normal where shaded (a
+    /// mesh's per-vertex tangents, through a primvar reader); zero: around the object's up
+    /// axis ([`crate::math::Frame::from_normal_around`]).
+    pub direction: Vec3,
+    /// Turn about the normal, counter-clockwise, in fractions of a full turn (Cycles' and
+    /// Standard Surface's specular rotation).
+    pub rotation: f32,
 }
 
 impl Material {
@@ -50,12 +65,18 @@ impl Material {
     /// roughness 0.5, ior 1.5, no metal): the fallback of unbound meshes and of materials
     /// without a surface shader, as Hydra's fallback material is.
     pub fn preview_surface_default() -> Self {
-        Material { surface: Principled::preview_surface_default().uber(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 }
+        Material {
+            surface: Principled::preview_surface_default().uber(),
+            emission: Vec3::ZERO,
+            cut_out: false,
+            pass_through: 0.0,
+            tangent: Tangent::default(),
+        }
     }
 
     /// A material of Disney principled parameters.
     pub fn principled(p: Principled) -> Self {
-        Material { surface: p.uber(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0 }
+        Material { surface: p.uber(), emission: Vec3::ZERO, cut_out: false, pass_through: 0.0, tangent: Tangent::default() }
     }
 
     /// The lobes at a shading point; `energy_compensation` switches the Kulla-Conty layer.
@@ -72,6 +93,7 @@ impl Material {
             emission: self.emission.lerp(a.emission, m),
             cut_out: if m > 0.5 { a.cut_out } else { self.cut_out },
             pass_through: self.pass_through.mix(1.0 - m, &a.pass_through, m),
+            tangent: if m > 0.5 { a.tangent } else { self.tangent },
         }
     }
 

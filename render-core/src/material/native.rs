@@ -10,11 +10,11 @@ use std::collections::BTreeMap;
 
 use glam::Vec3;
 
-use super::Material;
 use super::desc::ParamValue;
 use super::glitter::GlitterParams;
 use super::inputs::{Inputs, ResolveReport};
 use super::uber::{ClearcoatParams, FabricParams, Glass, HairParams, Plastic, SheenParams, Specular, ThinFilmParams, Uber, Weighted};
+use super::{Material, Tangent};
 use crate::bsdf::SpecularFresnel;
 
 /// An input's type.
@@ -26,6 +26,8 @@ pub enum Kind {
     Color,
     /// `bool`.
     Bool,
+    /// `vector3f`: a direction, any length.
+    Vector,
 }
 
 /// One declared input.
@@ -110,6 +112,19 @@ pub const SHARED: &[Input] = &[
         range: (-1.0, 1.0),
         doc: "tangent-space normal map, read where a texture is connected (as UsdPreviewSurface's `normal`); a constant changes nothing",
     },
+    Input {
+        name: "tangent",
+        kind: Kind::Vector,
+        default: [0.0; 3],
+        range: (-f32::MAX, f32::MAX),
+        doc: "object-space direction of the anisotropic lobes' first axis (`anisotropy` −1 stretches along it), made perpendicular to the normal; usually a mesh's per-vertex tangents through a UsdPrimvarReader_float3; zero runs it around the object's up axis",
+    },
+    float(
+        "anisotropyRotation",
+        0.0,
+        (-1.0, 1.0),
+        "turn of `tangent` about the normal, counter-clockwise, in fractions of a full turn (Cycles' Anisotropic Rotation, Standard Surface's specular_rotation)",
+    ),
 ];
 
 /// True when shader `id` perturbs its shading normal by a connected `normal` input.
@@ -288,6 +303,7 @@ impl Values {
                 (Kind::Float, ParamValue::Int(x)) => Some([clamp(*x as f32); 3]),
                 (Kind::Color, ParamValue::Float3(c)) => Some([clamp(c.x), clamp(c.y), clamp(c.z)]),
                 (Kind::Color, ParamValue::Float(x)) => Some([clamp(*x); 3]),
+                (Kind::Vector, ParamValue::Float3(c)) if c.is_finite() => Some(c.to_array()),
                 (Kind::Bool, ParamValue::Bool(b)) => Some([*b as u8 as f32; 3]),
                 (Kind::Bool, ParamValue::Int(i)) => Some([(*i != 0) as u8 as f32; 3]),
                 _ => None,
@@ -414,7 +430,11 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         _ => unreachable!("every declared shader is mapped"),
     }
     let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
-    Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0 })
+    let tangent = match shader.shared {
+        true => Tangent { direction: v.c("tangent"), rotation: v.f("anisotropyRotation") },
+        false => Tangent::default(),
+    };
+    Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0, tangent })
 }
 
 /// The coats, film, sheen, specular control and emission every shared-input shader takes,
@@ -451,9 +471,10 @@ pub fn markdown_reference() -> String {
             Kind::Float => format!("{}", i.default[0]),
             Kind::Color => format!("({}, {}, {})", i.default[0], i.default[1], i.default[2]),
             Kind::Bool => "false".to_string(),
+            Kind::Vector => format!("({}, {}, {})", i.default[0], i.default[1], i.default[2]),
         };
         let range = match i.kind {
-            Kind::Bool => "-".to_string(),
+            Kind::Bool | Kind::Vector => "-".to_string(),
             _ if i.range.1 == f32::MAX => format!("≥ {}", i.range.0),
             _ => format!("[{}, {}]", i.range.0, i.range.1),
         };
@@ -461,6 +482,7 @@ pub fn markdown_reference() -> String {
             Kind::Float => "float",
             Kind::Color => "color3f",
             Kind::Bool => "bool",
+            Kind::Vector => "vector3f",
         };
         format!("| `{}` | {kind} | {default} | {range} | {} |\n", i.name, i.doc)
     };

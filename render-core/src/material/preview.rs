@@ -37,7 +37,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Material {
         surface.clearcoat.params =
             ClearcoatParams::Dielectric { ior: p.ior, roughness: 1.0 - p.clearcoat_gloss, color: Vec3::ONE, thickness: 0.0 };
     }
-    Material { surface, emission: r.emission, cut_out: r.cut_out, pass_through: r.pass_through }
+    Material { surface, emission: r.emission, cut_out: r.cut_out, pass_through: r.pass_through, tangent: Default::default() }
 }
 
 /// The Disney parameters of a UsdPreviewSurface or `tessera:Principled` node.
