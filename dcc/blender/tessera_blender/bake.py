@@ -57,7 +57,7 @@ def users(stage, material_path: str, UsdShade) -> dict[str, list]:
     return out
 
 
-def _mesh_of(prim):
+def mesh_of(prim):
     return prim if prim.GetTypeName() == "Mesh" else prim.GetParent()
 
 
@@ -123,7 +123,7 @@ def _bakeable(exported, by_object, Sdf):
         return [], "no mesh in the export uses the material"
     pairs = []
     for obj in objects:
-        meshes = list({str(_mesh_of(p).GetPath()): _mesh_of(p) for p in by_object[obj.name]}.values())
+        meshes = list({str(mesh_of(p).GetPath()): mesh_of(p) for p in by_object[obj.name]}.values())
         over, why = unwrap.stand_in(exported, obj, meshes, BAKE_MARGIN, Sdf, UsdGeom)
         if why:
             return [], why

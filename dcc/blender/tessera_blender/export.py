@@ -32,6 +32,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   Cycles renders), fuzz coat (Zeltner et al.'s sheen, Cycles' too) and ``specularColor``; on a
   full metal, ``tessera:Metal`` with the tint as its F82 edge tint, and the fuzz
   (``_correct_native_surface``).
+* Anisotropic: dropped too. On an opaque dielectric or a full metal whose Tangent is unlinked it
+  becomes the shader's ``anisotropy`` and ``anisotropyRotation``, along Cycles' default tangent
+  written per vertex on the meshes (``_read_generated_tangents``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -411,7 +414,8 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if kind is None:
         return
     sigma, sheen, tint = nodes.carried_diffuse_roughness(node), nodes.carried_sheen(node), nodes.carried_specular_tint(node)
-    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint else None
+    anisotropy = nodes.carried_anisotropy(node)
+    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint or anisotropy else None
     if not shader:
         return
     _warn_if_displaced(exported, material.name, shader)
@@ -433,6 +437,55 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if tint and kind == "dielectric":
         shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)
         exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
+    if anisotropy:
+        for name, value in anisotropy.items():
+            shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
+        _read_generated_tangents(exported, prim, shader, Sdf, UsdShade)
+        exported.corrections.append(
+            f"{prim.GetPath()}: anisotropy {anisotropy['anisotropy']:g}, rotation {anisotropy['anisotropyRotation']:g} along Cycles' default tangent"
+        )
+
+
+#: The primvar that holds Cycles' default tangent, per vertex, on the meshes that need it.
+GENERATED_TANGENT = "tesseraGeneratedTangent"
+
+
+def _read_generated_tangents(exported: Export, material_prim, shader, Sdf, UsdShade) -> None:
+    """Connects `shader`'s `tangent` to a primvar reader of ``GENERATED_TANGENT`` and writes
+    that primvar on every mesh the material is bound to."""
+    stage = material_prim.GetStage()
+    reader = UsdShade.Shader.Define(stage, material_prim.GetPath().AppendChild("GeneratedTangent"))
+    reader.SetShaderId("UsdPrimvarReader_float3")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set(GENERATED_TANGENT)
+    result = reader.CreateOutput("result", Sdf.ValueTypeNames.Float3)
+    shader.CreateInput("tangent", Sdf.ValueTypeNames.Vector3f).ConnectToSource(result)
+    for name, prims in bake.users(stage, str(material_prim.GetPath()), UsdShade).items():
+        obj = bpy.data.objects.get(name)
+        for mesh in {bake.mesh_of(p).GetPath(): bake.mesh_of(p) for p in prims}.values():
+            if obj is None or obj.type != "MESH" or not _write_generated_tangent(mesh, obj.data, Sdf):
+                exported.warnings.append(f"{mesh.GetPath()}: no generated coordinates for Cycles' default tangent; anisotropy runs around the object's Y")
+
+
+def _write_generated_tangent(mesh, data, Sdf) -> bool:
+    """Cycles' default tangent at each point of `mesh` (object space, a Principled BSDF's
+    unlinked Tangent): radial around the object's Z through the texture space's centre,
+    (−(g_y − ½), g_x − ½, 0) in Generated coordinates g = (p − location)/(2·size) + ½, where the
+    mesh's texture space is (location, size). Cycles then makes it perpendicular to the shading
+    normal, as Tessera does with a `tangent`. False when the mesh has no points."""
+    import numpy as np
+    from pxr import UsdGeom, Vt
+
+    points = UsdGeom.Mesh(mesh).GetPointsAttr().Get()
+    if not points:
+        return False
+    p = np.array(points, dtype=np.float64)
+    location, size = np.array(data.texspace_location[:]), np.array(data.texspace_size[:])
+    size = np.where(size != 0.0, size, 1.0)
+    centred = (p - location) / (2.0 * size)  # g − ½
+    tangents = np.stack([-centred[:, 1], centred[:, 0], np.zeros(len(p))], axis=1).astype(np.float32)
+    primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(GENERATED_TANGENT, Sdf.ValueTypeNames.Vector3fArray, UsdGeom.Tokens.vertex)
+    primvar.Set(Vt.Vec3fArray.FromNumpy(tangents))
+    return True
 
 
 #: UsdPreviewSurface inputs that keep their meaning on ``tessera:Metal``, by its names.

@@ -92,7 +92,7 @@ def principled_losses(node) -> list[str]:
     rows = (
         ("Diffuse Roughness", carried_diffuse_roughness(node) is None, float(value["Diffuse Roughness"]) > 0.0),
         ("Specular Tint", carried_specular_tint(node) is None, tuple(value["Specular Tint"])[:3] != white),
-        ("Anisotropic", True, float(value["Anisotropic"]) > 0.0),
+        ("Anisotropic", carried_anisotropy(node) is None, float(value["Anisotropic"]) > 0.0),
         ("Coat IOR", coat and carried is None, float(value["Coat IOR"]) != 1.5),
         ("Coat Tint", coat and carried is None, tuple(value["Coat Tint"])[:3] != white),
         ("Coat Normal", coat, False),
@@ -151,6 +151,25 @@ def carried_specular_tint(node):
     if tint == (1.0, 1.0, 1.0) or native_surface(node) is None:
         return None
     return tint
+
+
+#: Principled inputs that say how much and which way its specular is anisotropic.
+ANISOTROPY_INPUTS = ("Anisotropic", "Anisotropic Rotation", "Tangent")
+
+
+def carried_anisotropy(node):
+    """A Principled BSDF's Anisotropic and Anisotropic Rotation as Tessera's `anisotropy` and
+    `anisotropyRotation` (name -> value), or None. Cycles stretches GGX as Tessera does (αx =
+    r²/√(1 − 0.9a) along the tangent, αy = r²·√(1 − 0.9a)) and turns the tangent about the normal
+    by the rotation's share of a turn. Carried when the three inputs are constants (an unlinked
+    Tangent is Cycles' default, radial around the object's Z, which export.py writes per vertex),
+    the anisotropy is above 0, on an opaque dielectric or a full metal (``native_surface``)."""
+    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ANISOTROPY_INPUTS):
+        return None
+    amount = float(node.inputs["Anisotropic"].default_value)
+    if amount <= 0.0 or native_surface(node) is None:
+        return None
+    return {"anisotropy": min(amount, 1.0), "anisotropyRotation": float(node.inputs["Anisotropic Rotation"].default_value)}
 
 
 def native_surface(node):

@@ -30,6 +30,7 @@ REGIONS = {
     "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere"},
+    "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -324,7 +325,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "hair") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -401,6 +402,34 @@ def build(kind, directory):
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    elif kind == "anisotropic":
+        # A Principled BSDF's Anisotropic along Cycles' default tangent (radial around the
+        # object's Z in Generated coordinates), under an area light: on a silver sphere, on a
+        # metal panel turned towards the camera (brushed in circles around its middle), and on a
+        # near-black dielectric sphere whose specular tangent is turned a quarter. Single
+        # scattering in both renderers (Cycles' GGX, Tessera without energy compensation): the
+        # two compensate differently, which the anisotropic lobes show most (docs/blender.md).
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+        for index, kind_, inputs in (
+            (2, "sphere", {"Anisotropic": 0.9}),
+            (3, "panel", {"Anisotropic": 0.9}),
+            (4, "dielectric", {"Anisotropic": 0.9, "Anisotropic Rotation": 0.25}),
+        ):
+            metal = 0.0 if kind_ == "dielectric" else 1.0
+            m = mat(f"brushed {index}", (0.0, 0.0, 0.0) if metal == 0.0 else (0.9, 0.9, 0.9), rough=0.35, metal=metal)
+            inputs = {**inputs, "IOR": 1.5} if metal == 0.0 else inputs
+            for name, value in inputs.items():
+                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+            m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
+            if kind_ == "panel":
+                add(bpy.ops.mesh.primitive_plane_add, m, index, size=2.2, location=(2.4, 2.0, 1.4), rotation=(1.2, 0, 0.3))
+            else:
+                add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(-1.6 if metal else 0.0, 0 if metal else 2.5, 1.0), segments=64, ring_count=32)
+        bpy.ops.object.light_add(type='AREA', location=(1.0, -3.0, 4.0), rotation=(0.7, 0.2, 0)); l = bpy.context.object.data; l.energy = 600; l.size = 1.5
+        scene.tessera.energy_compensation = False
+        world = bpy.data.worlds.new("dim")
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
