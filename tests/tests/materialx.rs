@@ -110,14 +110,43 @@ fn fuzz_and_sheen_keep_their_models() {
     assert_eq!(surface_param(net, "fuzzRoughness"), Some(&ParamValue::Float(0.4)));
     assert!(t.warnings.is_empty(), "{:?}", t.warnings);
 
-    let inputs = "float inputs:sheen = 0.5\n color3f inputs:sheen_color = (0.2, 0.3, 0.9)\n float inputs:thin_film_thickness = 300";
+    let inputs = "float inputs:sheen = 0.5\n color3f inputs:sheen_color = (0.2, 0.3, 0.9)\n float inputs:coat_affect_color = 0.5";
     let t = load_text("mtlx_sheen", &stage("ND_standard_surface_surfaceshader", inputs, ""));
     let net = network(&t);
     assert_eq!(surface_param(net, "sheen"), Some(&ParamValue::Float(0.5)));
     assert_eq!(surface_param(net, "sheenColor"), Some(&ParamValue::Float3(glam::Vec3::new(0.2, 0.3, 0.9))));
     assert_eq!(surface_param(net, "sheenRoughness"), Some(&ParamValue::Float(0.3)), "Standard Surface's default");
-    let said: Vec<_> = t.warnings.iter().filter(|w| w.contains("'thin_film_thickness' is not carried")).collect();
+    let said: Vec<_> = t.warnings.iter().filter(|w| w.contains("'coat_affect_color' is not carried")).collect();
     assert_eq!(said.len(), 1, "{:?}", t.warnings);
+}
+
+/// A thin film on an opaque dielectric becomes tessera:SolidDielectric's surface film, whose
+/// interference replaces the specular's Fresnel: OpenPBR's at full weight (its thickness in
+/// micrometres), Standard Surface's (in nanometres). A film at partial weight, or on a metal,
+/// is reported once.
+#[test]
+fn a_thin_film_replaces_the_dielectric_specular_fresnel() {
+    let open_pbr = "float inputs:thin_film_weight = 1\n float inputs:thin_film_thickness = 0.45\n float inputs:thin_film_ior = 1.33";
+    for (id, inputs, nm, ior) in [
+        ("ND_open_pbr_surface_surfaceshader", open_pbr, 450.0, 1.33),
+        ("ND_standard_surface_surfaceshader", "float inputs:thin_film_thickness = 300", 300.0, 1.5),
+    ] {
+        let t = load_text("mtlx_film", &stage(id, inputs, ""));
+        let net = network(&t);
+        assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:SolidDielectric", "{id}");
+        assert!(matches!(surface_param(net, "filmThickness"), Some(ParamValue::Float(x)) if (x - nm).abs() < 1e-3), "{id}");
+        assert_eq!(surface_param(net, "filmRefractiveIndex"), Some(&ParamValue::Float(ior)), "{id}");
+        assert!(t.warnings.is_empty(), "{id}: {:?}", t.warnings);
+    }
+    for (id, inputs) in [
+        ("ND_open_pbr_surface_surfaceshader", "float inputs:thin_film_weight = 0.5"),
+        ("ND_open_pbr_surface_surfaceshader", "float inputs:base_metalness = 1\n float inputs:thin_film_weight = 1"),
+        ("ND_standard_surface_surfaceshader", "float inputs:transmission = 1\n float inputs:thin_film_thickness = 300"),
+    ] {
+        let t = load_text("mtlx_film_lost", &stage(id, inputs, ""));
+        assert!(surface_param(network(&t), "filmThickness").is_none(), "{inputs}");
+        assert_eq!(t.warnings.iter().filter(|w| w.contains("a thin film is carried only")).count(), 1, "{inputs}: {:?}", t.warnings);
+    }
 }
 
 /// `specular_color` tints an opaque dielectric's specular (tessera:SolidDielectric's

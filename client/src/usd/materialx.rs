@@ -419,6 +419,8 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         emission,
         opacity,
         normal: g.normal_map(s, "normal"),
+        film: Some(g.get(s, "thin_film_thickness", 0.0)),
+        film_ior: g.get(s, "thin_film_IOR", 1.5),
     };
     lobes.inputs(s, &mut g.warned.borrow_mut())
 }
@@ -461,8 +463,21 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         emission,
         opacity: g.get(s, "geometry_opacity", 1.0),
         normal: g.normal_map(s, "geometry_normal"),
+        film: open_pbr_film(g, s),
+        film_ior: g.get(s, "thin_film_ior", 1.4),
     };
     lobes.inputs(s, &mut g.warned.borrow_mut())
+}
+
+/// OpenPBR's thin film as a thickness in nanometres (its `thin_film_thickness` is in
+/// micrometres): 0 at weight 0, the film at weight 1, None between.
+fn open_pbr_film(g: &Graph, s: &str) -> Option<Lin> {
+    let (weight, thickness) = (g.get(s, "thin_film_weight", 0.0), g.get(s, "thin_film_thickness", 0.5));
+    match weight.value().map(|w| w.x) {
+        Some(0.0) => Some(Lin::constant(Vec4::ZERO)),
+        Some(1.0) => Some(thickness.times(Vec4::splat(1000.0))),
+        _ => None,
+    }
 }
 
 /// MaterialX's UsdPreviewSurface node: the same inputs as the USD shader.
@@ -541,7 +556,14 @@ struct Lobes {
     emission: Lin,
     opacity: Lin,
     normal: Option<Lin>,
+    /// A thin film on the specular: its thickness in nanometres at full weight (0: none), or
+    /// None when its weight is neither 0 nor 1 (OpenPBR blends the two Fresnels then).
+    film: Option<Lin>,
+    film_ior: Lin,
 }
+
+/// What a thin film is made of, for the warning that it is not carried.
+const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1), at full weight and of constant thickness; the specular has none";
 
 impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
@@ -553,6 +575,9 @@ impl Lobes {
             || !is_constant(&self.specular_weight, 1.0);
         if !is_constant(&self.subsurface, 0.0) {
             if !beyond_preview && is_constant(&self.metalness, 0.0) {
+                if self.has_film() && self.carried_film().is_none() {
+                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
+                }
                 return self.solid_dielectric(surface, warnings);
             }
             warnings.push(format!(
@@ -560,8 +585,18 @@ impl Lobes {
             ));
         }
         match self.native_shader() {
-            Some(Native::Dielectric) => return self.opaque_dielectric(),
-            Some(Native::Metal) => return self.metal(),
+            Some(Native::Dielectric) => {
+                if self.has_film() && self.carried_film().is_none() {
+                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
+                }
+                return self.opaque_dielectric();
+            }
+            Some(Native::Metal) => {
+                if self.has_film() {
+                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
+                }
+                return self.metal();
+            }
             None => warnings.extend(self.uncarried(surface)),
         }
         let principled = beyond_preview || !is_constant(&self.anisotropy, 0.0);
@@ -623,7 +658,7 @@ impl Lobes {
         if plain
             && is_constant(&self.metalness, 0.0)
             && is_constant(&self.specular_weight, 1.0)
-            && (sheen || tinted || !is_constant(&self.diffuse_roughness, 0.0))
+            && (sheen || tinted || !is_constant(&self.diffuse_roughness, 0.0) || self.carried_film().is_some())
         {
             return Some(Native::Dielectric);
         }
@@ -643,6 +678,9 @@ impl Lobes {
                 "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
             ));
         }
+        if self.has_film() {
+            said.push(format!("{surface}: {FILM_NOT_CARRIED}"));
+        }
         // A full metal has no diffuse to be rough.
         if !is_constant(&self.diffuse_roughness, 0.0) && !is_constant(&self.metalness, 1.0) {
             said.push(format!(
@@ -656,6 +694,26 @@ impl Lobes {
             ));
         }
         said
+    }
+
+    /// True when the surface has a thin film at all (any weight but 0, any thickness but 0).
+    fn has_film(&self) -> bool {
+        self.film.as_ref().is_none_or(|f| !is_constant(f, 0.0))
+    }
+
+    /// The film `tessera:SolidDielectric` carries: a constant thickness above 0 at full weight.
+    fn carried_film(&self) -> Option<f32> {
+        self.film.as_ref()?.value().map(|f| f.x).filter(|&nm| nm > 0.0)
+    }
+
+    /// `tessera:SolidDielectric`'s surface film, when carried.
+    fn film_inputs(&self) -> Vec<(&'static str, Lin, bool)> {
+        match self.carried_film() {
+            Some(nm) => {
+                vec![("filmThickness", Lin::constant(Vec4::splat(nm)), false), ("filmRefractiveIndex", self.film_ior.clone(), false)]
+            }
+            None => Vec::new(),
+        }
     }
 
     /// What Tessera's own shaders share: the coat (its colour as the absorption of a coat of
@@ -687,6 +745,7 @@ impl Lobes {
     /// specular's tint.
     fn opaque_dielectric(self) -> Inputs {
         let shared = self.shared_inputs(true);
+        let film = self.film_inputs();
         let mut values = vec![
             ("albedo", self.base, true),
             ("diffuseRoughness", self.diffuse_roughness, false),
@@ -695,6 +754,7 @@ impl Lobes {
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),
         ];
+        values.extend(film);
         values.extend(shared);
         Inputs { id: "tessera:SolidDielectric", values }
     }
@@ -723,6 +783,7 @@ impl Lobes {
     /// light).
     fn solid_dielectric(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
         let shared = self.shared_inputs(false);
+        let film = self.film_inputs();
         let m = self.medium;
         let albedo = match self.subsurface.value() {
             Some(w) if w.x >= 1.0 => Some(m.color.clone()),
@@ -756,6 +817,7 @@ impl Lobes {
             ("scatteringWeight", self.subsurface, false),
             ("scatteringAnisotropy", m.anisotropy, false),
         ];
+        values.extend(film);
         values.extend(shared);
         Inputs { id: "tessera:SolidDielectric", values }
     }

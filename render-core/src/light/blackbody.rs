@@ -37,7 +37,7 @@ fn planck(nm: f64, kelvin: f64) -> f64 {
 }
 
 /// Wyman et al.'s piecewise-Gaussian fit of the CIE 1931 x̄, ȳ, z̄.
-fn cie_1931(nm: f64) -> DVec3 {
+pub(crate) fn cie_1931(nm: f64) -> DVec3 {
     let g = |mu: f64, s1: f64, s2: f64| {
         let t = (nm - mu) / if nm < mu { s1 } else { s2 };
         (-0.5 * t * t).exp()

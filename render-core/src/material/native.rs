@@ -98,7 +98,7 @@ pub const SHARED: &[Input] = &[
     color("fuzzColor", 1.0, "fuzz colour"),
     float("fuzzRoughness", 0.5, (0.01, 1.0), "fuzz roughness α (clamped at 0.01, where the fits stop)"),
     float("iridescence", 0.0, (0.0, 1.0), "coverage of a thin film (soap, oil, anodized) over the material and its clearcoat"),
-    float("iridescenceThickness", 400.0, (0.0, 1000.0), "film thickness in nanometres: its colours"),
+    float("iridescenceThickness", 400.0, (0.0, 10000.0), "film thickness in nanometres: its colours"),
     float("iridescenceRefractiveIndex", 1.33, (1.0, 3.0), "the film's refractive index"),
     float("iridescenceRoughness", 0.1, (0.0, 1.0), "the film's roughness"),
     float("roughness2", 0.5, (0.0, 1.0), "double specular: the second roughness"),
@@ -188,6 +188,13 @@ pub const SHADERS: &[Shader] = &[
             ),
             float("roughness", 0.3, (0.0, 1.0), "specular roughness"),
             float("anisotropy", 0.0, (-1.0, 1.0), "specular anisotropy"),
+            float(
+                "filmThickness",
+                0.0,
+                (0.0, 10000.0),
+                "a thin film on the surface itself, in nanometres: its interference replaces the specular's Fresnel (Cycles' Thin Film, OpenPBR's thin_film), the tint with it; 0: none. The shared `iridescence` is a film coat over everything instead",
+            ),
+            float("filmRefractiveIndex", 1.33, (1.0, 3.0), "the surface film's refractive index"),
             color("diffuseTransmission", 0.0, "colour of light diffusely transmitted (taken from the diffuse reflection)"),
             float(
                 "scatteringRadius",
@@ -372,8 +379,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 oren_nayar: v.f("diffuseRoughness"),
                 diffuse_transmission: share,
                 transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
-                specular: (eta > 1.0)
-                    .then(|| specular(SpecularFresnel::tinted_dielectric(eta, v.c("specularColor")), v.f("roughness"), v.f("anisotropy"))),
+                specular: (eta > 1.0).then(|| specular(surface_fresnel(&v, eta), v.f("roughness"), v.f("anisotropy"))),
                 coupling_eta: eta,
                 scattering_radius: v.f("scatteringRadius"),
                 scattering_color: v.c("scatteringColor"),
@@ -435,6 +441,15 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         false => Tangent::default(),
     };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0, tangent })
+}
+
+/// A solid dielectric's specular Fresnel: its surface film's interference where it has one,
+/// else the dielectric's, tinted.
+fn surface_fresnel(v: &Values, eta: f32) -> SpecularFresnel {
+    match v.f("filmThickness") > 0.0 {
+        true => SpecularFresnel::thin_film(v.f("filmRefractiveIndex"), v.f("filmThickness"), eta),
+        false => SpecularFresnel::tinted_dielectric(eta, v.c("specularColor")),
+    }
 }
 
 /// The coats, film, sheen, specular control and emission every shared-input shader takes,

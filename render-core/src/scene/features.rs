@@ -24,7 +24,11 @@ const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
     (Feature::Fabric, |u| u.fabric.weight > 0.0 && u.fabric.params.specular > 0.0),
     (Feature::Hair, |u| u.hair.weight > 0.0),
     (Feature::Glitter, |u| u.has_glitter()),
-    (Feature::ThinFilm, |u| u.thin_film.weight > 0.0 && u.specular_control > 0.0),
+    (Feature::ThinFilm, |u| {
+        let film_fresnel = u.plastic.weight > 0.0
+            && u.plastic.params.specular.is_some_and(|s| matches!(s.fresnel, crate::bsdf::SpecularFresnel::ThinFilm { .. }));
+        (u.thin_film.weight > 0.0 || film_fresnel) && u.specular_control > 0.0
+    }),
     (Feature::DoubleSpecular, |u| {
         (u.metal.weight > 0.0 && u.metal.params.mix2 > 0.0)
             || (u.plastic.weight > 0.0 && u.plastic.params.specular.is_some_and(|s| s.mix2 > 0.0))
