@@ -32,6 +32,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   Cycles renders), fuzz coat (Zeltner et al.'s sheen, Cycles' too) and ``specularColor``; on a
   full metal, ``tessera:Metal`` with the tint as its F82 edge tint, and the fuzz
   (``_correct_native_surface``).
+* Thin Film: dropped too. On an opaque dielectric it becomes tessera:SolidDielectric's surface
+  film (``filmThickness``, ``filmRefractiveIndex``), whose interference replaces the specular's
+  Fresnel as in Cycles.
 * Anisotropic: dropped too. On an opaque dielectric or a full metal whose Tangent is unlinked it
   becomes the shader's ``anisotropy`` and ``anisotropyRotation``, along Cycles' default tangent
   written per vertex on the meshes (``_read_generated_tangents``).
@@ -414,8 +417,8 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if kind is None:
         return
     sigma, sheen, tint = nodes.carried_diffuse_roughness(node), nodes.carried_sheen(node), nodes.carried_specular_tint(node)
-    anisotropy = nodes.carried_anisotropy(node)
-    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint or anisotropy else None
+    anisotropy, film = nodes.carried_anisotropy(node), nodes.carried_thin_film(node)
+    shader = _surface_shader(prim, UsdShade) if sigma is not None or sheen or tint or anisotropy or film else None
     if not shader:
         return
     _warn_if_displaced(exported, material.name, shader)
@@ -437,6 +440,12 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if tint and kind == "dielectric":
         shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)
         exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
+    if film:
+        for name, value in film.items():
+            shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
+        exported.corrections.append(
+            f"{prim.GetPath()}: thin film of {film['filmThickness']:g} nm, IOR {film['filmRefractiveIndex']:g} as tessera:SolidDielectric's surface film"
+        )
     if anisotropy:
         for name, value in anisotropy.items():
             shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)

@@ -97,7 +97,7 @@ def principled_losses(node) -> list[str]:
         ("Coat Tint", coat and carried is None, tuple(value["Coat Tint"])[:3] != white),
         ("Coat Normal", coat, False),
         ("Sheen Weight", carried_sheen(node) is None, float(value["Sheen Weight"]) > 0.0),
-        ("Thin Film Thickness", True, float(value["Thin Film Thickness"]) > 0.0),
+        ("Thin Film Thickness", carried_thin_film(node) is None, float(value["Thin Film Thickness"]) > 0.0),
         ("Emission Strength", True, False),
     )
     return [name for name, matters, shows in rows if matters and (shows or name in linked)]
@@ -148,7 +148,8 @@ def carried_specular_tint(node):
     if node.type != "BSDF_PRINCIPLED" or node.inputs["Specular Tint"].is_linked:
         return None
     tint = tuple(float(c) for c in tuple(node.inputs["Specular Tint"].default_value)[:3])
-    if tint == (1.0, 1.0, 1.0) or native_surface(node) is None:
+    if tint == (1.0, 1.0, 1.0) or native_surface(node) is None or carried_thin_film(node):
+        # Under a carried film the film's interference is the whole Fresnel: the tint is reported.
         return None
     return tint
 
@@ -170,6 +171,20 @@ def carried_anisotropy(node):
     if amount <= 0.0 or native_surface(node) is None:
         return None
     return {"anisotropy": min(amount, 1.0), "anisotropyRotation": float(node.inputs["Anisotropic Rotation"].default_value)}
+
+
+def carried_thin_film(node):
+    """A Principled BSDF's Thin Film as tessera:SolidDielectric's surface film (name -> value),
+    or None. Cycles' film replaces the dielectric specular's Fresnel by the film's interference,
+    as `filmThickness` does. Carried when Thickness and IOR are constants and the thickness above
+    0, on an opaque dielectric (``native_surface``); a metal's film (Cycles' conductor under a
+    film) is reported."""
+    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Thin Film Thickness", "Thin Film IOR")):
+        return None
+    thickness = float(node.inputs["Thin Film Thickness"].default_value)
+    if thickness <= 0.0 or native_surface(node) != "dielectric":
+        return None
+    return {"filmThickness": thickness, "filmRefractiveIndex": float(node.inputs["Thin Film IOR"].default_value)}
 
 
 def native_surface(node):

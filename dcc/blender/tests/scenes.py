@@ -31,6 +31,7 @@ REGIONS = {
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere"},
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere"},
+    "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -325,7 +326,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "hair") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -430,6 +431,19 @@ def build(kind, directory):
         scene.tessera.energy_compensation = False
         world = bpy.data.worlds.new("dim")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    elif kind == "thin_film":
+        # A Principled BSDF's Thin Film over black dielectrics (IOR 1.5, Roughness 0.2) in a
+        # uniform white world, which each reflects by its film's colours: 500 nm of IOR 1.33 (a
+        # soap film's greens and magentas) and 250 nm of IOR 1.45.
+        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+        for index, x, inputs in ((2, -1.2, {"Thin Film Thickness": 500.0, "Thin Film IOR": 1.33}), (3, 1.2, {"Thin Film Thickness": 250.0, "Thin Film IOR": 1.45})):
+            m = mat(f"film {index}", (0.0, 0.0, 0.0), rough=0.2)
+            for name, value in {**inputs, "IOR": 1.5}.items():
+                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+        world = bpy.data.worlds.new("white")
+        world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
