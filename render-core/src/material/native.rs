@@ -192,7 +192,7 @@ pub const SHADERS: &[Shader] = &[
                 "filmThickness",
                 0.0,
                 (0.0, 10000.0),
-                "a thin film on the surface itself, in nanometres: its interference replaces the specular's Fresnel (Cycles' Thin Film, OpenPBR's thin_film), the tint with it; 0: none. The shared `iridescence` is a film coat over everything instead",
+                "a thin film on the surface itself, in nanometres: its interference replaces the specular's Fresnel (Cycles' Thin Film, OpenPBR's thin_film), the tint with it, and it takes from the diffuse as a coat does (isotropic, one roughness); 0: none. The shared `iridescence` is a film coat over everything instead",
             ),
             float("filmRefractiveIndex", 1.33, (1.0, 3.0), "the surface film's refractive index"),
             color("diffuseTransmission", 0.0, "colour of light diffusely transmitted (taken from the diffuse reflection)"),
@@ -371,6 +371,9 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         }
         "tessera:SolidDielectric" => {
             let eta = v.f("refractiveIndex");
+            if v.f("filmThickness") > 0.0 && (v.f("anisotropy") != 0.0 || v.f("doubleSpecularMix") > 0.0) {
+                report.warnings.push(format!("{}: the specular under a surface film is isotropic and of one roughness", node.path));
+            }
             let dt = v.c("diffuseTransmission");
             let share = dt.max_element();
             let plastic = Plastic {
@@ -546,7 +549,15 @@ mod tests {
     #[test]
     fn every_shader_resolves_with_defaults_and_conserves_energy_when_white() {
         let white = ParamValue::Float3(Vec3::ONE);
-        let cases: [(&str, Vec<(&str, ParamValue)>); 12] = [
+        let film = |index: f32, nm: f32| {
+            vec![
+                ("albedo", ParamValue::Float3(Vec3::ONE)),
+                ("filmRefractiveIndex", ParamValue::Float(index)),
+                ("filmThickness", ParamValue::Float(nm)),
+                ("roughness", ParamValue::Float(0.3)),
+            ]
+        };
+        let cases: [(&str, Vec<(&str, ParamValue)>); 14] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -568,6 +579,10 @@ mod tests {
                     ("roughness", ParamValue::Float(0.4)),
                 ],
             ),
+            // A film of higher index than the substrate reflects more than the bare dielectric
+            // (up to a quarter head-on at 2.4); one of lower index, less.
+            ("tessera:SolidDielectric", film(2.4, 120.0)),
+            ("tessera:SolidDielectric", film(1.33, 500.0)),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
             ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
             ("tessera:Hair", vec![("melanin", ParamValue::Float(0.0)), ("roughness", ParamValue::Float(0.5))]),
@@ -661,6 +676,17 @@ mod tests {
         assert!((a - 0.04 * tint).abs().max_element() < 1e-4, "{a:?}");
         let grazing = testing::albedo_estimate(&bsdf, Vec3::new(1.0, 0.0, 1e-3).normalize(), 256);
         assert!(grazing.min_element() > 0.98, "{grazing:?}");
+    }
+
+    /// A surface film's specular is the film coat's lobe, isotropic and of one roughness:
+    /// anisotropy or a double specular under it is reported, not dropped in silence.
+    #[test]
+    fn what_a_surface_film_does_not_keep_is_reported() {
+        let film = [("filmThickness", ParamValue::Float(400.0)), ("anisotropy", ParamValue::Float(0.5))];
+        let (_, r) = resolved("tessera:SolidDielectric", &film);
+        assert_eq!(r.warnings, ["/M/S: the specular under a surface film is isotropic and of one roughness"]);
+        let (_, r) = resolved("tessera:SolidDielectric", &film[..1]);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
     }
 
     #[test]

@@ -69,6 +69,22 @@ impl Mix for SpecularFresnel {
     }
 }
 
+/// A dielectric specular whose Fresnel is a surface film's (`tessera:SolidDielectric`'s
+/// `filmThickness`): built as a [`ThinFilmCoat`] over the diffuse, isotropic.
+#[derive(Clone, Copy, Debug)]
+struct FilmSpecular {
+    roughness: f32,
+    film: f32,
+    thickness: f32,
+    substrate: f32,
+}
+
+impl FilmSpecular {
+    fn weighted(&self, weight: f32, compensate: bool) -> ThinFilmCoat {
+        ThinFilmCoat::new(weight, self.roughness, self.film, self.thickness, self.substrate, compensate)
+    }
+}
+
 /// A microfacet specular: Fresnel, roughness, anisotropy, and Imageworks' double specular
 /// (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Double specular": a second roughness and its share, a linear combination of
 /// energy-preserving lobes).
@@ -105,6 +121,16 @@ impl Mix for Specular {
 }
 
 impl Specular {
+    /// A specular whose Fresnel is a thin film's, as the coat that carries it (full weight).
+    fn film(&self) -> Option<FilmSpecular> {
+        match self.fresnel {
+            SpecularFresnel::ThinFilm { film, thickness, substrate, .. } => {
+                Some(FilmSpecular { roughness: self.roughness, film, thickness, substrate })
+            }
+            _ => None,
+        }
+    }
+
     /// The lobes, weighted (one, or two for a double specular), scaled by `weight`.
     fn push(&self, bsdf: &mut Bsdf, weight: f32, compensate: bool) {
         let m = self.mix2.clamp(0.0, 1.0);
@@ -625,7 +651,10 @@ impl Uber {
         if surface_w > 0.0 || (every && medium_share == 0.0) {
             let plastic_w = surface_w;
             let p = &self.plastic.params;
+            let film = p.specular.and_then(|s| s.film());
             let coupling = match p.specular {
+                // A surface film is layered as a coat, which scales the diffuse itself.
+                Some(_) if film.is_some() => None,
                 Some(s) if compensate => {
                     let ggx = crate::bsdf::microfacet::Ggx::from_roughness(s.roughness, s.anisotropic);
                     Some((p.coupling_eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)))
@@ -639,12 +668,19 @@ impl Uber {
             bsdf.push_weighted(p.diffuse_lobe(coupling), plastic_w * (1.0 - dt) * scale);
             bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
             match p.specular {
+                Some(_) if film.is_some() => {}
                 Some(s) => s.push(&mut bsdf, plastic_w * spec_scale, compensate),
                 None if every => Specular::default().push(&mut bsdf, 0.0, compensate),
                 None => {}
             }
             if p.disney_sheen.max_element() > 0.0 || every {
                 bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.disney_sheen }), plastic_w);
+            }
+            if let Some(coat) = film {
+                // Its interference can reflect more than the bare dielectric whose albedo the
+                // diffuse coupling reads (a quarter head-on for index 2.4 over 1.5, against 4%),
+                // so it takes from the diffuse as a coat does: min(1 − E(μo), 1 − E(μi)).
+                bsdf.coat_with(Coat::ThinFilm(coat.weighted(plastic_w * spec_scale, compensate)), compensate);
             }
         }
         let metal_w = finite(self.metal.weight);
