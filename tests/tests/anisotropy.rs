@@ -129,11 +129,20 @@ fn the_highlight_follows_the_tangent_its_rotation_and_the_objects_placement() {
     assert!(difference(&along_y, &render("", connected, per_vertex)) < 1e-4, "read per vertex");
 }
 
-/// A tangent along the normal, or one that is not finite, falls back to the default frame
-/// (around the up axis) and renders finite.
+/// A tangent along the normal, one too small or too large to normalise, or one that is not
+/// finite falls back to the default frame (around the up axis) and renders finite; a
+/// non-finite one is reported by the shader's path.
 #[test]
 fn a_tangent_along_the_normal_falls_back_to_the_up_axis() {
     let default = render("", "", "");
-    assert!(difference(&default, &render("", "vector3f inputs:tangent = (0, 0, 7)", "")) < 1e-4);
-    assert!(difference(&default, &render("", "vector3f inputs:tangent = (1e-30, 0, 0)", "")) < 1e-4);
+    for tangent in ["(0, 0, 7)", "(1e-30, 0, 0)", "(3e38, 3e38, 0)"] {
+        assert!(difference(&default, &render("", &format!("vector3f inputs:tangent = {tangent}"), "")) < 1e-4, "{tangent}");
+    }
+    let t = load_text("anisotropy-nan", &scene_usda("", "vector3f inputs:tangent = (nan, 0, inf)", ""));
+    let scene = commit(&t.to_scene_desc(), &mut BlasCache::default()).expect("commits");
+    assert!(
+        scene.warnings.iter().any(|w| w == "/World/Looks/M/S: input 'tangent' is not finite; using its default"),
+        "{:?}",
+        scene.warnings
+    );
 }

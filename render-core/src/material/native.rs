@@ -311,6 +311,10 @@ impl Values {
                 (Kind::Color, ParamValue::Float3(c)) => Some([clamp(c.x), clamp(c.y), clamp(c.z)]),
                 (Kind::Color, ParamValue::Float(x)) => Some([clamp(*x); 3]),
                 (Kind::Vector, ParamValue::Float3(c)) if c.is_finite() => Some(c.to_array()),
+                (Kind::Vector, ParamValue::Float3(_)) => {
+                    report.warnings.push(format!("{}: input '{name}' is not finite; using its default", node.path));
+                    Some(input.default)
+                }
                 (Kind::Bool, ParamValue::Bool(b)) => Some([*b as u8 as f32; 3]),
                 (Kind::Bool, ParamValue::Int(i)) => Some([(*i != 0) as u8 as f32; 3]),
                 _ => None,
