@@ -37,7 +37,7 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
   Fresnel as in Cycles.
 * Anisotropic: dropped too. On an opaque dielectric or a full metal whose Tangent is unlinked it
   becomes the shader's ``anisotropy`` and ``anisotropyRotation``, along Cycles' default tangent
-  written per vertex on the meshes (``_read_generated_tangents``).
+  written per vertex on the meshes (``_use_generated_tangents``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -449,7 +449,7 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if anisotropy:
         for name, value in anisotropy.items():
             shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
-        _read_generated_tangents(exported, prim, shader, Sdf, UsdShade)
+        _use_generated_tangents(exported, prim, shader, Sdf, UsdShade)
         exported.corrections.append(
             f"{prim.GetPath()}: anisotropy {anisotropy['anisotropy']:g}, rotation {anisotropy['anisotropyRotation']:g} along Cycles' default tangent"
         )
@@ -459,7 +459,7 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
 GENERATED_TANGENT = "tesseraGeneratedTangent"
 
 
-def _read_generated_tangents(exported: Export, material_prim, shader, Sdf, UsdShade) -> None:
+def _use_generated_tangents(exported: Export, material_prim, shader, Sdf, UsdShade) -> None:
     """Connects `shader`'s `tangent` to a primvar reader of ``GENERATED_TANGENT`` and writes
     that primvar on every mesh the material is bound to."""
     stage = material_prim.GetStage()

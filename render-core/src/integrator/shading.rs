@@ -135,8 +135,6 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
         Landing::Surface(Vertex { s, wo, local: local.as_ref(), bsdf, ns, ng, frame, wo_local, a_roughness, cone_here, fibre })
     }
 
-    /// True when the ray passes `s` untouched: cut out here, not present for this ray where
-    /// the surface is partially present, or the inside of a hair tube.
     /// The frame anisotropic lobes turn with: along the material's `tangent` where it gives
     /// one (a direction in object space), else around the object's up axis; then turned by
     /// its rotation.
@@ -155,6 +153,8 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
         frame.turned(tangent.rotation)
     }
 
+    /// True when the ray passes `s` untouched: cut out here, not present for this ray where
+    /// the surface is partially present, or the inside of a hair tube.
     fn passes_through(&self, s: &SurfaceHit, dir: Vec3, local: &LocalMaterial) -> bool {
         let pass_through = local.as_ref().map_or(self.scene.materials[s.material as usize].pass_through, |(m, _)| m.pass_through);
         let absent = pass_through > 0.0 && crate::scene::see_through_coin(s.p, dir) < pass_through;

@@ -117,7 +117,7 @@ pub const SHARED: &[Input] = &[
         kind: Kind::Vector,
         default: [0.0; 3],
         range: (-f32::MAX, f32::MAX),
-        doc: "object-space direction of the anisotropic lobes' first axis (`anisotropy` −1 stretches along it), made perpendicular to the normal; usually a mesh's per-vertex tangents through a UsdPrimvarReader_float3; zero runs it around the object's up axis",
+        doc: "object-space direction of the anisotropic lobes' first axis (GGX's αx, the rougher one where `anisotropy` is positive), made perpendicular to the normal; usually a mesh's per-vertex tangents through a UsdPrimvarReader_float3; zero runs it around the object's up axis",
     },
     float(
         "anisotropyRotation",
