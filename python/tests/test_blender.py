@@ -79,8 +79,8 @@ AGREE = [
     # object's Z in Generated coordinates), which the add-on writes per vertex as the
     # `tangent` of tessera:Metal and tessera:SolidDielectric, with the Anisotropic Rotation as
     # `anisotropyRotation`; single scattering in both (Cycles' GGX, Tessera's energy
-    # compensation off). Measured at 256 spp: floor 1.009, sphere 1.012, panel 0.999, turned
-    # specular 0.998. Without the tangents (the lobes around the object's Y) the panel read
+    # compensation off). Measured at 256 spp: floor 1.009 (1.019 with the checkered sphere
+    # beside it), sphere 1.012, panel 0.999, turned specular 0.998. Without the tangents (the lobes around the object's Y) the panel read
     # 3.58 and the turned specular 1.088, without the rotation 1.049. With both renderers
     # compensating, 1.09 and 1.20 on the metals: Tessera's Kulla-Conty lobe uses the
     # anisotropic lobe's own E (docs/materials.md), Cycles scales its lobe by E at
@@ -89,6 +89,9 @@ AGREE = [
     ("anisotropic", "brushed metal sphere"),
     ("anisotropic", "brushed metal panel"),
     ("anisotropic", "turned specular sphere"),
+    # A black dielectric whose Anisotropic is a Checker (0 and 1), baked into an image:
+    # measured 0.984 at 256 spp; with the link dropped (isotropic, as before) 0.931.
+    ("anisotropic", "checkered specular sphere"),
     # A Principled BSDF's Thin Film over black dielectrics in a white world (500 nm of IOR
     # 1.33, 250 nm of IOR 1.45), written as tessera:SolidDielectric's surface film: both
     # renderers integrate the film's Airy reflectance over the spectrum (Belcour & Barla).
@@ -223,6 +226,9 @@ DIFFER = {
     # 0.850 and 0.847.
     ("rough_diffuse", "rough principled sphere"): (1.01, 1.05, "Cycles' Oren-Nayar multiple scattering goes as ρ³, EON's as ρ² (docs/materials.md)"),
     ("rough_diffuse", "rough diffuse sphere"): (1.01, 1.05, "Cycles' Oren-Nayar multiple scattering goes as ρ³, EON's as ρ² (docs/materials.md)"),
+    # Diffuse Roughness from a Checker (0 and 1), baked: measured 1.023 at 256 spp, its rough
+    # squares as the rough spheres; 0.940 with the link dropped (all Lambertian).
+    ("rough_diffuse", "checkered rough sphere"): (1.0, 1.045, "its rough squares differ as the rough spheres do (ρ³ against ρ²)"),
     # Hair curves (BasisCurves) whose Principled Hair BSDFs are written as tessera:Hair, both
     # Chiang et al.'s fibre: melanin 0.3 read 0.954 and a direct colour (0.6, 0.3, 0.1) 0.836
     # at 64 spp, 288 × 216 (0.958 and 0.836 at the test's size); as the default grey tubes the
@@ -357,8 +363,8 @@ def test_the_exporter_is_corrected(results):
     assert any(c.endswith("glow: Emission shader as an emissive UsdPreviewSurface ((15, 13.5, 12))") for c in emission), emission
     assert any(c.endswith("diffuse_floor: Diffuse BSDF without a specular layer (ior 1)") for c in emission), emission
     rough = r["rough_diffuse"]["corrections"]
-    for material, node in (("rough_principled", "Principled BSDF"), ("rough_diffuse", "Diffuse BSDF")):
-        wanted = f"{material}: {node}'s diffuse roughness 1 as tessera:SolidDielectric diffuseRoughness"
+    for material, node, value in (("rough_principled", "Principled BSDF", "1"), ("rough_diffuse", "Diffuse BSDF", "1"), ("checkered_rough", "Principled BSDF", "baked")):
+        wanted = f"{material}: {node}'s diffuse roughness {value} as tessera:SolidDielectric diffuseRoughness"
         assert any(c.endswith(wanted) for c in rough), rough
     assert not r["rough_diffuse"]["warnings"], r["rough_diffuse"]["warnings"]
     sheen = r["sheen"]["corrections"]
@@ -367,8 +373,8 @@ def test_the_exporter_is_corrected(results):
     assert any(c.endswith("specular_tint: Specular Tint (1, 0.4, 0.1) as tessera:SolidDielectric specularColor") for c in sheen), sheen
     assert any(c.endswith("edge_tint: metal of edge tint (1, 0.5, 0.2) as tessera:Metal (F82)") for c in sheen), sheen
     brushed = r["anisotropic"]["corrections"]
-    for material, rotation in (("brushed_2", 0), ("brushed_3", 0), ("brushed_4", 0.25)):
-        assert any(c.endswith(f"{material}: anisotropy 0.9, rotation {rotation:g} along Cycles' default tangent") for c in brushed), brushed
+    for material, amount, rotation in (("brushed_2", "0.9", 0), ("brushed_3", "0.9", 0), ("brushed_4", "0.9", 0.25), ("checkered_brushed", "baked", 0)):
+        assert any(c.endswith(f"{material}: anisotropy {amount}, rotation {rotation:g} along Cycles' default tangent") for c in brushed), brushed
     assert not r["anisotropic"]["warnings"], r["anisotropic"]["warnings"]
     film = r["thin_film"]["corrections"]
     for material, nm, ior in (("film_2", 500, 1.33), ("film_3", 250, 1.45)):

@@ -428,8 +428,8 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     else:
         _as_solid_dielectric(shader, Sdf)
     if sigma is not None:
-        shader.CreateInput("diffuseRoughness", Sdf.ValueTypeNames.Float).Set(sigma)
-        exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {sigma:g} as tessera:SolidDielectric diffuseRoughness")
+        _set_or_bake(exported, material, shader, "diffuseRoughness", sigma, Sdf, UsdShade)
+        exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {_said(sigma)} as tessera:SolidDielectric diffuseRoughness")
     if sheen:
         shader.CreateInput("fuzz", Sdf.ValueTypeNames.Float).Set(sheen["fuzz"])
         shader.CreateInput("fuzzColor", Sdf.ValueTypeNames.Color3f).Set(sheen["fuzzColor"])
@@ -448,11 +448,29 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
         )
     if anisotropy:
         for name, value in anisotropy.items():
-            shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
+            _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
         _use_generated_tangents(exported, prim, shader, Sdf, UsdShade)
         exported.corrections.append(
-            f"{prim.GetPath()}: anisotropy {anisotropy['anisotropy']:g}, rotation {anisotropy['anisotropyRotation']:g} along Cycles' default tangent"
+            f"{prim.GetPath()}: anisotropy {_said(anisotropy['anisotropy'])}, rotation {_said(anisotropy['anisotropyRotation'])} along Cycles' default tangent"
         )
+
+
+def _set_or_bake(exported: Export, material, shader, name: str, value, Sdf, UsdShade) -> None:
+    """Tessera's float input `name` on `shader`: a constant set, or a linked Blender socket baked
+    into an image over the objects' UVs (``bake.carry``); one that cannot be baked is reported
+    and keeps the input's default."""
+    usd_input = shader.CreateInput(name, Sdf.ValueTypeNames.Float)
+    if isinstance(value, float):
+        usd_input.Set(value)
+        return
+    why = bake.carry(exported, material, value.name, value, usd_input, 1.0, Sdf, UsdShade)
+    if why is not None:
+        exported.warnings.append(f"{material.name}: {value.name} could not be baked ({why}); {name} keeps its default")
+
+
+def _said(value) -> str:
+    """A carried value for the log: the number, or "baked" for a linked socket."""
+    return f"{value:g}" if isinstance(value, float) else "baked"
 
 
 #: The primvar that holds Cycles' default tangent, per vertex, on the meshes that need it.

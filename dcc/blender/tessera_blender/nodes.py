@@ -109,15 +109,20 @@ DIFFUSE_ROUGHNESS = {"BSDF_PRINCIPLED": "Diffuse Roughness", "BSDF_DIFFUSE": "Ro
 
 def carried_diffuse_roughness(node):
     """The Oren-Nayar roughness of a Principled or Diffuse BSDF that tessera:SolidDielectric's
-    `diffuseRoughness` carries, or None. Cycles' Oren-Nayar (since 4.3) is the energy-preserving
-    one OpenPBR specifies, as ours is (docs/materials.md, "Rough diffuse"). Carried when it is a
-    constant above 0 on an opaque dielectric (``native_surface``)."""
+    `diffuseRoughness` carries: a constant above 0, or the linked socket (export.py bakes it),
+    on an opaque dielectric (``native_surface``); else None. Cycles' Oren-Nayar (since 4.3) is
+    the energy-preserving one OpenPBR specifies, as ours is (docs/materials.md, "Rough
+    diffuse")."""
     name = DIFFUSE_ROUGHNESS.get(node.type)
-    if name is None or node.inputs[name].is_linked or float(node.inputs[name].default_value) <= 0.0:
+    if name is None or native_surface(node) != "dielectric":
         return None
-    if native_surface(node) != "dielectric":
-        return None
-    return min(float(node.inputs[name].default_value), 1.0)
+    return _constant_or_linked(node.inputs[name], lambda v: min(v, 1.0) if v > 0.0 else None)
+
+
+def _constant_or_linked(socket, constant):
+    """A float socket as Tessera carries it: the socket itself when linked (to be baked), else
+    `constant` of its value (None when that value does nothing)."""
+    return socket if socket.is_linked else constant(float(socket.default_value))
 
 
 #: A Principled BSDF's sheen inputs, by Tessera's fuzz inputs.
@@ -154,23 +159,20 @@ def carried_specular_tint(node):
     return tint
 
 
-#: Principled inputs that say how much and which way its specular is anisotropic.
-ANISOTROPY_INPUTS = ("Anisotropic", "Anisotropic Rotation", "Tangent")
-
-
 def carried_anisotropy(node):
     """A Principled BSDF's Anisotropic and Anisotropic Rotation as Tessera's `anisotropy` and
-    `anisotropyRotation` (name -> value), or None. Cycles stretches GGX as Tessera does (αx =
-    r²/√(1 − 0.9a) along the tangent, αy = r²·√(1 − 0.9a)) and turns the tangent about the normal
-    by the rotation's share of a turn. Carried when the three inputs are constants (an unlinked
-    Tangent is Cycles' default, radial around the object's Z, which export.py writes per vertex),
-    the anisotropy is above 0, on an opaque dielectric or a full metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ANISOTROPY_INPUTS):
+    `anisotropyRotation` (name -> constant, or the linked socket that export.py bakes), or None.
+    Cycles stretches GGX as Tessera does (αx = r²/√(1 − 0.9a) along the tangent, αy =
+    r²·√(1 − 0.9a)) and turns the tangent about the normal by the rotation's share of a turn.
+    Carried when the Tangent is unlinked (Cycles' default, radial around the object's Z, which
+    export.py writes per vertex), the anisotropy linked or above 0, on an opaque dielectric or
+    a full metal (``native_surface``)."""
+    if node.type != "BSDF_PRINCIPLED" or node.inputs["Tangent"].is_linked or native_surface(node) is None:
         return None
-    amount = float(node.inputs["Anisotropic"].default_value)
-    if amount <= 0.0 or native_surface(node) is None:
+    amount = _constant_or_linked(node.inputs["Anisotropic"], lambda v: min(v, 1.0) if v > 0.0 else None)
+    if amount is None:
         return None
-    return {"anisotropy": min(amount, 1.0), "anisotropyRotation": float(node.inputs["Anisotropic Rotation"].default_value)}
+    return {"anisotropy": amount, "anisotropyRotation": _constant_or_linked(node.inputs["Anisotropic Rotation"], float)}
 
 
 def carried_thin_film(node):
@@ -790,7 +792,7 @@ def _correct_diffuse(exported, name, prim, node, shader, Sdf) -> None:
     roughness = node.inputs["Roughness"]
     lost = roughness.is_linked or float(roughness.default_value) > 0.0
     if lost and carried_diffuse_roughness(node) is None:
-        exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried here (textured, or in a mix); the surface is Lambertian")
+        exported.warnings.append(f"{name}: the Diffuse BSDF's Roughness (Oren-Nayar) is not carried in a mix; the surface is Lambertian")
 
 
 def _correct_emission(exported, material, prim, node, shader, Sdf, UsdShade) -> None:
