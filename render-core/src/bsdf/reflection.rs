@@ -122,14 +122,9 @@ impl SpecularFresnel {
         SpecularFresnel::F82Tint { f0, b }
     }
 
-    /// A thin film's Fresnel, its average integrated by the midpoint rule on 64 cosines.
+    /// A thin film's Fresnel with its average ([`super::thin_film::average`]).
     pub fn thin_film(film: f32, thickness: f32, substrate: f32) -> Self {
-        let n = 64;
-        let avg = (0..n)
-            .map(|k| (k as f32 + 0.5) / n as f32)
-            .map(|mu| super::thin_film::airy(mu, film, thickness, substrate) * (2.0 * mu / n as f32))
-            .sum();
-        SpecularFresnel::ThinFilm { film, thickness, substrate, avg }
+        SpecularFresnel::ThinFilm { film, thickness, substrate, avg: super::thin_film::average(film, thickness, substrate) }
     }
 
     /// The cosine-weighted average F_avg: the slides' fits or closed forms.

@@ -224,6 +224,12 @@ impl Output {
 /// Looks up a texture by content hash in a colour space.
 pub type TextureSource<'a> = dyn Fn(&str, ColorSpace) -> Option<Arc<Texture>> + 'a;
 
+/// Inputs whose lobes build a table when the BSDF is built (a thin film's albedo, thousands of
+/// samples): varying per shading point they would cost milliseconds a vertex, so a texture on
+/// them is read at its mean.
+const PER_MATERIAL: &[&str] =
+    &["filmThickness", "filmRefractiveIndex", "iridescenceThickness", "iridescenceRefractiveIndex", "iridescenceRoughness"];
+
 /// A material some of whose inputs vary over the surface.
 #[derive(Clone, Debug)]
 pub struct TexturedMaterial {
@@ -252,6 +258,9 @@ impl TexturedMaterial {
         let mut compiled = network.clone();
         // A node feeding several inputs compiles once.
         let mut cache = std::collections::HashMap::<String, Expr>::new();
+        // A texture read at its mean on a per-material input still makes the material differ
+        // from its authored values.
+        let mut at_mean = false;
         for c in &network.connections {
             // Displacement moves the mesh at commit, once; shading points never read it.
             if c.downstream_node == network.surface_node && c.downstream_input == DISPLACEMENT {
@@ -267,10 +276,18 @@ impl TexturedMaterial {
             if let Some(node) = compiled.nodes.iter_mut().find(|n| n.path == c.downstream_node) {
                 node.parameters.insert(c.downstream_input.clone(), placeholder);
             }
+            if PER_MATERIAL.contains(&c.downstream_input.as_str()) {
+                report.warnings.push(format!(
+                    "{}: input '{}' is read at its texture's mean: a thin film's albedo table is built once per material",
+                    c.downstream_node, c.downstream_input
+                ));
+                at_mean = true;
+                continue;
+            }
             keys.push((c.downstream_node.clone(), c.downstream_input.clone()));
             exprs.push((expr, output));
         }
-        if keys.is_empty() {
+        if keys.is_empty() && !at_mean {
             return None;
         }
         let surface = network.nodes.iter().find(|n| n.path == network.surface_node);
@@ -774,6 +791,31 @@ mod tests {
         let (mean, r) = m.mean();
         assert!(r.warnings.is_empty(), "{:?}", r.warnings);
         assert!((mean.surface.plastic.params.diffuse - Vec3::new(0.5, 0.0, 0.5)).abs().max_element() < 1e-3);
+    }
+
+    /// A texture on a thin film's thickness is read at its mean, said once: the film's albedo
+    /// table is built with the BSDF, milliseconds a shading point if it varied. The material
+    /// still takes the mean when nothing else of it varies.
+    #[test]
+    fn a_textured_film_is_read_at_its_mean() {
+        let mut net = textured(&[]);
+        net.nodes[0] = node("/M/S", "tessera:SolidDielectric", &[]);
+        net.nodes[1].parameters.insert("scale".into(), ParamValue::Float4(Vec4::splat(800.0)));
+        net.connections[0] = connect("/M/S", "filmThickness", "/M/T", "r");
+        let mut report = ResolveReport::default();
+        let m = TexturedMaterial::compile(&net, "/M", &source(), &mut report).expect("the mean differs from the authored values");
+        assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
+        assert!(report.warnings[0].starts_with("/M/S: input 'filmThickness' is read at its texture's mean"), "{:?}", report.warnings);
+        let film = |mat: &Material| match mat.surface.plastic.params.specular.map(|s| s.fresnel) {
+            Some(crate::bsdf::SpecularFresnel::ThinFilm { thickness, .. }) => thickness,
+            other => panic!("{other:?}"),
+        };
+        // The red channel is 1 and 0 on the two texels: 400 nm on average.
+        assert_eq!(film(&m.mean().0), 400.0);
+        for s in [0.25, 0.75] {
+            let sp = ShadingPoint { st: Some(Vec2::new(s, 0.5)), primvars: None, width: 0.0, cos: 1.0, uv_density: 1.0 };
+            assert_eq!(film(&m.at(&sp).0), 400.0, "at s = {s}");
+        }
     }
 
     #[test]
