@@ -75,6 +75,9 @@ AGREE = [
     # tessera:Metal with f82: measured 0.999 at 256 spp; untinted (Schlick, as exported) 1.063,
     # and read as Gulbrandsen's edge tint instead 1.028.
     ("sheen", "edge-tinted metal sphere"),
+    # A dark sphere whose Sheen Weight is a Checker (0 and 1), baked into an image at 256²:
+    # measured 0.994 at 256 spp; with the link dropped (no sheen, as before) 0.556.
+    ("sheen", "checkered sheen sphere"),
     # A Principled BSDF's Anisotropic 0.9 along Cycles' default tangent (radial around the
     # object's Z in Generated coordinates), which the add-on writes per vertex as the
     # `tangent` of tessera:Metal and tessera:SolidDielectric, with the Anisotropic Rotation as
@@ -369,6 +372,7 @@ def test_the_exporter_is_corrected(results):
     assert not r["rough_diffuse"]["warnings"], r["rough_diffuse"]["warnings"]
     sheen = r["sheen"]["corrections"]
     assert any(c.endswith("sheen_2: sheen (weight 1, tint (1, 1, 1), roughness 0.5) as tessera:SolidDielectric fuzz") for c in sheen), sheen
+    assert any(c.endswith("checkered_sheen: sheen (weight baked, tint (1, 1, 1), roughness 0.5) as tessera:SolidDielectric fuzz") for c in sheen), sheen
     assert any(c.endswith("sheen_3: sheen (weight 1, tint (1, 0.6, 0.2), roughness 0.2) as tessera:SolidDielectric fuzz") for c in sheen), sheen
     assert any(c.endswith("specular_tint: Specular Tint (1, 0.4, 0.1) as tessera:SolidDielectric specularColor") for c in sheen), sheen
     assert any(c.endswith("edge_tint: metal of edge tint (1, 0.5, 0.2) as tessera:Metal (F82)") for c in sheen), sheen

@@ -431,11 +431,11 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
         _set_or_bake(exported, material, shader, "diffuseRoughness", sigma, Sdf, UsdShade)
         exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {_said(sigma)} as tessera:SolidDielectric diffuseRoughness")
     if sheen:
-        shader.CreateInput("fuzz", Sdf.ValueTypeNames.Float).Set(sheen["fuzz"])
+        _set_or_bake(exported, material, shader, "fuzz", sheen["fuzz"], Sdf, UsdShade)
         shader.CreateInput("fuzzColor", Sdf.ValueTypeNames.Color3f).Set(sheen["fuzzColor"])
         shader.CreateInput("fuzzRoughness", Sdf.ValueTypeNames.Float).Set(sheen["fuzzRoughness"])
         exported.corrections.append(
-            f"{prim.GetPath()}: sheen (weight {sheen['fuzz']:g}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as {shader.GetIdAttr().Get()} fuzz"
+            f"{prim.GetPath()}: sheen (weight {_said(sheen['fuzz'])}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as {shader.GetIdAttr().Get()} fuzz"
         )
     if tint and kind == "dielectric":
         shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)

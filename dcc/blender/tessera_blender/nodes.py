@@ -132,14 +132,15 @@ SHEEN_INPUTS = {"fuzz": "Sheen Weight", "fuzzColor": "Sheen Tint", "fuzzRoughnes
 def carried_sheen(node):
     """A Principled BSDF's sheen as the fuzz inputs of Tessera's shaders (name -> value), or
     None. Cycles' sheen is Zeltner et al.'s, as the fuzz is (docs/materials.md, Coats). Carried
-    when its inputs are constants and its weight above 0, on an opaque dielectric or a full
-    metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in SHEEN_INPUTS.values()):
+    when its tint and roughness are constants and its weight linked (export.py bakes it) or
+    above 0, on an opaque dielectric or a full metal (``native_surface``)."""
+    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Sheen Tint", "Sheen Roughness")):
         return None
-    if float(node.inputs["Sheen Weight"].default_value) <= 0.0 or native_surface(node) is None:
+    weight = _constant_or_linked(node.inputs["Sheen Weight"], lambda v: min(v, 1.0) if v > 0.0 else None)
+    if weight is None or native_surface(node) is None:
         return None
     return {
-        "fuzz": min(float(node.inputs["Sheen Weight"].default_value), 1.0),
+        "fuzz": weight,
         "fuzzColor": tuple(float(c) for c in tuple(node.inputs["Sheen Tint"].default_value)[:3]),
         "fuzzRoughness": float(node.inputs["Sheen Roughness"].default_value),
     }

@@ -29,7 +29,7 @@ REGIONS = {
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere", 4: "checkered rough sphere"},
-    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere"},
+    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere"},
     "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
@@ -414,6 +414,10 @@ def build(kind, directory):
         m = mat("edge tint", (0.9, 0.6, 0.3), rough=0.3, metal=1.0)
         m.node_tree.nodes["Principled BSDF"].inputs["Specular Tint"].default_value = (1.0, 0.5, 0.2, 1)
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
+        # And in front, a dark sphere whose Sheen Weight is a Checker (0 and 1): baked at 256².
+        scene.tessera.bake_size = 256
+        m = _checkered(mat("checkered sheen", (0.05, 0.05, 0.05)), "Sheen Weight")
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 6, radius=0.7, location=(0.0, -2.3, 0.7), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
