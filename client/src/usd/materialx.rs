@@ -562,7 +562,7 @@ struct Lobes {
     film_ior: Lin,
 }
 
-/// What a thin film is made of, for the warning that it is not carried.
+/// The warning for a thin film a surface does not carry.
 const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1), at full weight and of constant thickness; the specular has none";
 
 impl Lobes {
@@ -575,9 +575,7 @@ impl Lobes {
             || !is_constant(&self.specular_weight, 1.0);
         if !is_constant(&self.subsurface, 0.0) {
             if !beyond_preview && is_constant(&self.metalness, 0.0) {
-                if self.has_film() && self.carried_film().is_none() {
-                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
-                }
+                warnings.extend(self.film_lost(surface, true));
                 return self.solid_dielectric(surface, warnings);
             }
             warnings.push(format!(
@@ -586,15 +584,11 @@ impl Lobes {
         }
         match self.native_shader() {
             Some(Native::Dielectric) => {
-                if self.has_film() && self.carried_film().is_none() {
-                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
-                }
+                warnings.extend(self.film_lost(surface, true));
                 return self.opaque_dielectric();
             }
             Some(Native::Metal) => {
-                if self.has_film() {
-                    warnings.push(format!("{surface}: {FILM_NOT_CARRIED}"));
-                }
+                warnings.extend(self.film_lost(surface, false));
                 return self.metal();
             }
             None => warnings.extend(self.uncarried(surface)),
@@ -678,9 +672,7 @@ impl Lobes {
                 "{surface}: specular_color is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1); the specular is untinted"
             ));
         }
-        if self.has_film() {
-            said.push(format!("{surface}: {FILM_NOT_CARRIED}"));
-        }
+        said.extend(self.film_lost(surface, false));
         // A full metal has no diffuse to be rough.
         if !is_constant(&self.diffuse_roughness, 0.0) && !is_constant(&self.metalness, 1.0) {
             said.push(format!(
@@ -696,9 +688,12 @@ impl Lobes {
         said
     }
 
-    /// True when the surface has a thin film at all (any weight but 0, any thickness but 0).
-    fn has_film(&self) -> bool {
-        self.film.as_ref().is_none_or(|f| !is_constant(f, 0.0))
+    /// The warning for a film this surface has and does not carry: any film where the target
+    /// is not a solid dielectric, one it cannot take (partial weight, textured) where it is.
+    fn film_lost(&self, surface: &str, dielectric: bool) -> Option<String> {
+        let any = self.film.as_ref().is_none_or(|f| !is_constant(f, 0.0));
+        let carried = dielectric && self.carried_film().is_some();
+        (any && !carried).then(|| format!("{surface}: {FILM_NOT_CARRIED}"))
     }
 
     /// The film `tessera:SolidDielectric` carries: a constant thickness above 0 at full weight.

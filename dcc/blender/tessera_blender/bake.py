@@ -57,8 +57,10 @@ def users(stage, material_path: str, UsdShade) -> dict[str, list]:
     return out
 
 
-def mesh_of(prim):
-    return prim if prim.GetTypeName() == "Mesh" else prim.GetParent()
+def meshes_of(prims) -> list:
+    """The distinct Mesh prims of `prims` (Meshes, or GeomSubsets of them), in order."""
+    meshes = (p if p.GetTypeName() == "Mesh" else p.GetParent() for p in prims)
+    return list({str(m.GetPath()): m for m in meshes}.values())
 
 
 def _object_name(prim) -> str | None:
@@ -123,7 +125,7 @@ def _bakeable(exported, by_object, Sdf):
         return [], "no mesh in the export uses the material"
     pairs = []
     for obj in objects:
-        meshes = list({str(mesh_of(p).GetPath()): mesh_of(p) for p in by_object[obj.name]}.values())
+        meshes = meshes_of(by_object[obj.name])
         over, why = unwrap.stand_in(exported, obj, meshes, BAKE_MARGIN, Sdf, UsdGeom)
         if why:
             return [], why

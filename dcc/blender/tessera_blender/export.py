@@ -442,7 +442,7 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
         exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
     if film:
         for name, value in film.items():
-            shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
+            _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
         exported.corrections.append(
             f"{prim.GetPath()}: thin film of {film['filmThickness']:g} nm, IOR {film['filmRefractiveIndex']:g} as tessera:SolidDielectric's surface film"
         )
@@ -488,7 +488,7 @@ def _use_generated_tangents(exported: Export, material_prim, shader, Sdf, UsdSha
     shader.CreateInput("tangent", Sdf.ValueTypeNames.Vector3f).ConnectToSource(result)
     for name, prims in bake.users(stage, str(material_prim.GetPath()), UsdShade).items():
         obj = bpy.data.objects.get(name)
-        for mesh in {bake.mesh_of(p).GetPath(): bake.mesh_of(p) for p in prims}.values():
+        for mesh in bake.meshes_of(prims):
             if obj is None or obj.type != "MESH" or not _write_generated_tangent(mesh, obj.data, Sdf):
                 exported.warnings.append(f"{mesh.GetPath()}: no generated coordinates for Cycles' default tangent; anisotropy runs around the object's Y")
 

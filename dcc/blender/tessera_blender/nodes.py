@@ -116,7 +116,7 @@ def carried_diffuse_roughness(node):
     name = DIFFUSE_ROUGHNESS.get(node.type)
     if name is None or native_surface(node) != "dielectric":
         return None
-    return _constant_or_linked(node.inputs[name], lambda v: min(v, 1.0) if v > 0.0 else None)
+    return _constant_or_linked(node.inputs[name], _shown_amount)
 
 
 def _constant_or_linked(socket, constant):
@@ -125,8 +125,9 @@ def _constant_or_linked(socket, constant):
     return socket if socket.is_linked else constant(float(socket.default_value))
 
 
-#: A Principled BSDF's sheen inputs, by Tessera's fuzz inputs.
-SHEEN_INPUTS = {"fuzz": "Sheen Weight", "fuzzColor": "Sheen Tint", "fuzzRoughness": "Sheen Roughness"}
+def _shown_amount(value):
+    """An amount in [0, 1] that shows (above 0), capped at 1; None when it is 0 or less."""
+    return min(value, 1.0) if value > 0.0 else None
 
 
 def carried_sheen(node):
@@ -136,7 +137,7 @@ def carried_sheen(node):
     above 0, on an opaque dielectric or a full metal (``native_surface``)."""
     if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Sheen Tint", "Sheen Roughness")):
         return None
-    weight = _constant_or_linked(node.inputs["Sheen Weight"], lambda v: min(v, 1.0) if v > 0.0 else None)
+    weight = _constant_or_linked(node.inputs["Sheen Weight"], _shown_amount)
     if weight is None or native_surface(node) is None:
         return None
     return {
@@ -170,7 +171,7 @@ def carried_anisotropy(node):
     a full metal (``native_surface``)."""
     if node.type != "BSDF_PRINCIPLED" or node.inputs["Tangent"].is_linked or native_surface(node) is None:
         return None
-    amount = _constant_or_linked(node.inputs["Anisotropic"], lambda v: min(v, 1.0) if v > 0.0 else None)
+    amount = _constant_or_linked(node.inputs["Anisotropic"], _shown_amount)
     if amount is None:
         return None
     return {"anisotropy": amount, "anisotropyRotation": _constant_or_linked(node.inputs["Anisotropic Rotation"], float)}

@@ -317,17 +317,23 @@ mod tests {
     }
 
     /// The albedo table and average kept per thread are the ones computed afresh, to the bit,
-    /// on any thread.
+    /// on a thread that kept nothing: for the same film asked again, and for films that differ
+    /// from a kept one in each parameter (a key missing one would return the kept film's).
     #[test]
     fn kept_tables_are_the_computed_ones() {
-        let coat = || {
-            let c = ThinFilmCoat::new(1.0, 0.25, 1.4, 333.0, 1.5, true);
-            (c.e.map(f32::to_bits), average(1.4, 333.0, 1.5).to_array().map(f32::to_bits))
+        let coat = |(roughness, film, nm, substrate): (f32, f32, f32, f32)| {
+            let c = ThinFilmCoat::new(1.0, roughness, film, nm, substrate, true);
+            (c.e.map(f32::to_bits), average(film, nm, substrate).to_array().map(f32::to_bits))
         };
-        let (first, again) = (coat(), coat());
-        let elsewhere = std::thread::spawn(coat).join().expect("thread");
-        assert_eq!(first, again);
-        assert_eq!(first, elsewhere);
+        let fresh = |p| std::thread::spawn(move || coat(p)).join().expect("thread");
+        let kept = (0.25, 1.4, 333.0, 1.5);
+        let first = coat(kept);
+        assert_eq!(first, coat(kept));
+        assert_eq!(first, fresh(kept));
+        for other in [(0.3, 1.4, 333.0, 1.5), (0.25, 1.5, 333.0, 1.5), (0.25, 1.4, 334.0, 1.5), (0.25, 1.4, 333.0, 1.6)] {
+            assert_eq!(coat(other), fresh(other), "{other:?}");
+            assert_ne!(coat(other), first, "{other:?}");
+        }
     }
 
     #[test]

@@ -348,18 +348,11 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
     let shader = SHADERS.iter().find(|s| s.id == node.node_type_id)?;
     let v = Values::read(shader, node, report);
     let mut u = Uber { plastic: Weighted { weight: 0.0, params: Plastic::default() }, ..Uber::default() };
-    let specular = |fresnel, roughness: f32, anisotropic: f32| Specular {
-        fresnel,
-        roughness,
-        anisotropic,
-        roughness2: if shader.shared { v.f("roughness2") } else { roughness },
-        mix2: if shader.shared { v.f("doubleSpecularMix") } else { 0.0 },
-    };
     match shader.id {
         "tessera:Metal" => {
             let (r, g) = (v.c("reflectivity"), v.c("edgeTint"));
             let fresnel = if v.b("f82") { SpecularFresnel::f82_tint(r, g) } else { SpecularFresnel::Gulbrandsen { r, g } };
-            u.metal = Weighted { weight: 1.0, params: specular(fresnel, v.f("roughness"), v.f("anisotropy")) };
+            u.metal = Weighted { weight: 1.0, params: specular(shader, &v, fresnel) };
         }
         "tessera:Refractive" => {
             let bend = v.f("transmissionRefractiveIndex");
@@ -374,27 +367,10 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
             u.glass = Weighted { weight: 1.0, params: glass };
         }
         "tessera:SolidDielectric" => {
-            let eta = v.f("refractiveIndex");
             if v.f("filmThickness") > 0.0 && (v.f("anisotropy") != 0.0 || v.f("doubleSpecularMix") > 0.0) {
                 report.warnings.push(format!("{}: the specular under a surface film is isotropic and of one roughness", node.path));
             }
-            let dt = v.c("diffuseTransmission");
-            let share = dt.max_element();
-            let plastic = Plastic {
-                diffuse: v.c("albedo"),
-                lambert: true,
-                oren_nayar: v.f("diffuseRoughness"),
-                diffuse_transmission: share,
-                transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
-                specular: (eta > 1.0).then(|| specular(surface_fresnel(&v, eta), v.f("roughness"), v.f("anisotropy"))),
-                coupling_eta: eta,
-                scattering_radius: v.f("scatteringRadius"),
-                scattering_color: v.c("scatteringColor"),
-                scattering_weight: v.f("scatteringWeight"),
-                scattering_anisotropy: v.f("scatteringAnisotropy"),
-                ..Plastic::default()
-            };
-            u.plastic = Weighted { weight: 1.0, params: plastic };
+            u.plastic = Weighted { weight: 1.0, params: solid_dielectric(shader, &v) };
         }
         "tessera:Fabric" => {
             let fabric = FabricParams {
@@ -421,25 +397,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 },
             };
         }
-        "tessera:Hair" => {
-            let bn = v.f("radialRoughness");
-            let sigma_a = crate::bsdf::hair::sigma_a_from_melanin(v.f("melanin"), v.f("melaninRedness"))
-                + crate::bsdf::hair::sigma_a_from_color(v.c("tint"), bn)
-                + v.c("absorptionCoefficient");
-            let params = HairParams {
-                sigma_a,
-                ior: v.f("ior"),
-                roughness: v.f("roughness"),
-                radial_roughness: bn,
-                tilt: v.f("offset"),
-                scale_tt: v.f("roughnessScaleTT"),
-                scale_trt: v.f("roughnessScaleTRT"),
-                radial_scale_tt: v.f("radialRoughnessScaleTT"),
-                radial_scale_trt: v.f("radialRoughnessScaleTRT"),
-                tint: [v.c("tintR"), v.c("tintTT"), v.c("tintTRT")],
-            };
-            u.hair = Weighted { weight: 1.0, params };
-        }
+        "tessera:Hair" => u.hair = Weighted { weight: 1.0, params: hair(&v) },
         _ => unreachable!("every declared shader is mapped"),
     }
     let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
@@ -448,6 +406,61 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         false => Tangent::default(),
     };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0, tangent })
+}
+
+/// The specular of a shader's `roughness` and `anisotropy` with `fresnel`, and the shared
+/// double specular where the shader takes it.
+fn specular(shader: &Shader, v: &Values, fresnel: SpecularFresnel) -> Specular {
+    let roughness = v.f("roughness");
+    Specular {
+        fresnel,
+        roughness,
+        anisotropic: v.f("anisotropy"),
+        roughness2: if shader.shared { v.f("roughness2") } else { roughness },
+        mix2: if shader.shared { v.f("doubleSpecularMix") } else { 0.0 },
+    }
+}
+
+/// `tessera:SolidDielectric`'s plastic: a Lambertian or Oren-Nayar albedo under the dielectric
+/// (or film) specular, diffuse transmission, and a scattering medium behind it.
+fn solid_dielectric(shader: &Shader, v: &Values) -> Plastic {
+    let eta = v.f("refractiveIndex");
+    let dt = v.c("diffuseTransmission");
+    let share = dt.max_element();
+    Plastic {
+        diffuse: v.c("albedo"),
+        lambert: true,
+        oren_nayar: v.f("diffuseRoughness"),
+        diffuse_transmission: share,
+        transmission_color: if share > 0.0 { dt / share } else { Vec3::ONE },
+        specular: (eta > 1.0).then(|| specular(shader, v, surface_fresnel(v, eta))),
+        coupling_eta: eta,
+        scattering_radius: v.f("scatteringRadius"),
+        scattering_color: v.c("scatteringColor"),
+        scattering_weight: v.f("scatteringWeight"),
+        scattering_anisotropy: v.f("scatteringAnisotropy"),
+        ..Plastic::default()
+    }
+}
+
+/// `tessera:Hair`'s fibre: absorption from melanin, the tint and the coefficient, summed.
+fn hair(v: &Values) -> HairParams {
+    let bn = v.f("radialRoughness");
+    let sigma_a = crate::bsdf::hair::sigma_a_from_melanin(v.f("melanin"), v.f("melaninRedness"))
+        + crate::bsdf::hair::sigma_a_from_color(v.c("tint"), bn)
+        + v.c("absorptionCoefficient");
+    HairParams {
+        sigma_a,
+        ior: v.f("ior"),
+        roughness: v.f("roughness"),
+        radial_roughness: bn,
+        tilt: v.f("offset"),
+        scale_tt: v.f("roughnessScaleTT"),
+        scale_trt: v.f("roughnessScaleTRT"),
+        radial_scale_tt: v.f("radialRoughnessScaleTT"),
+        radial_scale_trt: v.f("radialRoughnessScaleTRT"),
+        tint: [v.c("tintR"), v.c("tintTT"), v.c("tintTRT")],
+    }
 }
 
 /// A solid dielectric's specular Fresnel: its surface film's interference where it has one,

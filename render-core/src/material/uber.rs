@@ -69,6 +69,11 @@ impl Mix for SpecularFresnel {
     }
 }
 
+/// A weight or scale clamped to [0, 1]; 0 where it is not finite.
+fn unit(x: f32) -> f32 {
+    if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 }
+}
+
 /// A dielectric specular whose Fresnel is a surface film's (`tessera:SolidDielectric`'s
 /// `filmThickness`): built as a [`ThinFilmCoat`] over the diffuse, isotropic.
 #[derive(Clone, Copy, Debug)]
@@ -513,7 +518,7 @@ impl Default for Uber {
 impl Uber {
     /// "A over B" with one mask (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.2): `self` is B.
     pub fn layered_under(&self, a: &Uber, mask: f32) -> Uber {
-        let m = if mask.is_finite() { mask.clamp(0.0, 1.0) } else { 0.0 };
+        let m = unit(mask);
         Uber {
             metal: self.metal.over(&a.metal, m),
             plastic: self.plastic.over(&a.plastic, m),
@@ -630,10 +635,19 @@ impl Uber {
 
     fn build_bsdf(&self, compensate: bool, every: bool) -> Bsdf {
         let mut bsdf = if every { Bsdf::keeping_zero_lobes() } else { Bsdf::default() };
-        let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
-        let spec_scale = finite(self.specular_control);
-        let plastic_w = finite(self.plastic.weight);
-        let medium_share = if plastic_w > 0.0 && self.medium().is_some() { finite(self.plastic.params.scattering_weight) } else { 0.0 };
+        let spec_scale = unit(self.specular_control);
+        self.push_plastic(&mut bsdf, compensate, every, spec_scale);
+        self.push_metal_and_glass(&mut bsdf, compensate, every, spec_scale);
+        self.push_fibres(&mut bsdf, every, spec_scale);
+        self.push_coats(&mut bsdf, compensate, every, spec_scale);
+        bsdf
+    }
+
+    /// The plastic family: its medium's boundary where it scatters beneath, and the rest of it
+    /// as a surface.
+    fn push_plastic(&self, bsdf: &mut Bsdf, compensate: bool, every: bool, spec_scale: f32) {
+        let plastic_w = unit(self.plastic.weight);
+        let medium_share = if plastic_w > 0.0 && self.medium().is_some() { unit(self.plastic.params.scattering_weight) } else { 0.0 };
         if medium_share > 0.0 {
             // Subsurface: the plastic's specular becomes the boundary of its medium, which the
             // integrator's random walk crosses; its diffuse colour lives in the medium.
@@ -649,45 +663,54 @@ impl Uber {
         // plastic, weighed as a mix of closures is (each conserves energy, so the sum does).
         let surface_w = plastic_w * (1.0 - medium_share);
         if surface_w > 0.0 || (every && medium_share == 0.0) {
-            let plastic_w = surface_w;
-            let p = &self.plastic.params;
-            let film = p.specular.and_then(|s| s.film());
-            let coupling = match p.specular {
-                // A surface film is layered as a coat, which scales the diffuse itself.
-                Some(_) if film.is_some() => None,
-                Some(s) if compensate => {
-                    let ggx = crate::bsdf::microfacet::Ggx::from_roughness(s.roughness, s.anisotropic);
-                    Some((p.coupling_eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)))
-                }
-                _ => None,
-            };
-            // Beside a medium, light that crosses the surface is the medium's: a diffuse
-            // transmission would enter it as if through the boundary.
-            let dt = if medium_share > 0.0 { 0.0 } else { finite(p.diffuse_transmission) };
-            let scale = if compensate { p.diffuse_scale } else { 1.0 };
-            bsdf.push_weighted(p.diffuse_lobe(coupling), plastic_w * (1.0 - dt) * scale);
-            bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
-            match p.specular {
-                Some(_) if film.is_some() => {}
-                Some(s) => s.push(&mut bsdf, plastic_w * spec_scale, compensate),
-                None if every => Specular::default().push(&mut bsdf, 0.0, compensate),
-                None => {}
-            }
-            if p.disney_sheen.max_element() > 0.0 || every {
-                bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.disney_sheen }), plastic_w);
-            }
-            if let Some(coat) = film {
-                // Its interference can reflect more than the bare dielectric whose albedo the
-                // diffuse coupling reads (a quarter head-on for index 2.4 over 1.5, against 4%),
-                // so it takes from the diffuse as a coat does: min(1 − E(μo), 1 − E(μi)).
-                bsdf.coat_with(Coat::ThinFilm(coat.weighted(plastic_w * spec_scale, compensate)), compensate);
-            }
+            self.push_plastic_surface(bsdf, compensate, every, spec_scale, surface_w, medium_share > 0.0);
         }
-        let metal_w = finite(self.metal.weight);
+    }
+
+    /// The plastic's surface at weight `plastic_w`: diffuse (coupled to the specular), diffuse
+    /// transmission unless `beside_medium`, specular, Disney sheen, and a surface film as a coat.
+    fn push_plastic_surface(&self, bsdf: &mut Bsdf, compensate: bool, every: bool, spec_scale: f32, plastic_w: f32, beside_medium: bool) {
+        let p = &self.plastic.params;
+        let film = p.specular.and_then(|s| s.film());
+        let coupling = match p.specular {
+            // A surface film is layered as a coat, which scales the diffuse itself.
+            Some(_) if film.is_some() => None,
+            Some(s) if compensate => {
+                let ggx = crate::bsdf::microfacet::Ggx::from_roughness(s.roughness, s.anisotropic);
+                Some((p.coupling_eta, ggx.ax.min(ggx.ay).sqrt().min(1.0)))
+            }
+            _ => None,
+        };
+        // Beside a medium, light that crosses the surface is the medium's: a diffuse
+        // transmission would enter it as if through the boundary.
+        let dt = if beside_medium { 0.0 } else { unit(p.diffuse_transmission) };
+        let scale = if compensate { p.diffuse_scale } else { 1.0 };
+        bsdf.push_weighted(p.diffuse_lobe(coupling), plastic_w * (1.0 - dt) * scale);
+        bsdf.push_weighted(Lobe::DiffuseTransmission(DiffuseTransmission { color: p.transmission_color, coupling }), plastic_w * dt);
+        match p.specular {
+            Some(_) if film.is_some() => {}
+            Some(s) => s.push(bsdf, plastic_w * spec_scale, compensate),
+            None if every => Specular::default().push(bsdf, 0.0, compensate),
+            None => {}
+        }
+        if p.disney_sheen.max_element() > 0.0 || every {
+            bsdf.push_weighted(Lobe::Sheen(Sheen { color: p.disney_sheen }), plastic_w);
+        }
+        if let Some(coat) = film {
+            // Its interference can reflect more than the bare dielectric whose albedo the
+            // diffuse coupling reads (a quarter head-on for index 2.4 over 1.5, against 4%),
+            // so it takes from the diffuse as a coat does: min(1 − E(μo), 1 − E(μi)).
+            bsdf.coat_with(Coat::ThinFilm(coat.weighted(plastic_w * spec_scale, compensate)), compensate);
+        }
+    }
+
+    /// The metal family and the glass family (thin sheet or refracting interface).
+    fn push_metal_and_glass(&self, bsdf: &mut Bsdf, compensate: bool, every: bool, spec_scale: f32) {
+        let metal_w = unit(self.metal.weight);
         if metal_w > 0.0 || every {
-            self.metal.params.push(&mut bsdf, metal_w * spec_scale, compensate);
+            self.metal.params.push(bsdf, metal_w * spec_scale, compensate);
         }
-        let glass_w = finite(self.glass.weight);
+        let glass_w = unit(self.glass.weight);
         if glass_w > 0.0 || every {
             let g = &self.glass.params;
             if g.thin || every {
@@ -700,8 +723,11 @@ impl Uber {
                 bsdf.push_weighted(Lobe::Dielectric(interface.compensated(compensate)), w);
             }
         }
-        self.push_fibres(&mut bsdf, every, spec_scale);
-        let coat_w = finite(self.clearcoat.weight) * spec_scale;
+    }
+
+    /// The coats over everything, bottom to top: clearcoat, thin film, sheen, fuzz.
+    fn push_coats(&self, bsdf: &mut Bsdf, compensate: bool, every: bool, spec_scale: f32) {
+        let coat_w = unit(self.clearcoat.weight) * spec_scale;
         if coat_w > 0.0 || every {
             let coat = match self.clearcoat.params {
                 ClearcoatParams::Disney { gloss } => Coat::Disney(Clearcoat::new(coat_w, gloss)),
@@ -711,7 +737,7 @@ impl Uber {
             };
             bsdf.coat_with(coat, compensate);
         }
-        let film_w = finite(self.thin_film.weight) * spec_scale;
+        let film_w = unit(self.thin_film.weight) * spec_scale;
         if film_w > 0.0 || every {
             let f = &self.thin_film.params;
             // The film lies on the material itself: its index is the glass's, else the
@@ -722,32 +748,30 @@ impl Uber {
                 compensate,
             );
         }
-        let sheen_w = finite(self.sheen.weight);
+        let sheen_w = unit(self.sheen.weight);
         if sheen_w > 0.0 || every {
             let s = &self.sheen.params;
             bsdf.coat_with(Coat::Sheen(CharlieSheen::new(sheen_w * s.color.clamp(Vec3::ZERO, Vec3::ONE), s.roughness)), compensate);
         }
-        let fuzz_w = finite(self.fuzz.weight);
+        let fuzz_w = unit(self.fuzz.weight);
         if fuzz_w > 0.0 || every {
             let f = &self.fuzz.params;
             bsdf.coat_with(Coat::Fuzz(Fuzz::new(fuzz_w * f.color.clamp(Vec3::ZERO, Vec3::ONE), f.roughness)), compensate);
         }
-        bsdf
     }
 
     /// The fibre families' lobes: fabric (its cone over a Lambertian base) and hair.
     fn push_fibres(&self, bsdf: &mut Bsdf, every: bool, spec_scale: f32) {
-        let finite = |x: f32| if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
-        let fabric_w = finite(self.fabric.weight);
+        let fabric_w = unit(self.fabric.weight);
         if fabric_w > 0.0 || every {
             // The normalised cone reflects at most 1 and the base is a Lambertian of albedo ≤ 1,
             // so their convex combination conserves energy.
             let f = &self.fabric.params;
-            let s = finite(f.specular);
+            let s = unit(f.specular);
             bsdf.push_weighted(Lobe::Fabric(Fabric::new(f.color, f.roughness, f.angle)), fabric_w * s * spec_scale);
             bsdf.push_weighted(Lobe::Lambert(crate::bsdf::Lambert { r: f.diffuse.clamp(Vec3::ZERO, Vec3::ONE) }), fabric_w * (1.0 - s));
         }
-        let hair_w = finite(self.hair.weight);
+        let hair_w = unit(self.hair.weight);
         if hair_w > 0.0 || every {
             let h = &self.hair.params;
             let fibre = Hair::new(h.sigma_a, h.ior, h.roughness, h.radial_roughness, h.tilt)
