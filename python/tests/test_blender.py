@@ -95,6 +95,14 @@ AGREE = [
     # A black dielectric whose Anisotropic is a Checker (0 and 1), baked into an image:
     # measured 0.984 at 256 spp; with the link dropped (isotropic, as before) 0.931.
     ("anisotropic", "checkered specular sphere"),
+    # Tangents from a Tangent node on black dielectrics: a panel along its UV map (turned a
+    # quarter, written per face corner from Blender's MikkTSpace tangents) and a sphere radial
+    # around X. Measured at 256 spp: 1.001 and 0.987 (the floor 1.019); with the node's
+    # tangent replaced by the default (radial around Z) the panel read 0.714, with the
+    # anisotropy dropped for the link (as before) 1.250 and 1.060. The sphere's mean does not
+    # tell X from Z (0.989 around Z).
+    ("anisotropic", "uv-brushed panel"),
+    ("anisotropic", "x-brushed sphere"),
     # A Principled BSDF's Thin Film over black dielectrics in a white world (500 nm of IOR
     # 1.33, 250 nm of IOR 1.45), written as tessera:SolidDielectric's surface film: both
     # renderers integrate the film's Airy reflectance over the spectrum (Belcour & Barla).
@@ -377,8 +385,9 @@ def test_the_exporter_is_corrected(results):
     assert any(c.endswith("specular_tint: Specular Tint (1, 0.4, 0.1) as tessera:SolidDielectric specularColor") for c in sheen), sheen
     assert any(c.endswith("edge_tint: metal of edge tint (1, 0.5, 0.2) as tessera:Metal (F82)") for c in sheen), sheen
     brushed = r["anisotropic"]["corrections"]
-    for material, amount, rotation in (("brushed_2", "0.9", 0), ("brushed_3", "0.9", 0), ("brushed_4", "0.9", 0.25), ("checkered_brushed", "baked", 0)):
-        assert any(c.endswith(f"{material}: anisotropy {amount}, rotation {rotation:g} along Cycles' default tangent") for c in brushed), brushed
+    along = {"brushed_2": "RadialTangentZ", "brushed_3": "RadialTangentZ", "brushed_4": "RadialTangentZ", "checkered_brushed": "RadialTangentZ", "uv_brushed": "UVTangent_UVMap", "x_brushed": "RadialTangentX"}
+    for material, amount, rotation in (("brushed_2", "0.9", 0), ("brushed_3", "0.9", 0), ("brushed_4", "0.9", 0.25), ("checkered_brushed", "baked", 0), ("uv_brushed", "0.9", 0), ("x_brushed", "0.9", 0)):
+        assert any(c.endswith(f"{material}: anisotropy {amount}, rotation {rotation:g} along the tessera{along[material]} primvar") for c in brushed), brushed
     assert not r["anisotropic"]["warnings"], r["anisotropic"]["warnings"]
     film = r["thin_film"]["corrections"]
     for material, nm, ior in (("film_2", 500, 1.33), ("film_3", 250, 1.45)):
@@ -428,7 +437,7 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     said = {}
     for w in n["warnings"]:
         said.setdefault(w.split(":")[0], []).append(w)
-    assert said.keys() == {"toon", "sheen", "render_levels", "beckmann_glass", "fresnel_mix"}, n["warnings"]
+    assert said.keys() == {"toon", "sheen", "render_levels", "beckmann_glass", "fresnel_mix", "ngon_tangent", "geometry_tangent"}, n["warnings"]
     assert all(len(v) == 1 for v in said.values()), said
     # Baked (tessera_blender/bake.py), each to one value: a Color Ramp over the black image is
     # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green; a
@@ -461,6 +470,10 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     # On a half metal the sheen is not carried (the fuzz goes on opaque dielectrics and full
     # metals: the `sheen` scene).
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
+    # Anisotropy along a UV map's tangents on a face of 32 corners (MikkTSpace takes tris and
+    # quads), said with the mesh; along a Geometry node's Tangent, not carried.
+    assert "no tangents of UV map '(active render)' on /root/" in said["ngon_tangent"][0] and "tris/quads" in said["ngon_tangent"][0], said
+    assert "Anisotropic is not carried (its Tangent comes from 'Geometry'" in said["geometry_tangent"][0], said
     # A Bump over an image becomes a tessera:Bump over it (scale: Blender's default Distance,
     # 0.001); over anything else the height image would arrive as a normal map, so the normal
     # is baked instead (flat here, so disconnected).

@@ -127,6 +127,9 @@ fn the_highlight_follows_the_tangent_its_rotation_and_the_objects_placement() {
     let per_vertex = r#"vector3f[] primvars:brushed = [(0, 3, 0), (0, 3, 0), (0, 3, 0), (0, 3, 0)] (interpolation = "vertex")"#;
     let connected = "vector3f inputs:tangent.connect = </World/Looks/M/Tangents.outputs:result>";
     assert!(difference(&along_y, &render("", connected, per_vertex)) < 1e-4, "read per vertex");
+    // Per face corner, as a DCC writes a UV map's tangents (MikkTSpace's, one per corner).
+    let per_corner = r#"vector3f[] primvars:brushed = [(0, 2, 0), (0, 2, 0), (0, 2, 0), (0, 2, 0)] (interpolation = "faceVarying")"#;
+    assert!(difference(&along_y, &render("", connected, per_corner)) < 1e-4, "read per corner");
 }
 
 /// A tangent along the normal, one too small or too large to normalise, or one that is not

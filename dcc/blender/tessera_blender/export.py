@@ -35,9 +35,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Thin Film: dropped too. On an opaque dielectric it becomes tessera:SolidDielectric's surface
   film (``filmThickness``, ``filmRefractiveIndex``), whose interference replaces the specular's
   Fresnel as in Cycles.
-* Anisotropic: dropped too. On an opaque dielectric or a full metal whose Tangent is unlinked it
-  becomes the shader's ``anisotropy`` and ``anisotropyRotation``, along Cycles' default tangent
-  written per vertex on the meshes (``_use_generated_tangents``).
+* Anisotropic: dropped too. On an opaque dielectric or a full metal whose Tangent is unlinked
+  (Cycles' default) or comes from a Tangent node it becomes the shader's ``anisotropy`` and
+  ``anisotropyRotation``, along that tangent written on the meshes (``tangents.py``).
 * Node trees: an Emission shader, a Glossy, Glass or Translucent BSDF, a Transparent BSDF
   mixed into a BSDF, a Diffuse BSDF, a Bump on the normal, a Normal Map's Strength, an
   Emission Strength on an image and a Mix Shader of two BSDFs are corrected; an input driven
@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import bake, nodes, unwrap, world
+from . import bake, nodes, tangents, unwrap, world
 
 #: What the exporter's sun strength is divided by.
 SUN_EXPORT_DIVISOR = 4.0
@@ -80,6 +80,8 @@ class Export:
     #: Blender object name -> (its unwrapped copy or None, why not), for objects without UVs
     #: whose inputs are baked (``unwrap.py``); emptied when the corrections are done.
     unwrapped: dict[str, tuple] = field(default_factory=dict)
+    #: The evaluated scene the file was exported from (evaluated meshes' UV tangents), if known.
+    depsgraph: object = None
 
 
 def _pxr():
@@ -105,7 +107,7 @@ def export_scene(depsgraph, directory: str | None = None) -> Export:
             convert_world_material=True,
             export_animation=False,
         )
-    exported = Export(path=path, bake_size=depsgraph.scene.tessera.bake_size)
+    exported = Export(path=path, bake_size=depsgraph.scene.tessera.bake_size, depsgraph=depsgraph)
     correct(exported, depsgraph.scene)
     return exported
 
@@ -449,9 +451,10 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
     if anisotropy:
         for name, value in anisotropy.items():
             _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
-        _use_generated_tangents(exported, prim, shader, Sdf, UsdShade)
+        source = nodes.tangent_source(node)
+        tangents.use(exported, material, prim, shader, source, Sdf, UsdShade)
         exported.corrections.append(
-            f"{prim.GetPath()}: anisotropy {_said(anisotropy['anisotropy'])}, rotation {_said(anisotropy['anisotropyRotation'])} along Cycles' default tangent"
+            f"{prim.GetPath()}: anisotropy {_said(anisotropy['anisotropy'])}, rotation {_said(anisotropy['anisotropyRotation'])} along the {tangents.primvar_name(source)} primvar"
         )
 
 
@@ -471,48 +474,6 @@ def _set_or_bake(exported: Export, material, shader, name: str, value, Sdf, UsdS
 def _said(value) -> str:
     """A carried value for the log: the number, or "baked" for a linked socket."""
     return f"{value:g}" if isinstance(value, float) else "baked"
-
-
-#: The primvar that holds Cycles' default tangent, per vertex, on the meshes that need it.
-GENERATED_TANGENT = "tesseraGeneratedTangent"
-
-
-def _use_generated_tangents(exported: Export, material_prim, shader, Sdf, UsdShade) -> None:
-    """Connects `shader`'s `tangent` to a primvar reader of ``GENERATED_TANGENT`` and writes
-    that primvar on every mesh the material is bound to."""
-    stage = material_prim.GetStage()
-    reader = UsdShade.Shader.Define(stage, material_prim.GetPath().AppendChild("GeneratedTangent"))
-    reader.SetShaderId("UsdPrimvarReader_float3")
-    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set(GENERATED_TANGENT)
-    result = reader.CreateOutput("result", Sdf.ValueTypeNames.Float3)
-    shader.CreateInput("tangent", Sdf.ValueTypeNames.Vector3f).ConnectToSource(result)
-    for name, prims in bake.users(stage, str(material_prim.GetPath()), UsdShade).items():
-        obj = bpy.data.objects.get(name)
-        for mesh in bake.meshes_of(prims):
-            if obj is None or obj.type != "MESH" or not _write_generated_tangent(mesh, obj.data, Sdf):
-                exported.warnings.append(f"{mesh.GetPath()}: no generated coordinates for Cycles' default tangent; anisotropy runs around the object's Y")
-
-
-def _write_generated_tangent(mesh, data, Sdf) -> bool:
-    """Cycles' default tangent at each point of `mesh` (object space, a Principled BSDF's
-    unlinked Tangent): radial around the object's Z through the texture space's centre,
-    (−(g_y − ½), g_x − ½, 0) in Generated coordinates g = (p − location)/(2·size) + ½, where the
-    mesh's texture space is (location, size). Cycles then makes it perpendicular to the shading
-    normal, as Tessera does with a `tangent`. False when the mesh has no points."""
-    import numpy as np
-    from pxr import UsdGeom, Vt
-
-    points = UsdGeom.Mesh(mesh).GetPointsAttr().Get()
-    if not points:
-        return False
-    p = np.array(points, dtype=np.float64)
-    location, size = np.array(data.texspace_location[:]), np.array(data.texspace_size[:])
-    size = np.where(size != 0.0, size, 1.0)
-    centred = (p - location) / (2.0 * size)  # g − ½
-    tangents = np.stack([-centred[:, 1], centred[:, 0], np.zeros(len(p))], axis=1).astype(np.float32)
-    primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(GENERATED_TANGENT, Sdf.ValueTypeNames.Vector3fArray, UsdGeom.Tokens.vertex)
-    primvar.Set(Vt.Vec3fArray.FromNumpy(tangents))
-    return True
 
 
 #: UsdPreviewSurface inputs that keep their meaning on ``tessera:Metal``, by its names.

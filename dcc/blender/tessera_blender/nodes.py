@@ -166,15 +166,30 @@ def carried_anisotropy(node):
     `anisotropyRotation` (name -> constant, or the linked socket that export.py bakes), or None.
     Cycles stretches GGX as Tessera does (αx = r²/√(1 − 0.9a) along the tangent, αy =
     r²·√(1 − 0.9a)) and turns the tangent about the normal by the rotation's share of a turn.
-    Carried when the Tangent is unlinked (Cycles' default, radial around the object's Z, which
-    export.py writes per vertex), the anisotropy linked or above 0, on an opaque dielectric or
-    a full metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or node.inputs["Tangent"].is_linked or native_surface(node) is None:
+    Carried when export.py can write the Tangent per mesh (``tangent_source``), the anisotropy
+    linked or above 0, on an opaque dielectric or a full metal (``native_surface``)."""
+    if node.type != "BSDF_PRINCIPLED" or tangent_source(node) is None or native_surface(node) is None:
         return None
     amount = _constant_or_linked(node.inputs["Anisotropic"], _shown_amount)
     if amount is None:
         return None
     return {"anisotropy": amount, "anisotropyRotation": _constant_or_linked(node.inputs["Anisotropic Rotation"], float)}
+
+
+def tangent_source(node):
+    """Where a Principled BSDF's Tangent runs, as export.py writes it on each mesh: ("radial",
+    axis) around the object's X, Y or Z axis in Generated coordinates (unlinked: Cycles' default,
+    around Z; or a radial Tangent node), ("uv", map) along a UV map's tangents (a Tangent node's
+    UV Map; "" for the mesh's active render map); None when it comes from anything else."""
+    socket = node.inputs["Tangent"]
+    if not socket.is_linked:
+        return ("radial", "Z")
+    source = socket.links[0].from_node
+    while source.type == "REROUTE" and source.inputs[0].is_linked:
+        source = source.inputs[0].links[0].from_node
+    if source.type != "TANGENT":
+        return None
+    return ("radial", source.axis) if source.direction_type == "RADIAL" else ("uv", source.uv_map)
 
 
 def carried_thin_film(node):
@@ -321,6 +336,13 @@ def check(exported, prim, material, Sdf, UsdShade) -> None:
         exported.warnings.append(f"{name}: the Volume output is not carried")
 
 
+def _why_lost(bsdf, name: str) -> str:
+    """Why a Principled BSDF's input `name` (``principled_losses``) is not carried."""
+    if name == "Anisotropic" and tangent_source(bsdf) is None:
+        return f"its Tangent comes from '{bsdf.inputs['Tangent'].links[0].from_node.name}', which the add-on does not write"
+    return "UsdPreviewSurface has no such input"
+
+
 def _correct_bsdf(exported, material, bsdf, shader, Sdf, UsdShade) -> None:
     """A Principled or Diffuse BSDF the export wrote as `shader`: its linked inputs checked (and
     baked where the export lost them), a Diffuse BSDF made Lambertian, and what a Principled
@@ -328,7 +350,7 @@ def _correct_bsdf(exported, material, bsdf, shader, Sdf, UsdShade) -> None:
     if bsdf.type == "BSDF_PRINCIPLED":
         _check_inputs(exported, material, bsdf, PRINCIPLED_CARRIED, shader, Sdf, UsdShade)
         for lost in principled_losses(bsdf):
-            exported.warnings.append(f"{material.name}: {lost} is not carried (UsdPreviewSurface has no such input)")
+            exported.warnings.append(f"{material.name}: {lost} is not carried ({_why_lost(bsdf, lost)})")
     else:
         _check_inputs(exported, material, bsdf, DIFFUSE_CARRIED, shader, Sdf, UsdShade)
         _correct_diffuse(exported, material.name, shader.GetPrim().GetParent(), bsdf, shader, Sdf)

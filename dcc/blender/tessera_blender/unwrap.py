@@ -60,7 +60,7 @@ def _unwrapped(exported, obj, meshes, bake_margin, Sdf, UsdGeom):
         _remove(copy)
         return None, f"{obj.name} has no UV map, and Smart UV Project failed on it: {str(e).strip()}"
     for mesh in meshes:
-        uvs = next((uv for points, uv in loops if _same_corners(mesh, points, UsdGeom)), None)
+        uvs = next((uv for points, uv in loops if same_corners(mesh, points, UsdGeom)), None)
         if uvs is None:
             _remove(copy)
             return None, f"{obj.name} has no UV map, and its exported mesh {mesh.GetPath()} is not Blender's corner for corner"
@@ -100,16 +100,21 @@ def _smart_project(copy, island_margin):
 
 def _corners(mesh):
     """(each corner's position, each corner's UV) of `mesh`, in loop order."""
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers["st"].uv.foreach_get("vector", uv)
+    return corner_positions(mesh), uv.reshape(-1, 2)
+
+
+def corner_positions(mesh):
+    """Each corner's position in the Blender mesh `mesh`, in loop order."""
     co = np.empty(len(mesh.vertices) * 3, np.float32)
     mesh.vertices.foreach_get("co", co)
     index = np.empty(len(mesh.loops), np.int32)
     mesh.loops.foreach_get("vertex_index", index)
-    uv = np.empty(len(mesh.loops) * 2, np.float32)
-    mesh.uv_layers["st"].uv.foreach_get("vector", uv)
-    return co.reshape(-1, 3)[index], uv.reshape(-1, 2)
+    return co.reshape(-1, 3)[index]
 
 
-def _same_corners(mesh, points, UsdGeom) -> bool:
+def same_corners(mesh, points, UsdGeom) -> bool:
     """True when the exported `mesh`'s corners are `points`, in order."""
     geom = UsdGeom.Mesh(mesh)
     exported = np.asarray(geom.GetPointsAttr().Get() or [], np.float32)

@@ -30,7 +30,7 @@ REGIONS = {
     "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere", 4: "checkered rough sphere"},
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere"},
-    "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere"},
+    "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere", 6: "uv-brushed panel", 7: "x-brushed sphere"},
     "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
@@ -175,6 +175,29 @@ def shader_spheres_and_cutouts(mat, add, directory):
     add(bpy.ops.mesh.primitive_uv_sphere_add, mix, 6, radius=0.55, location=(-1.9, -2.2, 0.55), segments=64, ring_count=32)
     for index, fac, size, at in ((4, 0.6, 1.6, (1.4, -1.6, 0.6)), (5, _alpha_halves(directory), 2.4, (2.2, 1.2, 1.4))):
         add(bpy.ops.mesh.primitive_plane_add, _cutout(mat, fac, index), index, size=size, location=at, rotation=(0.6, 0, 0))
+
+
+def _brushed_along(m, **tangent):
+    """`m` with its Principled BSDF anisotropic (0.9, GGX) along a Tangent node set to `tangent`."""
+    tree = m.node_tree
+    p = tree.nodes["Principled BSDF"]
+    p.inputs["Anisotropic"].default_value = 0.9
+    p.inputs["IOR"].default_value = 1.5
+    p.distribution = "GGX"
+    node = _node(tree, "ShaderNodeTangent")
+    for name, value in tangent.items():
+        setattr(node, name, value)
+    tree.links.new(node.outputs["Tangent"], p.inputs["Tangent"])
+    return m
+
+
+def _turn_uvs_a_quarter(mesh):
+    """Turns `mesh`'s active UV map a quarter about the middle of the UV square: (u, v) -> (1 - v, u)."""
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers.active.uv.foreach_get("vector", uv)
+    u, v = uv[0::2].copy(), uv[1::2].copy()
+    uv[0::2], uv[1::2] = 1.0 - v, u
+    mesh.uv_layers.active.uv.foreach_set("vector", uv)
 
 
 def _checkered(m, socket):
@@ -452,6 +475,16 @@ def build(kind, directory):
         m.node_tree.nodes["Principled BSDF"].inputs["IOR"].default_value = 1.5
         m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=0.7, location=(1.0, -2.2, 0.7), segments=64, ring_count=32)
+        # Tangents from a Tangent node, on black dielectrics (metals' caustics on the floor are
+        # what Tessera resolves noisier, above): a panel brushed along its UV map's U, whose UVs
+        # are turned a quarter (U runs up the panel: straight strokes where the default would
+        # draw circles), turned to mirror the light into the camera, and a sphere brushed
+        # radially around the object's X.
+        m = _brushed_along(mat("uv brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="UV_MAP", uv_map="UVMap")
+        panel = add(bpy.ops.mesh.primitive_plane_add, m, 6, size=1.1, location=(-1.6, -2.4, 0.75), rotation=(0.93, 0, 0.72))
+        _turn_uvs_a_quarter(panel.data)
+        m = _brushed_along(mat("x brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="RADIAL", axis="X")
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.4, location=(-0.3, -3.0, 0.4), segments=64, ring_count=32)
         bpy.ops.object.light_add(type='AREA', location=(1.0, -3.0, 4.0), rotation=(0.7, 0.2, 0)); l = bpy.context.object.data; l.energy = 600; l.size = 1.5
         scene.tessera.energy_compensation = False
         world = bpy.data.worlds.new("dim")
@@ -798,10 +831,26 @@ def node_trees(directory):
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
 
-    for x, case in enumerate((ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen)):
+    def ngon_tangent(tree, p):
+        # Anisotropy along a UV map's tangents on a disk of one 32-cornered face (below), which
+        # Blender's MikkTSpace cannot take: said, with the mesh.
+        p.inputs["Anisotropic"].default_value = 0.5
+        t = tree.nodes.new("ShaderNodeTangent"); t.direction_type = "UV_MAP"
+        link(tree, t.outputs[0], p.inputs["Tangent"])
+
+    def geometry_tangent(tree, p):
+        # Anisotropy along a Geometry node's Tangent, which the add-on does not write: said.
+        p.inputs["Anisotropic"].default_value = 0.5
+        link(tree, tree.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"], p.inputs["Tangent"])
+
+    cases = (ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen, ngon_tangent, geometry_tangent)
+    for x, case in enumerate(cases):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
-        bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
+        if case is ngon_tangent:
+            bpy.ops.mesh.primitive_circle_add(vertices=32, fill_type="NGON", location=(3 * x, 0, 0))
+        else:
+            bpy.ops.mesh.primitive_plane_add(location=(3 * x, 0, 0))
         bpy.context.object.data.materials.append(m)
         if case in (no_uvs, render_levels):
             bpy.context.object.data.uv_layers.remove(bpy.context.object.data.uv_layers[0])
