@@ -132,6 +132,30 @@ fn the_highlight_follows_the_tangent_its_rotation_and_the_objects_placement() {
     assert!(difference(&along_y, &render("", connected, per_corner)) < 1e-4, "read per corner");
 }
 
+/// `stTangent`: without a `tangent`, the first axis runs where the quad's texture coordinate s
+/// grows (MaterialX's default tangent), placed with the object; a `tangent` still wins, and
+/// a mesh without texture coordinates keeps the default frame.
+#[test]
+fn the_highlight_follows_the_texture_coordinates_where_asked() {
+    let (along_x, along_y) = (render("", ALONG_X, ""), render("", ALONG_Y, ""));
+    // s = (x + 4)/8 runs along +X, s = (y + 4)/8 along +Y.
+    let s_along_x = r#"texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "vertex")"#;
+    let s_along_y = r#"texCoord2f[] primvars:st = [(0, 0), (0, 1), (1, 1), (1, 0)] (interpolation = "vertex")"#;
+    let asked = "float inputs:stTangent = 1";
+    assert!(difference(&along_x, &render("", asked, s_along_x)) < 1e-4, "s along +X");
+    assert!(difference(&along_y, &render("", asked, s_along_y)) < 1e-4, "s along +Y");
+    // Not asked, the coordinates change nothing (the default frame runs along +X here).
+    assert!(difference(&along_x, &render("", "", s_along_y)) < 1e-4, "not asked");
+    assert!(difference(&along_x, &render("", &format!("{asked}\n {ALONG_X}"), s_along_y)) < 1e-4, "a tangent wins");
+    assert!(difference(&along_x, &render("", asked, "")) < 1e-4, "no coordinates: the default");
+    // Turned with the object (90° about Z): s along the quad's +Y runs along world −X.
+    let turned = r#"float3 xformOp:rotateXYZ = (0, 0, 90)
+        uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]"#;
+    assert!(difference(&along_x, &render(turned, asked, s_along_y)) < 1e-4, "placed with the object");
+    // And turned by the rotation: a quarter turn of s along +X is +Y.
+    assert!(difference(&along_y, &render("", &format!("{asked}\n float inputs:anisotropyRotation = 0.25"), s_along_x)) < 1e-4);
+}
+
 /// A tangent along the normal, one too small or too large to normalise, or one that is not
 /// finite falls back to the default frame (around the up axis) and renders finite; a
 /// non-finite one is reported by the shader's path.

@@ -251,9 +251,10 @@ fn open_pbr_textures_fold_constants_into_scale_and_bias() {
     );
     let net = network(&t);
     let surface = net.nodes.iter().find(|n| n.path == net.surface_node).unwrap();
-    assert_eq!(surface.node_type_id, "tessera:Principled");
-    assert_eq!(surface_param(net, "anisotropic"), Some(&ParamValue::Float(0.5)));
-    let c = net.connections.iter().find(|c| c.downstream_input == "baseColor").expect("baseColor is textured");
+    // Anisotropic: Tessera's own dielectric, whose frame follows the texture coordinates.
+    assert_eq!(surface.node_type_id, "tessera:SolidDielectric");
+    assert_eq!(surface_param(net, "stTangent"), Some(&ParamValue::Float(1.0)));
+    let c = net.connections.iter().find(|c| c.downstream_input == "albedo").expect("albedo is textured");
     assert_eq!(c.upstream_output, "rgb");
     let tex = net.nodes.iter().find(|n| n.path == c.upstream_node).unwrap();
     assert_eq!(tex.node_type_id, "UsdUVTexture");
@@ -265,9 +266,75 @@ fn open_pbr_textures_fold_constants_into_scale_and_bias() {
     assert!((bias.truncate() - glam::Vec3::splat(0.15)).length() < 1e-6, "{bias}");
     assert_eq!(tex.parameters.get("wrapS"), Some(&ParamValue::String("clamp".into())));
     assert!(net.connections.iter().any(|k| k.downstream_node == tex.path && k.downstream_input == "st"), "read through st");
-    // The noise is not mapped: said once, by node path, and roughness keeps OpenPBR's 0.3.
+    // The noise is not mapped: said once, by node path, and roughness keeps OpenPBR's 0.3
+    // (narrowed for the anisotropy 0.5: 0.3 · (2 · 0.5 / 1.25)^¼).
     assert_eq!(t.warnings.iter().filter(|w| w.contains("/Looks/M/Noise") && w.contains("ND_noise3d_float")).count(), 1, "{:?}", t.warnings);
-    assert_eq!(surface_param(net, "roughness"), Some(&ParamValue::Float(0.3)));
+    assert_eq!(surface_param(net, "roughness"), Some(&ParamValue::Float(0.3 * 0.8f32.powf(0.25))));
+}
+
+fn float_param(net: &MaterialNetwork, name: &str) -> f32 {
+    match surface_param(net, name) {
+        Some(ParamValue::Float(v)) => *v,
+        other => panic!("{name}: {other:?}"),
+    }
+}
+
+/// Anisotropy keeps each specification's αx and αy (Tessera's GGX takes Disney's mapping:
+/// αy/αx = 1 − 0.9·anisotropic, √(αx·αy) = roughness²), runs along the texture coordinates'
+/// s (MaterialX's default tangent) and turns by Standard Surface's `specular_rotation`.
+#[test]
+fn anisotropy_keeps_each_specifications_stretch_and_runs_along_the_texture_coordinates() {
+    use render_core::bsdf::microfacet::Ggx;
+    let alphas = |net: &MaterialNetwork| {
+        let g = Ggx::from_roughness(float_param(net, "roughness"), float_param(net, "anisotropy"));
+        (g.ax, g.ay)
+    };
+    let (r, a) = (0.5f32, 0.6f32);
+    // Standard Surface (MaterialX's roughness_anisotropy): αx = r²/√(1 − a), αy = r²·√(1 − a).
+    let inputs = format!(
+        "float inputs:metalness = 1\n float inputs:specular_roughness = {r}\n float inputs:specular_anisotropy = {a}\n float inputs:specular_rotation = 0.125"
+    );
+    let t = load_text("mtlx_aniso_std", &stage("ND_standard_surface_surfaceshader", &inputs, ""));
+    let net = network(&t);
+    assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:Metal");
+    let (ax, ay) = alphas(net);
+    assert!((ax - r * r / (1.0 - a).sqrt()).abs() < 1e-6 && (ay - r * r * (1.0 - a).sqrt()).abs() < 1e-6, "{ax} {ay}");
+    assert_eq!(float_param(net, "anisotropyRotation"), 0.125);
+    assert_eq!(float_param(net, "stTangent"), 1.0);
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    // OpenPBR (open_pbr_anisotropy): αx = r²·√(2/(1 + (1 − a)²)), αy = (1 − a)·αx.
+    let inputs = format!(
+        "float inputs:base_metalness = 1\n float inputs:specular_roughness = {r}\n float inputs:specular_roughness_anisotropy = {a}"
+    );
+    let t = load_text("mtlx_aniso_openpbr", &stage("ND_open_pbr_surface_surfaceshader", &inputs, ""));
+    let net = network(&t);
+    let (ax, ay) = alphas(net);
+    let expected = r * r * (2.0 / (1.0 + (1.0 - a) * (1.0 - a))).sqrt();
+    assert!((ax - expected).abs() < 1e-6 && (ay - (1.0 - a) * expected).abs() < 1e-6, "{ax} {ay}");
+    assert!(t.warnings.is_empty(), "{:?}", t.warnings);
+    // Beyond Tessera's 10:1 the stretch stops there, said.
+    let t = load_text(
+        "mtlx_aniso_max",
+        &stage("ND_standard_surface_surfaceshader", "float inputs:metalness = 1\n float inputs:specular_anisotropy = 0.95", ""),
+    );
+    assert_eq!(float_param(network(&t), "anisotropy"), 1.0);
+    assert!(t.warnings.iter().any(|w| w.contains("specular anisotropy 0.95 is rendered at 0.9")), "{:?}", t.warnings);
+    // An authored tangent is not read: said.
+    let t = load_text(
+        "mtlx_aniso_tangent",
+        &stage(
+            "ND_open_pbr_surface_surfaceshader",
+            "float inputs:specular_roughness_anisotropy = 0.5\n vector3f inputs:geometry_tangent = (0, 1, 0)",
+            "",
+        ),
+    );
+    assert!(t.warnings.iter().any(|w| w.contains("geometry_tangent")), "{:?}", t.warnings);
+    // On glass (tessera:Principled) the frame is the default one: said.
+    let t = load_text(
+        "mtlx_aniso_glass",
+        &stage("ND_standard_surface_surfaceshader", "float inputs:transmission = 1\n float inputs:specular_anisotropy = 0.5", ""),
+    );
+    assert!(t.warnings.iter().any(|w| w.contains("runs around the object's up axis, unturned")), "{:?}", t.warnings);
 }
 
 #[test]

@@ -2,9 +2,11 @@
 //! Blender, Houdini and the USD-WG assets write them, rewritten onto the shaders the renderer
 //! knows. The surface node — Autodesk Standard Surface, OpenPBR Surface or MaterialX's
 //! UsdPreviewSurface — becomes a `UsdPreviewSurface` when that expresses it (diffuse,
-//! metal, dielectric specular, coat, emission, opacity, normal map), else a
-//! `tessera:Principled` (transmission, sheen/fuzz, anisotropy, thin walls, a specular weight),
-//! or a `tessera:SolidDielectric` with a scattering medium (subsurface, without those); a
+//! metal, dielectric specular, coat, emission, opacity, normal map), else Tessera's own
+//! `tessera:SolidDielectric` or `tessera:Metal` (an opaque dielectric or full metal with a rough
+//! diffuse, a sheen/fuzz, a tinted specular, a thin film or anisotropy), a
+//! `tessera:Principled` (transmission, thin walls, a specular weight), or a
+//! `tessera:SolidDielectric` with a scattering medium (subsurface, without those); a
 //! plain `surface` over `chiang_hair_bsdf` becomes `tessera:Hair` ([`super::materialx_hair`]).
 //!
 //! Inputs are followed upstream and folded into `scale · texture + bias`: constants, images
@@ -396,6 +398,8 @@ fn standard_surface(g: &Graph, s: &str) -> Inputs {
         roughness: g.get(s, "specular_roughness", 0.2),
         ior: g.get(s, "specular_IOR", 1.5),
         anisotropy: g.get(s, "specular_anisotropy", 0.0),
+        stretch: Stretch::StandardSurface,
+        rotation: g.get(s, "specular_rotation", 0.0),
         transmission: g.get(s, "transmission", 0.0),
         transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
         coat: g.get(s, "coat", 0.0),
@@ -440,6 +444,9 @@ fn open_pbr(g: &Graph, s: &str) -> Inputs {
         roughness: g.get(s, "specular_roughness", 0.3),
         ior: g.get(s, "specular_ior", 1.5),
         anisotropy: g.get(s, "specular_roughness_anisotropy", 0.0),
+        stretch: Stretch::OpenPbr,
+        // OpenPBR turns its anisotropy only through `geometry_tangent`.
+        rotation: Lin::constant(Vec4::ZERO),
         transmission: g.get(s, "transmission_weight", 0.0),
         transmission_color: g.get3(s, "transmission_color", Vec3::ONE),
         coat: g.get(s, "coat_weight", 0.0),
@@ -535,7 +542,13 @@ struct Lobes {
     specular_weight: Lin,
     roughness: Lin,
     ior: Lin,
+    /// The specification's anisotropy a: αy/αx = 1 − a (Tessera's own is set from it by
+    /// [`Lobes::as_disney_anisotropy`]).
     anisotropy: Lin,
+    /// How the specification keeps the lobe's width as a stretches it.
+    stretch: Stretch,
+    /// Turn of the tangent about the normal, in fractions of a full turn.
+    rotation: Lin,
     transmission: Lin,
     transmission_color: Lin,
     coat: Lin,
@@ -562,13 +575,28 @@ struct Lobes {
     film_ior: Lin,
 }
 
+/// How a surface's anisotropy a stretches its GGX lobe. Both specifications make αy/αx = 1 − a;
+/// Standard Surface (MaterialX's `roughness_anisotropy`) keeps √(αx·αy) = r², OpenPBR
+/// (`open_pbr_anisotropy`: αx = r²·√(2/(1 + (1 − a)²)), αy = (1 − a)·αx) keeps the mean of
+/// αx² and αy² at r⁴.
+#[derive(Clone, Copy)]
+enum Stretch {
+    StandardSurface,
+    OpenPbr,
+}
+
+/// The most anisotropy Tessera's GGX takes, as a: Disney's mapping (Schutte, "Specular
+/// BRDF") makes αy/αx = 1 − 0.9·anisotropic, at most 10:1.
+const MAX_STRETCH: f32 = 0.9;
+
 /// The warning for a thin film a surface does not carry.
 const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1), at full weight and of constant thickness; the specular has none";
 
 impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
     /// for subsurface it can say the rest of; `tessera:Principled` otherwise.
-    fn inputs(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
+    fn inputs(mut self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
+        self.as_disney_anisotropy(surface, warnings);
         let beyond_preview = !is_constant(&self.transmission, 0.0)
             || !is_constant(&self.sheen, 0.0)
             || !is_constant(&self.thin, 0.0)
@@ -643,20 +671,23 @@ impl Lobes {
     }
 
     /// Which of Tessera's own shaders carries what UsdPreviewSurface cannot say of this surface
-    /// (a rough diffuse, a sheen in its own model, a specular colour): an opaque dielectric
-    /// or a full metal; None when it has none of these or is neither.
+    /// (a rough diffuse, a sheen in its own model, a specular colour, anisotropy along the
+    /// texture coordinates): an opaque dielectric or a full metal; None when it has none of
+    /// these or is neither.
     fn native_shader(&self) -> Option<Native> {
         let sheen = !is_constant(&self.sheen, 0.0);
         let tinted = !white(&self.specular_color) || (!is_constant(&self.coat, 0.0) && !white(&self.coat_color));
         let plain = is_constant(&self.transmission, 0.0) && is_constant(&self.thin, 0.0) && is_constant(&self.opacity, 1.0);
+        // Only Tessera's own shaders turn anisotropy with the texture coordinates.
+        let anisotropic = !is_constant(&self.anisotropy, 0.0);
         if plain
             && is_constant(&self.metalness, 0.0)
             && is_constant(&self.specular_weight, 1.0)
-            && (sheen || tinted || !is_constant(&self.diffuse_roughness, 0.0) || self.carried_film().is_some())
+            && (sheen || tinted || anisotropic || !is_constant(&self.diffuse_roughness, 0.0) || self.carried_film().is_some())
         {
             return Some(Native::Dielectric);
         }
-        (plain && is_constant(&self.metalness, 1.0) && (sheen || tinted)).then_some(Native::Metal)
+        (plain && is_constant(&self.metalness, 1.0) && (sheen || tinted || anisotropic)).then_some(Native::Metal)
     }
 
     /// What a surface that maps onto neither of Tessera's own shaders loses of them, said.
@@ -685,7 +716,47 @@ impl Lobes {
                 self.sheen_names[0]
             ));
         }
+        if !is_constant(&self.anisotropy, 0.0) {
+            said.push(format!(
+                "{surface}: anisotropy follows the texture coordinates (MaterialX's default tangent) and its rotation only on an opaque dielectric or a full metal; here it runs around the object's up axis, unturned"
+            ));
+        }
         said
+    }
+
+    /// `anisotropy` and `roughness` as Tessera's (Disney's) parameters for the same αx and αy:
+    /// anisotropic = a / 0.9, and OpenPBR's roughness scaled by (2(1 − a)/(1 + (1 − a)²))^¼ so
+    /// that √(αx·αy), which Disney's roughness sets, is OpenPBR's. A constant a is clamped to
+    /// [0, 0.9] (above 0.9, said); with a textured a, OpenPBR's roughness is kept (said).
+    fn as_disney_anisotropy(&mut self, surface: &str, warnings: &mut Vec<String>) {
+        let constant = self.anisotropy.value().map(|v| v.x);
+        if let Some(a) = constant.filter(|&a| a > MAX_STRETCH) {
+            warnings.push(format!("{surface}: specular anisotropy {a} is rendered at {MAX_STRETCH}: Tessera's GGX stretches at most 10:1"));
+        }
+        if let Some(a) = constant {
+            self.anisotropy = Lin::constant(Vec4::splat(a.clamp(0.0, MAX_STRETCH)));
+        }
+        match (self.stretch, constant) {
+            (Stretch::StandardSurface, _) => {}
+            (Stretch::OpenPbr, Some(a)) => {
+                let k = 1.0 - a.clamp(0.0, MAX_STRETCH);
+                self.roughness = self.roughness.clone().times(Vec4::splat((2.0 * k / (1.0 + k * k)).powf(0.25)));
+            }
+            (Stretch::OpenPbr, None) => warnings.push(format!(
+                "{surface}: with a textured specular_roughness_anisotropy the roughness is not narrowed as OpenPBR narrows it (by up to 16% at 0.9)"
+            )),
+        }
+        self.anisotropy = self.anisotropy.clone().times(Vec4::splat(1.0 / MAX_STRETCH));
+    }
+
+    /// Which way the anisotropy runs on Tessera's own shaders: along the texture coordinate s
+    /// (dP/ds, MaterialX's default tangent `Tworld`), turned by the rotation. Nothing when the
+    /// surface is isotropic.
+    fn frame_inputs(&self) -> Vec<(&'static str, Lin, bool)> {
+        match is_constant(&self.anisotropy, 0.0) {
+            true => Vec::new(),
+            false => vec![("anisotropyRotation", self.rotation.clone(), false), ("stTangent", Lin::constant(Vec4::ONE), false)],
+        }
     }
 
     /// The warning for a film this surface has and does not carry: any film where the target
@@ -741,6 +812,7 @@ impl Lobes {
     fn opaque_dielectric(self) -> Inputs {
         let shared = self.shared_inputs(true);
         let film = self.film_inputs();
+        let frame = self.frame_inputs();
         let mut values = vec![
             ("albedo", self.base, true),
             ("diffuseRoughness", self.diffuse_roughness, false),
@@ -751,6 +823,7 @@ impl Lobes {
         ];
         values.extend(film);
         values.extend(shared);
+        values.extend(frame);
         Inputs { id: "tessera:SolidDielectric", values }
     }
 
@@ -759,6 +832,7 @@ impl Lobes {
     /// F82 tint for OpenPBR).
     fn metal(self) -> Inputs {
         let shared = self.shared_inputs(true);
+        let frame = self.frame_inputs();
         let f82 = Lin::constant(Vec4::splat(if self.edge_f82 { 1.0 } else { 0.0 }));
         let mut values = vec![
             ("reflectivity", self.base, true),
@@ -768,6 +842,7 @@ impl Lobes {
             ("anisotropy", self.anisotropy, false),
         ];
         values.extend(shared);
+        values.extend(frame);
         Inputs { id: "tessera:Metal", values }
     }
 
@@ -779,6 +854,7 @@ impl Lobes {
     fn solid_dielectric(self, surface: &str, warnings: &mut Vec<String>) -> Inputs {
         let shared = self.shared_inputs(false);
         let film = self.film_inputs();
+        let frame = self.frame_inputs();
         let m = self.medium;
         let albedo = match self.subsurface.value() {
             Some(w) if w.x >= 1.0 => Some(m.color.clone()),
@@ -814,6 +890,7 @@ impl Lobes {
         ];
         values.extend(film);
         values.extend(shared);
+        values.extend(frame);
         Inputs { id: "tessera:SolidDielectric", values }
     }
 }

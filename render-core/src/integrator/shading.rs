@@ -136,19 +136,21 @@ impl<'a, const FULL: bool> Tracer<'a, FULL> {
     }
 
     /// The frame anisotropic lobes turn with: along the material's `tangent` where it gives
-    /// one (a direction in object space), else around the object's up axis; then turned by
-    /// its rotation.
+    /// one (a direction in object space), else along dP/ds where it asks for that and the mesh
+    /// has texture coordinates, else around the object's up axis; then turned by its rotation.
     fn anisotropic_frame(&self, s: &SurfaceHit, ns: Vec3, local: &LocalMaterial) -> Frame {
         let tangent = match local {
             Some((m, _)) => m.tangent,
             None => self.scene.materials[s.material as usize].tangent,
         };
-        let frame = match tangent.direction == Vec3::ZERO {
-            true => Frame::from_normal_around(ns, s.up),
-            false => {
-                let along = self.scene.placement(s.instance, s.time).to_world.transform_vector3(tangent.direction);
-                Frame::from_normal_along(ns, along, s.up)
-            }
+        let frame = if tangent.direction != Vec3::ZERO {
+            let along = self.scene.placement(s.instance, s.time).to_world.transform_vector3(tangent.direction);
+            Frame::from_normal_along(ns, along, s.up)
+        } else if tangent.along_st {
+            // dP/ds is already in world space; a mesh without texture coordinates has none.
+            Frame::from_normal_along(ns, s.dpds, s.up)
+        } else {
+            Frame::from_normal_around(ns, s.up)
         };
         frame.turned(tangent.rotation)
     }

@@ -58,6 +58,9 @@ pub struct Tangent {
     /// Turn about the normal, counter-clockwise, in fractions of a full turn (Cycles' and
     /// Standard Surface's specular rotation).
     pub rotation: f32,
+    /// Without a `direction`, run along the mesh's dP/ds (where its texture coordinate s
+    /// grows: MaterialX's default tangent) instead of around the object's up axis.
+    pub along_st: bool,
 }
 
 impl Material {

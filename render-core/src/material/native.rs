@@ -125,6 +125,12 @@ pub const SHARED: &[Input] = &[
         (-1.0, 1.0),
         "turn of `tangent` about the normal, counter-clockwise, in fractions of a full turn (Cycles' Anisotropic Rotation, Standard Surface's specular_rotation)",
     ),
+    float(
+        "stTangent",
+        0.0,
+        (0.0, 1.0),
+        "1: without a `tangent`, the first axis runs where the mesh's texture coordinate s grows (dP/ds, MaterialX's default tangent); 0: around the object's up axis",
+    ),
 ];
 
 /// True when shader `id` perturbs its shading normal by a connected `normal` input.
@@ -402,7 +408,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
     }
     let emission = if shader.shared { shared_layers(&v, &mut u) } else { Vec3::ZERO };
     let tangent = match shader.shared {
-        true => Tangent { direction: v.c("tangent"), rotation: v.f("anisotropyRotation") },
+        true => Tangent { direction: v.c("tangent"), rotation: v.f("anisotropyRotation"), along_st: v.f("stTangent") >= 0.5 },
         false => Tangent::default(),
     };
     Some(Material { surface: u, emission, cut_out: false, pass_through: 0.0, tangent })
