@@ -78,6 +78,13 @@ AGREE = [
     # A dark sphere whose Sheen Weight is a Checker (0 and 1), baked into an image at 256²:
     # measured 0.994 at 256 spp; with the link dropped (no sheen, as before) 0.556.
     ("sheen", "checkered sheen sphere"),
+    # Baked colours and a baked sheen roughness: a full sheen whose Sheen Tint is a Checker of
+    # orange and blue and whose Sheen Roughness runs 0.2-0.4 across it (a Gradient), and a
+    # near-black specular whose Specular Tint is a Checker of orange and white. Measured at
+    # 256 spp: 0.995 and 0.996; with the roughness's link dropped (0.5) 1.506, with every link
+    # dropped (as before: the sheen and the tint reported) 0.918 and 1.134.
+    ("sheen", "checkered sheen tint sphere"),
+    ("sheen", "checkered specular tint sphere"),
     # A Principled BSDF's Anisotropic 0.9 along Cycles' default tangent (radial around the
     # object's Z in Generated coordinates), which the add-on writes per vertex as the
     # `tangent` of tessera:Metal and tessera:SolidDielectric, with the Anisotropic Rotation as
@@ -384,6 +391,9 @@ def test_the_exporter_is_corrected(results):
     assert any(c.endswith("sheen_3: sheen (weight 1, tint (1, 0.6, 0.2), roughness 0.2) as tessera:SolidDielectric fuzz") for c in sheen), sheen
     assert any(c.endswith("specular_tint: Specular Tint (1, 0.4, 0.1) as tessera:SolidDielectric specularColor") for c in sheen), sheen
     assert any(c.endswith("edge_tint: metal of edge tint (1, 0.5, 0.2) as tessera:Metal (F82)") for c in sheen), sheen
+    assert any(c.endswith("checkered_sheen_tint: sheen (weight 1, tint baked, roughness baked) as tessera:SolidDielectric fuzz") for c in sheen), sheen
+    assert any(c.endswith("checkered_specular_tint: Specular Tint baked as tessera:SolidDielectric specularColor") for c in sheen), sheen
+    assert not r["sheen"]["warnings"], r["sheen"]["warnings"]
     brushed = r["anisotropic"]["corrections"]
     along = {"brushed_2": "RadialTangentZ", "brushed_3": "RadialTangentZ", "brushed_4": "RadialTangentZ", "checkered_brushed": "RadialTangentZ", "uv_brushed": "UVTangent_UVMap", "x_brushed": "RadialTangentX"}
     for material, amount, rotation in (("brushed_2", "0.9", 0), ("brushed_3", "0.9", 0), ("brushed_4", "0.9", 0.25), ("checkered_brushed", "baked", 0), ("uv_brushed", "0.9", 0), ("x_brushed", "0.9", 0)):

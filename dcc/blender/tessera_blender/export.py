@@ -395,7 +395,10 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
         return
     _warn_if_displaced(exported, name, shader)
     if kind == "metal":
-        _as_metal(shader, nodes.carried_specular_tint(node) or (1.0, 1.0, 1.0), Sdf)
+        _as_metal(shader, Sdf)
+        if nodes.carried_specular_tint(node) is None:
+            # A carried tint is the edge tint _correct_native_surface sets (or bakes).
+            shader.CreateInput("edgeTint", Sdf.ValueTypeNames.Color3f).Set((1.0, 1.0, 1.0))
     else:
         _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
@@ -425,23 +428,23 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
         return
     _warn_if_displaced(exported, material.name, shader)
     if kind == "metal":
-        _as_metal(shader, tint or (1.0, 1.0, 1.0), Sdf)
-        exported.corrections.append(f"{prim.GetPath()}: metal of edge tint {nodes._shown(tint or (1.0, 1.0, 1.0))} as tessera:Metal (F82)")
+        _as_metal(shader, Sdf)
+        _set_or_bake(exported, material, shader, "edgeTint", tint or (1.0, 1.0, 1.0), Sdf, UsdShade)
+        exported.corrections.append(f"{prim.GetPath()}: metal of edge tint {_said(tint or (1.0, 1.0, 1.0))} as tessera:Metal (F82)")
     else:
         _as_solid_dielectric(shader, Sdf)
     if sigma is not None:
         _set_or_bake(exported, material, shader, "diffuseRoughness", sigma, Sdf, UsdShade)
         exported.corrections.append(f"{prim.GetPath()}: {node.bl_label}'s diffuse roughness {_said(sigma)} as tessera:SolidDielectric diffuseRoughness")
     if sheen:
-        _set_or_bake(exported, material, shader, "fuzz", sheen["fuzz"], Sdf, UsdShade)
-        shader.CreateInput("fuzzColor", Sdf.ValueTypeNames.Color3f).Set(sheen["fuzzColor"])
-        shader.CreateInput("fuzzRoughness", Sdf.ValueTypeNames.Float).Set(sheen["fuzzRoughness"])
+        for name, value in sheen.items():
+            _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
         exported.corrections.append(
-            f"{prim.GetPath()}: sheen (weight {_said(sheen['fuzz'])}, tint {nodes._shown(sheen['fuzzColor'])}, roughness {sheen['fuzzRoughness']:g}) as {shader.GetIdAttr().Get()} fuzz"
+            f"{prim.GetPath()}: sheen (weight {_said(sheen['fuzz'])}, tint {_said(sheen['fuzzColor'])}, roughness {_said(sheen['fuzzRoughness'])}) as {shader.GetIdAttr().Get()} fuzz"
         )
     if tint and kind == "dielectric":
-        shader.CreateInput("specularColor", Sdf.ValueTypeNames.Color3f).Set(tint)
-        exported.corrections.append(f"{prim.GetPath()}: Specular Tint {nodes._shown(tint)} as tessera:SolidDielectric specularColor")
+        _set_or_bake(exported, material, shader, "specularColor", tint, Sdf, UsdShade)
+        exported.corrections.append(f"{prim.GetPath()}: Specular Tint {_said(tint)} as tessera:SolidDielectric specularColor")
     if film:
         for name, value in film.items():
             _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
@@ -459,11 +462,12 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
 
 
 def _set_or_bake(exported: Export, material, shader, name: str, value, Sdf, UsdShade) -> None:
-    """Tessera's float input `name` on `shader`: a constant set, or a linked Blender socket baked
-    into an image over the objects' UVs (``bake.carry``); one that cannot be baked is reported
-    and keeps the input's default."""
-    usd_input = shader.CreateInput(name, Sdf.ValueTypeNames.Float)
-    if isinstance(value, float):
+    """Tessera's input `name` on `shader`: a constant (a float, or an (r, g, b) colour) set, or
+    a linked Blender socket baked into an image over the objects' UVs (``bake.carry``); one that
+    cannot be baked is reported and keeps the input's default."""
+    colour = isinstance(value, tuple) or getattr(value, "type", None) == "RGBA"
+    usd_input = shader.CreateInput(name, Sdf.ValueTypeNames.Color3f if colour else Sdf.ValueTypeNames.Float)
+    if isinstance(value, (float, tuple)):
         usd_input.Set(value)
         return
     why = bake.carry(exported, material, value.name, value, usd_input, 1.0, Sdf, UsdShade)
@@ -472,8 +476,8 @@ def _set_or_bake(exported: Export, material, shader, name: str, value, Sdf, UsdS
 
 
 def _said(value) -> str:
-    """A carried value for the log: the number, or "baked" for a linked socket."""
-    return f"{value:g}" if isinstance(value, float) else "baked"
+    """A carried value for the log: the number or colour, or "baked" for a linked socket."""
+    return nodes._shown(value) if isinstance(value, (float, tuple)) else "baked"
 
 
 #: UsdPreviewSurface inputs that keep their meaning on ``tessera:Metal``, by its names.
@@ -487,12 +491,12 @@ METAL_NAMES = {
 }
 
 
-def _as_metal(shader, edge_tint, Sdf) -> None:
+def _as_metal(shader, Sdf) -> None:
     """The UsdPreviewSurface `shader` of a full metal rewritten as tessera:Metal: its inputs
-    renamed (``METAL_NAMES``), connections kept, the rest dropped, and `edge_tint` read as the
-    F82 tint, Cycles' metal Fresnel (white is Schlick's, UsdPreviewSurface's)."""
+    renamed (``METAL_NAMES``), connections kept, the rest dropped, and its `edgeTint` (set by
+    the caller) read as the F82 tint, Cycles' metal Fresnel (white is Schlick's,
+    UsdPreviewSurface's)."""
     _renamed(shader, "tessera:Metal", METAL_NAMES, Sdf)
-    shader.CreateInput("edgeTint", Sdf.ValueTypeNames.Color3f).Set(tuple(edge_tint))
     shader.CreateInput("f82", Sdf.ValueTypeNames.Bool).Set(True)
 
 

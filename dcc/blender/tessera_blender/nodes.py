@@ -125,6 +125,12 @@ def _constant_or_linked(socket, constant):
     return socket if socket.is_linked else constant(float(socket.default_value))
 
 
+def _colour_or_linked(socket):
+    """A colour socket as Tessera carries it: the socket itself when linked (to be baked), else
+    its value's (r, g, b)."""
+    return socket if socket.is_linked else tuple(float(c) for c in tuple(socket.default_value)[:3])
+
+
 def _shown_amount(value):
     """An amount in [0, 1] that shows (above 0), capped at 1; None when it is 0 or less."""
     return min(value, 1.0) if value > 0.0 else None
@@ -133,28 +139,30 @@ def _shown_amount(value):
 def carried_sheen(node):
     """A Principled BSDF's sheen as the fuzz inputs of Tessera's shaders (name -> value), or
     None. Cycles' sheen is Zeltner et al.'s, as the fuzz is (docs/materials.md, Coats). Carried
-    when its tint and roughness are constants and its weight linked (export.py bakes it) or
-    above 0, on an opaque dielectric or a full metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Sheen Tint", "Sheen Roughness")):
+    when its weight is linked or above 0, on an opaque dielectric or a full metal
+    (``native_surface``); a linked weight, tint or roughness is the socket, which export.py
+    bakes."""
+    if node.type != "BSDF_PRINCIPLED":
         return None
     weight = _constant_or_linked(node.inputs["Sheen Weight"], _shown_amount)
     if weight is None or native_surface(node) is None:
         return None
     return {
         "fuzz": weight,
-        "fuzzColor": tuple(float(c) for c in tuple(node.inputs["Sheen Tint"].default_value)[:3]),
-        "fuzzRoughness": float(node.inputs["Sheen Roughness"].default_value),
+        "fuzzColor": _colour_or_linked(node.inputs["Sheen Tint"]),
+        "fuzzRoughness": _constant_or_linked(node.inputs["Sheen Roughness"], float),
     }
 
 
 def carried_specular_tint(node):
     """A Principled BSDF's Specular Tint, or None. On a dielectric Cycles tints F0 and keeps
     grazing white (tessera:SolidDielectric's `specularColor`); on a metal it is the F82 tint
-    (tessera:Metal's `edgeTint` with `f82`). Carried when it is a constant other than white on
-    an opaque dielectric or a full metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or node.inputs["Specular Tint"].is_linked:
+    (tessera:Metal's `edgeTint` with `f82`). Carried when it is linked (the socket, which
+    export.py bakes) or a constant other than white, on an opaque dielectric or a full metal
+    (``native_surface``)."""
+    if node.type != "BSDF_PRINCIPLED":
         return None
-    tint = tuple(float(c) for c in tuple(node.inputs["Specular Tint"].default_value)[:3])
+    tint = _colour_or_linked(node.inputs["Specular Tint"])
     if tint == (1.0, 1.0, 1.0) or native_surface(node) is None or carried_thin_film(node):
         # Under a carried film the film's interference is the whole Fresnel: the tint is reported.
         return None

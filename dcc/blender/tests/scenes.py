@@ -29,7 +29,7 @@ REGIONS = {
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
     "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere", 4: "checkered rough sphere"},
-    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere"},
+    "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere", 7: "checkered sheen tint sphere", 8: "checkered specular tint sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere", 6: "uv-brushed panel", 7: "x-brushed sphere"},
     "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
@@ -441,6 +441,28 @@ def build(kind, directory):
         scene.tessera.bake_size = 256
         m = _checkered(mat("checkered sheen", (0.05, 0.05, 0.05)), "Sheen Weight")
         add(bpy.ops.mesh.primitive_uv_sphere_add, m, 6, radius=0.7, location=(0.0, -2.3, 0.7), segments=64, ring_count=32)
+        # Front right, a full sheen whose Sheen Tint is a Checker of orange and blue and whose
+        # Sheen Roughness runs from 0.2 to 0.4 across the object (a Gradient); front left, a
+        # near-black specular whose Specular Tint is a Checker of orange and white. All baked.
+        # (A roughness from the Checker itself read 0.896: Tessera filters a baked image over
+        # each pixel's footprint, the squares are about three pixels wide, and the sheen is not
+        # linear in its roughness; the same bakes at one roughness read 0.996-1.007.)
+        m = mat("checkered sheen tint", (0.05, 0.05, 0.05))
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["Sheen Weight"].default_value = 1.0
+        checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.5, 0.1, 1), Color2=(0.2, 0.4, 1.0, 1))
+        m.node_tree.links.new(checker.outputs["Color"], p.inputs["Sheen Tint"])
+        ramp = _node(m.node_tree, "ShaderNodeMath"); ramp.operation = "MULTIPLY_ADD"
+        ramp.inputs[1].default_value, ramp.inputs[2].default_value = 0.2, 0.2
+        m.node_tree.links.new(_node(m.node_tree, "ShaderNodeTexGradient").outputs["Fac"], ramp.inputs[0])
+        m.node_tree.links.new(ramp.outputs[0], p.inputs["Sheen Roughness"])
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.45, location=(1.25, -2.4, 0.45), segments=64, ring_count=32)
+        m = mat("checkered specular tint", (0.02, 0.02, 0.02), rough=0.3)
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["IOR"].default_value = 1.5
+        checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.4, 0.1, 1), Color2=(1.0, 1.0, 1.0, 1))
+        m.node_tree.links.new(checker.outputs["Color"], p.inputs["Specular Tint"])
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 8, radius=0.45, location=(-1.3, -2.4, 0.45), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
