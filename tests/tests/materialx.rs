@@ -120,27 +120,37 @@ fn fuzz_and_sheen_keep_their_models() {
     assert_eq!(said.len(), 1, "{:?}", t.warnings);
 }
 
-/// A thin film on an opaque dielectric becomes tessera:SolidDielectric's surface film, whose
-/// interference replaces the specular's Fresnel: OpenPBR's at full weight (its thickness in
-/// micrometres), Standard Surface's (in nanometres). A film at partial weight, or on a metal,
-/// is reported once.
+/// A thin film on an opaque dielectric or a full metal becomes the surface film of
+/// tessera:SolidDielectric or tessera:Metal, whose interference replaces the specular's
+/// Fresnel: OpenPBR's at full weight (its thickness in micrometres), Standard Surface's (in
+/// nanometres). A film at partial weight, on a half metal or on glass is reported once.
 #[test]
-fn a_thin_film_replaces_the_dielectric_specular_fresnel() {
+fn a_thin_film_replaces_the_specular_fresnel() {
     let open_pbr = "float inputs:thin_film_weight = 1\n float inputs:thin_film_thickness = 0.45\n float inputs:thin_film_ior = 1.33";
-    for (id, inputs, nm, ior) in [
-        ("ND_open_pbr_surface_surfaceshader", open_pbr, 450.0, 1.33),
-        ("ND_standard_surface_surfaceshader", "float inputs:thin_film_thickness = 300", 300.0, 1.5),
+    let open_pbr_metal = format!("float inputs:base_metalness = 1\n {open_pbr}");
+    for (id, inputs, nm, ior, shader) in [
+        ("ND_open_pbr_surface_surfaceshader", open_pbr, 450.0, 1.33, "tessera:SolidDielectric"),
+        ("ND_standard_surface_surfaceshader", "float inputs:thin_film_thickness = 300", 300.0, 1.5, "tessera:SolidDielectric"),
+        // Over a full metal (since 2026-12-07): tessera:Metal's film over its complex index.
+        ("ND_open_pbr_surface_surfaceshader", &open_pbr_metal, 450.0, 1.33, "tessera:Metal"),
+        (
+            "ND_standard_surface_surfaceshader",
+            "float inputs:metalness = 1\n float inputs:thin_film_thickness = 300",
+            300.0,
+            1.5,
+            "tessera:Metal",
+        ),
     ] {
         let t = load_text("mtlx_film", &stage(id, inputs, ""));
         let net = network(&t);
-        assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, "tessera:SolidDielectric", "{id}");
+        assert_eq!(net.nodes.iter().find(|n| n.path == net.surface_node).unwrap().node_type_id, shader, "{id}");
         assert!(matches!(surface_param(net, "filmThickness"), Some(ParamValue::Float(x)) if (x - nm).abs() < 1e-3), "{id}");
         assert_eq!(surface_param(net, "filmRefractiveIndex"), Some(&ParamValue::Float(ior)), "{id}");
         assert!(t.warnings.is_empty(), "{id}: {:?}", t.warnings);
     }
     for (id, inputs) in [
         ("ND_open_pbr_surface_surfaceshader", "float inputs:thin_film_weight = 0.5"),
-        ("ND_open_pbr_surface_surfaceshader", "float inputs:base_metalness = 1\n float inputs:thin_film_weight = 1"),
+        ("ND_open_pbr_surface_surfaceshader", "float inputs:base_metalness = 0.5\n float inputs:thin_film_weight = 1"),
         ("ND_standard_surface_surfaceshader", "float inputs:transmission = 1\n float inputs:thin_film_thickness = 300"),
     ] {
         let t = load_text("mtlx_film_lost", &stage(id, inputs, ""));

@@ -590,7 +590,7 @@ enum Stretch {
 const MAX_STRETCH: f32 = 0.9;
 
 /// The warning for a thin film a surface does not carry.
-const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric (no metalness, transmission, thin walls, opacity or specular weight other than 1), at full weight and of constant thickness; the specular has none";
+const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1, a dielectric's specular weight 1), at full weight and of constant thickness; the specular has none";
 
 impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
@@ -616,7 +616,7 @@ impl Lobes {
                 return self.opaque_dielectric();
             }
             Some(Native::Metal) => {
-                warnings.extend(self.film_lost(surface, false));
+                warnings.extend(self.film_lost(surface, true));
                 return self.metal();
             }
             None => warnings.extend(self.uncarried(surface)),
@@ -687,7 +687,8 @@ impl Lobes {
         {
             return Some(Native::Dielectric);
         }
-        (plain && is_constant(&self.metalness, 1.0) && (sheen || tinted || anisotropic)).then_some(Native::Metal)
+        let film = self.carried_film().is_some();
+        (plain && is_constant(&self.metalness, 1.0) && (sheen || tinted || anisotropic || film)).then_some(Native::Metal)
     }
 
     /// What a surface that maps onto neither of Tessera's own shaders loses of them, said.
@@ -760,10 +761,11 @@ impl Lobes {
     }
 
     /// The warning for a film this surface has and does not carry: any film where the target
-    /// is not a solid dielectric, one it cannot take (partial weight, textured) where it is.
-    fn film_lost(&self, surface: &str, dielectric: bool) -> Option<String> {
+    /// is not one of Tessera's own opaque shaders (`native`), one it cannot take (partial
+    /// weight, textured) where it is.
+    fn film_lost(&self, surface: &str, native: bool) -> Option<String> {
         let any = self.film.as_ref().is_none_or(|f| !is_constant(f, 0.0));
-        let carried = dielectric && self.carried_film().is_some();
+        let carried = native && self.carried_film().is_some();
         (any && !carried).then(|| format!("{surface}: {FILM_NOT_CARRIED}"))
     }
 
@@ -772,7 +774,7 @@ impl Lobes {
         self.film.as_ref()?.value().map(|f| f.x).filter(|&nm| nm > 0.0)
     }
 
-    /// `tessera:SolidDielectric`'s surface film, when carried.
+    /// The surface film of `tessera:SolidDielectric` or `tessera:Metal`, when carried.
     fn film_inputs(&self) -> Vec<(&'static str, Lin, bool)> {
         match self.carried_film() {
             Some(nm) => {
@@ -833,6 +835,7 @@ impl Lobes {
     fn metal(self) -> Inputs {
         let shared = self.shared_inputs(true);
         let frame = self.frame_inputs();
+        let film = self.film_inputs();
         let f82 = Lin::constant(Vec4::splat(if self.edge_f82 { 1.0 } else { 0.0 }));
         let mut values = vec![
             ("reflectivity", self.base, true),
@@ -841,6 +844,7 @@ impl Lobes {
             ("roughness", self.roughness, false),
             ("anisotropy", self.anisotropy, false),
         ];
+        values.extend(film);
         values.extend(shared);
         values.extend(frame);
         Inputs { id: "tessera:Metal", values }

@@ -449,7 +449,7 @@ def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> 
         for name, value in film.items():
             _set_or_bake(exported, material, shader, name, value, Sdf, UsdShade)
         exported.corrections.append(
-            f"{prim.GetPath()}: thin film of {film['filmThickness']:g} nm, IOR {film['filmRefractiveIndex']:g} as tessera:SolidDielectric's surface film"
+            f"{prim.GetPath()}: thin film of {film['filmThickness']:g} nm, IOR {film['filmRefractiveIndex']:g} as {shader.GetIdAttr().Get()}'s surface film"
         )
     if anisotropy:
         for name, value in anisotropy.items():

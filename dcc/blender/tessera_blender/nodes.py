@@ -163,8 +163,10 @@ def carried_specular_tint(node):
     if node.type != "BSDF_PRINCIPLED":
         return None
     tint = _colour_or_linked(node.inputs["Specular Tint"])
-    if tint == (1.0, 1.0, 1.0) or native_surface(node) is None or carried_thin_film(node):
-        # Under a carried film the film's interference is the whole Fresnel: the tint is reported.
+    kind = native_surface(node)
+    if tint == (1.0, 1.0, 1.0) or kind is None or (kind == "dielectric" and carried_thin_film(node)):
+        # Under a dielectric's film the film's interference is the whole Fresnel: the tint is
+        # reported. A metal's tint still shapes the index beneath its film.
         return None
     return tint
 
@@ -201,15 +203,15 @@ def tangent_source(node):
 
 
 def carried_thin_film(node):
-    """A Principled BSDF's Thin Film as tessera:SolidDielectric's surface film (name -> value),
-    or None. Cycles' film replaces the dielectric specular's Fresnel by the film's interference,
-    as `filmThickness` does. Carried when Thickness and IOR are constants and the thickness above
-    0, on an opaque dielectric (``native_surface``); a metal's film (Cycles' conductor under a
-    film) is reported."""
+    """A Principled BSDF's Thin Film as the surface film of tessera:SolidDielectric or
+    tessera:Metal (name -> value), or None. Cycles' film replaces the specular's Fresnel by the
+    film's interference, over a metal's complex index estimated from its colour and tint, as
+    `filmThickness` does. Carried when Thickness and IOR are constants and the thickness above
+    0, on an opaque dielectric or a full metal (``native_surface``)."""
     if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Thin Film Thickness", "Thin Film IOR")):
         return None
     thickness = float(node.inputs["Thin Film Thickness"].default_value)
-    if thickness <= 0.0 or native_surface(node) != "dielectric":
+    if thickness <= 0.0 or native_surface(node) is None:
         return None
     return {"filmThickness": thickness, "filmRefractiveIndex": float(node.inputs["Thin Film IOR"].default_value)}
 

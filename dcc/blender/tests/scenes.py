@@ -31,7 +31,7 @@ REGIONS = {
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere", 4: "checkered rough sphere"},
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere", 7: "checkered sheen tint sphere", 8: "checkered specular tint sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere", 6: "uv-brushed panel", 7: "x-brushed sphere"},
-    "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere"},
+    "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere", 4: "filmed metal sphere", 5: "filmed gold sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -522,6 +522,15 @@ def build(kind, directory):
             for name, value in {**inputs, "IOR": 1.5}.items():
                 m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
             add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+        # In front, films over metals: 300 nm of IOR 1.5 over a silver-white metal, and
+        # 200 nm of IOR 2.0 over gold with an orange Specular Tint (Cycles estimates the metal's
+        # complex index from the colour and the tint, Tessera too).
+        for index, x, base, tint, nm, ior in ((4, -1.0, (0.9, 0.9, 0.9), (1, 1, 1, 1), 300.0, 1.5), (5, 1.0, (1.0, 0.78, 0.34), (1.0, 0.6, 0.3, 1), 200.0, 2.0)):
+            m = mat(f"metal film {index}", base, rough=0.5, metal=1.0)
+            p = m.node_tree.nodes["Principled BSDF"]
+            p.inputs["Specular Tint"].default_value = tint
+            p.inputs["Thin Film Thickness"].default_value, p.inputs["Thin Film IOR"].default_value = nm, ior
+            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=0.45, location=(x, -2.9, 0.45), segments=64, ring_count=32)
         world = bpy.data.worlds.new("white")
         world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)

@@ -83,6 +83,18 @@ pub enum SpecularFresnel {
         /// Cosine-weighted average, per channel.
         avg: Vec3,
     },
+    /// A thin film's interference over a conductor ([`super::thin_film::airy_conductor`]);
+    /// build with [`SpecularFresnel::thin_film_conductor`].
+    ThinFilmConductor {
+        /// Film refractive index.
+        film: f32,
+        /// Thickness in nanometres.
+        thickness: f32,
+        /// The metal's complex index.
+        metal: super::thin_film::Conductor,
+        /// Cosine-weighted average, per channel.
+        avg: Vec3,
+    },
 }
 
 impl SpecularFresnel {
@@ -101,6 +113,9 @@ impl SpecularFresnel {
             }
             SpecularFresnel::White => Vec3::ONE,
             SpecularFresnel::ThinFilm { film, thickness, substrate, .. } => super::thin_film::airy(mu, film, thickness, substrate),
+            SpecularFresnel::ThinFilmConductor { film, thickness, ref metal, .. } => {
+                super::thin_film::airy_conductor(mu, film, thickness, metal)
+            }
         }
     }
 
@@ -127,6 +142,24 @@ impl SpecularFresnel {
         SpecularFresnel::ThinFilm { film, thickness, substrate, avg: super::thin_film::average(film, thickness, substrate) }
     }
 
+    /// A thin film's Fresnel over the conductor `metal`, with its average.
+    pub fn thin_film_conductor(film: f32, thickness: f32, metal: super::thin_film::Conductor) -> Self {
+        let avg = super::thin_film::average_conductor(film, thickness, &metal);
+        SpecularFresnel::ThinFilmConductor { film, thickness, metal, avg }
+    }
+
+    /// The same Fresnel with a film of index `film` and `thickness` nm over it, when it is a
+    /// conductor's (Gulbrandsen's, or the F82 tint's with the edge colour its value at about
+    /// 82°, as Cycles reads it); None for any other.
+    pub fn under_film(&self, film: f32, thickness: f32) -> Option<Self> {
+        let metal = match *self {
+            SpecularFresnel::Gulbrandsen { r, g } => super::thin_film::Conductor::gulbrandsen(r, g),
+            SpecularFresnel::F82Tint { f0, .. } => super::thin_film::Conductor::gulbrandsen(f0, self.eval(1.0 / 7.0)),
+            _ => return None,
+        };
+        Some(Self::thin_film_conductor(film, thickness, metal))
+    }
+
     /// The cosine-weighted average F_avg: the slides' fits or closed forms.
     #[inline]
     pub fn average(&self) -> Vec3 {
@@ -141,7 +174,7 @@ impl SpecularFresnel {
             // Schlick's average less b·2∫μ²(1 − μ)⁶dμ = b·2·B(3, 7) = b/126.
             SpecularFresnel::F82Tint { f0, b } => (f0 + (Vec3::ONE - f0) / 21.0 - b / 126.0).clamp(Vec3::ZERO, Vec3::ONE),
             SpecularFresnel::White => Vec3::ONE,
-            SpecularFresnel::ThinFilm { avg, .. } => avg,
+            SpecularFresnel::ThinFilm { avg, .. } | SpecularFresnel::ThinFilmConductor { avg, .. } => avg,
         }
     }
 }

@@ -14,6 +14,10 @@
 //! white mapped to D65's, so a film that does not interfere is grey. Cycles' Principled BSDF
 //! uses the same method (its Thin Film), which is why the Blender add-on can carry it.
 //!
+//! Over a conductor ([`airy_conductor`]) the bottom interface's Fresnel amplitude is complex:
+//! its reflectance and its phase, neither 0 nor π, come from the metal's n + ik (Born & Wolf,
+//! section 14.4.1), one index per channel as Belcour & Barla's code and Cycles do for metals.
+//!
 //! As a coat, its directional albedo E(μ) is tabulated per material when it is built (16 √μ
 //! nodes of the coat lobe's own quadrature), and the layers beneath keep
 //! min(1 − E(μo), 1 − E(μi)) as for the other coats.
@@ -21,6 +25,7 @@
 use std::f32::consts::PI;
 
 use glam::Vec3;
+use num_complex::Complex32;
 
 /// Thickest film accepted, in nanometres: the interference terms have faded well before.
 pub const MAX_THICKNESS_NM: f32 = 10_000.0;
@@ -90,14 +95,7 @@ fn rec709(xyz: Vec3) -> Vec3 {
 pub fn airy(cos: f32, film: f32, nm: f32, substrate: f32) -> Vec3 {
     let fix = |x: f32, lo: f32, hi: f32, d: f32| if x.is_finite() { x.clamp(lo, hi) } else { d };
     let (cos, nm) = (fix(cos, 0.0, 1.0, 0.0), fix(nm, 0.0, MAX_THICKNESS_NM, 0.0));
-    let (film, substrate) = (fix(film, 1.0, 3.0, 1.33), fix(substrate, 1.0, 3.0, 1.5));
-    let film = match nm < FADE_NM {
-        true => {
-            let t = nm / FADE_NM;
-            1.0 + (film - 1.0) * t * t * (3.0 - 2.0 * t)
-        }
-        false => film,
-    };
+    let (film, substrate) = (faded(fix(film, 1.0, 3.0, 1.33), nm), fix(substrate, 1.0, 3.0, 1.5));
     let Some((r12, phi12, cos_film)) = polarized(1.0, film, cos) else { return Vec3::ONE };
     // Total reflection at the substrate: the film's bottom reflects everything.
     let Some((r23, phi23, _)) = polarized(film, substrate, cos_film) else { return Vec3::ONE };
@@ -105,6 +103,105 @@ pub fn airy(cos: f32, film: f32, nm: f32, substrate: f32) -> Vec3 {
     // The round trip reflects once inside the top interface (its phase from below) and once at the bottom.
     let pol = |k: usize| summation(r12[k], r23[k], opd, PI - phi12[k] + phi23[k]);
     rec709(0.5 * (pol(0) + pol(1))).clamp(Vec3::ZERO, Vec3::ONE)
+}
+
+/// The film's index faded towards air below [`FADE_NM`], where the wave-optics summation stops
+/// describing it.
+fn faded(film: f32, nm: f32) -> f32 {
+    match nm < FADE_NM {
+        true => {
+            let t = nm / FADE_NM;
+            1.0 + (film - 1.0) * t * t * (3.0 - 2.0 * t)
+        }
+        false => film,
+    }
+}
+
+/// A conductor under a film: its complex refractive index n + ik, one per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conductor {
+    /// Refractive index.
+    pub n: Vec3,
+    /// Extinction coefficient.
+    pub k: Vec3,
+}
+
+impl Conductor {
+    /// The n and k of reflectivity `r` and edge colour `g` (Gulbrandsen, "Artist Friendly
+    /// Metallic Fresnel", JCGT 2014: [`super::fresnel::gulbrandsen_nk`]).
+    pub fn gulbrandsen(r: Vec3, g: Vec3) -> Self {
+        let [x, y, z] = [0, 1, 2].map(|c| super::fresnel::gulbrandsen_nk(r[c], g[c]));
+        Conductor { n: Vec3::new(x.0, y.0, z.0), k: Vec3::new(x.1, y.1, z.1) }
+    }
+
+    /// Channel `c`'s index, finite and not below a hundredth.
+    fn eta(&self, c: usize) -> Complex32 {
+        let fix = |x: f32, lo: f32, d: f32| if x.is_finite() { x.clamp(lo, 1e3) } else { d };
+        Complex32::new(fix(self.n[c], 0.01, 1.0), fix(self.k[c], 0.0, 0.0))
+    }
+}
+
+/// Reflectance (s, p) from a dielectric of index `n1` into a conductor of index `eta` at
+/// incidence cosine `c1`, and the phase each reflection adds. The transmitted side is taken as
+/// η·cos θt = √(η² − n1² sin² θi) on the principal branch (a wave that decays into the metal);
+/// with no absorption these are [`polarized`]'s amplitudes, of phase 0 or π.
+fn conductor_polarized(n1: f32, eta: Complex32, c1: f32) -> ([f32; 2], [f32; 2]) {
+    let eta2 = eta * eta;
+    let eta_ct = (eta2 - n1 * n1 * (1.0 - c1 * c1).max(0.0)).sqrt();
+    let rs = (n1 * c1 - eta_ct) / (n1 * c1 + eta_ct);
+    let rp = (eta2 * c1 - n1 * eta_ct) / (eta2 * c1 + n1 * eta_ct);
+    let fine = |r: Complex32| if r.is_finite() { r } else { Complex32::new(1.0, 0.0) };
+    let (rs, rp) = (fine(rs), fine(rp));
+    ([rs.norm_sqr().min(1.0), rp.norm_sqr().min(1.0)], [rs.arg(), rp.arg()])
+}
+
+/// The cosine and sine parts of [`sensitivity`] at `opd`, each in linear Rec. 709:
+/// sensitivity(opd, φ) = cos φ·C − sin φ·S, and the map to RGB is linear, so each channel can
+/// take its own phase afterwards.
+fn sensitivity_rgb(opd: f32) -> (Vec3, Vec3) {
+    (rec709(sensitivity(opd, 0.0)), rec709(sensitivity(opd, -0.5 * PI)))
+}
+
+/// Orders of the summation over a conductor. A metal reflects most of what reaches the film's
+/// bottom, so the terms fall slowly (as (r12·r23)^(m/2)): three orders, enough over glass, missed
+/// the spectral integral by 0.049 for thin films at grazing angles, eight by 0.014.
+const CONDUCTOR_ORDERS: usize = 8;
+
+/// [`summation`] for channel `c` of a bottom interface whose phase differs per channel: the
+/// round trip's phase `phi` applied to the RGB sensitivities `parts` of orders 1 and up.
+fn summation_channel(r12: f32, r23: f32, phi: f32, parts: &[(Vec3, Vec3); CONDUCTOR_ORDERS], c: usize) -> f32 {
+    let t121 = 1.0 - r12;
+    let r123 = r12 * r23;
+    if r123 >= 1.0 {
+        return 1.0;
+    }
+    let rs = t121 * t121 * r23 / (1.0 - r123);
+    // The order-0 term is grey: the equal-energy white's colour.
+    let mut total = (r12 + rs) * rec709(Vec3::ONE)[c];
+    let mut cm = rs - t121;
+    for (m, (cos_part, sin_part)) in parts.iter().enumerate() {
+        cm *= r123.sqrt();
+        let (sin, cos) = ((m + 1) as f32 * phi).sin_cos();
+        total += cm * 2.0 * (cos * cos_part[c] - sin * sin_part[c]);
+    }
+    total
+}
+
+/// Reflectance of a film of index `film` and thickness `nm` on the conductor `metal`, seen
+/// from air at cosine `cos`, as linear Rec. 709 RGB: [`airy`]'s summation, the film's bottom
+/// reflecting by the metal's complex Fresnel amplitude in each channel.
+pub fn airy_conductor(cos: f32, film: f32, nm: f32, metal: &Conductor) -> Vec3 {
+    let fix = |x: f32, lo: f32, hi: f32, d: f32| if x.is_finite() { x.clamp(lo, hi) } else { d };
+    let (cos, nm) = (fix(cos, 0.0, 1.0, 0.0), fix(nm, 0.0, MAX_THICKNESS_NM, 0.0));
+    let film = faded(fix(film, 1.0, 3.0, 1.33), nm);
+    let Some((r12, phi12, cos_film)) = polarized(1.0, film, cos) else { return Vec3::ONE };
+    let opd = 2.0 * film * nm * cos_film;
+    let parts: [(Vec3, Vec3); CONDUCTOR_ORDERS] = std::array::from_fn(|m| sensitivity_rgb((m + 1) as f32 * opd));
+    let channel = |c: usize| {
+        let (r23, phi23) = conductor_polarized(film, metal.eta(c), cos_film);
+        (0..2).map(|p| 0.5 * summation_channel(r12[p], r23[p], PI - phi12[p] + phi23[p], &parts, c)).sum::<f32>()
+    };
+    Vec3::new(channel(0), channel(1), channel(2)).clamp(Vec3::ZERO, Vec3::ONE)
 }
 
 /// What a thread keeps of a film's tables: the last few, by their parameters' bits.
@@ -137,6 +234,21 @@ pub(super) fn average(film: f32, thickness: f32, substrate: f32) -> Vec3 {
     kept(&AVERAGES, [film.to_bits(), thickness.to_bits(), substrate.to_bits()], || {
         let n = 64;
         (0..n).map(|k| (k as f32 + 0.5) / n as f32).map(|mu| airy(mu, film, thickness, substrate) * (2.0 * mu / n as f32)).sum()
+    })
+}
+
+/// [`average`] of a film over the conductor `metal`, on 16 cosines: it only sets the size of
+/// the energy compensation, and a metal whose colours are textured computes it at every
+/// shading point (16 µs on the Zen 4 host; the test that checks it prints it).
+pub(super) fn average_conductor(film: f32, thickness: f32, metal: &Conductor) -> Vec3 {
+    thread_local! {
+        static AVERAGES: Kept<[u32; 8], Vec3> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    let (n, k) = (metal.n.to_array().map(f32::to_bits), metal.k.to_array().map(f32::to_bits));
+    kept(&AVERAGES, [film.to_bits(), thickness.to_bits(), n[0], n[1], n[2], k[0], k[1], k[2]], || {
+        let count = 16;
+        let mus = (0..count).map(|i| (i as f32 + 0.5) / count as f32);
+        mus.map(|mu| airy_conductor(mu, film, thickness, metal) * (2.0 * mu / count as f32)).sum()
     })
 }
 
@@ -268,6 +380,117 @@ mod tests {
             }
         }
         assert!(worst > 1e-4, "the two integrals are independent: {worst}");
+    }
+
+    /// [`airy_at`] over a conductor of index n + ik: the bottom amplitudes complex, the film's
+    /// reflectance |r01 + r12·e^{iδ}|² / |1 + r01·r12·e^{iδ}|² (Born & Wolf 7.6 with 14.4.1).
+    fn airy_conductor_at(cos: f64, film: f64, nm: f64, n: f64, k: f64, lambda: f64) -> f64 {
+        use num_complex::Complex64;
+        let cf = (1.0 - (1.0 - cos * cos) / (film * film)).sqrt();
+        let r01 = [(cos - film * cf) / (cos + film * cf), (film * cos - cf) / (film * cos + cf)];
+        let eta = Complex64::new(n, k);
+        let eta_ct = (eta * eta - film * film * (1.0 - cf * cf)).sqrt();
+        let r12 = [(film * cf - eta_ct) / (film * cf + eta_ct), (eta * eta * cf - film * eta_ct) / (eta * eta * cf + film * eta_ct)];
+        let phase = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI / lambda * 2.0 * film * nm * cf);
+        let r = |a: f64, b: Complex64| ((a + b * phase) / (1.0 + a * b * phase)).norm_sqr();
+        0.5 * (r(r01[0], r12[0]) + r(r01[1], r12[1]))
+    }
+
+    /// A film over a grey conductor (one n + ik for every wavelength, so that one spectral
+    /// integral is the reference) against the same film integrated wavelength by wavelength:
+    /// silver-, nickel- and titanium-like indices, soap to titania films, head-on to grazing.
+    /// 0.04: the Gaussian fit of the colour-matching functions errs in proportion to the
+    /// interference's amplitude, which a metal's strong bottom reflection makes large (measured
+    /// 0.037, 500 nm of index 2.2 head-on; over glass the same fit errs by 0.011). Summed to three
+    /// orders, as over glass, thin films at grazing angles missed by 0.049: hence
+    /// [`CONDUCTOR_ORDERS`].
+    #[test]
+    fn a_film_over_a_conductor_is_its_spectrum_integrated() {
+        let mut worst: f32 = 0.0;
+        for (n, k) in [(0.15f32, 3.5f32), (1.9, 3.4), (2.9, 3.1)] {
+            let metal = Conductor { n: Vec3::splat(n), k: Vec3::splat(k) };
+            for film in [1.33f32, 1.5, 2.2] {
+                for nm in [80.0f32, 250.0, 500.0] {
+                    for cos in [1.0f32, 0.6, 0.2] {
+                        let (mut xyz, mut norm) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+                        for l in 360..=830 {
+                            let cmf = crate::light::blackbody::cie_1931(l as f64);
+                            xyz += airy_conductor_at(cos as f64, film as f64, nm as f64, n as f64, k as f64, l as f64) * cmf;
+                            norm += cmf;
+                        }
+                        let reference = rec709((xyz / norm).as_vec3()).clamp(Vec3::ZERO, Vec3::ONE);
+                        worst = worst.max((airy_conductor(cos, film, nm, &metal) - reference).abs().max_element());
+                    }
+                }
+            }
+        }
+        assert!(worst < 0.04, "largest difference {worst}");
+    }
+
+    /// With no absorption the conductor's path is the dielectric film's (the same summation
+    /// with real amplitudes, phases 0 or π), but for its orders beyond the dielectric's three
+    /// (measured up to 4e-4, at grazing angles where the film's top reflects most).
+    #[test]
+    fn a_conductor_that_does_not_absorb_is_the_dielectric_film() {
+        for (film, substrate) in [(1.33, 1.5), (1.45, 2.0)] {
+            let metal = Conductor { n: Vec3::splat(substrate), k: Vec3::ZERO };
+            for nm in [0.0, 100.0, 300.0, 700.0] {
+                for cos in [1.0, 0.6, 0.2] {
+                    let d = (airy_conductor(cos, film, nm, &metal) - airy(cos, film, nm, substrate)).abs().max_element();
+                    assert!(d < 1e-3, "film {film} on {substrate}, {nm} nm, cos {cos}: {d}");
+                }
+            }
+        }
+    }
+
+    /// A film of no thickness leaves the bare metal: head-on, Gulbrandsen's reflectivity
+    /// exactly (his n and k are chosen for it), and at every angle the conductor's Fresnel.
+    #[test]
+    fn a_film_of_no_thickness_leaves_the_bare_conductor() {
+        let (r, g) = (Vec3::new(0.95, 0.64, 0.54), Vec3::new(1.0, 0.98, 0.6));
+        let metal = Conductor::gulbrandsen(r, g);
+        assert!((airy_conductor(1.0, 1.5, 0.0, &metal) - r).abs().max_element() < 1e-4);
+        for cos in [0.8f32, 0.4, 0.1] {
+            let bare = Vec3::from_array(std::array::from_fn(|c| {
+                let (rsp, _) = conductor_polarized(1.0, metal.eta(c), cos);
+                0.5 * (rsp[0] + rsp[1])
+            }));
+            assert!((airy_conductor(cos, 1.5, 0.0, &metal) - bare).abs().max_element() < 1e-4, "cos {cos}");
+        }
+    }
+
+    /// The 16-cosine average is the 64-cosine one to 0.01, and what it costs is printed.
+    #[test]
+    fn a_film_over_a_conductors_average_is_close_and_cheap() {
+        let metal = Conductor::gulbrandsen(Vec3::new(0.95, 0.64, 0.54), Vec3::new(1.0, 0.98, 0.6));
+        for nm in [100.0, 300.0, 800.0] {
+            let fine: Vec3 =
+                (0..256).map(|i| (i as f32 + 0.5) / 256.0).map(|mu| airy_conductor(mu, 1.5, nm, &metal) * (2.0 * mu / 256.0)).sum();
+            let d = (average_conductor(1.5, nm, &metal) - fine).abs().max_element();
+            assert!(d < 0.01, "{nm} nm: {d}");
+        }
+        let t = std::time::Instant::now();
+        for i in 0..100 {
+            std::hint::black_box(average_conductor(1.5, 300.0 + i as f32, &metal));
+        }
+        eprintln!("average over a conductor: {:.1} µs", t.elapsed().as_secs_f64() * 1e4);
+    }
+
+    /// Whatever the inputs, a reflectance in [0, 1].
+    #[test]
+    fn a_film_over_a_conductor_stays_finite_at_extremes() {
+        let odd = [f32::NAN, f32::INFINITY, -1.0, 0.0, 1e-30, 1e30];
+        for n in odd {
+            for k in odd {
+                let metal = Conductor { n: Vec3::splat(n), k: Vec3::splat(k) };
+                for cos in [0.0, 1e-7, 1.0, f32::NAN] {
+                    for nm in [0.0, 29.9, 10_000.0, f32::INFINITY] {
+                        let r = airy_conductor(cos, 1.5, nm, &metal);
+                        assert!(r.is_finite() && r.min_element() >= 0.0 && r.max_element() <= 1.0, "{n} {k} {cos} {nm}: {r}");
+                    }
+                }
+            }
+        }
     }
 
     /// A quarter-wave film of index √n_s at 550 nm, the anti-reflection coating: head-on it

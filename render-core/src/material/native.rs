@@ -152,6 +152,13 @@ pub const SHADERS: &[Shader] = &[
             ),
             float("roughness", 0.3, (0.0, 1.0), "roughness (α = roughness²)"),
             float("anisotropy", 0.0, (-1.0, 1.0), "stretch along the tangent (−1) or bitangent (1)"),
+            float(
+                "filmThickness",
+                0.0,
+                (0.0, 10000.0),
+                "a thin film on the metal, in nanometres: its interference over the metal's complex index (from reflectivity and edge tint, as Gulbrandsen inverts them) replaces the Fresnel (Cycles' Thin Film on a metal, OpenPBR's thin_film); 0: none",
+            ),
+            float("filmRefractiveIndex", 1.33, (1.0, 3.0), "the film's refractive index"),
         ],
         shared: true,
         materials: &[],
@@ -358,6 +365,10 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
         "tessera:Metal" => {
             let (r, g) = (v.c("reflectivity"), v.c("edgeTint"));
             let fresnel = if v.b("f82") { SpecularFresnel::f82_tint(r, g) } else { SpecularFresnel::Gulbrandsen { r, g } };
+            let fresnel = match v.f("filmThickness") > 0.0 {
+                true => fresnel.under_film(v.f("filmRefractiveIndex"), v.f("filmThickness")).unwrap_or(fresnel),
+                false => fresnel,
+            };
             u.metal = Weighted { weight: 1.0, params: specular(shader, &v, fresnel) };
         }
         "tessera:Refractive" => {
@@ -580,7 +591,16 @@ mod tests {
                 ("roughness", ParamValue::Float(0.3)),
             ]
         };
-        let cases: [(&str, Vec<(&str, ParamValue)>); 14] = [
+        let metal_film = |f82: bool| {
+            vec![
+                ("reflectivity", white.clone()),
+                ("f82", ParamValue::Bool(f82)),
+                ("filmRefractiveIndex", ParamValue::Float(2.0)),
+                ("filmThickness", ParamValue::Float(300.0)),
+                ("roughness", ParamValue::Float(0.3)),
+            ]
+        };
+        let cases: [(&str, Vec<(&str, ParamValue)>); 16] = [
             ("tessera:Metal", vec![("reflectivity", white.clone()), ("edgeTint", white.clone()), ("roughness", ParamValue::Float(0.6))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4))]),
             ("tessera:Refractive", vec![("roughness", ParamValue::Float(0.4)), ("thin", ParamValue::Bool(true))]),
@@ -606,6 +626,9 @@ mod tests {
             // (up to a quarter head-on at 2.4); one of lower index, less.
             ("tessera:SolidDielectric", film(2.4, 120.0)),
             ("tessera:SolidDielectric", film(1.33, 500.0)),
+            // A film over a white metal (Gulbrandsen's, and the F82 tint's).
+            ("tessera:Metal", metal_film(false)),
+            ("tessera:Metal", metal_film(true)),
             ("tessera:Fabric", vec![("color", white.clone()), ("diffuseColor", white.clone())]),
             ("tessera:Glitter", vec![("flakeColor", white.clone()), ("baseColor", white.clone()), ("flakeSize", ParamValue::Float(2.0))]),
             ("tessera:Hair", vec![("melanin", ParamValue::Float(0.0)), ("roughness", ParamValue::Float(0.5))]),

@@ -25,8 +25,9 @@ const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
     (Feature::Hair, |u| u.hair.weight > 0.0),
     (Feature::Glitter, |u| u.has_glitter()),
     (Feature::ThinFilm, |u| {
-        let film_fresnel = u.plastic.weight > 0.0
-            && u.plastic.params.specular.is_some_and(|s| matches!(s.fresnel, crate::bsdf::SpecularFresnel::ThinFilm { .. }));
+        use crate::bsdf::SpecularFresnel::{ThinFilm, ThinFilmConductor};
+        let film_fresnel = (u.plastic.weight > 0.0 && u.plastic.params.specular.is_some_and(|s| matches!(s.fresnel, ThinFilm { .. })))
+            || (u.metal.weight > 0.0 && matches!(u.metal.params.fresnel, ThinFilmConductor { .. }));
         (u.thin_film.weight > 0.0 || film_fresnel) && u.specular_control > 0.0
     }),
     (Feature::DoubleSpecular, |u| {
