@@ -97,6 +97,8 @@ AGREE = [
     # √(αx·αy), which loses less (docs/blender.md).
     ("anisotropic", "floor"),
     ("anisotropic", "brushed metal sphere"),
+    # The panel is stretched (scale 1.4 by 0.7): Cycles places tangents as normals, Tessera as
+    # directions, so the add-on writes (AᵀA)⁻¹·t. Measured 1.000; written as is, 2.406.
     ("anisotropic", "brushed metal panel"),
     ("anisotropic", "turned specular sphere"),
     # A black dielectric whose Anisotropic is a Checker (0 and 1), baked into an image:

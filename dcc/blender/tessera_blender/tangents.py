@@ -10,8 +10,10 @@ Cycles takes the tangent from one of two places (its `svm_node_tangent`), and so
 * **UV map** (a Tangent node set to UV Map): the map's MikkTSpace tangents, the direction in
   which its U grows, one per face corner as Blender computes them (``Mesh.calc_tangents``).
 
-Cycles then makes the tangent perpendicular to the shading normal, as Tessera does with a
-`tangent`. The primvar is object space; Tessera places it with the object as a direction.
+Cycles then places the tangent with the object as it places normals (by the inverse transpose
+of the object's matrix A) and makes it perpendicular to the shading normal. Tessera places a
+`tangent` as a direction (by A), so the primvar holds (AᵀA)⁻¹·t, which A takes where A⁻ᵀ takes
+t: the same under rotations and uniform scale, and Cycles' highlight under any other.
 """
 
 from __future__ import annotations
@@ -71,9 +73,21 @@ def _write(exported, mesh, obj, source, name, Sdf) -> str | None:
         tangents, interpolation = _along_uv(exported, mesh, obj, which, UsdGeom), UsdGeom.Tokens.faceVarying
     if isinstance(tangents, str):
         return tangents
+    tangents = _placed_as_normals(tangents, np.array(obj.matrix_world.to_3x3()))
     primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(name, Sdf.ValueTypeNames.Vector3fArray, interpolation)
     primvar.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(tangents, dtype=np.float32)))
     return None
+
+
+def _placed_as_normals(tangents, a):
+    """`tangents` (rows) such that the object's linear part `a` takes each where Cycles' normal
+    transform takes the original: (aᵀa)⁻¹·t, scaled to keep its largest entry 1; as they are
+    when `a` is singular."""
+    try:
+        m = np.linalg.inv(a.T @ a)
+    except np.linalg.LinAlgError:
+        return tangents
+    return tangents @ (m / np.abs(m).max()).T
 
 
 def _radial(mesh, data, axis, UsdGeom):
