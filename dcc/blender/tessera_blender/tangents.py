@@ -92,11 +92,17 @@ def _placed_as_normals(tangents, a):
 
 def _radial(mesh, data, axis, UsdGeom):
     """The radial tangent around `axis` at each exported point of `mesh`, from the texture space
-    of `data` (the object's mesh); or why not."""
+    of `data` (the object's mesh); or why not. Generated coordinates are the undeformed mesh's
+    (Cycles' orco): where the exported mesh has the object's own points, one for one (modifiers
+    and shape keys that only move them), the tangent is taken at the undeformed points."""
     points = UsdGeom.Mesh(mesh).GetPointsAttr().Get()
     if not points:
         return "the mesh has no points"
     p = np.array(points, dtype=np.float64)
+    if len(data.vertices) == len(p):
+        p = np.empty(len(p) * 3)
+        data.vertices.foreach_get("co", p)
+        p = p.reshape(-1, 3)
     location, size = np.array(data.texspace_location[:]), np.array(data.texspace_size[:])
     size = np.where(size != 0.0, size, 1.0)
     centred = (p - location) / (2.0 * size)  # g − ½

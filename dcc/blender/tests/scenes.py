@@ -486,9 +486,14 @@ def build(kind, directory):
                 m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
             m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
             if kind_ == "panel":
-                # Stretched along its X: Cycles places a tangent as a normal, so the add-on
-                # writes it for Tessera to place as a direction to the same place.
-                add(bpy.ops.mesh.primitive_plane_add, m, index, size=2.2, location=(2.4, 2.0, 1.4), rotation=(1.2, 0, 0.3)).scale = (1.4, 0.7, 1.0)
+                # Stretched along its X (Cycles places a tangent as a normal, so the add-on
+                # writes it for Tessera to place as a direction to the same place) and moved
+                # along it by a Displace modifier (Cycles takes Generated coordinates from the
+                # undeformed mesh: the circles stay centred on the undeformed panel).
+                panel = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2.2, location=(2.4, 2.0, 1.4), rotation=(1.2, 0, 0.3))
+                panel.scale = (1.4, 0.7, 1.0)
+                shift = panel.modifiers.new("Shift", "DISPLACE")
+                shift.direction, shift.strength = "X", -0.8
             else:
                 add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(-1.6 if metal else 0.0, 0 if metal else 2.5, 1.0), segments=64, ring_count=32)
         # In front of them, a black dielectric (IOR 1.5) whose Anisotropic is a Checker (0 and
