@@ -458,7 +458,7 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     said = {}
     for w in n["warnings"]:
         said.setdefault(w.split(":")[0], []).append(w)
-    assert said.keys() == {"toon", "sheen", "render_levels", "beckmann_glass", "fresnel_mix", "ngon_tangent", "geometry_tangent"}, n["warnings"]
+    assert said.keys() == {"toon", "sheen", "render_levels", "beckmann_glass", "fresnel_mix", "ngon_tangent", "combined_tangent"}, n["warnings"]
     assert all(len(v) == 1 for v in said.values()), said
     # Baked (tessera_blender/bake.py), each to one value: a Color Ramp over the black image is
     # its first stop, black; the image's alpha (1) times Math's 0.5; the RGB node's green; a
@@ -492,9 +492,11 @@ def test_node_trees_the_export_cannot_carry_are_corrected_or_reported(results):
     # metals: the `sheen` scene).
     assert "Sheen Weight is not carried" in said["sheen"][0], "and not the tint of a coat that is not there"
     # Anisotropy along a UV map's tangents on a face of 32 corners (MikkTSpace takes tris and
-    # quads), said with the mesh; along a Geometry node's Tangent, not carried.
+    # quads), said with the mesh; along a Geometry node's Tangent, Cycles' default (radial
+    # around Z), carried; along a Combine XYZ, not carried.
     assert "no tangents of UV map '(active render)' on /root/" in said["ngon_tangent"][0] and "tris/quads" in said["ngon_tangent"][0], said
-    assert "Anisotropic is not carried (its Tangent comes from 'Geometry'" in said["geometry_tangent"][0], said
+    assert "/root/_materials/geometry_tangent: anisotropy 0.5, rotation 0 along the tesseraRadialTangentZ primvar" in corrections, corrections
+    assert "Anisotropic is not carried (its Tangent comes from 'Combine XYZ'" in said["combined_tangent"][0], said
     # A Bump over an image becomes a tessera:Bump over it (scale: Blender's default Distance,
     # 0.001); over anything else the height image would arrive as a normal map, so the normal
     # is baked instead (flat here, so disconnected).

@@ -188,15 +188,19 @@ def carried_anisotropy(node):
 
 def tangent_source(node):
     """Where a Principled BSDF's Tangent runs, as export.py writes it on each mesh: ("radial",
-    axis) around the object's X, Y or Z axis in Generated coordinates (unlinked: Cycles' default,
-    around Z; or a radial Tangent node), ("uv", map) along a UV map's tangents (a Tangent node's
-    UV Map; "" for the mesh's active render map); None when it comes from anything else."""
+    axis) around the object's X, Y or Z axis in Generated coordinates (unlinked or a Geometry
+    node's Tangent: Cycles' default, around Z; or a radial Tangent node), ("uv", map) along a
+    UV map's tangents (a Tangent node's UV Map; "" for the mesh's active render map); None when
+    it comes from anything else."""
     socket = node.inputs["Tangent"]
     if not socket.is_linked:
         return ("radial", "Z")
-    source = socket.links[0].from_node
-    while source.type == "REROUTE" and source.inputs[0].is_linked:
-        source = source.inputs[0].links[0].from_node
+    link = socket.links[0]
+    while link.from_node.type == "REROUTE" and link.from_node.inputs[0].is_linked:
+        link = link.from_node.inputs[0].links[0]
+    source = link.from_node
+    if source.type == "NEW_GEOMETRY" and link.from_socket.name == "Tangent":
+        return ("radial", "Z")
     if source.type != "TANGENT":
         return None
     return ("radial", source.axis) if source.direction_type == "RADIAL" else ("uv", source.uv_map)

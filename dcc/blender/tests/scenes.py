@@ -877,11 +877,16 @@ def node_trees(directory):
         link(tree, t.outputs[0], p.inputs["Tangent"])
 
     def geometry_tangent(tree, p):
-        # Anisotropy along a Geometry node's Tangent, which the add-on does not write: said.
+        # Anisotropy along a Geometry node's Tangent: Cycles' default tangent, carried as it is.
         p.inputs["Anisotropic"].default_value = 0.5
         link(tree, tree.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"], p.inputs["Tangent"])
 
-    cases = (ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen, ngon_tangent, geometry_tangent)
+    def combined_tangent(tree, p):
+        # Anisotropy along a vector built by a Combine XYZ, which the add-on does not write: said.
+        p.inputs["Anisotropic"].default_value = 0.5
+        link(tree, tree.nodes.new("ShaderNodeCombineXYZ").outputs[0], p.inputs["Tangent"])
+
+    cases = (ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen, ngon_tangent, geometry_tangent, combined_tangent)
     for x, case in enumerate(cases):
         m = bpy.data.materials.new(case.__name__)
         case(m.node_tree, m.node_tree.nodes["Principled BSDF"])
