@@ -345,6 +345,143 @@ def _added_glow(mat):
     return m
 
 
+def _sheen_spheres(mat, add, scene):
+    """The `sheen` scene's objects; its world."""
+    # A Principled BSDF's sheen (Zeltner et al.'s in Cycles, the fuzz coat in Tessera) over
+    # dark bases, in a uniform white world, where sheen shows as a bright rim: white at the
+    # default roughness 0.5, and orange at roughness 0.2.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+    for index, x, base, inputs in (
+        (2, -1.2, (0.05, 0.05, 0.05), {"Sheen Weight": 1.0}),
+        (3, 1.2, (0.1, 0.02, 0.02), {"Sheen Weight": 1.0, "Sheen Roughness": 0.2, "Sheen Tint": (1.0, 0.6, 0.2, 1)}),
+    ):
+        m = mat(f"sheen {index}", base)
+        for name, value in inputs.items():
+            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+    # Behind them, a near-black sphere whose specular (IOR 1.5, roughness 0.3) is tinted
+    # orange head-on and stays white at grazing angles.
+    m = mat("specular tint", (0.02, 0.02, 0.02), rough=0.3)
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["IOR"].default_value = 1.5
+    p.inputs["Specular Tint"].default_value = (1.0, 0.4, 0.1, 1)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
+    # And a gold metal whose Specular Tint is its F82 edge tint.
+    m = mat("edge tint", (0.9, 0.6, 0.3), rough=0.3, metal=1.0)
+    m.node_tree.nodes["Principled BSDF"].inputs["Specular Tint"].default_value = (1.0, 0.5, 0.2, 1)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
+    # And in front, a dark sphere whose Sheen Weight is a Checker (0 and 1): baked at 256².
+    scene.tessera.bake_size = 256
+    m = _checkered(mat("checkered sheen", (0.05, 0.05, 0.05)), "Sheen Weight")
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 6, radius=0.7, location=(0.0, -2.3, 0.7), segments=64, ring_count=32)
+    # Front right, a full sheen whose Sheen Tint is a Checker of orange and blue and whose
+    # Sheen Roughness runs from 0.2 to 0.4 across the object (a Gradient); front left, a
+    # near-black specular whose Specular Tint is a Checker of orange and white. All baked.
+    # (A roughness from the Checker itself read 0.896: Tessera filters a baked image over
+    # each pixel's footprint, the squares are about three pixels wide, and the sheen is not
+    # linear in its roughness; the same bakes at one roughness read 0.996-1.007.)
+    m = mat("checkered sheen tint", (0.05, 0.05, 0.05))
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["Sheen Weight"].default_value = 1.0
+    checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.5, 0.1, 1), Color2=(0.2, 0.4, 1.0, 1))
+    m.node_tree.links.new(checker.outputs["Color"], p.inputs["Sheen Tint"])
+    ramp = _node(m.node_tree, "ShaderNodeMath"); ramp.operation = "MULTIPLY_ADD"
+    ramp.inputs[1].default_value, ramp.inputs[2].default_value = 0.2, 0.2
+    m.node_tree.links.new(_node(m.node_tree, "ShaderNodeTexGradient").outputs["Fac"], ramp.inputs[0])
+    m.node_tree.links.new(ramp.outputs[0], p.inputs["Sheen Roughness"])
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.45, location=(1.25, -2.4, 0.45), segments=64, ring_count=32)
+    m = mat("checkered specular tint", (0.02, 0.02, 0.02), rough=0.3)
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["IOR"].default_value = 1.5
+    checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.4, 0.1, 1), Color2=(1.0, 1.0, 1.0, 1))
+    m.node_tree.links.new(checker.outputs["Color"], p.inputs["Specular Tint"])
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 8, radius=0.45, location=(-1.3, -2.4, 0.45), segments=64, ring_count=32)
+    world = bpy.data.worlds.new("white")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    return world
+
+
+def _anisotropic_objects(mat, add, scene):
+    """The `anisotropic` scene's objects; its world."""
+    # A Principled BSDF's Anisotropic along Cycles' default tangent (radial around the
+    # object's Z in Generated coordinates), under an area light: on a silver sphere, on a
+    # metal panel turned towards the camera (brushed in circles around its middle), and on a
+    # near-black dielectric sphere whose specular tangent is turned a quarter. Single
+    # scattering in both renderers (Cycles' GGX, Tessera without energy compensation): the
+    # two compensate differently, which the anisotropic lobes show most (docs/blender.md).
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+    for index, kind_, inputs in (
+        (2, "sphere", {"Anisotropic": 0.9}),
+        (3, "panel", {"Anisotropic": 0.9}),
+        (4, "dielectric", {"Anisotropic": 0.9, "Anisotropic Rotation": 0.25}),
+    ):
+        metal = 0.0 if kind_ == "dielectric" else 1.0
+        m = mat(f"brushed {index}", (0.0, 0.0, 0.0) if metal == 0.0 else (0.9, 0.9, 0.9), rough=0.35, metal=metal)
+        inputs = {**inputs, "IOR": 1.5} if metal == 0.0 else inputs
+        for name, value in inputs.items():
+            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+        m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
+        if kind_ == "panel":
+            # Stretched along its X (Cycles places a tangent as a normal, so the add-on
+            # writes it for Tessera to place as a direction to the same place) and moved
+            # along it by a Displace modifier (Cycles takes Generated coordinates from the
+            # undeformed mesh: the circles stay centred on the undeformed panel).
+            panel = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2.2, location=(2.4, 2.0, 1.4), rotation=(1.2, 0, 0.3))
+            panel.scale = (1.4, 0.7, 1.0)
+            shift = panel.modifiers.new("Shift", "DISPLACE")
+            shift.direction, shift.strength = "X", -0.8
+        else:
+            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(-1.6 if metal else 0.0, 0 if metal else 2.5, 1.0), segments=64, ring_count=32)
+    # In front of them, a black dielectric (IOR 1.5) whose Anisotropic is a Checker (0 and
+    # 1): baked. Not a metal: a metal there would throw caustics on the floor that Tessera
+    # resolves with more noise than Cycles at 256 spp (the floor read 1.034). Baked at 256².
+    scene.tessera.bake_size = 256
+    m = _checkered(mat("checkered brushed", (0.0, 0.0, 0.0), rough=0.35), "Anisotropic")
+    m.node_tree.nodes["Principled BSDF"].inputs["IOR"].default_value = 1.5
+    m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=0.7, location=(1.0, -2.2, 0.7), segments=64, ring_count=32)
+    # Tangents from a Tangent node, on black dielectrics (metals' caustics on the floor are
+    # what Tessera resolves noisier, above): a panel brushed along its UV map's U, whose UVs
+    # are turned a quarter (U runs up the panel: straight strokes where the default would
+    # draw circles), turned to mirror the light into the camera, and a sphere brushed
+    # radially around the object's X.
+    m = _brushed_along(mat("uv brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="UV_MAP", uv_map="UVMap")
+    panel = add(bpy.ops.mesh.primitive_plane_add, m, 6, size=1.1, location=(-1.6, -2.4, 0.75), rotation=(0.93, 0, 0.72))
+    _turn_uvs_a_quarter(panel.data)
+    m = _brushed_along(mat("x brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="RADIAL", axis="X")
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.4, location=(-0.3, -3.0, 0.4), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='AREA', location=(1.0, -3.0, 4.0), rotation=(0.7, 0.2, 0)); l = bpy.context.object.data; l.energy = 600; l.size = 1.5
+    scene.tessera.energy_compensation = False
+    world = bpy.data.worlds.new("dim")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
+    return world
+
+
+def _thin_film_spheres(mat, add):
+    """The `thin_film` scene's objects; its world."""
+    # A Principled BSDF's Thin Film over black dielectrics (IOR 1.5, Roughness 0.2) in a
+    # uniform white world, which each reflects by its film's colours: 500 nm of IOR 1.33 (a
+    # soap film's greens and magentas) and 250 nm of IOR 1.45.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
+    for index, x, inputs in ((2, -1.2, {"Thin Film Thickness": 500.0, "Thin Film IOR": 1.33}), (3, 1.2, {"Thin Film Thickness": 250.0, "Thin Film IOR": 1.45})):
+        m = mat(f"film {index}", (0.0, 0.0, 0.0), rough=0.2)
+        for name, value in {**inputs, "IOR": 1.5}.items():
+            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+    # In front, films over metals: 300 nm of IOR 1.5 over a silver-white metal, and
+    # 200 nm of IOR 2.0 over gold with an orange Specular Tint (Cycles estimates the metal's
+    # complex index from the colour and the tint, Tessera too).
+    for index, x, base, tint, nm, ior in ((4, -1.0, (0.9, 0.9, 0.9), (1, 1, 1, 1), 300.0, 1.5), (5, 1.0, (1.0, 0.78, 0.34), (1.0, 0.6, 0.3, 1), 200.0, 2.0)):
+        m = mat(f"metal film {index}", base, rough=0.5, metal=1.0)
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["Specular Tint"].default_value = tint
+        p.inputs["Thin Film Thickness"].default_value, p.inputs["Thin Film IOR"].default_value = nm, ior
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=0.45, location=(x, -2.9, 0.45), segments=64, ring_count=32)
+    world = bpy.data.worlds.new("white")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    return world
+
+
 def build(kind, directory):
     """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -414,132 +551,13 @@ def build(kind, directory):
         bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(1.1, 0, 0)); bpy.context.object.data.energy = 3
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "sheen":
-        # A Principled BSDF's sheen (Zeltner et al.'s in Cycles, the fuzz coat in Tessera) over
-        # dark bases, in a uniform white world, where sheen shows as a bright rim: white at the
-        # default roughness 0.5, and orange at roughness 0.2.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
-        for index, x, base, inputs in (
-            (2, -1.2, (0.05, 0.05, 0.05), {"Sheen Weight": 1.0}),
-            (3, 1.2, (0.1, 0.02, 0.02), {"Sheen Weight": 1.0, "Sheen Roughness": 0.2, "Sheen Tint": (1.0, 0.6, 0.2, 1)}),
-        ):
-            m = mat(f"sheen {index}", base)
-            for name, value in inputs.items():
-                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
-            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
-        # Behind them, a near-black sphere whose specular (IOR 1.5, roughness 0.3) is tinted
-        # orange head-on and stays white at grazing angles.
-        m = mat("specular tint", (0.02, 0.02, 0.02), rough=0.3)
-        p = m.node_tree.nodes["Principled BSDF"]
-        p.inputs["IOR"].default_value = 1.5
-        p.inputs["Specular Tint"].default_value = (1.0, 0.4, 0.1, 1)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
-        # And a gold metal whose Specular Tint is its F82 edge tint.
-        m = mat("edge tint", (0.9, 0.6, 0.3), rough=0.3, metal=1.0)
-        m.node_tree.nodes["Principled BSDF"].inputs["Specular Tint"].default_value = (1.0, 0.5, 0.2, 1)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
-        # And in front, a dark sphere whose Sheen Weight is a Checker (0 and 1): baked at 256².
-        scene.tessera.bake_size = 256
-        m = _checkered(mat("checkered sheen", (0.05, 0.05, 0.05)), "Sheen Weight")
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 6, radius=0.7, location=(0.0, -2.3, 0.7), segments=64, ring_count=32)
-        # Front right, a full sheen whose Sheen Tint is a Checker of orange and blue and whose
-        # Sheen Roughness runs from 0.2 to 0.4 across the object (a Gradient); front left, a
-        # near-black specular whose Specular Tint is a Checker of orange and white. All baked.
-        # (A roughness from the Checker itself read 0.896: Tessera filters a baked image over
-        # each pixel's footprint, the squares are about three pixels wide, and the sheen is not
-        # linear in its roughness; the same bakes at one roughness read 0.996-1.007.)
-        m = mat("checkered sheen tint", (0.05, 0.05, 0.05))
-        p = m.node_tree.nodes["Principled BSDF"]
-        p.inputs["Sheen Weight"].default_value = 1.0
-        checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.5, 0.1, 1), Color2=(0.2, 0.4, 1.0, 1))
-        m.node_tree.links.new(checker.outputs["Color"], p.inputs["Sheen Tint"])
-        ramp = _node(m.node_tree, "ShaderNodeMath"); ramp.operation = "MULTIPLY_ADD"
-        ramp.inputs[1].default_value, ramp.inputs[2].default_value = 0.2, 0.2
-        m.node_tree.links.new(_node(m.node_tree, "ShaderNodeTexGradient").outputs["Fac"], ramp.inputs[0])
-        m.node_tree.links.new(ramp.outputs[0], p.inputs["Sheen Roughness"])
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.45, location=(1.25, -2.4, 0.45), segments=64, ring_count=32)
-        m = mat("checkered specular tint", (0.02, 0.02, 0.02), rough=0.3)
-        p = m.node_tree.nodes["Principled BSDF"]
-        p.inputs["IOR"].default_value = 1.5
-        checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=4.0, Color1=(1.0, 0.4, 0.1, 1), Color2=(1.0, 1.0, 1.0, 1))
-        m.node_tree.links.new(checker.outputs["Color"], p.inputs["Specular Tint"])
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 8, radius=0.45, location=(-1.3, -2.4, 0.45), segments=64, ring_count=32)
-        world = bpy.data.worlds.new("white")
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+        world = _sheen_spheres(mat, add, scene)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "anisotropic":
-        # A Principled BSDF's Anisotropic along Cycles' default tangent (radial around the
-        # object's Z in Generated coordinates), under an area light: on a silver sphere, on a
-        # metal panel turned towards the camera (brushed in circles around its middle), and on a
-        # near-black dielectric sphere whose specular tangent is turned a quarter. Single
-        # scattering in both renderers (Cycles' GGX, Tessera without energy compensation): the
-        # two compensate differently, which the anisotropic lobes show most (docs/blender.md).
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
-        for index, kind_, inputs in (
-            (2, "sphere", {"Anisotropic": 0.9}),
-            (3, "panel", {"Anisotropic": 0.9}),
-            (4, "dielectric", {"Anisotropic": 0.9, "Anisotropic Rotation": 0.25}),
-        ):
-            metal = 0.0 if kind_ == "dielectric" else 1.0
-            m = mat(f"brushed {index}", (0.0, 0.0, 0.0) if metal == 0.0 else (0.9, 0.9, 0.9), rough=0.35, metal=metal)
-            inputs = {**inputs, "IOR": 1.5} if metal == 0.0 else inputs
-            for name, value in inputs.items():
-                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
-            m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
-            if kind_ == "panel":
-                # Stretched along its X (Cycles places a tangent as a normal, so the add-on
-                # writes it for Tessera to place as a direction to the same place) and moved
-                # along it by a Displace modifier (Cycles takes Generated coordinates from the
-                # undeformed mesh: the circles stay centred on the undeformed panel).
-                panel = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2.2, location=(2.4, 2.0, 1.4), rotation=(1.2, 0, 0.3))
-                panel.scale = (1.4, 0.7, 1.0)
-                shift = panel.modifiers.new("Shift", "DISPLACE")
-                shift.direction, shift.strength = "X", -0.8
-            else:
-                add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(-1.6 if metal else 0.0, 0 if metal else 2.5, 1.0), segments=64, ring_count=32)
-        # In front of them, a black dielectric (IOR 1.5) whose Anisotropic is a Checker (0 and
-        # 1): baked. Not a metal: a metal there would throw caustics on the floor that Tessera
-        # resolves with more noise than Cycles at 256 spp (the floor read 1.034). Baked at 256².
-        scene.tessera.bake_size = 256
-        m = _checkered(mat("checkered brushed", (0.0, 0.0, 0.0), rough=0.35), "Anisotropic")
-        m.node_tree.nodes["Principled BSDF"].inputs["IOR"].default_value = 1.5
-        m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=0.7, location=(1.0, -2.2, 0.7), segments=64, ring_count=32)
-        # Tangents from a Tangent node, on black dielectrics (metals' caustics on the floor are
-        # what Tessera resolves noisier, above): a panel brushed along its UV map's U, whose UVs
-        # are turned a quarter (U runs up the panel: straight strokes where the default would
-        # draw circles), turned to mirror the light into the camera, and a sphere brushed
-        # radially around the object's X.
-        m = _brushed_along(mat("uv brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="UV_MAP", uv_map="UVMap")
-        panel = add(bpy.ops.mesh.primitive_plane_add, m, 6, size=1.1, location=(-1.6, -2.4, 0.75), rotation=(0.93, 0, 0.72))
-        _turn_uvs_a_quarter(panel.data)
-        m = _brushed_along(mat("x brushed", (0.0, 0.0, 0.0), rough=0.35), direction_type="RADIAL", axis="X")
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 7, radius=0.4, location=(-0.3, -3.0, 0.4), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='AREA', location=(1.0, -3.0, 4.0), rotation=(0.7, 0.2, 0)); l = bpy.context.object.data; l.energy = 600; l.size = 1.5
-        scene.tessera.energy_compensation = False
-        world = bpy.data.worlds.new("dim")
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.2, 0.2, 1)
+        world = _anisotropic_objects(mat, add, scene)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "thin_film":
-        # A Principled BSDF's Thin Film over black dielectrics (IOR 1.5, Roughness 0.2) in a
-        # uniform white world, which each reflects by its film's colours: 500 nm of IOR 1.33 (a
-        # soap film's greens and magentas) and 250 nm of IOR 1.45.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.5, 0.5, 0.5)), 1, size=20)
-        for index, x, inputs in ((2, -1.2, {"Thin Film Thickness": 500.0, "Thin Film IOR": 1.33}), (3, 1.2, {"Thin Film Thickness": 250.0, "Thin Film IOR": 1.45})):
-            m = mat(f"film {index}", (0.0, 0.0, 0.0), rough=0.2)
-            for name, value in {**inputs, "IOR": 1.5}.items():
-                m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
-            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
-        # In front, films over metals: 300 nm of IOR 1.5 over a silver-white metal, and
-        # 200 nm of IOR 2.0 over gold with an orange Specular Tint (Cycles estimates the metal's
-        # complex index from the colour and the tint, Tessera too).
-        for index, x, base, tint, nm, ior in ((4, -1.0, (0.9, 0.9, 0.9), (1, 1, 1, 1), 300.0, 1.5), (5, 1.0, (1.0, 0.78, 0.34), (1.0, 0.6, 0.3, 1), 200.0, 2.0)):
-            m = mat(f"metal film {index}", base, rough=0.5, metal=1.0)
-            p = m.node_tree.nodes["Principled BSDF"]
-            p.inputs["Specular Tint"].default_value = tint
-            p.inputs["Thin Film Thickness"].default_value, p.inputs["Thin Film IOR"].default_value = nm, ior
-            add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=0.45, location=(x, -2.9, 0.45), segments=64, ring_count=32)
-        world = bpy.data.worlds.new("white")
-        world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+        world = _thin_film_spheres(mat, add)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)
@@ -770,6 +788,27 @@ def render(scene, engine, path, spp):
     bpy.ops.render.render(write_still=True)
 
 
+def ngon_tangent(tree, p):
+    """`node_trees`' anisotropy along a UV map's tangents on a disk of one 32-cornered face,
+    which Blender's MikkTSpace cannot take: said, with the mesh."""
+    p.inputs["Anisotropic"].default_value = 0.5
+    t = tree.nodes.new("ShaderNodeTangent"); t.direction_type = "UV_MAP"
+    tree.links.new(t.outputs[0], p.inputs["Tangent"])
+
+
+def geometry_tangent(tree, p):
+    """`node_trees`' anisotropy along a Geometry node's Tangent: Cycles' default tangent, carried."""
+    p.inputs["Anisotropic"].default_value = 0.5
+    tree.links.new(tree.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"], p.inputs["Tangent"])
+
+
+def combined_tangent(tree, p):
+    """`node_trees`' anisotropy along a vector built by a Combine XYZ, which the add-on does not
+    write: said."""
+    p.inputs["Anisotropic"].default_value = 0.5
+    tree.links.new(tree.nodes.new("ShaderNodeCombineXYZ").outputs[0], p.inputs["Tangent"])
+
+
 def node_trees(directory):
     """One plane per node set-up Blender's USD export translates, or does not, each material
     named for its case (docs/blender.md): the add-on must correct or report each."""
@@ -868,23 +907,6 @@ def node_trees(directory):
         p.inputs["Sheen Weight"].default_value = 0.5
         p.inputs["Coat Weight"].default_value = 0.0
         p.inputs["Coat Tint"].default_value = (1, 0, 0, 1)  # no coat: nothing to say of its tint
-
-    def ngon_tangent(tree, p):
-        # Anisotropy along a UV map's tangents on a disk of one 32-cornered face (below), which
-        # Blender's MikkTSpace cannot take: said, with the mesh.
-        p.inputs["Anisotropic"].default_value = 0.5
-        t = tree.nodes.new("ShaderNodeTangent"); t.direction_type = "UV_MAP"
-        link(tree, t.outputs[0], p.inputs["Tangent"])
-
-    def geometry_tangent(tree, p):
-        # Anisotropy along a Geometry node's Tangent: Cycles' default tangent, carried as it is.
-        p.inputs["Anisotropic"].default_value = 0.5
-        link(tree, tree.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"], p.inputs["Tangent"])
-
-    def combined_tangent(tree, p):
-        # Anisotropy along a vector built by a Combine XYZ, which the add-on does not write: said.
-        p.inputs["Anisotropic"].default_value = 0.5
-        link(tree, tree.nodes.new("ShaderNodeCombineXYZ").outputs[0], p.inputs["Tangent"])
 
     cases = (ramp, math, bump, ramp_bump, normal_map, mapped, rgb, mix_shader, glossy, toon, beckmann_glass, fresnel_mix, add_glow, no_uvs, render_levels, sheen, ngon_tangent, geometry_tangent, combined_tangent)
     for x, case in enumerate(cases):
