@@ -133,6 +133,10 @@ AGREE = [
     # where over grey it takes from a diffuse one and reads 0.958); as exported (untinted
     # Disney coat) 1.834.
     ("coats", "tinted coat metal sphere"),
+    # The same coat over silver with its Coat Tint a Checker of orange and white, baked:
+    # measured 0.998 at 256 spp; with the link (as before: the coat untinted, the tint
+    # reported) 1.165.
+    ("coats", "checkered coat metal sphere"),
     ("emission_shader", "sphere"),
     # Bumps (tessera:Bump): a height ramp through a Bump node (Distance 0.5) and through Bump
     # Only displacement (Scale 0.5) tilts each plane 14° away from the sun; a flat plane between

@@ -402,12 +402,16 @@ def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
     else:
         _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
-    tint = tuple(float(c) for c in tuple(node.inputs["Coat Tint"].default_value)[:3])
-    # coats_carried holds only tinted coats.
+    # coats_carried holds only tinted coats; a linked tint is baked.
+    tint = nodes._colour_or_linked(node.inputs["Coat Tint"])
     shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
-    shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
+    material = bpy.data.materials.get(name)
+    if material is not None:
+        _set_or_bake(exported, material, shader, "clearcoatAttenuationColor", tint, Sdf, UsdShade)
+    elif isinstance(tint, tuple):
+        shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
     shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
-    exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {nodes._shown(tint)} as {shader.GetIdAttr().Get()}'s clearcoat")
+    exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {_said(tint)} as {shader.GetIdAttr().Get()}'s clearcoat")
 
 
 def _correct_native_surface(exported: Export, prim, material, Sdf, UsdShade) -> None:

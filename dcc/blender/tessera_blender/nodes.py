@@ -251,16 +251,18 @@ def coats_carried(node):
     """Which of Tessera's shaders carries a Principled BSDF's tinted coat, which
     UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
     (tessera:Metal's, since 2026-12-07) or None. Constants, on an opaque dielectric or a full
-    metal (no transmission, Alpha 1: the shaders have no opacity). Measured on the `coats`
+    metal (no transmission, Alpha 1: the shaders have no opacity); the tint may be linked (it is
+    baked). Measured on the `coats`
     comparison scene: a tinted coat reads 0.958 of Cycles there (1.862 as UsdPreviewSurface's
     untinted coat). An untinted coat stays UsdPreviewSurface's, its Coat IOR reported: at Coat
     IOR 1.8 its Disney coat read 1.039, SolidDielectric's 0.960, no nearer. The sheen is not the
     Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'
     own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
-    if any(node.inputs[n].is_linked for n in COAT_INPUTS) or float(value["Coat Weight"]) <= 0.0:
+    if any(node.inputs[n].is_linked for n in ("Coat Weight", "Coat IOR")) or float(value["Coat Weight"]) <= 0.0:
         return None
-    if tuple(value["Coat Tint"])[:3] == (1.0, 1.0, 1.0):
+    # A linked Coat Tint is baked (export.py).
+    if _colour_or_linked(node.inputs["Coat Tint"]) == (1.0, 1.0, 1.0):
         return None
     return _opaque_kind(node)
 
