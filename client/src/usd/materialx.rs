@@ -730,24 +730,30 @@ impl Lobes {
     /// that √(αx·αy), which Disney's roughness sets, is OpenPBR's. A constant a is clamped to
     /// [0, 0.9] (above 0.9, said); with a textured a, OpenPBR's roughness is kept (said).
     fn as_disney_anisotropy(&mut self, surface: &str, warnings: &mut Vec<String>) {
-        let constant = self.anisotropy.value().map(|v| v.x);
-        if let Some(a) = constant.filter(|&a| a > MAX_STRETCH) {
-            warnings.push(format!("{surface}: specular anisotropy {a} is rendered at {MAX_STRETCH}: Tessera's GGX stretches at most 10:1"));
-        }
-        if let Some(a) = constant {
-            self.anisotropy = Lin::constant(Vec4::splat(a.clamp(0.0, MAX_STRETCH)));
-        }
-        match (self.stretch, constant) {
-            (Stretch::StandardSurface, _) => {}
-            (Stretch::OpenPbr, Some(a)) => {
-                let k = 1.0 - a.clamp(0.0, MAX_STRETCH);
-                self.roughness = self.roughness.clone().times(Vec4::splat((2.0 * k / (1.0 + k * k)).powf(0.25)));
+        let open_pbr = matches!(self.stretch, Stretch::OpenPbr);
+        match self.anisotropy.value().map(|v| v.x) {
+            Some(a) => {
+                if a > MAX_STRETCH {
+                    warnings.push(format!(
+                        "{surface}: specular anisotropy {a} is rendered at {MAX_STRETCH}: Tessera's GGX stretches at most 10:1"
+                    ));
+                }
+                let a = a.clamp(0.0, MAX_STRETCH);
+                if open_pbr {
+                    let k = 1.0 - a;
+                    self.roughness = self.roughness.clone().times(Vec4::splat((2.0 * k / (1.0 + k * k)).powf(0.25)));
+                }
+                self.anisotropy = Lin::constant(Vec4::splat(a * (1.0 / MAX_STRETCH)));
             }
-            (Stretch::OpenPbr, None) => warnings.push(format!(
-                "{surface}: with a textured specular_roughness_anisotropy the roughness is not narrowed as OpenPBR narrows it (by up to 16% at 0.9)"
-            )),
+            None => {
+                if open_pbr {
+                    warnings.push(format!(
+                        "{surface}: with a textured specular_roughness_anisotropy the roughness is not narrowed as OpenPBR narrows it (by up to 16% at 0.9)"
+                    ));
+                }
+                self.anisotropy = self.anisotropy.clone().times(Vec4::splat(1.0 / MAX_STRETCH));
+            }
         }
-        self.anisotropy = self.anisotropy.clone().times(Vec4::splat(1.0 / MAX_STRETCH));
     }
 
     /// Which way the anisotropy runs on Tessera's own shaders: along the texture coordinate s

@@ -165,8 +165,8 @@ def _correct_material(exported: Export, prim, Sdf, UsdShade) -> None:
     _correct_displacement(exported, prim, Sdf, UsdShade)
     _correct_glass(exported, prim, Sdf, UsdShade)
     _correct_subsurface(exported, prim, Sdf, UsdShade)
-    _correct_coats(exported, prim, Sdf, UsdShade)
     if material is not None:
+        _correct_coats(exported, prim, material, Sdf, UsdShade)
         _correct_native_surface(exported, prim, material, Sdf, UsdShade)
     _drop_specular_level(exported, prim, UsdShade)
     if material is not None:
@@ -381,35 +381,29 @@ def _renamed(shader, shader_id, names, Sdf) -> None:
             shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
 
 
-def _correct_coats(exported: Export, prim, Sdf, UsdShade) -> None:
+def _correct_coats(exported: Export, prim, material, Sdf, UsdShade) -> None:
     """A Principled BSDF's tinted coat, which UsdPreviewSurface cannot hold, on
     tessera:SolidDielectric's or, on a full metal, tessera:Metal's clearcoat
     (``nodes.coats_carried`` says when): Coat IOR as the coat's index, Coat Tint as the colour a
     head-on pass through a coat of thickness 1 absorbs towards (Cycles tints by Coat Tint to
     the power of the path length through the coat, 1 head-on)."""
-    name = _material_name(prim)
     node = _principled_of(prim, UsdShade)
     shader = _surface_shader(prim, UsdShade) if node is not None else None
     kind = nodes.coats_carried(node) if shader else None
     if kind is None:
         return
-    _warn_if_displaced(exported, name, shader)
+    _warn_if_displaced(exported, material.name, shader)
     if kind == "metal":
         _as_metal(shader, Sdf)
-        if nodes.carried_specular_tint(node) is None:
-            # A carried tint is the edge tint _correct_native_surface sets (or bakes).
-            shader.CreateInput("edgeTint", Sdf.ValueTypeNames.Color3f).Set((1.0, 1.0, 1.0))
+        # Untinted; a carried Specular Tint replaces it (_correct_native_surface, which follows).
+        shader.CreateInput("edgeTint", Sdf.ValueTypeNames.Color3f).Set((1.0, 1.0, 1.0))
     else:
         _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
     # coats_carried holds only tinted coats; a linked tint is baked.
     tint = nodes._colour_or_linked(node.inputs["Coat Tint"])
     shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
-    material = bpy.data.materials.get(name)
-    if material is not None:
-        _set_or_bake(exported, material, shader, "clearcoatAttenuationColor", tint, Sdf, UsdShade)
-    elif isinstance(tint, tuple):
-        shader.CreateInput("clearcoatAttenuationColor", Sdf.ValueTypeNames.Color3f).Set(tint)
+    _set_or_bake(exported, material, shader, "clearcoatAttenuationColor", tint, Sdf, UsdShade)
     shader.CreateInput("clearcoatThickness", Sdf.ValueTypeNames.Float).Set(1.0)
     exported.corrections.append(f"{prim.GetPath()}: coat of IOR {ior:g}, tint {_said(tint)} as {shader.GetIdAttr().Get()}'s clearcoat")
 

@@ -244,16 +244,13 @@ def _opaque_kind(principled):
 
 
 #: Principled inputs whose links keep its coat off Tessera's absorbing clearcoat (constants only).
-COAT_INPUTS = ("Coat Weight", "Coat Tint", "Coat IOR")
-
-
 def coats_carried(node):
     """Which of Tessera's shaders carries a Principled BSDF's tinted coat, which
     UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
     (tessera:Metal's, since 2026-12-07) or None. Constants, on an opaque dielectric or a full
     metal (no transmission, Alpha 1: the shaders have no opacity); the tint may be linked (it is
-    baked). Measured on the `coats`
-    comparison scene: a tinted coat reads 0.958 of Cycles there (1.862 as UsdPreviewSurface's
+    baked). Measured on the `coats` comparison scene: a tinted coat reads 0.958 of Cycles there
+    (1.862 as UsdPreviewSurface's
     untinted coat). An untinted coat stays UsdPreviewSurface's, its Coat IOR reported: at Coat
     IOR 1.8 its Disney coat read 1.039, SolidDielectric's 0.960, no nearer. The sheen is not the
     Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'

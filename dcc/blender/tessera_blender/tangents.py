@@ -114,18 +114,22 @@ def _along_uv(exported, mesh, obj, uv_map, UsdGeom):
     """The MikkTSpace tangents of `obj`'s UV map `uv_map` ("" for the active render map) at each
     face corner of the exported `mesh`, or why not. The exporter writes the faces in the loop
     order of the object's mesh (the cage, under an exported Subdivision Surface) or of its
-    evaluated mesh: the tangents are taken from the one whose corners the exported mesh has."""
-    evaluated = obj.evaluated_get(exported.depsgraph) if exported.depsgraph is not None else None
-    candidates = [obj.data] + ([evaluated.to_mesh()] if evaluated is not None else [])
+    evaluated mesh: the tangents are taken from the one whose corners the exported mesh has, the
+    cage first (the evaluated mesh is built only when the cage is not it)."""
+    found = _corner_tangents(obj.data, uv_map)
+    if isinstance(found, tuple) and unwrap.same_corners(mesh, found[0], UsdGeom):
+        return found[1]
+    why = found if isinstance(found, str) else "the exported mesh is not Blender's corner for corner"
+    if exported.depsgraph is None:
+        return why
+    evaluated = obj.evaluated_get(exported.depsgraph)
     try:
-        found = [_corner_tangents(data, uv_map) for data in candidates]
-        for tangents in found:
-            if isinstance(tangents, tuple) and unwrap.same_corners(mesh, tangents[0], UsdGeom):
-                return tangents[1]
-        return next((t for t in found if isinstance(t, str)), "the exported mesh is not Blender's corner for corner")
+        found = _corner_tangents(evaluated.to_mesh(), uv_map)
+        if isinstance(found, tuple) and unwrap.same_corners(mesh, found[0], UsdGeom):
+            return found[1]
+        return why
     finally:
-        if evaluated is not None:
-            evaluated.to_mesh_clear()
+        evaluated.to_mesh_clear()
 
 
 def _corner_tangents(data, uv_map):

@@ -93,16 +93,36 @@ fn rec709(xyz: Vec3) -> Vec3 {
 /// Reflectance of a film of index `film` and thickness `nm` on a substrate of index
 /// `substrate`, seen from air at cosine `cos`, as linear Rec. 709 RGB.
 pub fn airy(cos: f32, film: f32, nm: f32, substrate: f32) -> Vec3 {
-    let fix = |x: f32, lo: f32, hi: f32, d: f32| if x.is_finite() { x.clamp(lo, hi) } else { d };
-    let (cos, nm) = (fix(cos, 0.0, 1.0, 0.0), fix(nm, 0.0, MAX_THICKNESS_NM, 0.0));
-    let (film, substrate) = (faded(fix(film, 1.0, 3.0, 1.33), nm), fix(substrate, 1.0, 3.0, 1.5));
-    let Some((r12, phi12, cos_film)) = polarized(1.0, film, cos) else { return Vec3::ONE };
+    let Some(Top { film, r12, phi12, cos_film, opd }) = top(cos, film, nm) else { return Vec3::ONE };
     // Total reflection at the substrate: the film's bottom reflects everything.
-    let Some((r23, phi23, _)) = polarized(film, substrate, cos_film) else { return Vec3::ONE };
-    let opd = 2.0 * film * nm * cos_film;
+    let Some((r23, phi23, _)) = polarized(film, fixed(substrate, 1.0, 3.0, 1.5), cos_film) else { return Vec3::ONE };
     // The round trip reflects once inside the top interface (its phase from below) and once at the bottom.
     let pol = |k: usize| summation(r12[k], r23[k], opd, PI - phi12[k] + phi23[k]);
     rec709(0.5 * (pol(0) + pol(1))).clamp(Vec3::ZERO, Vec3::ONE)
+}
+
+/// `x` clamped to [`lo`, `hi`], or `default` where it is not finite.
+fn fixed(x: f32, lo: f32, hi: f32, default: f32) -> f32 {
+    if x.is_finite() { x.clamp(lo, hi) } else { default }
+}
+
+/// What both sums read of a film's top: its index (faded below [`FADE_NM`]), reflectance and
+/// phase per polarisation, the cosine inside it and the round trip's optical path difference.
+struct Top {
+    film: f32,
+    r12: [f32; 2],
+    phi12: [f32; 2],
+    cos_film: f32,
+    opd: f32,
+}
+
+/// The [`Top`] of a film of index `film` and thickness `nm` seen from air at cosine `cos`, the
+/// three made finite and in range; None where light cannot enter it.
+fn top(cos: f32, film: f32, nm: f32) -> Option<Top> {
+    let (cos, nm) = (fixed(cos, 0.0, 1.0, 0.0), fixed(nm, 0.0, MAX_THICKNESS_NM, 0.0));
+    let film = faded(fixed(film, 1.0, 3.0, 1.33), nm);
+    let (r12, phi12, cos_film) = polarized(1.0, film, cos)?;
+    Some(Top { film, r12, phi12, cos_film, opd: 2.0 * film * nm * cos_film })
 }
 
 /// The film's index faded towards air below [`FADE_NM`], where the wave-optics summation stops
@@ -134,10 +154,9 @@ impl Conductor {
         Conductor { n: Vec3::new(x.0, y.0, z.0), k: Vec3::new(x.1, y.1, z.1) }
     }
 
-    /// Channel `c`'s index, finite and not below a hundredth.
+    /// Channel `c`'s index, finite, n not below a hundredth and neither above a thousand.
     fn eta(&self, c: usize) -> Complex32 {
-        let fix = |x: f32, lo: f32, d: f32| if x.is_finite() { x.clamp(lo, 1e3) } else { d };
-        Complex32::new(fix(self.n[c], 0.01, 1.0), fix(self.k[c], 0.0, 0.0))
+        Complex32::new(fixed(self.n[c], 0.01, 1e3, 1.0), fixed(self.k[c], 0.0, 1e3, 0.0))
     }
 }
 
@@ -169,15 +188,15 @@ const CONDUCTOR_ORDERS: usize = 8;
 
 /// [`summation`] for channel `c` of a bottom interface whose phase differs per channel: the
 /// round trip's phase `phi` applied to the RGB sensitivities `parts` of orders 1 and up.
-fn summation_channel(r12: f32, r23: f32, phi: f32, parts: &[(Vec3, Vec3); CONDUCTOR_ORDERS], c: usize) -> f32 {
+/// `white` is channel `c` of the order-0 term's colour, grey: the equal-energy white's.
+fn summation_channel(r12: f32, r23: f32, phi: f32, parts: &[(Vec3, Vec3); CONDUCTOR_ORDERS], c: usize, white: f32) -> f32 {
     let t121 = 1.0 - r12;
     let r123 = r12 * r23;
     if r123 >= 1.0 {
         return 1.0;
     }
     let rs = t121 * t121 * r23 / (1.0 - r123);
-    // The order-0 term is grey: the equal-energy white's colour.
-    let mut total = (r12 + rs) * rec709(Vec3::ONE)[c];
+    let mut total = (r12 + rs) * white;
     let mut cm = rs - t121;
     for (m, (cos_part, sin_part)) in parts.iter().enumerate() {
         cm *= r123.sqrt();
@@ -191,15 +210,12 @@ fn summation_channel(r12: f32, r23: f32, phi: f32, parts: &[(Vec3, Vec3); CONDUC
 /// from air at cosine `cos`, as linear Rec. 709 RGB: [`airy`]'s summation, the film's bottom
 /// reflecting by the metal's complex Fresnel amplitude in each channel.
 pub fn airy_conductor(cos: f32, film: f32, nm: f32, metal: &Conductor) -> Vec3 {
-    let fix = |x: f32, lo: f32, hi: f32, d: f32| if x.is_finite() { x.clamp(lo, hi) } else { d };
-    let (cos, nm) = (fix(cos, 0.0, 1.0, 0.0), fix(nm, 0.0, MAX_THICKNESS_NM, 0.0));
-    let film = faded(fix(film, 1.0, 3.0, 1.33), nm);
-    let Some((r12, phi12, cos_film)) = polarized(1.0, film, cos) else { return Vec3::ONE };
-    let opd = 2.0 * film * nm * cos_film;
+    let Some(Top { film, r12, phi12, cos_film, opd }) = top(cos, film, nm) else { return Vec3::ONE };
     let parts: [(Vec3, Vec3); CONDUCTOR_ORDERS] = std::array::from_fn(|m| sensitivity_rgb((m + 1) as f32 * opd));
+    let white = rec709(Vec3::ONE);
     let channel = |c: usize| {
         let (r23, phi23) = conductor_polarized(film, metal.eta(c), cos_film);
-        (0..2).map(|p| 0.5 * summation_channel(r12[p], r23[p], PI - phi12[p] + phi23[p], &parts, c)).sum::<f32>()
+        (0..2).map(|p| 0.5 * summation_channel(r12[p], r23[p], PI - phi12[p] + phi23[p], &parts, c, white[c])).sum::<f32>()
     };
     Vec3::new(channel(0), channel(1), channel(2)).clamp(Vec3::ZERO, Vec3::ONE)
 }
@@ -232,9 +248,13 @@ pub(super) fn average(film: f32, thickness: f32, substrate: f32) -> Vec3 {
         static AVERAGES: Kept<[u32; 3], Vec3> = const { std::cell::RefCell::new(Vec::new()) };
     }
     kept(&AVERAGES, [film.to_bits(), thickness.to_bits(), substrate.to_bits()], || {
-        let n = 64;
-        (0..n).map(|k| (k as f32 + 0.5) / n as f32).map(|mu| airy(mu, film, thickness, substrate) * (2.0 * mu / n as f32)).sum()
+        cosine_average(64, |mu| airy(mu, film, thickness, substrate))
     })
+}
+
+/// 2∫f(μ)μ dμ over [0, 1] by the midpoint rule on `count` cosines.
+fn cosine_average(count: usize, f: impl Fn(f32) -> Vec3) -> Vec3 {
+    (0..count).map(|k| (k as f32 + 0.5) / count as f32).map(|mu| f(mu) * (2.0 * mu / count as f32)).sum()
 }
 
 /// [`average`] of a film over the conductor `metal`, on 16 cosines: it only sets the size of
@@ -246,9 +266,7 @@ pub(super) fn average_conductor(film: f32, thickness: f32, metal: &Conductor) ->
     }
     let (n, k) = (metal.n.to_array().map(f32::to_bits), metal.k.to_array().map(f32::to_bits));
     kept(&AVERAGES, [film.to_bits(), thickness.to_bits(), n[0], n[1], n[2], k[0], k[1], k[2]], || {
-        let count = 16;
-        let mus = (0..count).map(|i| (i as f32 + 0.5) / count as f32);
-        mus.map(|mu| airy_conductor(mu, film, thickness, metal) * (2.0 * mu / count as f32)).sum()
+        cosine_average(16, |mu| airy_conductor(mu, film, thickness, metal))
     })
 }
 
@@ -288,13 +306,12 @@ pub struct ThinFilmCoat {
 impl ThinFilmCoat {
     /// A coat, its albedo table computed by stratified quadrature of its own lobe.
     pub fn new(weight: f32, roughness: f32, film: f32, thickness: f32, substrate: f32, compensate: bool) -> Self {
-        let fix = |x: f32, lo: f32, hi: f32, d: f32| if x.is_finite() { x.clamp(lo, hi) } else { d };
         let mut c = ThinFilmCoat {
-            weight: fix(weight, 0.0, 1.0, 0.0),
-            roughness: fix(roughness, 0.0, 1.0, 0.0),
-            film: fix(film, 1.0, 3.0, 1.33),
-            thickness: fix(thickness, 0.0, MAX_THICKNESS_NM, 0.0),
-            substrate: fix(substrate, 1.0, 3.0, 1.5),
+            weight: fixed(weight, 0.0, 1.0, 0.0),
+            roughness: fixed(roughness, 0.0, 1.0, 0.0),
+            film: fixed(film, 1.0, 3.0, 1.33),
+            thickness: fixed(thickness, 0.0, MAX_THICKNESS_NM, 0.0),
+            substrate: fixed(substrate, 1.0, 3.0, 1.5),
             e: [0.0; 16],
         };
         c.e = albedo_table(&c, compensate);
@@ -556,6 +573,27 @@ mod tests {
         for other in [(0.3, 1.4, 333.0, 1.5), (0.25, 1.5, 333.0, 1.5), (0.25, 1.4, 334.0, 1.5), (0.25, 1.4, 333.0, 1.6)] {
             assert_eq!(coat(other), fresh(other), "{other:?}");
             assert_ne!(coat(other), first, "{other:?}");
+        }
+    }
+
+    /// The same for the average over a conductor, whose key holds both indices of each channel:
+    /// films differing from a kept one in any of its eight parameters get their own.
+    #[test]
+    fn kept_conductor_averages_are_the_computed_ones() {
+        let average = |p: [f32; 8]| {
+            let metal = Conductor { n: Vec3::new(p[2], p[3], p[4]), k: Vec3::new(p[5], p[6], p[7]) };
+            average_conductor(p[0], p[1], &metal).to_array().map(f32::to_bits)
+        };
+        let fresh = |p| std::thread::spawn(move || average(p)).join().expect("thread");
+        let kept = [1.5, 300.0, 0.2, 0.4, 1.1, 3.5, 2.8, 2.3];
+        let first = average(kept);
+        assert_eq!(first, average(kept));
+        assert_eq!(first, fresh(kept));
+        for i in 0..8 {
+            let mut other = kept;
+            other[i] += 0.05;
+            assert_eq!(average(other), fresh(other), "parameter {i}");
+            assert_ne!(average(other), first, "parameter {i}");
         }
     }
 
