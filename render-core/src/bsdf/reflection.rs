@@ -150,14 +150,19 @@ impl SpecularFresnel {
 
     /// The same Fresnel with a film of index `film` and `thickness` nm over it, when it is a
     /// conductor's (Gulbrandsen's, or the F82 tint's with the edge colour its value at about
-    /// 82°, as Cycles reads it); None for any other.
-    pub fn under_film(&self, film: f32, thickness: f32) -> Option<Self> {
-        let metal = match *self {
-            SpecularFresnel::Gulbrandsen { r, g } => super::thin_film::Conductor::gulbrandsen(r, g),
-            SpecularFresnel::F82Tint { f0, .. } => super::thin_film::Conductor::gulbrandsen(f0, self.eval(1.0 / 7.0)),
+    /// 82°, as Cycles reads it); None for any other. The film's average comes from `grid`
+    /// when it is this film's (a metal whose colours vary: integrating it costs 16 µs).
+    pub fn under_film(&self, film: f32, thickness: f32, grid: Option<&super::thin_film::ConductorAverages>) -> Option<Self> {
+        let (r, g) = match *self {
+            SpecularFresnel::Gulbrandsen { r, g } => (r, g),
+            SpecularFresnel::F82Tint { f0, .. } => (f0, self.eval(1.0 / 7.0)),
             _ => return None,
         };
-        Some(Self::thin_film_conductor(film, thickness, metal))
+        let metal = super::thin_film::Conductor::gulbrandsen(r, g);
+        Some(match grid.filter(|t| (t.film, t.thickness) == (film, thickness)) {
+            Some(t) => SpecularFresnel::ThinFilmConductor { film, thickness, metal, avg: t.at(r, g) },
+            None => Self::thin_film_conductor(film, thickness, metal),
+        })
     }
 
     /// The cosine-weighted average F_avg: the slides' fits or closed forms.

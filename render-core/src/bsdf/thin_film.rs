@@ -258,8 +258,8 @@ fn cosine_average(count: usize, f: impl Fn(f32) -> Vec3) -> Vec3 {
 }
 
 /// [`average`] of a film over the conductor `metal`, on 16 cosines: it only sets the size of
-/// the energy compensation, and a metal whose colours are textured computes it at every
-/// shading point (16 µs on the Zen 4 host; the test that checks it prints it).
+/// the energy compensation (16 µs on the Zen 4 host; the test that checks it prints it). A
+/// metal whose colours are textured reads it from [`ConductorAverages`] instead.
 pub(super) fn average_conductor(film: f32, thickness: f32, metal: &Conductor) -> Vec3 {
     thread_local! {
         static AVERAGES: Kept<[u32; 8], Vec3> = const { std::cell::RefCell::new(Vec::new()) };
@@ -268,6 +268,58 @@ pub(super) fn average_conductor(film: f32, thickness: f32, metal: &Conductor) ->
     kept(&AVERAGES, [film.to_bits(), thickness.to_bits(), n[0], n[1], n[2], k[0], k[1], k[2]], || {
         cosine_average(16, |mu| airy_conductor(mu, film, thickness, metal))
     })
+}
+
+/// A film's [`average_conductor`] over every metal Gulbrandsen's reflectivity r and edge colour
+/// g describe, for a metal whose colours vary over its surface. A channel's average depends on
+/// that channel's (r, g) alone ([`airy_conductor`] reads `metal.eta(c)` only), so one grid of
+/// grey metals over [0, 1]² holds each channel's, read bilinearly per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConductorAverages {
+    /// Film refractive index.
+    pub film: f32,
+    /// Thickness in nanometres.
+    pub thickness: f32,
+    /// The grey metal (r_i, g_j)'s average at `nodes[i * CONDUCTOR_GRID + j]`.
+    nodes: Vec<Vec3>,
+}
+
+/// Nodes a side of [`ConductorAverages`]' grid: 625 averages, about 10 ms to build. They lie
+/// evenly in asin(√r) and in 1 − √(1 − g), dense where n and k change fastest: r near 0 or
+/// 1, g near 1.
+const CONDUCTOR_GRID: usize = 25;
+
+impl ConductorAverages {
+    /// The grid of a film of index `film` and `thickness` nanometres.
+    pub fn new(film: f32, thickness: f32) -> Self {
+        let at = |i: usize| i as f32 / (CONDUCTOR_GRID - 1) as f32;
+        let nodes = (0..CONDUCTOR_GRID * CONDUCTOR_GRID)
+            .map(|ij| {
+                let (r, g) =
+                    ((at(ij / CONDUCTOR_GRID) * std::f32::consts::FRAC_PI_2).sin().powi(2), 1.0 - (1.0 - at(ij % CONDUCTOR_GRID)).powi(2));
+                let metal = Conductor::gulbrandsen(Vec3::splat(r), Vec3::splat(g));
+                cosine_average(16, |mu| airy_conductor(mu, film, thickness, &metal))
+            })
+            .collect();
+        ConductorAverages { film, thickness, nodes }
+    }
+
+    /// The average over the metal of reflectivity `r` and edge colour `g`, channel by channel.
+    pub fn at(&self, r: Vec3, g: Vec3) -> Vec3 {
+        let last = (CONDUCTOR_GRID - 1) as f32;
+        let cell = |x: f32| {
+            let f = x.clamp(0.0, 1.0) * last;
+            let i = (f as usize).min(CONDUCTOR_GRID - 2);
+            (i, f - i as f32)
+        };
+        let channel = |c: usize| {
+            let ((i, s), (j, t)) =
+                (cell(r[c].clamp(0.0, 1.0).sqrt().asin() / std::f32::consts::FRAC_PI_2), cell(1.0 - (1.0 - g[c].min(1.0)).max(0.0).sqrt()));
+            let node = |a: usize, b: usize| self.nodes[(i + a) * CONDUCTOR_GRID + j + b][c];
+            (1.0 - s) * ((1.0 - t) * node(0, 0) + t * node(0, 1)) + s * ((1.0 - t) * node(1, 0) + t * node(1, 1))
+        };
+        Vec3::new(channel(0), channel(1), channel(2))
+    }
 }
 
 /// The coat lobe's directional albedo at √μ = k/15, by stratified quadrature of the lobe (4 ms
@@ -334,6 +386,7 @@ impl ThinFilmCoat {
 mod tests {
     use super::*;
     use crate::bsdf::{Bsdf, Coat, Lambert, Lobe, fresnel, testing};
+    use crate::sampling::Pcg32;
 
     #[test]
     fn a_film_of_no_thickness_is_the_bare_substrate() {
@@ -554,6 +607,27 @@ mod tests {
         }
         testing::assert_reciprocal(&b);
         testing::assert_chi2_at(&b, 1200, testing::probe_directions().into_iter().filter(|w| w.z >= 1e-2).collect());
+    }
+
+    /// The grid of averages reads each channel's metal within 0.01 of its own average, for
+    /// colours anywhere in [0, 1] and films thin to thick (measured worst over 200 metals:
+    /// 0.004-0.009; 0.07 on an evenly spaced 17² grid, hence the spacing dense at the ends).
+    /// An error of 0.01 moves a rough metal's compensation by about 2% of itself.
+    #[test]
+    fn conductor_averages_read_each_channels_metal() {
+        let mut rng = Pcg32::new(9, 2);
+        for (film, thickness) in [(1.33, 150.0), (1.5, 400.0), (2.0, 900.0)] {
+            let grid = ConductorAverages::new(film, thickness);
+            let mut worst = 0.0f32;
+            for _ in 0..200 {
+                let (r, g) =
+                    (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()), Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()));
+                let exact = cosine_average(16, |mu| airy_conductor(mu, film, thickness, &Conductor::gulbrandsen(r, g)));
+                worst = worst.max((grid.at(r, g) - exact).abs().max_element());
+            }
+            println!("film {film}, {thickness} nm: worst {worst}");
+            assert!(worst < 0.01, "film {film}, {thickness} nm: {worst}");
+        }
     }
 
     /// The albedo table and average kept per thread are the ones computed afresh, to the bit,

@@ -2,6 +2,7 @@
 //! at the shading point, and what it reports.
 
 use super::desc::{MaterialConnection, MaterialNetwork, MaterialNode, ParamValue};
+use crate::bsdf::thin_film::ConductorAverages;
 
 /// Node ids whose outputs are evaluated per shading point (the texture graph's nodes).
 pub(super) const EVALUATED: &[&str] = &[
@@ -25,6 +26,9 @@ pub(crate) fn evaluable(net: &MaterialNetwork, c: &MaterialConnection) -> bool {
 pub(crate) struct Overrides<'a> {
     pub keys: &'a [(String, String)],
     pub values: &'a [ParamValue],
+    /// (node path, grid) of each filmed `tessera:Metal` whose colours vary: its film's
+    /// average is read from the grid, not integrated at each point.
+    pub film_averages: &'a [(String, ConductorAverages)],
 }
 
 impl<'a> Overrides<'a> {
@@ -52,6 +56,11 @@ impl<'a> Inputs<'a> {
     /// The value of input `name`.
     pub fn get(&self, name: &str) -> Option<&'a ParamValue> {
         self.overrides.get(&self.node.path, name).or_else(|| self.node.parameters.get(name))
+    }
+
+    /// The grid this node's film reads its average from, if its colours vary.
+    pub fn film_averages(&self) -> Option<&'a ConductorAverages> {
+        self.overrides.film_averages.iter().find(|(n, _)| *n == self.node.path).map(|(_, grid)| grid)
     }
 
     /// True when `name` is a connected input evaluated at the shading point.

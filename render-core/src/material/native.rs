@@ -366,7 +366,7 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
             let (r, g) = (v.c("reflectivity"), v.c("edgeTint"));
             let fresnel = if v.b("f82") { SpecularFresnel::f82_tint(r, g) } else { SpecularFresnel::Gulbrandsen { r, g } };
             let fresnel = match v.f("filmThickness") > 0.0 {
-                true => fresnel.under_film(v.f("filmRefractiveIndex"), v.f("filmThickness")).unwrap_or(fresnel),
+                true => fresnel.under_film(v.f("filmRefractiveIndex"), v.f("filmThickness"), node.film_averages()).unwrap_or(fresnel),
                 false => fresnel,
             };
             u.metal = Weighted { weight: 1.0, params: specular(shader, &v, fresnel) };
