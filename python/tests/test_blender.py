@@ -229,6 +229,21 @@ AGREE = [
 
 #: Regions that differ, the bound they stay in (Tessera / Cycles) and why (docs/blender.md).
 DIFFER = {
+    # Films on glass (tessera:Principled's film, on its glass: 400 nm of IOR 1.33 on a
+    # Principled glass of IOR 1.5, 300 nm of IOR 1.45 on a Glass BSDF of roughness 0.1) against
+    # black: measured 0.824 and 0.923 at 256 spp (R, G, B 0.488 / 0.880 / 1.287 and
+    # 0.982 / 0.898 / 0.986). Leaving the glass, Tessera reads the film as the physical stack
+    # (glass, film, air: the optical path 2·n·d·cos θ of the film's own index); Cycles reads it
+    # through a film of index n / IOR, its path one IOR too short. With Cycles' reading
+    # emulated, 1.021 / 1.000 / 1.011 and 1.006 / 1.023 / 1.019 (docs/blender.md).
+    ("glass_film", "filmed glass sphere"): (0.75, 0.9, "Cycles reads a film on glass from inside with its optical path one IOR too short (docs/blender.md)"),
+    ("glass_film", "filmed Glass BSDF sphere"): (0.88, 0.97, "Cycles reads a film on glass from inside with its optical path one IOR too short (docs/blender.md)"),
+    # A soap bubble (IOR 1 under 500 nm of IOR 1.33; both sides read alike in both renderers):
+    # measured 1.037 (1.034 / 1.043 / 0.996). The film alone reflects a few percent, where the
+    # two renderers' fits of the spectral integral part by a few thousandths: Tessera's misses
+    # the wavelength-by-wavelength integral by up to 0.025 on this film. Without the film it
+    # would not be there at all (index 1: left out of the scene).
+    ("glass_film", "soap bubble"): (1.0, 1.06, "a soap film reflects a few percent, where the spectral fits part by a few thousandths"),
     ("box", "floor"): (1.0, 1.09, "diffuse under a dielectric specular layer: layered differently"),
     ("box", "red wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
     ("box", "green wall"): (1.0, 1.07, "diffuse under a dielectric specular layer: layered differently"),
@@ -359,7 +374,7 @@ def inner_pixels(regions, index):
 
 def test_regions_agree_with_cycles_where_both_model_the_same_thing(results):
     out, r = results
-    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "hair")
+    kinds = ("box", "box_matte", "glass", "textured", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "glass_film", "hair")
     ratios = {(k, n): v for k in r if k in kinds for n, v in region_ratios(out, k, r[k]["regions"]).items()}
     for key in AGREE:
         # 3%: the issue's bound; at 256 spp both images' region means are within about 1% of
@@ -417,6 +432,10 @@ def test_the_exporter_is_corrected(results):
     film = r["thin_film"]["corrections"]
     for material, nm, ior in (("film_2", 500, 1.33), ("film_3", 250, 1.45)):
         assert any(c.endswith(f"{material}: thin film of {nm:g} nm, IOR {ior:g} as tessera:SolidDielectric's surface film") for c in film), film
+    glass_film = r["glass_film"]["corrections"]
+    for material, nm, ior in (("glass_film_2", 400, 1.33), ("glass_film_3", 500, 1.33)):
+        assert any(c.endswith(f"{material}: thin film of {nm:g} nm, IOR {ior:g} as tessera:Principled's film") for c in glass_film), glass_film
+    assert not r["glass_film"]["warnings"], r["glass_film"]["warnings"]
     linked = r["linked"]["corrections"]
     assert any("light linking from the receiver collection 'key receivers'" in c for c in linked), linked
     assert any("light linking from the blocker collection 'fill blockers'" in c for c in linked), linked

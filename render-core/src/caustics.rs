@@ -98,6 +98,8 @@ pub struct ShadowGlass {
     pub thin: bool,
     /// Its roughness.
     pub roughness: f32,
+    /// A thin film on a thick interface, whose reflectance replaces the Fresnel term.
+    pub film: Option<crate::bsdf::GlassFilm>,
 }
 
 impl ShadowGlass {
@@ -112,6 +114,8 @@ impl ShadowGlass {
             eta: if g.params.ior.is_finite() && g.params.ior > 0.0 { g.params.ior } else { 1.5 },
             thin: g.params.thin,
             roughness: r,
+            film: (g.params.film_thickness > 0.0)
+                .then_some(crate::bsdf::GlassFilm { ior: g.params.film_ior, thickness: g.params.film_thickness }),
         })
     }
 
@@ -130,6 +134,7 @@ impl ShadowGlass {
             eta: p.params.coupling_eta.max(1.0),
             thin: false,
             roughness: r,
+            film: None,
         })
     }
 
@@ -140,7 +145,12 @@ impl ShadowGlass {
             return self.weight * crate::bsdf::sheet_series(eta, self.color, cos)[1];
         }
         // Light is pretended not to bend, so `cos` is the outside cosine at both the entry and
-        // the exit: the refracted pair has the same (1 − F) either way.
+        // the exit: the refracted pair has the same (1 − F) either way (a film's too, by
+        // Stokes' relations).
+        if let Some(f) = self.film {
+            let filmed = crate::bsdf::Dielectric::new(0.0, 0.0, self.eta, Vec3::ONE).with_film(f.ior, f.thickness);
+            return self.weight * (Vec3::ONE - filmed.reflectance_outside(cos)) * self.color;
+        }
         self.weight * (1.0 - crate::bsdf::fresnel::dielectric(cos, eta)) * self.color
     }
 }
@@ -177,11 +187,15 @@ mod tests {
 
     #[test]
     fn clear_glass_transmits_what_fresnel_leaves() {
-        let g = ShadowGlass { weight: 1.0, color: Vec3::ONE, eta: 1.5, thin: false, roughness: 0.0 };
+        let g = ShadowGlass { weight: 1.0, color: Vec3::ONE, eta: 1.5, thin: false, roughness: 0.0, film: None };
         assert!((g.transmission(1.0).x - 0.96).abs() < 1e-4);
         let sheet = ShadowGlass { thin: true, ..g };
         assert!((sheet.transmission(1.0).x - 0.96 / 1.04).abs() < 1e-4);
         // At grazing incidence almost nothing passes.
         assert!(g.transmission(1e-3).x < 0.01);
+        // Under a film, what the film does not reflect, channel by channel.
+        let filmed = ShadowGlass { film: Some(crate::bsdf::GlassFilm { ior: 1.33, thickness: 400.0 }), ..g };
+        let film = crate::bsdf::thin_film::airy(0.8, 1.33, 400.0, 1.5);
+        assert!((filmed.transmission(0.8) - (Vec3::ONE - film)).abs().max_element() < 1e-6, "{}", filmed.transmission(0.8));
     }
 }

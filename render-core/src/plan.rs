@@ -55,7 +55,7 @@ features! {
     Fabric = "fabric": "the DreamWorks fabric cone",
     Hair = "hair": "hair fibres (Chiang et al. 2016): the shading frame along each curve, tube insides skipped by rays leaving a fibre",
     Glitter = "glitter": "DreamWorks glitter: object-space Worley flakes found per shading point, GGX lobe per flake",
-    ThinFilm = "thin-film": "thin-film interference (Airy, integrated over the spectrum): a film coat, or a film replacing a specular's Fresnel",
+    ThinFilm = "thin-film": "thin-film interference (Airy, integrated over the spectrum): a film coat, or a film replacing a specular's or a glass's Fresnel",
     DoubleSpecular = "double-specular": "two GGX roughnesses blended",
     Anisotropy = "anisotropy": "anisotropic GGX",
     Instancing = "instancing": "instances share one BLAS per prototype under a TLAS",

@@ -123,7 +123,8 @@ fn fuzz_and_sheen_keep_their_models() {
 /// A thin film on an opaque dielectric or a full metal becomes the surface film of
 /// tessera:SolidDielectric or tessera:Metal, whose interference replaces the specular's
 /// Fresnel: OpenPBR's at full weight (its thickness in micrometres), Standard Surface's (in
-/// nanometres). A film at partial weight, on a half metal or on glass is reported once.
+/// nanometres); on glass, tessera:Principled's film on its specular and glass (since
+/// 2026-12-08). A film at partial weight, on a half metal or on thin walls is reported once.
 #[test]
 fn a_thin_film_replaces_the_specular_fresnel() {
     let open_pbr = "float inputs:thin_film_weight = 1\n float inputs:thin_film_thickness = 0.45\n float inputs:thin_film_ior = 1.33";
@@ -140,6 +141,20 @@ fn a_thin_film_replaces_the_specular_fresnel() {
             1.5,
             "tessera:Metal",
         ),
+        (
+            "ND_standard_surface_surfaceshader",
+            "float inputs:transmission = 1\n float inputs:thin_film_thickness = 300",
+            300.0,
+            1.5,
+            "tessera:Principled",
+        ),
+        (
+            "ND_open_pbr_surface_surfaceshader",
+            "float inputs:transmission_weight = 1\n float inputs:thin_film_weight = 1",
+            500.0,
+            1.4,
+            "tessera:Principled",
+        ),
     ] {
         let t = load_text("mtlx_film", &stage(id, inputs, ""));
         let net = network(&t);
@@ -151,7 +166,10 @@ fn a_thin_film_replaces_the_specular_fresnel() {
     for (id, inputs) in [
         ("ND_open_pbr_surface_surfaceshader", "float inputs:thin_film_weight = 0.5"),
         ("ND_open_pbr_surface_surfaceshader", "float inputs:base_metalness = 0.5\n float inputs:thin_film_weight = 1"),
-        ("ND_standard_surface_surfaceshader", "float inputs:transmission = 1\n float inputs:thin_film_thickness = 300"),
+        (
+            "ND_standard_surface_surfaceshader",
+            "float inputs:transmission = 1\n float inputs:thin_walled = 1\n float inputs:thin_film_thickness = 300",
+        ),
     ] {
         let t = load_text("mtlx_film_lost", &stage(id, inputs, ""));
         assert!(surface_param(network(&t), "filmThickness").is_none(), "{inputs}");

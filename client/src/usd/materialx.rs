@@ -590,7 +590,7 @@ enum Stretch {
 const MAX_STRETCH: f32 = 0.9;
 
 /// The warning for a thin film a surface does not carry.
-const FILM_NOT_CARRIED: &str = "a thin film is carried only on an opaque dielectric or a full metal (no transmission, thin walls or opacity, metalness 0 or 1, a dielectric's specular weight 1), at full weight and of constant thickness; the specular has none";
+const FILM_NOT_CARRIED: &str = "a thin film is carried only on a dielectric without thin walls or opacity (opaque or glass, metalness 0) or on an opaque full metal, at full weight and of constant thickness; the specular has none";
 
 impl Lobes {
     /// UsdPreviewSurface when it can say everything; `tessera:SolidDielectric` with a medium
@@ -644,6 +644,7 @@ impl Lobes {
         let specular = self.specular_weight.value().map_or(1.0, |w| w.x) * f0(ior) / 0.08;
         let gloss = Lin::constant(Vec4::splat(1.0 - self.coat_roughness.value().map_or(0.0, |r| r.x)));
         let thin = self.thin.value().is_some_and(|t| t.x > 0.5);
+        let film = self.principled_film().map(|nm| (nm, self.film_ior.clone()));
         // Disney tints transmission by the base colour; MaterialX by its own transmission
         // colour: blend the two by the transmission weight (a textured weight keeps the base).
         let base = match self.transmission.value() {
@@ -664,6 +665,10 @@ impl Lobes {
             ("emission", self.emission, true),
             ("thin", Lin::constant(Vec4::splat(if thin { 1.0 } else { 0.0 })), false),
         ];
+        if let Some((nm, ior)) = film {
+            values.push(("filmThickness", Lin::constant(Vec4::splat(nm)), false));
+            values.push(("filmRefractiveIndex", ior, false));
+        }
         if let Some(n) = self.normal {
             values.push(("normal", n, true));
         }
@@ -771,8 +776,16 @@ impl Lobes {
     /// weight, textured) where it is.
     fn film_lost(&self, surface: &str, native: bool) -> Option<String> {
         let any = self.film.as_ref().is_none_or(|f| !is_constant(f, 0.0));
-        let carried = native && self.carried_film().is_some();
+        let carried = if native { self.carried_film().is_some() } else { self.principled_film().is_some() };
         (any && !carried).then(|| format!("{surface}: {FILM_NOT_CARRIED}"))
+    }
+
+    /// The film `tessera:Principled` carries on its dielectric specular and its glass (not on
+    /// its metal, and thin walls take none): [`Self::carried_film`] on a surface without
+    /// metalness, thin walls or opacity.
+    fn principled_film(&self) -> Option<f32> {
+        let dielectric = is_constant(&self.metalness, 0.0) && is_constant(&self.thin, 0.0) && is_constant(&self.opacity, 1.0);
+        self.carried_film().filter(|_| dielectric)
     }
 
     /// The film `tessera:SolidDielectric` carries: a constant thickness above 0 at full weight.

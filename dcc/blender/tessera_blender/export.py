@@ -302,6 +302,11 @@ def _correct_glass(exported: Export, prim, Sdf, UsdShade) -> None:
             shader.GetPrim().RemoveProperty(inp.GetAttr().GetName())
     shader.CreateInput("specTrans", Sdf.ValueTypeNames.Float).Set(transmission)
     exported.corrections.append(f"{prim.GetPath()}: glass (Transmission Weight {transmission:g}) as tessera:Principled specTrans")
+    film = nodes.carried_thin_film(node)
+    if film:
+        for name, value in film.items():
+            shader.CreateInput(name, Sdf.ValueTypeNames.Float).Set(value)
+        exported.corrections.append(f"{prim.GetPath()}: thin film of {film['filmThickness']:g} nm, IOR {film['filmRefractiveIndex']:g} as tessera:Principled's film")
 
 
 #: UsdPreviewSurface inputs that keep their meaning on ``tessera:SolidDielectric``, by its names.

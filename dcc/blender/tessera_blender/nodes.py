@@ -207,17 +207,31 @@ def tangent_source(node):
 
 
 def carried_thin_film(node):
-    """A Principled BSDF's Thin Film as the surface film of tessera:SolidDielectric or
-    tessera:Metal (name -> value), or None. Cycles' film replaces the specular's Fresnel by the
-    film's interference, over a metal's complex index estimated from its colour and tint, as
-    `filmThickness` does. Carried when Thickness and IOR are constants and the thickness above
-    0, on an opaque dielectric or a full metal (``native_surface``)."""
-    if node.type != "BSDF_PRINCIPLED" or any(node.inputs[n].is_linked for n in ("Thin Film Thickness", "Thin Film IOR")):
+    """A Principled or Glass BSDF's Thin Film as Tessera's `filmThickness` and
+    `filmRefractiveIndex` (name -> value), or None. Cycles' film replaces the specular's Fresnel
+    by the film's interference, over a metal's complex index estimated from its colour and tint,
+    and on glass transmits what it does not reflect, as `filmThickness` does. Carried when
+    Thickness and IOR are constants and the thickness above 0: on an opaque dielectric or a full
+    metal (``native_surface``: tessera:SolidDielectric's or tessera:Metal's surface film), and on
+    glass without metalness (tessera:Principled's film, on its specular and its glass)."""
+    if node.type not in ("BSDF_PRINCIPLED", "BSDF_GLASS") or any(node.inputs[n].is_linked for n in ("Thin Film Thickness", "Thin Film IOR")):
         return None
     thickness = float(node.inputs["Thin Film Thickness"].default_value)
-    if thickness <= 0.0 or native_surface(node) is None:
+    if thickness <= 0.0 or (native_surface(node) is None and not _filmed_glass(node)):
         return None
     return {"filmThickness": thickness, "filmRefractiveIndex": float(node.inputs["Thin Film IOR"].default_value)}
+
+
+def _filmed_glass(node) -> bool:
+    """True for glass whose film tessera:Principled carries: a Glass BSDF (written whole, in a
+    mix too), or the material's own Principled BSDF (``export._correct_glass``) with a constant
+    Transmission Weight above 0 and a constant Metallic of 0 (its metal takes no film)."""
+    if node.type == "BSDF_GLASS":
+        return True
+    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+        return False
+    transmission, metallic = node.inputs["Transmission Weight"], node.inputs["Metallic"]
+    return not transmission.is_linked and float(transmission.default_value) > 0.0 and not metallic.is_linked and float(metallic.default_value) == 0.0
 
 
 def native_surface(node):
@@ -397,6 +411,9 @@ def _fill_standalone(exported, material, node, shader, Sdf, UsdShade, owner=None
         _write_constant(shader, usd_name, node.inputs[blender_name].default_value, Sdf)
     shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
     carried = {blender_name: usd_name for usd_name, blender_name in inputs.items()} | {"Normal": "normal"}
+    film = carried_thin_film(node)
+    for usd_name, value in (film or {}).items():
+        shader.CreateInput(usd_name, Sdf.ValueTypeNames.Float).Set(value)
     _check_inputs(exported, material, node, carried, shader, Sdf, UsdShade, owner)
     for lost in _standalone_losses(node):
         exported.warnings.append(f"{material.name}: {lost}")
@@ -430,6 +447,8 @@ def _standalone_losses(node) -> list[str]:
         lost.append(f"the {node.distribution.replace('_', ' ').title()} distribution of {label(node)} is rendered as GGX")
     for name in ("Anisotropy", "Thin Film Thickness"):
         socket = node.inputs.get(name)
+        if name == "Thin Film Thickness" and carried_thin_film(node):
+            continue
         if socket is not None and (socket.is_linked or float(socket.default_value) != 0.0):
             lost.append(f"the {name} of {label(node)} is not carried")
     return lost

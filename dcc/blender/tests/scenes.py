@@ -32,6 +32,7 @@ REGIONS = {
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere", 7: "checkered sheen tint sphere", 8: "checkered specular tint sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere", 6: "uv-brushed panel", 7: "x-brushed sphere"},
     "thin_film": {1: "floor", 2: "soap film sphere", 3: "thin oil film sphere", 4: "filmed metal sphere", 5: "filmed gold sphere"},
+    "glass_film": {2: "filmed glass sphere", 3: "soap bubble", 4: "filmed Glass BSDF sphere"},
     "hair": {1: "floor", 2: "melanin hair", 3: "coloured hair"},
     "procedural": {1: "noise ramp plane", 2: "small gradient plane", 3: "large gradient plane", 4: "glowing plane", 5: "wave bump plane", 6: "checker emission plane", 7: "checker mix plane", 8: "added glow plane", 9: "unwrapped noise sphere"},
 }
@@ -482,6 +483,31 @@ def _thin_film_spheres(mat, add):
     return world
 
 
+def _glass_film_spheres(mat, add):
+    """The `glass_film` scene's objects; its world. Films on glass in a white world, seen
+    against a black floor and backdrop, so a sphere shows what its film reflects of the sky
+    beside what it lets through of the black: a Principled glass under 400 nm of IOR 1.33, a
+    soap bubble (a Principled BSDF of IOR 1, Transmission 1, under 500 nm of IOR 1.33) and a
+    Glass BSDF of roughness 0.1 under 300 nm of IOR 1.45. Black, not dark: light the spheres
+    focus onto a dark floor reads 3-5% brighter in Tessera than in Cycles with clear glass too,
+    and would show through the spheres."""
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.0, 0.0, 0.0)), 0, size=20)
+    add(bpy.ops.mesh.primitive_plane_add, mat("backdrop", (0.0, 0.0, 0.0)), 0, size=20, location=(0, 4, 0), rotation=(1.5708, 0, 0))
+    for index, x, ior, nm, film_ior in ((2, -2.2, 1.5, 400.0, 1.33), (3, 0.0, 1.0, 500.0, 1.33)):
+        m = mat(f"glass film {index}", (1.0, 1.0, 1.0), rough=0.0, trans=1.0)
+        p = m.node_tree.nodes["Principled BSDF"]
+        p.inputs["IOR"].default_value = ior
+        p.inputs["Thin Film Thickness"].default_value, p.inputs["Thin Film IOR"].default_value = nm, film_ior
+        add(bpy.ops.mesh.primitive_uv_sphere_add, m, index, radius=1.0, location=(x, 0, 1.0), segments=64, ring_count=32)
+    m = _standalone_material("glass_bsdf_film", "ShaderNodeBsdfGlass", Roughness=0.1, IOR=1.5)
+    glass = next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS")
+    glass.inputs["Thin Film Thickness"].default_value, glass.inputs["Thin Film IOR"].default_value = 300.0, 1.45
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(2.2, 0, 1.0), segments=64, ring_count=32)
+    world = bpy.data.worlds.new("white")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1, 1, 1, 1)
+    return world
+
+
 def build(kind, directory):
     """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -494,7 +520,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "hair") and metal == 0.0:
+        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "glass_film", "hair") and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -566,6 +592,9 @@ def build(kind, directory):
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "thin_film":
         world = _thin_film_spheres(mat, add)
+        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    elif kind == "glass_film":
+        world = _glass_film_spheres(mat, add)
         cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     elif kind == "shaders":
         shader_spheres_and_cutouts(mat, add, directory)

@@ -31,7 +31,7 @@ mod view_cache;
 
 pub use charlie::CharlieSheen;
 pub use coat::{Coat, DielectricCoat};
-pub use dielectric::Dielectric;
+pub use dielectric::{Dielectric, GlassFilm};
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
 pub use flake::Flake;

@@ -382,6 +382,45 @@ impl ThinFilmCoat {
     }
 }
 
+/// The reference the Fourier-space integration is checked against: the Airy formula at single
+/// wavelengths, integrated over the spectrum.
+#[cfg(test)]
+pub(crate) mod spectral {
+    use super::rec709;
+    use glam::Vec3;
+
+    /// The exact reflectance of the film at one wavelength (nm), the Airy formula in the
+    /// amplitudes of the two interfaces (Born & Wolf 7.6), seen from a medium of index
+    /// `ambient` at cosine `cos`.
+    fn airy_at(ambient: f64, cos: f32, film: f64, nm: f64, substrate: f64, lambda: f64) -> f64 {
+        let amplitudes = |n1: f64, n2: f64, c1: f64| {
+            let c2 = (1.0 - (n1 / n2).powi(2) * (1.0 - c1 * c1)).sqrt();
+            ([(n1 * c1 - n2 * c2) / (n1 * c1 + n2 * c2), (n2 * c1 - n1 * c2) / (n2 * c1 + n1 * c2)], c2)
+        };
+        let (r01, cf) = amplitudes(ambient, film, cos as f64);
+        let (r12, _) = amplitudes(film, substrate, cf);
+        let delta = 2.0 * std::f64::consts::PI / lambda * 2.0 * film * nm * cf;
+        let r = |a: f64, b: f64| {
+            let c = 2.0 * a * b * delta.cos();
+            (a * a + b * b + c) / (1.0 + a * a * b * b + c)
+        };
+        0.5 * (r(r01[0], r12[0]) + r(r01[1], r12[1]))
+    }
+
+    /// [`airy_at`] integrated over 360-830 nm against the CIE 1931 curves (Wyman et al.'s fit,
+    /// not Belcour & Barla's) under the equal-energy illuminant, to Rec. 709 as
+    /// [`super::airy`] does.
+    pub(crate) fn airy_by_wavelength(ambient: f32, cos: f32, film: f32, nm: f32, substrate: f32) -> Vec3 {
+        let (mut xyz, mut norm) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+        for l in 360..=830 {
+            let cmf = crate::light::blackbody::cie_1931(l as f64);
+            xyz += airy_at(ambient as f64, cos, film as f64, nm as f64, substrate as f64, l as f64) * cmf;
+            norm += cmf;
+        }
+        rec709((xyz / norm).as_vec3())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -397,36 +436,6 @@ mod tests {
         }
     }
 
-    /// The exact reflectance of the film at one wavelength (nm), the Airy formula in the
-    /// amplitudes of the two interfaces (Born & Wolf 7.6): the reference the Fourier-space
-    /// integration is checked against.
-    fn airy_at(cos: f32, film: f64, nm: f64, substrate: f64, lambda: f64) -> f64 {
-        let amplitudes = |n1: f64, n2: f64, c1: f64| {
-            let c2 = (1.0 - (n1 / n2).powi(2) * (1.0 - c1 * c1)).sqrt();
-            ([(n1 * c1 - n2 * c2) / (n1 * c1 + n2 * c2), (n2 * c1 - n1 * c2) / (n2 * c1 + n1 * c2)], c2)
-        };
-        let (r01, cf) = amplitudes(1.0, film, cos as f64);
-        let (r12, _) = amplitudes(film, substrate, cf);
-        let delta = 2.0 * std::f64::consts::PI / lambda * 2.0 * film * nm * cf;
-        let r = |a: f64, b: f64| {
-            let c = 2.0 * a * b * delta.cos();
-            (a * a + b * b + c) / (1.0 + a * a * b * b + c)
-        };
-        0.5 * (r(r01[0], r12[0]) + r(r01[1], r12[1]))
-    }
-
-    /// [`airy_at`] integrated over 360-830 nm against the CIE 1931 curves (Wyman et al.'s fit,
-    /// not Belcour & Barla's) under the equal-energy illuminant, to Rec. 709 as [`airy`] does.
-    fn airy_by_wavelength(cos: f32, film: f32, nm: f32, substrate: f32) -> Vec3 {
-        let (mut xyz, mut norm) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
-        for l in 360..=830 {
-            let cmf = crate::light::blackbody::cie_1931(l as f64);
-            xyz += airy_at(cos, film as f64, nm as f64, substrate as f64, l as f64) * cmf;
-            norm += cmf;
-        }
-        rec709((xyz / norm).as_vec3())
-    }
-
     /// The closed-form spectral integral against a brute-force one, over thicknesses of soap
     /// and oil films and anti-reflective coatings, head-on to grazing. 0.012: the two fits of
     /// the colour-matching functions and the sum's truncation after three orders (measured
@@ -438,13 +447,14 @@ mod tests {
         for (film, substrate) in [(1.33, 1.5), (1.45, 1.5), (1.8, 1.5), (1.2, 1.6)] {
             for nm in [50.0, 120.0, 250.0, 400.0, 500.0, 700.0, 1000.0] {
                 for cos in [1.0f32, 0.7, 0.4, 0.1] {
-                    let d = (airy(cos, film, nm, substrate) - airy_by_wavelength(cos, film, nm, substrate)).abs().max_element();
+                    let d =
+                        (airy(cos, film, nm, substrate) - spectral::airy_by_wavelength(1.0, cos, film, nm, substrate)).abs().max_element();
                     worst = worst.max(d);
                     assert!(
                         d < 0.012,
                         "film {film} on {substrate}, {nm} nm, cos {cos}: {:?} vs {:?}",
                         airy(cos, film, nm, substrate),
-                        airy_by_wavelength(cos, film, nm, substrate)
+                        spectral::airy_by_wavelength(1.0, cos, film, nm, substrate)
                     );
                 }
             }

@@ -110,11 +110,13 @@ impl Material {
 
     /// True when the material has no effect on light at all, so its surfaces can be left
     /// out of the scene: cut out, or clear glass whose IOR is exactly 1 (an index-matched
-    /// interface neither reflects nor bends, so dropping it is exact, shadows included).
+    /// interface neither reflects nor bends, so dropping it is exact, shadows included) and
+    /// without a film (which makes it a soap bubble's wall).
     pub fn is_invisible(&self) -> bool {
         let u = &self.surface;
         let g = &u.glass.params;
-        let clear_glass = u.glass.weight >= 1.0 && g.ior == 1.0 && (g.bend_ior == 1.0 || g.thin) && g.color == Vec3::ONE;
+        let unfilmed = g.thin || !(g.film_thickness > 0.0);
+        let clear_glass = u.glass.weight >= 1.0 && g.ior == 1.0 && (g.bend_ior == 1.0 || g.thin) && g.color == Vec3::ONE && unfilmed;
         self.cut_out
             || self.pass_through >= 1.0
             || (clear_glass

@@ -167,7 +167,12 @@ pub const SHADERS: &[Shader] = &[
         id: "tessera:Refractive",
         doc: "Glass: one roughness for reflection and transmission, exact dielectric Fresnel; `thin` makes it a sheet (Imageworks' thin surface).",
         inputs: &[
-            float("refractiveIndex", 1.5, (1.0, 3.0), "index of refraction (1: the surface vanishes)"),
+            float(
+                "refractiveIndex",
+                1.5,
+                (1.0, 3.0),
+                "index of refraction (1: the surface vanishes, or under a film is a soap bubble's wall)",
+            ),
             float("roughness", 0.0, (0.0, 1.0), "roughness of reflection and transmission"),
             float("anisotropy", 0.0, (-1.0, 1.0), "anisotropy"),
             color("transmissionColor", 1.0, "tint of transmitted light (a sheet: of one crossing)"),
@@ -178,6 +183,13 @@ pub const SHADERS: &[Shader] = &[
                 "the index light bends by, decoupled from the reflectance (0: refractiveIndex); not physical, so not reciprocal and not energy-compensated; thin sheets do not bend",
             ),
             flag("thin", "a thin sheet: light crosses undeflected"),
+            float(
+                "filmThickness",
+                0.0,
+                (0.0, 10000.0),
+                "a thin film on the boundary, in nanometres: its interference replaces the Fresnel, reflecting R and transmitting 1 − R per channel (Cycles' Thin Film on glass, OpenPBR's thin_film); with refractiveIndex 1, a soap bubble's wall; the boundary then goes uncompensated; sheets take none; 0: none",
+            ),
+            float("filmRefractiveIndex", 1.33, (1.0, 3.0), "the film's refractive index"),
         ],
         shared: true,
         materials: &[],
@@ -380,7 +392,12 @@ pub(crate) fn resolve(node: Inputs, report: &mut ResolveReport) -> Option<Materi
                 bend_ior: if bend > 0.0 { bend } else { v.f("refractiveIndex") },
                 color: v.c("transmissionColor"),
                 thin: v.b("thin"),
+                film_thickness: v.f("filmThickness"),
+                film_ior: v.f("filmRefractiveIndex"),
             };
+            if glass.thin && glass.film_thickness > 0.0 {
+                report.warnings.push(format!("{}: a thin sheet takes no film; 'filmThickness' has no effect", node.path));
+            }
             u.glass = Weighted { weight: 1.0, params: glass };
         }
         "tessera:SolidDielectric" => {
@@ -733,6 +750,21 @@ mod tests {
         assert_eq!(r.warnings, ["/M/S: the specular under a surface film is isotropic and of one roughness"]);
         let (_, r) = resolved("tessera:SolidDielectric", &film[..1]);
         assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    }
+
+    /// A film on tessera:Refractive reaches its glass; at index 1 it keeps the surface in the
+    /// scene (a soap bubble's wall), where bare index-1 glass is left out; a thin sheet takes
+    /// none, said.
+    #[test]
+    fn a_film_on_glass_reaches_the_glass_and_keeps_a_bubble_in_the_scene() {
+        let film = [("filmThickness", ParamValue::Float(500.0)), ("refractiveIndex", ParamValue::Float(1.0))];
+        let (m, r) = resolved("tessera:Refractive", &film);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert_eq!((m.surface.glass.params.film_thickness, m.surface.glass.params.film_ior), (500.0, 1.33));
+        assert!(!m.is_invisible());
+        assert!(resolved("tessera:Refractive", &film[1..]).0.is_invisible());
+        let (_, r) = resolved("tessera:Refractive", &[film[0].clone(), ("thin", ParamValue::Bool(true))]);
+        assert_eq!(r.warnings, ["/M/S: a thin sheet takes no film; 'filmThickness' has no effect"]);
     }
 
     #[test]

@@ -155,6 +155,8 @@ fn native_principled(node: Inputs, report: &mut ResolveReport) -> Resolved {
                     "diffTrans" => &mut p.diff_trans,
                     "flatness" => &mut p.flatness,
                     "ior" => &mut p.ior,
+                    "filmThickness" => &mut p.film_thickness,
+                    "filmRefractiveIndex" => &mut p.film_ior,
                     unknown => {
                         report.warnings.push(format!("{}: unknown tessera:Principled input '{unknown}'", node.path));
                         continue;
@@ -167,6 +169,11 @@ fn native_principled(node: Inputs, report: &mut ResolveReport) -> Resolved {
             report.warnings.push(format!("{}: input '{name}' has the wrong type {value:?}; using its default", node.path));
         }
     }
+    if p.film_thickness > 0.0 && p.specular_tint > 0.0 {
+        report
+            .warnings
+            .push(format!("{}: the film's interference replaces the specular's Fresnel; 'specularTint' has no effect", node.path));
+    }
     m
 }
 
@@ -178,6 +185,26 @@ pub(crate) mod tests {
     /// The Disney parameters the surface node resolves to.
     fn params(n: &MaterialNetwork) -> Principled {
         principled_of(Inputs::authored(&n.nodes[0]), &mut ResolveReport::default()).principled
+    }
+
+    /// tessera:Principled's film lies on its glass and replaces its dielectric specular's
+    /// Fresnel (Cycles' Principled Thin Film); a specular tint under it is said to do nothing.
+    #[test]
+    fn a_principled_film_lies_on_the_glass_and_the_specular() {
+        let node = MaterialNode {
+            path: "/M/S".into(),
+            node_type_id: "tessera:Principled".into(),
+            parameters: [("specTrans", 0.5), ("filmThickness", 400.0), ("filmRefractiveIndex", 1.4), ("specularTint", 0.5)]
+                .iter()
+                .map(|(k, v)| (k.to_string(), ParamValue::Float(*v)))
+                .collect(),
+        };
+        let mut report = ResolveReport::default();
+        let u = principled_of(Inputs::authored(&node), &mut report).principled.uber();
+        assert_eq!((u.glass.params.film_thickness, u.glass.params.film_ior), (400.0, 1.4));
+        let fresnel = u.plastic.params.specular.map(|s| s.fresnel);
+        assert!(matches!(fresnel, Some(crate::bsdf::SpecularFresnel::ThinFilm { film: 1.4, thickness: 400.0, .. })), "{fresnel:?}");
+        assert_eq!(report.warnings, ["/M/S: the film's interference replaces the specular's Fresnel; 'specularTint' has no effect"]);
     }
 
     pub(crate) fn preview(params: &[(&str, ParamValue)]) -> MaterialNetwork {

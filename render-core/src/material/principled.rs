@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use super::uber::{ClearcoatParams, Glass, Plastic, Specular, Uber, Weighted};
+use crate::bsdf::thin_film::MAX_THICKNESS_NM;
 use crate::bsdf::{Bsdf, Sheen, SpecularFresnel};
 
 /// Principled parameters; defaults are Disney's.
@@ -53,6 +54,11 @@ pub struct Principled {
     /// Tint of the glass lobe's transmission when it is not `baseColor` (UsdPreviewSurface's
     /// opacity transmission is clear).
     pub transmission_color: Option<Vec3>,
+    /// `filmThickness`: a thin film (nm) on the dielectric specular and the glass, whose
+    /// interference replaces their Fresnel term (Cycles' Principled Thin Film); 0: none.
+    pub film_thickness: f32,
+    /// `filmRefractiveIndex`: the film's index.
+    pub film_ior: f32,
 }
 
 impl Default for Principled {
@@ -77,6 +83,8 @@ impl Default for Principled {
             specular_color: None,
             transmission_roughness: None,
             transmission_color: None,
+            film_thickness: 0.0,
+            film_ior: 1.33,
         }
     }
 }
@@ -106,6 +114,8 @@ impl Principled {
             specular_color: self.specular_color.map(|c| if c.is_finite() { c.clamp(Vec3::ZERO, Vec3::ONE) } else { Vec3::splat(0.04) }),
             transmission_roughness: self.transmission_roughness.map(|r| u(r, 0.0)),
             transmission_color: self.transmission_color.map(|c| if c.is_finite() { c.clamp(Vec3::ZERO, Vec3::ONE) } else { Vec3::ONE }),
+            film_thickness: if self.film_thickness.is_finite() { self.film_thickness.clamp(0.0, MAX_THICKNESS_NM) } else { 0.0 },
+            film_ior: if self.film_ior.is_finite() { self.film_ior.clamp(1.0, 3.0) } else { d.film_ior },
         }
     }
 
@@ -127,7 +137,10 @@ impl Principled {
         // coupling η: the most energy the specular can take).
         let f0 = p.specular_color.map_or(0.08 * p.specular, |c| c.max_element());
         let eta = ((1.0 + f0.sqrt()) / (1.0 - f0.sqrt()).max(1e-3)).clamp(1.0, 3.0);
-        let fresnel = if let Some(f0) = p.specular_color {
+        let fresnel = if p.film_thickness > 0.0 {
+            // The film's interference is the whole Fresnel term, tint and colour included.
+            SpecularFresnel::thin_film(p.film_ior, p.film_thickness, eta)
+        } else if let Some(f0) = p.specular_color {
             SpecularFresnel::Schlick { f0 }
         } else if p.specular_tint > 0.0 {
             SpecularFresnel::Schlick { f0: f0 * Vec3::ONE.lerp(tint, p.specular_tint) }
@@ -167,6 +180,8 @@ impl Principled {
             bend_ior: p.ior,
             color: if p.thin { tint.powf(0.5) } else { tint },
             thin: p.thin,
+            film_thickness: p.film_thickness,
+            film_ior: p.film_ior,
         };
         Uber {
             metal: Weighted { weight: p.metallic, params: specular(SpecularFresnel::Schlick { f0: p.base_color }) },

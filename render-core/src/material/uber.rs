@@ -263,11 +263,25 @@ pub struct Glass {
     pub color: Vec3,
     /// A thin sheet rather than a solid's boundary.
     pub thin: bool,
+    /// Thickness in nanometres of a thin film on the boundary, whose interference replaces
+    /// its Fresnel term ([`crate::bsdf::GlassFilm`]); 0: none. Sheets take none.
+    pub film_thickness: f32,
+    /// The film's refractive index.
+    pub film_ior: f32,
 }
 
 impl Default for Glass {
     fn default() -> Self {
-        Glass { roughness: 0.0, anisotropic: 0.0, ior: 1.5, bend_ior: 1.5, color: Vec3::ONE, thin: false }
+        Glass {
+            roughness: 0.0,
+            anisotropic: 0.0,
+            ior: 1.5,
+            bend_ior: 1.5,
+            color: Vec3::ONE,
+            thin: false,
+            film_thickness: 0.0,
+            film_ior: 1.33,
+        }
     }
 }
 
@@ -280,6 +294,8 @@ impl Mix for Glass {
             bend_ior: self.bend_ior.mix(wa, &o.bend_ior, wb),
             color: self.color.mix(wa, &o.color, wb),
             thin: self.thin.mix(wa, &o.thin, wb),
+            film_thickness: self.film_thickness.mix(wa, &o.film_thickness, wb),
+            film_ior: self.film_ior.mix(wa, &o.film_ior, wb),
         }
     }
 }
@@ -719,7 +735,9 @@ impl Uber {
             }
             if !g.thin || every {
                 let w = if g.thin { 0.0 } else { glass_w };
-                let interface = Dielectric::new(g.roughness, g.anisotropic, g.bend_ior, g.color).with_fresnel_eta(g.ior);
+                let interface = Dielectric::new(g.roughness, g.anisotropic, g.bend_ior, g.color)
+                    .with_fresnel_eta(g.ior)
+                    .with_film(g.film_ior, g.film_thickness);
                 bsdf.push_weighted(Lobe::Dielectric(interface.compensated(compensate)), w);
             }
         }

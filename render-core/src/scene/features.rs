@@ -27,7 +27,8 @@ const LOBE_FEATURES: [(Feature, Asks<Uber>); 13] = [
     (Feature::ThinFilm, |u| {
         use crate::bsdf::SpecularFresnel::{ThinFilm, ThinFilmConductor};
         let film_fresnel = (u.plastic.weight > 0.0 && u.plastic.params.specular.is_some_and(|s| matches!(s.fresnel, ThinFilm { .. })))
-            || (u.metal.weight > 0.0 && matches!(u.metal.params.fresnel, ThinFilmConductor { .. }));
+            || (u.metal.weight > 0.0 && matches!(u.metal.params.fresnel, ThinFilmConductor { .. }))
+            || (u.has_refraction() && u.glass.params.film_thickness > 0.0);
         (u.thin_film.weight > 0.0 || film_fresnel) && u.specular_control > 0.0
     }),
     (Feature::DoubleSpecular, |u| {
