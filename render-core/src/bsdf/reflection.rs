@@ -151,7 +151,7 @@ impl SpecularFresnel {
     /// The same Fresnel with a film of index `film` and `thickness` nm over it, when it is a
     /// conductor's (Gulbrandsen's, or the F82 tint's with the edge colour its value at about
     /// 82°, as Cycles reads it); None for any other. The film's average comes from `grid`
-    /// when it is this film's (a metal whose colours vary: integrating it costs 16 µs).
+    /// when it is this film's (a metal whose colours vary: integrating it costs 7 µs).
     pub fn under_film(&self, film: f32, thickness: f32, grid: Option<&super::thin_film::ConductorAverages>) -> Option<Self> {
         let (r, g) = match *self {
             SpecularFresnel::Gulbrandsen { r, g } => (r, g),

@@ -363,8 +363,8 @@ impl TexturedMaterial {
 /// A grid of film averages for each `tessera:Metal` under a film whose colours vary (its film
 /// is the same everywhere: a textured thickness is read at its mean). The average sizes a
 /// rough metal's energy compensation (Kulla & Conty 2017, "Revisiting Physically Based Shading
-/// at Imageworks", "Conductors"); integrated at each shading point it cost 16 µs, about twice
-/// the rest of a filmed metal's render.
+/// at Imageworks", "Conductors"); integrated at each shading point it cost 16 µs, three times
+/// the rest of a ramp-textured filmed metal's render.
 fn metal_film_averages(compiled: &MaterialNetwork, path: &str, keys: &[(String, String)]) -> Vec<(String, ConductorAverages)> {
     let varies = |node: &str| keys.iter().any(|(n, i)| n == node && matches!(i.as_str(), "reflectivity" | "edgeTint"));
     let metals = compiled.nodes.iter().filter(|n| n.node_type_id == "tessera:Metal" && varies(&n.path));
