@@ -6,8 +6,6 @@
 //! the reference table in docs/materials.md (a test checks the two agree; an ignored test
 //! rewrites the table: `cargo test -p render-core write_shader_reference -- --ignored`).
 
-use std::collections::BTreeMap;
-
 use glam::Vec3;
 
 use super::desc::ParamValue;
@@ -312,22 +310,26 @@ pub const SHADERS: &[Shader] = &[
     },
 ];
 
-/// A node's values by input name, defaults filled in, ranges applied.
-struct Values(BTreeMap<&'static str, [f32; 3]>);
+/// A node's values by input name, defaults filled in, ranges applied: (name, value) in the
+/// order the shader declares them. A textured material reads them at every shading point, where
+/// a `BTreeMap` built each time (sorted, deduplicated, allocated node by node) was a third of a
+/// textured metal's render.
+struct Values(Vec<(&'static str, [f32; 3])>);
 
 impl Values {
     fn read(shader: &Shader, node: Inputs, report: &mut ResolveReport) -> Values {
         let shared: &[Input] = if shader.shared { SHARED } else { &[] };
         let decl = || shader.inputs.iter().chain(shared.iter());
-        let mut v: BTreeMap<&'static str, [f32; 3]> = decl().map(|i| (i.name, i.default)).collect();
+        let mut v: Vec<(&'static str, [f32; 3])> = decl().map(|i| (i.name, i.default)).collect();
         for (name, value) in node.iter() {
             if shader.materials.iter().any(|(m, _)| *m == name) {
                 continue;
             }
-            let Some(input) = decl().find(|i| i.name == name) else {
+            let Some(k) = decl().position(|i| i.name == name) else {
                 report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
                 continue;
             };
+            let input = decl().nth(k).expect("found above");
             let (lo, hi) = input.range;
             let clamp = |x: f32| if x.is_finite() { x.clamp(lo, hi) } else { input.default[0] };
             let got = match (input.kind, value) {
@@ -345,25 +347,28 @@ impl Values {
                 _ => None,
             };
             match got {
-                Some(x) => {
-                    v.insert(input.name, x);
-                }
+                Some(x) => v[k].1 = x,
                 None => report.warnings.push(format!("{}: input '{name}' has the wrong type {value:?}; using its default", node.path)),
             }
         }
         Values(v)
     }
 
+    /// The value of the declared input `name`.
+    fn get(&self, name: &str) -> [f32; 3] {
+        self.0.iter().find(|(n, _)| *n == name).map(|(_, v)| *v).expect("a declared input")
+    }
+
     fn f(&self, name: &str) -> f32 {
-        self.0[name][0]
+        self.get(name)[0]
     }
 
     fn c(&self, name: &str) -> Vec3 {
-        Vec3::from_array(self.0[name])
+        Vec3::from_array(self.get(name))
     }
 
     fn b(&self, name: &str) -> bool {
-        self.0[name][0] != 0.0
+        self.get(name)[0] != 0.0
     }
 }
 
@@ -765,6 +770,19 @@ mod tests {
         assert!(resolved("tessera:Refractive", &film[1..]).0.is_invisible());
         let (_, r) = resolved("tessera:Refractive", &[film[0].clone(), ("thin", ParamValue::Bool(true))]);
         assert_eq!(r.warnings, ["/M/S: a thin sheet takes no film; 'filmThickness' has no effect"]);
+    }
+
+    /// No shader declares an input twice, its own or shared: a node's values are found by
+    /// name, the first of the name.
+    #[test]
+    fn no_shader_declares_an_input_twice() {
+        for s in SHADERS {
+            let shared: &[Input] = if s.shared { SHARED } else { &[] };
+            let names: Vec<_> = s.inputs.iter().chain(shared).map(|i| i.name).collect();
+            for (k, n) in names.iter().enumerate() {
+                assert!(!names[..k].contains(n), "{}: '{n}' declared twice", s.id);
+            }
+        }
     }
 
     #[test]
