@@ -148,8 +148,7 @@ impl ShadowGlass {
         // the exit: the refracted pair has the same (1 − F) either way (a film's too, by
         // Stokes' relations).
         if let Some(f) = self.film {
-            let filmed = crate::bsdf::Dielectric::new(0.0, 0.0, self.eta, Vec3::ONE).with_film(f.ior, f.thickness);
-            return self.weight * (Vec3::ONE - filmed.reflectance_outside(cos)) * self.color;
+            return self.weight * (Vec3::ONE - f.reflectance(self.eta, cos.abs())) * self.color;
         }
         self.weight * (1.0 - crate::bsdf::fresnel::dielectric(cos, eta)) * self.color
     }

@@ -228,7 +228,7 @@ def _filmed_glass(node) -> bool:
     Transmission Weight above 0 and a constant Metallic of 0 (its metal takes no film)."""
     if node.type == "BSDF_GLASS":
         return True
-    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+    if not _is_material_surface(node):
         return False
     transmission, metallic = node.inputs["Transmission Weight"], node.inputs["Metallic"]
     return not transmission.is_linked and float(transmission.default_value) > 0.0 and not metallic.is_linked and float(metallic.default_value) == 0.0
@@ -239,11 +239,16 @@ def native_surface(node):
     (tessera:SolidDielectric), "metal" (tessera:Metal) or None. Only the material's surface
     itself (not a side of a mix), without transmission and with Alpha 1 (neither shader has
     opacity), with a constant Metallic of 0 or 1."""
-    if not any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links):
+    if not _is_material_surface(node):
         return None
     if node.type == "BSDF_DIFFUSE":
         return "dielectric"
     return _opaque_kind(node) if node.type == "BSDF_PRINCIPLED" else None
+
+
+def _is_material_surface(node) -> bool:
+    """True when `node` feeds the Material Output itself, not a side of a mix."""
+    return any(link.to_node.type == "OUTPUT_MATERIAL" for link in node.outputs[0].links)
 
 
 def _opaque_kind(principled):

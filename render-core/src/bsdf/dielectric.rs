@@ -60,6 +60,29 @@ pub struct GlassFilm {
     pub thickness: f32,
 }
 
+impl GlassFilm {
+    /// The film's reflectance on an interface of relative index `eta` at `cos`, negative when
+    /// seen from inside. [`super::thin_film::airy`] sees the film from the less dense side, so
+    /// the indices are taken relative to that side's (the thickness scaled to keep the optical
+    /// path); seen from the denser side, a film that absorbs nothing reflects what it does at
+    /// the refracted cosine on the other (Stokes' relations), and everything past the critical
+    /// angle.
+    pub fn reflectance(&self, eta: f32, cos: f32) -> Vec3 {
+        let (lo, hi) = if eta >= 1.0 { (1.0, eta) } else { (eta, 1.0) };
+        let c = cos.abs();
+        let mu_lo = if (cos >= 0.0) == (eta >= 1.0) {
+            c
+        } else {
+            let sin2 = (1.0 - c * c) * (hi / lo) * (hi / lo);
+            if sin2 >= 1.0 {
+                return Vec3::ONE;
+            }
+            (1.0 - sin2).sqrt()
+        };
+        super::thin_film::airy(mu_lo, self.ior / lo, self.thickness * lo, hi / lo)
+    }
+}
+
 /// What the compensation lobes need besides E(μ), integrated once when the lobe is built:
 /// E_avg of the lobe's own interpolated E on each side, so each compensation lobe's albedo is
 /// exactly 1 − E(μo) of the table, and Ratio on each side. Index 0 is seen from above
@@ -181,15 +204,19 @@ impl Dielectric {
     /// nothing (total internal reflection).
     #[inline]
     fn fresnel(&self, cos: f64) -> f64 {
-        let (c, bend, refl) = if cos < 0.0 {
-            (-cos, 1.0 / self.eta as f64, 1.0 / self.fresnel_eta as f64)
-        } else {
-            (cos, self.eta as f64, self.fresnel_eta as f64)
-        };
-        if 1.0 - c * c >= bend * bend {
+        if self.refracts_nothing(cos) {
             return 1.0;
         }
+        let (c, refl) = if cos < 0.0 { (-cos, 1.0 / self.fresnel_eta as f64) } else { (cos, self.fresnel_eta as f64) };
         fresnel::dielectric_f64(c, refl)
+    }
+
+    /// True where the bending index refracts nothing at cos (as [`Dielectric::fresnel`] takes
+    /// it): total internal reflection.
+    #[inline]
+    fn refracts_nothing(&self, cos: f64) -> bool {
+        let bend = if cos < 0.0 { 1.0 / self.eta as f64 } else { self.eta as f64 };
+        1.0 - cos * cos >= bend * bend
     }
 
     /// The reflectance per channel at cos (as [`Dielectric::fresnel`] takes it) and the
@@ -201,37 +228,10 @@ impl Dielectric {
             let f = self.fresnel(cos) as f32;
             return (Vec3::splat(f), f);
         };
-        let r = self.film_reflectance(film, cos);
+        // Everything reflects where the bending index refracts nothing; elsewhere the film
+        // reads the Fresnel index, as the bare interface does.
+        let r = if self.refracts_nothing(cos) { Vec3::ONE } else { film.reflectance(self.fresnel_eta, cos as f32) };
         (r, (r.x + r.y + r.z) / 3.0)
-    }
-
-    /// The reflectance per channel seen from outside at cosine `cos` (transparent shadows).
-    pub fn reflectance_outside(&self, cos: f32) -> Vec3 {
-        self.reflectance(cos.abs() as f64).0
-    }
-
-    /// The film's reflectance at cos. [`super::thin_film::airy`] sees the film from the less
-    /// dense side, so the indices are taken relative to that side's (the thickness scaled to
-    /// keep the optical path); seen from the denser side, a film that absorbs nothing reflects
-    /// what it does at the refracted cosine on the other (Stokes' relations), and everything
-    /// past the critical angle.
-    fn film_reflectance(&self, film: GlassFilm, cos: f64) -> Vec3 {
-        if self.fresnel(cos) == 1.0 {
-            return Vec3::ONE;
-        }
-        let eta = self.fresnel_eta;
-        let (lo, hi) = if eta >= 1.0 { (1.0, eta) } else { (eta, 1.0) };
-        let c = cos.abs() as f32;
-        let mu_lo = if (cos >= 0.0) == (eta >= 1.0) {
-            c
-        } else {
-            let sin2 = (1.0 - c * c) * (hi / lo) * (hi / lo);
-            if sin2 >= 1.0 {
-                return Vec3::ONE;
-            }
-            (1.0 - sin2).sqrt()
-        };
-        super::thin_film::airy(mu_lo, film.ior / lo, film.thickness * lo, hi / lo)
     }
 
     /// True when the compensation lobes are on.

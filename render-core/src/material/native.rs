@@ -325,11 +325,10 @@ impl Values {
             if shader.materials.iter().any(|(m, _)| *m == name) {
                 continue;
             }
-            let Some(k) = decl().position(|i| i.name == name) else {
+            let Some((k, input)) = decl().enumerate().find(|(_, i)| i.name == name) else {
                 report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
                 continue;
             };
-            let input = decl().nth(k).expect("found above");
             let (lo, hi) = input.range;
             let clamp = |x: f32| if x.is_finite() { x.clamp(lo, hi) } else { input.default[0] };
             let got = match (input.kind, value) {
