@@ -10,14 +10,16 @@ async fn furnace_mean(rel: &str) -> f64 {
 
 /// White metal over a white plastic with a clearcoat and a sheen (mask 0.5), and a closed
 /// thin sheet, in the unit white furnace: no energy gain (the background is 1); the losses
-/// are the coats' min rule and the thin sheet's grazing angles (docs/materials.md). Measured
-/// 2026-12-02: layered 0.955, thin 0.983 (fixed seed); the lower bounds sit 2% below, the
-/// sphere mean's sampling noise at this spp being well under 1%, so a 5% loss fails.
+/// are the coats' min rule over the specular lobes and the thin sheet's grazing angles
+/// (docs/materials.md). Measured 2026-12-08: layered 0.976 (0.955 before the diffuse was
+/// renormalised under the coats, which this bound fails), thin 0.983 (fixed seed); the lower
+/// bounds sit 1.6% and 2% below, the sphere mean's sampling noise at this spp being well under
+/// 1%.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn layered_coated_and_thin_materials_never_gain_energy_in_the_furnace() {
     let layered = furnace_mean("materials/furnace_layered.usda").await;
     println!("layered in the furnace: {layered}");
-    assert!(layered <= 1.01 && layered > 0.935, "layered: {layered}");
+    assert!(layered <= 1.01 && layered > 0.96, "layered: {layered}");
     let thin = furnace_mean("materials/furnace_thin.usda").await;
     println!("thin sheet in the furnace: {thin}");
     assert!(thin <= 1.01 && thin > 0.963, "thin sheet: {thin}");

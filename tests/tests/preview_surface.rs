@@ -61,13 +61,14 @@ async fn specular_workflow_reflects_specular_colour_head_on_and_white_at_the_rim
 
 /// A clearcoat adds a highlight (a smooth coat over a rough grey shows a small light's mirror
 /// image, many times brighter than the grey's own broad highlight) and no energy: clearcoated
-/// white stays at or below the unit furnace: 0.959 measured 2026-12-02 (the coat's min rule
-/// over white diffuse), bounded 2% below.
+/// white stays at or below the unit furnace: 0.995 measured 2026-12-08 (the diffuse
+/// renormalised under the coat; the specular layer beneath keeps the min rule), bounded 2%
+/// below; 0.959 by the min rule alone, which fails it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn clearcoat_adds_a_highlight_but_no_energy() {
     let furnace = furnace_sphere_mean("materials/preview/clearcoat_furnace.usda", true).await;
     println!("clearcoated white in the furnace: {furnace}");
-    assert!(furnace <= 1.01 && furnace > 0.94, "clearcoated white in the furnace: {furnace}");
+    assert!(furnace <= 1.01 && furnace > 0.975, "clearcoated white in the furnace: {furnace}");
     let peak = |img: &Image| (0..SIZE * SIZE).map(|i| img.pixel("beauty", i % SIZE, i / SIZE)[1]).fold(0.0f32, f32::max);
     let (coated, plain) = (render("clearcoat_lit.usda", 64).await, render("plain_lit.usda", 64).await);
     println!("peak with clearcoat {}, without {}", peak(&coated), peak(&plain));

@@ -268,10 +268,11 @@ def coats_carried(node):
     UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
     (tessera:Metal's, since 2026-12-07) or None. Constants, on an opaque dielectric or a full
     metal (no transmission, Alpha 1: the shaders have no opacity); the tint may be linked (it is
-    baked). Measured on the `coats` comparison scene: a tinted coat reads 0.958 of Cycles there
-    (1.862 as UsdPreviewSurface's
-    untinted coat). An untinted coat stays UsdPreviewSurface's, its Coat IOR reported: at Coat
-    IOR 1.8 its Disney coat read 1.039, SolidDielectric's 0.960, no nearer. The sheen is not the
+    baked). Measured on the `coats` comparison scene: a tinted coat over grey reads 0.990 of
+    Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat stays
+    UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 (2026-12-08) its Disney coat
+    read 1.019 over grey and 0.995 over silver, SolidDielectric's 0.993 and tessera:Metal's
+    0.979: nearer on the one, further on the other. The sheen is not the
     Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'
     own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}

@@ -1,6 +1,7 @@
 //! Coatings over any combination of lobes (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"): a clearcoat (Disney's GTR1
 //! or Imageworks' dielectric layer with absorption) or the Charlie sheen, each taking from the
-//! layers beneath what it reflects itself.
+//! layers beneath what it reflects itself: by the slides' min rule, or, over a diffuse lobe of
+//! known shape, by their renormalised product ([`DiffuseProfile`]).
 
 use glam::Vec3;
 
@@ -8,7 +9,8 @@ use super::{CharlieSheen, Clearcoat, Fuzz, GgxReflection, Lobe, SpecularFresnel,
 
 /// A layer over the lobes added before it, which takes from them what it reflects
 /// (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings": f_s' = min(1 − E(μo), 1 − E(μi))·f_s, E the coat's directional
-/// albedo; coats can stack).
+/// albedo, or the renormalised product over a diffuse lobe, [`DiffuseProfile`]; coats can
+/// stack).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Coat {
     /// Disney's GTR1 clearcoat ([`Clearcoat`]).
@@ -87,31 +89,162 @@ impl Coat {
         (1.0 - e).max(0.0)
     }
 
-    /// The scale of the lobes beneath for light entering at `wi` and leaving at `wo`:
-    /// min(1 − E(μo), 1 − E(μi)) times the coat's absorption both ways. Symmetric in its
-    /// arguments, so layering keeps the BSDF reciprocal. The fuzz, whose own lobe is not
-    /// reciprocal, scales by 1 − E(μo) alone, OpenPBR's albedo scaling (and Cycles'): a white
-    /// fuzz over a white base then reflects all the light, where the min rule lost 6% of it.
-    /// `through_wo` is [`Coat::through`] at `wo`, which `Bsdf::prepare` looks up once per view.
-    pub(super) fn over(&self, through_wo: f32, wo: Vec3, wi: Vec3) -> Vec3 {
-        let t = match self {
-            Coat::Fuzz(_) => through_wo,
-            _ => through_wo.min(self.through(wi.z)),
+    /// The scales of the lobes beneath for light entering at `wi` and leaving at `wo`, each
+    /// times the coat's absorption both ways:
+    /// - `any`, for any lobe: min(1 − E(μo), 1 − E(μi)) (the slides' rule);
+    /// - `diffuse`, for a lobe whose shape in μi is known ([`DiffuseProfile`]):
+    ///   (1 − E(μo))(1 − E(μi)), to be renormalised by [`DiffuseProfile::coat_norm`].
+    ///
+    /// Both are symmetric in their arguments, so layering keeps the BSDF reciprocal. The fuzz,
+    /// whose own lobe is not reciprocal, scales both by 1 − E(μo) alone, OpenPBR's albedo
+    /// scaling (and Cycles'): a white fuzz over a white base then reflects all the light,
+    /// where the min rule lost 6% of it. `through_wo` is [`Coat::through`] at `wo`, which
+    /// `Bsdf::prepare` looks up once per view.
+    pub(super) fn over(&self, through_wo: f32, wo: Vec3, wi: Vec3) -> CoatScale {
+        let (any, diffuse) = match self {
+            Coat::Fuzz(_) => (through_wo, through_wo),
+            _ => {
+                let through_wi = self.through(wi.z);
+                (through_wo.min(through_wi), through_wo * through_wi)
+            }
         };
+        let tint = self.tint(wo, wi);
+        CoatScale { any: any * tint, diffuse: diffuse * tint }
+    }
+
+    /// What the coat's absorption leaves of light entering at `wi` and leaving at `wo`.
+    fn tint(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         match self {
             Coat::Dielectric(d) if d.absorption != Vec3::ZERO => {
                 let tint = d.transmittance(wo.z.abs()) * d.transmittance(wi.z.abs());
-                t * (Vec3::ONE + (tint - Vec3::ONE) * d.weight)
+                Vec3::ONE + (tint - Vec3::ONE) * d.weight
             }
-            _ => Vec3::splat(t),
+            _ => Vec3::ONE,
         }
     }
+
+    /// True when the coat's scale of a lobe beneath depends on both directions (all but the
+    /// fuzz, which scales by 1 − E(μo) alone).
+    fn is_reciprocal(&self) -> bool {
+        !matches!(self, Coat::Fuzz(_))
+    }
+}
+
+/// A coat's scales of the lobes beneath it ([`Coat::over`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct CoatScale {
+    /// For any lobe: the min rule.
+    pub any: Vec3,
+    /// For a diffuse lobe of known shape: the product, before its renormalisation.
+    pub diffuse: Vec3,
+}
+
+impl CoatScale {
+    /// No coat.
+    pub const NONE: CoatScale = CoatScale { any: Vec3::ONE, diffuse: Vec3::ONE };
+}
+
+/// How a diffuse lobe's f varies with μi, where it is f(μo, μi) = c(μo)·g(μi): a Lambertian
+/// lobe (g = 1), or one coupled to a dielectric specular beneath a coat's
+/// (g = 1 − E_s(μi), UsdPreviewSurface's diffuse).
+///
+/// Under such a lobe the coats' E is known and so is the lobe's, so the slides' renormalised
+/// product applies rather than their min rule: Kulla & Conty 2017, "Revisiting Physically
+/// Based Shading at Imageworks", "Coatings" takes min(1 − E(μo), 1 − E(μi)) because "since
+/// the underlying BSDF can be anything – not just diffuse – we have no way to renormalize it";
+/// for a diffuse one the section "Microfacet dielectrics — diffuse term" does renormalise,
+/// f·(1 − E(μo))(1 − E(μi))/(1 − E_avg). With several coats and the lobe's own shape the
+/// constant is K = ∫g·T·2μ dμ / ∫g·2μ dμ, T = Π(1 − E_j) over the coats: the lobe then
+/// reflects exactly T(μo) of what it reflected bare (a white Lambertian under a clear coat is
+/// white in the furnace, where the min rule lost up to 5.5%), and the scale stays symmetric.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum DiffuseProfile {
+    /// g = 1.
+    Flat,
+    /// g = 1 − E_s(μ) of a dielectric specular (η, roughness).
+    Coupled(f32, f32),
+}
+
+impl DiffuseProfile {
+    /// g(μ).
+    fn at(self, mu: f32) -> f32 {
+        match self {
+            DiffuseProfile::Flat => 1.0,
+            DiffuseProfile::Coupled(eta, r) => 1.0 - energy::dielectric_specular().e(eta, r, mu),
+        }
+    }
+
+    /// 1/K for the lobe under `coats` (only the reciprocal ones renormalise); 1 when they let
+    /// everything through. The quadrature reads the tables two dozen times, and a textured
+    /// material builds its BSDF at every shading point, mostly under the same coats: each
+    /// thread keeps its last answer (a coupled diffuse under a Disney clearcoat, built again
+    /// and again: 363 ns a build with the coat changing each time, 39 ns with it the same).
+    pub(super) fn coat_norm<'c>(self, coats: impl Iterator<Item = &'c Coat>) -> f32 {
+        let mut key = [None; super::MAX_COATS];
+        key.iter_mut().zip(coats.filter(|c| c.is_reciprocal())).for_each(|(slot, c)| *slot = Some(*c));
+        type Last = Option<(DiffuseProfile, [Option<Coat>; super::MAX_COATS], f32)>;
+        thread_local! {
+            static LAST: std::cell::Cell<Last> = const { std::cell::Cell::new(None) };
+        }
+        LAST.with(|last| match last.get() {
+            Some((profile, coats, norm)) if profile == self && coats == key => norm,
+            _ => {
+                let norm = self.integrate(key.iter().flatten());
+                last.set(Some((self, key, norm)));
+                norm
+            }
+        })
+    }
+
+    /// 1/K by Gauss-Legendre quadrature over μ.
+    fn integrate<'c>(self, coats: impl Iterator<Item = &'c Coat> + Clone) -> f32 {
+        let (mut with, mut bare) = (0.0, 0.0);
+        for &(x, w) in gauss_legendre_unit() {
+            let g = self.at(x) * w * x;
+            with += g * coats.clone().map(|c| c.through(x)).product::<f32>();
+            bare += g;
+        }
+        if with > 0.0 { bare / with } else { 0.0 }
+    }
+}
+
+/// Nodes of [`gauss_legendre_unit`]: enough for the smooth 1 − E(μ) of a coat and a coupled
+/// lobe (a test holds the result to a fine midpoint sum).
+const GAUSS_NODES: usize = 12;
+
+/// Gauss-Legendre nodes and weights on [0, 1], computed once: the roots of P_n by Newton's
+/// method from Chebyshev guesses, weights 2/((1 − x²)P_n'(x)²), both mapped from [−1, 1].
+fn gauss_legendre_unit() -> &'static [(f32, f32); GAUSS_NODES] {
+    static RULE: std::sync::OnceLock<[(f32, f32); GAUSS_NODES]> = std::sync::OnceLock::new();
+    RULE.get_or_init(|| {
+        let n = GAUSS_NODES;
+        std::array::from_fn(|i| {
+            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+            let mut dp = 1.0;
+            for _ in 0..100 {
+                // P_n(x) by the three-term recurrence, and its derivative.
+                let (mut p0, mut p1) = (1.0, x);
+                for k in 2..=n {
+                    let k = k as f64;
+                    (p0, p1) = (p1, ((2.0 * k - 1.0) * x * p1 - (k - 1.0) * p0) / k);
+                }
+                dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let step = p1 / dp;
+                x -= step;
+                if step.abs() < 1e-15 {
+                    break;
+                }
+            }
+            let w = 2.0 / ((1.0 - x * x) * dp * dp);
+            (((1.0 + x) * 0.5) as f32, (w * 0.5) as f32)
+        })
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::{Bsdf, Lambert, testing};
+    use crate::bsdf::{Bsdf, DisneyDiffuse, Lambert, testing};
 
     fn coated(coats: &[Coat]) -> Bsdf {
         let mut b = Bsdf::default();
@@ -137,20 +270,78 @@ mod tests {
         ]
     }
 
-    /// Over a white Lambertian base the coats never gain energy. They lose some: the slides
-    /// call the loss "subtle"; measured here it is at most 5.5% for the clear dielectric coats, 13.5% for a
-    /// sheen of roughness 1 seen head-on (light arriving at grazing angles, where the sheen
-    /// reflects most, is taken from the base by the min(1 − E(μo), 1 − E(μi)) rule) and 16%
-    /// for a sheen stacked on a clearcoat.
+    /// Over a white Lambertian base a clear coat, or a white sheen, loses nothing: the base is
+    /// renormalised under it ([`DiffuseProfile`]) and reflects exactly what the coat lets
+    /// through, so coat and base sum to 1 at every view. With the slides' min rule alone the
+    /// clear coats lost up to 5.5% and a sheen of roughness 1, seen head-on, 13.5% (light
+    /// arriving at grazing angles, where the sheen reflects most, was taken from the base).
+    /// Stacked, the clearcoat's own lobe under the sheen keeps the min rule (it is not diffuse)
+    /// and loses a little. 40 000 samples hold each estimate to about 0.005; the coats' tables
+    /// hold their E to about as much (measured: 0.998-1.005 for the clear coats).
     #[test]
-    fn coated_white_base_loses_little_and_never_gains() {
+    fn coated_white_base_keeps_its_energy() {
         for c in coats().into_iter().filter(|c| !matches!(c[..], [Coat::Dielectric(d)] if d.absorption != Vec3::ZERO)) {
             let b = coated(&c);
+            let stacked = c.len() > 1;
             for wo in testing::probe_directions() {
                 let a = testing::albedo_estimate(&b, wo, 40_000).x;
-                assert!(a <= 1.0 + 1e-3 + 0.01, "{c:?} at {wo:?}: {a}");
-                assert!(a >= 0.83, "{c:?} at {wo:?} loses too much: {a}");
+                assert!(a <= 1.0 + 0.01, "{c:?} at {wo:?}: {a}");
+                // At μo = 1e-4 the sheen's lobe reflects a little less than its table's last
+                // cosine says, and what the table says is what the base gives up: 0.970-0.973
+                // alone, 0.917 stacked. Elsewhere the lowest is 0.9947 (stacked).
+                let floor = match (wo.z < 1e-3, stacked) {
+                    (false, _) => 0.99,
+                    (true, false) => 0.965,
+                    (true, true) => 0.91,
+                };
+                assert!(a >= floor, "{c:?} at {wo:?} loses energy: {a}");
             }
+        }
+    }
+
+    /// The renormalisation's quadrature: exact for polynomials of degree 2n − 1, and 1/K for
+    /// real coats within 1e-4 of a 20 000-point midpoint sum.
+    #[test]
+    fn diffuse_renormalisation_integrates_exactly_enough() {
+        for degree in 0..2 * GAUSS_NODES as i32 {
+            let sum: f64 = gauss_legendre_unit().iter().map(|&(x, w)| w as f64 * (x as f64).powi(degree)).sum();
+            assert!((sum - 1.0 / (degree + 1) as f64).abs() < 1e-6, "x^{degree}: {sum}");
+        }
+        let profiles = [DiffuseProfile::Flat, DiffuseProfile::Coupled(1.5, 0.0), DiffuseProfile::Coupled(1.3, 0.7)];
+        for c in coats() {
+            for p in profiles {
+                let n = 20_000;
+                let (mut with, mut bare) = (0.0f64, 0.0f64);
+                for k in 0..n {
+                    let mu = (k as f32 + 0.5) / n as f32;
+                    let g = (p.at(mu) * mu) as f64;
+                    with += g * c.iter().filter(|c| c.is_reciprocal()).map(|c| c.through(mu) as f64).product::<f64>();
+                    bare += g;
+                }
+                let (fine, quick) = (bare / with, p.coat_norm(c.iter()) as f64);
+                assert!((fine - quick).abs() < 1e-4 * fine, "{c:?} over {p:?}: {quick} against {fine}");
+            }
+        }
+    }
+
+    /// UsdPreviewSurface's diffuse (coupled to its specular) under a clear dielectric coat: the
+    /// base is renormalised too, and reflects exactly what the coat lets through of what it
+    /// reflected bare. Measured within 7e-4 at every view; by the min rule alone it fell 0.035
+    /// short head-on.
+    #[test]
+    fn a_coupled_diffuse_under_a_clearcoat_keeps_what_the_coat_lets_through() {
+        let diffuse = Lobe::DisneyDiffuse(DisneyDiffuse::new(Vec3::ONE, 0.5, 0.0, Some((1.5, 0.3)), true));
+        let coat = Coat::Dielectric(DielectricCoat::new(1.0, 1.6, 0.3, Vec3::ONE, 0.0));
+        let mut b = Bsdf::default();
+        b.push(diffuse);
+        b.coat_with(coat, true);
+        let mut base = Bsdf::default();
+        base.push(diffuse);
+        for wo in testing::probe_directions().into_iter().filter(|w| w.z >= 1e-2) {
+            let (a, bare) = (testing::albedo_estimate(&b, wo, 40_000).x, testing::albedo_estimate(&base, wo, 40_000).x);
+            let (coat_alone, through) = (testing::albedo_estimate(&coat.lobe(true).0, wo, 40_000).x, coat.through(wo.z));
+            let want = coat_alone + through * bare;
+            assert!((a - want).abs() < 3e-3, "at {wo:?}: {a} against {want} (bare {bare}, coat {coat_alone}, through {through})");
         }
     }
 

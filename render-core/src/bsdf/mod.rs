@@ -31,6 +31,7 @@ mod view_cache;
 
 pub use charlie::CharlieSheen;
 pub use coat::{Coat, DielectricCoat};
+use coat::{CoatScale, DiffuseProfile};
 pub use dielectric::{Dielectric, GlassFilm};
 pub use disney::{Clearcoat, DiffuseTransmission, DisneyDiffuse, Sheen};
 pub use fabric::Fabric;
@@ -298,6 +299,18 @@ impl Lobe {
             Lobe::Dielectric(_) | Lobe::ThinDielectric(_) | Lobe::Hair(_) => PathKind::Transmission,
         }
     }
+
+    /// How f varies with μi where it is c(μo)·g(μi) (a Lambertian lobe, UsdPreviewSurface's
+    /// coupled diffuse), so a coat over it can be renormalised ([`DiffuseProfile`]).
+    fn diffuse_profile(&self) -> Option<DiffuseProfile> {
+        match self {
+            Lobe::Lambert(_) => Some(DiffuseProfile::Flat),
+            Lobe::DisneyDiffuse(d) if d.lambert => {
+                Some(d.coupling.map_or(DiffuseProfile::Flat, |(eta, r)| DiffuseProfile::Coupled(eta, r)))
+            }
+            _ => None,
+        }
+    }
 }
 
 /// The light-path AOV a scattering event belongs to (`film::Aov::COMPONENTS` order).
@@ -328,6 +341,9 @@ pub struct Bsdf {
     coats: [Option<(usize, Coat)>; MAX_COATS],
     /// Each coat's `through` at the shading point's view ([`Bsdf::prepare`]).
     coats_at_view: [ViewCache<f32>; MAX_COATS],
+    /// Per lobe under a coat whose shape in μi is known ([`DiffuseProfile`]), the coats'
+    /// renormalisation 1/K; 0 for lobes the min rule scales.
+    coat_norms: [f32; MAX_LOBES],
     /// Keep lobes of weight 0 (the `force_all_effects` benchmark's uber-shader that pays for
     /// every lobe whether or not the material uses it).
     keep_zero: bool,
@@ -354,6 +370,7 @@ impl Clone for Bsdf {
         if self.coats[0].is_some() || source.coats[0].is_some() {
             self.coats = source.coats;
             self.coats_at_view = source.coats_at_view;
+            self.coat_norms = source.coat_norms;
         }
         self.keep_zero = source.keep_zero;
     }
@@ -378,13 +395,24 @@ impl Bsdf {
     /// Puts `coat` over every lobe added so far (coats included, so coats stack), layered as
     /// Imageworks combines coats (Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings"): the lobes beneath are scaled by
     /// [`Coat::over`], so coat plus base never reflects more than 1 and the product stays
-    /// reciprocal. `compensate` switches the coat lobe's own energy compensation.
+    /// reciprocal; diffuse lobes of known shape are renormalised under the coats so far
+    /// ([`DiffuseProfile`]). `compensate` switches the coat lobe's own energy compensation.
     pub fn coat_with(&mut self, coat: Coat, compensate: bool) {
         let (lobe, weight) = coat.lobe(compensate);
         let Some(slot) = self.coats.iter_mut().find(|c| c.is_none()) else { return };
         if (weight > 0.0 || self.keep_zero) && self.count < MAX_LOBES {
             *slot = Some((self.count, coat));
             self.push_weighted(lobe, weight);
+            self.renormalise_diffuse_under_coats();
+        }
+    }
+
+    /// Sets [`Bsdf::coat_norms`] for every lobe of known diffuse shape under the coats so far.
+    fn renormalise_diffuse_under_coats(&mut self) {
+        for i in 0..self.count {
+            let Some(profile) = self.lobes[i].as_ref().and_then(Lobe::diffuse_profile) else { continue };
+            let above = self.coats.iter().flatten().filter(|(k, _)| *k > i).map(|(_, c)| c);
+            self.coat_norms[i] = profile.coat_norm(above);
         }
     }
 
@@ -399,8 +427,8 @@ impl Bsdf {
     /// Each coat's attenuation of the lobes beneath it for (wo, wi), by coat slot: found once
     /// for all the lobes of an evaluation.
     #[inline]
-    fn coat_scales(&self, wo: Vec3, wi: Vec3) -> [Vec3; MAX_COATS] {
-        let mut scales = [Vec3::ONE; MAX_COATS];
+    fn coat_scales(&self, wo: Vec3, wi: Vec3) -> [CoatScale; MAX_COATS] {
+        let mut scales = [CoatScale::NONE; MAX_COATS];
         if self.coats[0].is_none() {
             return scales; // coats fill the slots in order: none at all
         }
@@ -412,19 +440,37 @@ impl Bsdf {
         scales
     }
 
-    /// The scale of lobe `i`: the attenuation of every coat above it, from
-    /// [`Bsdf::coat_scales`].
+    /// The scale of lobe `i` in f(wo, wi): the attenuation of every coat above it, from
+    /// [`Bsdf::coat_scales`] at (wo, wi); renormalised for a lobe of known diffuse shape.
     #[inline]
-    fn under_coat(&self, i: usize, scales: &[Vec3; MAX_COATS]) -> Vec3 {
-        let mut scale = Vec3::ONE;
+    fn under_coat(&self, i: usize, scales: &[CoatScale; MAX_COATS]) -> Vec3 {
         if self.coats[0].is_none() {
-            return scale;
+            return Vec3::ONE;
         }
+        let norm = self.coat_norms[i];
+        if norm > 0.0 { norm * self.coats_over(i, scales, |s| s.diffuse) } else { self.coats_over(i, scales, |s| s.any) }
+    }
+
+    /// The share of lobe `i`'s albedo at `wo` the coats above it leave, from
+    /// [`Bsdf::coat_scales`] at (wo, wo): 1 − E(μo) for every lobe (the renormalised product
+    /// leaves a diffuse lobe exactly that, the min rule at most that).
+    #[inline]
+    fn albedo_under_coat(&self, i: usize, scales: &[CoatScale; MAX_COATS]) -> Vec3 {
+        if self.coats[0].is_none() {
+            return Vec3::ONE;
+        }
+        self.coats_over(i, scales, |s| s.any)
+    }
+
+    /// The product of `part` of the scales of the coats over lobe `i`.
+    #[inline]
+    fn coats_over(&self, i: usize, scales: &[CoatScale; MAX_COATS], part: impl Fn(&CoatScale) -> Vec3) -> Vec3 {
+        let mut scale = Vec3::ONE;
         for (coat, s) in self.coats.iter().zip(scales) {
             if let Some((k, _)) = coat
                 && *k > i
             {
-                scale *= *s;
+                scale *= part(s);
             }
         }
         scale
@@ -518,8 +564,8 @@ impl Bsdf {
         let mut total = 0.0;
         let coats = self.coat_scales(wo, wo);
         for i in 0..self.count {
-            let w =
-                self.weights[i] * self.lobes[i].map_or(0.0, |l| crate::math::luminance(self.under_coat(i, &coats) * l.albedo(wo)).max(0.0));
+            let w = self.weights[i]
+                * self.lobes[i].map_or(0.0, |l| crate::math::luminance(self.albedo_under_coat(i, &coats) * l.albedo(wo)).max(0.0));
             self.select[i] = w;
             total += w;
         }
@@ -570,7 +616,7 @@ impl Bsdf {
     /// Weighted sum of the lobes' albedo estimates.
     pub fn albedo(&self, wo: Vec3) -> Vec3 {
         let coats = self.coat_scales(wo, wo);
-        self.lobes().map(|(i, l)| self.weights[i] * self.under_coat(i, &coats) * l.albedo(wo)).sum()
+        self.lobes().map(|(i, l)| self.weights[i] * self.albedo_under_coat(i, &coats) * l.albedo(wo)).sum()
     }
 
     /// [`Bsdf::eval`] split by [`PathKind`]: the three parts sum to `eval`.

@@ -19,8 +19,8 @@
 //! section 14.4.1), one index per channel as Belcour & Barla's code and Cycles do for metals.
 //!
 //! As a coat, its directional albedo E(μ) is tabulated per material when it is built (16 √μ
-//! nodes of the coat lobe's own quadrature), and the layers beneath keep
-//! min(1 − E(μo), 1 − E(μi)) as for the other coats.
+//! nodes of the coat lobe's own quadrature), and the layers beneath keep what it lets through
+//! as under the other coats (`coat.rs`).
 
 use std::f32::consts::PI;
 

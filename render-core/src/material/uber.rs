@@ -715,7 +715,7 @@ impl Uber {
         if let Some(coat) = film {
             // Its interference can reflect more than the bare dielectric whose albedo the
             // diffuse coupling reads (a quarter head-on for index 2.4 over 1.5, against 4%),
-            // so it takes from the diffuse as a coat does: min(1 − E(μo), 1 − E(μi)).
+            // so it takes from the diffuse as a coat does (`Bsdf::coat_with`).
             bsdf.coat_with(Coat::ThinFilm(coat.weighted(plastic_w * spec_scale, compensate)), compensate);
         }
     }
