@@ -509,11 +509,404 @@ def _glass_film_spheres(mat, add):
     return world
 
 
+def _box_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `box` and `box_matte`: (camera location, rotation, world)."""
+    add(bpy.ops.mesh.primitive_plane_add, mat("white", (0.8, 0.8, 0.8)), 1, size=4)
+    add(bpy.ops.mesh.primitive_plane_add, mat("red", (0.8, 0.1, 0.1)), 2, size=4, location=(-2, 0, 2), rotation=(0, 1.5708, 0))
+    add(bpy.ops.mesh.primitive_plane_add, mat("green", (0.1, 0.8, 0.1)), 3, size=4, location=(2, 0, 2), rotation=(0, 1.5708, 0))
+    add(bpy.ops.mesh.primitive_plane_add, mat("back", (0.8, 0.8, 0.8)), 4, size=4, location=(0, 2, 2), rotation=(1.5708, 0, 0))
+    add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
+    cam = (0, -7, 2); rot = (1.5708, 0, 0)
+    return cam, rot, None
+
+
+def _hair_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `hair`: (camera location, rotation, world)."""
+    # Two patches of hair curves (exported as BasisCurves) whose Principled Hair BSDFs the
+    # add-on writes as tessera:Hair: by melanin, and by colour (direct colouring).
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+    hair_patch(2, -0.9, parametrization="MELANIN", Melanin=0.3)
+    hair_patch(3, 0.9, parametrization="COLOR", Color=(0.6, 0.3, 0.1, 1))
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -5, 1.6); rot = (1.35, 0, 0)
+    return cam, rot, None
+
+
+def _coats_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `coats`: (camera location, rotation, world)."""
+    # A Principled BSDF's orange-tinted coat, which UsdPreviewSurface cannot hold, over a
+    # grey Lambertian base (IOR 1): written as tessera:SolidDielectric's clearcoat.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+    m = mat("tinted coat", (0.6, 0.6, 0.6))
+    for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat Tint": (0.9, 0.5, 0.2, 1)}.items():
+        m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(0, 0, 1.0), segments=64, ring_count=32)
+    # Behind it, the same coat over a silver metal: tessera:Metal's clearcoat.
+    m = mat("tinted coat metal", (0.9, 0.9, 0.9), rough=0.3, metal=1.0)
+    for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat Tint": (0.9, 0.5, 0.2, 1)}.items():
+        m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 3, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
+    # Beside it, a silver metal whose Coat Tint is a Checker of orange and white: baked.
+    scene.tessera.bake_size = 256
+    m = mat("checkered coat metal", (0.9, 0.9, 0.9), rough=0.3, metal=1.0)
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["Coat Weight"].default_value, p.inputs["Coat Roughness"].default_value = 1.0, 0.1
+    checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=2.0, Color1=(0.9, 0.5, 0.2, 1), Color2=(1.0, 1.0, 1.0, 1))
+    m.node_tree.links.new(checker.outputs["Color"], p.inputs["Coat Tint"])
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(-2.4, 2.5, 1.0), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, None
+
+
+def _rough_diffuse_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `rough_diffuse`: (camera location, rotation, world)."""
+    # Oren-Nayar at roughness 1 (energy-preserving in both): a Principled BSDF's Diffuse
+    # Roughness and a Diffuse BSDF's Roughness, lit by a sun from behind the camera, where
+    # rough facets send light back and a Lambertian sphere would read darker.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
+    m = mat("rough principled", (0.8, 0.8, 0.8))
+    m.node_tree.nodes["Principled BSDF"].inputs["Diffuse Roughness"].default_value = 1.0
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(-1.2, 0, 1.0), segments=64, ring_count=32)
+    d = _standalone_material("rough diffuse", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1), Roughness=1.0)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, d, 3, radius=1.0, location=(1.2, 0, 1.0), segments=64, ring_count=32)
+    # Behind them, Diffuse Roughness from a Checker (0 and 1): baked, as any linked input,
+    # at 256² (the checker's 4 × 4 squares need no more).
+    scene.tessera.bake_size = 256
+    m = _checkered(mat("checkered rough", (0.8, 0.8, 0.8)), "Diffuse Roughness")
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(1.1, 0, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, None
+
+
+def _sheen_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `sheen`: (camera location, rotation, world)."""
+    world = _sheen_spheres(mat, add, scene)
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, world
+
+
+def _anisotropic_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `anisotropic`: (camera location, rotation, world)."""
+    world = _anisotropic_objects(mat, add, scene)
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, world
+
+
+def _thin_film_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `thin_film`: (camera location, rotation, world)."""
+    world = _thin_film_spheres(mat, add)
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, world
+
+
+def _glass_film_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `glass_film`: (camera location, rotation, world)."""
+    world = _glass_film_spheres(mat, add)
+    cam = (0, -7, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, world
+
+
+def _shaders_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `shaders`: (camera location, rotation, world)."""
+    shader_spheres_and_cutouts(mat, add, directory)
+    # The `glass` scene's sun: lower, the glass sphere's shadow holds a caustic, which
+    # neither renderer converges on at these samples.
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -8, 3); rot = (1.2, 0, 0)
+    return cam, rot, None
+
+
+def _glass_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `glass`: (camera location, rotation, world)."""
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.7, 0.7, 0.7)), 1, size=20)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -8, 3); rot = (1.2, 0, 0)
+    return cam, rot, None
+
+
+def _linked_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `linked`: (camera location, rotation, world)."""
+    # Light linking: the key reaches the left sphere alone (its receiver collection
+    # includes it); the right sphere casts none of the fill's shadows (excluded from the
+    # fill's blocker collection).
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+    left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
+    right = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
+    bpy.ops.object.light_add(type='AREA', location=(0, 0, 3)); key = bpy.context.object; key.data.energy = 300; key.data.size = 1
+    receivers = bpy.data.collections.new("key receivers"); receivers.objects.link(left)
+    key.light_linking.receiver_collection = receivers
+    bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object; fill.data.energy = 200; fill.data.shadow_soft_size = 0.2
+    blockers = bpy.data.collections.new("fill blockers"); blockers.objects.link(right)
+    blockers.collection_objects[0].light_linking.link_state = 'EXCLUDE'
+    fill.light_linking.blocker_collection = blockers
+    cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    return cam, rot, None
+
+
+def _emitter_linked_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `emitter_linked`: (camera location, rotation, world)."""
+    # An emissive object's own light linking: the panel lights the left sphere alone (its
+    # receiver collection); a dim point light reaches everything, so no region is black.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+    left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
+    glow = mat("glow", (0.0, 0.0, 0.0))
+    p = glow.node_tree.nodes["Principled BSDF"]
+    p.inputs["Emission Color"].default_value = (1.0, 0.9, 0.8, 1)
+    p.inputs["Emission Strength"].default_value = 20.0
+    panel = add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1, location=(-1.2, 0, 2.6), rotation=(3.14159, 0, 0))
+    panel.name = "Panel"
+    receivers = bpy.data.collections.new("panel receivers"); receivers.objects.link(left)
+    panel.light_linking.receiver_collection = receivers
+    bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object.data; fill.energy = 100; fill.shadow_soft_size = 0.2
+    cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    return cam, rot, None
+
+
+def _udim_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `udim`: (camera location, rotation, world)."""
+    # One material over a UDIM set; the left plane's UVs lie in tile 1001, the right
+    # plane's in tile 1002, so each region shows one tile's colour (Lambertian, IOR 1).
+    m = mat("tiles", (1, 1, 1))
+    t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = udim_image(directory)
+    m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    for index, x in ((1, -1.05), (2, 1.05)):
+        plane = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2, location=(x, 0, 0))
+        for loop in plane.data.uv_layers.active.data:
+            loop.uv.x += index - 1
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -5, 4); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _subsurface_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `subsurface`: (camera location, rotation, world)."""
+    # Random-walk subsurface scattering (Cycles' default method) behind a rough boundary
+    # of IOR 1.4, all of the base on the left sphere and half of it on the right; the mean
+    # free path (Blender's default radius × 0.05) is 0.05 in red, a fourteenth of the
+    # spheres' radius, and a fifth and a tenth of that in green and blue.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+    for index, x, weight in ((2, -1.0, 1.0), (3, 1.0, 0.5)):
+        skin = mat(f"skin{index}", (0.8, 0.45, 0.3), rough=0.4)
+        p = skin.node_tree.nodes["Principled BSDF"]
+        p.inputs["IOR"].default_value = 1.4
+        p.inputs["Subsurface Weight"].default_value = weight
+        p.inputs["Subsurface Scale"].default_value = 0.05
+        add(bpy.ops.mesh.primitive_uv_sphere_add, skin, index, radius=0.7, location=(x, 0, 0.7), segments=64, ring_count=32)
+    # A large light in front: a small one lights a medium through its rough boundary as
+    # fireflies in both renderers.
+    bpy.ops.object.light_add(type='AREA', location=(0, -2.5, 3.5), rotation=(0.6, 0, 0)); key = bpy.context.object.data; key.energy = 800; key.size = 3
+    cam = (0, -6, 2.2); rot = (1.3, 0, 0)
+    return cam, rot, None
+
+
+def _displaced_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `displaced`: (camera location, rotation, world)."""
+    # True displacement (Displacement Only) on a smooth-shaded grid just above the floor: a
+    # height map (raw) whose middle quarter is 1 raises a block 0.6 high, which shades the
+    # floor under a low sun. A plane behind the camera asks for Bump Only, which the export
+    # drops with a warning.
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+    path = os.path.join(directory, "height.png")
+    img = bpy.data.images.new("height", 64, 64)
+    px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[16:48, 16:48, :3] = 1
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+    for name, method, index, location in (("block", 'DISPLACEMENT', 2, (0, 0, 0.002)), ("bumps", 'BUMP', 0, (0, -9, 0))):
+        m = mat(name, (0.8, 0.8, 0.8))
+        m.displacement_method = method
+        t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(path)
+        t.image.colorspace_settings.name = 'Non-Color'
+        d = m.node_tree.nodes.new("ShaderNodeDisplacement")
+        d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.6, 0.0
+        m.node_tree.links.new(t.outputs["Color"], d.inputs["Height"])
+        m.node_tree.links.new(d.outputs["Displacement"], m.node_tree.nodes["Material Output"].inputs["Displacement"])
+        add(bpy.ops.mesh.primitive_grid_add, m, index, x_subdivisions=96, y_subdivisions=96, size=2, location=location)
+        bpy.ops.object.shade_smooth()
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.8, 0.5, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -5, 4); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _bumped_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `bumped`: (camera location, rotation, world)."""
+    # A height ramp along u (256 columns, code x at column x, Non-Color) bumps one plane
+    # through a Bump node (Distance 0.5) and another through Bump Only displacement (Scale
+    # 0.5): both lean 14° away from +x, towards which the sun (30° off the zenith) does not
+    # lie, so they read about 17% darker than the flat plane between them.
+    path = os.path.join(directory, "ramp.png")
+    img = bpy.data.images.new("ramp", 256, 256)
+    px = np.zeros((256, 256, 4), np.float32); px[..., 3] = 1; px[..., :3] = (np.arange(256, dtype=np.float32) / 255.0)[None, :, None]
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+    ramp = bpy.data.images.load(path); ramp.colorspace_settings.name = 'Non-Color'
+    node_bump = mat("bump node", (0.8, 0.8, 0.8))
+    tree = node_bump.node_tree
+    t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
+    b = tree.nodes.new("ShaderNodeBump"); b.inputs["Distance"].default_value = 0.5
+    tree.links.new(t.outputs["Color"], b.inputs["Height"]); tree.links.new(b.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
+    add(bpy.ops.mesh.primitive_plane_add, node_bump, 1, size=2, location=(-2.2, 0, 0))
+    bump_only = mat("bump only", (0.8, 0.8, 0.8))
+    bump_only.displacement_method = 'BUMP'
+    tree = bump_only.node_tree
+    t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
+    d = tree.nodes.new("ShaderNodeDisplacement")
+    d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.5, 0.0
+    tree.links.new(t.outputs["Color"], d.inputs["Height"]); tree.links.new(d.outputs["Displacement"], tree.nodes["Material Output"].inputs["Displacement"])
+    add(bpy.ops.mesh.primitive_plane_add, bump_only, 2, size=2, location=(2.2, 0, 0))
+    add(bpy.ops.mesh.primitive_plane_add, mat("flat", (0.8, 0.8, 0.8)), 3, size=2, location=(0, 0, 0))
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0, 0.5236, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -6, 5); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _mixed_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `mixed`: (camera location, rotation, world)."""
+    # Mix Shaders (Lambertian sides, IOR 1): red Principled and blue Diffuse BSDF at Fac 0.3;
+    # green and white Principled BSDFs by an image mask, black on its left half and white
+    # on its right (Non-Color).
+    def principled(tree, color):
+        p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+        p.inputs["Base Color"].default_value = (*color, 1); p.inputs["IOR"].default_value = 1.0
+        return p
+    m = bpy.data.materials.new("constant mix")
+    tree = m.node_tree
+    red = tree.nodes["Principled BSDF"]; red.inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1); red.inputs["IOR"].default_value = 1.0
+    blue = tree.nodes.new("ShaderNodeBsdfDiffuse"); blue.inputs["Color"].default_value = (0.1, 0.1, 0.8, 1)
+    node = tree.nodes.new("ShaderNodeMixShader"); node.inputs["Fac"].default_value = 0.3
+    tree.links.new(red.outputs[0], node.inputs[1]); tree.links.new(blue.outputs[0], node.inputs[2])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, m, 1, size=2, location=(-1.1, 0, 0))
+    path = os.path.join(directory, "half.png")
+    img = bpy.data.images.new("half", 64, 64)
+    px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[:, 32:, :3] = 1
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
+    mask = bpy.data.images.load(path); mask.colorspace_settings.name = 'Non-Color'
+    m = bpy.data.materials.new("masked mix")
+    tree = m.node_tree
+    green = tree.nodes["Principled BSDF"]; green.inputs["Base Color"].default_value = (0.1, 0.7, 0.1, 1); green.inputs["IOR"].default_value = 1.0
+    white = principled(tree, (0.8, 0.8, 0.8))
+    node = tree.nodes.new("ShaderNodeMixShader")
+    t = tree.nodes.new("ShaderNodeTexImage"); t.image = mask
+    tree.links.new(t.outputs["Color"], node.inputs["Fac"])
+    tree.links.new(green.outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -5, 4); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _spot_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `spot`: (camera location, rotation, world)."""
+    # One spot light straight down, a wide blend: its falloff decides how much light lands.
+    # Radius 0, Blender 5's default: a point light in Tessera (the `linked` scene's spot
+    # has a radius).
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=10)
+    bpy.ops.object.light_add(type='SPOT', location=(0, 0, 3)); s = bpy.context.object.data
+    s.energy, s.spot_size, s.spot_blend, s.shadow_soft_size = 300, 1.2, 0.6, 0.0
+    cam = (0, -6, 5); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _world_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `world` and `procedural_world` and `sky_world`: (camera location, rotation, world)."""
+    add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
+    world = {"world": lambda: hdri_world(directory), "procedural_world": direction_world, "sky_world": sky_world}[kind]()
+    cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    return cam, rot, world
+
+
+def _procedural_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `procedural`: (camera location, rotation, world)."""
+    procedural_planes(mat, add, directory)
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
+    cam = (0, -6, 5); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+def _emission_shader_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `emission_shader`: (camera location, rotation, world)."""
+    # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
+    # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
+    floor = bpy.data.materials.new("diffuse floor")
+    tree = floor.node_tree
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse"); diffuse.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, floor, 1, size=8)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
+    glow = bpy.data.materials.new("glow")
+    tree = glow.node_tree
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (1.0, 0.9, 0.8, 1); emission.inputs["Strength"].default_value = 15.0
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1.5, location=(0.8, -0.5, 2.6), rotation=(3.14159, 0, 0))
+    cam = (0, -7, 2.5); rot = (1.25, 0, 0)
+    return cam, rot, None
+
+
+def _textured_scene(kind, scene, directory, mat, add):
+    """The objects, lights and camera of `textured`: (camera location, rotation, world)."""
+    checker = os.path.join(directory, "checker.png")
+    img = bpy.data.images.new("checker", 64, 64)
+    px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1
+    px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 0, :3] = (0.8, 0.7, 0.2)
+    px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 1, :3] = (0.1, 0.2, 0.6)
+    img.pixels.foreach_set(px.ravel()); img.filepath_raw = checker; img.file_format = 'PNG'; img.save()
+    m = mat("tex", (1, 1, 1), rough=0.6)
+    t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(checker)
+    m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    add(bpy.ops.mesh.primitive_plane_add, m, 1, size=6)
+    bpy.ops.object.light_add(type='POINT', location=(1.5, -1, 2)); bpy.context.object.data.energy = 300; bpy.context.object.data.shadow_soft_size = 0.1
+    bpy.ops.object.light_add(type='SPOT', location=(-1.5, 0, 3)); s = bpy.context.object.data; s.energy = 500; s.spot_size = 1.0; s.spot_blend = 0.2; s.shadow_soft_size = 0.1
+    cam = (0, -6, 5); rot = (0.9, 0, 0)
+    return cam, rot, None
+
+
+#: Each kind's objects, lights and camera (a key of REGIONS).
+SCENES = {
+    "box": _box_scene,
+    "box_matte": _box_scene,
+    "hair": _hair_scene,
+    "coats": _coats_scene,
+    "rough_diffuse": _rough_diffuse_scene,
+    "sheen": _sheen_scene,
+    "anisotropic": _anisotropic_scene,
+    "thin_film": _thin_film_scene,
+    "glass_film": _glass_film_scene,
+    "shaders": _shaders_scene,
+    "glass": _glass_scene,
+    "linked": _linked_scene,
+    "emitter_linked": _emitter_linked_scene,
+    "udim": _udim_scene,
+    "subsurface": _subsurface_scene,
+    "displaced": _displaced_scene,
+    "bumped": _bumped_scene,
+    "mixed": _mixed_scene,
+    "spot": _spot_scene,
+    "world": _world_scene,
+    "procedural_world": _world_scene,
+    "sky_world": _world_scene,
+    "procedural": _procedural_scene,
+    "emission_shader": _emission_shader_scene,
+    "textured": _textured_scene,
+}
+
+
+#: Scene kinds whose non-metal Principled BSDFs get IOR 1 (no specular layer: Lambertian
+#: in both renderers).
+LAMBERTIAN_KINDS = ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "glass_film", "hair")
+
+
 def build(kind, directory):
     """A fresh scene of `kind` (a key of REGIONS); files it needs go in `directory`."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    world = None
     def mat(name, color, rough=0.5, metal=0.0, trans=0.0):
         m = bpy.data.materials.new(name)
         p = m.node_tree.nodes["Principled BSDF"]
@@ -521,7 +914,7 @@ def build(kind, directory):
         p.inputs["Roughness"].default_value = rough
         p.inputs["Metallic"].default_value = metal
         p.inputs["Transmission Weight"].default_value = trans
-        if kind in ("box_matte", "linked", "emitter_linked", "udim", "subsurface", "displaced", "emission_shader", "bumped", "mixed", "procedural", "world", "procedural_world", "sky_world", "spot", "shaders", "coats", "rough_diffuse", "sheen", "anisotropic", "thin_film", "glass_film", "hair") and metal == 0.0:
+        if kind in LAMBERTIAN_KINDS and metal == 0.0:
             # IOR 1: no specular layer, so the walls are Lambertian in both renderers.
             p.inputs["IOR"].default_value = 1.0
         return m
@@ -529,277 +922,7 @@ def build(kind, directory):
         op(**kw); o = bpy.context.object; o.pass_index = index
         if mat_: o.data.materials.append(mat_)
         return o
-    if kind in ("box", "box_matte"):
-        add(bpy.ops.mesh.primitive_plane_add, mat("white", (0.8, 0.8, 0.8)), 1, size=4)
-        add(bpy.ops.mesh.primitive_plane_add, mat("red", (0.8, 0.1, 0.1)), 2, size=4, location=(-2, 0, 2), rotation=(0, 1.5708, 0))
-        add(bpy.ops.mesh.primitive_plane_add, mat("green", (0.1, 0.8, 0.1)), 3, size=4, location=(2, 0, 2), rotation=(0, 1.5708, 0))
-        add(bpy.ops.mesh.primitive_plane_add, mat("back", (0.8, 0.8, 0.8)), 4, size=4, location=(0, 2, 2), rotation=(1.5708, 0, 0))
-        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("metal", (0.9, 0.6, 0.3), rough=0.4, metal=1.0), 5, radius=0.7, location=(0, 0.3, 0.7), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='AREA', location=(0, 0, 3.9)); l = bpy.context.object.data; l.energy = 200; l.size = 1
-        cam = (0, -7, 2); rot = (1.5708, 0, 0)
-    elif kind == "hair":
-        # Two patches of hair curves (exported as BasisCurves) whose Principled Hair BSDFs the
-        # add-on writes as tessera:Hair: by melanin, and by colour (direct colouring).
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
-        hair_patch(2, -0.9, parametrization="MELANIN", Melanin=0.3)
-        hair_patch(3, 0.9, parametrization="COLOR", Color=(0.6, 0.3, 0.1, 1))
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -5, 1.6); rot = (1.35, 0, 0)
-    elif kind == "coats":
-        # A Principled BSDF's orange-tinted coat, which UsdPreviewSurface cannot hold, over a
-        # grey Lambertian base (IOR 1): written as tessera:SolidDielectric's clearcoat.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
-        m = mat("tinted coat", (0.6, 0.6, 0.6))
-        for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat Tint": (0.9, 0.5, 0.2, 1)}.items():
-            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(0, 0, 1.0), segments=64, ring_count=32)
-        # Behind it, the same coat over a silver metal: tessera:Metal's clearcoat.
-        m = mat("tinted coat metal", (0.9, 0.9, 0.9), rough=0.3, metal=1.0)
-        for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat Tint": (0.9, 0.5, 0.2, 1)}.items():
-            m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 3, radius=1.0, location=(2.4, 2.5, 1.0), segments=64, ring_count=32)
-        # Beside it, a silver metal whose Coat Tint is a Checker of orange and white: baked.
-        scene.tessera.bake_size = 256
-        m = mat("checkered coat metal", (0.9, 0.9, 0.9), rough=0.3, metal=1.0)
-        p = m.node_tree.nodes["Principled BSDF"]
-        p.inputs["Coat Weight"].default_value, p.inputs["Coat Roughness"].default_value = 1.0, 0.1
-        checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=2.0, Color1=(0.9, 0.5, 0.2, 1), Color2=(1.0, 1.0, 1.0, 1))
-        m.node_tree.links.new(checker.outputs["Color"], p.inputs["Coat Tint"])
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(-2.4, 2.5, 1.0), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "rough_diffuse":
-        # Oren-Nayar at roughness 1 (energy-preserving in both): a Principled BSDF's Diffuse
-        # Roughness and a Diffuse BSDF's Roughness, lit by a sun from behind the camera, where
-        # rough facets send light back and a Lambertian sphere would read darker.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
-        m = mat("rough principled", (0.8, 0.8, 0.8))
-        m.node_tree.nodes["Principled BSDF"].inputs["Diffuse Roughness"].default_value = 1.0
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 2, radius=1.0, location=(-1.2, 0, 1.0), segments=64, ring_count=32)
-        d = _standalone_material("rough diffuse", "ShaderNodeBsdfDiffuse", Color=(0.8, 0.8, 0.8, 1), Roughness=1.0)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, d, 3, radius=1.0, location=(1.2, 0, 1.0), segments=64, ring_count=32)
-        # Behind them, Diffuse Roughness from a Checker (0 and 1): baked, as any linked input,
-        # at 256² (the checker's 4 × 4 squares need no more).
-        scene.tessera.bake_size = 256
-        m = _checkered(mat("checkered rough", (0.8, 0.8, 0.8)), "Diffuse Roughness")
-        add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(0, 2.5, 1.0), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(1.1, 0, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "sheen":
-        world = _sheen_spheres(mat, add, scene)
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "anisotropic":
-        world = _anisotropic_objects(mat, add, scene)
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "thin_film":
-        world = _thin_film_spheres(mat, add)
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "glass_film":
-        world = _glass_film_spheres(mat, add)
-        cam = (0, -7, 2.2); rot = (1.3, 0, 0)
-    elif kind == "shaders":
-        shader_spheres_and_cutouts(mat, add, directory)
-        # The `glass` scene's sun: lower, the glass sphere's shadow holds a caustic, which
-        # neither renderer converges on at these samples.
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -8, 3); rot = (1.2, 0, 0)
-    elif kind == "glass":
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.7, 0.7, 0.7)), 1, size=20)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -8, 3); rot = (1.2, 0, 0)
-    elif kind == "linked":
-        # Light linking: the key reaches the left sphere alone (its receiver collection
-        # includes it); the right sphere casts none of the fill's shadows (excluded from the
-        # fill's blocker collection).
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
-        left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
-        right = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
-        bpy.ops.object.light_add(type='AREA', location=(0, 0, 3)); key = bpy.context.object; key.data.energy = 300; key.data.size = 1
-        receivers = bpy.data.collections.new("key receivers"); receivers.objects.link(left)
-        key.light_linking.receiver_collection = receivers
-        bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object; fill.data.energy = 200; fill.data.shadow_soft_size = 0.2
-        blockers = bpy.data.collections.new("fill blockers"); blockers.objects.link(right)
-        blockers.collection_objects[0].light_linking.link_state = 'EXCLUDE'
-        fill.light_linking.blocker_collection = blockers
-        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
-    elif kind == "emitter_linked":
-        # An emissive object's own light linking: the panel lights the left sphere alone (its
-        # receiver collection); a dim point light reaches everything, so no region is black.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
-        left = add(bpy.ops.mesh.primitive_uv_sphere_add, mat("left", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(-1.2, 0, 0.7), segments=64, ring_count=32)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("right", (0.8, 0.8, 0.8)), 3, radius=0.7, location=(1.2, 0, 0.7), segments=64, ring_count=32)
-        glow = mat("glow", (0.0, 0.0, 0.0))
-        p = glow.node_tree.nodes["Principled BSDF"]
-        p.inputs["Emission Color"].default_value = (1.0, 0.9, 0.8, 1)
-        p.inputs["Emission Strength"].default_value = 20.0
-        panel = add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1, location=(-1.2, 0, 2.6), rotation=(3.14159, 0, 0))
-        panel.name = "Panel"
-        receivers = bpy.data.collections.new("panel receivers"); receivers.objects.link(left)
-        panel.light_linking.receiver_collection = receivers
-        bpy.ops.object.light_add(type='POINT', location=(2.5, -1, 2.5)); fill = bpy.context.object.data; fill.energy = 100; fill.shadow_soft_size = 0.2
-        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
-    elif kind == "udim":
-        # One material over a UDIM set; the left plane's UVs lie in tile 1001, the right
-        # plane's in tile 1002, so each region shows one tile's colour (Lambertian, IOR 1).
-        m = mat("tiles", (1, 1, 1))
-        t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = udim_image(directory)
-        m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
-        for index, x in ((1, -1.05), (2, 1.05)):
-            plane = add(bpy.ops.mesh.primitive_plane_add, m, index, size=2, location=(x, 0, 0))
-            for loop in plane.data.uv_layers.active.data:
-                loop.uv.x += index - 1
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -5, 4); rot = (0.9, 0, 0)
-    elif kind == "subsurface":
-        # Random-walk subsurface scattering (Cycles' default method) behind a rough boundary
-        # of IOR 1.4, all of the base on the left sphere and half of it on the right; the mean
-        # free path (Blender's default radius × 0.05) is 0.05 in red, a fourteenth of the
-        # spheres' radius, and a fifth and a tenth of that in green and blue.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
-        for index, x, weight in ((2, -1.0, 1.0), (3, 1.0, 0.5)):
-            skin = mat(f"skin{index}", (0.8, 0.45, 0.3), rough=0.4)
-            p = skin.node_tree.nodes["Principled BSDF"]
-            p.inputs["IOR"].default_value = 1.4
-            p.inputs["Subsurface Weight"].default_value = weight
-            p.inputs["Subsurface Scale"].default_value = 0.05
-            add(bpy.ops.mesh.primitive_uv_sphere_add, skin, index, radius=0.7, location=(x, 0, 0.7), segments=64, ring_count=32)
-        # A large light in front: a small one lights a medium through its rough boundary as
-        # fireflies in both renderers.
-        bpy.ops.object.light_add(type='AREA', location=(0, -2.5, 3.5), rotation=(0.6, 0, 0)); key = bpy.context.object.data; key.energy = 800; key.size = 3
-        cam = (0, -6, 2.2); rot = (1.3, 0, 0)
-    elif kind == "displaced":
-        # True displacement (Displacement Only) on a smooth-shaded grid just above the floor: a
-        # height map (raw) whose middle quarter is 1 raises a block 0.6 high, which shades the
-        # floor under a low sun. A plane behind the camera asks for Bump Only, which the export
-        # drops with a warning.
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
-        path = os.path.join(directory, "height.png")
-        img = bpy.data.images.new("height", 64, 64)
-        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[16:48, 16:48, :3] = 1
-        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
-        for name, method, index, location in (("block", 'DISPLACEMENT', 2, (0, 0, 0.002)), ("bumps", 'BUMP', 0, (0, -9, 0))):
-            m = mat(name, (0.8, 0.8, 0.8))
-            m.displacement_method = method
-            t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(path)
-            t.image.colorspace_settings.name = 'Non-Color'
-            d = m.node_tree.nodes.new("ShaderNodeDisplacement")
-            d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.6, 0.0
-            m.node_tree.links.new(t.outputs["Color"], d.inputs["Height"])
-            m.node_tree.links.new(d.outputs["Displacement"], m.node_tree.nodes["Material Output"].inputs["Displacement"])
-            add(bpy.ops.mesh.primitive_grid_add, m, index, x_subdivisions=96, y_subdivisions=96, size=2, location=location)
-            bpy.ops.object.shade_smooth()
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.8, 0.5, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -5, 4); rot = (0.9, 0, 0)
-    elif kind == "bumped":
-        # A height ramp along u (256 columns, code x at column x, Non-Color) bumps one plane
-        # through a Bump node (Distance 0.5) and another through Bump Only displacement (Scale
-        # 0.5): both lean 14° away from +x, towards which the sun (30° off the zenith) does not
-        # lie, so they read about 17% darker than the flat plane between them.
-        path = os.path.join(directory, "ramp.png")
-        img = bpy.data.images.new("ramp", 256, 256)
-        px = np.zeros((256, 256, 4), np.float32); px[..., 3] = 1; px[..., :3] = (np.arange(256, dtype=np.float32) / 255.0)[None, :, None]
-        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
-        ramp = bpy.data.images.load(path); ramp.colorspace_settings.name = 'Non-Color'
-        node_bump = mat("bump node", (0.8, 0.8, 0.8))
-        tree = node_bump.node_tree
-        t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
-        b = tree.nodes.new("ShaderNodeBump"); b.inputs["Distance"].default_value = 0.5
-        tree.links.new(t.outputs["Color"], b.inputs["Height"]); tree.links.new(b.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
-        add(bpy.ops.mesh.primitive_plane_add, node_bump, 1, size=2, location=(-2.2, 0, 0))
-        bump_only = mat("bump only", (0.8, 0.8, 0.8))
-        bump_only.displacement_method = 'BUMP'
-        tree = bump_only.node_tree
-        t = tree.nodes.new("ShaderNodeTexImage"); t.image = ramp; t.extension = 'EXTEND'
-        d = tree.nodes.new("ShaderNodeDisplacement")
-        d.inputs["Scale"].default_value, d.inputs["Midlevel"].default_value = 0.5, 0.0
-        tree.links.new(t.outputs["Color"], d.inputs["Height"]); tree.links.new(d.outputs["Displacement"], tree.nodes["Material Output"].inputs["Displacement"])
-        add(bpy.ops.mesh.primitive_plane_add, bump_only, 2, size=2, location=(2.2, 0, 0))
-        add(bpy.ops.mesh.primitive_plane_add, mat("flat", (0.8, 0.8, 0.8)), 3, size=2, location=(0, 0, 0))
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0, 0.5236, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -6, 5); rot = (0.9, 0, 0)
-    elif kind == "mixed":
-        # Mix Shaders (Lambertian sides, IOR 1): red Principled and blue Diffuse BSDF at Fac 0.3;
-        # green and white Principled BSDFs by an image mask, black on its left half and white
-        # on its right (Non-Color).
-        def principled(tree, color):
-            p = tree.nodes.new("ShaderNodeBsdfPrincipled")
-            p.inputs["Base Color"].default_value = (*color, 1); p.inputs["IOR"].default_value = 1.0
-            return p
-        m = bpy.data.materials.new("constant mix")
-        tree = m.node_tree
-        red = tree.nodes["Principled BSDF"]; red.inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1); red.inputs["IOR"].default_value = 1.0
-        blue = tree.nodes.new("ShaderNodeBsdfDiffuse"); blue.inputs["Color"].default_value = (0.1, 0.1, 0.8, 1)
-        node = tree.nodes.new("ShaderNodeMixShader"); node.inputs["Fac"].default_value = 0.3
-        tree.links.new(red.outputs[0], node.inputs[1]); tree.links.new(blue.outputs[0], node.inputs[2])
-        tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-        add(bpy.ops.mesh.primitive_plane_add, m, 1, size=2, location=(-1.1, 0, 0))
-        path = os.path.join(directory, "half.png")
-        img = bpy.data.images.new("half", 64, 64)
-        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1; px[:, 32:, :3] = 1
-        img.pixels.foreach_set(px.ravel()); img.filepath_raw = path; img.file_format = 'PNG'; img.save()
-        mask = bpy.data.images.load(path); mask.colorspace_settings.name = 'Non-Color'
-        m = bpy.data.materials.new("masked mix")
-        tree = m.node_tree
-        green = tree.nodes["Principled BSDF"]; green.inputs["Base Color"].default_value = (0.1, 0.7, 0.1, 1); green.inputs["IOR"].default_value = 1.0
-        white = principled(tree, (0.8, 0.8, 0.8))
-        node = tree.nodes.new("ShaderNodeMixShader")
-        t = tree.nodes.new("ShaderNodeTexImage"); t.image = mask
-        tree.links.new(t.outputs["Color"], node.inputs["Fac"])
-        tree.links.new(green.outputs[0], node.inputs[1]); tree.links.new(white.outputs[0], node.inputs[2])
-        tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-        add(bpy.ops.mesh.primitive_plane_add, m, 2, size=2, location=(1.1, 0, 0))
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -5, 4); rot = (0.9, 0, 0)
-    elif kind == "spot":
-        # One spot light straight down, a wide blend: its falloff decides how much light lands.
-        # Radius 0, Blender 5's default: a point light in Tessera (the `linked` scene's spot
-        # has a radius).
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=10)
-        bpy.ops.object.light_add(type='SPOT', location=(0, 0, 3)); s = bpy.context.object.data
-        s.energy, s.spot_size, s.spot_blend, s.shadow_soft_size = 300, 1.2, 0.6, 0.0
-        cam = (0, -6, 5); rot = (0.9, 0, 0)
-    elif kind in ("world", "procedural_world", "sky_world"):
-        add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
-        world = {"world": lambda: hdri_world(directory), "procedural_world": direction_world, "sky_world": sky_world}[kind]()
-        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
-    elif kind == "procedural":
-        procedural_planes(mat, add, directory)
-        bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
-        cam = (0, -6, 5); rot = (0.9, 0, 0)
-    elif kind == "emission_shader":
-        # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
-        # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
-        floor = bpy.data.materials.new("diffuse floor")
-        tree = floor.node_tree
-        diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse"); diffuse.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
-        tree.nodes.remove(tree.nodes["Principled BSDF"])
-        tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-        add(bpy.ops.mesh.primitive_plane_add, floor, 1, size=8)
-        add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
-        glow = bpy.data.materials.new("glow")
-        tree = glow.node_tree
-        emission = tree.nodes.new("ShaderNodeEmission")
-        emission.inputs["Color"].default_value = (1.0, 0.9, 0.8, 1); emission.inputs["Strength"].default_value = 15.0
-        tree.nodes.remove(tree.nodes["Principled BSDF"])
-        tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-        add(bpy.ops.mesh.primitive_plane_add, glow, 0, size=1.5, location=(0.8, -0.5, 2.6), rotation=(3.14159, 0, 0))
-        cam = (0, -7, 2.5); rot = (1.25, 0, 0)
-    else:
-        checker = os.path.join(directory, "checker.png")
-        img = bpy.data.images.new("checker", 64, 64)
-        px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1
-        px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 0, :3] = (0.8, 0.7, 0.2)
-        px[(np.add.outer(np.arange(64) // 8, np.arange(64) // 8) % 2) == 1, :3] = (0.1, 0.2, 0.6)
-        img.pixels.foreach_set(px.ravel()); img.filepath_raw = checker; img.file_format = 'PNG'; img.save()
-        m = mat("tex", (1, 1, 1), rough=0.6)
-        t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(checker)
-        m.node_tree.links.new(t.outputs["Color"], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
-        add(bpy.ops.mesh.primitive_plane_add, m, 1, size=6)
-        bpy.ops.object.light_add(type='POINT', location=(1.5, -1, 2)); bpy.context.object.data.energy = 300; bpy.context.object.data.shadow_soft_size = 0.1
-        bpy.ops.object.light_add(type='SPOT', location=(-1.5, 0, 3)); s = bpy.context.object.data; s.energy = 500; s.spot_size = 1.0; s.spot_blend = 0.2; s.shadow_soft_size = 0.1
-        cam = (0, -6, 5); rot = (0.9, 0, 0)
+    cam, rot, world = SCENES[kind](kind, scene, directory, mat, add)
     bpy.ops.object.camera_add(location=cam, rotation=rot); scene.camera = bpy.context.object
     scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 96, 72, 100
     scene.view_settings.view_transform = 'Standard'
