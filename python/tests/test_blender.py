@@ -159,6 +159,10 @@ AGREE = [
     # 0.958 (Filter Glossy on) and 0.947 (off), a difference bounded in [0.93, 0.99] until then;
     # as UsdPreviewSurface's untinted coat, 1.862.
     ("coats", "tinted coat sphere"),
+    # An untinted coat of Coat IOR 1.8 over grey, carried as tessera:SolidDielectric's clear
+    # coat with its IOR (2026-12-08): measured 1.012 at 256 spp; as UsdPreviewSurface's Disney
+    # coat (its IOR reported), 1.028.
+    ("coats", "untinted coat sphere"),
     # The `coats` scene's orange coat over a silver metal, written as tessera:Metal's absorbing
     # clearcoat: measured 0.996 at 256 spp (the coat over a metal takes from a specular lobe,
     # where over grey it takes from a diffuse one and reads 0.958); with Filter Glossy off
@@ -463,6 +467,9 @@ def test_the_exporter_is_corrected(results):
     for material, nm, ior in (("glass_film_2", 400, 1.33), ("glass_film_3", 500, 1.33)):
         assert any(c.endswith(f"{material}: thin film of {nm:g} nm, IOR {ior:g} as tessera:Principled's film") for c in glass_film), glass_film
     assert not r["glass_film"]["warnings"], r["glass_film"]["warnings"]
+    coats = r["coats"]["corrections"]
+    assert any(c.endswith("untinted_coat: coat of IOR 1.8, tint (1, 1, 1) as tessera:SolidDielectric's clearcoat") for c in coats), coats
+    assert not r["coats"]["warnings"], r["coats"]["warnings"]
     linked = r["linked"]["corrections"]
     assert any("light linking from the receiver collection 'key receivers'" in c for c in linked), linked
     assert any("light linking from the blocker collection 'fill blockers'" in c for c in linked), linked

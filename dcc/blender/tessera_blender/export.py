@@ -23,9 +23,9 @@ does not say what the artist sees in Cycles (docs/blender.md has the table):
 * Subsurface: dropped by the exporter too. A material with a Subsurface Weight becomes
   ``tessera:SolidDielectric`` with a scattering medium: Blender's radius × scale as the mean
   free path per channel, the weight, the anisotropy, and the base colour the medium shows.
-* Coat Tint: dropped too. An opaque dielectric's tinted coat becomes
-  ``tessera:SolidDielectric``'s absorbing clearcoat, a full metal's ``tessera:Metal``'s
-  (``_correct_coats``).
+* Coat Tint and Coat IOR: dropped too. An opaque dielectric's coat becomes
+  ``tessera:SolidDielectric``'s clearcoat (absorbing when tinted), a full metal's tinted coat
+  ``tessera:Metal``'s (``_correct_coats``).
 * Diffuse roughness (a Principled BSDF's Diffuse Roughness, a Diffuse BSDF's Roughness), a
   Principled BSDF's Sheen and its Specular Tint: dropped too. On an opaque dielectric they
   become ``tessera:SolidDielectric``'s ``diffuseRoughness`` (the energy-preserving Oren-Nayar
@@ -387,8 +387,8 @@ def _renamed(shader, shader_id, names, Sdf) -> None:
 
 
 def _correct_coats(exported: Export, prim, material, Sdf, UsdShade) -> None:
-    """A Principled BSDF's tinted coat, which UsdPreviewSurface cannot hold, on
-    tessera:SolidDielectric's or, on a full metal, tessera:Metal's clearcoat
+    """A Principled BSDF's coat, whose tint and IOR UsdPreviewSurface cannot hold, on
+    tessera:SolidDielectric's or, tinted on a full metal, tessera:Metal's clearcoat
     (``nodes.coats_carried`` says when): Coat IOR as the coat's index, Coat Tint as the colour a
     head-on pass through a coat of thickness 1 absorbs towards (Cycles tints by Coat Tint to
     the power of the path length through the coat, 1 head-on)."""
@@ -405,7 +405,7 @@ def _correct_coats(exported: Export, prim, material, Sdf, UsdShade) -> None:
     else:
         _as_solid_dielectric(shader, Sdf)
     ior = float(node.inputs["Coat IOR"].default_value)
-    # coats_carried holds only tinted coats; a linked tint is baked.
+    # A linked tint is baked; white absorbs nothing.
     tint = nodes._colour_or_linked(node.inputs["Coat Tint"])
     shader.CreateInput("clearcoatRefractiveIndex", Sdf.ValueTypeNames.Float).Set(ior)
     _set_or_bake(exported, material, shader, "clearcoatAttenuationColor", tint, Sdf, UsdShade)

@@ -264,24 +264,26 @@ def _opaque_kind(principled):
 
 #: Principled inputs whose links keep its coat off Tessera's absorbing clearcoat (constants only).
 def coats_carried(node):
-    """Which of Tessera's shaders carries a Principled BSDF's tinted coat, which
+    """Which of Tessera's shaders carries a Principled BSDF's coat, whose tint and IOR
     UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
     (tessera:Metal's, since 2026-12-07) or None. Constants, on an opaque dielectric or a full
     metal (no transmission, Alpha 1: the shaders have no opacity); the tint may be linked (it is
     baked). Measured on the `coats` comparison scene: a tinted coat over grey reads 0.990 of
-    Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat stays
-    UsdPreviewSurface's, its Coat IOR reported: at Coat IOR 1.8 (2026-12-08) its Disney coat
-    read 1.019 over grey and 0.995 over silver, SolidDielectric's 0.993 and tessera:Metal's
-    0.979: nearer on the one, further on the other. The sheen is not the
-    Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but the fuzz, Cycles'
-    own model (``carried_sheen``)."""
+    Cycles there (1.862 as UsdPreviewSurface's untinted coat). An untinted coat is carried on a
+    dielectric only (since 2026-12-08, with its Coat IOR): the scene's untinted coat of IOR
+    1.8 over grey reads 1.012 as SolidDielectric's coat, 1.028 as UsdPreviewSurface's Disney
+    coat; over silver (tried the same day) the Disney coat read 0.995 and tessera:Metal's
+    0.979, so a metal's untinted coat stays UsdPreviewSurface's, its Coat IOR reported. The
+    sheen is not the Charlie sheen (1.63 of Cycles' microfibre sheen on a dark red sphere) but
+    the fuzz, Cycles' own model (``carried_sheen``)."""
     value = {i.name: i.default_value for i in node.inputs if hasattr(i, "default_value")}
     if any(node.inputs[n].is_linked for n in ("Coat Weight", "Coat IOR")) or float(value["Coat Weight"]) <= 0.0:
         return None
     # A linked Coat Tint is baked (export.py).
-    if _colour_or_linked(node.inputs["Coat Tint"]) == (1.0, 1.0, 1.0):
+    kind = _opaque_kind(node)
+    if _colour_or_linked(node.inputs["Coat Tint"]) == (1.0, 1.0, 1.0) and kind == "metal":
         return None
-    return _opaque_kind(node)
+    return kind
 
 
 def active_output(tree):

@@ -27,7 +27,7 @@ REGIONS = {
     "sky_world": {0: "background", 1: "floor", 2: "sphere"},
     "spot": {1: "floor"},
     "shaders": {1: "floor", 2: "glossy sphere", 3: "glass sphere", 4: "cutout plane", 5: "image cutout plane", 6: "glossy mix sphere", 7: "translucent plane"},
-    "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere", 4: "checkered coat metal sphere"},
+    "coats": {1: "floor", 2: "tinted coat sphere", 3: "tinted coat metal sphere", 4: "checkered coat metal sphere", 5: "untinted coat sphere"},
     "rough_diffuse": {1: "floor", 2: "rough principled sphere", 3: "rough diffuse sphere", 4: "checkered rough sphere"},
     "sheen": {1: "floor", 2: "white sheen sphere", 3: "tinted sheen sphere", 4: "specular tint sphere", 5: "edge-tinted metal sphere", 6: "checkered sheen sphere", 7: "checkered sheen tint sphere", 8: "checkered specular tint sphere"},
     "anisotropic": {1: "floor", 2: "brushed metal sphere", 3: "brushed metal panel", 4: "turned specular sphere", 5: "checkered specular sphere", 6: "uv-brushed panel", 7: "x-brushed sphere"},
@@ -555,6 +555,11 @@ def _coats_scene(kind, scene, directory, mat, add):
     checker = _node(m.node_tree, "ShaderNodeTexChecker", Scale=2.0, Color1=(0.9, 0.5, 0.2, 1), Color2=(1.0, 1.0, 1.0, 1))
     m.node_tree.links.new(checker.outputs["Color"], p.inputs["Coat Tint"])
     add(bpy.ops.mesh.primitive_uv_sphere_add, m, 4, radius=1.0, location=(-2.4, 2.5, 1.0), segments=64, ring_count=32)
+    # In front, an untinted coat of IOR 1.8 over grey: tessera:SolidDielectric's clear coat.
+    m = mat("untinted coat", (0.6, 0.6, 0.6))
+    for name, value in {"Coat Weight": 1.0, "Coat Roughness": 0.1, "Coat IOR": 1.8}.items():
+        m.node_tree.nodes["Principled BSDF"].inputs[name].default_value = value
+    add(bpy.ops.mesh.primitive_uv_sphere_add, m, 5, radius=0.5, location=(-1.5, -1.8, 0.5), segments=64, ring_count=32)
     bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
     cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     return cam, rot, None
