@@ -220,10 +220,15 @@ AGREE = [
     ("coats", "floor"),
     # The floor under the hair patches, their shadows on it: 0.991.
     ("hair", "floor"),
-    # Hair of melanin 0.3 (Chiang et al.'s fibre in both): measured 0.991 at 256 spp with
-    # Filter Glossy off (2026-12-08); with it on 0.952, which read as a difference until then
-    # (bounded in [0.92, 1.0]). As the default grey tubes the export leaves, 0.825.
+    # Hair curves (BasisCurves) whose Principled Hair BSDFs are written as tessera:Hair, both
+    # Chiang et al.'s fibre: melanin 0.3 and a direct colour (0.6, 0.3, 0.1), 32 bounces in
+    # both renderers. Measured at 256 spp (2026-12-08): 1.008 and 0.986. Until then they were
+    # bounded as differences ([0.92, 1.0] and [0.78, 0.90]): with Filter Glossy on and 8
+    # bounces they read 0.952 and 0.836; the filter off, 0.991 and 0.883. Light hair scatters
+    # many times between fibres, and the budgets part at 8 (Tessera's counts every event,
+    # Cycles' each kind apart). As the default grey tubes the export leaves, 0.825 and 0.270.
     ("hair", "melanin hair"),
+    ("hair", "coloured hair"),
     ("procedural", "noise ramp plane"),
     ("procedural", "small gradient plane"),
     ("procedural", "large gradient plane"),
@@ -308,14 +313,6 @@ DIFFER = {
     # Diffuse Roughness from a Checker (0 and 1), baked: measured 1.023 at 256 spp, its rough
     # squares as the rough spheres; 0.940 with the link dropped (all Lambertian).
     ("rough_diffuse", "checkered rough sphere"): (1.0, 1.045, "its rough squares differ as the rough spheres do (ρ³ against ρ²)"),
-    # Hair curves (BasisCurves) whose Principled Hair BSDFs are written as tessera:Hair, both
-    # Chiang et al.'s fibre: a direct colour (0.6, 0.3, 0.1) read 0.836 at 256 spp with Cycles'
-    # Filter Glossy on and 0.883 with it off (2026-12-08; the melanin hair beside it 0.952
-    # and 0.991: see AGREE); as the default grey tubes the export leaves, 0.270. Light hair
-    # scatters many times between fibres, and the bounce budgets differ (Tessera's 8 events
-    # against Cycles' 8 of each kind): at 32 in both (filter on) 0.914, no nearer at 128. The
-    # rest is not pinned down (Tessera's fibres are 12-sided tubes; Cycles' are round).
-    ("hair", "coloured hair"): (0.78, 0.90, "bounce budgets between fibres, and a rest unexplained (docs/blender.md)"),
 }
 
 
