@@ -510,7 +510,6 @@ def _glass_film_spheres(mat, add):
 
 
 def _box_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `box` and `box_matte`: (camera location, rotation, world)."""
     add(bpy.ops.mesh.primitive_plane_add, mat("white", (0.8, 0.8, 0.8)), 1, size=4)
     add(bpy.ops.mesh.primitive_plane_add, mat("red", (0.8, 0.1, 0.1)), 2, size=4, location=(-2, 0, 2), rotation=(0, 1.5708, 0))
     add(bpy.ops.mesh.primitive_plane_add, mat("green", (0.1, 0.8, 0.1)), 3, size=4, location=(2, 0, 2), rotation=(0, 1.5708, 0))
@@ -522,7 +521,6 @@ def _box_scene(kind, scene, directory, mat, add):
 
 
 def _hair_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `hair`: (camera location, rotation, world)."""
     # Two patches of hair curves (exported as BasisCurves) whose Principled Hair BSDFs the
     # add-on writes as tessera:Hair: by melanin, and by colour (direct colouring).
     add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
@@ -538,7 +536,6 @@ def _hair_scene(kind, scene, directory, mat, add):
 
 
 def _coats_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `coats`: (camera location, rotation, world)."""
     # A Principled BSDF's orange-tinted coat, which UsdPreviewSurface cannot hold, over a
     # grey Lambertian base (IOR 1): written as tessera:SolidDielectric's clearcoat.
     add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=20)
@@ -570,7 +567,6 @@ def _coats_scene(kind, scene, directory, mat, add):
 
 
 def _rough_diffuse_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `rough_diffuse`: (camera location, rotation, world)."""
     # Oren-Nayar at roughness 1 (energy-preserving in both): a Principled BSDF's Diffuse
     # Roughness and a Diffuse BSDF's Roughness, lit by a sun from behind the camera, where
     # rough facets send light back and a Lambertian sphere would read darker.
@@ -591,35 +587,30 @@ def _rough_diffuse_scene(kind, scene, directory, mat, add):
 
 
 def _sheen_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `sheen`: (camera location, rotation, world)."""
     world = _sheen_spheres(mat, add, scene)
     cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     return cam, rot, world
 
 
 def _anisotropic_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `anisotropic`: (camera location, rotation, world)."""
     world = _anisotropic_objects(mat, add, scene)
     cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     return cam, rot, world
 
 
 def _thin_film_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `thin_film`: (camera location, rotation, world)."""
     world = _thin_film_spheres(mat, add)
     cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     return cam, rot, world
 
 
 def _glass_film_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `glass_film`: (camera location, rotation, world)."""
     world = _glass_film_spheres(mat, add)
     cam = (0, -7, 2.2); rot = (1.3, 0, 0)
     return cam, rot, world
 
 
 def _shaders_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `shaders`: (camera location, rotation, world)."""
     shader_spheres_and_cutouts(mat, add, directory)
     # The `glass` scene's sun: lower, the glass sphere's shadow holds a caustic, which
     # neither renderer converges on at these samples.
@@ -629,7 +620,6 @@ def _shaders_scene(kind, scene, directory, mat, add):
 
 
 def _glass_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `glass`: (camera location, rotation, world)."""
     add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.7, 0.7, 0.7)), 1, size=20)
     add(bpy.ops.mesh.primitive_uv_sphere_add, mat("glass", (1, 1, 1), rough=0.0, trans=1.0), 2, radius=1, location=(0, 0, 1), segments=64, ring_count=32)
     bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.5, 0.2, 0)); bpy.context.object.data.energy = 3
@@ -638,7 +628,6 @@ def _glass_scene(kind, scene, directory, mat, add):
 
 
 def _linked_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `linked`: (camera location, rotation, world)."""
     # Light linking: the key reaches the left sphere alone (its receiver collection
     # includes it); the right sphere casts none of the fill's shadows (excluded from the
     # fill's blocker collection).
@@ -657,7 +646,6 @@ def _linked_scene(kind, scene, directory, mat, add):
 
 
 def _emitter_linked_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `emitter_linked`: (camera location, rotation, world)."""
     # An emissive object's own light linking: the panel lights the left sphere alone (its
     # receiver collection); a dim point light reaches everything, so no region is black.
     add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
@@ -677,7 +665,6 @@ def _emitter_linked_scene(kind, scene, directory, mat, add):
 
 
 def _udim_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `udim`: (camera location, rotation, world)."""
     # One material over a UDIM set; the left plane's UVs lie in tile 1001, the right
     # plane's in tile 1002, so each region shows one tile's colour (Lambertian, IOR 1).
     m = mat("tiles", (1, 1, 1))
@@ -693,7 +680,6 @@ def _udim_scene(kind, scene, directory, mat, add):
 
 
 def _subsurface_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `subsurface`: (camera location, rotation, world)."""
     # Random-walk subsurface scattering (Cycles' default method) behind a rough boundary
     # of IOR 1.4, all of the base on the left sphere and half of it on the right; the mean
     # free path (Blender's default radius × 0.05) is 0.05 in red, a fourteenth of the
@@ -714,7 +700,6 @@ def _subsurface_scene(kind, scene, directory, mat, add):
 
 
 def _displaced_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `displaced`: (camera location, rotation, world)."""
     # True displacement (Displacement Only) on a smooth-shaded grid just above the floor: a
     # height map (raw) whose middle quarter is 1 raises a block 0.6 high, which shades the
     # floor under a low sun. A plane behind the camera asks for Bump Only, which the export
@@ -741,7 +726,6 @@ def _displaced_scene(kind, scene, directory, mat, add):
 
 
 def _bumped_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `bumped`: (camera location, rotation, world)."""
     # A height ramp along u (256 columns, code x at column x, Non-Color) bumps one plane
     # through a Bump node (Distance 0.5) and another through Bump Only displacement (Scale
     # 0.5): both lean 14° away from +x, towards which the sun (30° off the zenith) does not
@@ -772,7 +756,6 @@ def _bumped_scene(kind, scene, directory, mat, add):
 
 
 def _mixed_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `mixed`: (camera location, rotation, world)."""
     # Mix Shaders (Lambertian sides, IOR 1): red Principled and blue Diffuse BSDF at Fac 0.3;
     # green and white Principled BSDFs by an image mask, black on its left half and white
     # on its right (Non-Color).
@@ -809,7 +792,6 @@ def _mixed_scene(kind, scene, directory, mat, add):
 
 
 def _spot_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `spot`: (camera location, rotation, world)."""
     # One spot light straight down, a wide blend: its falloff decides how much light lands.
     # Radius 0, Blender 5's default: a point light in Tessera (the `linked` scene's spot
     # has a radius).
@@ -821,7 +803,6 @@ def _spot_scene(kind, scene, directory, mat, add):
 
 
 def _world_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `world` and `procedural_world` and `sky_world`: (camera location, rotation, world)."""
     add(bpy.ops.mesh.primitive_plane_add, mat("floor", (0.8, 0.8, 0.8)), 1, size=8)
     add(bpy.ops.mesh.primitive_uv_sphere_add, mat("sphere", (0.8, 0.8, 0.8)), 2, radius=0.7, location=(0, 0, 0.7), segments=64, ring_count=32)
     world = {"world": lambda: hdri_world(directory), "procedural_world": direction_world, "sky_world": sky_world}[kind]()
@@ -830,7 +811,6 @@ def _world_scene(kind, scene, directory, mat, add):
 
 
 def _procedural_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `procedural`: (camera location, rotation, world)."""
     procedural_planes(mat, add, directory)
     bpy.ops.object.light_add(type='SUN', location=(0, 0, 5), rotation=(0.3, 0.2, 0)); bpy.context.object.data.energy = 3
     cam = (0, -6, 5); rot = (0.9, 0, 0)
@@ -838,7 +818,6 @@ def _procedural_scene(kind, scene, directory, mat, add):
 
 
 def _emission_shader_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `emission_shader`: (camera location, rotation, world)."""
     # Lit by a panel whose surface is an Emission shader alone (which Blender's USD export
     # drops) over a floor whose surface is a Diffuse BSDF (exported with a specular layer).
     floor = bpy.data.materials.new("diffuse floor")
@@ -860,7 +839,6 @@ def _emission_shader_scene(kind, scene, directory, mat, add):
 
 
 def _textured_scene(kind, scene, directory, mat, add):
-    """The objects, lights and camera of `textured`: (camera location, rotation, world)."""
     checker = os.path.join(directory, "checker.png")
     img = bpy.data.images.new("checker", 64, 64)
     px = np.zeros((64, 64, 4), np.float32); px[..., 3] = 1
@@ -877,7 +855,9 @@ def _textured_scene(kind, scene, directory, mat, add):
     return cam, rot, None
 
 
-#: Each kind's objects, lights and camera (a key of REGIONS).
+#: Each kind's scene (a key of REGIONS): a function of (kind, scene, directory, mat, add),
+#: `mat` and `add` being `build`'s, that adds the objects and lights and returns the camera's
+#: location and rotation and the world (None: Blender's empty one).
 SCENES = {
     "box": _box_scene,
     "box_matte": _box_scene,
