@@ -145,11 +145,11 @@ impl CoatScale {
 }
 
 /// How a diffuse lobe's f varies with μi, where it is f(μo, μi) = c(μo)·g(μi): a Lambertian
-/// lobe (g = 1), or one coupled to a dielectric specular beneath a coat's
-/// (g = 1 − E_s(μi), UsdPreviewSurface's diffuse).
+/// lobe (g = 1), or a Lambertian coupled to the dielectric specular over it (g = 1 − E_s(μi):
+/// UsdPreviewSurface's diffuse).
 ///
-/// Under such a lobe the coats' E is known and so is the lobe's, so the slides' renormalised
-/// product applies rather than their min rule: Kulla & Conty 2017, "Revisiting Physically
+/// Over such a lobe both the coats' E and the lobe's shape are known, so the slides'
+/// renormalised product applies rather than their min rule: Kulla & Conty 2017, "Revisiting Physically
 /// Based Shading at Imageworks", "Coatings" takes min(1 − E(μo), 1 − E(μi)) because "since
 /// the underlying BSDF can be anything – not just diffuse – we have no way to renormalize it";
 /// for a diffuse one the section "Microfacet dielectrics — diffuse term" does renormalise,
