@@ -76,6 +76,14 @@ pub struct Shader {
     pub materials: &'static [(&'static str, &'static str)],
 }
 
+impl Shader {
+    /// Every input it declares: its own, then the shared ones if it takes them.
+    fn declared(&self) -> impl Iterator<Item = &'static Input> + Clone {
+        let shared: &'static [Input] = if self.shared { SHARED } else { &[] };
+        self.inputs.iter().chain(shared)
+    }
+}
+
 /// Inputs every specialized material takes (Xie & Lanz 2017, "Physically Based Shading at DreamWorks Animation", section 2.3 "additional features"; the
 /// sheen coat and double specular from Kulla & Conty 2017, "Revisiting Physically Based Shading at Imageworks", "Coatings" and "Double specular").
 pub const SHARED: &[Input] = &[
@@ -318,14 +326,12 @@ struct Values(Vec<(&'static str, [f32; 3])>);
 
 impl Values {
     fn read(shader: &Shader, node: Inputs, report: &mut ResolveReport) -> Values {
-        let shared: &[Input] = if shader.shared { SHARED } else { &[] };
-        let decl = || shader.inputs.iter().chain(shared.iter());
-        let mut v: Vec<(&'static str, [f32; 3])> = decl().map(|i| (i.name, i.default)).collect();
+        let mut v: Vec<(&'static str, [f32; 3])> = shader.declared().map(|i| (i.name, i.default)).collect();
         for (name, value) in node.iter() {
             if shader.materials.iter().any(|(m, _)| *m == name) {
                 continue;
             }
-            let Some((k, input)) = decl().enumerate().find(|(_, i)| i.name == name) else {
+            let Some((k, input)) = shader.declared().enumerate().find(|(_, i)| i.name == name) else {
                 report.warnings.push(format!("{}: unknown {} input '{name}'", node.path, shader.id));
                 continue;
             };
@@ -776,8 +782,7 @@ mod tests {
     #[test]
     fn no_shader_declares_an_input_twice() {
         for s in SHADERS {
-            let shared: &[Input] = if s.shared { SHARED } else { &[] };
-            let names: Vec<_> = s.inputs.iter().chain(shared).map(|i| i.name).collect();
+            let names: Vec<_> = s.declared().map(|i| i.name).collect();
             for (k, n) in names.iter().enumerate() {
                 assert!(!names[..k].contains(n), "{}: '{n}' declared twice", s.id);
             }
