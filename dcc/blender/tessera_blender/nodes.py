@@ -262,7 +262,6 @@ def _opaque_kind(principled):
     return {0.0: "dielectric", 1.0: "metal"}.get(float(metallic.default_value))
 
 
-#: Principled inputs whose links keep its coat off Tessera's absorbing clearcoat (constants only).
 def coats_carried(node):
     """Which of Tessera's shaders carries a Principled BSDF's coat, whose tint and IOR
     UsdPreviewSurface cannot hold: "dielectric" (tessera:SolidDielectric's clearcoat), "metal"
